@@ -1,0 +1,52 @@
+# Clark Engine: every task is one command. `make demo` and `make test` work on
+# a fresh clone with only Python 3.11 and make; they create .venv themselves.
+
+PYTHON ?= $(shell command -v python3.11 2>/dev/null || command -v python3)
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed-$(shell cat pyproject.toml | cksum | cut -d' ' -f1)
+
+.PHONY: demo test lint format typecheck schemas docs bench check clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+
+$(STAMP): pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	rm -f $(VENV)/.installed-*
+	touch $(STAMP)
+
+## demo: validate and compile every example mission, print a summary and where the configs are
+demo: $(STAMP)
+	$(BIN)/python tools/demo.py
+
+## test: the whole suite
+test: $(STAMP)
+	$(BIN)/python -m pytest
+
+## lint / format / typecheck: the same commands CI runs
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+
+format: $(STAMP)
+	$(BIN)/ruff format .
+	$(BIN)/ruff check --fix .
+
+typecheck: $(STAMP)
+	$(BIN)/mypy
+
+## schemas: regenerate schemas/*.json and docs/reference.md from their Python source
+schemas: $(STAMP)
+	$(BIN)/python -m clark_engine.mission.schema_source
+	$(BIN)/python tools/gen_reference.py
+
+## bench: run the benchmarks and print their figures
+bench: $(STAMP)
+	$(BIN)/python benchmarks/bench_validate.py
+
+check: lint typecheck test
+
+clean:
+	rm -rf $(VENV) build dist demo-output .pytest_cache .mypy_cache .ruff_cache
