@@ -90,7 +90,9 @@ class Finding:
         """One line (plus one per related place) in the compiler style."""
         path = self.location.dotted_path
         inside = f"{path}: " if path else ""
-        text = f"{self.location.prefix()}: {self.severity.value}: {inside}{self.message} [{self.code}]"
+        text = (
+            f"{self.location.prefix()}: {self.severity.value}: {inside}{self.message} [{self.code}]"
+        )
         for rel in self.related:
             rel_path = f" ({rel.dotted_path})" if rel.dotted_path else ""
             text += f"\n    note: see {rel.prefix()}{rel_path}"

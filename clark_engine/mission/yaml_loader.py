@@ -68,7 +68,9 @@ _Core12Resolver.add_implicit_resolver(
 )
 _Core12Resolver.add_implicit_resolver(_INT, _INT_RE, list("-+0123456789"))
 _Core12Resolver.add_implicit_resolver(_FLOAT, _FLOAT_RE, list("-+0123456789."))
-_Core12Resolver.add_implicit_resolver(_NULL, re.compile(r"^(?:~|null|Null|NULL|)$"), ["~", "n", "N", ""])
+_Core12Resolver.add_implicit_resolver(
+    _NULL, re.compile(r"^(?:~|null|Null|NULL|)$"), ["~", "n", "N", ""]
+)
 
 
 class _DepthError(Exception):
@@ -284,7 +286,9 @@ class _Builder:
                 return value
         # float
         try:
-            number = float(value.replace(".inf", "inf").replace(".Inf", "inf").replace(".INF", "inf"))
+            number = float(
+                value.replace(".inf", "inf").replace(".Inf", "inf").replace(".INF", "inf")
+            )
         except ValueError:
             self.doc.findings.append(
                 error("E-YAML-VALUE", self.loc(node, path), f"{value!r} is not a number")
@@ -406,7 +410,13 @@ def decode_text(raw: bytes, file: str) -> str:
         )
     if b"\x00" in raw[:8192]:
         raise YamlLoadError(
-            [error("E-YAML-BINARY", here, "this is a binary file, not YAML text; give a mission file")]
+            [
+                error(
+                    "E-YAML-BINARY",
+                    here,
+                    "this is a binary file, not YAML text; give a mission file",
+                )
+            ]
         )
     try:
         return raw.decode("utf-8-sig")
@@ -470,7 +480,11 @@ def load_yaml(text: str, file: str) -> Document:
             raise YamlLoadError([_syntax_finding(file, exc)]) from None
         except RecursionError:
             raise YamlLoadError(
-                [error("E-YAML-DEPTH", Location(file, 1, 1), "values nest too deeply; flatten them")]
+                [
+                    error(
+                        "E-YAML-DEPTH", Location(file, 1, 1), "values nest too deeply; flatten them"
+                    )
+                ]
             ) from None
     finally:
         loader.dispose()

@@ -1,0 +1,247 @@
+"""The ``clark`` command.
+
+Exit codes, everywhere: 0 good (warnings allowed), 1 the input is invalid or a
+check failed, 2 usage or I/O error. No user mistake prints a traceback.
+
+Imports of engine layers happen inside the commands, so ``clark validate``
+loads only the mission layer (never pymavlink or digi-xbee) and starts fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, TextIO
+
+from clark_engine import __version__
+from clark_engine.errors import ClarkError, UsageError
+
+if TYPE_CHECKING:
+    from clark_engine.mission.validate import Validation
+
+EXIT_OK = 0
+EXIT_INVALID = 1
+EXIT_USAGE = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but usage errors exit 2 with a hint and no traceback (its default too)."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.print_usage(sys.stderr)
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+
+
+def _summary(result: Validation) -> str:
+    errors = len(result.errors)
+    warnings = len(result.findings) - errors
+    if errors:
+        text = f"{result.file}: invalid ({errors} error{'s' * (errors != 1)}"
+        if warnings:
+            text += f", {warnings} warning{'s' * (warnings != 1)}"
+        return text + ")"
+    text = f"{result.file}: valid {result.kind}"
+    if warnings:
+        text += f" ({warnings} warning{'s' * (warnings != 1)})"
+    return text
+
+
+def _print_findings(result: Validation, stream: TextIO) -> None:
+    for finding in result.findings:
+        print(finding.format_text(), file=stream)
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    """Validate files and report every finding."""
+    from clark_engine.mission.validate import validate_path
+
+    results = []
+    usage_failed = False
+    for name in args.paths:
+        try:
+            results.append(validate_path(Path(name), name))
+        except UsageError as exc:
+            usage_failed = True
+            print(f"clark validate: error: {exc}", file=sys.stderr)
+    if args.format == "json":
+        payload = {
+            "files": [
+                {
+                    "file": r.file,
+                    "kind": r.kind,
+                    "valid": r.ok,
+                    "errors": len(r.errors),
+                    "warnings": len(r.findings) - len(r.errors),
+                }
+                for r in results
+            ],
+            "findings": [f.to_json() for r in results for f in r.findings],
+        }
+        print(json.dumps(payload, indent=2))
+    else:
+        for result in results:
+            _print_findings(result, sys.stdout)
+            print(_summary(result))
+    if usage_failed:
+        return EXIT_USAGE
+    return EXIT_OK if all(r.ok for r in results) else EXIT_INVALID
+
+
+def _load_valid(path_text: str, command: str) -> Validation | int:
+    """Validate a mission for compile/explain: findings to stderr, exit code on failure."""
+    from clark_engine.mission.validate import validate_path
+
+    result = validate_path(Path(path_text), path_text)
+    if result.kind != "mission" and result.ok:
+        print(
+            f"clark {command}: error: {path_text} is a {result.kind}, not a mission",
+            file=sys.stderr,
+        )
+        return EXIT_USAGE
+    _print_findings(result, sys.stderr)
+    if result.mission is None:
+        print(
+            f"{_summary(result)}; nothing {'written' if command == 'compile' else 'shown'}",
+            file=sys.stderr,
+        )
+        return EXIT_INVALID
+    return result
+
+
+def cmd_compile(args: argparse.Namespace) -> int:
+    """Compile a mission into one JSON config per agent."""
+    from clark_engine.mission.compiler import compile_mission, write_configs
+
+    loaded = _load_valid(args.mission, "compile")
+    if isinstance(loaded, int):
+        return loaded
+    mission = loaded.mission
+    assert mission is not None
+    files = compile_mission(mission, args.agent or None)
+    target = write_configs(files, Path(args.output), mission.name)
+    for name in files:
+        print(f"wrote {target / (name + '.json')}")
+    return EXIT_OK
+
+
+def cmd_explain(args: argparse.Namespace) -> int:
+    """Print the resolved behaviour of one or every agent."""
+    from clark_engine.mission.explain import mermaid, tree
+
+    loaded = _load_valid(args.mission, "explain")
+    if isinstance(loaded, int):
+        return loaded
+    mission = loaded.mission
+    assert mission is not None
+    names = args.agent or list(mission.agents)
+    for name in names:
+        if name not in mission.agents:
+            raise UsageError(
+                f"{args.mission}: there is no agent {name!r}; agents: {', '.join(mission.agents)}"
+            )
+    for i, name in enumerate(names):
+        agent = mission.agents[name]
+        if i:
+            print()
+        if args.format in ("tree", "both"):
+            sys.stdout.write(tree(mission, agent))
+        if args.format == "both":
+            print()
+        if args.format in ("mermaid", "both"):
+            print("```mermaid")
+            sys.stdout.write(mermaid(mission, agent))
+            print("```")
+    return EXIT_OK
+
+
+def cmd_schema(args: argparse.Namespace) -> int:
+    """Print one of the shipped JSON Schemas."""
+    from clark_engine.mission.schemas import SCHEMA_NAMES, schema_text
+
+    name = args.name.removesuffix(".schema.json").replace("_", "-")
+    if name not in SCHEMA_NAMES:
+        raise UsageError(
+            f"there is no schema {args.name!r}; choose one of: {', '.join(SCHEMA_NAMES)}"
+        )
+    sys.stdout.write(schema_text(name))
+    return EXIT_OK
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``clark`` and its subcommands."""
+    parser = _Parser(
+        prog="clark",
+        description="Clark Engine: validate, compile and explain multi-vehicle missions.",
+        epilog="Exit codes: 0 good, 1 invalid input or failed check, 2 usage or I/O error.",
+    )
+    parser.add_argument("--version", action="version", version=f"clark-engine {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    p = sub.add_parser("validate", help="report every problem in missions, blocks or profiles")
+    p.add_argument("paths", nargs="+", metavar="PATH", help="mission, block or profile files")
+    p.add_argument(
+        "--format",
+        choices=("text", "json"),
+        default="text",
+        help="text for people (default) or json for tools",
+    )
+    p.set_defaults(func=cmd_validate)
+
+    p = sub.add_parser("compile", help="write one JSON config per agent")
+    p.add_argument("mission", metavar="MISSION")
+    p.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        metavar="DIR",
+        help="configs go to DIR/<mission name>/<agent>.json",
+    )
+    p.add_argument("--agent", action="append", metavar="NAME", help="only this agent (repeatable)")
+    p.set_defaults(func=cmd_compile)
+
+    p = sub.add_parser("explain", help="show the resolved state machine of agents")
+    p.add_argument("mission", metavar="MISSION")
+    p.add_argument(
+        "--agent",
+        action="append",
+        metavar="NAME",
+        help="only this agent (repeatable; every agent when omitted)",
+    )
+    p.add_argument("--format", choices=("tree", "mermaid", "both"), default="both")
+    p.set_defaults(func=cmd_explain)
+
+    p = sub.add_parser(
+        "schema", help="print a JSON Schema (mission, behavior, hardware-profile, agent-config)"
+    )
+    p.add_argument("name", metavar="NAME")
+    p.set_defaults(func=cmd_schema)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``clark``; returns the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if getattr(args, "func", None) is None:
+        parser.print_help(sys.stderr)
+        return EXIT_USAGE
+    try:
+        return int(args.func(args))
+    except UsageError as exc:
+        print(f"clark {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except ClarkError as exc:
+        print(f"clark {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return EXIT_OK
+
+
+if __name__ == "__main__":
+    sys.exit(main())

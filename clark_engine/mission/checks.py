@@ -1,0 +1,494 @@
+"""Checks before flight: what the schema cannot see.
+
+Every check takes the resolved :class:`Mission` and yields findings; none stops
+at the first problem. Checks that belong to one primitive (a doublet's width,
+a sweep's Nyquist limit, a photo trigger's camera) live beside that primitive;
+this module runs them and checks everything that spans agents and states:
+ids and addresses, rates, events and transitions, conditions, dry-run
+expectations.
+"""
+
+from __future__ import annotations
+
+import difflib
+import re
+from collections.abc import Iterable, Iterator, Mapping
+from typing import Any
+
+from clark_engine.mission.findings import Finding, Location, error, warning
+from clark_engine.mission.model import Agent, Mission, State
+from clark_engine.mission.primitives import PRIMITIVES, UseContext
+
+SIMPLE_EVENTS = frozenset(
+    {"done", "timeout", "activate", "deactivate", "terminate", "mcs_lost", "autopilot_lost"}
+)
+STATION_EVENTS = frozenset({"activate", "deactivate", "mcs_lost"})
+_RC_EVENT = re.compile(r"^rc:([A-Za-z0-9_]+):(high|low)$")
+#: A rate whose loop divider is off by more than this is reported.
+RATE_DIVIDER_TOLERANCE = 0.01
+
+
+def _hint(word: str, choices: Iterable[str]) -> str:
+    options = sorted(choices)
+    close = difflib.get_close_matches(word, options, n=1)
+    if close:
+        return f"did you mean {close[0]!r}?"
+    return "choose one of: " + ", ".join(options) if options else "there are none"
+
+
+def run_all(mission: Mission, bad_states: set[tuple[str, tuple[str, ...]]]) -> list[Finding]:
+    """Run every check on ``mission``.
+
+    Args:
+        mission: The resolved mission.
+        bad_states: (agent, state path) pairs whose parameters failed their schema;
+            their primitive checks are skipped (they would only repeat the error).
+    """
+    findings: list[Finding] = []
+    findings.extend(check_ids(mission))
+    findings.extend(check_addresses(mission))
+    findings.extend(check_loop_rate(mission))
+    for agent in mission.agents.values():
+        findings.extend(check_telemetry(mission, agent))
+        findings.extend(check_agent_modes(mission, agent))
+        if agent.behavior is not None:
+            findings.extend(check_states(mission, agent, agent.behavior))
+            findings.extend(check_primitives(mission, agent, agent.behavior, bad_states))
+    findings.extend(check_expectations(mission))
+    return findings
+
+
+def check_ids(mission: Mission) -> Iterator[Finding]:
+    """Agent ids are unique (ClarkLink routes by id)."""
+    seen: dict[int, Agent] = {}
+    for agent in mission.agents.values():
+        first = seen.get(agent.id)
+        if first is not None:
+            yield error(
+                "E-ID-DUPLICATE",
+                _raw_loc(agent, "id"),
+                f"agents {first.name!r} and {agent.name!r} both have id {agent.id}; give each "
+                "agent its own id",
+                _raw_loc(first, "id"),
+            )
+        else:
+            seen[agent.id] = agent
+
+
+def _raw_loc(agent: Agent, key: str) -> Location:
+    return agent.locations.get(key, agent.location)
+
+
+def check_addresses(mission: Mission) -> Iterator[Finding]:
+    """Radio addresses are unique and match the radio's address format."""
+    seen: dict[str, Agent] = {}
+    for agent in mission.agents.values():
+        address = agent.radio_address
+        if address is None:
+            continue
+        radio = agent.hardware.part("radio") or {}
+        pattern = radio.get("address_pattern")
+        where = _raw_loc(agent, "radio_address")
+        if pattern and not re.fullmatch(pattern, address):
+            yield error(
+                "E-ADDRESS-FORMAT",
+                where,
+                f"{address!r} is not an address of a {agent.hardware.part_profiles.get('radio')} "
+                f"radio (expected to match {pattern}); copy it from the radio's label",
+            )
+        first = seen.get(address.upper())
+        if first is not None:
+            yield error(
+                "E-ADDRESS-DUPLICATE",
+                where,
+                f"agents {first.name!r} and {agent.name!r} have the same radio address "
+                f"{address!r}; each radio has its own address",
+                _raw_loc(first, "radio_address"),
+            )
+        else:
+            seen[address.upper()] = agent
+
+
+def check_loop_rate(mission: Mission) -> Iterator[Finding]:
+    """loop_hz is within what each agent's mission computer was measured to hold."""
+    for agent in mission.agents.values():
+        limit = agent.hardware.max_loop_hz
+        if limit is not None and mission.loop_hz > limit:
+            yield error(
+                "E-LOOP-HZ",
+                _mission_loc(mission, "loop_hz"),
+                f"loop_hz {mission.loop_hz:g} is above the {limit:g} Hz that {agent.name!r}'s "
+                f"mission computer ({agent.hardware.part_profiles.get('computer')}) was measured "
+                "to hold; lower loop_hz or give it a faster computer",
+                agent.location,
+            )
+
+
+def _mission_loc(mission: Mission, key: str) -> Location:
+    return mission.locations.get(key, Location(mission.file, 1, 1, ("mission", key)))
+
+
+def check_telemetry(mission: Mission, agent: Agent) -> Iterator[Finding]:
+    """Rates fit the loop, destinations exist, heartbeats come often enough."""
+    for item in agent.telemetry.values():
+        if item.rate_hz > mission.loop_hz:
+            yield error(
+                "E-RATE",
+                item.location,
+                f"{item.rate_hz:g} Hz is above loop_hz {mission.loop_hz:g}; the loop can send "
+                "at most once per tick, so lower the rate or raise mission.loop_hz",
+            )
+        else:
+            ticks = mission.loop_hz / item.rate_hz
+            actual = mission.loop_hz / max(1, round(ticks))
+            if abs(actual - item.rate_hz) > RATE_DIVIDER_TOLERANCE * item.rate_hz:
+                yield warning(
+                    "W-RATE-DIVIDER",
+                    item.location,
+                    f"{item.rate_hz:g} Hz is not a whole divider of loop_hz {mission.loop_hz:g}; "
+                    f"it will be sent every {round(ticks)} ticks ({actual:.3g} Hz); pick a rate "
+                    "that divides loop_hz",
+                )
+        for name in item.to:
+            if name not in mission.agents and name not in mission.unresolved:
+                yield error(
+                    "E-AGENT-UNKNOWN",
+                    item.location,
+                    f"{item.message} goes to {name!r}, which is not an agent of this mission; "
+                    + _hint(name, mission.agents),
+                )
+    heartbeat = agent.telemetry.get("heartbeat")
+    if heartbeat is None:
+        yield warning(
+            "W-NO-HEARTBEAT",
+            _raw_loc(agent, "telemetry"),
+            f"{agent.name!r} sends no heartbeat, so no peer will ever add it to its fleet "
+            "table; add heartbeat: 1 to its telemetry",
+        )
+    elif 1.0 / heartbeat.rate_hz >= mission.heartbeat_timeout_s:
+        yield error(
+            "E-HEARTBEAT-RATE",
+            heartbeat.location,
+            f"a heartbeat every {1.0 / heartbeat.rate_hz:g} s is not within heartbeat_timeout_s "
+            f"{mission.heartbeat_timeout_s:g} s, so peers will count {agent.name!r} lost between "
+            "heartbeats; send heartbeats faster or raise mission.heartbeat_timeout_s",
+        )
+
+
+def check_agent_modes(mission: Mission, agent: Agent) -> Iterator[Finding]:
+    """Terminal mode and failsafes name modes the autopilot has."""
+    if not agent.is_vehicle:
+        return
+    modes = agent.hardware.modes
+    autopilot = agent.hardware.part("autopilot") or {}
+    if agent.terminal_mode is not None and agent.terminal_mode not in modes:
+        yield error(
+            "E-MODE-UNKNOWN",
+            _raw_loc(agent, "terminal_mode"),
+            f"the {agent.profile}'s autopilot has no mode {agent.terminal_mode!r}; "
+            + _hint(agent.terminal_mode, modes),
+        )
+    action = agent.failsafe.get("mcs_lost", "hold")
+    needed = {"rtl": autopilot.get("rtl_mode"), "land": "LAND" if "LAND" in modes else None}
+    if action in needed and needed[action] is None:
+        yield error(
+            "E-FAILSAFE",
+            _raw_loc(agent, "failsafe"),
+            f"failsafe {action} needs a {action.upper()} mode, which {agent.name!r}'s autopilot "
+            "does not have; choose hold or rtl",
+        )
+    if "mcs_lost" in agent.raw.get("failsafe", {}) and not mission.stations:
+        yield warning(
+            "W-NO-STATION",
+            _raw_loc(agent, "failsafe"),
+            "failsafe.mcs_lost can never trigger: the mission has no station (role mcs); "
+            "add one or remove it",
+        )
+
+
+def check_states(mission: Mission, agent: Agent, root: State) -> Iterator[Finding]:
+    """Events are known, timeouts have targets, done can happen, states are reachable."""
+    targeted = {t.target for s in root.walk() for t in s.transitions if t.target}
+    for state in root.walk():
+        events = {t.event for t in state.transitions}
+        for transition in state.transitions:
+            yield from _check_event(mission, agent, state, transition.event, transition.location)
+            if transition.condition is not None:
+                yield from _check_condition(
+                    mission, agent, transition.condition, transition.location
+                )
+        if state.timeout_s is not None and "timeout" not in events:
+            yield error(
+                "E-TIMEOUT-TARGET",
+                state.location,
+                f"state {state.dotted} times out after {state.timeout_s:g} s but has no "
+                "timeout transition; add transitions: {timeout: <state>}",
+            )
+        if "timeout" in events and state.timeout_s is None:
+            loc = next(t.location for t in state.transitions if t.event == "timeout")
+            yield error(
+                "E-TIMEOUT-MISSING",
+                loc,
+                f"state {state.dotted} moves on timeout but has no timeout_s; add timeout_s",
+            )
+        if "done" in events and not _can_finish(state):
+            loc = next(t.location for t in state.transitions if t.event == "done")
+            yield warning(
+                "W-DONE-NEVER",
+                loc,
+                f"state {state.dotted} never finishes ({_why_never(state)}), so its done "
+                "transition is never taken; use another event or a primitive that finishes",
+            )
+        if state.children and not state.parallel:
+            for child in state.children.values():
+                if child.name == state.initial:
+                    continue
+                if not any(t[: len(child.path)] == child.path for t in targeted):
+                    yield warning(
+                        "W-STATE-UNREACHABLE",
+                        child.location,
+                        f"state {child.dotted} is never entered: it is not initial and no "
+                        "transition leads to it; add a transition or remove it",
+                    )
+
+
+def _can_finish(state: State) -> bool:
+    if state.primitive is not None:
+        return "done" in PRIMITIVES[state.primitive].events(state.params)
+    if state.parallel:
+        finishing = [_can_finish(c) or c.final for c in state.children.values()]
+        return any(finishing) if state.finish == "any" else all(finishing)
+    return any(c.final for c in state.children.values())
+
+
+def _why_never(state: State) -> str:
+    if state.primitive is not None:
+        return f"{state.primitive} with these parameters raises no done"
+    if state.parallel:
+        if state.finish == "any":
+            return "none of its regions finishes"
+        return "one of its regions never finishes; finish: any ends it with the first region"
+    return "none of its states is final"
+
+
+def _check_event(
+    mission: Mission, agent: Agent, state: State, event: str, where: Location
+) -> Iterator[Finding]:
+    if event in SIMPLE_EVENTS:
+        if event in STATION_EVENTS and not mission.stations:
+            yield error(
+                "E-NO-STATION",
+                where,
+                f"{event} comes from a mission control station, and this mission has none; "
+                "add an agent with role mcs",
+            )
+        if event == "autopilot_lost" and not agent.is_vehicle:
+            yield error("E-EVENT-UNKNOWN", where, "a station has no autopilot to lose")
+        return
+    head, _, rest = event.partition(":")
+    if head == "mode" and rest:
+        modes = agent.hardware.modes
+        if rest not in modes:
+            yield error(
+                "E-MODE-UNKNOWN",
+                where,
+                f"{agent.name!r}'s autopilot has no mode {rest!r}; {_hint(rest, modes)}",
+            )
+        return
+    if head == "rc":
+        match = _RC_EVENT.match(event)
+        if match is None:
+            yield error(
+                "E-EVENT-UNKNOWN",
+                where,
+                f"{event!r} is not an RC event; write rc:<channel>:high or rc:<channel>:low",
+            )
+            return
+        yield from _check_rc_channel(agent, match.group(1), where)
+        return
+    if head in ("lost", "found") and rest:
+        if rest not in mission.agents and rest not in mission.unresolved:
+            yield error(
+                "E-AGENT-UNKNOWN",
+                where,
+                f"{event!r} names no agent of this mission; {_hint(rest, mission.agents)}",
+            )
+        elif rest == agent.name:
+            yield error("E-EVENT-UNKNOWN", where, f"{agent.name!r} cannot lose itself; name a peer")
+        return
+    known = [
+        *sorted(SIMPLE_EVENTS),
+        "mode:<MODE>",
+        "rc:<channel>:high|low",
+        "lost:<agent>",
+        "found:<agent>",
+    ]
+    yield error(
+        "E-EVENT-UNKNOWN",
+        where,
+        f"{event!r} is not an event; {_hint(event, SIMPLE_EVENTS)} (events: {', '.join(known)})",
+    )
+
+
+def _check_rc_channel(agent: Agent, channel: str, where: Location) -> Iterator[Finding]:
+    if not agent.is_vehicle:
+        yield error(
+            "E-EVENT-UNKNOWN", where, "a station has no RC receiver; rc events are for vehicles"
+        )
+        return
+    autopilot = agent.hardware.part("autopilot") or {}
+    count = int(autopilot.get("rc_channel_count", 16))
+    if channel.isdigit():
+        if not 1 <= int(channel) <= count:
+            yield error(
+                "E-CHANNEL-UNKNOWN",
+                where,
+                f"RC channel {channel} does not exist; the autopilot has channels 1..{count}",
+            )
+        return
+    named = agent.hardware.channels.get(channel)
+    if named is None or named.rc is None:
+        with_rc = [n for n, c in agent.hardware.channels.items() if c.rc is not None]
+        yield error(
+            "E-CHANNEL-UNKNOWN",
+            where,
+            f"{agent.name!r} has no RC channel named {channel!r}; {_hint(channel, with_rc)} "
+            "or give the channel number",
+        )
+
+
+def _check_condition(
+    mission: Mission, agent: Agent, condition: Mapping[str, Any], where: Location
+) -> Iterator[Finding]:
+    for key, value in condition.items():
+        if key in ("all", "any"):
+            for item in value:
+                yield from _check_condition(mission, agent, item, where)
+        elif key == "not":
+            yield from _check_condition(mission, agent, value, where)
+        elif key == "distance_m":
+            target = str(value.get("to"))
+            if target not in mission.agents and target not in mission.unresolved:
+                yield error(
+                    "E-AGENT-UNKNOWN",
+                    where,
+                    f"the condition measures distance to {target!r}, which is not an agent; "
+                    + _hint(target, mission.agents),
+                )
+            elif target in mission.agents:
+                status = mission.agents[target].telemetry.get("agent_status")
+                if status is None or not status.reaches(agent.name):
+                    yield error(
+                        "E-FOLLOW-STATUS",
+                        where,
+                        f"the condition needs {target!r}'s position but it sends no "
+                        f"agent_status to {agent.name!r}; add agent_status to its telemetry",
+                    )
+        elif key == "mode":
+            mode = str(value.get("is"))
+            if mode not in agent.hardware.modes:
+                yield error(
+                    "E-MODE-UNKNOWN",
+                    where,
+                    f"{agent.name!r}'s autopilot has no mode {mode!r}; "
+                    + _hint(mode, agent.hardware.modes),
+                )
+
+
+def check_primitives(
+    mission: Mission,
+    agent: Agent,
+    root: State,
+    bad_states: set[tuple[str, tuple[str, ...]]],
+) -> Iterator[Finding]:
+    """Run each primitive's own checks, with the agent's hardware in view."""
+    for state in root.walk():
+        if state.primitive is None or (agent.name, state.path) in bad_states:
+            continue
+        spec = PRIMITIVES[state.primitive]
+        use_loc = state.use_location or state.location
+        if spec.needs_autopilot and not agent.is_vehicle:
+            yield error(
+                "E-ROLE",
+                use_loc,
+                f"{state.primitive} commands a vehicle, and {agent.name!r} is a station; "
+                "give it to a vehicle",
+            )
+            continue
+
+        def locate(param: str, _state: State = state, _use: Location = use_loc) -> Location:
+            base = param.split("[", 1)[0]
+            return _state.param_locations.get(param) or _state.param_locations.get(base) or _use
+
+        ctx = UseContext(mission, agent, state.params, locate, use_loc)
+        for finding in spec.check(ctx):
+            yield _rehome(finding, state, mission)
+
+
+def _rehome(finding: Finding, state: State, mission: Mission) -> Finding:
+    """Point a finding about a block's own value at the mission's use of the block.
+
+    When the value that does not fit this agent was written in a block file (the
+    block's ``channel: aileron`` on a quadcopter), the place to change is where the
+    mission uses the block; the block line becomes a note.
+    """
+    if finding.location.file == mission.file or state.mission_use is None:
+        return finding
+    related = tuple(r for r in finding.related if r != state.mission_use)
+    return Finding(
+        finding.code,
+        finding.severity,
+        state.mission_use,
+        finding.message,
+        (finding.location, *related),
+    )
+
+
+def check_expectations(mission: Mission) -> Iterator[Finding]:
+    """Dry-run expectations name agents and states that exist."""
+    for index, check in enumerate(mission.checks):
+        where = mission.check_locations[index]
+        kinds = [k for k in check if k not in ("name", "by_s")]
+        if len(kinds) != 1:
+            yield error(
+                "E-CHECK-SHAPE",
+                where,
+                "each check states exactly one expectation (distance_m, reached, separation_m, "
+                f"state, photos, no_failsafe or signal); this one has {len(kinds) or 'none'}",
+            )
+            continue
+        body = check[kinds[0]]
+        names: list[str] = []
+        if isinstance(body, Mapping):
+            names.extend(str(n) for n in body.get("between", []))
+            names.extend(str(n) for n in body.get("agents", []))
+            if "agent" in body:
+                names.append(str(body["agent"]))
+        for name in names:
+            if name not in mission.agents and name not in mission.unresolved:
+                yield error(
+                    "E-AGENT-UNKNOWN",
+                    where,
+                    f"the check names {name!r}, which is not an agent; "
+                    + _hint(name, mission.agents),
+                )
+        state_path = body.get("reached") if kinds[0] == "state" else body.get("state")
+        if kinds[0] in ("state", "signal") and isinstance(state_path, str):
+            agent = mission.agents.get(str(body.get("agent")))
+            if agent is None or agent.behavior is None:
+                continue
+            state = agent.behavior.find(tuple(state_path.split(".")))
+            if state is None:
+                yield error(
+                    "E-STATE-UNKNOWN",
+                    where,
+                    f"{agent.name!r} has no state {state_path!r}; "
+                    + _hint(state_path, [s.dotted for s in agent.behavior.walk()[1:]]),
+                )
+            elif kinds[0] == "signal" and state.primitive not in ("doublet", "sine_sweep"):
+                yield error(
+                    "E-CHECK-SHAPE",
+                    where,
+                    f"state {state_path!r} runs {state.primitive or 'no primitive'}; a signal "
+                    "check needs a doublet or sine_sweep state",
+                )

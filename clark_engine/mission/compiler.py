@@ -1,0 +1,266 @@
+"""Compile a resolved mission into one self-contained config per agent.
+
+The thesis hand-wrote one config file per agent with three sections (mission,
+Clark, agent; section 3.2). The compiler generates them: everything an agent
+needs at flight time is in its file (the mission settings, the interfaces to
+enable and how to reach them, its hardware with channel maps, the telemetry
+schedule in ticks, the peer table, and the behaviour with every name already
+resolved), so a mission computer needs nothing but that file.
+
+Output is deterministic: the same mission gives byte-identical files (keys in
+a fixed order, no timestamps, floats as written).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+from clark_engine import __version__
+from clark_engine.errors import UsageError
+from clark_engine.mission.geo import LocalPoint, parse_point, round_coordinate, to_global
+from clark_engine.mission.model import TELEMETRY_MESSAGES, Agent, Mission, State
+
+CONFIG_VERSION = 1
+#: The order of the phases of one tick (thesis 7.3.3-7.3.4); the runtime follows it.
+DEFAULT_TICK_PHASES = ("timeouts", "machine", "commands", "telemetry", "log")
+
+
+def _point(point: LocalPoint, mission: Mission) -> dict[str, float]:
+    lat, lon, alt = to_global(point, mission.origin)
+    return {
+        "north_m": round(point.north_m, 3),
+        "east_m": round(point.east_m, 3),
+        "up_m": round(point.up_m, 3),
+        "lat": round_coordinate(lat),
+        "lon": round_coordinate(lon),
+        "alt_m": round(alt, 3),
+    }
+
+
+def _params(state: State, agent: Agent, mission: Mission) -> dict[str, Any]:
+    """Parameters with names resolved: points to both frames, channels to their map."""
+    params = dict(state.params)
+    name = state.primitive
+    if name == "waypoint":
+        params["to"] = _point(parse_point(params["to"], mission.origin), mission)
+    elif name == "waypoint_tour":
+        params["waypoints"] = [
+            _point(parse_point(p, mission.origin), mission) for p in params["waypoints"]
+        ]
+    elif name in ("doublet", "sine_sweep"):
+        channel = agent.hardware.channels[params["channel"]]
+        params["channel"] = {
+            "name": channel.name,
+            "rc": channel.rc,
+            "servo": channel.servo,
+            "pwm_min_us": channel.pwm_min_us,
+            "pwm_trim_us": channel.pwm_trim_us,
+            "pwm_max_us": channel.pwm_max_us,
+        }
+    elif name == "follow_agent":
+        target = mission.agents[params["target"]]
+        params["target"] = {"name": target.name, "id": target.id}
+        offset = {"north_m": 0, "east_m": 0, "up_m": 0}
+        offset.update(params.get("offset") or {})
+        params["offset"] = offset
+    elif name == "photo_trigger":
+        params.setdefault("to", [])
+    return dict(sorted(params.items()))
+
+
+def _state(state: State, agent: Agent, mission: Mission) -> dict[str, Any]:
+    return {
+        "name": state.name,
+        "path": ".".join(state.path),
+        "kind": state.kind,
+        "description": state.description,
+        "primitive": state.primitive,
+        "params": _params(state, agent, mission) if state.primitive else {},
+        "block": state.block,
+        "initial": state.initial,
+        "parallel": state.parallel,
+        "finish": state.finish,
+        "final": state.final,
+        "timeout_s": state.timeout_s,
+        "transitions": [
+            {
+                "event": t.event,
+                "target": ".".join(t.target),
+                "when": t.condition,
+                "source": t.location.prefix(),
+            }
+            for t in state.transitions
+        ],
+        "source": state.location.prefix(),
+        "states": [_state(child, agent, mission) for child in state.children.values()],
+    }
+
+
+def _part(data: Mapping[str, Any] | None) -> dict[str, Any] | None:
+    if data is None:
+        return None
+    return {k: v for k, v in data.items() if k != "abstract"}
+
+
+def _telemetry(agent: Agent, mission: Mission) -> list[dict[str, Any]]:
+    out = []
+    for message in TELEMETRY_MESSAGES:
+        item = agent.telemetry.get(message)
+        if item is None:
+            continue
+        out.append(
+            {
+                "message": message,
+                "rate_hz": item.rate_hz,
+                "every_ticks": max(1, round(mission.loop_hz / item.rate_hz)),
+                "to": list(item.to),
+            }
+        )
+    return out
+
+
+def _peers(agent: Agent, mission: Mission) -> list[dict[str, Any]]:
+    peers = []
+    for other in mission.agents.values():
+        if other.name == agent.name:
+            continue
+        sends = {m: t.rate_hz for m, t in other.telemetry.items() if t.reaches(agent.name)}
+        peers.append(
+            {
+                "name": other.name,
+                "id": other.id,
+                "role": other.role,
+                "radio_address": other.radio_address,
+                "sends": dict(sorted(sends.items())),
+            }
+        )
+    return peers
+
+
+def agent_config(mission: Mission, agent: Agent) -> dict[str, Any]:
+    """The compiled config of one agent (plain data, valid against agent-config)."""
+    hw = agent.hardware
+    is_vehicle = agent.is_vehicle
+    return {
+        "clark_config": CONFIG_VERSION,
+        "generator": f"clark-engine {__version__}",
+        "source": {"file": mission.file, "sha256": mission.source_sha256},
+        "mission": {
+            "id": mission.id,
+            "name": mission.name,
+            "description": mission.description,
+            "agent": agent.name,
+            "agent_id": agent.id,
+            "loop_hz": mission.loop_hz,
+            "heartbeat_timeout_s": mission.heartbeat_timeout_s,
+            "origin": {
+                "lat": mission.origin.lat_deg,
+                "lon": mission.origin.lon_deg,
+                "alt_m": mission.origin.alt_m,
+            },
+            "ceiling_m": mission.ceiling_m,
+            "tick_phases": list(DEFAULT_TICK_PHASES),
+            "log": {
+                "level": mission.log_level,
+                "mission_log": f"{agent.name}.mission.log",
+                "interface_log": f"{agent.name}.interface.log",
+                "fleet_csv": f"{agent.name}.fleet.csv",
+                "message_log": f"{agent.name}.messages.csv",
+            },
+        },
+        "clark": {
+            "testing_mode": False,
+            "enable": {
+                "radio": hw.part("radio") is not None,
+                "autopilot": is_vehicle and hw.part("autopilot") is not None,
+                "payload": bool(hw.payloads),
+                "gui": not is_vehicle,
+            },
+            "gui": hw.gui if not is_vehicle else None,
+        },
+        "agent": {
+            "name": agent.name,
+            "id": agent.id,
+            "role": agent.role,
+            "profile": agent.profile,
+            "terminal_mode": agent.terminal_mode if is_vehicle else None,
+            "failsafe": dict(agent.failsafe) if is_vehicle else {},
+            "position": _point(agent.position, mission),
+            "hardware": {
+                "profiles": dict(sorted(hw.part_profiles.items())),
+                "airframe": _part(hw.part("airframe")),
+                "autopilot": _part(hw.part("autopilot")),
+                "radio": _part(hw.part("radio")),
+                "computer": _part(hw.part("computer")),
+                "payloads": {
+                    name: {"profile": hw.payload_profiles[name], **_part(data)}  # type: ignore[dict-item]
+                    for name, data in sorted(hw.payloads.items())
+                },
+            },
+        },
+        "telemetry": _telemetry(agent, mission),
+        "peers": _peers(agent, mission),
+        "machine": _state(agent.behavior, agent, mission) if agent.behavior is not None else None,
+    }
+
+
+def render(config: Mapping[str, Any]) -> str:
+    """The exact bytes written for a config: 2-space JSON, keys in build order."""
+    return json.dumps(config, indent=2, ensure_ascii=False, allow_nan=False) + "\n"
+
+
+def compile_mission(mission: Mission, agents: Iterable[str] | None = None) -> dict[str, str]:
+    """Render configs: agent name -> file text.
+
+    Args:
+        mission: A mission that validated without errors.
+        agents: Only these agents (all when None).
+
+    Raises:
+        UsageError: An agent name that is not in the mission.
+    """
+    names = list(mission.agents) if agents is None else list(agents)
+    for name in names:
+        if name not in mission.agents:
+            raise UsageError(
+                f"{mission.file}: there is no agent {name!r}; agents: {', '.join(mission.agents)}"
+            )
+    return {name: render(agent_config(mission, mission.agents[name])) for name in names}
+
+
+def write_configs(files: Mapping[str, str], out_dir: Path, mission_name: str) -> Path:
+    """Write configs to ``out_dir/<mission>/<agent>.json`` all at once or not at all.
+
+    The files are written to a temporary folder beside the target and moved into
+    place only when every one was written, so a failure never leaves a half
+    mission behind.
+
+    Returns:
+        The folder the configs are in.
+
+    Raises:
+        UsageError: The output folder cannot be created or written.
+    """
+    target = out_dir / mission_name
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{mission_name}-", dir=out_dir))
+    except OSError as exc:
+        raise UsageError(f"cannot create {out_dir}: {exc.strerror or exc}") from None
+    try:
+        for name, text in files.items():
+            (staging / f"{name}.json").write_text(text, encoding="utf-8")
+        target.mkdir(exist_ok=True)
+        for name in files:
+            os.replace(staging / f"{name}.json", target / f"{name}.json")
+    except OSError as exc:
+        raise UsageError(f"cannot write configs to {target}: {exc.strerror or exc}") from None
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return target

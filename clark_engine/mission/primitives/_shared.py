@@ -1,0 +1,260 @@
+"""Parameter schemas and checks that several primitives share.
+
+Points, control channels and PWM limits mean the same thing in a waypoint, a
+tour, a doublet and a sweep; they are declared and checked once, here.
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable, Iterator
+from typing import Any
+
+from clark_engine.mission.findings import Finding, error
+from clark_engine.mission.geo import LocalPoint, parse_point
+from clark_engine.mission.model import Channel
+from clark_engine.mission.primitives.base import UseContext
+from clark_engine.mission.schema_source.common import NAME_PATTERN, Schema, number, string
+
+POINT_SCHEMA: Schema = {
+    "description": (
+        "A position: [north_m, east_m] or [north_m, east_m, up_m] in metres from the "
+        "mission origin, {north_m, east_m, up_m}, or {lat, lon, alt_m} in degrees and "
+        "metres above the origin."
+    ),
+    "x-expected": (
+        "a point: [north_m, east_m], [north_m, east_m, up_m], {north_m: .., east_m: .., up_m: ..} "
+        "or {lat: .., lon: .., alt_m: ..}"
+    ),
+    "anyOf": [
+        {
+            "type": "array",
+            "prefixItems": [
+                number("Metres north of the origin.", unit="m"),
+                number("Metres east of the origin.", unit="m"),
+                number("Metres above the origin.", unit="m"),
+            ],
+            "items": False,
+            "minItems": 2,
+        },
+        {
+            "type": "object",
+            "properties": {
+                "north_m": number("Metres north of the origin.", unit="m"),
+                "east_m": number("Metres east of the origin.", unit="m"),
+                "up_m": number("Metres above the origin.", unit="m", default=0),
+            },
+            "required": ["north_m", "east_m"],
+            "additionalProperties": False,
+        },
+        {
+            "type": "object",
+            "properties": {
+                "lat": number("Latitude.", unit="deg", minimum=-90, maximum=90),
+                "lon": number("Longitude.", unit="deg", minimum=-180, maximum=180),
+                "alt_m": number("Metres above the origin's altitude.", unit="m", default=0),
+            },
+            "required": ["lat", "lon"],
+            "additionalProperties": False,
+        },
+    ],
+}
+
+AGENT_NAME_SCHEMA: Schema = string("Name of an agent of this mission.", pattern=NAME_PATTERN)
+
+CHANNEL_SCHEMA: Schema = string(
+    "Name of a control channel (aileron, elevator, rudder, throttle, roll, pitch, yaw, "
+    "steering, ...), resolved through the agent's hardware profile.",
+    pattern=NAME_PATTERN,
+)
+
+VIA_SCHEMA: Schema = string(
+    "How the PWM reaches the surface: rc_override (RC_CHANNELS_OVERRIDE on the channel's RC "
+    "input, for channels the autopilot maps to an RC input) or servo (DO_SET_SERVO on the "
+    "channel's SERVOn output, for outputs with no function assigned).",
+    enum=["rc_override", "servo"],
+    default="rc_override",
+)
+
+TOLERANCE_SCHEMA: Schema = number(
+    "Distance from the target at which it counts as reached.",
+    unit="m",
+    exclusive_minimum=0,
+    maximum=1000,
+    default=5,
+)
+
+SPEED_SCHEMA: Schema = number(
+    "Ground speed to fly at; the airframe's cruise speed when omitted.",
+    unit="m/s",
+    exclusive_minimum=0,
+    maximum=100,
+)
+
+
+def suggest(word: str, choices: Iterable[str]) -> str:
+    """A "did you mean" clause for a misspelt name, or the list of choices."""
+    options = sorted(choices)
+    close = difflib.get_close_matches(word, options, n=1)
+    if close:
+        return f"did you mean {close[0]!r}?"
+    if not options:
+        return "there are none"
+    return "choose one of " + ", ".join(options)
+
+
+def resolve_channel(
+    ctx: UseContext, param: str = "channel"
+) -> tuple[Channel | None, list[Finding]]:
+    """Look a channel name up in the agent's profile and check ``via`` can drive it."""
+    name = str(ctx.params[param])
+    channels = ctx.agent.hardware.channels
+    channel = channels.get(name)
+    if channel is None:
+        return None, [
+            error(
+                "E-CHANNEL-UNKNOWN",
+                ctx.locate(param),
+                f"agent {ctx.agent.name!r} ({ctx.agent.profile}) has no control channel "
+                f"{name!r}; {suggest(name, channels)} or map {name!r} in its profile's channels",
+                ctx.use_location,
+            )
+        ]
+    via = ctx.params.get("via", "rc_override")
+    if via == "rc_override" and channel.rc is None:
+        return channel, [
+            error(
+                "E-CHANNEL-VIA",
+                ctx.locate("via"),
+                f"channel {name!r} of {ctx.agent.name!r} has no RC input to override; "
+                "write via: servo, or give the channel an rc number in the profile",
+                ctx.use_location,
+            )
+        ]
+    if via == "servo" and channel.servo is None:
+        return channel, [
+            error(
+                "E-CHANNEL-VIA",
+                ctx.locate("via"),
+                f"channel {name!r} of {ctx.agent.name!r} has no servo output number; "
+                "write via: rc_override, or give the channel a servo number in the profile",
+                ctx.use_location,
+            )
+        ]
+    return channel, []
+
+
+def check_pwm_swing(ctx: UseContext, channel: Channel, amplitude_us: float) -> Iterator[Finding]:
+    """Trim plus and minus the amplitude must stay inside the channel's PWM limits."""
+    low = channel.pwm_trim_us - amplitude_us
+    high = channel.pwm_trim_us + amplitude_us
+    if low < channel.pwm_min_us or high > channel.pwm_max_us:
+        room = min(
+            channel.pwm_trim_us - channel.pwm_min_us, channel.pwm_max_us - channel.pwm_trim_us
+        )
+        yield error(
+            "E-PWM-RANGE",
+            ctx.locate("amplitude_us"),
+            f"{amplitude_us:g} us around trim {channel.pwm_trim_us} us commands "
+            f"{low:g}..{high:g} us, outside channel {channel.name!r}'s limits "
+            f"{channel.pwm_min_us}..{channel.pwm_max_us} us; use an amplitude of at most {room} us",
+            ctx.use_location,
+        )
+
+
+def check_points(
+    ctx: UseContext, points: list[Any], param: str, *, indexed: bool
+) -> Iterator[Finding]:
+    """Every point stays under the ceiling and within radio range of the station(s)."""
+    mission, agent = ctx.mission, ctx.agent
+    is_air = (agent.hardware.part("airframe") or {}).get("class") != "rover"
+    for index, raw in enumerate(points):
+        point = parse_point(raw, mission.origin)
+        where = ctx.locate(f"{param}[{index}]" if indexed else param)
+        label = f"waypoint {index}" if indexed else "the waypoint"
+        if is_air and point.up_m > mission.ceiling_m:
+            yield error(
+                "E-ALTITUDE-CEILING",
+                where,
+                f"{label} is {point.up_m:g} m above the origin, over the mission ceiling of "
+                f"{mission.ceiling_m:g} m; fly lower or raise mission.ceiling_m",
+                ctx.use_location,
+            )
+        if is_air and point.up_m < 0:
+            yield error(
+                "E-ALTITUDE-CEILING",
+                where,
+                f"{label} is {-point.up_m:g} m below the origin; give a height above the origin",
+                ctx.use_location,
+            )
+        yield from _check_range(ctx, point, where, label)
+
+
+def _check_range(ctx: UseContext, point: LocalPoint, where: Any, label: str) -> Iterator[Finding]:
+    own_range = ctx.agent.hardware.radio_range_m
+    for station in ctx.mission.stations:
+        ranges = [r for r in (own_range, station.hardware.radio_range_m) if r is not None]
+        if not ranges:
+            continue
+        limit = min(ranges)
+        distance = point.horizontal_distance_m(station.position)
+        if distance > limit:
+            yield error(
+                "E-RADIO-RANGE",
+                where,
+                f"{label} is {distance:.0f} m from station {station.name!r}, beyond the "
+                f"{limit:.0f} m radio range; move it closer or the station nearer",
+                ctx.use_location,
+            )
+
+
+def check_speed(ctx: UseContext) -> Iterator[Finding]:
+    """A commanded speed must be one the airframe can fly."""
+    speed = ctx.params.get("speed_m_s")
+    airframe = ctx.agent.hardware.part("airframe")
+    if speed is None or airframe is None:
+        return
+    top = airframe.get("max_speed_m_s")
+    low = airframe.get("min_speed_m_s", 0)
+    if top is not None and speed > top:
+        yield error(
+            "E-SPEED-RANGE",
+            ctx.locate("speed_m_s"),
+            f"{speed:g} m/s is above the {ctx.agent.profile} airframe's maximum of {top:g} m/s; "
+            "fly slower",
+            ctx.use_location,
+        )
+    if low and speed < low:
+        yield error(
+            "E-SPEED-RANGE",
+            ctx.locate("speed_m_s"),
+            f"{speed:g} m/s is below the {ctx.agent.profile} airframe's minimum of {low:g} m/s "
+            "(stall margin); fly faster",
+            ctx.use_location,
+        )
+
+
+def check_mode(ctx: UseContext, param: str = "mode") -> Iterator[Finding]:
+    """A mode name must be one the agent's autopilot firmware has."""
+    mode = ctx.params.get(param)
+    modes = ctx.agent.hardware.modes
+    if mode is not None and mode not in modes:
+        yield error(
+            "E-MODE-UNKNOWN",
+            ctx.locate(param),
+            f"the {ctx.agent.profile}'s autopilot has no mode {mode!r}; "
+            + suggest(str(mode), modes),
+            ctx.use_location,
+        )
+
+
+def check_agents_exist(ctx: UseContext, names: Iterable[str], param: str) -> Iterator[Finding]:
+    """Every named agent must exist in the mission."""
+    for name in names:
+        if name not in ctx.mission.agents and name not in ctx.mission.unresolved:
+            yield error(
+                "E-AGENT-UNKNOWN",
+                ctx.locate(param),
+                f"there is no agent {name!r} in this mission; {suggest(name, ctx.mission.agents)}",
+                ctx.use_location,
+            )

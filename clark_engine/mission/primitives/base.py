@@ -1,0 +1,91 @@
+"""What a primitive declares: its parameters, the events it raises, its own checks.
+
+A primitive is the smallest behaviour a mission can ``use:`` (waypoint, doublet,
+sine_sweep, ...). Each lives in its own module beside its parameter schema, as
+a :class:`PrimitiveSpec`; :mod:`clark_engine.mission.primitives` collects them
+into a registry from which the mission schema is built. The runtime (a later
+layer) adds the behaviour class that executes each one; this layer only
+declares, resolves and checks.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from clark_engine.mission.findings import Finding, Location
+
+if TYPE_CHECKING:
+    from clark_engine.mission.model import Agent, Mission
+
+Schema = dict[str, Any]
+
+
+@dataclass(frozen=True, slots=True)
+class UseContext:
+    """Everything a primitive's check may look at for one use of it.
+
+    Attributes:
+        mission: The resolved mission (loop rate, origin, ceiling, every agent).
+        agent: The agent whose behaviour uses the primitive.
+        params: The parameters after defaults were applied.
+        locate: Where a parameter was written (falls back to the ``use:``).
+        use_location: Where the ``use:`` that selected the primitive was written.
+    """
+
+    mission: Mission
+    agent: Agent
+    params: Mapping[str, Any]
+    locate: Callable[[str], Location]
+    use_location: Location
+
+
+CheckFn = Callable[[UseContext], Iterable[Finding]]
+EventsFn = Callable[[Mapping[str, Any]], frozenset[str]]
+
+
+def _no_checks(_ctx: UseContext) -> Iterable[Finding]:
+    return ()
+
+
+@dataclass(frozen=True, slots=True)
+class PrimitiveSpec:
+    """The declaration of one primitive.
+
+    Attributes:
+        name: What a mission writes after ``use:``.
+        summary: One sentence for the language reference and ``clark explain``.
+        params: JSON Schema of the ``with:`` mapping, defaults included.
+        events: Events the primitive raises, given its parameters (``done`` when
+            it finishes; nothing when it runs until something else moves on).
+        needs_autopilot: Only vehicles may use it (the station has no autopilot).
+        check: Pre-flight checks that need the mission and the agent's hardware.
+    """
+
+    name: str
+    summary: str
+    params: Schema
+    events: EventsFn
+    needs_autopilot: bool = True
+    check: CheckFn = field(default=_no_checks)
+
+    def with_defaults(self, given: Mapping[str, Any]) -> dict[str, Any]:
+        """The parameters with every declared default filled in (top level only)."""
+        out = {
+            key: prop["default"]
+            for key, prop in self.params.get("properties", {}).items()
+            if "default" in prop
+        }
+        out.update(given)
+        return out
+
+
+def raises_done(_params: Mapping[str, Any]) -> frozenset[str]:
+    """For primitives that always finish."""
+    return frozenset({"done"})
+
+
+def raises_nothing(_params: Mapping[str, Any]) -> frozenset[str]:
+    """For primitives that run until a transition moves the machine on."""
+    return frozenset()

@@ -1,0 +1,550 @@
+"""Hardware profiles: find them, compose them (``extends:``), resolve an agent's hardware.
+
+A profile file describes one part (airframe, autopilot, radio, computer,
+payload) or a platform that composes parts. Profiles extend one another and a
+mission may override any field per agent; the result is deep-merged: mappings
+merge key by key, lists and scalars replace. Every merged value remembers the
+file and line it came from, so a finding about it points there.
+"""
+
+from __future__ import annotations
+
+import copy
+import difflib
+import functools
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from jsonschema import Draft202012Validator
+
+from clark_engine.mission.findings import DocPath, Finding, Location, error
+from clark_engine.mission.model import PARTS, Channel, Hardware
+from clark_engine.mission.schemas import validate_data
+from clark_engine.mission.yaml_loader import Document, YamlLoadError, decode_text, load_yaml
+
+PROFILE_KINDS = ("airframe", "autopilot", "radio", "computer", "payload", "platform")
+META_KEYS = frozenset({"profile", "kind", "extends", "abstract", "description", "source"})
+
+
+def deep_merge(base: Any, over: Any) -> Any:
+    """Merge ``over`` onto ``base``: mappings key by key, anything else replaced."""
+    if isinstance(base, Mapping) and isinstance(over, Mapping):
+        out = dict(base)
+        for key, value in over.items():
+            out[key] = deep_merge(base[key], value) if key in base else copy.deepcopy(value)
+        return out
+    return copy.deepcopy(over)
+
+
+def _record(
+    origins: dict[DocPath, Location], data: Any, doc: Document, src: DocPath, dst: DocPath
+) -> None:
+    """Remember where every leaf of ``data`` (found at ``src`` in ``doc``) was written."""
+    origins[dst] = doc.location(src)
+    if isinstance(data, Mapping):
+        for key, value in data.items():
+            _record(origins, value, doc, (*src, key), (*dst, key))
+    elif isinstance(data, list):
+        for i, value in enumerate(data):
+            _record(origins, value, doc, (*src, i), (*dst, i))
+
+
+@dataclass(slots=True)
+class Composed:
+    """A merged profile (or part) with the origin of each of its values."""
+
+    data: dict[str, Any]
+    origins: dict[DocPath, Location] = field(default_factory=dict)
+
+    def locate(self, path: DocPath, fallback: Location) -> Location:
+        """Where the value at ``path`` was written, or its nearest written ancestor."""
+        probe = path
+        while probe:
+            if probe in self.origins:
+                return self.origins[probe]
+            probe = probe[:-1]
+        return self.origins.get((), fallback)
+
+    def overlay(self, data: Mapping[str, Any], doc: Document, src: DocPath) -> None:
+        """Merge fields written at ``src`` in ``doc`` onto this one."""
+        self.data = deep_merge(self.data, dict(data))
+        _record(self.origins, data, doc, src, ())
+
+
+@dataclass(slots=True)
+class _Entry:
+    name: str
+    file: Path
+    display: str
+    doc: Document | None = None
+    loaded: bool = False
+
+
+class ProfileLibrary:
+    """All hardware profiles visible to one mission, loaded on first use.
+
+    Profiles are indexed by file name when the library is made (cheap: no file
+    is parsed) and read, checked and merged only when a mission names them.
+    """
+
+    def __init__(self, folders: Sequence[tuple[Path, str]]) -> None:
+        """Index ``folders``: pairs of (folder, how to show its paths in findings)."""
+        self._entries: dict[str, _Entry] = {}
+        self.findings: list[Finding] = []
+        self._composed: dict[str, Composed | None] = {}
+        for folder, shown in folders:
+            for file in sorted(folder.rglob("*.yaml")):
+                name = file.stem
+                display = f"{shown}/{file.relative_to(folder).as_posix()}"
+                if name in self._entries:
+                    self.findings.append(
+                        error(
+                            "E-PROFILE-DUPLICATE",
+                            Location(display, 1, 1),
+                            f"a profile named {name!r} already exists in "
+                            f"{self._entries[name].display}; rename one of them",
+                        )
+                    )
+                    continue
+                self._entries[name] = _Entry(name, file, display)
+
+    def names(self, kind: str | None = None) -> list[str]:
+        """Names of the profiles (of one kind when given)."""
+        if kind is None:
+            return sorted(self._entries)
+        return sorted(n for n in self._entries if self.kind_of(n) == kind)
+
+    def kind_of(self, name: str) -> str | None:
+        """The kind a profile declares, or None when it cannot be read."""
+        doc = self._load(name)
+        if doc is None or not isinstance(doc.data, dict):
+            return None
+        kind = doc.data.get("kind")
+        return kind if isinstance(kind, str) else None
+
+    def document(self, name: str) -> Document | None:
+        """The loaded file of a profile, or None when it is unknown or unreadable."""
+        return self._load(name)
+
+    def _load(self, name: str) -> Document | None:
+        entry = self._entries.get(name)
+        if entry is None:
+            return None
+        if not entry.loaded:
+            entry.loaded = True
+            try:
+                doc = load_yaml(decode_text(entry.file.read_bytes(), entry.display), entry.display)
+            except YamlLoadError as exc:
+                self.findings.extend(exc.findings)
+                return None
+            self.findings.extend(doc.findings)
+            problems = validate_data("hardware-profile", doc.data, doc)
+            if isinstance(doc.data, dict) and doc.data.get("profile") not in (None, name):
+                problems.append(
+                    error(
+                        "E-PROFILE-NAME",
+                        doc.location(("profile",)),
+                        f"the file is {entry.file.name} but names profile "
+                        f"{doc.data.get('profile')!r}; make the two agree",
+                    )
+                )
+            self.findings.extend(problems)
+            if not any(p.is_error for p in problems) and not any(f.is_error for f in doc.findings):
+                entry.doc = doc
+        return entry.doc
+
+    def compose(self, name: str) -> Composed | None:
+        """The profile with its ``extends`` chain merged, or None (findings say why)."""
+        if name in self._composed:
+            return self._composed[name]
+        self._composed[name] = None  # guards against extends cycles while composing
+        chain: list[Document] = []
+        seen: list[str] = []
+        current: str | None = name
+        while current is not None:
+            if current in seen:
+                doc = chain[-1]
+                self.findings.append(
+                    error(
+                        "E-PROFILE-CYCLE",
+                        doc.location(("extends",)),
+                        "profiles extend each other in a cycle ("
+                        + " -> ".join([*seen, current])
+                        + "); break the cycle",
+                    )
+                )
+                return None
+            doc = self._load(current)
+            if doc is None:
+                if chain and current not in self._entries:
+                    self.findings.append(
+                        error(
+                            "E-PROFILE-UNKNOWN",
+                            chain[-1].location(("extends",)),
+                            f"extends unknown profile {current!r}; "
+                            + _suggest(current, self._entries),
+                        )
+                    )
+                return None
+            if chain and doc.data.get("kind") != chain[0].data.get("kind"):
+                self.findings.append(
+                    error(
+                        "E-PROFILE-KIND",
+                        chain[-1].location(("extends",)),
+                        f"a {chain[0].data.get('kind')} profile cannot extend {current!r}, "
+                        f"which is a {doc.data.get('kind')}; extend a profile of the same kind",
+                    )
+                )
+                return None
+            seen.append(current)
+            chain.append(doc)
+            parent = doc.data.get("extends")
+            current = parent if isinstance(parent, str) else None
+        composed = Composed({})
+        for doc in reversed(chain):
+            body = {k: v for k, v in doc.data.items() if k not in META_KEYS}
+            composed.overlay(body, doc, ())
+        composed.data["abstract"] = bool(chain[0].data.get("abstract", False))
+        self._composed[name] = composed
+        return composed
+
+
+def _suggest(word: str, choices: Iterable[str]) -> str:
+    close = difflib.get_close_matches(word, sorted(choices), n=1)
+    return f"did you mean {close[0]!r}?" if close else "see docs/hardware-profiles.md for the list"
+
+
+@dataclass(slots=True)
+class HardwareResult:
+    """What resolving one agent's hardware produced."""
+
+    hardware: Hardware | None
+    origins: dict[str, Composed] = field(default_factory=dict)
+    findings: list[Finding] = field(default_factory=list)
+
+
+class HardwareResolver:
+    """Resolves agents' hardware: platform -> parts -> per-agent overrides -> channels."""
+
+    def __init__(self, library: ProfileLibrary) -> None:
+        """Resolve against ``library``."""
+        self.library = library
+
+    def _part(
+        self,
+        kind: str,
+        ref: Any,
+        ref_loc: Location,
+        ref_doc: Document | None,
+        ref_path: DocPath,
+        findings: list[Finding],
+    ) -> tuple[str, Composed] | None:
+        """One part given as a profile name or {profile: name, ...overrides}."""
+        overrides: dict[str, Any] = {}
+        if isinstance(ref, Mapping):
+            overrides = {k: v for k, v in ref.items() if k != "profile"}
+            ref = ref.get("profile")
+        if not isinstance(ref, str):
+            findings.append(
+                error(
+                    "E-PROFILE-UNKNOWN",
+                    ref_loc,
+                    f"the {kind} must name a profile (a name, or {{profile: name, ...}})",
+                )
+            )
+            return None
+        expected = "payload" if kind.startswith("payload") else kind
+        if ref not in self.library.names():
+            findings.append(
+                error(
+                    "E-PROFILE-UNKNOWN",
+                    ref_loc,
+                    f"there is no hardware profile {ref!r}; "
+                    + _suggest(ref, self.library.names(expected)),
+                )
+            )
+            return None
+        composed = self.library.compose(ref)
+        if composed is None:
+            return None
+        actual = self.library.kind_of(ref)
+        if actual != expected:
+            findings.append(
+                error(
+                    "E-PROFILE-KIND",
+                    ref_loc,
+                    f"{ref!r} is a {actual} profile, not a {expected}; name a {expected} "
+                    f"profile ({', '.join(self.library.names(expected)) or 'none shipped'})",
+                )
+            )
+            return None
+        part = Composed(copy.deepcopy(composed.data), dict(composed.origins))
+        if overrides and ref_doc is not None:
+            part.overlay(overrides, ref_doc, ref_path)
+        return ref, part
+
+    def resolve(
+        self,
+        agent_name: str,
+        profile: str,
+        profile_loc: Location,
+        overrides: Mapping[str, Any],
+        mission_doc: Document,
+        overrides_path: DocPath,
+    ) -> HardwareResult:
+        """Resolve one agent's hardware.
+
+        Args:
+            agent_name: The agent (for messages).
+            profile: The platform profile it names.
+            profile_loc: Where it names it.
+            overrides: Its ``hardware:`` mapping (may be empty).
+            mission_doc: The mission document (for override locations).
+            overrides_path: Path of ``hardware:`` in the mission.
+        """
+        result = HardwareResult(None)
+        findings = result.findings
+        if profile not in self.library.names():
+            findings.append(
+                error(
+                    "E-PROFILE-UNKNOWN",
+                    profile_loc,
+                    f"there is no hardware profile {profile!r}; "
+                    + _suggest(profile, self.library.names("platform")),
+                )
+            )
+            return result
+        platform = self.library.compose(profile)
+        if platform is None:
+            return result
+        if self.library.kind_of(profile) != "platform":
+            findings.append(
+                error(
+                    "E-PROFILE-KIND",
+                    profile_loc,
+                    f"{profile!r} is a {self.library.kind_of(profile)} profile; an agent names a "
+                    f"platform ({', '.join(self.library.names('platform'))})",
+                )
+            )
+            return result
+        if platform.data.get("abstract"):
+            findings.append(
+                error(
+                    "E-PROFILE-ABSTRACT",
+                    profile_loc,
+                    f"{profile!r} is an abstract base; name a platform that extends it",
+                )
+            )
+            return result
+        platform_doc = self.library.document(profile)
+        role = str(platform.data.get("role", "vehicle"))
+        hardware = Hardware(platform=profile, role=role, gui=platform.data.get("gui"))
+        for kind in PARTS:
+            ref = platform.data.get(kind)
+            if ref is None:
+                continue
+            ref_loc = platform.locate((kind,), profile_loc)
+            resolved = self._part(kind, ref, ref_loc, platform_doc, (kind,), findings)
+            if resolved is None:
+                continue
+            name, part = resolved
+            extra = overrides.get(kind)
+            if isinstance(extra, Mapping):
+                part.overlay(extra, mission_doc, (*overrides_path, kind))
+            hardware.parts[kind] = part.data
+            hardware.part_profiles[kind] = name
+            result.origins[kind] = part
+        for kind in PARTS:
+            if kind in overrides and platform.data.get(kind) is None:
+                findings.append(
+                    error(
+                        "E-PROFILE-PART",
+                        mission_doc.location((*overrides_path, kind), key=True),
+                        f"{profile!r} has no {kind} to override; remove hardware.{kind}",
+                    )
+                )
+        self._payloads(
+            hardware,
+            platform,
+            platform_doc,
+            overrides,
+            mission_doc,
+            overrides_path,
+            profile_loc,
+            result,
+        )
+        self._channels(
+            hardware, platform, platform_doc, overrides, mission_doc, overrides_path, result
+        )
+        for kind, part in result.origins.items():
+            findings.extend(self._check_complete(kind, part, profile_loc))
+        if not any(f.is_error for f in findings):
+            result.hardware = hardware
+        return result
+
+    def _payloads(
+        self,
+        hardware: Hardware,
+        platform: Composed,
+        platform_doc: Document | None,
+        overrides: Mapping[str, Any],
+        mission_doc: Document,
+        overrides_path: DocPath,
+        profile_loc: Location,
+        result: HardwareResult,
+    ) -> None:
+        declared: dict[str, Any] = dict(platform.data.get("payloads") or {})
+        extra: Mapping[str, Any] = overrides.get("payloads") or {}
+        for name in sorted(set(declared) | set(extra)):
+            if name in declared:
+                ref_loc = platform.locate(("payloads", name), profile_loc)
+                resolved = self._part(
+                    "payload",
+                    declared[name],
+                    ref_loc,
+                    platform_doc,
+                    ("payloads", name),
+                    result.findings,
+                )
+                if resolved is None:
+                    continue
+                profile_name, part = resolved
+                more = extra.get(name)
+                if isinstance(more, str):
+                    resolved = self._part(
+                        "payload",
+                        more,
+                        mission_doc.location((*overrides_path, "payloads", name)),
+                        mission_doc,
+                        (*overrides_path, "payloads", name),
+                        result.findings,
+                    )
+                    if resolved is None:
+                        continue
+                    profile_name, part = resolved
+                elif isinstance(more, Mapping):
+                    if "profile" in more:
+                        resolved = self._part(
+                            "payload",
+                            more,
+                            mission_doc.location((*overrides_path, "payloads", name)),
+                            mission_doc,
+                            (*overrides_path, "payloads", name),
+                            result.findings,
+                        )
+                        if resolved is None:
+                            continue
+                        profile_name, part = resolved
+                    else:
+                        part.overlay(more, mission_doc, (*overrides_path, "payloads", name))
+            else:
+                where = mission_doc.location((*overrides_path, "payloads", name))
+                resolved = self._part(
+                    "payload",
+                    extra[name],
+                    where,
+                    mission_doc,
+                    (*overrides_path, "payloads", name),
+                    result.findings,
+                )
+                if resolved is None:
+                    continue
+                profile_name, part = resolved
+            hardware.payloads[name] = part.data
+            hardware.payload_profiles[name] = profile_name
+            result.origins[f"payloads.{name}"] = part
+
+    def _channels(
+        self,
+        hardware: Hardware,
+        platform: Composed,
+        platform_doc: Document | None,
+        overrides: Mapping[str, Any],
+        mission_doc: Document,
+        overrides_path: DocPath,
+        result: HardwareResult,
+    ) -> None:
+        autopilot = result.origins.get("autopilot")
+        if autopilot is None:
+            return
+        channels = Composed(
+            copy.deepcopy(autopilot.data.get("channels") or {}),
+            {k[1:]: v for k, v in autopilot.origins.items() if k[:1] == ("channels",)},
+        )
+        if platform.data.get("channels") and platform_doc is not None:
+            channels.overlay(platform.data["channels"], platform_doc, ("channels",))
+        if overrides.get("channels"):
+            channels.overlay(overrides["channels"], mission_doc, (*overrides_path, "channels"))
+        hardware.parts["autopilot"]["channels"] = channels.data
+        for name, spec in channels.data.items():
+            where = channels.locate((name,), Location(mission_doc.file))
+            try:
+                low, trim, high = (
+                    int(spec[k]) for k in ("pwm_min_us", "pwm_trim_us", "pwm_max_us")
+                )
+            except (KeyError, TypeError, ValueError):
+                result.findings.append(
+                    error(
+                        "E-CHANNEL-PWM",
+                        where,
+                        f"channel {name!r} needs whole-number pwm_min_us, pwm_trim_us and "
+                        "pwm_max_us; add the missing ones",
+                    )
+                )
+                continue
+            if not low <= trim <= high:
+                result.findings.append(
+                    error(
+                        "E-CHANNEL-PWM",
+                        where,
+                        f"channel {name!r} has pwm_min_us {low}, pwm_trim_us {trim}, pwm_max_us "
+                        f"{high}; they must be in that order (min <= trim <= max)",
+                    )
+                )
+                continue
+            hardware.channels[name] = Channel(
+                name=name,
+                rc=spec.get("rc"),
+                servo=spec.get("servo"),
+                pwm_min_us=low,
+                pwm_trim_us=trim,
+                pwm_max_us=high,
+            )
+
+    def _check_complete(self, kind: str, part: Composed, fallback: Location) -> list[Finding]:
+        """A merged part must have every field its kind requires, with valid values."""
+        schema_kind = "payload" if kind.startswith("payloads.") else kind
+        data = {k: v for k, v in part.data.items() if k != "abstract"}
+        if part.data.get("abstract"):
+            return [
+                error(
+                    "E-PROFILE-ABSTRACT",
+                    part.locate((), fallback),
+                    f"the {schema_kind} is an abstract base profile; name one that extends it",
+                )
+            ]
+        located = _OriginDocument(part, fallback)
+        return validate_data("", data, located, checker=_kind_validator(schema_kind))
+
+
+@functools.cache
+def _kind_validator(kind: str) -> Draft202012Validator:
+    """Validator for a fully merged part of one kind; built once, schemas are constant."""
+    from clark_engine.mission.schema_source.hardware_profile import kind_schema
+
+    return Draft202012Validator(kind_schema(kind))
+
+
+class _OriginDocument(Document):
+    """A Document whose locations come from a merged part's origins."""
+
+    def __init__(self, part: Composed, fallback: Location) -> None:
+        super().__init__(file=fallback.file, data=part.data)
+        self._part = part
+        self._fallback = fallback
+
+    def location(self, path: DocPath, *, key: bool = False) -> Location:
+        loc = self._part.locate(path, self._fallback)
+        return Location(loc.file, loc.line, loc.column, loc.path)

@@ -1,0 +1,305 @@
+"""Schema of a mission file (``schemas/mission.schema.json``)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from clark_engine.mission.model import TELEMETRY_MESSAGES
+from clark_engine.mission.primitives._shared import AGENT_NAME_SCHEMA, POINT_SCHEMA
+from clark_engine.mission.schema_source.common import (
+    DIALECT,
+    NAME_PATTERN,
+    Schema,
+    array,
+    integer,
+    number,
+    obj,
+    schema_id,
+    string,
+)
+from clark_engine.mission.schema_source.states import STATE_PATH_PATTERN, state_defs
+
+#: Highest telemetry rate a mission may ask for; far above any radio's budget.
+MAX_TELEMETRY_HZ = 100
+
+_MESSAGE_DESCRIPTIONS = {
+    "heartbeat": "Heartbeat: mission id, agent type, ClarkLink version, condition; peers add "
+    "an agent to their fleet table on its first heartbeat.",
+    "agent_status": "Agent Status: position, altitude, velocity, heading and autopilot mode.",
+    "agent_attitude": "Agent Attitude: roll, pitch and yaw.",
+    "behavior_state": "Behavior State: active states and last event, for the station's view.",
+}
+
+
+def _rate(message: str) -> Schema:
+    long_form = obj(
+        "Rate and destinations of " + message + ".",
+        {
+            "rate_hz": number(
+                "How often the message is sent.",
+                unit="Hz",
+                exclusive_minimum=0,
+                maximum=MAX_TELEMETRY_HZ,
+            ),
+            "to": array(
+                "Agents that receive it; every agent when omitted.", AGENT_NAME_SCHEMA, min_items=1
+            ),
+        },
+        required=["rate_hz"],
+    )
+    return {
+        "description": _MESSAGE_DESCRIPTIONS[message] + " A rate in Hz, or {rate_hz, to}.",
+        "x-unit": "Hz",
+        "x-expected": "a rate in Hz, or {rate_hz: .., to: [agent, ..]}",
+        "anyOf": [
+            number(
+                "Rate in Hz, sent to every agent.",
+                unit="Hz",
+                exclusive_minimum=0,
+                maximum=MAX_TELEMETRY_HZ,
+            ),
+            long_form,
+        ],
+    }
+
+
+def _hardware_overrides() -> Schema:
+    part = {
+        "type": "object",
+        "description": "Fields deep-merged onto this part of the platform profile "
+        "(see docs/hardware-profiles.md).",
+    }
+    return obj(
+        "Per-agent overrides of the platform profile: any field of any part.",
+        {
+            "airframe": part,
+            "autopilot": part,
+            "radio": part,
+            "computer": part,
+            "payloads": {
+                "type": "object",
+                "description": "Payload name -> a payload profile name, or fields merged onto it "
+                "({profile: name, ...} to add a new one).",
+                "propertyNames": {"pattern": NAME_PATTERN},
+                "additionalProperties": {
+                    "anyOf": [string("Payload profile name.", pattern=NAME_PATTERN), part]
+                },
+            },
+            "channels": {
+                "type": "object",
+                "description": "Control channel name -> fields merged onto the channel map "
+                "(rc, servo, pwm_min_us, pwm_trim_us, pwm_max_us).",
+                "propertyNames": {"pattern": NAME_PATTERN},
+                "additionalProperties": {"type": "object"},
+            },
+        },
+    )
+
+
+def _agent() -> Schema:
+    return obj(
+        "One agent: a vehicle, or a mission control station (role mcs).",
+        {
+            "id": integer("ClarkLink agent id, unique in the mission.", minimum=1, maximum=65535),
+            "description": string("What this agent does, in your words."),
+            "role": string(
+                "vehicle or mcs; taken from the platform profile when omitted.",
+                enum=["vehicle", "mcs"],
+            ),
+            "profile": string(
+                "Platform profile from hardware_profiles/platforms (e.g. super_cub, mcs_laptop).",
+                pattern=NAME_PATTERN,
+            ),
+            "hardware": _hardware_overrides(),
+            "telemetry": obj(
+                "Messages this agent sends periodically: message -> rate.",
+                {m: _rate(m) for m in TELEMETRY_MESSAGES},
+            ),
+            "behavior": {"$ref": "#/$defs/state"},
+            "failsafe": obj(
+                "What the agent does when something it depends on goes silent.",
+                {
+                    "mcs_lost": string(
+                        "On silence from every station: hold position, return to launch, "
+                        "land, or continue. Never resumes by itself when the station returns.",
+                        enum=["hold", "rtl", "land", "continue"],
+                        default="hold",
+                    )
+                },
+            ),
+            "terminal_mode": string(
+                "Mode the vehicle is left in when the mission terminates; the autopilot "
+                "profile's terminal_mode when omitted."
+            ),
+            "position": POINT_SCHEMA
+            | {
+                "description": "Where the agent is: a station's location (for radio range "
+                "checks), a vehicle's start. The mission origin when omitted."
+            },
+        },
+        required=["id", "profile"],
+    )
+
+
+def _check() -> Schema:
+    agents2 = array("Two agents.", AGENT_NAME_SCHEMA, min_items=2) | {"maxItems": 2}
+    return obj(
+        "An expectation the dry run evaluates; exactly one kind per item.",
+        {
+            "name": string("A label for the report."),
+            "by_s": number(
+                "Simulated time by which the expectation must hold.", unit="s", minimum=0
+            ),
+            "distance_m": obj(
+                "Distance between two agents at by_s.",
+                {
+                    "between": agents2,
+                    "max": number("Largest allowed distance.", unit="m", minimum=0),
+                    "min": number("Smallest allowed distance.", unit="m", minimum=0),
+                },
+                required=["between"],
+            ),
+            "reached": obj(
+                "An agent comes within tolerance of a position by by_s.",
+                {
+                    "agent": AGENT_NAME_SCHEMA,
+                    "to": POINT_SCHEMA,
+                    "tolerance_m": number(
+                        "Distance that counts as reached.", unit="m", exclusive_minimum=0, default=5
+                    ),
+                },
+                required=["agent", "to"],
+            ),
+            "separation_m": obj(
+                "Minimum distance between any two of the vehicles at every moment.",
+                {
+                    "min": number("Smallest allowed separation.", unit="m", minimum=0),
+                    "agents": array(
+                        "Vehicles to consider; all when omitted.", AGENT_NAME_SCHEMA, min_items=2
+                    ),
+                },
+                required=["min"],
+            ),
+            "state": obj(
+                "An agent's behaviour reaches a state by by_s.",
+                {
+                    "agent": AGENT_NAME_SCHEMA,
+                    "reached": string("Dotted path of the state.", pattern=STATE_PATH_PATTERN),
+                },
+                required=["agent", "reached"],
+            ),
+            "photos": obj(
+                "Number of pictures an agent takes over the run.",
+                {
+                    "agent": AGENT_NAME_SCHEMA,
+                    "min": integer("Fewest pictures.", minimum=0),
+                    "max": integer("Most pictures.", minimum=0),
+                },
+                required=["agent"],
+            ),
+            "no_failsafe": obj(
+                "No failsafe is triggered on the listed agents (all when omitted).",
+                {"agents": array("Agents to watch.", AGENT_NAME_SCHEMA)},
+            ),
+            "signal": obj(
+                "The servo signal an agent commands in a state matches its primitive "
+                "(doublet shape, sweep frequency law).",
+                {
+                    "agent": AGENT_NAME_SCHEMA,
+                    "state": string(
+                        "Dotted path of a doublet or sine_sweep state.", pattern=STATE_PATH_PATTERN
+                    ),
+                },
+                required=["agent", "state"],
+            ),
+        },
+    ) | {"minProperties": 1}
+
+
+def build() -> dict[str, Any]:
+    """The whole mission schema."""
+    return {
+        "$schema": DIALECT,
+        "$id": schema_id("mission"),
+        "$comment": "Generated by `python -m clark_engine.mission.schema_source`; do not edit.",
+        "title": "Clark Engine mission",
+        "description": "A multi-vehicle mission: its agents, their hardware, telemetry and "
+        "behaviour, and what a dry run must observe.",
+        "type": "object",
+        "required": ["clark", "mission", "agents"],
+        "additionalProperties": False,
+        "properties": {
+            "clark": {"const": 1, "description": "Version of the mission language; 1."},
+            "mission": obj(
+                "Settings shared by every agent (the thesis's mission configuration section).",
+                {
+                    "id": integer(
+                        "Mission id; agents ignore peers that run another mission.",
+                        minimum=1,
+                        maximum=4294967295,
+                    ),
+                    "name": string(
+                        "Short name; compiled configs go to <output>/<name>/.",
+                        pattern=r"^[a-z0-9][a-z0-9_-]*$",
+                    ),
+                    "description": string("What the mission is for, in your words."),
+                    "loop_hz": number(
+                        "Rate of every agent's loop: one tick steps behaviour, commands and "
+                        "telemetry.",
+                        unit="Hz",
+                        exclusive_minimum=0,
+                        maximum=1000,
+                    ),
+                    "heartbeat_timeout_s": number(
+                        "Silence after which a peer counts as lost.",
+                        unit="s",
+                        exclusive_minimum=0,
+                        maximum=3600,
+                        default=3,
+                    ),
+                    "origin": obj(
+                        "Reference point of the local north/east/up frame; altitudes are above it.",
+                        {
+                            "lat": number("Latitude.", unit="deg", minimum=-90, maximum=90),
+                            "lon": number("Longitude.", unit="deg", minimum=-180, maximum=180),
+                            "alt_m": number("Altitude above mean sea level.", unit="m", default=0),
+                        },
+                        required=["lat", "lon"],
+                    ),
+                    "ceiling_m": number(
+                        "Highest altitude above the origin any vehicle may be sent to "
+                        "(120 m is the 400 ft of FAA Part 107).",
+                        unit="m",
+                        exclusive_minimum=0,
+                        maximum=10000,
+                        default=120,
+                    ),
+                    "log_level": string(
+                        "Level of the mission and interface logs.",
+                        enum=["DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL"],
+                        default="INFO",
+                    ),
+                },
+                required=["id", "name", "loop_hz", "origin"],
+            ),
+            "include": obj(
+                "Extra folders of your own, relative to this file, searched besides the "
+                "shipped ones.",
+                {
+                    "behaviors": array("Folders of behaviour block files.", string("A folder.")),
+                    "hardware_profiles": array(
+                        "Folders of hardware profile files.", string("A folder.")
+                    ),
+                },
+            ),
+            "agents": {
+                "type": "object",
+                "description": "Agents by name.",
+                "minProperties": 1,
+                "propertyNames": {"pattern": NAME_PATTERN},
+                "additionalProperties": {"$ref": "#/$defs/agent"},
+            },
+            "checks": array("Expectations the dry run evaluates.", {"$ref": "#/$defs/check"}),
+        },
+        "$defs": {"agent": _agent(), "check": _check(), **state_defs()},
+    }

@@ -1,0 +1,180 @@
+"""Schema of behaviour states, shared by missions and behaviour blocks.
+
+A state is a ``use:`` of a primitive or block, a machine of child ``states:``
+(with an ``initial``), parallel regions (``parallel: true``) or an empty
+``final`` state; it may time out and moves on named events. The ``with:`` of
+each primitive is checked against that primitive's own parameter schema.
+"""
+
+from __future__ import annotations
+
+from clark_engine.mission.primitives import PRIMITIVES
+from clark_engine.mission.primitives._shared import AGENT_NAME_SCHEMA
+from clark_engine.mission.schema_source.common import (
+    NAME_PATTERN,
+    Schema,
+    array,
+    boolean,
+    number,
+    obj,
+    string,
+)
+
+STATE_PATH_PATTERN = r"^[a-z][a-z0-9_]*(\.[a-z][a-z0-9_]*)*$"
+
+EVENT_DESCRIPTION = (
+    "Event name: done, timeout, activate, deactivate, terminate, mode:<MODE>, "
+    "rc:<channel>:high, rc:<channel>:low, lost:<agent>, found:<agent>, mcs_lost, "
+    "autopilot_lost."
+)
+
+
+def _bounds(description: str, unit: str) -> Schema:
+    return obj(
+        description,
+        {
+            "lt": number("Holds while the value is below this.", unit=unit),
+            "gt": number("Holds while the value is above this.", unit=unit),
+        },
+    ) | {"minProperties": 1}
+
+
+def condition_schema() -> Schema:
+    """Structured conditions on transitions (data the schema checks, never code)."""
+    return {
+        "type": "object",
+        "description": "A condition that must hold for the transition to be taken; exactly "
+        "one key.",
+        "minProperties": 1,
+        "maxProperties": 1,
+        "additionalProperties": False,
+        "properties": {
+            "distance_m": obj(
+                "Ground distance from this agent to another agent's last reported position.",
+                {
+                    "to": AGENT_NAME_SCHEMA,
+                    "lt": number("Holds while the distance is below this.", unit="m", minimum=0),
+                    "gt": number("Holds while the distance is above this.", unit="m", minimum=0),
+                },
+                required=["to"],
+            ),
+            "altitude_m": _bounds("This agent's altitude above the origin.", "m"),
+            "speed_m_s": _bounds("This agent's ground speed.", "m/s"),
+            "in_state_s": _bounds("Time since the current state was entered.", "s"),
+            "mode": obj(
+                "This agent's autopilot mode.",
+                {"is": string("Mode name of the agent's autopilot firmware.")},
+                required=["is"],
+            ),
+            "all": array(
+                "Holds when every condition holds.", {"$ref": "#/$defs/condition"}, min_items=1
+            ),
+            "any": array(
+                "Holds when any condition holds.", {"$ref": "#/$defs/condition"}, min_items=1
+            ),
+            "not": {"$ref": "#/$defs/condition"},
+        },
+    }
+
+
+def transition_schema() -> Schema:
+    """A transition target: a state name, ``{to, when}``, or a list tried in order."""
+    guarded = obj(
+        "A transition taken only while its condition holds.",
+        {
+            "to": string(
+                "State to go to (a sibling, an ancestor's sibling, or a dotted path).",
+                pattern=STATE_PATH_PATTERN,
+            ),
+            "when": {"$ref": "#/$defs/condition"},
+        },
+        required=["to"],
+    )
+    return {
+        "description": "Where the event leads: a state name, {to, when}, or a list of those "
+        "tried in order.",
+        "x-expected": "a state name, {to: state, when: condition}, or a list of {to, when}",
+        "anyOf": [
+            string("Name of the state to go to.", pattern=STATE_PATH_PATTERN),
+            guarded,
+            array(
+                "Guarded transitions tried in order; the first whose condition holds is taken.",
+                guarded,
+                min_items=1,
+            ),
+        ],
+    }
+
+
+def state_schema(*, check_params: bool = True) -> Schema:
+    """One state, recursively; ``with:`` is checked per primitive when ``check_params``.
+
+    Behaviour blocks pass ``check_params=False``: their ``with:`` values may be
+    ``$name`` parameter references, checked after substitution instead.
+    """
+    per_primitive = [
+        {
+            "if": {"properties": {"use": {"const": name}}, "required": ["use"]},
+            "then": {"properties": {"with": {"$ref": f"#/$defs/params_{name}"}}},
+        }
+        for name in PRIMITIVES
+    ]
+    schema = obj(
+        "A behaviour state: a use of a primitive or block, a machine of states, parallel "
+        "regions, or an empty final state.",
+        {
+            "description": string("What this state is for, in your words."),
+            "use": string(
+                "Primitive (" + ", ".join(PRIMITIVES) + ") or behaviour block to run.",
+                pattern=NAME_PATTERN,
+            ),
+            "with": {"type": "object", "description": "Parameters of the primitive or block."},
+            "initial": string("Child state entered first.", pattern=NAME_PATTERN),
+            "states": {
+                "type": "object",
+                "description": "Child states by name.",
+                "minProperties": 1,
+                "propertyNames": {"pattern": NAME_PATTERN},
+                "additionalProperties": {"$ref": "#/$defs/state"},
+            },
+            "parallel": boolean("Run the child states side by side as regions.", default=False),
+            "finish": string(
+                "When parallel regions finish the state: all (every region reached a final "
+                "state or finished its primitive) or any (the first region to finish stops the "
+                "others).",
+                enum=["all", "any"],
+                default="all",
+            ),
+            "final": boolean(
+                "Reaching this state finishes its parent, raising done on it.", default=False
+            ),
+            "timeout_s": number(
+                "Raise the timeout event this long after entering the state.",
+                unit="s",
+                exclusive_minimum=0,
+                maximum=86400,
+            ),
+            "transitions": {
+                "type": "object",
+                "description": "Event -> where it leads. " + EVENT_DESCRIPTION,
+                "propertyNames": {"pattern": r"^[a-z_]+(:[A-Za-z0-9_]+)*$"},
+                "additionalProperties": {"$ref": "#/$defs/transition"},
+            },
+        },
+    )
+    if check_params:
+        schema["allOf"] = per_primitive
+    return schema
+
+
+def state_defs(*, check_params: bool = True) -> dict[str, Schema]:
+    """The ``$defs`` every schema that embeds states needs."""
+    defs: dict[str, Schema] = {
+        "state": state_schema(check_params=check_params),
+        "transition": transition_schema(),
+        "condition": condition_schema(),
+    }
+    if check_params:
+        for name, spec in PRIMITIVES.items():
+            defs[f"params_{name}"] = spec.params
+    return defs

@@ -1,0 +1,290 @@
+"""Validate documents against the shipped JSON Schemas and word the errors for people.
+
+jsonschema reports errors such as ``Additional properties are not allowed
+('lopp_hz' was unexpected)`` at a path. This module turns each into a finding
+at the exact line and column (the misspelt key itself, not its parent), with a
+stable code and a sentence saying what to change (``did you mean 'loop_hz'?``,
+the allowed range with its unit, ...).
+"""
+
+from __future__ import annotations
+
+import difflib
+import functools
+import json
+import re
+from collections.abc import Iterable, Iterator, Mapping
+from typing import Any
+
+import jsonschema
+from jsonschema import Draft202012Validator
+from jsonschema.exceptions import ValidationError, best_match
+
+from clark_engine.data import data_dir
+from clark_engine.mission.findings import DocPath, Finding, error
+from clark_engine.mission.yaml_loader import Document
+
+SCHEMA_NAMES = {
+    "mission": "mission.schema.json",
+    "behavior": "behavior.schema.json",
+    "hardware-profile": "hardware_profile.schema.json",
+    "agent-config": "agent_config.schema.json",
+}
+
+_SEXAGESIMAL = re.compile(r"^[-+]?\d+(:[0-5]?\d)+(\.\d*)?$")
+_QUOTED = re.compile(r"'([^']*)'")
+
+_TYPE_WORDS = {
+    "object": "a mapping (key: value lines)",
+    "array": "a list",
+    "string": "text",
+    "number": "a number",
+    "integer": "a whole number",
+    "boolean": "true or false",
+    "null": "nothing (null)",
+}
+
+
+def schema_text(name: str) -> str:
+    """The text of a shipped schema by its short name (``mission``, ``agent-config``...).
+
+    Raises:
+        KeyError: Unknown name.
+    """
+    return (data_dir("schemas") / SCHEMA_NAMES[name]).read_text(encoding="utf-8")
+
+
+@functools.cache
+def validator(name: str) -> Draft202012Validator:
+    """A compiled validator for a shipped schema.
+
+    Cached for the life of the process: schemas are immutable data, and building
+    a validator costs more than most validations.
+    """
+    schema = json.loads(schema_text(name))
+    return Draft202012Validator(schema)
+
+
+def _describe_type(value: Any) -> str:
+    if isinstance(value, bool):
+        return f"{str(value).lower()}"
+    if isinstance(value, dict):
+        return "a mapping"
+    if isinstance(value, list):
+        return "a list"
+    if value is None:
+        return "nothing"
+    if isinstance(value, str):
+        return f"the text {value!r}"
+    return repr(value)
+
+
+def _unit(schema: Mapping[str, Any]) -> str:
+    unit = schema.get("x-unit")
+    return f" {unit}" if unit else ""
+
+
+def _in_unit(schema: Mapping[str, Any]) -> str:
+    unit = schema.get("x-unit")
+    return f" (in {unit})" if unit else ""
+
+
+def _property_names(schema: Mapping[str, Any]) -> set[str]:
+    """Every property name a schema (with its allOf/then branches) declares."""
+    names = set(schema.get("properties", {}))
+    for branch in schema.get("allOf", []):
+        names |= _property_names(branch.get("then", {}))
+        names |= _property_names(branch)
+    return names
+
+
+def _suggest(word: str, choices: Iterable[str]) -> str:
+    close = difflib.get_close_matches(word, sorted(choices), n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else ""
+
+
+def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Finding]:
+    path: DocPath = (*base, *err.absolute_path)
+    schema: Mapping[str, Any] = err.schema if isinstance(err.schema, Mapping) else {}
+    kind = err.validator
+    instance = err.instance
+    in_property_names = "propertyNames" in err.absolute_schema_path
+
+    if in_property_names:
+        key = str(instance)
+        yield error(
+            "E-NAME",
+            doc.location((*path, key), key=True),
+            f"{key!r} is not a valid name; use lower-case letters, digits and _, starting "
+            "with a letter (e.g. slash_a)",
+        )
+        return
+    if kind in ("additionalProperties", "unevaluatedProperties"):
+        known = _property_names(schema) | set(
+            (err.parent.schema or {}).get("properties", {}) if err.parent else ()
+        )
+        if kind == "additionalProperties" and isinstance(instance, Mapping):
+            extras = [k for k in instance if k not in schema.get("properties", {})]
+        else:
+            extras = _QUOTED.findall(err.message.split("(")[-1]) or list(instance)
+        for key in extras:
+            yield error(
+                "E-KEY-UNKNOWN",
+                doc.location((*path, key), key=True),
+                f"unknown key {key!r}{_suggest(key, known)}"
+                + ("" if _suggest(key, known) else f"; allowed keys: {', '.join(sorted(known))}"),
+            )
+        return
+    if kind == "required":
+        present = set(instance) if isinstance(instance, Mapping) else set()
+        for key in err.validator_value:
+            if key in present:
+                continue
+            prop = schema.get("properties", {}).get(key, {})
+            what = prop.get("description", "")
+            yield error(
+                "E-KEY-MISSING",
+                doc.location(path),
+                f"{key!r} is missing"
+                + (f": {what[0].lower()}{what[1:]}" if what else "")
+                + f"; add {key}: here",
+            )
+        return
+    if kind == "const" and path == ("clark",):
+        yield error(
+            "E-VERSION",
+            doc.location(path),
+            f"this engine reads mission language version 1, not {instance!r}; write clark: 1",
+        )
+        return
+    if kind == "type":
+        expected = err.validator_value
+        expected_list = expected if isinstance(expected, list) else [expected]
+        words = " or ".join(_TYPE_WORDS.get(t, t) for t in expected_list)
+        hint = ""
+        if (
+            isinstance(instance, str)
+            and _SEXAGESIMAL.match(instance)
+            and ("number" in expected_list or "integer" in expected_list)
+        ):
+            hint = "; times are plain numbers of seconds here (write 90, not 1:30)"
+        elif isinstance(instance, float) and "integer" in expected_list:
+            hint = "; write a whole number"
+        yield error(
+            "E-TYPE",
+            doc.location(path),
+            f"expected {words}{_in_unit(schema)}, got {_describe_type(instance)}{hint}",
+        )
+        return
+    if kind in ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum"):
+        unit = _unit(schema)
+        bound = err.validator_value
+        relation = {
+            "minimum": f"below the minimum {bound}{unit}",
+            "maximum": f"above the maximum {bound}{unit}",
+            "exclusiveMinimum": f"not above {bound}{unit}",
+            "exclusiveMaximum": f"not below {bound}{unit}",
+        }[kind]
+        allowed = _allowed_range(schema)
+        yield error(
+            "E-RANGE",
+            doc.location(path),
+            f"{instance!r}{unit} is {relation}; give a value {allowed}",
+        )
+        return
+    if kind in ("enum", "const"):
+        options = err.validator_value if kind == "enum" else [err.validator_value]
+        listing = ", ".join(str(o) for o in options)
+        yield error(
+            "E-VALUE",
+            doc.location(path),
+            f"{instance!r} is not allowed here{_suggest(str(instance), map(str, options))}; "
+            f"choose one of: {listing}",
+        )
+        return
+    if kind == "pattern":
+        yield error(
+            "E-NAME",
+            doc.location(path),
+            f"{instance!r} is not a valid name here; use lower-case letters, digits and _, "
+            "starting with a letter",
+        )
+        return
+    if kind in ("minItems", "maxItems", "minProperties", "maxProperties"):
+        noun = "items" if "Items" in kind else "entries"
+        bound = err.validator_value
+        relation = "at least" if kind.startswith("min") else "at most"
+        yield error(
+            "E-COUNT",
+            doc.location(path),
+            f"give {relation} {bound} {noun} here (found {len(instance)})",
+        )
+        return
+    if kind in ("anyOf", "oneOf"):
+        expected = schema.get("x-expected")
+        if expected:
+            yield error(
+                "E-TYPE", doc.location(path), f"expected {expected}, got {_describe_type(instance)}"
+            )
+            return
+        inner = best_match(err.context) if err.context else None
+        if inner is not None:
+            yield from _convert(inner, doc, base)
+            return
+    if kind == "items" and err.validator_value is False:
+        yield error(
+            "E-COUNT", doc.location(path), "too many items in this list; remove the extra ones"
+        )
+        return
+    yield error("E-SCHEMA", doc.location(path), err.message)
+
+
+def _allowed_range(schema: Mapping[str, Any]) -> str:
+    unit = _unit(schema)
+    low = schema.get("minimum")
+    low_x = schema.get("exclusiveMinimum")
+    high = schema.get("maximum")
+    high_x = schema.get("exclusiveMaximum")
+    parts = []
+    if low is not None:
+        parts.append(f"at least {low}{unit}")
+    if low_x is not None:
+        parts.append(f"above {low_x}{unit}")
+    if high is not None:
+        parts.append(f"at most {high}{unit}")
+    if high_x is not None:
+        parts.append(f"below {high_x}{unit}")
+    return " and ".join(parts) or "in range"
+
+
+def validate_data(
+    name: str,
+    data: Any,
+    doc: Document,
+    base: DocPath = (),
+    *,
+    checker: Draft202012Validator | None = None,
+) -> list[Finding]:
+    """Every schema error in ``data`` as findings located through ``doc``.
+
+    Args:
+        name: Short name of the shipped schema (ignored when ``schema`` is given).
+        data: The data to check.
+        doc: The document the data was read from (for line and column).
+        base: Path of ``data`` inside ``doc``.
+        checker: A validator to use instead of a shipped schema's (block parameters).
+    """
+    checker = checker if checker is not None else validator(name)
+    findings: list[Finding] = []
+    for err in checker.iter_errors(data):
+        findings.extend(_convert(err, doc, base))
+    return findings
+
+
+def check_schema(schema: Mapping[str, Any]) -> str | None:
+    """None when ``schema`` is a valid JSON Schema 2020-12, else the reason."""
+    try:
+        Draft202012Validator.check_schema(dict(schema))
+    except jsonschema.SchemaError as exc:
+        return exc.message
+    return None

@@ -1,0 +1,367 @@
+"""Validate a file: read, load, check against its schema, resolve, run every check.
+
+This is the front door of the mission layer. It recognises what a file is (a
+mission, a behaviour block or a hardware profile), reports every problem it
+finds rather than the first, and hands back the resolved mission when there
+are no errors, ready to compile.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from clark_engine.data import data_dir
+from clark_engine.errors import UsageError
+from clark_engine.mission.blocks import BlockLibrary
+from clark_engine.mission.checks import run_all
+from clark_engine.mission.findings import DocPath, Finding, Location, error
+from clark_engine.mission.geo import LocalPoint, Origin, parse_point
+from clark_engine.mission.machine import BehaviorResolver
+from clark_engine.mission.model import TELEMETRY_MESSAGES, Agent, Mission, Telemetry
+from clark_engine.mission.profiles import HardwareResolver, ProfileLibrary
+from clark_engine.mission.schemas import validate_data
+from clark_engine.mission.yaml_loader import Document, YamlLoadError, decode_text, load_yaml
+
+
+@dataclass(slots=True)
+class Validation:
+    """The outcome of validating one file.
+
+    Attributes:
+        file: The file as the user named it.
+        kind: ``mission``, ``block`` or ``profile``.
+        findings: Every finding, sorted by position.
+        mission: The resolved mission, when the file is a mission without errors.
+    """
+
+    file: str
+    kind: str
+    findings: list[Finding] = field(default_factory=list)
+    mission: Mission | None = None
+
+    @property
+    def errors(self) -> list[Finding]:
+        """The findings that make the file invalid."""
+        return [f for f in self.findings if f.is_error]
+
+    @property
+    def ok(self) -> bool:
+        """True when there are no errors (warnings allowed)."""
+        return not self.errors
+
+
+def display_path(path: Path) -> str:
+    """How to show a path in findings: relative to the working directory when inside it."""
+    try:
+        return os.path.relpath(path) if path.resolve().is_relative_to(Path.cwd()) else str(path)
+    except (OSError, ValueError):
+        return str(path)
+
+
+def read_source(path: Path) -> bytes:
+    """Read a file the user named, turning OS errors into usage errors (exit code 2).
+
+    Raises:
+        UsageError: Missing, a directory, or unreadable.
+    """
+    shown = str(path)
+    if path.is_dir():
+        raise UsageError(f"{shown} is a directory; give a mission file (e.g. {shown}/mission.yaml)")
+    try:
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise UsageError(f"{shown}: no such file") from None
+    except PermissionError:
+        raise UsageError(f"{shown}: permission denied; check the file's permissions") from None
+    except OSError as exc:
+        raise UsageError(f"{shown}: cannot read it ({exc.strerror or exc})") from None
+
+
+def _dedupe(findings: list[Finding]) -> list[Finding]:
+    seen: set[tuple[str, int | None, int | None, str, str]] = set()
+    out = []
+    for f in sorted(findings, key=Finding.sort_key):
+        key = (f.location.file, f.location.line, f.location.column, f.code, f.message)
+        if key not in seen:
+            seen.add(key)
+            out.append(f)
+    return out
+
+
+def validate_path(path: Path, shown: str | None = None) -> Validation:
+    """Validate one file, whatever it is.
+
+    Raises:
+        UsageError: The file cannot be read.
+    """
+    shown = shown or display_path(path)
+    raw = read_source(path)
+    try:
+        doc = load_yaml(decode_text(raw, shown), shown)
+    except YamlLoadError as exc:
+        return Validation(shown, "unknown", _dedupe(exc.findings))
+    data = doc.data
+    kind = "mission"
+    if isinstance(data, dict) and "clark" not in data:
+        if "block" in data:
+            kind = "block"
+        elif "profile" in data and "kind" in data:
+            kind = "profile"
+    if kind == "block":
+        result = _validate_block(path, doc)
+    elif kind == "profile":
+        result = _validate_profile(path, doc)
+    else:
+        result = _validate_mission(path, doc, raw)
+    result.findings = _dedupe([*doc.findings, *result.findings])
+    if not result.ok:
+        result.mission = None
+    return result
+
+
+def _validate_block(path: Path, doc: Document) -> Validation:
+    library = BlockLibrary([(path.parent, display_path(path.parent))])
+    name = path.stem
+    block = library.get(name)
+    findings = list(library.findings)
+    if block is not None:
+        resolver = BehaviorResolver(library)
+        # Resolve the block as if used with its defaults, to check its machine.
+        resolver.resolve({"use": name}, doc, ())
+        findings.extend(f for f in resolver.findings if f.code != "E-KEY-MISSING")
+    return Validation(doc.file, "block", findings)
+
+
+def _validate_profile(path: Path, doc: Document) -> Validation:
+    folders = [(data_dir("hardware_profiles"), display_path(data_dir("hardware_profiles")))]
+    if not path.resolve().is_relative_to(data_dir("hardware_profiles").resolve()):
+        folders.append((path.parent, display_path(path.parent)))
+    library = ProfileLibrary(folders)
+    composed = library.compose(path.stem) if path.stem in library.names() else None
+    findings = [f for f in library.findings if f.location.file == doc.file or f.is_error]
+    if composed is None and not findings:
+        findings.extend(validate_data("hardware-profile", doc.data, doc))
+    return Validation(doc.file, "profile", findings)
+
+
+def _libraries(
+    path: Path, data: Mapping[str, Any], doc: Document
+) -> tuple[ProfileLibrary, BlockLibrary, list[Finding]]:
+    findings: list[Finding] = []
+    profile_dirs = [(data_dir("hardware_profiles"), display_path(data_dir("hardware_profiles")))]
+    block_dirs = [(data_dir("behaviors"), display_path(data_dir("behaviors")))]
+    include = data.get("include") if isinstance(data.get("include"), Mapping) else {}
+    for key, dirs in (("hardware_profiles", profile_dirs), ("behaviors", block_dirs)):
+        for i, folder in enumerate(include.get(key) or []):
+            if not isinstance(folder, str):
+                continue
+            full = (path.parent / folder).resolve()
+            if not full.is_dir():
+                findings.append(
+                    error(
+                        "E-INCLUDE-MISSING",
+                        doc.location(("include", key, i)),
+                        f"{folder!r} is not a folder next to the mission ({full}); fix the path",
+                    )
+                )
+                continue
+            if any(full == d.resolve() for d, _ in dirs):
+                continue
+            dirs.append((full, display_path(full)))
+    return ProfileLibrary(profile_dirs), BlockLibrary(block_dirs), findings
+
+
+def _dirty(findings: list[Finding], prefix: DocPath) -> bool:
+    n = len(prefix)
+    return any(f.is_error and f.location.path[:n] == prefix for f in findings)
+
+
+#: Mission settings every later check depends on; with one of them broken, checks stop there.
+_NEEDED_SETTINGS = ("id", "name", "loop_hz", "origin", "heartbeat_timeout_s", "ceiling_m")
+
+
+def _validate_mission(path: Path, doc: Document, raw: bytes) -> Validation:
+    result = Validation(doc.file, "mission")
+    schema_findings = validate_data("mission", doc.data, doc)
+    result.findings.extend(schema_findings)
+    data = doc.data
+    root_broken = any(
+        f.is_error and f.location.path in ((), ("agents",), ("mission",)) for f in schema_findings
+    )
+    settings_broken = any(_dirty(schema_findings, ("mission", key)) for key in _NEEDED_SETTINGS)
+    if not isinstance(data, dict) or root_broken or settings_broken:
+        return result
+    profiles, blocks, include_findings = _libraries(path, data, doc)
+    result.findings.extend(include_findings)
+    mission = _build_mission(doc, data, raw, schema_findings, profiles, blocks, result.findings)
+    result.findings.extend(profiles.findings)
+    result.findings.extend(blocks.findings)
+    result.mission = mission
+    return result
+
+
+def _build_mission(
+    doc: Document,
+    data: dict[str, Any],
+    raw: bytes,
+    schema_findings: list[Finding],
+    profiles: ProfileLibrary,
+    blocks: BlockLibrary,
+    findings: list[Finding],
+) -> Mission:
+    section = data["mission"]
+    origin_raw = section["origin"]
+    origin = Origin(
+        float(origin_raw["lat"]), float(origin_raw["lon"]), float(origin_raw.get("alt_m", 0.0))
+    )
+    mission = Mission(
+        file=doc.file,
+        id=int(section["id"]),
+        name=str(section["name"]),
+        loop_hz=float(section["loop_hz"]),
+        heartbeat_timeout_s=float(section.get("heartbeat_timeout_s", 3.0)),
+        origin=origin,
+        ceiling_m=float(section.get("ceiling_m", 120.0)),
+        log_level=str(section.get("log_level", "INFO")),
+        agents={},
+        description=section.get("description"),
+        source_sha256=hashlib.sha256(raw).hexdigest(),
+        locations={key: doc.location(("mission", key)) for key in section},
+        checks=list(data.get("checks") or []) if not _dirty(schema_findings, ("checks",)) else [],
+        check_locations=[doc.location(("checks", i)) for i in range(len(data.get("checks") or []))],
+    )
+    hardware = HardwareResolver(profiles)
+    resolver = BehaviorResolver(blocks)
+    bad_states: set[tuple[str, tuple[str, ...]]] = set()
+    for name, agent_raw in data["agents"].items():
+        agent_path: DocPath = ("agents", name)
+        if (
+            not isinstance(agent_raw, dict)
+            or any(
+                _dirty(schema_findings, (*agent_path, key))
+                for key in ("id", "profile", "hardware", "role")
+            )
+            or (_dirty(schema_findings, agent_path) and not ({"id", "profile"} <= set(agent_raw)))
+        ):
+            mission.unresolved.add(name)
+            continue
+        agent = _build_agent(doc, name, agent_raw, mission, hardware, schema_findings, findings)
+        if agent is None:
+            mission.unresolved.add(name)
+            continue
+        mission.agents[name] = agent
+    # Behaviours last: checks inside them look at every agent's telemetry and hardware.
+    for name, agent in mission.agents.items():
+        raw_behavior = agent.raw.get("behavior")
+        if not isinstance(raw_behavior, dict) or (
+            _dirty(schema_findings, ("agents", name, "behavior"))
+            and _structural(schema_findings, ("agents", name, "behavior"))
+        ):
+            continue
+        agent.behavior = resolver.resolve(raw_behavior, doc, ("agents", name, "behavior"))
+        bad_states |= {(name, state_path) for state_path in resolver.bad_paths}
+    findings.extend(resolver.findings)
+    findings.extend(run_all(mission, bad_states))
+    return mission
+
+
+def _structural(findings: list[Finding], prefix: DocPath) -> bool:
+    """True when the errors under ``prefix`` are about shape, not parameter values."""
+    n = len(prefix)
+    for f in findings:
+        if not f.is_error or f.location.path[:n] != prefix:
+            continue
+        rest = f.location.path[n:]
+        if "with" not in rest:
+            return True
+    return False
+
+
+def _build_agent(
+    doc: Document,
+    name: str,
+    raw: dict[str, Any],
+    mission: Mission,
+    hardware_resolver: HardwareResolver,
+    schema_findings: list[Finding],
+    findings: list[Finding],
+) -> Agent | None:
+    path: DocPath = ("agents", name)
+    overrides = raw.get("hardware") or {}
+    result = hardware_resolver.resolve(
+        name,
+        str(raw["profile"]),
+        doc.location((*path, "profile")),
+        overrides,
+        doc,
+        (*path, "hardware"),
+    )
+    findings.extend(result.findings)
+    hardware = result.hardware
+    if hardware is None:
+        return None
+    role = raw.get("role") or hardware.role
+    if role != hardware.role:
+        findings.append(
+            error(
+                "E-ROLE",
+                doc.location((*path, "role")),
+                f"role {role!r} contradicts profile {hardware.platform!r}, which is a "
+                f"{hardware.role}; remove role: or name a {role} platform",
+            )
+        )
+        return None
+    telemetry: dict[str, Telemetry] = {}
+    if not _dirty(schema_findings, (*path, "telemetry")):
+        for message in TELEMETRY_MESSAGES:
+            spec = (raw.get("telemetry") or {}).get(message)
+            if spec is None:
+                continue
+            where = doc.location((*path, "telemetry", message))
+            if isinstance(spec, Mapping):
+                telemetry[message] = Telemetry(
+                    message, float(spec["rate_hz"]), tuple(spec.get("to", ())), where
+                )
+            else:
+                telemetry[message] = Telemetry(message, float(spec), (), where)
+    position = LocalPoint(0.0, 0.0, 0.0)
+    if "position" in raw and not _dirty(schema_findings, (*path, "position")):
+        position = parse_point(raw["position"], mission.origin)
+    radio = hardware.part("radio") or {}
+    autopilot = hardware.part("autopilot") or {}
+    terminal = raw.get("terminal_mode") or autopilot.get("terminal_mode")
+    locations = {key: doc.location((*path, key)) for key in raw}
+    radio_override = overrides.get("radio") if isinstance(overrides, Mapping) else None
+    if isinstance(radio_override, Mapping) and "address" in radio_override:
+        locations["radio_address"] = doc.location((*path, "hardware", "radio", "address"))
+    elif "radio" in result.origins:
+        locations["radio_address"] = result.origins["radio"].locate(
+            ("address",), doc.location(path)
+        )
+    locations.setdefault("telemetry", doc.location(path))
+    return Agent(
+        name=name,
+        id=int(raw["id"]),
+        role=role,
+        profile=str(raw["profile"]),
+        hardware=hardware,
+        telemetry=telemetry,
+        behavior=None,
+        failsafe={"mcs_lost": str((raw.get("failsafe") or {}).get("mcs_lost", "hold"))},
+        terminal_mode=str(terminal) if terminal is not None else None,
+        position=position,
+        radio_address=str(radio["address"]) if radio.get("address") is not None else None,
+        location=doc.location(path),
+        raw=raw,
+        locations=locations,
+    )
+
+
+def location_of(mission: Mission, key: str) -> Location:
+    """Where a mission setting was written."""
+    return mission.locations.get(key, Location(mission.file, 1, 1, ("mission", key)))
