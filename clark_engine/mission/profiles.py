@@ -29,8 +29,16 @@ META_KEYS = frozenset({"profile", "kind", "extends", "abstract", "description", 
 
 
 def deep_merge(base: Any, over: Any) -> Any:
-    """Merge ``over`` onto ``base``: mappings key by key, anything else replaced."""
-    if isinstance(base, Mapping) and isinstance(over, Mapping):
+    """Merge ``over`` onto ``base``: mappings key by key, anything else replaced.
+
+    A mapping that changes its ``kind`` (a serial connection becoming a UDP one) is
+    replaced whole: the old kind's fields (device, baud) mean nothing to the new one.
+    """
+    if (
+        isinstance(base, Mapping)
+        and isinstance(over, Mapping)
+        and not ("kind" in over and "kind" in base and over["kind"] != base["kind"])
+    ):
         out = dict(base)
         for key, value in over.items():
             out[key] = deep_merge(base[key], value) if key in base else copy.deepcopy(value)
@@ -49,6 +57,17 @@ def _record(
     elif isinstance(data, list):
         for i, value in enumerate(data):
             _record(origins, value, doc, (*src, i), (*dst, i))
+
+
+def _exists(data: Any, path: DocPath) -> bool:
+    for part in path:
+        if (isinstance(data, Mapping) and part in data) or (
+            isinstance(data, list) and isinstance(part, int) and part < len(data)
+        ):
+            data = data[part]
+        else:
+            return False
+    return True
 
 
 @dataclass(slots=True)
@@ -71,6 +90,8 @@ class Composed:
         """Merge fields written at ``src`` in ``doc`` onto this one."""
         self.data = deep_merge(self.data, dict(data))
         _record(self.origins, data, doc, src, ())
+        # Values that were replaced whole (a kind change) keep no stale origins.
+        self.origins = {p: loc for p, loc in self.origins.items() if _exists(self.data, p)}
 
 
 @dataclass(slots=True)
@@ -345,12 +366,20 @@ class HardwareResolver:
             ref = platform.data.get(kind)
             if ref is None:
                 continue
-            ref_loc = platform.locate((kind,), profile_loc)
-            resolved = self._part(kind, ref, ref_loc, platform_doc, (kind,), findings)
+            extra = overrides.get(kind)
+            if isinstance(extra, str) or (isinstance(extra, Mapping) and "profile" in extra):
+                # The agent swaps this part for another profile (e.g. a UDP radio on a LAN).
+                where = mission_doc.location((*overrides_path, kind))
+                resolved = self._part(
+                    kind, extra, where, mission_doc, (*overrides_path, kind), findings
+                )
+                extra = None
+            else:
+                ref_loc = platform.locate((kind,), profile_loc)
+                resolved = self._part(kind, ref, ref_loc, platform_doc, (kind,), findings)
             if resolved is None:
                 continue
             name, part = resolved
-            extra = overrides.get(kind)
             if isinstance(extra, Mapping):
                 part.overlay(extra, mission_doc, (*overrides_path, kind))
             hardware.parts[kind] = part.data
@@ -526,7 +555,56 @@ class HardwareResolver:
                 )
             ]
         located = _OriginDocument(part, fallback)
-        return validate_data("", data, located, checker=_kind_validator(schema_kind))
+        findings = validate_data("", data, located, checker=_kind_validator(schema_kind))
+        if not findings:
+            findings.extend(_part_rules(schema_kind, part, fallback))
+        return findings
+
+
+_MODE_ROLES = ("guided_mode", "hold_mode", "rtl_mode", "terminal_mode", "manual_mode")
+
+
+def _part_rules(kind: str, part: Composed, fallback: Location) -> list[Finding]:
+    """Rules across fields of a merged part that a JSON Schema cannot state."""
+    data = part.data
+    out: list[Finding] = []
+    if kind == "autopilot":
+        modes = data.get("modes") or {}
+        for role in _MODE_ROLES:
+            mode = data.get(role)
+            if mode is not None and mode not in modes:
+                out.append(
+                    error(
+                        "E-PROFILE-MODE",
+                        part.locate((role,), fallback),
+                        f"{role} {mode!r} is not one of this autopilot's modes; "
+                        + _suggest(str(mode), modes),
+                    )
+                )
+        rate, top = data.get("stream_rate_hz"), data.get("max_stream_rate_hz")
+        if rate is not None and top is not None and rate > top:
+            out.append(
+                error(
+                    "E-PROFILE-RANGE",
+                    part.locate(("stream_rate_hz",), fallback),
+                    f"stream_rate_hz {rate:g} is above max_stream_rate_hz {top:g}, the most "
+                    "the autopilot sends; lower it",
+                )
+            )
+    if kind == "airframe":
+        low, cruise, top = (
+            data.get(k) for k in ("min_speed_m_s", "cruise_speed_m_s", "max_speed_m_s")
+        )
+        if low is not None and cruise is not None and top is not None and not low <= cruise <= top:
+            out.append(
+                error(
+                    "E-PROFILE-RANGE",
+                    part.locate(("cruise_speed_m_s",), fallback),
+                    f"speeds must satisfy min <= cruise <= max; got {low:g}, {cruise:g}, "
+                    f"{top:g} m/s",
+                )
+            )
+    return out
 
 
 @functools.cache

@@ -22,6 +22,7 @@ from jsonschema.exceptions import ValidationError, best_match
 
 from clark_engine.data import data_dir
 from clark_engine.mission.findings import DocPath, Finding, error
+from clark_engine.mission.schema_source.common import NAME_PATTERN
 from clark_engine.mission.yaml_loader import Document
 
 SCHEMA_NAMES = {
@@ -115,9 +116,12 @@ def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Fin
         yield error(
             "E-NAME",
             doc.location((*path, key), key=True),
-            f"{key!r} is not a valid name; use lower-case letters, digits and _, starting "
-            "with a letter (e.g. slash_a)",
+            f"{key!r} is not a valid name here; {_pattern_advice(err)}",
         )
+        return
+    if kind == "not":
+        reason = schema.get("description") or "these settings contradict each other"
+        yield error("E-CONFLICT", doc.location(path), f"{reason}; remove or change this value")
         return
     if kind in ("additionalProperties", "unevaluatedProperties"):
         known = _property_names(schema) | set(
@@ -128,11 +132,12 @@ def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Fin
         else:
             extras = _QUOTED.findall(err.message.split("(")[-1]) or list(instance)
         for key in extras:
+            others = known - {key}
+            hint = _suggest(key, others) or f"; allowed keys: {', '.join(sorted(others))}"
             yield error(
                 "E-KEY-UNKNOWN",
                 doc.location((*path, key), key=True),
-                f"unknown key {key!r}{_suggest(key, known)}"
-                + ("" if _suggest(key, known) else f"; allowed keys: {', '.join(sorted(known))}"),
+                f"unknown key {key!r}{hint}",
             )
         return
     if kind == "required":
@@ -203,11 +208,11 @@ def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Fin
         )
         return
     if kind == "pattern":
+        code = "E-NAME" if err.validator_value == NAME_PATTERN else "E-FORMAT"
         yield error(
-            "E-NAME",
+            code,
             doc.location(path),
-            f"{instance!r} is not a valid name here; use lower-case letters, digits and _, "
-            "starting with a letter",
+            f"{instance!r} is not valid here; {_pattern_advice(err)}",
         )
         return
     if kind in ("minItems", "maxItems", "minProperties", "maxProperties"):
@@ -237,6 +242,17 @@ def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Fin
         )
         return
     yield error("E-SCHEMA", doc.location(path), err.message)
+
+
+def _pattern_advice(err: ValidationError) -> str:
+    """What a value matching the failed pattern looks like, for the message."""
+    if err.validator_value == NAME_PATTERN:
+        return "use lower-case letters, digits and _, starting with a letter (e.g. slash_a)"
+    schema = err.schema if isinstance(err.schema, Mapping) else {}
+    described = schema.get("description")
+    if described:
+        return f"expected {described[0].lower()}{described[1:].rstrip('.')}"
+    return f"it must match {err.validator_value}"
 
 
 def _allowed_range(schema: Mapping[str, Any]) -> str:

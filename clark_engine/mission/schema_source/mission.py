@@ -17,6 +17,11 @@ from clark_engine.mission.schema_source.common import (
     schema_id,
     string,
 )
+from clark_engine.mission.schema_source.hardware_profile import (
+    PART_KINDS,
+    agent_hardware_schema,
+    part_reference_schema,
+)
 from clark_engine.mission.schema_source.states import STATE_PATH_PATTERN, state_defs
 
 #: Highest telemetry rate a mission may ask for; far above any radio's budget.
@@ -64,36 +69,15 @@ def _rate(message: str) -> Schema:
 
 
 def _hardware_overrides() -> Schema:
-    part = {
-        "type": "object",
-        "description": "Fields deep-merged onto this part of the platform profile "
-        "(see docs/hardware-profiles.md).",
-    }
-    return obj(
-        "Per-agent overrides of the platform profile: any field of any part.",
-        {
-            "airframe": part,
-            "autopilot": part,
-            "radio": part,
-            "computer": part,
-            "payloads": {
-                "type": "object",
-                "description": "Payload name -> a payload profile name, or fields merged onto it "
-                "({profile: name, ...} to add a new one).",
-                "propertyNames": {"pattern": NAME_PATTERN},
-                "additionalProperties": {
-                    "anyOf": [string("Payload profile name.", pattern=NAME_PATTERN), part]
-                },
-            },
-            "channels": {
-                "type": "object",
-                "description": "Control channel name -> fields merged onto the channel map "
-                "(rc, servo, pwm_min_us, pwm_trim_us, pwm_max_us).",
-                "propertyNames": {"pattern": NAME_PATTERN},
-                "additionalProperties": {"type": "object"},
-            },
-        },
+    """Per-agent hardware: change any field of a part, or swap it ({profile: other})."""
+    schema = agent_hardware_schema()
+    for kind in PART_KINDS:
+        schema["properties"][kind] = part_reference_schema(kind, require_profile=False)
+    schema["description"] = (
+        "Per-agent changes to the platform: fields deep-merged onto a part, or "
+        "{profile: name, ...} (or just a name) to swap the part for another profile."
     )
+    return schema
 
 
 def _agent() -> Schema:
