@@ -197,7 +197,8 @@ def check_agent_modes(mission: Mission, agent: Agent) -> Iterator[Finding]:
             f"failsafe {action} needs a {action.upper()} mode, which {agent.name!r}'s autopilot "
             "does not have; choose hold or rtl",
         )
-    if "mcs_lost" in agent.raw.get("failsafe", {}) and not mission.stations:
+    declared = agent.raw.get("failsafe")
+    if isinstance(declared, Mapping) and "mcs_lost" in declared and not mission.stations:
         yield warning(
             "W-NO-STATION",
             _raw_loc(agent, "failsafe"),

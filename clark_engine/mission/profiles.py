@@ -12,6 +12,7 @@ from __future__ import annotations
 import copy
 import difflib
 import functools
+import json
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -252,6 +253,7 @@ class HardwareResolver:
     def __init__(self, library: ProfileLibrary) -> None:
         """Resolve against ``library``."""
         self.library = library
+        self._clean: set[tuple[str, str]] = set()
 
     def _part(
         self,
@@ -554,10 +556,17 @@ class HardwareResolver:
                     f"the {schema_kind} is an abstract base profile; name one that extends it",
                 )
             ]
+        # Agents on one platform share identical parts; a part found clean once is clean
+        # wherever it was written, so it is not checked again.
+        key = (schema_kind, json.dumps(data, sort_keys=True, default=str))
+        if key in self._clean:
+            return []
         located = _OriginDocument(part, fallback)
         findings = validate_data("", data, located, checker=_kind_validator(schema_kind))
         if not findings:
             findings.extend(_part_rules(schema_kind, part, fallback))
+        if not findings:
+            self._clean.add(key)
         return findings
 
 

@@ -292,6 +292,11 @@ def _build_agent(
     findings: list[Finding],
 ) -> Agent | None:
     path: DocPath = ("agents", name)
+
+    def clean(key: str) -> Any:
+        """The agent's value for ``key`` when the schema found nothing wrong in it."""
+        return None if _dirty(schema_findings, (*path, key)) else raw.get(key)
+
     overrides = raw.get("hardware") or {}
     result = hardware_resolver.resolve(
         name,
@@ -305,7 +310,7 @@ def _build_agent(
     hardware = result.hardware
     if hardware is None:
         return None
-    role = raw.get("role") or hardware.role
+    role = clean("role") or hardware.role
     if role != hardware.role:
         findings.append(
             error(
@@ -330,11 +335,11 @@ def _build_agent(
             else:
                 telemetry[message] = Telemetry(message, float(spec), (), where)
     position = LocalPoint(0.0, 0.0, 0.0)
-    if "position" in raw and not _dirty(schema_findings, (*path, "position")):
+    if clean("position") is not None:
         position = parse_point(raw["position"], mission.origin)
     radio = hardware.part("radio") or {}
     autopilot = hardware.part("autopilot") or {}
-    terminal = raw.get("terminal_mode") or autopilot.get("terminal_mode")
+    terminal = clean("terminal_mode") or autopilot.get("terminal_mode")
     locations = {key: doc.location((*path, key)) for key in raw}
     radio_override = overrides.get("radio") if isinstance(overrides, Mapping) else None
     if isinstance(radio_override, Mapping) and "address" in radio_override:
@@ -352,7 +357,7 @@ def _build_agent(
         hardware=hardware,
         telemetry=telemetry,
         behavior=None,
-        failsafe={"mcs_lost": str((raw.get("failsafe") or {}).get("mcs_lost", "hold"))},
+        failsafe={"mcs_lost": str((clean("failsafe") or {}).get("mcs_lost", "hold"))},
         terminal_mode=str(terminal) if terminal is not None else None,
         position=position,
         radio_address=str(radio["address"]) if radio.get("address") is not None else None,

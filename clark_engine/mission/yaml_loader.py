@@ -100,13 +100,18 @@ class _BoundedComposer(Composer):
             self._depth -= 1
 
 
-if hasattr(yaml, "CParser"):
+try:  # libyaml's parser when PyYAML was built with it (CParser is not re-exported by yaml)
+    from yaml.cyaml import CParser as _CParser
+except ImportError:  # pragma: no cover - PyYAML built without libyaml
+    _CParser = None
 
-    class _Loader(_BoundedComposer, _Core12Resolver, yaml.CParser):  # type: ignore[misc]
+if _CParser is not None:
+
+    class _Loader(_BoundedComposer, _Core12Resolver, _CParser):  # type: ignore[misc]
         """libyaml parses; our composer and resolver build nodes."""
 
         def __init__(self, stream: str) -> None:
-            yaml.CParser.__init__(self, stream)
+            _CParser.__init__(self, stream)
             _BoundedComposer.__init__(self)
             _Core12Resolver.__init__(self)
 
@@ -254,7 +259,8 @@ class _Builder:
             self.bad_tag(node, path)
             return value
         if tag == _STR:
-            if node.style is None and value.lower() in BOOL_WORDS:
+            # Plain style is None from PyYAML's parser and '' from libyaml's.
+            if not node.style and value.lower() in BOOL_WORDS:
                 self.doc.findings.append(
                     error(
                         "E-YAML-BOOL-WORD",
@@ -316,7 +322,7 @@ class _Builder:
             )
             return None
         text: str = key.value
-        if key.style is None and text.lower() in BOOL_WORDS:
+        if not key.style and text.lower() in BOOL_WORDS:
             self.doc.findings.append(
                 error(
                     "E-YAML-BOOL-WORD",
@@ -335,7 +341,7 @@ class _Builder:
             key = self.key_text(key_node, path)
             if key is None:
                 continue
-            if key == "<<" and isinstance(key_node, ScalarNode) and key_node.style is None:
+            if key == "<<" and isinstance(key_node, ScalarNode) and not key_node.style:
                 self.merge(value_node, path, depth, merged)
                 continue
             child = (*path, key)

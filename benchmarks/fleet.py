@@ -1,0 +1,81 @@
+"""Generate a large valid mission: N agents on the shipped platforms, varied behaviours.
+
+Used by the benchmarks (and by tests that need a big mission). Deterministic:
+the same N gives the same text.
+"""
+
+from __future__ import annotations
+
+#: Platform by agent index modulo 4; each gets a behaviour that suits it.
+PLATFORMS = ("anaconda", "dji_f450", "super_cub", "traxxas_slash")
+
+
+def fleet_mission(agents: int, loop_hz: float = 10) -> str:
+    """A mission with one station and ``agents - 1`` vehicles, as YAML text."""
+    lines = [
+        "clark: 1",
+        "mission:",
+        "  id: 4242",
+        f"  name: fleet-{agents}",
+        f"  loop_hz: {loop_hz}",
+        "  origin: {lat: 30.6372, lon: -96.4787, alt_m: 90}",
+        "agents:",
+        "  mcs:",
+        "    id: 1",
+        "    profile: mcs_laptop",
+        '    hardware: {radio: {address: "0013A20040000001"}}',
+        "    telemetry: {heartbeat: 1}",
+    ]
+    for i in range(2, agents + 1):
+        platform = PLATFORMS[i % len(PLATFORMS)]
+        name = f"v{i:03d}"
+        east = (i % 10) * 40
+        north = (i // 10) * 40
+        lines += [
+            f"  {name}:",
+            f"    id: {i}",
+            f"    profile: {platform}",
+            f'    hardware: {{radio: {{address: "0013A2004000{i:04X}"}}}}',
+            "    telemetry: {heartbeat: 1, agent_status: 2, behavior_state: 1}",
+        ]
+        if i % 4 == 0:  # anaconda: survey block with photos
+            lines += [
+                "    behavior:",
+                "      initial: survey",
+                "      states:",
+                "        survey:",
+                "          use: survey_with_photos",
+                f"          with: {{waypoints: [[{north}, {east}, 60],"
+                f" [{north + 200}, {east}, 60]]}}",
+                "          transitions: {done: doublet}",
+                "        doublet: {use: aileron_doublet, transitions: {done: loiter}}",
+                "        loiter: {use: hold, final: true}",
+            ]
+        elif i % 4 == 2:  # super_cub: the system-identification sequence on activation
+            lines += [
+                "    behavior:",
+                "      initial: piloted",
+                "      states:",
+                "        piloted: {use: wait, transitions: {activate: excite}}",
+                "        excite: {use: system_id_sequence, transitions: {done: piloted,"
+                " deactivate: piloted}}",
+            ]
+        elif i % 4 == 1:  # dji_f450: follow the previous vehicle
+            target = f"v{i - 1:03d}"
+            lines += [
+                "    behavior:",
+                "      initial: idle",
+                "      states:",
+                "        idle: {use: hold, transitions: {activate: chase}}",
+                f"        chase: {{use: follow_agent, with: {{target: {target}, tolerance_m: 6}},"
+                " transitions: {done: parked}}",
+                "        parked: {use: hold, final: true}",
+            ]
+        else:  # traxxas_slash: a looping tour
+            lines += [
+                "    behavior:",
+                "      use: waypoint_tour",
+                f"      with: {{loop: true, waypoints: [[{north}, {east}], [{north + 30}, {east}],"
+                f" [{north + 30}, {east + 30}]]}}",
+            ]
+    return "\n".join(lines) + "\n"
