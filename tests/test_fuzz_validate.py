@@ -109,6 +109,11 @@ def test_agent_settings_of_the_wrong_shape() -> None:
     _validate_text(text)
 
 
+def test_checks_of_the_wrong_shape() -> None:
+    """Found by fuzzing: checks written as a boolean instead of a list."""
+    _validate_text(SOURCES["cooperative_follow.yaml"].split("checks:")[0] + "checks: true\n")
+
+
 @settings(
     max_examples=100,
     deadline=None,

@@ -167,5 +167,5 @@ def test_libyaml_parser_is_used_when_available() -> None:
     from clark_engine.mission import yaml_loader
 
     if yaml.__with_libyaml__:
-        assert yaml_loader._CParser is not None
+        assert yaml_loader.HAVE_LIBYAML
         assert issubclass(yaml_loader._Loader, yaml_loader._CParser)

@@ -16,8 +16,9 @@ from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
 
 from clark_engine.mission.findings import Finding, Location, error, warning
-from clark_engine.mission.model import Agent, Mission, State
+from clark_engine.mission.model import Agent, Mission, State, Transition
 from clark_engine.mission.primitives import PRIMITIVES, UseContext
+from clark_engine.mission.primitives._shared import off_the_globe
 
 SIMPLE_EVENTS = frozenset(
     {"done", "timeout", "activate", "deactivate", "terminate", "mcs_lost", "autopilot_lost"}
@@ -49,6 +50,11 @@ def run_all(mission: Mission, bad_states: set[tuple[str, tuple[str, ...]]]) -> l
     findings.extend(check_addresses(mission))
     findings.extend(check_loop_rate(mission))
     for agent in mission.agents.values():
+        problem = off_the_globe(agent.position, mission.origin)
+        if problem:
+            findings.append(
+                error("E-POSITION", _raw_loc(agent, "position"), f"the agent {problem}")
+            )
         findings.extend(check_telemetry(mission, agent))
         findings.extend(check_agent_modes(mission, agent))
         if agent.behavior is not None:
@@ -117,9 +123,9 @@ def check_loop_rate(mission: Mission) -> Iterator[Finding]:
             yield error(
                 "E-LOOP-HZ",
                 _mission_loc(mission, "loop_hz"),
-                f"loop_hz {mission.loop_hz:g} is above the {limit:g} Hz that {agent.name!r}'s "
-                f"mission computer ({agent.hardware.part_profiles.get('computer')}) was measured "
-                "to hold; lower loop_hz or give it a faster computer",
+                f"loop_hz {mission.loop_hz:g} is above the {limit:g} Hz that the mission "
+                f"computer of {agent.name} ({agent.hardware.part_profiles.get('computer')}) was "
+                "measured to hold; lower loop_hz or give it a faster computer",
                 agent.location,
             )
 
@@ -149,6 +155,12 @@ def check_telemetry(mission: Mission, agent: Agent) -> Iterator[Finding]:
                     f"it will be sent every {round(ticks)} ticks ({actual:.3g} Hz); pick a rate "
                     "that divides loop_hz",
                 )
+        if agent.name in item.to:
+            yield error(
+                "E-TELEMETRY-SELF",
+                item.location,
+                f"{agent.name} sends {item.message} to itself; list only other agents in to:",
+            )
         for name in item.to:
             if name not in mission.agents and name not in mission.unresolved:
                 yield error(
@@ -158,13 +170,15 @@ def check_telemetry(mission: Mission, agent: Agent) -> Iterator[Finding]:
                     + _hint(name, mission.agents),
                 )
     heartbeat = agent.telemetry.get("heartbeat")
+    written = agent.raw.get("telemetry")
     if heartbeat is None:
-        yield warning(
-            "W-NO-HEARTBEAT",
-            _raw_loc(agent, "telemetry"),
-            f"{agent.name!r} sends no heartbeat, so no peer will ever add it to its fleet "
-            "table; add heartbeat: 1 to its telemetry",
-        )
+        if not (isinstance(written, Mapping) and "heartbeat" in written):
+            yield warning(
+                "W-NO-HEARTBEAT",
+                _raw_loc(agent, "telemetry"),
+                f"{agent.name} sends no heartbeat, so no peer will ever add it to its fleet "
+                "table; add heartbeat: 1 to its telemetry",
+            )
     elif 1.0 / heartbeat.rate_hz >= mission.heartbeat_timeout_s:
         yield error(
             "E-HEARTBEAT-RATE",
@@ -185,8 +199,8 @@ def check_agent_modes(mission: Mission, agent: Agent) -> Iterator[Finding]:
         yield error(
             "E-MODE-UNKNOWN",
             _raw_loc(agent, "terminal_mode"),
-            f"the {agent.profile}'s autopilot has no mode {agent.terminal_mode!r}; "
-            + _hint(agent.terminal_mode, modes),
+            f"the autopilot of {agent.name} ({agent.profile}) has no mode "
+            f"{agent.terminal_mode!r}; " + _hint(agent.terminal_mode, modes),
         )
     action = agent.failsafe.get("mcs_lost", "hold")
     needed = {"rtl": autopilot.get("rtl_mode"), "land": "LAND" if "LAND" in modes else None}
@@ -194,8 +208,8 @@ def check_agent_modes(mission: Mission, agent: Agent) -> Iterator[Finding]:
         yield error(
             "E-FAILSAFE",
             _raw_loc(agent, "failsafe"),
-            f"failsafe {action} needs a {action.upper()} mode, which {agent.name!r}'s autopilot "
-            "does not have; choose hold or rtl",
+            f"failsafe {action} needs a {action.upper()} mode, which the autopilot of "
+            f"{agent.name} does not have; choose hold or rtl",
         )
     declared = agent.raw.get("failsafe")
     if isinstance(declared, Mapping) and "mcs_lost" in declared and not mission.stations:
@@ -215,13 +229,12 @@ def check_states(mission: Mission, agent: Agent, root: State) -> Iterator[Findin
         for transition in state.transitions:
             yield from _check_event(mission, agent, state, transition.event, transition.location)
             if transition.condition is not None:
-                yield from _check_condition(
-                    mission, agent, transition.condition, transition.location
-                )
+                yield from _check_condition(mission, agent, transition.condition, transition)
+            yield from _check_region_crossing(root, state, transition)
         if state.timeout_s is not None and "timeout" not in events:
             yield error(
                 "E-TIMEOUT-TARGET",
-                state.location,
+                state.timeout_location or state.location,
                 f"state {state.dotted} times out after {state.timeout_s:g} s but has no "
                 "timeout transition; add transitions: {timeout: <state>}",
             )
@@ -240,7 +253,7 @@ def check_states(mission: Mission, agent: Agent, root: State) -> Iterator[Findin
                 f"state {state.dotted} never finishes ({_why_never(state)}), so its done "
                 "transition is never taken; use another event or a primitive that finishes",
             )
-        if state.children and not state.parallel:
+        if state.children and not state.parallel and state.initial is not None:
             for child in state.children.values():
                 if child.name == state.initial:
                     continue
@@ -251,6 +264,31 @@ def check_states(mission: Mission, agent: Agent, root: State) -> Iterator[Findin
                         f"state {child.dotted} is never entered: it is not initial and no "
                         "transition leads to it; add a transition or remove it",
                     )
+
+
+def _check_region_crossing(root: State, state: State, transition: Transition) -> Iterator[Finding]:
+    """A transition may not jump from one region of a parallel state into a sibling region."""
+    if not transition.target:
+        return
+    for depth in range(len(state.path)):
+        parent = root.find(state.path[:depth])
+        if parent is None or not parent.parallel:
+            continue
+        source_region = state.path[depth]
+        target_prefix = transition.target[:depth]
+        if (
+            target_prefix == state.path[:depth]
+            and len(transition.target) > depth
+            and transition.target[depth] != source_region
+        ):
+            yield error(
+                "E-STATE-PARALLEL",
+                transition.location,
+                f"{'.'.join(state.path[: depth + 1])} and "
+                f"{'.'.join(transition.target[: depth + 1])} are regions of the parallel state "
+                f"{parent.dotted}, which run together; a transition cannot move between "
+                "regions, so target a state outside the parallel state",
+            )
 
 
 def _can_finish(state: State) -> bool:
@@ -289,11 +327,17 @@ def _check_event(
     head, _, rest = event.partition(":")
     if head == "mode" and rest:
         modes = agent.hardware.modes
-        if rest not in modes:
+        if not agent.is_vehicle:
+            yield error(
+                "E-EVENT-UNKNOWN",
+                where,
+                f"{agent.name} is a station and has no autopilot; mode events are for vehicles",
+            )
+        elif rest not in modes:
             yield error(
                 "E-MODE-UNKNOWN",
                 where,
-                f"{agent.name!r}'s autopilot has no mode {rest!r}; {_hint(rest, modes)}",
+                f"the autopilot of {agent.name} has no mode {rest!r}; {_hint(rest, modes)}",
             )
         return
     if head == "rc":
@@ -359,41 +403,86 @@ def _check_rc_channel(agent: Agent, channel: str, where: Location) -> Iterator[F
 
 
 def _check_condition(
-    mission: Mission, agent: Agent, condition: Mapping[str, Any], where: Location
+    mission: Mission,
+    agent: Agent,
+    condition: Mapping[str, Any],
+    transition: Transition,
+    at: tuple[str | int, ...] = (),
 ) -> Iterator[Finding]:
+    """Agents, modes and bounds inside a transition's condition, each at its own line."""
     for key, value in condition.items():
+        here = (*at, key)
         if key in ("all", "any"):
-            for item in value:
-                yield from _check_condition(mission, agent, item, where)
+            for i, item in enumerate(value):
+                yield from _check_condition(mission, agent, item, transition, (*here, i))
         elif key == "not":
-            yield from _check_condition(mission, agent, value, where)
-        elif key == "distance_m":
-            target = str(value.get("to"))
-            if target not in mission.agents and target not in mission.unresolved:
-                yield error(
-                    "E-AGENT-UNKNOWN",
-                    where,
-                    f"the condition measures distance to {target!r}, which is not an agent; "
-                    + _hint(target, mission.agents),
-                )
-            elif target in mission.agents:
-                status = mission.agents[target].telemetry.get("agent_status")
-                if status is None or not status.reaches(agent.name):
-                    yield error(
-                        "E-FOLLOW-STATUS",
-                        where,
-                        f"the condition needs {target!r}'s position but it sends no "
-                        f"agent_status to {agent.name!r}; add agent_status to its telemetry",
-                    )
+            yield from _check_condition(mission, agent, value, transition, here)
         elif key == "mode":
             mode = str(value.get("is"))
-            if mode not in agent.hardware.modes:
+            if not agent.is_vehicle:
+                yield error(
+                    "E-EVENT-UNKNOWN",
+                    transition.condition_location(here),
+                    f"{agent.name} is a station and has no autopilot mode to test",
+                )
+            elif mode not in agent.hardware.modes:
                 yield error(
                     "E-MODE-UNKNOWN",
-                    where,
-                    f"{agent.name!r}'s autopilot has no mode {mode!r}; "
+                    transition.condition_location((*here, "is")),
+                    f"the autopilot of {agent.name} has no mode {mode!r}; "
                     + _hint(mode, agent.hardware.modes),
                 )
+        else:
+            yield from _check_bounds(key, value, transition, here)
+            if key == "distance_m":
+                yield from _check_distance_target(mission, agent, value, transition, here)
+
+
+def _check_bounds(
+    key: str, value: Mapping[str, Any], transition: Transition, here: tuple[str | int, ...]
+) -> Iterator[Finding]:
+    low, high = value.get("gt"), value.get("lt")
+    if low is None and high is None:
+        yield error(
+            "E-CONDITION",
+            transition.condition_location(here),
+            f"{key} compares with nothing; give lt (below) or gt (above), or both",
+        )
+    elif low is not None and high is not None and low >= high:
+        yield error(
+            "E-CONDITION",
+            transition.condition_location(here),
+            f"{key} above {low:g} and below {high:g} can never hold; make gt smaller than lt",
+        )
+
+
+def _check_distance_target(
+    mission: Mission,
+    agent: Agent,
+    value: Mapping[str, Any],
+    transition: Transition,
+    here: tuple[str | int, ...],
+) -> Iterator[Finding]:
+    target = str(value.get("to"))
+    where = transition.condition_location((*here, "to"))
+    if target not in mission.agents and target not in mission.unresolved:
+        yield error(
+            "E-AGENT-UNKNOWN",
+            where,
+            f"the condition measures distance to {target!r}, which is not an agent; "
+            + _hint(target, mission.agents),
+        )
+    elif target == agent.name:
+        yield error("E-CONDITION", where, "the distance from an agent to itself is always 0")
+    elif target in mission.agents:
+        status = mission.agents[target].telemetry.get("agent_status")
+        if status is None or not status.reaches(agent.name):
+            yield error(
+                "E-FOLLOW-STATUS",
+                where,
+                f"the condition needs the position of {target} but it sends no agent_status "
+                f"to {agent.name}; add agent_status to agents.{target}.telemetry",
+            )
 
 
 def check_primitives(
@@ -465,6 +554,12 @@ def check_expectations(mission: Mission) -> Iterator[Finding]:
             names.extend(str(n) for n in body.get("agents", []))
             if "agent" in body:
                 names.append(str(body["agent"]))
+        if kinds[0] == "distance_m" and len(set(names)) < len(names):
+            yield error(
+                "E-CHECK-SHAPE",
+                where,
+                "a distance check measures between two different agents; name two",
+            )
         for name in names:
             if name not in mission.agents and name not in mission.unresolved:
                 yield error(
@@ -476,7 +571,15 @@ def check_expectations(mission: Mission) -> Iterator[Finding]:
         state_path = body.get("reached") if kinds[0] == "state" else body.get("state")
         if kinds[0] in ("state", "signal") and isinstance(state_path, str):
             agent = mission.agents.get(str(body.get("agent")))
-            if agent is None or agent.behavior is None:
+            if agent is None:
+                continue
+            if agent.behavior is None:
+                yield error(
+                    "E-STATE-UNKNOWN",
+                    where,
+                    f"{agent.name} has no behaviour, so it never reaches {state_path!r}; "
+                    "give it a behavior or check another agent",
+                )
                 continue
             state = agent.behavior.find(tuple(state_path.split(".")))
             if state is None:

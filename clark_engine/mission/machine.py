@@ -98,6 +98,7 @@ class BehaviorResolver:
         root = self._state("", (), raw, path, frame)
         if root is None:
             return None
+        root.transitions = []  # reported above as E-STATE-ROOT; there is nowhere to go
         self._resolve_targets(root, root)
         return root
 
@@ -119,6 +120,9 @@ class BehaviorResolver:
             mission_use=frame.use_sites[0] if frame.use_sites else None,
             final=bool(raw.get("final", False)),
             timeout_s=raw.get("timeout_s"),
+            timeout_location=(
+                frame.locator.location((*src, "timeout_s")) if "timeout_s" in raw else None
+            ),
             description=raw.get("description"),
         )
         self._shape(raw, src, frame, state)
@@ -223,14 +227,15 @@ class BehaviorResolver:
                     target, cond, target_path = item.get("to"), item.get("when"), (*where, "to")
                 else:
                     target, cond, target_path = item, None, where
-                state.transitions.append(
-                    Transition(
-                        event=str(event),
-                        target=tuple(str(target).split(".")),
-                        condition=copy.deepcopy(cond) if cond is not None else None,
-                        location=frame.locator.location(target_path),
-                    )
+                transition = Transition(
+                    event=str(event),
+                    target=tuple(str(target).split(".")),
+                    condition=copy.deepcopy(cond) if cond is not None else None,
+                    location=frame.locator.location(target_path),
                 )
+                if cond is not None:
+                    _record_condition(transition, cond, (), (*where, "when"), frame.locator)
+                state.transitions.append(transition)
 
     def _children(self, state: State, raw: Mapping[str, Any], src: DocPath, frame: _Frame) -> None:
         children = raw.get("states") or {}
@@ -478,6 +483,23 @@ class BehaviorResolver:
                 transition.target = resolved
         for child in state.children.values():
             self._resolve_targets(root, child)
+
+
+def _record_condition(
+    transition: Transition,
+    value: Any,
+    sub: tuple[str | int, ...],
+    src: DocPath,
+    locator: Locator,
+) -> None:
+    """Remember where each part of a transition's condition was written."""
+    transition.condition_locations[sub] = locator.location(src)
+    if isinstance(value, Mapping):
+        for key, item in value.items():
+            _record_condition(transition, item, (*sub, key), (*src, key), locator)
+    elif isinstance(value, list):
+        for i, item in enumerate(value):
+            _record_condition(transition, item, (*sub, i), (*src, i), locator)
 
 
 def _lookup(

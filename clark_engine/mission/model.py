@@ -120,12 +120,23 @@ class Transition:
         target: Path of the target state from the machine's root.
         condition: Structured condition that must hold, or None.
         location: Where the transition was written.
+        condition_locations: Path inside ``condition`` -> where that part was written.
     """
 
     event: str
     target: tuple[str, ...]
     condition: dict[str, Any] | None
     location: Location
+    condition_locations: dict[tuple[str | int, ...], Location] = field(default_factory=dict)
+
+    def condition_location(self, path: tuple[str | int, ...]) -> Location:
+        """Where a part of the condition was written (its nearest written ancestor)."""
+        probe = path
+        while probe:
+            if probe in self.condition_locations:
+                return self.condition_locations[probe]
+            probe = probe[:-1]
+        return self.condition_locations.get((), self.location)
 
 
 @dataclass(slots=True)
@@ -149,6 +160,7 @@ class State:
         finish: For parallel states, ``all`` regions or ``any`` region finishing finishes it.
         final: Reaching this state finishes its parent (raises ``done`` on it).
         timeout_s: Time after entry at which ``timeout`` is raised.
+        timeout_location: Where ``timeout_s`` was written.
         transitions: Outgoing transitions, in the order written.
         block: Name of the behaviour block the state's body came from.
         use_location: Where the ``use:`` naming the primitive or block was written.
@@ -169,6 +181,7 @@ class State:
     finish: str = "all"
     final: bool = False
     timeout_s: float | None = None
+    timeout_location: Location | None = None
     transitions: list[Transition] = field(default_factory=list)
     block: str | None = None
     use_location: Location | None = None

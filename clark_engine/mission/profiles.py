@@ -61,12 +61,11 @@ def _record(
 
 
 def _exists(data: Any, path: DocPath) -> bool:
+    """True when ``path`` leads to a value inside ``data``."""
     for part in path:
-        if (isinstance(data, Mapping) and part in data) or (
-            isinstance(data, list) and isinstance(part, int) and part < len(data)
-        ):
+        try:
             data = data[part]
-        else:
+        except (KeyError, IndexError, TypeError):
             return False
     return True
 
@@ -138,6 +137,15 @@ class ProfileLibrary:
             return sorted(self._entries)
         return sorted(n for n in self._entries if self.kind_of(n) == kind)
 
+    def extending(self, name: str) -> list[str]:
+        """Names of the profiles whose ``extends`` is ``name``."""
+        out = []
+        for other in self.names():
+            doc = self._load(other)
+            if doc is not None and isinstance(doc.data, dict) and doc.data.get("extends") == name:
+                out.append(other)
+        return out
+
     def kind_of(self, name: str) -> str | None:
         """The kind a profile declares, or None when it cannot be read."""
         doc = self._load(name)
@@ -187,11 +195,10 @@ class ProfileLibrary:
         current: str | None = name
         while current is not None:
             if current in seen:
-                doc = chain[-1]
                 self.findings.append(
                     error(
                         "E-PROFILE-CYCLE",
-                        doc.location(("extends",)),
+                        chain[-1].location(("extends",)),
                         "profiles extend each other in a cycle ("
                         + " -> ".join([*seen, current])
                         + "); break the cycle",
@@ -216,7 +223,7 @@ class ProfileLibrary:
                         "E-PROFILE-KIND",
                         chain[-1].location(("extends",)),
                         f"a {chain[0].data.get('kind')} profile cannot extend {current!r}, "
-                        f"which is a {doc.data.get('kind')}; extend a profile of the same kind",
+                        f"which is {_a(doc.data.get('kind'))}; extend a profile of the same kind",
                     )
                 )
                 return None
@@ -233,9 +240,29 @@ class ProfileLibrary:
         return composed
 
 
+def _a(word: object) -> str:
+    """The word with its indefinite article: an airframe, a radio, an mcs."""
+    text = str(word)
+    return f"an {text}" if text[:1] in "aeio" or text.startswith("mcs") else f"a {text}"
+
+
+def _unusable(name: str, where: Location) -> Finding:
+    return error(
+        "E-PROFILE-INVALID",
+        where,
+        f"profile {name!r} cannot be used because its file has errors (reported with it); "
+        "fix that file",
+    )
+
+
 def _suggest(word: str, choices: Iterable[str]) -> str:
-    close = difflib.get_close_matches(word, sorted(choices), n=1)
-    return f"did you mean {close[0]!r}?" if close else "see docs/hardware-profiles.md for the list"
+    options = sorted(choices)
+    close = difflib.get_close_matches(word, options, n=1)
+    if close:
+        return f"did you mean {close[0]!r}?"
+    if options and len(options) <= 40:
+        return "choose one of: " + ", ".join(options)
+    return "see docs/hardware-profiles.md for the list"
 
 
 @dataclass(slots=True)
@@ -291,6 +318,18 @@ class HardwareResolver:
             return None
         composed = self.library.compose(ref)
         if composed is None:
+            findings.append(_unusable(ref, ref_loc))
+            return None
+        if composed.data.get("abstract"):
+            findings.append(
+                error(
+                    "E-PROFILE-ABSTRACT",
+                    ref_loc,
+                    f"{ref!r} is an abstract base profile; name one that extends it ("
+                    + ", ".join(self.library.extending(ref))
+                    + ")",
+                )
+            )
             return None
         actual = self.library.kind_of(ref)
         if actual != expected:
@@ -298,7 +337,7 @@ class HardwareResolver:
                 error(
                     "E-PROFILE-KIND",
                     ref_loc,
-                    f"{ref!r} is a {actual} profile, not a {expected}; name a {expected} "
+                    f"{ref!r} is {_a(actual)} profile, not {_a(expected)}; name {_a(expected)} "
                     f"profile ({', '.join(self.library.names(expected)) or 'none shipped'})",
                 )
             )
@@ -341,13 +380,14 @@ class HardwareResolver:
             return result
         platform = self.library.compose(profile)
         if platform is None:
+            findings.append(_unusable(profile, profile_loc))
             return result
         if self.library.kind_of(profile) != "platform":
             findings.append(
                 error(
                     "E-PROFILE-KIND",
                     profile_loc,
-                    f"{profile!r} is a {self.library.kind_of(profile)} profile; an agent names a "
+                    f"{profile!r} is {_a(self.library.kind_of(profile))} profile; an agent names a "
                     f"platform ({', '.join(self.library.names('platform'))})",
                 )
             )

@@ -120,8 +120,10 @@ def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Fin
         )
         return
     if kind == "not":
-        reason = schema.get("description") or "these settings contradict each other"
-        yield error("E-CONFLICT", doc.location(path), f"{reason}; remove or change this value")
+        reason = str(schema.get("description") or "these settings contradict each other")
+        yield error(
+            "E-CONFLICT", doc.location(path), f"{reason.rstrip('.')}; remove or change this value"
+        )
         return
     if kind in ("additionalProperties", "unevaluatedProperties"):
         known = _property_names(schema) | set(
@@ -133,7 +135,10 @@ def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Fin
             extras = _QUOTED.findall(err.message.split("(")[-1]) or list(instance)
         for key in extras:
             others = known - {key}
-            hint = _suggest(key, others) or f"; allowed keys: {', '.join(sorted(others))}"
+            if not others:
+                hint = "; nothing may be given here, remove it"
+            else:
+                hint = _suggest(key, others) or f"; allowed keys: {', '.join(sorted(others))}"
             yield error(
                 "E-KEY-UNKNOWN",
                 doc.location((*path, key), key=True),
@@ -151,7 +156,7 @@ def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Fin
                 "E-KEY-MISSING",
                 doc.location(path),
                 f"{key!r} is missing"
-                + (f": {what[0].lower()}{what[1:]}" if what else "")
+                + (f": {what[0].lower()}{what[1:].rstrip('.')}" if what else "")
                 + f"; add {key}: here",
             )
         return
@@ -159,13 +164,14 @@ def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Fin
         yield error(
             "E-VERSION",
             doc.location(path),
-            f"this engine reads mission language version 1, not {instance!r}; write clark: 1",
+            f"this engine reads mission language version 1, not {json.dumps(instance)}; "
+            "write clark: 1",
         )
         return
     if kind == "type":
         expected = err.validator_value
         expected_list = expected if isinstance(expected, list) else [expected]
-        words = " or ".join(_TYPE_WORDS.get(t, t) for t in expected_list)
+        words = " or ".join(_TYPE_WORDS.get(str(t), str(t)) for t in expected_list)
         hint = ""
         if (
             isinstance(instance, str)
@@ -215,8 +221,17 @@ def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Fin
             f"{instance!r} is not valid here; {_pattern_advice(err)}",
         )
         return
+    if kind == "uniqueItems":
+        yield error(
+            "E-COUNT", doc.location(path), "a name is listed twice here; list each one once"
+        )
+        return
+    if kind == "minLength":
+        yield error("E-VALUE", doc.location(path), "this must not be empty; write a value")
+        return
     if kind in ("minItems", "maxItems", "minProperties", "maxProperties"):
-        noun = "items" if "Items" in kind else "entries"
+        singular, plural = ("item", "items") if "Items" in kind else ("entry", "entries")
+        noun = singular if err.validator_value == 1 else plural
         bound = err.validator_value
         relation = "at least" if kind.startswith("min") else "at most"
         yield error(
@@ -226,6 +241,13 @@ def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Fin
         )
         return
     if kind in ("anyOf", "oneOf"):
+        # When exactly one alternative accepts the value's type (a mapping, a list, ...),
+        # what is wrong is inside that alternative: report its own errors.
+        same_type = _branches_of_type(err, instance)
+        if len(same_type) == 1 and same_type[0]:
+            for inner_err in same_type[0]:
+                yield from _convert(inner_err, doc, base)
+            return
         expected = schema.get("x-expected")
         if expected:
             yield error(
@@ -253,6 +275,45 @@ def _pattern_advice(err: ValidationError) -> str:
     if described:
         return f"expected {described[0].lower()}{described[1:].rstrip('.')}"
     return f"it must match {err.validator_value}"
+
+
+_JSON_TYPES: dict[str, tuple[type, ...]] = {
+    "object": (dict,),
+    "array": (list,),
+    "string": (str,),
+    "number": (int, float),
+    "integer": (int,),
+    "boolean": (bool,),
+    "null": (type(None),),
+}
+
+
+def _branches_of_type(err: ValidationError, instance: Any) -> list[list[ValidationError]]:
+    """Errors of each anyOf/oneOf alternative whose declared type fits ``instance``."""
+    alternatives = err.validator_value if isinstance(err.validator_value, list) else []
+    fitting: list[list[ValidationError]] = []
+    required: list[set[str]] = []
+    for index, alternative in enumerate(alternatives):
+        declared = alternative.get("type") if isinstance(alternative, Mapping) else None
+        if declared is None:
+            continue
+        kinds = declared if isinstance(declared, list) else [declared]
+        fits = any(
+            isinstance(instance, _JSON_TYPES.get(k, ()))
+            and not (isinstance(instance, bool) and k in ("number", "integer"))
+            for k in kinds
+        )
+        if fits:
+            fitting.append([e for e in err.context if e.relative_schema_path[0] == index])
+            required.append(set(alternative.get("required", ())))
+    if len(fitting) > 1 and isinstance(instance, Mapping):
+        # Several mapping forms: the one whose required keys the user wrote is meant.
+        meant = [
+            f for f, keys in zip(fitting, required, strict=True) if keys and keys <= set(instance)
+        ]
+        if len(meant) == 1:
+            return meant
+    return fitting
 
 
 def _allowed_range(schema: Mapping[str, Any]) -> str:
@@ -302,5 +363,5 @@ def check_schema(schema: Mapping[str, Any]) -> str | None:
     try:
         Draft202012Validator.check_schema(dict(schema))
     except jsonschema.SchemaError as exc:
-        return exc.message
+        return str(exc.message)
     return None

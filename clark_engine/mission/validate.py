@@ -82,10 +82,24 @@ def read_source(path: Path) -> bytes:
         raise UsageError(f"{shown}: cannot read it ({exc.strerror or exc})") from None
 
 
+#: Findings that already explain a value, after which a schema type error there says nothing new.
+_EXPLAINING = frozenset({"E-YAML-BOOL-WORD", "E-YAML-VALUE", "E-YAML-TAG", "E-BLOCK-PARAM"})
+_GENERIC = frozenset({"E-TYPE", "E-VALUE", "E-FORMAT", "E-NAME"})
+
+
 def _dedupe(findings: list[Finding]) -> list[Finding]:
+    """Sorted findings without repeats, and without generic errors where a specific one is."""
+    explained = {
+        (f.location.file, f.location.line, f.location.column)
+        for f in findings
+        if f.code in _EXPLAINING
+    }
     seen: set[tuple[str, int | None, int | None, str, str]] = set()
     out = []
     for f in sorted(findings, key=Finding.sort_key):
+        where = (f.location.file, f.location.line, f.location.column)
+        if f.code in _GENERIC and where in explained:
+            continue
         key = (f.location.file, f.location.line, f.location.column, f.code, f.message)
         if key not in seen:
             seen.add(key)
@@ -155,7 +169,8 @@ def _libraries(
     findings: list[Finding] = []
     profile_dirs = [(data_dir("hardware_profiles"), display_path(data_dir("hardware_profiles")))]
     block_dirs = [(data_dir("behaviors"), display_path(data_dir("behaviors")))]
-    include = data.get("include") if isinstance(data.get("include"), Mapping) else {}
+    declared = data.get("include")
+    include: Mapping[str, Any] = declared if isinstance(declared, Mapping) else {}
     for key, dirs in (("hardware_profiles", profile_dirs), ("behaviors", block_dirs)):
         for i, folder in enumerate(include.get(key) or []):
             if not isinstance(folder, str):
@@ -176,8 +191,11 @@ def _libraries(
     return ProfileLibrary(profile_dirs), BlockLibrary(block_dirs), findings
 
 
-def _dirty(findings: list[Finding], prefix: DocPath) -> bool:
+def _dirty(findings: list[Finding], prefix: DocPath, *, own: bool = False) -> bool:
+    """True when an error lies under ``prefix`` (or exactly at it, with ``own``)."""
     n = len(prefix)
+    if own:
+        return any(f.is_error and f.location.path == prefix for f in findings)
     return any(f.is_error and f.location.path[:n] == prefix for f in findings)
 
 
@@ -215,6 +233,12 @@ def _build_mission(
     findings: list[Finding],
 ) -> Mission:
     section = data["mission"]
+    declared_checks = data.get("checks")
+    checks: list[dict[str, Any]] = (
+        list(declared_checks)
+        if isinstance(declared_checks, list) and not _dirty(schema_findings, ("checks",))
+        else []
+    )
     origin_raw = section["origin"]
     origin = Origin(
         float(origin_raw["lat"]), float(origin_raw["lon"]), float(origin_raw.get("alt_m", 0.0))
@@ -232,8 +256,8 @@ def _build_mission(
         description=section.get("description"),
         source_sha256=hashlib.sha256(raw).hexdigest(),
         locations={key: doc.location(("mission", key)) for key in section},
-        checks=list(data.get("checks") or []) if not _dirty(schema_findings, ("checks",)) else [],
-        check_locations=[doc.location(("checks", i)) for i in range(len(data.get("checks") or []))],
+        checks=checks,
+        check_locations=[doc.location(("checks", i)) for i in range(len(checks))],
     )
     hardware = HardwareResolver(profiles)
     resolver = BehaviorResolver(blocks)
@@ -317,15 +341,19 @@ def _build_agent(
                 "E-ROLE",
                 doc.location((*path, "role")),
                 f"role {role!r} contradicts profile {hardware.platform!r}, which is a "
-                f"{hardware.role}; remove role: or name a {role} platform",
+                f"{hardware.role}; remove role: or name {'an' if role == 'mcs' else 'a'} {role} "
+                "platform",
             )
         )
         return None
     telemetry: dict[str, Telemetry] = {}
-    if not _dirty(schema_findings, (*path, "telemetry")):
+    declared = raw.get("telemetry")
+    if isinstance(declared, Mapping) and not _dirty(
+        schema_findings, (*path, "telemetry"), own=True
+    ):
         for message in TELEMETRY_MESSAGES:
-            spec = (raw.get("telemetry") or {}).get(message)
-            if spec is None:
+            spec = declared.get(message)
+            if spec is None or _dirty(schema_findings, (*path, "telemetry", message)):
                 continue
             where = doc.location((*path, "telemetry", message))
             if isinstance(spec, Mapping):

@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import yaml
 from yaml.composer import Composer
@@ -89,25 +89,28 @@ class _BoundedComposer(Composer):
         self._depth = 0
         self.node_count = 0
 
-    def compose_node(self, parent: Node | None, index: Any) -> Node:  # type: ignore[override]
+    def compose_node(self, parent: Node | None, index: int) -> Node | None:
         self._depth += 1
         self.node_count += 1
         if self._depth > MAX_DEPTH:
-            raise _DepthError(self.peek_event().start_mark)
+            # peek_event comes from the parser this composer is mixed with.
+            raise _DepthError(cast(Any, self).peek_event().start_mark)
         try:
-            return super().compose_node(parent, index)  # type: ignore[no-any-return]
+            return super().compose_node(parent, index)
         finally:
             self._depth -= 1
 
 
-try:  # libyaml's parser when PyYAML was built with it (CParser is not re-exported by yaml)
-    from yaml.cyaml import CParser as _CParser
+try:  # libyaml's parser when PyYAML was built with it (the yaml package does not re-export it)
+    from yaml._yaml import CParser as _CParser
+
+    HAVE_LIBYAML = True
 except ImportError:  # pragma: no cover - PyYAML built without libyaml
-    _CParser = None
+    HAVE_LIBYAML = False
 
-if _CParser is not None:
+if HAVE_LIBYAML:
 
-    class _Loader(_BoundedComposer, _Core12Resolver, _CParser):  # type: ignore[misc]
+    class _Loader(_BoundedComposer, _Core12Resolver, _CParser):
         """libyaml parses; our composer and resolver build nodes."""
 
         def __init__(self, stream: str) -> None:
@@ -342,7 +345,7 @@ class _Builder:
             if key is None:
                 continue
             if key == "<<" and isinstance(key_node, ScalarNode) and not key_node.style:
-                self.merge(value_node, path, depth, merged)
+                self.merge(key_node, value_node, path, depth, merged)
                 continue
             child = (*path, key)
             if key in first_seen:
@@ -363,15 +366,18 @@ class _Builder:
             result.setdefault(key, value)
         return result
 
-    def merge(self, value_node: Node, path: DocPath, depth: int, into: dict[str, Any]) -> None:
+    def merge(
+        self, key_node: Node, value_node: Node, path: DocPath, depth: int, into: dict[str, Any]
+    ) -> None:
         """YAML merge keys (``<<: *defaults``): explicit keys win over merged ones."""
         sources = value_node.value if isinstance(value_node, SequenceNode) else [value_node]
         for source in sources:
             if not isinstance(source, MappingNode):
+                # An alias's node carries the anchor's position; point at the '<<' instead.
                 self.doc.findings.append(
                     error(
                         "E-YAML-MERGE",
-                        self.loc(source, path),
+                        self.loc(key_node, path),
                         "'<<' merges mappings only; point it at an anchored mapping (<<: *name)",
                     )
                 )
@@ -386,7 +392,10 @@ def _syntax_finding(file: str, exc: yaml.YAMLError) -> Finding:
     where = _mark(mark)
     problem = getattr(exc, "problem", None) or str(exc)
     context = getattr(exc, "context", None)
+    opened = getattr(exc, "context_mark", None)
     message = f"{context}, {problem}" if context else str(problem)
+    if context and opened is not None and mark is not None and opened.line != mark.line:
+        message += f" (it was opened at line {opened.line + 1}, column {opened.column + 1})"
     hint = "fix the YAML syntax here"
     if "\\t" in message or "'\\t'" in message:
         hint = "indent with spaces; YAML does not allow tabs for indentation"

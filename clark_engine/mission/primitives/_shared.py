@@ -11,7 +11,7 @@ from collections.abc import Iterable, Iterator
 from typing import Any
 
 from clark_engine.mission.findings import Finding, error
-from clark_engine.mission.geo import LocalPoint, parse_point
+from clark_engine.mission.geo import LocalPoint, Origin, parse_point, to_global
 from clark_engine.mission.model import Channel
 from clark_engine.mission.primitives.base import UseContext
 from clark_engine.mission.schema_source.common import NAME_PATTERN, Schema, number, string
@@ -156,7 +156,7 @@ def check_pwm_swing(ctx: UseContext, channel: Channel, amplitude_us: float) -> I
             "E-PWM-RANGE",
             ctx.locate("amplitude_us"),
             f"{amplitude_us:g} us around trim {channel.pwm_trim_us} us commands "
-            f"{low:g}..{high:g} us, outside channel {channel.name!r}'s limits "
+            f"{low:g}..{high:g} us, outside the limits of channel {channel.name!r}, "
             f"{channel.pwm_min_us}..{channel.pwm_max_us} us; use an amplitude of at most {room} us",
             ctx.use_location,
         )
@@ -188,6 +188,20 @@ def check_points(
                 ctx.use_location,
             )
         yield from _check_range(ctx, point, where, label)
+        problem = off_the_globe(point, mission.origin)
+        if problem:
+            yield error("E-POSITION", where, f"{label} {problem}", ctx.use_location)
+
+
+def off_the_globe(point: LocalPoint, origin: Origin) -> str | None:
+    """Why a local point has no latitude/longitude (past a pole), or None when it has."""
+    lat, _lon, _alt = to_global(point, origin)
+    if not -90.0 <= lat <= 90.0:
+        return (
+            f"lies past a pole (latitude {lat:.5f}); positions must stay within "
+            "latitude -90..90, so move it or the origin"
+        )
+    return None
 
 
 def _check_range(ctx: UseContext, point: LocalPoint, where: Any, label: str) -> Iterator[Finding]:
@@ -242,7 +256,7 @@ def check_mode(ctx: UseContext, param: str = "mode") -> Iterator[Finding]:
         yield error(
             "E-MODE-UNKNOWN",
             ctx.locate(param),
-            f"the {ctx.agent.profile}'s autopilot has no mode {mode!r}; "
+            f"the autopilot of {ctx.agent.name} ({ctx.agent.profile}) has no mode {mode!r}; "
             + suggest(str(mode), modes),
             ctx.use_location,
         )

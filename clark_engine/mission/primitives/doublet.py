@@ -32,7 +32,8 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
         yield error(
             "E-DOUBLET-WIDTH",
             ctx.locate("width_s"),
-            f"width_s {width_s:g} s is {ticks:g} ticks at loop_hz {ctx.mission.loop_hz:g}; "
+            f"width_s {width_s:g} s spans {ticks:g} tick{'' if ticks == 1 else 's'} at loop_hz "
+            f"{ctx.mission.loop_hz:g}; "
             f"each half must span at least {MIN_TICKS_PER_HALF} ticks, so make it at least "
             f"{needed:g} s or raise mission.loop_hz",
             ctx.use_location,

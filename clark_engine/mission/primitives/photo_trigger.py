@@ -50,7 +50,7 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
         yield error(
             "E-PHOTO-INTERVAL",
             ctx.locate("interval_s"),
-            f"interval_s {interval:g} s is shorter than camera {name!r}'s minimum of "
+            f"interval_s {interval:g} s is shorter than the minimum of camera {name!r}, "
             f"{min_interval:g} s between captures; take pictures at most every {min_interval:g} s",
             ctx.use_location,
         )

@@ -102,9 +102,13 @@ def obj(
     return out
 
 
-def array(description: str, items: Schema, *, min_items: int | None = None) -> Schema:
-    """A list whose items all follow ``items``."""
+def array(
+    description: str, items: Schema, *, min_items: int | None = None, unique: bool = False
+) -> Schema:
+    """A list whose items all follow ``items`` (each only once with ``unique``)."""
     out: Schema = {"type": "array", "description": description, "items": items}
     if min_items is not None:
         out["minItems"] = min_items
+    if unique:
+        out["uniqueItems"] = True
     return out

@@ -47,7 +47,10 @@ def _rate(message: str) -> Schema:
                 maximum=MAX_TELEMETRY_HZ,
             ),
             "to": array(
-                "Agents that receive it; every agent when omitted.", AGENT_NAME_SCHEMA, min_items=1
+                "Agents that receive it; every agent when omitted.",
+                AGENT_NAME_SCHEMA,
+                min_items=1,
+                unique=True,
             ),
         },
         required=["rate_hz"],

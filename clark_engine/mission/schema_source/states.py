@@ -157,7 +157,11 @@ def state_schema(*, check_params: bool = True) -> Schema:
             "transitions": {
                 "type": "object",
                 "description": "Event -> where it leads. " + EVENT_DESCRIPTION,
-                "propertyNames": {"pattern": r"^[a-z_]+(:[A-Za-z0-9_]+)*$"},
+                "propertyNames": {
+                    "pattern": r"^[a-z_]+(:[A-Za-z0-9_]+)*$",
+                    "description": "An event name such as done, activate, mode:AUTO, "
+                    "rc:8:high or lost:slash_a.",
+                },
                 "additionalProperties": {"$ref": "#/$defs/transition"},
             },
         },
