@@ -128,3 +128,31 @@ def test_block_files_validate_on_their_own() -> None:
         result = validate_path(file, file.name)
         assert result.kind == "block"
         assert result.ok, [f.format_text() for f in result.findings]
+
+
+def test_a_block_machine_is_checked_on_its_own(tmp_path: Path) -> None:
+    block = tmp_path / "broken_block.yaml"
+    block.write_text(
+        "block: broken_block\n"
+        "description: names a state that does not exist\n"
+        "parameters:\n"
+        "  type: object\n"
+        "  required: [target]\n"
+        "  properties:\n"
+        "    target: {type: string, description: who, examples: [leader]}\n"
+        "machine:\n"
+        "  initial: go\n"
+        "  states:\n"
+        "    go: {use: follow_agent, with: {target: $target}, transitions: {done: stpo}}\n"
+        "    stop: {use: hold, final: true}\n",
+        encoding="utf-8",
+    )
+    result = validate_path(block, "broken_block.yaml")
+    (finding,) = result.findings
+    assert (finding.code, finding.location.line) == ("E-STATE-UNKNOWN", 11)
+    assert "did you mean 'stop'" in finding.message
+    # without examples the machine cannot be checked alone, and the tool says so
+    block.write_text(block.read_text().replace(", examples: [leader]", ""), encoding="utf-8")
+    result = validate_path(block, "broken_block.yaml")
+    assert [f.code for f in result.findings] == ["W-BLOCK-UNCHECKED"]
+    assert result.ok

@@ -19,7 +19,7 @@ from clark_engine.data import data_dir
 from clark_engine.errors import UsageError
 from clark_engine.mission.blocks import BlockLibrary
 from clark_engine.mission.checks import run_all
-from clark_engine.mission.findings import DocPath, Finding, Location, error
+from clark_engine.mission.findings import DocPath, Finding, Location, error, warning
 from clark_engine.mission.geo import LocalPoint, Origin, parse_point
 from clark_engine.mission.machine import BehaviorResolver
 from clark_engine.mission.model import TELEMETRY_MESSAGES, Agent, Mission, Telemetry
@@ -144,10 +144,33 @@ def _validate_block(path: Path, doc: Document) -> Validation:
     block = library.get(name)
     findings = list(library.findings)
     if block is not None:
-        resolver = BehaviorResolver(library)
-        # Resolve the block as if used with its defaults, to check its machine.
-        resolver.resolve({"use": name}, doc, ())
-        findings.extend(f for f in resolver.findings if f.code != "E-KEY-MISSING")
+        # Check the machine as if the block were used with its defaults, and with the
+        # first of its declared examples for required parameters that have no default.
+        given: dict[str, Any] = {}
+        unchecked: list[str] = []
+        properties = block.parameters.get("properties", {})
+        for param in block.parameters.get("required", []):
+            prop = properties.get(param, {})
+            if "default" in prop:
+                continue
+            if prop.get("examples"):
+                given[param] = prop["examples"][0]
+            else:
+                unchecked.append(param)
+        if unchecked:
+            findings.append(
+                warning(
+                    "W-BLOCK-UNCHECKED",
+                    doc.location(("parameters", "required")),
+                    f"the machine was not checked on its own: required parameter(s) "
+                    f"{', '.join(unchecked)} have no default or examples; add examples: [...] "
+                    "to each (it is still checked wherever a mission uses the block)",
+                )
+            )
+        else:
+            resolver = BehaviorResolver(library)
+            resolver.resolve({"use": name, "with": given}, doc, ())
+            findings.extend(resolver.findings)
     return Validation(doc.file, "block", findings)
 
 
