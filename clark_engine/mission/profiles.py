@@ -405,25 +405,20 @@ class HardwareResolver:
         role = str(platform.data.get("role", "vehicle"))
         hardware = Hardware(platform=profile, role=role, gui=platform.data.get("gui"))
         for kind in PARTS:
-            ref = platform.data.get(kind)
-            if ref is None:
+            if platform.data.get(kind) is None:
                 continue
-            extra = overrides.get(kind)
-            if isinstance(extra, str) or (isinstance(extra, Mapping) and "profile" in extra):
-                # The agent swaps this part for another profile (e.g. a UDP radio on a LAN).
-                where = mission_doc.location((*overrides_path, kind))
-                resolved = self._part(
-                    kind, extra, where, mission_doc, (*overrides_path, kind), findings
-                )
-                extra = None
-            else:
-                ref_loc = platform.locate((kind,), profile_loc)
-                resolved = self._part(kind, ref, ref_loc, platform_doc, (kind,), findings)
+            resolved = self._layered(
+                kind,
+                platform.data[kind],
+                platform.locate((kind,), profile_loc),
+                (platform_doc, (kind,)),
+                overrides.get(kind),
+                (mission_doc, (*overrides_path, kind)),
+                findings,
+            )
             if resolved is None:
                 continue
             name, part = resolved
-            if isinstance(extra, Mapping):
-                part.overlay(extra, mission_doc, (*overrides_path, kind))
             hardware.parts[kind] = part.data
             hardware.part_profiles[kind] = name
             result.origins[kind] = part
@@ -455,6 +450,39 @@ class HardwareResolver:
             result.hardware = hardware
         return result
 
+    def _layered(
+        self,
+        kind: str,
+        base_ref: Any,
+        base_loc: Location,
+        base_source: tuple[Document | None, DocPath],
+        override: Any,
+        override_source: tuple[Document, DocPath],
+        findings: list[Finding],
+    ) -> tuple[str, Composed] | None:
+        """A part as the platform names it, then as the agent changes or swaps it.
+
+        An override that names a profile (``udp_lan`` or ``{profile: udp_lan, ...}``)
+        swaps the part; a mapping without one is merged onto the platform's part.
+        """
+        doc, path = override_source
+        if isinstance(override, str) or (isinstance(override, Mapping) and "profile" in override):
+            return self._part(kind, override, doc.location(path), doc, path, findings)
+        if base_ref is None:
+            findings.append(
+                error(
+                    "E-PROFILE-UNKNOWN",
+                    doc.location(path, key=True),
+                    f"this agent adds a {kind} its platform does not have; name its profile "
+                    "({profile: name, ...})",
+                )
+            )
+            return None
+        resolved = self._part(kind, base_ref, base_loc, base_source[0], base_source[1], findings)
+        if resolved is not None and isinstance(override, Mapping):
+            resolved[1].overlay(override, doc, path)
+        return resolved
+
     def _payloads(
         self,
         hardware: Hardware,
@@ -469,60 +497,18 @@ class HardwareResolver:
         declared: dict[str, Any] = dict(platform.data.get("payloads") or {})
         extra: Mapping[str, Any] = overrides.get("payloads") or {}
         for name in sorted(set(declared) | set(extra)):
-            if name in declared:
-                ref_loc = platform.locate(("payloads", name), profile_loc)
-                resolved = self._part(
-                    "payload",
-                    declared[name],
-                    ref_loc,
-                    platform_doc,
-                    ("payloads", name),
-                    result.findings,
-                )
-                if resolved is None:
-                    continue
-                profile_name, part = resolved
-                more = extra.get(name)
-                if isinstance(more, str):
-                    resolved = self._part(
-                        "payload",
-                        more,
-                        mission_doc.location((*overrides_path, "payloads", name)),
-                        mission_doc,
-                        (*overrides_path, "payloads", name),
-                        result.findings,
-                    )
-                    if resolved is None:
-                        continue
-                    profile_name, part = resolved
-                elif isinstance(more, Mapping):
-                    if "profile" in more:
-                        resolved = self._part(
-                            "payload",
-                            more,
-                            mission_doc.location((*overrides_path, "payloads", name)),
-                            mission_doc,
-                            (*overrides_path, "payloads", name),
-                            result.findings,
-                        )
-                        if resolved is None:
-                            continue
-                        profile_name, part = resolved
-                    else:
-                        part.overlay(more, mission_doc, (*overrides_path, "payloads", name))
-            else:
-                where = mission_doc.location((*overrides_path, "payloads", name))
-                resolved = self._part(
-                    "payload",
-                    extra[name],
-                    where,
-                    mission_doc,
-                    (*overrides_path, "payloads", name),
-                    result.findings,
-                )
-                if resolved is None:
-                    continue
-                profile_name, part = resolved
+            resolved = self._layered(
+                "payload",
+                declared.get(name),
+                platform.locate(("payloads", name), profile_loc),
+                (platform_doc, ("payloads", name)),
+                extra.get(name),
+                (mission_doc, (*overrides_path, "payloads", name)),
+                result.findings,
+            )
+            if resolved is None:
+                continue
+            profile_name, part = resolved
             hardware.payloads[name] = part.data
             hardware.payload_profiles[name] = profile_name
             result.origins[f"payloads.{name}"] = part

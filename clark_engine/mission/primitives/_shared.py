@@ -162,6 +162,14 @@ def check_pwm_swing(ctx: UseContext, channel: Channel, amplitude_us: float) -> I
         )
 
 
+def check_channel_swing(ctx: UseContext) -> Iterator[Finding]:
+    """The named channel exists for ``via`` and trim +- amplitude_us fits its limits."""
+    channel, findings = resolve_channel(ctx)
+    yield from findings
+    if channel is not None:
+        yield from check_pwm_swing(ctx, channel, float(ctx.params["amplitude_us"]))
+
+
 def check_points(
     ctx: UseContext, points: list[Any], param: str, *, indexed: bool
 ) -> Iterator[Finding]:

@@ -15,8 +15,7 @@ from clark_engine.mission.findings import Finding, error
 from clark_engine.mission.primitives._shared import (
     CHANNEL_SCHEMA,
     VIA_SCHEMA,
-    check_pwm_swing,
-    resolve_channel,
+    check_channel_swing,
 )
 from clark_engine.mission.primitives.base import PrimitiveSpec, UseContext, raises_done
 from clark_engine.mission.schema_source.common import number, obj, string
@@ -38,10 +37,7 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
             f"{needed:g} s or raise mission.loop_hz",
             ctx.use_location,
         )
-    channel, findings = resolve_channel(ctx)
-    yield from findings
-    if channel is not None:
-        yield from check_pwm_swing(ctx, channel, float(ctx.params["amplitude_us"]))
+    yield from check_channel_swing(ctx)
 
 
 SPEC = PrimitiveSpec(
