@@ -79,3 +79,18 @@ def test_example_missions_declare_the_schema_for_editors() -> None:
     for block in sorted((ROOT / "behaviors").glob("*.yaml")):
         first = block.read_text(encoding="utf-8").splitlines()[0]
         assert first == "# yaml-language-server: $schema=../schemas/behavior.schema.json", block
+
+
+def test_language_reference_is_generated_from_the_schemas() -> None:
+    import subprocess
+    import sys
+
+    proc = subprocess.run(
+        [sys.executable, "tools/gen_reference.py", "--check"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr + "\nrun `make schemas`"

@@ -99,11 +99,12 @@ def mermaid(mission: Mission, agent: Agent) -> str:
 
     def declare(state: State, indent: str) -> None:
         sid = _mid(state)
-        label = _label(state, agent).replace('"', "'")
-        if not state.children:
-            out.append(f'{indent}state "{label}" as {sid}')
-        else:
-            out.append(f'{indent}state "{label}" as {sid} {{')
+        label = _label(state, agent).replace(":", " -").replace('"', "'")
+        # `id : text` and a bare `state id {` are the forms every Mermaid version reads;
+        # `state "text" as id {` for composites trips known Mermaid parser bugs.
+        out.append(f"{indent}{sid} : {label}")
+        if state.children:
+            out.append(f"{indent}state {sid} {{")
             children = list(state.children.values())
             if state.parallel:
                 for i, child in enumerate(children):

@@ -120,11 +120,21 @@ class Finding:
         return (loc.file, loc.line or 0, loc.column or 0, self.code, self.message)
 
 
+def _notes(location: Location, related: tuple[Location, ...]) -> tuple[Location, ...]:
+    """Related places worth a note: not the finding's own place, each once."""
+    out: list[Location] = []
+    for rel in related:
+        same = (rel.file, rel.line, rel.column) == (location.file, location.line, location.column)
+        if not same and rel not in out:
+            out.append(rel)
+    return tuple(out)
+
+
 def error(code: str, location: Location, message: str, *related: Location) -> Finding:
     """Make an error finding."""
-    return Finding(code, Severity.ERROR, location, message, tuple(related))
+    return Finding(code, Severity.ERROR, location, message, _notes(location, related))
 
 
 def warning(code: str, location: Location, message: str, *related: Location) -> Finding:
     """Make a warning finding."""
-    return Finding(code, Severity.WARNING, location, message, tuple(related))
+    return Finding(code, Severity.WARNING, location, message, _notes(location, related))

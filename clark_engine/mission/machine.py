@@ -353,7 +353,8 @@ class BehaviorResolver:
                 error(
                     "E-BLOCK-INVALID",
                     use_loc,
-                    f"block {name!r} cannot be used because its file has errors (reported above)",
+                    f"block {name!r} cannot be used because its file has errors (reported with "
+                    "that file); fix them first",
                     *frame.use_sites,
                 )
             )

@@ -181,6 +181,11 @@ def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Fin
             hint = "; times are plain numbers of seconds here (write 90, not 1:30)"
         elif isinstance(instance, float) and "integer" in expected_list:
             hint = "; write a whole number"
+        elif isinstance(instance, int | float) and expected_list == ["string"]:
+            hint = (
+                "; YAML reads bare digits as a number (dropping leading zeros): quote it, "
+                'e.g. "0013A200..."'
+            )
         yield error(
             "E-TYPE",
             doc.location(path),

@@ -49,8 +49,11 @@ _FLOAT = "tag:yaml.org,2002:float"
 _BOOL = "tag:yaml.org,2002:bool"
 _NULL = "tag:yaml.org,2002:null"
 _MAP = "tag:yaml.org,2002:map"
+#: Plain yes/no/on/off: text to us, a boolean to YAML 1.1 tools; reported where found.
+#: A tag of our own keeps them apart from quoted or explicitly tagged text (!!str yes).
+_BOOL_WORD = "tag:clark-engine,2026:bool-word"
 _SEQ = "tag:yaml.org,2002:seq"
-_SCALAR_TAGS = frozenset({_STR, _INT, _FLOAT, _BOOL, _NULL})
+_SCALAR_TAGS = frozenset({_STR, _INT, _FLOAT, _BOOL, _NULL, _BOOL_WORD})
 
 _INT_RE = re.compile(r"^(?:[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+)$")
 _FLOAT_RE = re.compile(
@@ -70,6 +73,9 @@ _Core12Resolver.add_implicit_resolver(_INT, _INT_RE, list("-+0123456789"))
 _Core12Resolver.add_implicit_resolver(_FLOAT, _FLOAT_RE, list("-+0123456789."))
 _Core12Resolver.add_implicit_resolver(
     _NULL, re.compile(r"^(?:~|null|Null|NULL|)$"), ["~", "n", "N", ""]
+)
+_Core12Resolver.add_implicit_resolver(
+    _BOOL_WORD, re.compile(r"^(?i:yes|no|on|off)$"), list("yYnNoO")
 )
 
 
@@ -261,18 +267,18 @@ class _Builder:
         if tag not in _SCALAR_TAGS:
             self.bad_tag(node, path)
             return value
-        if tag == _STR:
-            # Plain style is None from PyYAML's parser and '' from libyaml's.
-            if not node.style and value.lower() in BOOL_WORDS:
-                self.doc.findings.append(
-                    error(
-                        "E-YAML-BOOL-WORD",
-                        self.loc(node, path),
-                        f"bare {value!r} is a boolean to YAML 1.1 tools but text to Clark; "
-                        f"write true or false for a yes/no setting, or quote it ('{value}') "
-                        "if you mean the word",
-                    )
+        if tag == _BOOL_WORD:
+            self.doc.findings.append(
+                error(
+                    "E-YAML-BOOL-WORD",
+                    self.loc(node, path),
+                    f"bare {value!r} is a boolean to YAML 1.1 tools but text to Clark; "
+                    f"write true or false for a yes/no setting, or quote it ('{value}') "
+                    "if you mean the word",
                 )
+            )
+            return value
+        if tag == _STR:
             return value
         if tag == _NULL:
             return None
@@ -295,9 +301,7 @@ class _Builder:
                 return value
         # float
         try:
-            number = float(
-                value.replace(".inf", "inf").replace(".Inf", "inf").replace(".INF", "inf")
-            )
+            number = float(value.lower().replace(".inf", "inf").replace(".nan", "nan"))
         except ValueError:
             self.doc.findings.append(
                 error("E-YAML-VALUE", self.loc(node, path), f"{value!r} is not a number")
@@ -325,7 +329,7 @@ class _Builder:
             )
             return None
         text: str = key.value
-        if not key.style and text.lower() in BOOL_WORDS:
+        if key.tag == _BOOL_WORD:
             self.doc.findings.append(
                 error(
                     "E-YAML-BOOL-WORD",
@@ -387,7 +391,7 @@ class _Builder:
                 into.setdefault(key, value)
 
 
-def _syntax_finding(file: str, exc: yaml.YAMLError) -> Finding:
+def _syntax_finding(file: str, exc: yaml.YAMLError, text: str = "") -> Finding:
     mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
     where = _mark(mark)
     problem = getattr(exc, "problem", None) or str(exc)
@@ -397,7 +401,13 @@ def _syntax_finding(file: str, exc: yaml.YAMLError) -> Finding:
     if context and opened is not None and mark is not None and opened.line != mark.line:
         message += f" (it was opened at line {opened.line + 1}, column {opened.column + 1})"
     hint = "fix the YAML syntax here"
-    if "\\t" in message or "'\\t'" in message:
+    lines = text.splitlines()
+    at_tab = (
+        mark is not None
+        and mark.line < len(lines)
+        and lines[mark.line][mark.column : mark.column + 1] == "\t"
+    )
+    if at_tab or "\\t" in message or "'\\t'" in message:
         hint = "indent with spaces; YAML does not allow tabs for indentation"
     elif "mapping values are not allowed" in message:
         hint = "a value containing ': ' must be quoted, or the indentation is off"
@@ -490,9 +500,9 @@ def load_yaml(text: str, file: str) -> Document:
                         )
                     ]
                 ) from None
-            raise YamlLoadError([_syntax_finding(file, exc)]) from None
+            raise YamlLoadError([_syntax_finding(file, exc, text)]) from None
         except yaml.YAMLError as exc:
-            raise YamlLoadError([_syntax_finding(file, exc)]) from None
+            raise YamlLoadError([_syntax_finding(file, exc, text)]) from None
         except RecursionError:
             raise YamlLoadError(
                 [

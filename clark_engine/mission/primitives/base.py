@@ -71,13 +71,14 @@ class PrimitiveSpec:
     check: CheckFn = field(default=_no_checks)
 
     def with_defaults(self, given: Mapping[str, Any]) -> dict[str, Any]:
-        """The parameters with every declared default filled in (top level only)."""
-        out = {
-            key: prop["default"]
-            for key, prop in self.params.get("properties", {}).items()
-            if "default" in prop
-        }
-        out.update(given)
+        """The parameters with every declared default filled in, in declared order."""
+        out: dict[str, Any] = {}
+        for key, prop in self.params.get("properties", {}).items():
+            if key in given:
+                out[key] = given[key]
+            elif "default" in prop:
+                out[key] = prop["default"]
+        out.update({k: v for k, v in given.items() if k not in out})
         return out
 
 

@@ -112,6 +112,11 @@ _ONE_LINE_PATTERN = r"^[^\n]+$"
 # --------------------------------------------------------------------------- helpers
 
 
+def _article(word: str) -> str:
+    """'an' before a vowel sound, else 'a' (an airframe, a radio)."""
+    return "an" if word[:1] in "aeiou" else "a"
+
+
 def _kind_is(key: str, value: str) -> Schema:
     """Build an ``if`` clause: the mapping has ``key`` and it equals ``value``."""
     return {"properties": {key: {"const": value}}, "required": [key]}
@@ -808,8 +813,8 @@ def part_reference_schema(kind: str, *, require_profile: bool = True) -> Schema:
     del mapping["type"]  # the type is checked once, by the string-or-mapping rule below
     return {
         "type": ["string", "object"],
-        "description": f"A {kind}: its profile name, or a mapping with `profile:` and the "
-        "keys to change on it.",
+        "description": f"{_article(kind).capitalize()} {kind}: its profile name, or a mapping "
+        "with `profile:` and the keys to change on it.",
         "if": {"type": "string"},
         "then": _profile_name(f"Name of the {kind} profile to use."),
         "else": mapping,
@@ -1045,7 +1050,8 @@ def kind_schema(kind: str) -> dict[str, Any]:
         "$schema": DIALECT,
         "$id": schema_id(f"hardware-profile-{kind}"),
         "title": f"Clark Engine {kind} profile, merged",
-        "description": f"A {kind} profile after its `extends` chain is merged.",
+        "description": f"{_article(kind).capitalize()} {kind} profile after its `extends` "
+        "chain is merged.",
         "type": "object",
         "properties": _common_properties(kind=kind),
         "allOf": [
