@@ -21,8 +21,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 from clark_engine.mission.compiler import compile_mission
-from clark_engine.mission.validate import validate_path
 from clark_engine.mission.yaml_loader import YamlLoadError, load_yaml
+from clark_engine.validation import validate_file
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fleet import fleet_mission
@@ -42,7 +42,7 @@ def timed(fn: Callable[[], object], repeat: int) -> tuple[float, float]:
 
 
 def validate_and_compile(path: Path) -> int:
-    result = validate_path(path, path.name)
+    result = validate_file(path, path.name)
     if result.mission is None:
         raise SystemExit(
             f"{path} is invalid:\n" + "\n".join(f.format_text() for f in result.findings)

@@ -56,13 +56,13 @@ def _print_findings(result: Validation, stream: TextIO) -> None:
 
 def cmd_validate(args: argparse.Namespace) -> int:
     """Validate files and report every finding."""
-    from clark_engine.mission.validate import validate_path
+    from clark_engine.validation import validate_file
 
     results = []
     usage_failed = False
     for name in args.paths:
         try:
-            results.append(validate_path(Path(name), name))
+            results.append(validate_file(Path(name), name))
         except UsageError as exc:
             usage_failed = True
             print(f"clark validate: error: {exc}", file=sys.stderr)
@@ -92,9 +92,9 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 def _load_valid(path_text: str, command: str) -> Validation | int:
     """Validate a mission for compile/explain: findings to stderr, exit code on failure."""
-    from clark_engine.mission.validate import validate_path
+    from clark_engine.validation import validate_file
 
-    result = validate_path(Path(path_text), path_text)
+    result = validate_file(Path(path_text), path_text)
     if result.kind != "mission" and result.ok:
         print(
             f"clark {command}: error: {path_text} is a {result.kind}, not a mission",
@@ -170,6 +170,27 @@ def cmd_schema(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_keygen(args: argparse.Namespace) -> int:
+    """Write a new ClarkLink key file (32 random bytes, readable by its owner only)."""
+    from clark_engine.link.auth import generate_key_file
+
+    path = Path(args.path)
+    if path.is_dir():
+        raise UsageError(
+            f"{path} is a directory; give the key file's name (e.g. {path}/mission.key)"
+        )
+    if path.exists():
+        raise UsageError(
+            f"{path} exists; keygen never overwrites a key (delete it first if you mean to)"
+        )
+    try:
+        generate_key_file(path)
+    except OSError as exc:
+        raise UsageError(f"cannot write {path}: {exc.strerror or exc}") from None
+    print(f"wrote {path} (mode 600); name it in mission.key_file and copy it to every agent")
+    return EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``clark`` and its subcommands."""
     parser = _Parser(
@@ -212,6 +233,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--format", choices=("tree", "mermaid", "both"), default="both")
     p.set_defaults(func=cmd_explain)
+
+    p = sub.add_parser("keygen", help="write a new ClarkLink key file for mission.key_file")
+    p.add_argument("path", metavar="PATH", help="where to write the key (must not exist)")
+    p.set_defaults(func=cmd_keygen)
 
     p = sub.add_parser(
         "schema", help="print a JSON Schema (mission, behavior, hardware-profile, agent-config)"

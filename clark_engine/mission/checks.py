@@ -99,8 +99,9 @@ def check_addresses(mission: Mission) -> Iterator[Finding]:
             yield error(
                 "E-ADDRESS-FORMAT",
                 where,
-                f"{address!r} is not an address of a {agent.hardware.part_profiles.get('radio')} "
-                f"radio (expected to match {pattern}); copy it from the radio's label",
+                f"{address!r} is not an address for the "
+                f"{agent.hardware.part_profiles.get('radio')} radio (expected to match "
+                f"{pattern}); copy it from the radio's label",
             )
         first = seen.get(address.upper())
         if first is not None:

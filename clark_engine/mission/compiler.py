@@ -7,8 +7,11 @@ enable and how to reach them, its hardware with channel maps, the telemetry
 schedule in ticks, the peer table, and the behaviour with every name already
 resolved), so a mission computer needs nothing but that file.
 
-Output is deterministic: the same mission gives byte-identical files (keys in
-a fixed order, no timestamps, floats as written).
+Output is deterministic: the same mission, compiled from the same working
+folder, gives byte-identical files (keys in a fixed order, no timestamps; rates
+and distances are written as JSON numbers, so 10 Hz appears as 10.0). Source
+locations inside the configs name files as the findings do, which is why the
+working folder matters.
 """
 
 from __future__ import annotations
@@ -165,6 +168,8 @@ def agent_config(mission: Mission, agent: Agent) -> dict[str, Any]:
                 "alt_m": mission.origin.alt_m,
             },
             "ceiling_m": mission.ceiling_m,
+            "authenticated": mission.key_file is not None,
+            "key_file": mission.key_file,
             "tick_phases": list(DEFAULT_TICK_PHASES),
             "log": {
                 "level": mission.log_level,

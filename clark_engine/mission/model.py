@@ -279,6 +279,7 @@ class Mission:
         checks: The dry-run expectations as written (evaluated by ``clark dry-run``).
         description: The author's note about the mission.
         source_sha256: Hash of the mission file's bytes, recorded in compiled configs.
+        key_file: The ClarkLink key file as written (relative to the mission file), if any.
         locations: Where each mission setting was written (``loop_hz`` -> location).
         check_locations: Where each dry-run check was written, in order.
         unresolved: Agents declared but too broken to resolve; references to them are
@@ -297,6 +298,7 @@ class Mission:
     checks: list[dict[str, Any]] = field(default_factory=list)
     description: str | None = None
     source_sha256: str = ""
+    key_file: str | None = None
     locations: dict[str, Location] = field(default_factory=dict)
     check_locations: list[Location] = field(default_factory=list)
     unresolved: set[str] = field(default_factory=set)

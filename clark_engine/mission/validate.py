@@ -278,6 +278,7 @@ def _build_mission(
         agents={},
         description=section.get("description"),
         source_sha256=hashlib.sha256(raw).hexdigest(),
+        key_file=section.get("key_file"),
         locations={key: doc.location(("mission", key)) for key in section},
         checks=checks,
         check_locations=[doc.location(("checks", i)) for i in range(len(checks))],

@@ -166,6 +166,12 @@ def build() -> dict[str, Any]:
                         required=["lat", "lon", "alt_m"],
                     ),
                     "ceiling_m": number("Highest altitude above the origin.", unit="m"),
+                    "authenticated": boolean("Every packet carries a tag made with the key."),
+                    "key_file": _NULLABLE_STRING
+                    | {
+                        "description": "The key file as the mission names it, relative to the "
+                        "mission file; copy it beside the config. Never the key itself."
+                    },
                     "tick_phases": array(
                         "Order of the phases of one tick.",
                         string(
@@ -202,6 +208,8 @@ def build() -> dict[str, Any]:
                     "heartbeat_timeout_s",
                     "origin",
                     "ceiling_m",
+                    "authenticated",
+                    "key_file",
                     "tick_phases",
                     "log",
                 ],

@@ -216,7 +216,7 @@ def build() -> dict[str, Any]:
         "required": ["clark", "mission", "agents"],
         "additionalProperties": False,
         "properties": {
-            "clark": {"const": 1, "description": "Version of the mission language; 1."},
+            "clark": {"const": 1, "description": "Version of the mission language (1)."},
             "mission": obj(
                 "Settings shared by every agent (the thesis's mission configuration section).",
                 {
@@ -226,7 +226,8 @@ def build() -> dict[str, Any]:
                         maximum=4294967295,
                     ),
                     "name": string(
-                        "Short name; compiled configs go to <output>/<name>/.",
+                        "A short name of lower-case letters, digits, - and _ (e.g. "
+                        "cooperative-follow); compiled configs go to <output>/<name>/.",
                         pattern=r"^[a-z0-9][a-z0-9_-]*$",
                     ),
                     "description": string("What the mission is for, in your words."),
@@ -260,6 +261,12 @@ def build() -> dict[str, Any]:
                         exclusive_minimum=0,
                         maximum=10000,
                         default=120,
+                    ),
+                    "key_file": string(
+                        "File holding the mission's 32-byte ClarkLink key (made by clark "
+                        "keygen), relative to this file. With a key every packet is "
+                        "authenticated; without one, commands from the station are not.",
+                        min_length=1,
                     ),
                     "log_level": string(
                         "Level of the mission and interface logs.",

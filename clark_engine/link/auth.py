@@ -1,0 +1,313 @@
+"""ClarkLink authentication: packet tags, replay windows, counter persistence, key files.
+
+A mission with a key authenticates every packet with HMAC-SHA256 over the whole
+packet (header and bundle, so the mission id, sender, destination and counter
+are covered too), truncated to :data:`~clark_engine.link.packet.TAG_BYTES`
+(12 bytes, 96 bits: a forger's chance per try is 2**-96, and the radio's
+bandwidth is what a longer tag would cost). The counter in the header, never
+reused by a sender, and a per-sender :class:`ReplayWindow` at the receiver stop
+a recorded packet from being played back.
+
+The key is secret material: it never appears in an exception message, a repr or
+a log line, and :func:`load_key` refuses a key file that anyone but its owner
+can read or write.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import hmac
+import os
+import secrets
+import stat
+import tempfile
+from pathlib import Path
+
+from clark_engine.errors import ClarkError
+from clark_engine.link.packet import MAX_COUNTER, TAG_BYTES
+
+KEY_BYTES = 32
+#: Counters reserved per write of the counter store. A write costs an fsync
+#: (tens of milliseconds on a mission computer's SD card, enough to overrun a
+#: tick), so it should be rare: at 100 packets per second a block of 65536 lasts
+#: 11 minutes. A restart skips at most one block, out of 2**48 counters.
+DEFAULT_COUNTER_BLOCK = 65_536
+_MAX_KEY_FILE_BYTES = 256  # a key file is 65 bytes; never read a large file whole
+
+
+class KeyFileError(ClarkError):
+    """A key file that cannot be used: missing, exposed to other users, or not a key.
+
+    The message names the file and what to do; it never contains the file's content.
+    """
+
+
+class CounterStoreError(ClarkError):
+    """The packet counter's high-water mark cannot be read or written.
+
+    Sending stops rather than risk reusing a counter: peers would reject the
+    packets as replays.
+    """
+
+
+class Tagger:
+    """Computes and checks packet tags under one key.
+
+    The HMAC's keyed state is computed once and copied per packet, which is
+    about a third faster than keying afresh each time.
+    """
+
+    __slots__ = ("_keyed",)
+
+    def __init__(self, key: bytes) -> None:
+        """Key the HMAC.
+
+        Raises:
+            ValueError: The key is shorter than 16 bytes (key files hold 32).
+        """
+        if len(key) < 16:
+            raise ValueError("a ClarkLink key must be at least 16 bytes (key files hold 32)")
+        self._keyed = hmac.new(bytes(key), digestmod=hashlib.sha256)
+
+    def __repr__(self) -> str:
+        return "Tagger(<key hidden>)"
+
+    def tag(self, data: bytes) -> bytes:
+        """HMAC-SHA256 of ``data``, truncated to TAG_BYTES."""
+        mac = self._keyed.copy()
+        mac.update(data)
+        return mac.digest()[:TAG_BYTES]
+
+    def verify(self, data: bytes, tag: bytes) -> bool:
+        """True when ``tag`` is ``data``'s tag; compared in constant time."""
+        return hmac.compare_digest(self.tag(data), tag)
+
+
+class ReplayWindow:
+    """One sender's replay window: its highest counter and a bitmap of the 64 before it.
+
+    A counter is fresh when it is above the highest seen, or within the 64 below
+    it and not yet seen; packets that arrive out of order across a mesh within
+    that span are accepted. Checking and committing are separate so that the
+    codec commits only a packet that passed every other check.
+
+    Attributes:
+        highest: The highest counter accepted, or -1 before the first.
+    """
+
+    SIZE = 64
+    __slots__ = ("_seen", "highest")
+
+    def __init__(self) -> None:
+        self.highest = -1
+        self._seen = 0  # bit i set: counter highest - i was accepted
+
+    def __repr__(self) -> str:
+        return f"ReplayWindow(highest={self.highest}, seen=0x{self._seen:016x})"
+
+    def is_fresh(self, counter: int) -> bool:
+        """True when ``counter`` has not been accepted and is not older than the window."""
+        if counter > self.highest:
+            return True
+        age = self.highest - counter
+        return age < self.SIZE and not (self._seen >> age) & 1
+
+    def commit(self, counter: int) -> None:
+        """Record ``counter`` as accepted (call only after :meth:`is_fresh` said so)."""
+        if counter > self.highest:
+            shift = counter - self.highest
+            # Never shift by the raw distance: a 48-bit jump would build a 2**48-bit integer.
+            if shift >= self.SIZE:
+                self._seen = 1
+            else:
+                self._seen = ((self._seen << shift) | 1) & ((1 << self.SIZE) - 1)
+            self.highest = counter
+        else:
+            self._seen |= 1 << (self.highest - counter)
+
+
+class CounterStore:
+    """A file holding the highest packet counter a sender may have used.
+
+    A sender reserves counters a block at a time: it writes the end of the block
+    here (atomically: temporary file, fsync, rename, fsync of the folder)
+    *before* it sends with any of them. After a crash or restart it resumes
+    above the stored mark, so it never reuses a counter, at the cost of skipping
+    the unused rest of the last block. One store per sending agent; two codecs
+    must never share a file.
+
+    The file holds the mark as decimal digits and a newline.
+    """
+
+    def __init__(
+        self, path: str | os.PathLike[str], *, block_size: int = DEFAULT_COUNTER_BLOCK
+    ) -> None:
+        """Name the file; nothing is read or written until :meth:`load`.
+
+        Args:
+            path: The store's file; its folder must exist.
+            block_size: Counters reserved per write (see DEFAULT_COUNTER_BLOCK).
+        """
+        if block_size < 1:
+            raise ValueError(f"block_size must be at least 1, not {block_size}")
+        self.path = Path(path)
+        self.block_size = block_size
+
+    def __repr__(self) -> str:
+        return f"CounterStore({str(self.path)!r}, block_size={self.block_size})"
+
+    def load(self) -> int:
+        """The stored mark: the highest counter that may have been used (0 when no file).
+
+        Raises:
+            CounterStoreError: The file cannot be read or does not hold a counter.
+        """
+        try:
+            text = self.path.read_bytes()[:64]
+        except FileNotFoundError:
+            return 0
+        except OSError as exc:
+            raise CounterStoreError(
+                f"cannot read the packet counter store: {exc.strerror}", file=str(self.path)
+            ) from None
+        digits = text.strip()
+        if not digits.isdigit() or len(digits) > 15 or int(digits) > MAX_COUNTER:
+            raise CounterStoreError(
+                "the packet counter store is damaged: it must hold one whole number. Restore it, "
+                "or write a number above any counter this agent has sent (its interface log has "
+                "them); a smaller one makes peers drop its packets as replays",
+                file=str(self.path),
+            )
+        return int(digits)
+
+    def reserve(self, first: int) -> int:
+        """Reserve a block of counters starting at ``first``; return the last one reserved.
+
+        The new mark is on disk when this returns, before any counter of the
+        block is used.
+
+        Raises:
+            CounterStoreError: The counters are exhausted or the file cannot be written.
+        """
+        if first > MAX_COUNTER:
+            raise CounterStoreError(
+                "the 48-bit packet counter is exhausted: generate a new mission key and "
+                "delete this store",
+                file=str(self.path),
+            )
+        last = min(first + self.block_size - 1, MAX_COUNTER)
+        self._write(last)
+        return last
+
+    def _write(self, mark: int) -> None:
+        folder = self.path.parent
+        try:
+            fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{self.path.name}.", suffix=".tmp")
+        except OSError as exc:
+            raise CounterStoreError(
+                f"cannot write the packet counter store: {exc.strerror}", file=str(self.path)
+            ) from None
+        try:
+            with os.fdopen(fd, "wb") as out:
+                out.write(f"{mark}\n".encode("ascii"))
+                out.flush()
+                os.fsync(out.fileno())
+            os.replace(tmp, self.path)
+        except OSError as exc:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+            raise CounterStoreError(
+                f"cannot write the packet counter store: {exc.strerror}", file=str(self.path)
+            ) from None
+        _fsync_folder(folder)
+
+
+def _fsync_folder(folder: Path) -> None:
+    """Make a rename in ``folder`` durable (POSIX; a no-op where folders cannot be opened)."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass  # some file systems refuse fsync on a folder; the rename is as durable as they allow
+    finally:
+        os.close(fd)
+
+
+def generate_key_file(path: str | os.PathLike[str]) -> None:
+    """Write a new random mission key: 32 bytes as 64 hex characters and a newline.
+
+    The file is created with mode 0600 and never overwritten: replacing a key
+    silently would cut this agent off from every peer that has the old one.
+
+    Raises:
+        KeyFileError: The file already exists or cannot be written.
+    """
+    where = os.fspath(path)
+    try:
+        fd = os.open(where, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    except FileExistsError:
+        raise KeyFileError(
+            "already exists; refusing to overwrite a key. Delete it first if you mean to replace "
+            "the key, then copy the new file to every agent",
+            file=where,
+        ) from None
+    except OSError as exc:
+        raise KeyFileError(f"cannot create the key file: {exc.strerror}", file=where) from None
+    try:
+        with os.fdopen(fd, "wb") as out:
+            out.write(secrets.token_bytes(KEY_BYTES).hex().encode("ascii") + b"\n")
+            out.flush()
+            os.fsync(out.fileno())
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            os.unlink(where)
+        raise KeyFileError(f"cannot write the key file: {exc.strerror}", file=where) from None
+
+
+def load_key(path: str | os.PathLike[str]) -> bytes:
+    """Read a mission key written by :func:`generate_key_file`.
+
+    Raises:
+        KeyFileError: The file is missing, readable or writable by group or
+            others (fix: ``chmod 600``), not a regular file, or does not hold
+            exactly 64 hex characters. The message never quotes the content.
+    """
+    where = os.fspath(path)
+    try:
+        # O_NONBLOCK: a FIFO planted at the path must not hang the agent at start-up.
+        fd = os.open(where, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except FileNotFoundError:
+        raise KeyFileError(
+            "key file not found; check key_file in the mission (relative to the mission file)",
+            file=where,
+        ) from None
+    except OSError as exc:
+        raise KeyFileError(f"cannot open the key file: {exc.strerror}", file=where) from None
+    try:
+        info = os.fstat(fd)  # of the open file: no race with a chmod or rename
+        if not stat.S_ISREG(info.st_mode):
+            raise KeyFileError("is not a regular file", file=where)
+        if info.st_mode & 0o077:
+            mode = stat.S_IMODE(info.st_mode)
+            raise KeyFileError(
+                f"key file is accessible by group or others (mode {mode:04o}); "
+                f"run: chmod 600 {where}",
+                file=where,
+            )
+        content = os.read(fd, _MAX_KEY_FILE_BYTES + 1)
+    except OSError as exc:
+        raise KeyFileError(f"cannot read the key file: {exc.strerror}", file=where) from None
+    finally:
+        os.close(fd)
+    text = content.strip()
+    if len(text) != 2 * KEY_BYTES or not all(c in b"0123456789abcdefABCDEF" for c in text):
+        raise KeyFileError(
+            f"is not a key: a key file holds {2 * KEY_BYTES} hex characters ({KEY_BYTES} bytes) "
+            "and a newline; generate a new one and copy it to every agent",
+            file=where,
+        )
+    return bytes.fromhex(text.decode("ascii"))

@@ -1,0 +1,319 @@
+"""ClarkLink packets: framing, bundling, splitting, authentication and replay protection.
+
+One :class:`Codec` per agent turns the messages due to one destination into
+packets (:meth:`Codec.encode`) and turns whatever bytes arrive into a
+:class:`~clark_engine.link.packet.Packet` or a
+:class:`~clark_engine.link.errors.ClarkLinkError` (:meth:`Codec.decode`). It is
+pure: no clock, no socket; the only I/O is the optional counter store.
+
+Decisions, each pinned by tests:
+
+* **Decode checks in a fixed order** and stops at the first failure: size
+  (``OversizePacket``), length (``TruncatedPacket``), protocol version
+  (``BadVersion``), flags and sender id (``MalformedPacket``), mission id
+  (``ForeignMission``), tag (``BadTag``), bundle (``MalformedPacket``), replay
+  window (``ReplayedPacket``). Only a packet that passed all of them updates the
+  sender's replay window, so a forged or garbled packet changes nothing: not
+  even a forged packet with a huge counter can push the window past the
+  genuine traffic.
+* **With a key, every packet is authenticated**, telemetry included; a packet
+  without a tag is ``BadTag``, and so is a tagged packet when this codec has no
+  key (a keyed peer in an unkeyed mission is misconfigured; acting on its
+  packets unchecked would hide that).
+* **Every message in a packet must carry the header's sender as its agent_id**,
+  and a Heartbeat the header's mission id, or the packet is ``MalformedPacket``.
+  ClarkLink has no relaying, so a mismatch is either a bug or an attempt to speak
+  for another agent; the header's sender is the one the tag and the replay
+  window vouch for.
+* **Which destination a packet is for is the caller's business**: decode returns
+  ``destination_id`` and does not drop packets addressed to another agent (on a
+  broadcast medium the runtime may still want to see them).
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Sequence
+
+from clark_engine.link.auth import CounterStore, CounterStoreError, ReplayWindow, Tagger
+from clark_engine.link.errors import (
+    BadTag,
+    BadVersion,
+    ForeignMission,
+    MalformedPacket,
+    OversizePacket,
+    ReplayedPacket,
+    TruncatedPacket,
+)
+from clark_engine.link.messages import MESSAGE_NAMES, Heartbeat, Message
+from clark_engine.link.packet import (
+    FLAG_AUTHENTICATED,
+    HEADER_BYTES,
+    MAX_COUNTER,
+    PROTOCOL_VERSION,
+    TAG_BYTES,
+    Packet,
+)
+from clark_engine.link.wire import AGENT_ID_MAX, canonical_order, encode_entry, parse_bundle
+
+# version, flags, mission id, sender, destination, counter high 16 bits, counter low 32 bits
+_HEADER = struct.Struct(">BBIHHHI")  # HEADER_BYTES long
+_MISSION_ID_MAX = (1 << 32) - 1
+
+
+class Codec:
+    """Encodes and decodes one agent's ClarkLink packets.
+
+    Holds the agent's packet counter and a replay window per sender, so it must
+    live as long as the agent (one per agent, never shared between agents).
+    """
+
+    def __init__(
+        self,
+        mission_id: int,
+        agent_id: int,
+        key: bytes | None = None,
+        *,
+        counter_store: CounterStore | None = None,
+        max_packet_bytes: int = 1400,
+    ) -> None:
+        """Set up a codec; reads the counter store, if any, to resume above its mark.
+
+        Args:
+            mission_id: This mission's id (1 to 2**32 - 1); packets of other missions
+                are refused.
+            agent_id: This agent's id (1 to 65535), the sender of what it encodes.
+            key: The mission key (from :func:`~clark_engine.link.auth.load_key`), or
+                None for an unauthenticated mission.
+            counter_store: Where the packet counter's high-water mark persists. Without
+                one the counter restarts at 1 with the process, and peers that remember
+                the old counter drop this agent's packets as replays until it passes it.
+            max_packet_bytes: The largest packet decoded, and the default limit of
+                :meth:`encode` (the radio's packet size limit).
+
+        Raises:
+            ValueError: An id or size is out of range, or the key is too short.
+            CounterStoreError: The counter store cannot be read.
+        """
+        if not 1 <= mission_id <= _MISSION_ID_MAX:
+            raise ValueError(f"mission_id {mission_id} is outside 1..{_MISSION_ID_MAX}")
+        if not 1 <= agent_id <= AGENT_ID_MAX:
+            raise ValueError(f"agent_id {agent_id} is outside 1..{AGENT_ID_MAX}")
+        if max_packet_bytes < HEADER_BYTES + TAG_BYTES + 2:
+            raise ValueError(f"max_packet_bytes {max_packet_bytes} cannot hold a header and a tag")
+        self.mission_id = mission_id
+        self.agent_id = agent_id
+        self.max_packet_bytes = max_packet_bytes
+        self._tagger = Tagger(key) if key is not None else None
+        self._store = counter_store
+        if counter_store is None:
+            self._next_counter = 1
+            self._reserved_through = MAX_COUNTER
+        else:
+            self._next_counter = counter_store.load() + 1
+            self._reserved_through = self._next_counter - 1  # reserve before the first use
+        self._windows: dict[int, ReplayWindow] = {}
+
+    def __repr__(self) -> str:
+        # Never the key: reprs end up in logs and tracebacks.
+        return (
+            f"Codec(mission_id={self.mission_id}, agent_id={self.agent_id}, "
+            f"authenticated={self.authenticated}, max_packet_bytes={self.max_packet_bytes}, "
+            f"next_counter={self._next_counter})"
+        )
+
+    @property
+    def authenticated(self) -> bool:
+        """True when this codec tags what it sends and demands tags on what it receives."""
+        return self._tagger is not None
+
+    @property
+    def next_counter(self) -> int:
+        """The counter the next packet will carry."""
+        return self._next_counter
+
+    # ------------------------------------------------------------------ encode
+
+    def encode(
+        self, messages: Sequence[Message], destination: int, max_packet_bytes: int | None = None
+    ) -> list[bytes]:
+        """Bundle every message due to one destination into as few packets as fit.
+
+        Messages go in bundle order (by type, then as given; see
+        :mod:`clark_engine.link.wire`). When they do not fit one packet, they are
+        split across packets by whole messages in that order, never truncated.
+        Each packet takes the next counter. No messages, no packets.
+
+        Args:
+            messages: What is due; every one must have this agent's agent_id.
+            destination: The agent they are for, or 0 for every agent.
+            max_packet_bytes: The radio's packet limit; the codec's by default.
+
+        Returns:
+            The packets, ready for the radio, in order.
+
+        Raises:
+            OversizePacket: One message alone cannot fit a packet (nothing is sent).
+            ValueError: A message is not from this agent (or a Heartbeat not of this
+                mission), a field is out of range, or the destination is not an id.
+            CounterStoreError: The counter store cannot be written.
+        """
+        limit = self.max_packet_bytes if max_packet_bytes is None else max_packet_bytes
+        if not 0 <= destination <= AGENT_ID_MAX:
+            raise ValueError(f"destination {destination} is outside 0..{AGENT_ID_MAX}")
+        room = limit - HEADER_BYTES - (TAG_BYTES if self._tagger else 0)
+        groups: list[list[bytes]] = []
+        used = room + 1  # forces a first group
+        for message in canonical_order(messages):
+            self._check_own(message)
+            entry = encode_entry(message)
+            if len(entry) > room:
+                name = MESSAGE_NAMES[type(message)]
+                raise OversizePacket(
+                    f"a {name} message encodes to {len(entry)} bytes, but a {limit}-byte packet "
+                    f"has room for {max(room, 0)} after its header and tag; shorten it",
+                    sender_id=self.agent_id,
+                    mission_id=self.mission_id,
+                )
+            if used + len(entry) > room:
+                groups.append([])
+                used = 0
+            groups[-1].append(entry)
+            used += len(entry)
+        flags = FLAG_AUTHENTICATED if self._tagger else 0
+        packets = []
+        for group in groups:
+            counter = self._take_counter()
+            head = _HEADER.pack(
+                PROTOCOL_VERSION,
+                flags,
+                self.mission_id,
+                self.agent_id,
+                destination,
+                counter >> 32,
+                counter & 0xFFFFFFFF,
+            )
+            packet = head + b"".join(group)
+            if self._tagger is not None:
+                packet += self._tagger.tag(packet)
+            packets.append(packet)
+        return packets
+
+    def _check_own(self, message: Message) -> None:
+        if message.agent_id != self.agent_id:
+            raise ValueError(
+                f"{MESSAGE_NAMES[type(message)]} has agent_id {message.agent_id}, but this codec "
+                f"sends as agent {self.agent_id}"
+            )
+        if isinstance(message, Heartbeat) and message.mission_id != self.mission_id:
+            raise ValueError(
+                f"heartbeat has mission_id {message.mission_id}, but this codec sends in mission "
+                f"{self.mission_id}"
+            )
+
+    def _take_counter(self) -> int:
+        counter = self._next_counter
+        if counter > self._reserved_through:
+            if self._store is None:
+                raise CounterStoreError("the 48-bit packet counter is exhausted")
+            self._reserved_through = self._store.reserve(counter)  # on disk before use
+        self._next_counter = counter + 1
+        return counter
+
+    # ------------------------------------------------------------------ decode
+
+    def decode(self, data: bytes | bytearray | memoryview) -> Packet:
+        """Check and decode one received packet.
+
+        Whatever the bytes, this returns a packet or raises a
+        :class:`~clark_engine.link.errors.ClarkLinkError` subclass, in the order
+        given in the module docstring; the error carries the sender and mission
+        the header claims, once the header could be read. Only a packet that
+        passes every check updates the sender's replay window.
+
+        Raises:
+            OversizePacket, TruncatedPacket, BadVersion, MalformedPacket,
+            ForeignMission, BadTag, ReplayedPacket: See :mod:`clark_engine.link.errors`.
+            TypeError: ``data`` is not bytes, bytearray or memoryview (a caller's bug).
+        """
+        if isinstance(data, memoryview):
+            # Count and slice bytes, whatever the view's item format or layout.
+            data = data.cast("B") if data.c_contiguous else memoryview(data.tobytes())
+        elif not isinstance(data, bytes | bytearray):
+            raise TypeError(f"decode takes bytes, not {type(data).__name__}")
+        size = len(data)
+        if size > self.max_packet_bytes:
+            claimed = _claimed(bytes(data[:HEADER_BYTES])) if size >= HEADER_BYTES else {}
+            raise OversizePacket(
+                f"packet of {size} bytes is over the {self.max_packet_bytes}-byte limit", **claimed
+            )
+        raw = bytes(data)
+        if size < HEADER_BYTES:
+            raise TruncatedPacket(f"packet of {size} bytes is shorter than a header")
+        version, flags, mission_id, sender_id, destination_id, high, low = _HEADER.unpack_from(raw)
+        ids: dict[str, int] = {"sender_id": sender_id, "mission_id": mission_id}
+        if version != PROTOCOL_VERSION:
+            raise BadVersion(
+                f"protocol version {version}; this engine speaks {PROTOCOL_VERSION}", **ids
+            )
+        if flags & ~FLAG_AUTHENTICATED:
+            raise MalformedPacket(f"unknown header flags 0x{flags:02x}", **ids)
+        tagged = bool(flags & FLAG_AUTHENTICATED)
+        end = size - TAG_BYTES if tagged else size
+        if end < HEADER_BYTES:
+            raise TruncatedPacket(f"packet of {size} bytes is shorter than a header and tag", **ids)
+        if sender_id == 0:
+            raise MalformedPacket("sender id 0 is not an agent", **ids)
+        if mission_id != self.mission_id:
+            raise ForeignMission(f"from mission {mission_id}, not {self.mission_id}", **ids)
+        if self._tagger is not None:
+            if not tagged:
+                raise BadTag("packet is not authenticated, and this mission has a key", **ids)
+            if not self._tagger.verify(raw[:end], raw[end:]):
+                raise BadTag("tag does not match: forged, corrupted or another key", **ids)
+        elif tagged:
+            raise BadTag("packet is authenticated, but this mission has no key", **ids)
+        try:
+            messages = parse_bundle(raw[HEADER_BYTES:end])
+        except MalformedPacket as exc:
+            raise MalformedPacket(str(exc), **ids) from None
+        for message in messages:
+            if message.agent_id != sender_id:
+                raise MalformedPacket(
+                    f"{MESSAGE_NAMES[type(message)]} claims agent {message.agent_id} in a packet "
+                    f"from agent {sender_id}",
+                    **ids,
+                )
+            if isinstance(message, Heartbeat) and message.mission_id != mission_id:
+                raise MalformedPacket(
+                    f"heartbeat claims mission {message.mission_id} in a packet of mission "
+                    f"{mission_id}",
+                    **ids,
+                )
+        counter = (high << 32) | low
+        window = self._windows.get(sender_id)
+        if window is not None and not window.is_fresh(counter):
+            raise ReplayedPacket(
+                f"counter {counter} already seen or older than the window "
+                f"(highest {window.highest})",
+                **ids,
+            )
+        # Every check passed: only now does anything change.
+        if window is None:
+            window = self._windows[sender_id] = ReplayWindow()
+        window.commit(counter)
+        return Packet(
+            mission_id=mission_id,
+            sender_id=sender_id,
+            destination_id=destination_id,
+            counter=counter,
+            authenticated=tagged,
+            messages=messages,
+            size_bytes=size,
+        )
+
+
+def _claimed(header: bytes) -> dict[str, int]:
+    """The sender and mission a header claims, for an error about its packet."""
+    _version, _flags, mission_id, sender_id, *_rest = _HEADER.unpack_from(header)
+    return {"sender_id": sender_id, "mission_id": mission_id}

@@ -1,0 +1,666 @@
+"""The fleet table: what one agent knows about every other agent (the thesis's Clark Agent).
+
+One :class:`FleetTable` per agent, owned by its runtime and never shared. Decoded
+packets are applied the moment they arrive (:meth:`FleetTable.receive`), so a
+message is available to the behaviour as soon as it lands; packets the codec
+rejected are counted against their claimed sender (:meth:`FleetTable.note_error`);
+each tick the runtime checks heartbeat timeouts (:meth:`FleetTable.check_timeouts`,
+thesis requirement 7.3.7) and appends :meth:`FleetTable.csv_rows` to its CSV
+export (7.3.6).
+
+What the table holds, following the thesis (section 3.7, requirements 7.2.1-7.2.10):
+
+- An agent gets a record on its first heartbeat of our mission (7.2.10), never
+  before: the heartbeat is where its mission id and agent type are checked.
+  Other messages from a sender without a record are counted in its link
+  statistics but not stored, so nothing unverified reaches the behaviour. A
+  packet that bundles a first heartbeat with other messages stores them all,
+  whatever their order in the bundle.
+- For each message type, the latest value with its receive time, the packet
+  counter it came in and a new-data flag (7.2.2). The behaviour clears the flag
+  by reading (:meth:`FleetTable.read`); :meth:`FleetTable.peek` reads without
+  clearing. "Latest" means latest sent: a reordered packet does not overwrite a
+  value that came in a newer one.
+- Per-peer link statistics (:class:`LinkStats`) in O(1) memory per peer.
+
+The table stores every message type, commands included (7.2.4), but acts on
+none: whether a Mode Change Request or a Terminate is obeyed (authenticated,
+aimed at us, from the station) is the runtime's decision, made on the packet.
+
+The core is pure: nothing here reads a clock. ``now_s`` is the caller's
+monotonic clock in seconds and ``gps_now_ms`` the receiver's GPS time; the two
+are never compared with each other. Single-threaded by design, like the loop
+that owns it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import Any, Generic, TypeVar, cast
+
+from clark_engine.link.errors import (
+    BadTag,
+    ClarkLinkError,
+    ForeignMission,
+    ReplayedPacket,
+)
+from clark_engine.link.messages import (
+    MESSAGE_NAMES,
+    AgentAttitude,
+    AgentStatus,
+    AgentType,
+    Condition,
+    Heartbeat,
+    Message,
+    PictureData,
+)
+from clark_engine.link.packet import Packet
+
+M = TypeVar("M", bound=Message)
+
+#: Counters below the highest one seen that the loss tracker still tells apart
+#: (seen or not). A packet later than this is counted as ``out_of_window``.
+COUNTER_WINDOW = 64
+
+#: A forward counter jump larger than this is taken as the sender restarting or
+#: moving its counter on (a time-based counter jumps by the time it was down),
+#: not as that many lost packets: it is counted in ``resyncs`` and loss counting
+#: starts again from the new counter. At 10 packets/s this is over 16 minutes of
+#: packets, far beyond any outage a heartbeat timeout would not already report.
+MAX_COUNTED_GAP = 10_000
+
+#: Distinct (sender, mission) pairs reported as foreign; further ones are only
+#: counted, so a stream of corrupted headers cannot grow the table without bound.
+MAX_FOREIGN_REPORTS = 256
+
+_WINDOW_MASK = (1 << COUNTER_WINDOW) - 1
+
+
+# --------------------------------------------------------------------- events
+
+
+@dataclass(frozen=True, slots=True)
+class AgentFound:
+    """An agent's heartbeat arrived: its first, or its first since it was lost.
+
+    The runtime turns this into the behaviour event ``found:<name>``.
+    """
+
+    agent_id: int
+    name: str
+    """Name from the mission's peer table; empty for an agent not in it."""
+    agent_type: AgentType
+    rejoined: bool
+    """False on the first heartbeat ever, True when the agent had been lost."""
+
+
+@dataclass(frozen=True, slots=True)
+class AgentLost:
+    """An agent sent no heartbeat for longer than the heartbeat timeout.
+
+    The runtime turns this into ``lost:<name>``, and into ``mcs_lost`` when
+    ``agent_type`` is :attr:`AgentType.MCS`. Reported once per loss.
+    """
+
+    agent_id: int
+    name: str
+    agent_type: AgentType
+    silent_s: float
+    """Seconds since its last heartbeat when the loss was found."""
+
+
+@dataclass(frozen=True, slots=True)
+class ForeignAgent:
+    """An agent that runs another mission: reported once, never added to the table."""
+
+    agent_id: int
+    name: str
+    mission_id: int | None
+    """The mission it claims, when the packet header could be read that far."""
+
+
+FleetEvent = AgentFound | AgentLost | ForeignAgent
+
+
+# ---------------------------------------------------------------- link stats
+
+
+class _Order(Enum):
+    """Where a packet's counter falls relative to those already seen from its sender."""
+
+    NEW = 1  # above every counter seen
+    LATE = 2  # below the highest, inside the window, not seen before: fills a gap
+    DUPLICATE = 3  # seen before
+    OUT_OF_WINDOW = 4  # too far below the highest to tell
+
+
+@dataclass(slots=True)
+class LinkStats:
+    """How the link from one peer is doing, in O(1) memory.
+
+    Losses are inferred from the sender's packet counter: a jump of k > 1 over
+    the highest counter seen counts k - 1 losses, and a late packet that fills
+    one of those gaps takes one back, so reordering is never counted as loss.
+    A bitmap of the last :data:`COUNTER_WINDOW` counters tells a late packet
+    from a duplicate. Counters are 48-bit and never reused by a sender, so they
+    never wrap.
+
+    Latency is the receiver's GPS time minus a message's GPS stamp, in
+    milliseconds, over every message received except Picture Data (whose stamp
+    is the capture time, not the send time) and unstamped ones. It is kept
+    signed: a negative figure shows the two GPS clocks disagree. Count, mean, standard
+    deviation, minimum and maximum are kept with Welford's algorithm; the
+    median needs every sample, so the log analyzer computes it offline from
+    the logs.
+
+    Attributes:
+        packets: Packets accepted from this peer (duplicates excluded).
+        bytes: Their total size on the wire.
+        messages: Messages received, by message name (``"agent_status"``).
+        misattributed: Messages whose agent id is not the packet's sender; dropped.
+        lost: Packets inferred lost from counter gaps, net of late arrivals.
+        duplicates: Counters seen again, whether the codec rejected them as
+            replays or they reached the table.
+        out_of_window: Packets too late to tell from duplicates; their data is
+            still applied, in arrival order.
+        resyncs: Counter jumps above :data:`MAX_COUNTED_GAP`, not counted as loss.
+        bad_tags: Packets that failed authentication.
+        malformed: Packets the codec could not read (truncated, malformed,
+            oversize, unknown protocol version).
+        foreign: Packets or heartbeats claiming another mission.
+        last_packet_s: Receive time of the last accepted packet, or None.
+        last_rejected_s: Receive time of the last packet the codec rejected, or None.
+        latency_count: Latency samples.
+        latency_mean_ms: Their mean, or None before the first.
+        latency_min_ms: Smallest sample, or None.
+        latency_max_ms: Largest sample, or None.
+    """
+
+    packets: int = 0
+    bytes: int = 0
+    messages: dict[str, int] = field(default_factory=dict)
+    misattributed: int = 0
+    lost: int = 0
+    duplicates: int = 0
+    out_of_window: int = 0
+    resyncs: int = 0
+    bad_tags: int = 0
+    malformed: int = 0
+    foreign: int = 0
+    last_packet_s: float | None = None
+    last_rejected_s: float | None = None
+    latency_count: int = 0
+    latency_mean_ms: float | None = None
+    latency_min_ms: float | None = None
+    latency_max_ms: float | None = None
+    _latency_m2: float = field(default=0.0, repr=False)
+    # packets placed in the counter sequence (new, or filling a counted gap)
+    _sequenced: int = field(default=0, repr=False)
+    _highest: int = field(default=-1, repr=False)  # highest counter seen; -1 before any
+    # counter from which gaps are counted: the first seen, or the last resync
+    _floor: int = field(default=0, repr=False)
+    _seen: int = field(default=0, repr=False)  # bit i set: counter _highest - i was seen
+
+    @property
+    def loss_ratio(self) -> float | None:
+        """Lost packets over packets the sender sent (lost + received), or None before any."""
+        sent = self.lost + self._sequenced
+        return self.lost / sent if sent else None
+
+    @property
+    def latency_std_ms(self) -> float | None:
+        """Sample standard deviation of latency (n - 1, as ``statistics.stdev``), or None.
+
+        None below two samples, where it is undefined.
+        """
+        if self.latency_count < 2:
+            return None
+        return math.sqrt(self._latency_m2 / (self.latency_count - 1))
+
+    def _order(self, counter: int) -> _Order:
+        """Place ``counter`` in the sequence and update losses; O(1)."""
+        highest = self._highest
+        if counter > highest:
+            if highest < 0:
+                self._floor = counter
+                self._seen = 1
+            else:
+                jump = counter - highest
+                if jump > MAX_COUNTED_GAP:
+                    self.resyncs += 1
+                    self._floor = counter
+                    self._seen = 1
+                else:
+                    self.lost += jump - 1
+                    self._seen = ((self._seen << jump) | 1) & _WINDOW_MASK
+            self._highest = counter
+            self._sequenced += 1
+            return _Order.NEW
+        behind = highest - counter
+        if behind >= COUNTER_WINDOW:
+            self.out_of_window += 1
+            return _Order.OUT_OF_WINDOW
+        bit = 1 << behind
+        if self._seen & bit:
+            self.duplicates += 1
+            return _Order.DUPLICATE
+        self._seen |= bit
+        if counter > self._floor:  # inside a gap that was counted as loss
+            self.lost -= 1
+            self._sequenced += 1
+        return _Order.LATE
+
+    def _add_latency(self, latency_ms: float) -> None:
+        """Welford's update: exact running mean and variance in O(1) memory."""
+        n = self.latency_count + 1
+        self.latency_count = n
+        if n == 1:
+            self.latency_mean_ms = self.latency_min_ms = self.latency_max_ms = latency_ms
+            return
+        mean = cast(float, self.latency_mean_ms)
+        delta = latency_ms - mean
+        mean += delta / n
+        self.latency_mean_ms = mean
+        self._latency_m2 += delta * (latency_ms - mean)
+        if latency_ms < cast(float, self.latency_min_ms):
+            self.latency_min_ms = latency_ms
+        if latency_ms > cast(float, self.latency_max_ms):
+            self.latency_max_ms = latency_ms
+
+
+# ------------------------------------------------------------------- records
+
+
+@dataclass(slots=True)
+class Sample(Generic[M]):
+    """The latest value of one message type from one agent.
+
+    Attributes:
+        value: The message.
+        received_s: When it was applied, on the receiver's monotonic clock.
+        counter: Counter of the packet it came in (orders values by send time).
+        authenticated: True when that packet's tag was checked.
+        is_new: Set when the value arrives, cleared when the behaviour reads it.
+    """
+
+    value: M
+    received_s: float
+    counter: int
+    authenticated: bool
+    is_new: bool = True
+
+    @property
+    def gps_time_ms(self) -> int:
+        """The sender's GPS stamp on the message."""
+        return self.value.gps_time_ms
+
+
+@dataclass(slots=True)
+class AgentRecord:
+    """Everything known about one other agent. Owned by its table: read, do not write.
+
+    Attributes:
+        agent_id: The agent's id.
+        name: Its name in the mission's peer table; empty when it is not in it.
+        agent_type: Vehicle or station, from its latest heartbeat.
+        condition: Its own view of its health, from its latest heartbeat.
+        found_s: When its first heartbeat arrived.
+        last_heartbeat_s: When its latest heartbeat arrived.
+        lost: True from a timeout until its next heartbeat.
+        stats: The link statistics of packets from it.
+    """
+
+    agent_id: int
+    name: str
+    agent_type: AgentType
+    condition: Condition
+    found_s: float
+    last_heartbeat_s: float
+    stats: LinkStats
+    lost: bool = False
+    _samples: dict[type, Sample[Any]] = field(default_factory=dict, repr=False)
+
+    def sample(self, message_type: type[M]) -> Sample[M] | None:
+        """The latest value of ``message_type`` with its receive time and flag, or None."""
+        return self._samples.get(message_type)
+
+    def since_heartbeat_s(self, now_s: float) -> float:
+        """Seconds since its latest heartbeat."""
+        return now_s - self.last_heartbeat_s
+
+
+# --------------------------------------------------------------------- table
+
+_STATUS_FIELDS = (
+    "lat_deg",
+    "lon_deg",
+    "alt_m",
+    "ground_speed_m_s",
+    "climb_rate_m_s",
+    "heading_deg",
+    "mode",
+)
+_ATTITUDE_FIELDS = ("roll_deg", "pitch_deg", "yaw_deg")
+_CSV_HEADER = (
+    *("agent_id", "name", "agent_type", "condition", "lost", "since_heartbeat_s"),
+    *_STATUS_FIELDS,
+    "status_age_s",
+    *_ATTITUDE_FIELDS,
+    *("since_packet_s", "since_rejected_s", "packets", "bytes"),
+    *(f"rx_{name}" for name in MESSAGE_NAMES.values()),
+    *("lost_packets", "loss_ratio", "duplicates", "out_of_window", "resyncs"),
+    *("bad_tags", "malformed", "foreign", "misattributed"),
+    *("latency_count", "latency_mean_ms", "latency_std_ms", "latency_min_ms", "latency_max_ms"),
+)
+
+CsvValue = str | float | int
+
+
+def _blank(value: float | None) -> CsvValue:
+    """An absent figure as an empty CSV cell."""
+    return "" if value is None else value
+
+
+class FleetTable:
+    """One agent's table of every other agent, with link statistics per peer.
+
+    Args:
+        own_id: This agent's id; packets from it (a mesh echo) are ignored.
+        mission_id: Our mission; a heartbeat claiming another is reported and its
+            sender never added.
+        heartbeat_timeout_s: Silence after which an agent is reported lost.
+        expected: Peer id -> name from the compiled config's peer table, so that
+            events and CSV rows carry readable names. Peers in it get their own
+            link statistics from the first packet; other senders are added on
+            their heartbeat all the same, and what they send before it is counted
+            in :attr:`unattributed` (one bucket, so that forged or corrupted
+            sender ids cannot grow the table).
+
+    Raises:
+        ValueError: ``heartbeat_timeout_s`` is not positive.
+    """
+
+    def __init__(
+        self,
+        own_id: int,
+        mission_id: int,
+        heartbeat_timeout_s: float,
+        expected: Mapping[int, str] | None = None,
+    ) -> None:
+        if not heartbeat_timeout_s > 0:
+            raise ValueError(f"heartbeat_timeout_s must be positive, not {heartbeat_timeout_s}")
+        self.own_id = own_id
+        self.mission_id = mission_id
+        self.heartbeat_timeout_s = heartbeat_timeout_s
+        self._names: dict[int, str] = dict(expected or {})
+        self._names.pop(own_id, None)
+        self._stats: dict[int, LinkStats] = {peer: LinkStats() for peer in self._names}
+        self._records: dict[int, AgentRecord] = {}  # kept sorted by id
+        self._banned: set[int] = set()  # sent a heartbeat of another mission in our packets
+        self._foreign_reported: set[tuple[int, int | None]] = set()
+        #: Statistics of senders that are neither expected nor recorded.
+        self.unattributed = LinkStats()
+
+    # ------------------------------------------------------------- input
+
+    def receive(self, packet: Packet, now_s: float, gps_now_ms: int | None) -> list[FleetEvent]:
+        """Apply one decoded packet at once, in O(messages).
+
+        A duplicate counter is counted and nothing else happens: it proves nothing
+        new. A heartbeat adds its sender (or brings it back from lost); the other
+        messages are stored only for a sender with a record. A message whose agent
+        id is not the packet's sender is dropped and counted as misattributed.
+
+        Args:
+            packet: A packet the codec accepted.
+            now_s: Receive time on the caller's monotonic clock.
+            gps_now_ms: The receiver's GPS time, or None while it has none (no
+                latency is recorded then, nor for messages stamped 0, which is
+                proto3's "unset").
+
+        Returns:
+            AgentFound and ForeignAgent events, in message order.
+        """
+        sender = packet.sender_id
+        if sender == self.own_id:
+            return []
+        counter = packet.counter
+        stats = self._stats.get(sender)
+        order = _Order.NEW
+        if stats is not None:
+            order = stats._order(counter)
+            if order is _Order.DUPLICATE:
+                return []
+        events: list[FleetEvent] = []
+        messages = packet.messages
+        for message in messages:  # heartbeats first: a first one admits the whole bundle
+            if (
+                type(message) is Heartbeat
+                and message.agent_id == sender
+                and self._heartbeat(message, now_s, events)
+                and stats is None
+            ):
+                stats = self._stats[sender]  # created with the record
+                order = stats._order(counter)
+        if stats is None:
+            stats = self.unattributed
+        stats.packets += 1
+        stats.bytes += packet.size_bytes
+        stats.last_packet_s = now_s
+        counts = stats.messages
+        record = None if sender in self._banned else self._records.get(sender)
+        for message in messages:
+            if message.agent_id != sender:
+                stats.misattributed += 1
+                continue
+            cls = type(message)
+            name = MESSAGE_NAMES.get(cls, cls.__name__)
+            counts[name] = counts.get(name, 0) + 1
+            if gps_now_ms is not None and message.gps_time_ms > 0 and cls is not PictureData:
+                stats._add_latency(float(gps_now_ms - message.gps_time_ms))
+            if record is not None:
+                samples = record._samples
+                old = samples.get(cls)
+                if old is None or order is not _Order.LATE or counter >= old.counter:
+                    samples[cls] = Sample(message, now_s, counter, packet.authenticated)
+        return events
+
+    def _heartbeat(self, heartbeat: Heartbeat, now_s: float, events: list[FleetEvent]) -> bool:
+        """Admit, refresh or reject the sender of ``heartbeat``; True when a record was created."""
+        sender = heartbeat.agent_id
+        if sender in self._banned or heartbeat.mission_id != self.mission_id:
+            self._stats.get(sender, self.unattributed).foreign += 1
+            if sender not in self._banned:
+                self._banned.add(sender)
+                self._report_foreign(sender, heartbeat.mission_id, events)
+            return False
+        record = self._records.get(sender)
+        if record is None:
+            stats = self._stats.setdefault(sender, LinkStats())
+            record = AgentRecord(
+                agent_id=sender,
+                name=self._names.get(sender, ""),
+                agent_type=heartbeat.agent_type,
+                condition=heartbeat.condition,
+                found_s=now_s,
+                last_heartbeat_s=now_s,
+                stats=stats,
+            )
+            self._records[sender] = record
+            self._records = dict(sorted(self._records.items()))  # rare: once per agent
+            events.append(AgentFound(sender, record.name, record.agent_type, rejoined=False))
+            return True
+        record.last_heartbeat_s = now_s
+        record.agent_type = heartbeat.agent_type
+        record.condition = heartbeat.condition
+        if record.lost:
+            record.lost = False
+            events.append(AgentFound(sender, record.name, record.agent_type, rejoined=True))
+        return False
+
+    def _report_foreign(
+        self, sender: int, mission_id: int | None, events: list[FleetEvent]
+    ) -> None:
+        """Report (sender, mission) once; beyond MAX_FOREIGN_REPORTS pairs, only count."""
+        key = (sender, mission_id)
+        reported = self._foreign_reported
+        if key in reported or len(reported) >= MAX_FOREIGN_REPORTS:
+            return
+        reported.add(key)
+        events.append(ForeignAgent(sender, self._names.get(sender, ""), mission_id))
+
+    def note_error(self, error: ClarkLinkError, now_s: float) -> list[FleetEvent]:
+        """Count a packet the codec rejected against the sender its header claims.
+
+        Replays count as duplicates, failed tags as bad tags, foreign missions as
+        foreign (with a ForeignAgent event once per sender and mission; the sender
+        is not added), anything else as malformed. A rejected packet never changes
+        an agent's data or liveness: its content cannot be trusted.
+
+        Args:
+            error: What the codec raised.
+            now_s: When it arrived, on the caller's monotonic clock.
+
+        Returns:
+            A ForeignAgent event the first time a (sender, mission) pair is seen.
+        """
+        sender = error.sender_id
+        stats = self.unattributed if sender is None else self._stats.get(sender, self.unattributed)
+        stats.last_rejected_s = now_s
+        events: list[FleetEvent] = []
+        if isinstance(error, ReplayedPacket):
+            stats.duplicates += 1
+        elif isinstance(error, BadTag):
+            stats.bad_tags += 1
+        elif isinstance(error, ForeignMission):
+            stats.foreign += 1
+            if sender is not None:
+                self._report_foreign(sender, error.mission_id, events)
+        else:
+            stats.malformed += 1
+        return events
+
+    def check_timeouts(self, now_s: float) -> list[FleetEvent]:
+        """Report each agent silent for longer than the heartbeat timeout, once, in O(agents).
+
+        A lost agent keeps its record and last data; its next heartbeat brings an
+        AgentFound with ``rejoined=True``.
+        """
+        events: list[FleetEvent] = []
+        timeout_s = self.heartbeat_timeout_s
+        for record in self._records.values():
+            if not record.lost:
+                silent_s = now_s - record.last_heartbeat_s
+                if silent_s > timeout_s:
+                    record.lost = True
+                    events.append(
+                        AgentLost(record.agent_id, record.name, record.agent_type, silent_s)
+                    )
+        return events
+
+    # ------------------------------------------------------------ access
+
+    def read(self, agent_id: int, message_type: type[M]) -> M | None:
+        """The latest ``message_type`` from an agent, clearing its new-data flag.
+
+        Returns None when the agent has no record or never sent one. A lost
+        agent's last data stays readable; check :attr:`AgentRecord.lost`.
+        """
+        sample = self._sample(agent_id, message_type)
+        if sample is None:
+            return None
+        sample.is_new = False
+        return sample.value
+
+    def peek(self, agent_id: int, message_type: type[M]) -> M | None:
+        """Like :meth:`read`, without clearing the new-data flag (for logs and views)."""
+        sample = self._sample(agent_id, message_type)
+        return None if sample is None else sample.value
+
+    def is_new(self, agent_id: int, message_type: type[M]) -> bool:
+        """True when a value arrived since the behaviour last read this type from this agent."""
+        sample = self._sample(agent_id, message_type)
+        return sample is not None and sample.is_new
+
+    def _sample(self, agent_id: int, message_type: type[M]) -> Sample[M] | None:
+        record = self._records.get(agent_id)
+        return None if record is None else record.sample(message_type)
+
+    def record(self, agent_id: int) -> AgentRecord | None:
+        """The record of one agent, or None before its first heartbeat."""
+        return self._records.get(agent_id)
+
+    def agents(self) -> list[AgentRecord]:
+        """Every agent with a record, lost ones included, by id."""
+        return list(self._records.values())
+
+    def stats(self, agent_id: int) -> LinkStats | None:
+        """Link statistics of one peer: expected ones from the start, others once recorded."""
+        return self._stats.get(agent_id)
+
+    # ------------------------------------------------------------ export
+
+    @staticmethod
+    def csv_header() -> list[str]:
+        """Column names of :meth:`csv_rows`, in a fixed order."""
+        return list(_CSV_HEADER)
+
+    def csv_rows(self, now_s: float) -> list[list[CsvValue]]:
+        """One flat row per recorded agent, by id, for the runtime's CSV export.
+
+        Absent values (no status yet, fewer than two latency samples) are empty
+        strings; flags are 0 or 1; types and conditions are lower-case names.
+        """
+        rows: list[list[CsvValue]] = []
+        names = tuple(MESSAGE_NAMES.values())
+        for record in self._records.values():
+            stats = record.stats
+            status = record._samples.get(AgentStatus)
+            attitude = record._samples.get(AgentAttitude)
+            row: list[CsvValue] = [
+                record.agent_id,
+                record.name,
+                record.agent_type.name.lower(),
+                record.condition.name.lower(),
+                int(record.lost),
+                now_s - record.last_heartbeat_s,
+            ]
+            if status is None:
+                row += [""] * (len(_STATUS_FIELDS) + 1)
+            else:
+                row += [getattr(status.value, f) for f in _STATUS_FIELDS]
+                row.append(now_s - status.received_s)
+            if attitude is None:
+                row += [""] * len(_ATTITUDE_FIELDS)
+            else:
+                row += [getattr(attitude.value, f) for f in _ATTITUDE_FIELDS]
+            last_s = stats.last_packet_s
+            rejected_s = stats.last_rejected_s
+            row += [
+                _blank(None if last_s is None else now_s - last_s),
+                _blank(None if rejected_s is None else now_s - rejected_s),
+                stats.packets,
+                stats.bytes,
+            ]
+            row += [stats.messages.get(name, 0) for name in names]
+            row += [
+                stats.lost,
+                _blank(stats.loss_ratio),
+                stats.duplicates,
+                stats.out_of_window,
+                stats.resyncs,
+                stats.bad_tags,
+                stats.malformed,
+                stats.foreign,
+                stats.misattributed,
+                stats.latency_count,
+                _blank(stats.latency_mean_ms),
+                _blank(stats.latency_std_ms),
+                _blank(stats.latency_min_ms),
+                _blank(stats.latency_max_ms),
+            ]
+            rows.append(row)
+        return rows
