@@ -13,7 +13,8 @@ from pathlib import Path
 
 from clark_engine.data import data_dir
 from clark_engine.mission.compiler import compile_mission, write_configs
-from clark_engine.mission.validate import display_path, validate_path
+from clark_engine.mission.validate import display_path
+from clark_engine.validation import validate_file
 
 OUTPUT = Path("demo-output")
 
@@ -23,9 +24,10 @@ def main() -> int:
     print(f"Clark Engine demo: validating and compiling {len(missions)} example missions\n")
     print(f"{'mission':<34} {'agents':>6} {'warnings':>8} {'ms':>6}  result")
     failed = 0
+    seen_codes: set[str] = set()
     for path in missions:
         start = time.perf_counter()
-        result = validate_path(path, display_path(path))
+        result = validate_file(path, display_path(path))
         if result.mission is None:
             failed += 1
             print(f"{path.name:<34} {'-':>6} {'-':>8} {'-':>6}  INVALID")
@@ -36,15 +38,22 @@ def main() -> int:
         target = write_configs(files, OUTPUT, result.mission.name)
         elapsed_ms = (time.perf_counter() - start) * 1000
         warnings = len(result.findings)
+        codes = sorted({f.code for f in result.findings})
+        seen_codes.update(codes)
         print(
             f"{path.name:<34} {len(files):>6} {warnings:>8} {elapsed_ms:>6.0f}  "
-            f"compiled to {target}/"
+            f"compiled to {target}/" + (f"  ({', '.join(codes)})" if codes else "")
         )
     print()
     if failed:
         print(f"{failed} example mission(s) are invalid; see the findings above.")
         return 1
     print(f"All example missions are valid. Compiled configs are in {OUTPUT.resolve()}/")
+    if seen_codes & {"W-NO-KEY"}:
+        print(
+            "W-NO-KEY: the thesis flew without authentication, and so do these examples;"
+            " `clark keygen` and mission.key_file add it."
+        )
     print("Try: .venv/bin/clark explain missions/supercub_sysid.yaml --agent cub")
     return 0
 
