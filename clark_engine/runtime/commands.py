@@ -1,0 +1,83 @@
+"""Typed commands the runtime core emits for its shells to carry out.
+
+``AgentRuntime.tick`` (and ``deliver``) return these; the shells turn them into
+MAVLink, radio frames and payload requests. Nothing here knows a wire format.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass(frozen=True, slots=True)
+class Goto:
+    """Fly or drive to a position in guided mode (SET_POSITION_TARGET_GLOBAL_INT).
+
+    Attributes:
+        lat_deg: Target latitude.
+        lon_deg: Target longitude.
+        alt_m: Target altitude above the mission origin (ignored by rovers).
+        speed_m_s: Requested ground speed, None for the autopilot's own.
+    """
+
+    lat_deg: float
+    lon_deg: float
+    alt_m: float
+    speed_m_s: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class SetMode:
+    """Change the autopilot's flight mode."""
+
+    mode: str
+    custom_mode: int
+
+
+@dataclass(frozen=True, slots=True)
+class SetServo:
+    """Drive one servo output directly (MAV_CMD_DO_SET_SERVO); for outputs with no function."""
+
+    servo: int
+    pwm_us: int
+
+
+@dataclass(frozen=True, slots=True)
+class RcOverride:
+    """Override RC inputs (RC_CHANNELS_OVERRIDE); channel -> pulse width, 0 releases it."""
+
+    pwm_us: dict[int, int] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, slots=True)
+class PayloadCommand:
+    """Ask a payload to act; for a camera, ``capture`` takes one picture."""
+
+    payload: str
+    action: str
+    request_id: int
+
+
+@dataclass(frozen=True, slots=True)
+class SendPacket:
+    """Put one encoded ClarkLink packet on the radio.
+
+    Attributes:
+        data: The packet's bytes.
+        destination: Agent name, ``""`` for broadcast.
+        destination_id: Agent id, 0 for broadcast.
+        radio_address: The destination's radio address when the mission gives one.
+    """
+
+    data: bytes
+    destination: str = ""
+    destination_id: int = 0
+    radio_address: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class CloseInterfaces:
+    """Terminate: close the autopilot, radio and payload connections (thesis 7.3.5)."""
+
+
+Command = Goto | SetMode | SetServo | RcOverride | PayloadCommand | SendPacket | CloseInterfaces

@@ -1,0 +1,256 @@
+"""A compiled agent config, as typed objects the runtime is built from.
+
+``clark compile`` writes plain JSON valid against ``agent_config.schema.json``;
+this module reads it back into frozen dataclasses so the runtime never indexes
+dictionaries by string at flight time. Loading validates the file against the
+schema first: a config edited by hand is checked as strictly as a compiled one.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from clark_engine.errors import ClarkError, UsageError
+
+
+class ConfigError(ClarkError):
+    """A compiled config that is not valid for this engine."""
+
+
+@dataclass(frozen=True, slots=True)
+class ChannelSpec:
+    """A control channel resolved through the agent's profile."""
+
+    name: str
+    rc: int | None
+    servo: int | None
+    pwm_min_us: int
+    pwm_trim_us: int
+    pwm_max_us: int
+
+
+@dataclass(frozen=True, slots=True)
+class TransitionSpec:
+    """A resolved transition: event, target path, optional structured condition."""
+
+    event: str
+    target: str
+    when: Mapping[str, Any] | None
+    source: str
+
+
+@dataclass(frozen=True, slots=True)
+class StateSpec:
+    """A resolved state of the behaviour (see the compiler for the meaning of each field)."""
+
+    name: str
+    path: str
+    kind: str
+    primitive: str | None
+    params: Mapping[str, Any]
+    block: str | None
+    initial: str | None
+    parallel: bool
+    finish: str
+    final: bool
+    timeout_s: float | None
+    transitions: tuple[TransitionSpec, ...]
+    source: str
+    states: tuple[StateSpec, ...]
+
+    def walk(self) -> list[StateSpec]:
+        """This state and every descendant, parents first."""
+        out = [self]
+        for child in self.states:
+            out.extend(child.walk())
+        return out
+
+
+@dataclass(frozen=True, slots=True)
+class TelemetrySpec:
+    """One scheduled message."""
+
+    message: str
+    rate_hz: float
+    every_ticks: int
+    to: tuple[str, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class PeerSpec:
+    """Another agent of the mission."""
+
+    name: str
+    id: int
+    role: str
+    radio_address: str | None
+    sends: Mapping[str, float]
+
+
+@dataclass(frozen=True, slots=True)
+class AgentConfig:
+    """Everything one agent runs from.
+
+    Attributes:
+        raw: The config as loaded (for the parts the runtime passes through, such as
+            connection settings the shells read).
+    """
+
+    mission_id: int
+    mission_name: str
+    agent: str
+    agent_id: int
+    role: str
+    loop_hz: float
+    heartbeat_timeout_s: float
+    origin_lat_deg: float
+    origin_lon_deg: float
+    origin_alt_m: float
+    ceiling_m: float
+    authenticated: bool
+    key_file: str | None
+    tick_phases: tuple[str, ...]
+    log_level: str
+    log_files: Mapping[str, str]
+    modes: Mapping[str, int]
+    terminal_mode: str | None
+    hold_mode: str | None
+    guided_mode: str | None
+    rtl_mode: str | None
+    failsafe: Mapping[str, str]
+    channels: Mapping[str, ChannelSpec]
+    payloads: Mapping[str, Mapping[str, Any]]
+    autopilot_timeout_s: float
+    telemetry: tuple[TelemetrySpec, ...]
+    peers: tuple[PeerSpec, ...]
+    machine: StateSpec | None
+    raw: Mapping[str, Any]
+
+    @property
+    def is_vehicle(self) -> bool:
+        """True for vehicles, False for stations."""
+        return self.role == "vehicle"
+
+    def peer(self, name: str) -> PeerSpec | None:
+        """A peer by name."""
+        return next((p for p in self.peers if p.name == name), None)
+
+
+def _state(data: Mapping[str, Any]) -> StateSpec:
+    return StateSpec(
+        name=data["name"],
+        path=data["path"],
+        kind=data["kind"],
+        primitive=data["primitive"],
+        params=data["params"],
+        block=data.get("block"),
+        initial=data["initial"],
+        parallel=bool(data["parallel"]),
+        finish=data.get("finish", "all"),
+        final=bool(data["final"]),
+        timeout_s=data["timeout_s"],
+        transitions=tuple(
+            TransitionSpec(t["event"], t["target"], t["when"], t["source"])
+            for t in data["transitions"]
+        ),
+        source=data["source"],
+        states=tuple(_state(child) for child in data["states"]),
+    )
+
+
+def config_from_dict(data: Mapping[str, Any]) -> AgentConfig:
+    """Build the typed config from a dict that is valid against agent-config.
+
+    Raises:
+        ConfigError: The dict is not valid against the agent-config schema.
+    """
+    from clark_engine.mission.schemas import validator
+
+    problems = sorted(validator("agent-config").iter_errors(dict(data)), key=lambda e: e.path)
+    if problems:
+        first = problems[0]
+        where = ".".join(str(p) for p in first.absolute_path) or "(top)"
+        raise ConfigError(
+            f"not a valid compiled agent config at {where}: {first.message}; "
+            "compile the mission again with clark compile"
+        )
+    mission, agent = data["mission"], data["agent"]
+    hardware = agent["hardware"]
+    autopilot = hardware.get("autopilot") or {}
+    channels = {
+        name: ChannelSpec(
+            name,
+            spec.get("rc"),
+            spec.get("servo"),
+            int(spec["pwm_min_us"]),
+            int(spec["pwm_trim_us"]),
+            int(spec["pwm_max_us"]),
+        )
+        for name, spec in (autopilot.get("channels") or {}).items()
+    }
+    return AgentConfig(
+        mission_id=int(mission["id"]),
+        mission_name=str(mission["name"]),
+        agent=str(mission["agent"]),
+        agent_id=int(mission["agent_id"]),
+        role=str(agent["role"]),
+        loop_hz=float(mission["loop_hz"]),
+        heartbeat_timeout_s=float(mission["heartbeat_timeout_s"]),
+        origin_lat_deg=float(mission["origin"]["lat"]),
+        origin_lon_deg=float(mission["origin"]["lon"]),
+        origin_alt_m=float(mission["origin"]["alt_m"]),
+        ceiling_m=float(mission["ceiling_m"]),
+        authenticated=bool(mission["authenticated"]),
+        key_file=mission["key_file"],
+        tick_phases=tuple(mission["tick_phases"]),
+        log_level=str(mission["log"]["level"]),
+        log_files={k: v for k, v in mission["log"].items() if k != "level"},
+        modes=dict(autopilot.get("modes") or {}),
+        terminal_mode=agent.get("terminal_mode"),
+        hold_mode=autopilot.get("hold_mode"),
+        guided_mode=autopilot.get("guided_mode"),
+        rtl_mode=autopilot.get("rtl_mode"),
+        failsafe=dict(agent.get("failsafe") or {}),
+        channels=channels,
+        payloads=dict(hardware.get("payloads") or {}),
+        autopilot_timeout_s=float(autopilot.get("heartbeat_timeout_s", 3.0)),
+        telemetry=tuple(
+            TelemetrySpec(t["message"], float(t["rate_hz"]), int(t["every_ticks"]), tuple(t["to"]))
+            for t in data["telemetry"]
+        ),
+        peers=tuple(
+            PeerSpec(p["name"], int(p["id"]), p["role"], p["radio_address"], dict(p["sends"]))
+            for p in data["peers"]
+        ),
+        machine=_state(data["machine"]) if data["machine"] is not None else None,
+        raw=data,
+    )
+
+
+def load_config(path: Path) -> AgentConfig:
+    """Read a compiled config file.
+
+    Raises:
+        UsageError: The file cannot be read or is not JSON.
+        ConfigError: It is JSON but not a valid compiled config.
+    """
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise UsageError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise UsageError(f"{path}: cannot read it ({exc.strerror or exc})") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ConfigError(
+            f"{path}:{exc.lineno}:{exc.colno}: not JSON ({exc.msg}); "
+            "give a config written by clark compile"
+        ) from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: not a compiled agent config (expected a JSON object)")
+    return config_from_dict(data)
