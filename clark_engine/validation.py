@@ -33,6 +33,11 @@ from clark_engine.mission.validate import Validation, validate_path
 
 #: Larger than any GPS time in milliseconds this century: the worst case for its varint.
 WORST_GPS_TIME_MS = 2**42 - 1
+#: Worst cases are capped to what the wire carries (a profile may say anything).
+WIRE_MAX_ALTITUDE_M = 2_000_000.0
+WIRE_MAX_SPEED_M_S = 40_000_000.0
+#: A climb rate at least this big takes the field's full two bytes on the wire.
+MIN_WORST_CLIMB_M_S = 2.0
 #: Utilisation of the measured throughput above which the budget warns, and errs.
 WARN_UTILISATION = 0.70
 ERROR_UTILISATION = 1.00
@@ -112,12 +117,20 @@ def worst_messages(mission: Mission, agent: Agent) -> dict[str, Message]:
     """Each message the agent may send periodically, with its costliest contents."""
     t = WORST_GPS_TIME_MS
     airframe = agent.hardware.part("airframe") or {}
-    top_speed = float(airframe.get("max_speed_m_s", 100.0))
-    climb = float(airframe.get("max_descent_rate_m_s", 0.0)) or float(
-        airframe.get("max_climb_rate_m_s", 0.0)
+    top_speed = min(float(airframe.get("max_speed_m_s", 100.0)), WIRE_MAX_SPEED_M_S)
+    # Even a rover reports a small climb rate (GPS noise); a zero would drop the field.
+    climb = min(
+        max(
+            float(airframe.get("max_descent_rate_m_s", 0.0)),
+            float(airframe.get("max_climb_rate_m_s", 0.0)),
+            MIN_WORST_CLIMB_M_S,
+        ),
+        WIRE_MAX_SPEED_M_S,
     )
     highest_mode = max(agent.hardware.modes.values(), default=0)
-    altitude = -max(mission.ceiling_m, float(airframe.get("max_altitude_m", 0.0)))
+    altitude = -min(
+        max(mission.ceiling_m, float(airframe.get("max_altitude_m", 0.0))), WIRE_MAX_ALTITUDE_M
+    )
     messages: dict[str, Message] = {
         "heartbeat": Heartbeat(
             agent_id=agent.id,
@@ -212,6 +225,10 @@ def _meshes(mission: Mission) -> dict[tuple[str, str], list[Agent]]:
     return groups
 
 
+def _sender_flows(mission: Mission, sender: str) -> list[Flow]:
+    return [f for f in mission_flows(mission) if f.sender == sender]
+
+
 def _flow_location(mission: Mission, sender: str, message: str) -> Location:
     agent = mission.agents[sender]
     item = agent.telemetry.get(message)
@@ -231,7 +248,11 @@ def check_link_budget(mission: Mission) -> list[Finding]:
             f"{', '.join(a.name for a in agents)} on {agents[0].hardware.part_profiles['radio']}"
             for agents in meshes.values()
         ]
-        first = sorted(meshes.values(), key=len)[0][0]
+        # Blame the agents that are not on the station's radio (or the smallest group).
+        groups_list = sorted(
+            meshes.values(), key=lambda g: (any(not a.is_vehicle for a in g), len(g))
+        )
+        first = groups_list[0][0]
         findings.append(
             error(
                 "E-LINK-MIXED",
@@ -262,25 +283,33 @@ def _budget_findings(
 ) -> list[Finding]:
     findings: list[Finding] = []
     for load in budget.loads:
-        for message in load.unsendable:
+        for message, size in load.unsendable:
             findings.append(
                 error(
                     "E-LINK-PACKET",
                     _flow_location(mission, load.sender, message),
-                    f"{message} of {load.sender} can be larger than the {costs.max_packet_bytes} "
-                    f"bytes a {radio} packet carries, so it cannot be sent; shorten what it "
-                    "carries (state names, for behavior_state)",
+                    f"{message} of {load.sender} can take {size} bytes, more than the "
+                    f"{costs.room_bytes} bytes of messages a {radio} packet carries after its "
+                    f"header{' and tag' if costs.tag_bytes else ''}, so it cannot be sent; "
+                    "shorten what it carries (state names, for behavior_state)",
                 )
             )
         if load.split_ticks:
+            largest = load.largest_bundle_messages
+            biggest = max(
+                largest,
+                key=lambda m: next(
+                    (f.size_bytes for f in _sender_flows(mission, load.sender) if f.message == m), 0
+                ),
+            )
             findings.append(
                 warning(
                     "W-LINK-SPLIT",
-                    _flow_location(mission, load.sender, load.largest_bundle_messages[0]),
-                    f"{load.sender} bundles up to {load.largest_bundle_bytes} bytes in one tick "
-                    f"({', '.join(load.largest_bundle_messages)}), more than one {radio} packet "
-                    f"({costs.room_bytes} bytes of messages); it is split, paying the packet "
-                    "overhead again; stagger the rates to send less per tick",
+                    _flow_location(mission, load.sender, biggest),
+                    f"{load.sender} can have {load.largest_bundle_bytes} bytes due in one tick "
+                    f"({', '.join(largest)}), more than one {radio} packet carries "
+                    f"({costs.room_bytes} bytes of messages); it is split and pays the packet "
+                    f"overhead again; send {biggest} less often, to fewer agents, or shorten it",
                 )
             )
     share = budget.utilisation

@@ -67,7 +67,7 @@ def test_splitting_follows_the_codec() -> None:
     assert load.packets_per_s == 20
     assert load.bytes_per_s == pytest.approx(10 * (235 + 2 * (16 + 12 + 18)))
     too_big = Flow("a", "behavior_state", 1, (), 300, order=7)
-    assert sender_load("a", [too_big], 10, costs).unsendable == ("behavior_state",)
+    assert sender_load("a", [too_big], 10, costs).unsendable == (("behavior_state", 300),)
 
 
 def test_unicast_costs_a_packet_per_destination() -> None:
@@ -142,3 +142,24 @@ def test_worst_status_encodes() -> None:
     status = AgentStatus(2, 2**42 - 1, -89.9999999, -179.9999999, -400.0, 30.0, -5.0, 359.99, 24)
     heartbeat = Heartbeat(2, 2**42 - 1, 4294967295, agent_type=1)  # type: ignore[arg-type]
     assert wire.encoded_size(status) > wire.encoded_size(heartbeat) > 0
+
+
+def test_absurd_profile_values_do_not_break_the_budget(tmp_path: Path) -> None:
+    """Found in review: a huge max_altitude_m overflowed the encoder (a traceback)."""
+    text = COOP.replace(
+        'radio: {address: "0013A20040A1B202"}',
+        'radio: {address: "0013A20040A1B202"}\n      airframe: {max_altitude_m: 3000000, '
+        "max_speed_m_s: 50000000}",
+        1,
+    )
+    assert codes(write(tmp_path, text))  # findings, not a crash
+
+
+def test_rover_status_worst_case_is_not_under_counted() -> None:
+    import dataclasses
+
+    mission = validate_path(ROOT / "missions" / "cooperative_follow.yaml").mission
+    assert mission is not None
+    worst = worst_messages(mission, mission.agents["slash_a"])["agent_status"]
+    real = dataclasses.replace(worst, climb_rate_m_s=-1.5)
+    assert wire.encoded_size(worst) >= wire.encoded_size(real)

@@ -81,7 +81,7 @@ class SenderLoad:
         largest_bundle_bytes: Largest bundle of one tick to one destination.
         largest_bundle_messages: The messages of that bundle.
         split_ticks: Ticks in the hyperperiod whose bundle needed more than one packet.
-        unsendable: Messages larger than any packet can carry.
+        unsendable: (message, bytes) of messages larger than any packet can carry.
     """
 
     sender: str
@@ -91,7 +91,7 @@ class SenderLoad:
     largest_bundle_bytes: int = 0
     largest_bundle_messages: tuple[str, ...] = ()
     split_ticks: int = 0
-    unsendable: tuple[str, ...] = ()
+    unsendable: tuple[tuple[str, int], ...] = ()
 
     @property
     def bits_per_s(self) -> float:
@@ -128,7 +128,9 @@ def sender_load(
     """Replay one hyperperiod of ``sender``'s flows and add up what goes on air."""
     load = SenderLoad(sender)
     mine = [f for f in flows if f.sender == sender]
-    load.unsendable = tuple(f.message for f in mine if f.size_bytes > costs.room_bytes)
+    load.unsendable = tuple(
+        (f.message, f.size_bytes) for f in mine if f.size_bytes > costs.room_bytes
+    )
     sendable = [f for f in mine if f.size_bytes <= costs.room_bytes]
     if not sendable:
         return load

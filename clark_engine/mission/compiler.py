@@ -141,6 +141,8 @@ def _peers(agent: Agent, mission: Mission) -> list[dict[str, Any]]:
                 "role": other.role,
                 "radio_address": other.radio_address,
                 "sends": dict(sorted(sends.items())),
+                # A station's Mode Change Request carries the target firmware's number.
+                "modes": dict(sorted(other.hardware.modes.items())),
             }
         )
     return peers

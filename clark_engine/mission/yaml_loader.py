@@ -447,12 +447,14 @@ def decode_text(raw: bytes, file: str) -> str:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         line = raw[: exc.start].count(b"\n") + 1
+        column = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
         raise YamlLoadError(
             [
                 error(
                     "E-YAML-BINARY",
-                    Location(file, line, 1),
-                    f"the file is not UTF-8 text (byte {exc.start}); save it as UTF-8",
+                    Location(file, line, column),
+                    f"the file is not UTF-8 text (byte {exc.start + 1} is not valid UTF-8); "
+                    "save it as UTF-8",
                 )
             ]
         ) from None

@@ -89,6 +89,7 @@ class PeerSpec:
     role: str
     radio_address: str | None
     sends: Mapping[str, float]
+    modes: Mapping[str, int]
 
 
 @dataclass(frozen=True, slots=True)
@@ -223,7 +224,14 @@ def config_from_dict(data: Mapping[str, Any]) -> AgentConfig:
             for t in data["telemetry"]
         ),
         peers=tuple(
-            PeerSpec(p["name"], int(p["id"]), p["role"], p["radio_address"], dict(p["sends"]))
+            PeerSpec(
+                p["name"],
+                int(p["id"]),
+                p["role"],
+                p["radio_address"],
+                dict(p["sends"]),
+                dict(p["modes"]),
+            )
             for p in data["peers"]
         ),
         machine=_state(data["machine"]) if data["machine"] is not None else None,

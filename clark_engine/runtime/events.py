@@ -106,4 +106,6 @@ class StationCommand:
     mode: str = ""
 
 
-Event = VehicleState | AutopilotHeartbeat | RcChannels | PacketReceived | PayloadEvent | StationCommand
+Event = (
+    VehicleState | AutopilotHeartbeat | RcChannels | PacketReceived | PayloadEvent | StationCommand
+)

@@ -315,8 +315,14 @@ def build() -> dict[str, Any]:
                             "description": "Message -> rate in Hz it sends to this agent.",
                             "additionalProperties": {"type": "number"},
                         },
+                        "modes": {
+                            "type": "object",
+                            "description": "The peer's autopilot modes (name -> number), for "
+                            "Mode Change Requests; empty for stations.",
+                            "additionalProperties": {"type": "integer"},
+                        },
                     },
-                    required=["name", "id", "role", "radio_address", "sends"],
+                    required=["name", "id", "role", "radio_address", "sends", "modes"],
                 ),
             ),
             "machine": _nullable({"$ref": "#/$defs/state"}),
