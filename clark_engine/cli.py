@@ -191,6 +191,34 @@ def cmd_keygen(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_analyze(args: argparse.Namespace) -> int:
+    """Print the message latency and loss per link from a folder of agents' logs."""
+    from clark_engine.analyze import analyze_folder, format_text
+
+    folder = Path(args.logdir)
+    if not folder.exists():
+        raise UsageError(f"{folder}: no such folder")
+    analysis = analyze_folder(folder, args.period_s)
+    for problem in analysis.problems:
+        print(f"clark analyze: warning: {problem.format_text()}", file=sys.stderr)
+    if args.format == "json":
+        print(json.dumps(analysis.to_json(), indent=2))
+    else:
+        sys.stdout.write(format_text(analysis))
+    return EXIT_OK
+
+
+def _period_s(text: str) -> float:
+    """A positive, finite number of seconds; anything else is a usage error (exit 2)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a positive number of seconds")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``clark`` and its subcommands."""
     parser = _Parser(
@@ -237,6 +265,25 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("keygen", help="write a new ClarkLink key file for mission.key_file")
     p.add_argument("path", metavar="PATH", help="where to write the key (must not exist)")
     p.set_defaults(func=cmd_keygen)
+
+    p = sub.add_parser(
+        "analyze", help="message latency and loss per link from a folder of agents' logs"
+    )
+    p.add_argument("logdir", metavar="LOGDIR", help="folder with the agents' <agent>.messages.csv")
+    p.add_argument(
+        "--format",
+        choices=("text", "json"),
+        default="text",
+        help="text for people (default) or json for tools",
+    )
+    p.add_argument(
+        "--period-s",
+        type=_period_s,
+        metavar="SECONDS",
+        help="sample period for the deviation from ideal (default: period_s from the "
+        "mission logs' header lines)",
+    )
+    p.set_defaults(func=cmd_analyze)
 
     p = sub.add_parser(
         "schema", help="print a JSON Schema (mission, behavior, hardware-profile, agent-config)"

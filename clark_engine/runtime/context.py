@@ -9,6 +9,7 @@ interface or another agent directly, so two agents in one process share nothing.
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, field
 from enum import Enum
@@ -53,6 +54,7 @@ class PrimitiveContext:
         terminate_requested: Set by the terminate primitive; the runtime then terminates
             this agent (stop commanding, terminal mode, close interfaces, flush logs).
         terminal_mode: Mode the terminate primitive asked for, None for the config's.
+        log: The agent's mission log; primitives log here, never to a global logger.
     """
 
     config: AgentConfig
@@ -62,6 +64,7 @@ class PrimitiveContext:
     vehicle: VehicleState | None = None
     gps_time_ms: int | None = None
     outbox: Outbox = field(default_factory=Outbox)
+    log: logging.Logger = field(default_factory=lambda: logging.getLogger("clark.runtime"))
     terminate_requested: bool = False
     terminal_mode: str | None = None
     _request_id: int = 0

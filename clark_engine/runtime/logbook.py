@@ -1,0 +1,502 @@
+"""What one agent writes down: two text logs and two CSV files (thesis 2.4.1-2.4.4, 7.3.6).
+
+One :class:`Logbook` per agent, owned by its runtime and never shared:
+
+- the **mission log** (thesis 2.4.2: high level, what the mission does) and the
+  **interface log** (2.4.1: low level, what the autopilot, radio and payloads
+  do), through two standard :class:`logging.Logger` objects, :attr:`Logbook.mission`
+  and :attr:`Logbook.interface`, at the level the mission sets (2.4.3). Each line
+  starts with the time, the module and the function (2.4.4)::
+
+      t=12.300 gps_ms=1700000012345 INFO machine.enter: entered state survey
+
+  The time is the *runtime's* clock (``now_s``, virtual in a dry run) and the
+  GPS time when known, never the wall clock, so a dry run writes the same bytes
+  for the same seed. The runtime sets it with :meth:`Logbook.set_time` before it
+  logs anything in a call.
+- the **fleet CSV** (7.3.6): the fleet table's rows every tick (:meth:`Logbook.fleet_row`);
+- the **message log**: one row per message sent or received and per packet
+  rejected (:meth:`Logbook.message`), which ``clark analyze`` turns into the
+  thesis's latency tables (section 5.1.2).
+
+Decisions:
+
+- **The loggers are private to the logbook**, built as ``logging.Logger`` objects
+  and never registered with ``logging.getLogger``: two agents in one process
+  (a dry run) cannot share a logger or its handlers, a second run of the same
+  agent in one process cannot inherit the first one's, and a
+  ``logging.config.dictConfig`` elsewhere (whose default disables every
+  registered logger) cannot silence them. They never propagate, so nothing
+  reaches the root logger. Their names still read
+  ``clark.<mission>.<agent>.mission`` and ``...interface`` for
+  ``%(name)s``. A shell that wants a copy of the lines (a console) adds a
+  handler to :attr:`Logbook.mission` itself, or builds the logbook on its own
+  streams.
+- **Call the loggers directly** (``logbook.mission.info(...)``): the line then
+  names the caller's module and function. The logbook has no wrapper methods
+  that would name themselves instead.
+- **Every line and every CSV row is written whole and flushed at once**, so a
+  process that is killed leaves every completed line and row intact.
+- **The first line of each text log is a header**, written whatever the level:
+  it names the mission, the agent and the loop period (``period_s=0.1``), from
+  which ``clark analyze`` takes the sample period.
+- **The key never reaches the logbook**: it is built from the config, which
+  holds only the key file's name, and nothing here reads key material.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import logging
+import math
+import sys
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal, TextIO
+
+from clark_engine import __version__
+from clark_engine.errors import ClarkError
+from clark_engine.runtime.config import AgentConfig
+
+#: Columns of the message log, in order (see docs/logs.md).
+MESSAGE_LOG_COLUMNS: tuple[str, ...] = (
+    "direction",
+    "now_s",
+    "gps_time_ms",
+    "peer",
+    "counter",
+    "size_bytes",
+    "message_type",
+    "message_gps_time_ms",
+    "latency_ms",
+    "detail",
+)
+
+#: The ``peer`` of a message sent to every agent.
+BROADCAST_PEER = "*"
+
+#: The values of the message log's ``direction`` column.
+DIRECTIONS: tuple[str, ...] = ("sent", "received", "rejected")
+
+Direction = Literal["sent", "received", "rejected"]
+
+#: Format of every text log line; the ``clark_*`` fields come from the logbook's clock.
+LINE_FORMAT = (
+    "t=%(clark_now_s).3f gps_ms=%(clark_gps_ms)s %(levelname)s %(module)s.%(funcName)s: %(message)s"
+)
+
+_LOG_KEYS = ("mission_log", "interface_log", "fleet_csv", "message_log")
+_CsvCell = str | int | float
+
+
+class LogbookError(ClarkError):
+    """A logbook that cannot be opened: a folder or file that cannot be written."""
+
+
+@dataclass(frozen=True, slots=True)
+class LogStreams:
+    """The four text streams a logbook writes to.
+
+    Attributes:
+        mission: The mission log.
+        interface: The interface log.
+        fleet: The fleet CSV.
+        messages: The message log CSV.
+    """
+
+    mission: TextIO
+    interface: TextIO
+    fleet: TextIO
+    messages: TextIO
+
+    def all(self) -> tuple[TextIO, TextIO, TextIO, TextIO]:
+        """The four streams, in a fixed order."""
+        return (self.mission, self.interface, self.fleet, self.messages)
+
+
+class _Stamp(logging.Filter):
+    """Adds the logbook's current runtime time to every record its loggers handle.
+
+    A logger filter, not a handler one, so that a handler a shell adds to the
+    logger sees the same fields.
+    """
+
+    def __init__(self, logbook: Logbook) -> None:
+        super().__init__()
+        self._logbook = logbook
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        logbook = self._logbook
+        record.clark_now_s = logbook.now_s
+        gps_ms = logbook.gps_time_ms
+        record.clark_gps_ms = "-" if gps_ms is None else gps_ms
+        return True
+
+
+class _AgentLogger(logging.Logger):
+    """A logger outside logging's registry whose level changes take effect at once.
+
+    ``logging.Logger`` caches its level decisions and relies on the registry to
+    clear the cache when a level changes; an unregistered logger would keep a
+    stale answer after :meth:`setLevel` or :func:`logging.disable`. This one
+    decides afresh each time (a comparison or two).
+    """
+
+    def isEnabledFor(self, level: int) -> bool:
+        """True when a record at ``level`` would be handled."""
+        if self.disabled or self.manager.disable >= level:
+            return False
+        return level >= self.getEffectiveLevel()
+
+
+class _Handler(logging.StreamHandler[TextIO]):
+    """A stream handler that counts write failures on its logbook instead of printing them.
+
+    logging's default prints a traceback to stderr per failed line; a full disk
+    would flood the console of the computer flying the mission.
+    """
+
+    def __init__(self, stream: TextIO, logbook: Logbook) -> None:
+        super().__init__(stream)
+        self._logbook = logbook
+
+    def handleError(self, record: logging.LogRecord) -> None:
+        """Count the failure; the loop goes on."""
+        exc = sys.exc_info()[1]
+        self._logbook._write_failed(f"{record.name}: {exc}")
+
+
+def _plain(text: str) -> str:
+    """One CSV cell on one line: a row must never span lines, so grep and a crash cut cleanly."""
+    if "\n" in text or "\r" in text:
+        return text.replace("\r\n", " ").replace("\n", " ").replace("\r", " ")
+    return text
+
+
+def _cell(value: int | float | None) -> _CsvCell:
+    """An absent figure as an empty cell."""
+    return "" if value is None else value
+
+
+class Logbook:
+    """One agent's mission log, interface log, fleet CSV and message log.
+
+    Build it with :meth:`to_folder` (a flight or a dry run) or :meth:`in_memory`
+    (tests, and shells that route the text elsewhere); the constructor takes
+    any four text streams.
+
+    The loop that owns it is single-threaded by design; still, each CSV row and
+    each log line is written under a lock, so a shell's reader thread may log
+    too (its lines carry the loop's latest :meth:`set_time`).
+
+    A write that fails (a full disk) is counted in :attr:`write_errors`, never
+    raised: losing a log must not stop the loop that flies the vehicles.
+
+    Args:
+        config: The agent's compiled config: names, loop rate and log level.
+        streams: Where the four files go.
+        close_streams: True when :meth:`close` closes the streams (the logbook
+            opened them); False leaves them open for their owner to read.
+
+    Attributes:
+        mission: The mission log's logger (thesis 2.4.2).
+        interface: The interface log's logger (thesis 2.4.1).
+        streams: The four streams.
+        now_s: The runtime time stamped on log lines, from :meth:`set_time`.
+        gps_time_ms: The GPS time stamped on log lines, None while unknown.
+        write_errors: Lines and rows that could not be written.
+        last_write_error: What the latest failure was, for the runtime to report.
+    """
+
+    def __init__(
+        self, config: AgentConfig, streams: LogStreams, *, close_streams: bool = False
+    ) -> None:
+        levels = logging.getLevelNamesMapping()
+        if config.log_level not in levels:
+            raise ValueError(f"log level {config.log_level!r} is not a logging level name")
+        self.config = config
+        self.streams = streams
+        self.now_s = 0.0
+        self.gps_time_ms: int | None = None
+        self._close_streams = close_streams
+        self._closed = False
+        self._csv_lock = threading.Lock()
+        self._fleet_header: list[str] | None = None
+        self.write_errors = 0
+        self.last_write_error: str | None = None
+        level = levels[config.log_level]
+        prefix = f"clark.{config.mission_name}.{config.agent}"
+        formatter = logging.Formatter(LINE_FORMAT)
+        stamp = _Stamp(self)
+        self._handlers: list[logging.Handler] = []
+        self.mission = self._logger(f"{prefix}.mission", level, streams.mission, formatter, stamp)
+        self.interface = self._logger(
+            f"{prefix}.interface", level, streams.interface, formatter, stamp
+        )
+        period_s = 1.0 / config.loop_hz
+        header = (
+            f"logbook opened: clark_engine={__version__} mission={config.mission_name} "
+            f"mission_id={config.mission_id} agent={config.agent} agent_id={config.agent_id} "
+            f"role={config.role} loop_hz={config.loop_hz!r} period_s={period_s!r} "
+            f"level={config.log_level}"
+        )
+        for logger in (self.mission, self.interface):
+            # Logger.handle runs the filters and handlers but not the level check:
+            # the header is written whatever the level.
+            logger.handle(
+                logger.makeRecord(
+                    logger.name, logging.INFO, __file__, 0, header, (), None, func="__init__"
+                )
+            )
+        self._write(self.streams.messages, ",".join(MESSAGE_LOG_COLUMNS) + "\n")
+
+    def _logger(
+        self,
+        name: str,
+        level: int,
+        stream: TextIO,
+        formatter: logging.Formatter,
+        stamp: logging.Filter,
+    ) -> logging.Logger:
+        """A logger of this logbook alone: unregistered, not propagating, one handler."""
+        logger = _AgentLogger(name, level)
+        logger.propagate = False
+        logger.addFilter(stamp)
+        handler = _Handler(stream, self)  # flushes after every record
+        handler.setFormatter(formatter)
+        logger.addHandler(handler)
+        self._handlers.append(handler)
+        return logger
+
+    # ------------------------------------------------------------ factories
+
+    @classmethod
+    def to_folder(cls, folder: Path, config: AgentConfig, *, overwrite: bool = False) -> Logbook:
+        """Open the four files the config names in ``folder``, creating the folder.
+
+        Args:
+            folder: Where the files go (one folder per run).
+            config: The agent's compiled config; ``log_files`` names the files.
+            overwrite: Replace files of an earlier run. By default an existing file
+                is an error, so that a flight's logs are never lost to the next run.
+
+        Raises:
+            LogbookError: The folder cannot be created, a file exists (without
+                ``overwrite``) or cannot be opened, or a file name in the config
+                is not a plain file name. Nothing is left behind: files already
+                opened are closed and removed.
+        """
+        names: list[str] = []
+        for key in _LOG_KEYS:
+            name = config.log_files.get(key)
+            if not name or Path(name).name != name or name in (".", ".."):
+                raise LogbookError(
+                    f"log.{key} is {name!r}, not a plain file name; compile the mission again",
+                    file=str(folder),
+                )
+            names.append(name)
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise LogbookError(
+                f"cannot create the log folder: {exc.strerror or exc}", file=str(folder)
+            ) from None
+        mode: Literal["w", "x"] = "w" if overwrite else "x"
+        opened: list[tuple[Path, TextIO]] = []
+        try:
+            for name in names:
+                path = folder / name
+                # newline="": lines end in "\n" on every platform, as the CSV module needs.
+                opened.append((path, open(path, mode, encoding="utf-8", newline="")))  # noqa: SIM115
+        except OSError as exc:
+            for path, stream in opened:
+                stream.close()
+                path.unlink(missing_ok=True)
+            where = exc.filename or folder
+            if isinstance(exc, FileExistsError):
+                raise LogbookError(
+                    "exists, from an earlier run; log to a new folder, or overwrite on purpose",
+                    file=str(where),
+                ) from None
+            raise LogbookError(f"cannot open it: {exc.strerror or exc}", file=str(where)) from None
+        streams = LogStreams(*(stream for _, stream in opened))
+        return cls(config, streams, close_streams=True)
+
+    @classmethod
+    def in_memory(cls, config: AgentConfig) -> Logbook:
+        """A logbook on four ``io.StringIO`` streams, readable after :meth:`close`."""
+        return cls(
+            config,
+            LogStreams(io.StringIO(), io.StringIO(), io.StringIO(), io.StringIO()),
+            close_streams=False,
+        )
+
+    # ----------------------------------------------------------------- time
+
+    def set_time(self, now_s: float, gps_time_ms: int | None) -> None:
+        """Set the time stamped on the lines logged from now on.
+
+        The runtime calls it at the start of each call (tick, delivery), before
+        it logs anything.
+
+        Args:
+            now_s: The runtime clock, seconds since the runtime started.
+            gps_time_ms: The best estimate of GPS time now, None while unknown.
+        """
+        self.now_s = now_s
+        self.gps_time_ms = gps_time_ms
+
+    # ------------------------------------------------------------------ CSV
+
+    def _write(self, stream: TextIO, text: str) -> None:
+        """Write whole rows and flush them, so a killed process leaves them complete.
+
+        A failed write (a full disk, a removed USB stick) is counted, never
+        raised: losing a log must not stop the loop that flies the vehicles.
+        """
+        if self._closed:
+            raise ValueError("the logbook is closed")
+        try:
+            stream.write(text)
+            stream.flush()
+        except OSError as exc:
+            self._write_failed(f"{getattr(stream, 'name', 'stream')}: {exc.strerror or exc}")
+
+    def _write_failed(self, what: str) -> None:
+        """Count a write that failed; the runtime reports :attr:`write_errors`."""
+        self.write_errors += 1
+        self.last_write_error = what
+
+    def fleet_row(
+        self, now_s: float, header: Sequence[str], rows: Sequence[Sequence[_CsvCell]]
+    ) -> None:
+        """Append one tick of the fleet table to the fleet CSV (thesis 7.3.6).
+
+        The header (``now_s`` and ``header``) is written on the first call, even
+        when there are no rows yet; each row is ``now_s`` and one of ``rows``.
+
+        Args:
+            now_s: The runtime clock at this tick.
+            header: Column names, :meth:`FleetTable.csv_header`.
+            rows: One row per agent, :meth:`FleetTable.csv_rows`.
+
+        Raises:
+            ValueError: ``header`` is not the one of the first call, or a row has
+                another number of cells: the file would be unreadable.
+        """
+        width = len(header)
+        buffer = io.StringIO()
+        writer = csv.writer(buffer, lineterminator="\n")
+        with self._csv_lock:
+            if self._fleet_header is None:
+                self._fleet_header = list(header)
+                writer.writerow(["now_s", *header])
+            elif self._fleet_header != list(header):
+                raise ValueError("fleet CSV header changed after the first row")
+            for row in rows:
+                if len(row) != width:
+                    raise ValueError(f"fleet CSV row has {len(row)} cells for {width} columns")
+                writer.writerow([now_s, *(_plain(c) if isinstance(c, str) else c for c in row)])
+            self._write(self.streams.fleet, buffer.getvalue())
+
+    def message(
+        self,
+        direction: Direction,
+        now_s: float,
+        gps_time_ms: int | None,
+        peer: str,
+        counter: int | None,
+        size_bytes: int,
+        message_type: str = "",
+        message_gps_time_ms: int | None = None,
+        latency_ms: float | None = None,
+        detail: str = "",
+    ) -> None:
+        """Append one row to the message log.
+
+        One row per message of a packet sent or received (a bundle of three is
+        three rows with the same counter), and one per packet rejected.
+
+        Args:
+            direction: ``sent``, ``received`` or ``rejected``.
+            now_s: The runtime clock when it was sent or arrived.
+            gps_time_ms: This agent's GPS time then, None while unknown.
+            peer: Sent: the destination's name, or :data:`BROADCAST_PEER` for every
+                agent. Received and rejected: the sender's name (``#<id>`` for an
+                agent not in the mission, its id in digits; empty when the header
+                was unreadable).
+            counter: The packet counter; None for a rejected packet whose header
+                could not be read.
+            size_bytes: The packet's size on the wire.
+            message_type: The message name (``agent_status``); for a rejected packet,
+                the error's class name (``BadTag``) or empty.
+            message_gps_time_ms: The message's GPS stamp; None for a rejected packet.
+            latency_ms: Received only: ``gps_time_ms - message_gps_time_ms``, or None
+                when either is unknown or the stamp is not a send time (Picture Data).
+            detail: Free text; for a rejected packet, why (``BadTag: tag does not match``).
+
+        Raises:
+            ValueError: ``direction`` is not one of :data:`DIRECTIONS`, or
+                ``latency_ms`` is not finite.
+        """
+        if direction not in DIRECTIONS:
+            raise ValueError(f"direction must be one of {', '.join(DIRECTIONS)}, not {direction!r}")
+        if latency_ms is not None and not math.isfinite(latency_ms):
+            raise ValueError(f"latency_ms must be finite, not {latency_ms!r}")
+        buffer = io.StringIO()
+        writer = csv.writer(buffer, lineterminator="\n")
+        with self._csv_lock:
+            writer.writerow(
+                (
+                    direction,
+                    now_s,
+                    _cell(gps_time_ms),
+                    _plain(peer),
+                    _cell(counter),
+                    size_bytes,
+                    _plain(message_type),
+                    _cell(message_gps_time_ms),
+                    _cell(latency_ms),
+                    _plain(detail),
+                )
+            )
+            self._write(self.streams.messages, buffer.getvalue())
+
+    # ---------------------------------------------------------------- close
+
+    @property
+    def closed(self) -> bool:
+        """True after :meth:`close`."""
+        return self._closed
+
+    def close(self) -> None:
+        """Flush everything and close the files (terminate, thesis 7.3.5). Idempotent.
+
+        After this the loggers are disabled: a late line is dropped, not sent to
+        stderr by logging's last resort, and the CSV writers raise ValueError.
+        """
+        if self._closed:
+            return
+        with self._csv_lock:
+            self._closed = True
+        for logger, handler in zip((self.mission, self.interface), self._handlers, strict=True):
+            logger.removeHandler(handler)
+            logger.disabled = True
+            handler.flush()
+            handler.close()  # a StreamHandler never closes its stream
+        for stream in self.streams.all():
+            try:
+                stream.flush()
+                if self._close_streams:
+                    stream.close()
+            except OSError as exc:
+                self._write_failed(f"{getattr(stream, 'name', 'stream')}: {exc.strerror or exc}")
+
+    def __enter__(self) -> Logbook:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

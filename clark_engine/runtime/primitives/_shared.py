@@ -1,0 +1,244 @@
+"""What several runtime primitives share: targets, distances, guided legs, channel outputs.
+
+A waypoint, a tour and a follower all send guided targets and judge arrival the
+same way; a doublet and a sweep drive a control channel and hand it back the
+same way. Those rules live here once, so the primitives cannot drift apart.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from clark_engine.runtime.commands import Command, Goto, RcOverride, SetMode, SetServo
+from clark_engine.runtime.config import AgentConfig, ConfigError
+from clark_engine.runtime.context import PrimitiveContext
+
+#: Slack when comparing runtime-clock times: ``k / loop_hz`` summed or divided in
+#: floating point may land a hair before a deadline it reaches exactly.
+TIME_EPSILON_S = 1e-9
+
+
+class Schedule:
+    """Deadlines every ``period_s`` on the runtime clock, counted from a first time.
+
+    Deadline n is ``first_s + n * period_s``, computed afresh each time rather than
+    by adding periods up, so a long run does not drift; when a tick comes later
+    than one or more deadlines, it counts as one (no burst to catch up).
+
+    Args:
+        period_s: Time between deadlines.
+    """
+
+    def __init__(self, period_s: float) -> None:
+        self.period_s = period_s
+        self._first_s: float | None = None
+        self._count = 0
+
+    @property
+    def started(self) -> bool:
+        """True once :meth:`begin` has run."""
+        return self._first_s is not None
+
+    def begin(self, now_s: float) -> None:
+        """Count deadlines from now; the first falls one period later."""
+        self._first_s = now_s
+        self._count = 1
+
+    def due(self, now_s: float) -> bool:
+        """True when a deadline has come since the last one that was due."""
+        if self._first_s is None:
+            return False
+        elapsed = now_s - self._first_s + TIME_EPSILON_S
+        if elapsed < self._count * self.period_s:
+            return False
+        self._count = math.floor(elapsed / self.period_s) + 1
+        return True
+
+
+@dataclass(frozen=True, slots=True)
+class Target:
+    """A position to go to.
+
+    Attributes:
+        lat_deg: Latitude.
+        lon_deg: Longitude.
+        alt_m: Altitude above the mission origin, as Goto and VehicleState use it.
+    """
+
+    lat_deg: float
+    lon_deg: float
+    alt_m: float
+
+    @classmethod
+    def from_point(cls, point: Mapping[str, Any]) -> Target:
+        """A target from a compiled point ``{north_m, east_m, up_m, lat, lon, alt_m}``."""
+        return cls(float(point["lat"]), float(point["lon"]), float(point.get("alt_m", 0.0)))
+
+
+def is_air_vehicle(config: AgentConfig) -> bool:
+    """True unless the agent's airframe is a rover.
+
+    The same rule as the mission layer's altitude checks: anything that is not
+    declared a rover flies, so its altitude matters.
+    """
+    agent = config.raw.get("agent") or {}
+    hardware = agent.get("hardware") or {}
+    airframe = hardware.get("airframe") or {}
+    return airframe.get("class") != "rover"
+
+
+def distance_m(ctx: PrimitiveContext, target: Target, *, three_d: bool) -> float | None:
+    """Distance from the vehicle to a target, None before the first vehicle state.
+
+    Args:
+        ctx: The agent's context (its vehicle state).
+        target: Where to measure to.
+        three_d: Include the altitude difference (air vehicles); ground distance
+            only when False (rovers, whose altitude is whatever the terrain is).
+    """
+    ground_m = ctx.distance_to_m(target.lat_deg, target.lon_deg)
+    if ground_m is None or ctx.vehicle is None or not three_d:
+        return ground_m
+    return math.hypot(ground_m, ctx.vehicle.alt_m - target.alt_m)
+
+
+def mode_command(ctx: PrimitiveContext, mode: str) -> SetMode:
+    """A SetMode carrying both the mode's name and its number in this firmware."""
+    return SetMode(mode, ctx.mode_number(mode))
+
+
+def reported_mode(ctx: PrimitiveContext) -> str | None:
+    """The mode the autopilot last reported, None before any vehicle state."""
+    return ctx.vehicle.mode if ctx.vehicle is not None else None
+
+
+class GuidedLeg:
+    """Guided navigation towards one target at a time (thesis 5.2.1).
+
+    Rules, shared by waypoint, waypoint_tour and follow_agent:
+
+    - :meth:`begin` always sends SetMode(guided). It is sent even when the vehicle
+      already reports guided, because that report may be a tick old and the
+      previous state may just have asked for another mode; ArduPilot treats a
+      change to the mode it is already in as a no-op, so the extra command costs
+      nothing and can never leave the vehicle in the wrong mode.
+    - :meth:`go` sends a Goto. The leg never sends SetMode again: if the pilot or
+      the station moves the vehicle out of guided mode, the engine does not fight
+      them, and the autopilot ignores guided targets outside guided mode.
+    - :meth:`track` re-sends the current Goto when the vehicle is seen *entering*
+      guided mode (reported guided now, another mode or no state at the previous
+      look). ArduPilot resets its guided target to where the vehicle stands on
+      entering GUIDED (Copter and Rover stop, Plane loiters), so without this a
+      vehicle switched back to guided by the station would sit still forever.
+
+    Args:
+        speed_m_s: Ground speed to request, None for the autopilot's own.
+    """
+
+    def __init__(self, speed_m_s: float | None) -> None:
+        self.speed_m_s = speed_m_s
+        self.target: Target | None = None
+        self.failed = False
+        self._guided_mode: str | None = None
+        self._seen_mode: str | None = None
+
+    def begin(self, ctx: PrimitiveContext) -> None:
+        """Enter guided mode; marks the leg failed when the autopilot has none."""
+        self.target = None
+        self._guided_mode = ctx.config.guided_mode
+        self._seen_mode = reported_mode(ctx)
+        self.failed = self._guided_mode is None
+        if self._guided_mode is None:
+            ctx.log.error(
+                "%s: the autopilot profile names no guided_mode; cannot navigate",
+                ctx.config.agent,
+            )
+            return
+        ctx.command(mode_command(ctx, self._guided_mode))
+
+    def go(self, ctx: PrimitiveContext, target: Target) -> None:
+        """Send a guided target now."""
+        self.target = target
+        self._seen_mode = reported_mode(ctx)
+        ctx.command(Goto(target.lat_deg, target.lon_deg, target.alt_m, self.speed_m_s))
+
+    def track(self, ctx: PrimitiveContext) -> None:
+        """Follow the reported mode; re-send the target when the vehicle enters guided."""
+        mode = reported_mode(ctx)
+        entered = mode is not None and mode == self._guided_mode and self._seen_mode != mode
+        self._seen_mode = mode
+        if entered and self.target is not None:
+            self.go(ctx, self.target)
+
+
+@dataclass(frozen=True, slots=True)
+class ChannelOutput:
+    """One control channel as a doublet or sweep drives it.
+
+    Attributes:
+        name: The channel's name (``aileron``).
+        via: ``rc_override`` (RC_CHANNELS_OVERRIDE) or ``servo`` (DO_SET_SERVO).
+        number: The RC input (rc_override) or servo output (servo) it drives.
+        pwm_min_us: Lowest pulse width the channel accepts.
+        pwm_trim_us: Its trim (neutral) pulse width.
+        pwm_max_us: Highest pulse width the channel accepts.
+    """
+
+    name: str
+    via: str
+    number: int
+    pwm_min_us: int
+    pwm_trim_us: int
+    pwm_max_us: int
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any]) -> ChannelOutput:
+        """The output of a doublet's or sweep's compiled ``channel`` and ``via``.
+
+        Raises:
+            ConfigError: The channel has no output for ``via`` (the mission layer
+                reports this as E-CHANNEL-VIA, so only a hand-edited config gets here,
+                and it fails when the behaviour is built, not in flight).
+        """
+        channel = params["channel"]
+        via = str(params.get("via", "rc_override"))
+        number = channel.get("servo" if via == "servo" else "rc")
+        if number is None:
+            output = "servo output" if via == "servo" else "RC input"
+            raise ConfigError(
+                f"channel {channel['name']!r} has no {output} for via {via}; "
+                "compile the mission again with clark compile"
+            )
+        return cls(
+            name=str(channel["name"]),
+            via=via,
+            number=int(number),
+            pwm_min_us=int(channel["pwm_min_us"]),
+            pwm_trim_us=int(channel["pwm_trim_us"]),
+            pwm_max_us=int(channel["pwm_max_us"]),
+        )
+
+    def clamp(self, pwm_us: float) -> int:
+        """A pulse width rounded to whole microseconds and kept inside the channel's limits."""
+        return min(max(round(pwm_us), self.pwm_min_us), self.pwm_max_us)
+
+    def drive(self, pwm_us: int) -> Command:
+        """The command that puts ``pwm_us`` on the channel."""
+        if self.via == "servo":
+            return SetServo(self.number, pwm_us)
+        return RcOverride({self.number: pwm_us})
+
+    def finish(self) -> list[Command]:
+        """Trim, then hand the channel back.
+
+        For ``rc_override`` the trim is followed by an override of 0, which
+        releases the channel so the pilot's stick drives it again; a servo driven
+        by DO_SET_SERVO has no pilot input behind it, so it is left at trim.
+        """
+        commands = [self.drive(self.pwm_trim_us)]
+        if self.via != "servo":
+            commands.append(RcOverride({self.number: 0}))
+        return commands

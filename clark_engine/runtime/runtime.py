@@ -1,0 +1,655 @@
+"""AgentRuntime: one agent's loop, pure: no clock, no sleep, no socket.
+
+The thesis's mission layer was a hand-written loop per mission (3.3, figure
+3.2): read the interfaces, update the agents, compute, command, send, log, wait.
+Here the loop is the engine's. A shell (the real-time loop on a mission
+computer, or the simulator) owns time and I/O; it hands every event to
+:meth:`AgentRuntime.deliver` as it arrives (so data is in the fleet table the
+moment it lands) and calls :meth:`AgentRuntime.tick` once per sample period.
+Both return the typed commands for the shell to carry out.
+
+A tick runs the phases in the order the compiled config gives (thesis
+7.3.3-7.3.4): ``timeouts`` (peers', the station's and the autopilot's
+silence), ``machine`` (events, then the state machine and its primitives),
+``commands`` (what the primitives asked for, filtered by safety), ``telemetry``
+(every message due this tick, bundled per destination through ClarkLink) and
+``log`` (a fleet-table row).
+
+Safety (thesis 7.3.5 and the issue): a peer silent past the heartbeat timeout
+raises ``lost:<peer>``; silence from every station raises ``mcs_lost`` and runs
+the declared failsafe (hold by default) with no automatic resume; an autopilot
+silent for its timeout raises ``autopilot_lost`` and the agent stops commanding
+it until it speaks again; Terminate from a station stops all commanding, puts
+the vehicle in its terminal mode, closes the interfaces and flushes the logs.
+Commands (mode change, activate, terminate) are acted on only when they come
+from a station of this mission and, when the mission has a key, authenticated:
+the codec rejects every other packet before anything is looked at.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from clark_engine.link.auth import CounterStore
+from clark_engine.link.codec import Codec
+from clark_engine.link.errors import ClarkLinkError
+from clark_engine.link.fleet import AgentFound, AgentLost, FleetTable, ForeignAgent
+from clark_engine.link.messages import (
+    MESSAGE_NAMES,
+    ActivateController,
+    AgentAttitude,
+    AgentStatus,
+    AgentType,
+    BehaviorState,
+    Condition,
+    Heartbeat,
+    Message,
+    ModeChangeRequest,
+    Terminate,
+)
+from clark_engine.link.packet import BROADCAST, Packet
+from clark_engine.runtime.commands import (
+    CloseInterfaces,
+    Command,
+    Goto,
+    RcOverride,
+    SendPacket,
+    SetMode,
+    SetServo,
+)
+from clark_engine.runtime.config import AgentConfig
+from clark_engine.runtime.context import PrimitiveContext, ground_distance_m
+from clark_engine.runtime.events import (
+    AutopilotHeartbeat,
+    Event,
+    PacketReceived,
+    PayloadEvent,
+    RcChannels,
+    StationCommand,
+    VehicleState,
+)
+from clark_engine.runtime.logbook import BROADCAST_PEER, Logbook
+from clark_engine.runtime.machine import BehaviorMachine, StateChange
+from clark_engine.runtime.primitives import make_primitive
+
+#: Commands that move the vehicle; never sent while the autopilot is lost or after terminate.
+VEHICLE_COMMANDS = (Goto, SetMode, SetServo, RcOverride)
+#: An RC input above this is a switch in its high position, below the low one (ArduPilot's
+#: auxiliary-switch thresholds); the events fire on crossing, not while held.
+RC_HIGH_US = 1800
+RC_LOW_US = 1200
+
+
+class AgentRuntime:
+    """One agent's runtime core, built from its compiled config.
+
+    Attributes:
+        config: The compiled config.
+        fleet: The fleet table (thesis Clark Agent list).
+        codec: ClarkLink encoder and decoder for this agent.
+        context: What the primitives see.
+        machine: The behaviour state machine (None for an agent without behaviour).
+        logbook: Mission log, interface log, fleet CSV, message log.
+        terminated: True once the agent has terminated; it then does nothing.
+        failsafe: The failsafe in force (``hold``, ``rtl``...), None when none.
+    """
+
+    def __init__(
+        self,
+        config: AgentConfig,
+        *,
+        key: bytes | None = None,
+        counter_store: CounterStore | None = None,
+        logbook: Logbook | None = None,
+        gps_epoch_ms: int | None = None,
+    ) -> None:
+        """Build the runtime.
+
+        Args:
+            config: The agent's compiled config.
+            key: The mission key, when the mission has one (``config.authenticated``).
+            counter_store: Where the packet counter's high-water mark persists.
+            logbook: Where the logs go; an in-memory logbook when None.
+            gps_epoch_ms: GPS time at runtime time 0, for agents without an autopilot
+                (stations); vehicles take GPS time from their autopilot.
+        """
+        if config.authenticated and key is None:
+            raise ValueError(f"mission {config.mission_name} is authenticated: give its key")
+        self.config = config
+        radio = config.raw["agent"]["hardware"].get("radio") or {}
+        self.max_packet_bytes = int(radio.get("max_packet_bytes", 256))
+        self.codec = Codec(
+            config.mission_id,
+            config.agent_id,
+            key if config.authenticated else None,
+            counter_store=counter_store,
+            max_packet_bytes=max(self.max_packet_bytes, 64),
+        )
+        self.fleet = FleetTable(
+            config.agent_id,
+            config.mission_id,
+            config.heartbeat_timeout_s,
+            expected={p.id: p.name for p in config.peers},
+        )
+        self.logbook = logbook if logbook is not None else Logbook.in_memory(config)
+        self.context = PrimitiveContext(config, self.fleet, log=self.logbook.mission)
+        self.machine = (
+            BehaviorMachine(config.machine, make_primitive, self._evaluate, self._on_change)
+            if config.machine is not None
+            else None
+        )
+        self.terminated = False
+        self.failsafe: str | None = None
+        self._started = False
+        self._tick = 0
+        self._events: list[str] = []
+        self._commands: list[Command] = []
+        self._state_messages: list[BehaviorState] = []
+        # Messages primitives queued (Picture Data) wait here for the telemetry phase.
+        self._pending_messages: list[tuple[Message, tuple[str, ...]]] = []
+        self._gps_epoch_ms = gps_epoch_ms
+        self._vehicle_gps: tuple[int, float] | None = None  # (gps ms, runtime s) of last fix
+        self._autopilot_seen_s: float | None = None
+        self._autopilot_lost = False
+        self._stations = {p.id for p in config.peers if p.role == "mcs"}
+        self._stations_lost: set[int] = set()
+        self._last_mode: str | None = None
+        self._rc_levels: dict[int, str] = {}
+        self._rc_names: dict[int, list[str]] = {}
+        for name, channel in config.channels.items():
+            if channel.rc is not None:
+                self._rc_names.setdefault(channel.rc, []).append(name)
+        self._peer_by_name = {p.name: p for p in config.peers}
+        self._peer_by_id = {p.id: p for p in config.peers}
+        self.logbook.mission.info(
+            "agent %s (id %d) of mission %s (id %d) at %g Hz, %d peers",
+            config.agent,
+            config.agent_id,
+            config.mission_name,
+            config.mission_id,
+            config.loop_hz,
+            len(config.peers),
+        )
+
+    # -- time --------------------------------------------------------------------------
+
+    def _gps_now_ms(self, now_s: float) -> int | None:
+        if self._vehicle_gps is not None:
+            gps_ms, at_s = self._vehicle_gps
+            return gps_ms + round((now_s - at_s) * 1000)
+        if self._gps_epoch_ms is not None:
+            return self._gps_epoch_ms + round(now_s * 1000)
+        return None
+
+    def _set_time(self, now_s: float) -> None:
+        self.context.now_s = now_s
+        self.context.gps_time_ms = self._gps_now_ms(now_s)
+        self.logbook.set_time(now_s, self.context.gps_time_ms)
+
+    # -- events in -----------------------------------------------------------------------
+
+    def deliver(self, event: Event, now_s: float) -> list[Command]:
+        """Apply one incoming event at once; returns commands it caused (rarely any).
+
+        Behaviour events it raises (``activate``, ``mode:AUTO``, ``lost:x``...) are
+        queued and dispatched, in arrival order, in the next tick's machine phase.
+        """
+        if self.terminated:
+            return []
+        self._set_time(now_s)
+        if isinstance(event, PacketReceived):
+            self._receive(event.data, now_s)
+        elif isinstance(event, VehicleState):
+            self._vehicle(event, now_s)
+        elif isinstance(event, AutopilotHeartbeat):
+            self._autopilot_heartbeat(event, now_s)
+        elif isinstance(event, RcChannels):
+            self._rc(event)
+        elif isinstance(event, PayloadEvent):
+            if self.machine is not None and self._started:
+                self.machine.deliver_payload(self.context, event)
+        elif isinstance(event, StationCommand):
+            self._station_command(event, now_s)
+        return self._drain()
+
+    def _vehicle(self, state: VehicleState, now_s: float) -> None:
+        self.context.vehicle = state
+        if state.gps_time_ms:
+            self._vehicle_gps = (state.gps_time_ms, now_s)
+            self.context.gps_time_ms = state.gps_time_ms
+        self._autopilot_seen_s = now_s
+        self._mode_seen(state.mode)
+
+    def _autopilot_heartbeat(self, beat: AutopilotHeartbeat, now_s: float) -> None:
+        self._autopilot_seen_s = now_s
+        if self._autopilot_lost:
+            self._autopilot_lost = False
+            self.logbook.interface.warning("autopilot heard again; commanding it again")
+        self._mode_seen(beat.mode)
+
+    def _mode_seen(self, mode: str) -> None:
+        if mode != self._last_mode:
+            if self._last_mode is not None:
+                self.logbook.mission.info("autopilot mode %s -> %s", self._last_mode, mode)
+            self._last_mode = mode
+            self._events.append(f"mode:{mode}")
+
+    def _rc(self, channels: RcChannels) -> None:
+        for index, pwm in enumerate(channels.pwm_us):
+            number = index + 1
+            if pwm <= 0:
+                continue
+            level = "high" if pwm > RC_HIGH_US else "low" if pwm < RC_LOW_US else "mid"
+            previous = self._rc_levels.get(number)
+            self._rc_levels[number] = level
+            if previous is None or previous == level or level == "mid":
+                continue  # the first reading sets the level; events fire on crossings
+            self._events.append(f"rc:{number}:{level}")
+            for name in self._rc_names.get(number, ()):
+                self._events.append(f"rc:{name}:{level}")
+
+    def _receive(self, data: bytes, now_s: float) -> None:
+        gps_now = self._gps_now_ms(now_s)
+        try:
+            packet = self.codec.decode(data)
+        except ClarkLinkError as exc:
+            self._fleet_events(self.fleet.note_error(exc, now_s))
+            self.logbook.interface.info("rejected %d bytes: %s", len(data), type(exc).__name__)
+            self.logbook.message(
+                "rejected",
+                now_s,
+                gps_now,
+                self._peer_name(exc.sender_id),
+                None,
+                len(data),
+                type(exc).__name__,
+                None,
+                None,
+                str(exc),
+            )
+            return
+        if packet.sender_id == self.config.agent_id:
+            return
+        if packet.destination_id not in (BROADCAST, self.config.agent_id):
+            return
+        self._fleet_events(self.fleet.receive(packet, now_s, gps_now))
+        peer = self._peer_name(packet.sender_id)
+        for message in packet.messages:
+            stamp = message.gps_time_ms or None
+            latency = gps_now - stamp if gps_now is not None and stamp else None
+            self.logbook.message(
+                "received",
+                now_s,
+                gps_now,
+                peer,
+                packet.counter,
+                packet.size_bytes,
+                MESSAGE_NAMES[type(message)],
+                stamp,
+                latency,
+                "",
+            )
+        self._commands_in(packet, now_s)
+
+    def _peer_name(self, agent_id: int | None) -> str:
+        if agent_id is None:
+            return ""
+        peer = self._peer_by_id.get(agent_id)
+        return peer.name if peer is not None else f"#{agent_id}"
+
+    def _commands_in(self, packet: Packet, now_s: float) -> None:
+        """Act on commands: only from a station of this mission, authenticated when keyed."""
+        commands = [
+            m
+            for m in packet.messages
+            if isinstance(m, ModeChangeRequest | ActivateController | Terminate)
+        ]
+        if not commands:
+            return
+        sender = self._peer_by_id.get(packet.sender_id)
+        if sender is None or sender.role != "mcs":
+            self.logbook.mission.warning(
+                "ignored %d command(s) from %s: only a station commands",
+                len(commands),
+                self._peer_name(packet.sender_id),
+            )
+            return
+        if self.config.authenticated and not packet.authenticated:
+            self.logbook.mission.warning("ignored unauthenticated command(s) from %s", sender.name)
+            return
+        me = self.config.agent_id
+        for message in commands:
+            if isinstance(message, Terminate) and message.target_id in (0, me):
+                self.logbook.mission.warning(
+                    "terminate from %s%s",
+                    sender.name,
+                    f": {message.reason}" if message.reason else "",
+                )
+                self._terminate(now_s, None)
+                return
+            if isinstance(message, ActivateController) and message.target_id in (0, me):
+                self._events.append("activate" if message.active else "deactivate")
+                self.logbook.mission.info(
+                    "%s from %s", "activate" if message.active else "deactivate", sender.name
+                )
+            if isinstance(message, ModeChangeRequest) and message.target_id == me:
+                self._mode_request(message.mode, sender.name)
+
+    def _mode_request(self, custom_mode: int, sender: str) -> None:
+        names = [n for n, number in self.config.modes.items() if number == custom_mode]
+        if not names or not self.config.is_vehicle:
+            self.logbook.mission.warning(
+                "mode request %d from %s: no such mode", custom_mode, sender
+            )
+            return
+        self.logbook.mission.info("mode request %s from %s", names[0], sender)
+        self._commands.append(SetMode(names[0], custom_mode))
+
+    def _fleet_events(self, events: list[Any]) -> None:
+        for event in events:
+            if isinstance(event, AgentFound):
+                self._events.append(f"found:{event.name or event.agent_id}")
+                self.logbook.mission.info("found %s", event.name or event.agent_id)
+                self._stations_lost.discard(event.agent_id)
+            elif isinstance(event, AgentLost):
+                self._events.append(f"lost:{event.name or event.agent_id}")
+                self.logbook.mission.warning("lost %s (silent %.1f s)", event.name, event.silent_s)
+                if event.agent_id in self._stations:
+                    self._stations_lost.add(event.agent_id)
+                    if self._stations_lost >= self._stations:
+                        self._mcs_lost()
+            elif isinstance(event, ForeignAgent):
+                self.logbook.mission.warning(
+                    "agent %d runs mission %d, not ours: ignored", event.agent_id, event.mission_id
+                )
+
+    def _station_command(self, command: StationCommand, now_s: float) -> None:
+        """An operator's command at this station: sent to its targets as ClarkLink."""
+        if self.config.is_vehicle:
+            self.logbook.mission.warning("station command %s on a vehicle: ignored", command.action)
+            return
+        gps = self._gps_now_ms(now_s) or 0
+        me = self.config.agent_id
+        target = self._peer_by_name.get(command.target) if command.target else None
+        if command.target and target is None:
+            self.logbook.mission.warning("station command for unknown agent %s", command.target)
+            return
+        target_id = target.id if target is not None else 0
+        message: Message
+        if command.action in ("activate", "deactivate"):
+            message = ActivateController(me, gps, target_id, command.action == "activate")
+        elif command.action == "mode" and target is not None and command.mode in target.modes:
+            message = ModeChangeRequest(me, gps, target_id, int(target.modes[command.mode]))
+        elif command.action == "terminate":
+            message = Terminate(me, gps, target_id, "operator")
+        else:
+            self.logbook.mission.warning("station command %s not understood", command)
+            return
+        self.logbook.mission.info("operator: %s %s", command.action, command.target or "all")
+        destination = command.target if target is not None else ""
+        self._send([message], destination, now_s)
+        if command.action == "terminate" and target is None:
+            self._terminate(now_s, None)
+
+    # -- the tick ------------------------------------------------------------------------
+
+    def tick(self, now_s: float) -> list[Command]:
+        """Run one sample period; returns the commands and packets to carry out."""
+        if self.terminated:
+            return []
+        self._set_time(now_s)
+        self.context.tick = self._tick
+        if not self._started:
+            self._started = True
+            if self.machine is not None:
+                self.machine.start(self.context)
+                self._collect_outbox()
+        for phase in self.config.tick_phases:
+            if self.terminated:
+                break
+            if phase == "timeouts":
+                self._timeouts(now_s)
+            elif phase == "machine":
+                self._machine_phase()
+            elif phase == "commands":
+                self._collect_outbox()
+            elif phase == "telemetry":
+                self._telemetry(now_s)
+            elif phase == "log":
+                self.logbook.fleet_row(now_s, self.fleet.csv_header(), self.fleet.csv_rows(now_s))
+        self._tick += 1
+        return self._drain()
+
+    def _timeouts(self, now_s: float) -> None:
+        self._fleet_events(self.fleet.check_timeouts(now_s))
+        if not self.config.is_vehicle or self._autopilot_lost:
+            return
+        seen = self._autopilot_seen_s
+        if seen is None:
+            seen = 0.0  # counted from start: an autopilot that never speaks is lost too
+        if now_s - seen > self.config.autopilot_timeout_s:
+            self._autopilot_lost = True
+            self._events.append("autopilot_lost")
+            self.logbook.interface.error(
+                "autopilot silent for %.1f s: lost; no more commands to it", now_s - seen
+            )
+
+    def _machine_phase(self) -> None:
+        if self.machine is None:
+            self._events.clear()
+            return
+        events, self._events = self._events, []
+        for event in events:
+            if self.failsafe is None:
+                self.machine.dispatch(event, self.context)
+            if self.terminated:
+                return
+        if self.failsafe is None:
+            self.machine.step(self.context)
+        if self.context.terminate_requested:
+            self._terminate(self.context.now_s, self.context.terminal_mode)
+
+    def _collect_outbox(self) -> None:
+        outbox = self.context.outbox
+        self._commands.extend(outbox.commands)
+        outbox.commands = []
+        if outbox.messages:
+            self._pending_messages.extend(outbox.messages)
+            outbox.messages = []
+
+    def _telemetry(self, now_s: float) -> None:
+        by_destination: dict[str, list[Message]] = {}
+        for spec in self.config.telemetry:
+            if self._tick % spec.every_ticks:
+                continue
+            message = self._telemetry_message(spec.message)
+            if message is None:
+                continue
+            for destination in spec.to or ("",):
+                by_destination.setdefault(destination, []).append(message)
+        for message, to in self._pending_messages:
+            for destination in to or ("",):
+                by_destination.setdefault(destination, []).append(message)
+        self._pending_messages.clear()
+        for state in self._state_messages:
+            for station in sorted(p.name for p in self.config.peers if p.role == "mcs"):
+                by_destination.setdefault(station, []).append(state)
+        self._state_messages.clear()
+        for destination in sorted(by_destination):
+            self._send(by_destination[destination], destination, now_s)
+
+    def _send(self, messages: list[Message], destination: str, now_s: float) -> None:
+        peer = self._peer_by_name.get(destination) if destination else None
+        destination_id = peer.id if peer is not None else BROADCAST
+        packets = self.codec.encode(messages, destination_id, self.max_packet_bytes)
+        gps = self._gps_now_ms(now_s)
+        for data in packets:
+            self._commands.append(
+                SendPacket(data, destination, destination_id, peer.radio_address if peer else None)
+            )
+        counter = self.codec.next_counter - len(packets)
+        for message in messages:
+            self.logbook.message(
+                "sent",
+                now_s,
+                gps,
+                destination or BROADCAST_PEER,
+                counter,
+                sum(len(p) for p in packets),
+                MESSAGE_NAMES[type(message)],
+                message.gps_time_ms or None,
+                None,
+                "",
+            )
+
+    def _telemetry_message(self, name: str) -> Message | None:
+        me, gps = self.config.agent_id, self.context.gps_time_ms or 0
+        vehicle = self.context.vehicle
+        if name == "heartbeat":
+            return Heartbeat(
+                agent_id=me,
+                gps_time_ms=gps,
+                mission_id=self.config.mission_id,
+                agent_type=AgentType.VEHICLE if self.config.is_vehicle else AgentType.MCS,
+                condition=self._condition(),
+                payload_count=len(self.config.payloads),
+            )
+        if name == "agent_status" and vehicle is not None:
+            return AgentStatus(
+                agent_id=me,
+                gps_time_ms=gps,
+                lat_deg=vehicle.lat_deg,
+                lon_deg=vehicle.lon_deg,
+                alt_m=vehicle.alt_m,
+                ground_speed_m_s=max(0.0, vehicle.ground_speed_m_s),
+                climb_rate_m_s=vehicle.climb_rate_m_s,
+                heading_deg=vehicle.heading_deg % 360.0,
+                mode=vehicle.custom_mode,
+            )
+        if name == "agent_attitude" and vehicle is not None:
+            return AgentAttitude(me, gps, vehicle.roll_deg, vehicle.pitch_deg, vehicle.yaw_deg)
+        if name == "behavior_state" and self.machine is not None:
+            return BehaviorState(me, gps, self.machine.active_paths(), self.machine.last_event)
+        return None
+
+    def _condition(self) -> Condition:
+        if self.terminated:
+            return Condition.TERMINATED
+        if self.failsafe is not None:
+            return Condition.FAILSAFE
+        lost = any(r.lost for r in self.fleet.agents())
+        return Condition.DEGRADED if self._autopilot_lost or lost else Condition.OK
+
+    # -- safety --------------------------------------------------------------------------
+
+    def _mcs_lost(self) -> None:
+        self._events.append("mcs_lost")
+        action = (
+            self.config.failsafe.get("mcs_lost", "hold") if self.config.is_vehicle else "continue"
+        )
+        self.logbook.mission.error("every station is silent: mcs_lost, failsafe %s", action)
+        if action == "continue" or self.failsafe is not None:
+            return
+        mode = {
+            "hold": self.config.hold_mode,
+            "rtl": self.config.rtl_mode,
+            "land": "LAND" if "LAND" in self.config.modes else None,
+        }.get(action)
+        self.failsafe = action
+        if self.machine is not None:
+            self.machine.stop(self.context)
+            self._collect_outbox()
+        if mode is not None and mode in self.config.modes:
+            self._commands.append(SetMode(mode, int(self.config.modes[mode])))
+
+    def _terminate(self, now_s: float, mode: str | None) -> None:
+        """Thesis 7.3.5: stop commanding, terminal mode, close interfaces, flush logs."""
+        if self.terminated:
+            return
+        # Nothing queued before is sent, except packets; what stopping primitives emit
+        # is sent: it hands control back (an RC override released, a servo to trim).
+        self._commands = [c for c in self._commands if isinstance(c, SendPacket)]
+        if self.machine is not None and self._started:
+            self.machine.stop(self.context)
+            self._commands.extend(self.context.outbox.commands)
+            self.context.outbox.commands = []
+        terminal = mode or self.config.terminal_mode
+        if self.config.is_vehicle and terminal is not None and terminal in self.config.modes:
+            self._commands.append(SetMode(terminal, int(self.config.modes[terminal])))
+        self._commands.append(CloseInterfaces())
+        self.logbook.mission.warning("terminated%s", f"; vehicle to {terminal}" if terminal else "")
+        self.terminated = True
+        self.logbook.close()
+
+    # -- machine callbacks ---------------------------------------------------------------
+
+    def _evaluate(self, when: Mapping[str, Any], ctx: PrimitiveContext, in_state_s: float) -> bool:
+        """Structured transition conditions (the schema's condition kinds).
+
+        Args:
+            when: The condition, as the compiled config gives it.
+            ctx: The agent's context (vehicle, peers, clock).
+            in_state_s: Time since the state owning the transition was entered.
+        """
+        for key, value in when.items():
+            if key == "all":
+                return all(self._evaluate(item, ctx, in_state_s) for item in value)
+            if key == "any":
+                return any(self._evaluate(item, ctx, in_state_s) for item in value)
+            if key == "not":
+                return not self._evaluate(value, ctx, in_state_s)
+            if key == "mode":
+                return ctx.vehicle is not None and ctx.vehicle.mode == value["is"]
+            measured = in_state_s if key == "in_state_s" else self._measure(key, value, ctx)
+            if measured is None:
+                return False
+            if "lt" in value and not measured < value["lt"]:
+                return False
+            return not ("gt" in value and not measured > value["gt"])
+        return True
+
+    def _measure(self, key: str, value: Mapping[str, Any], ctx: PrimitiveContext) -> float | None:
+        vehicle = ctx.vehicle
+        if key == "distance_m":
+            status = ctx.peer_status(str(value["to"]))
+            if vehicle is None or status is None:
+                return None
+            return ground_distance_m(
+                vehicle.lat_deg, vehicle.lon_deg, status.lat_deg, status.lon_deg
+            )
+        if key == "altitude_m":
+            return vehicle.alt_m if vehicle is not None else None
+        if key == "speed_m_s":
+            return vehicle.ground_speed_m_s if vehicle is not None else None
+        return None
+
+    def _on_change(self, change: StateChange) -> None:
+        self.logbook.mission.info(
+            "%s: %s -> %s (active: %s)",
+            change.event,
+            change.source or "(start)",
+            change.target,
+            ", ".join(change.active),
+        )
+        if self._stations and self.machine is not None:
+            self._state_messages.append(
+                BehaviorState(
+                    self.config.agent_id,
+                    self.context.gps_time_ms or 0,
+                    tuple(change.active),
+                    change.event,
+                )
+            )
+
+    # -- output --------------------------------------------------------------------------
+
+    def _drain(self) -> list[Command]:
+        commands, self._commands = self._commands, []
+        if self._autopilot_lost or (self.terminated and not self._closing(commands)):
+            commands = [c for c in commands if not isinstance(c, VEHICLE_COMMANDS)]
+        return commands
+
+    @staticmethod
+    def _closing(commands: list[Command]) -> bool:
+        return any(isinstance(c, CloseInterfaces) for c in commands)
