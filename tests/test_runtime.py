@@ -348,3 +348,21 @@ def test_phase_order_comes_from_the_config() -> None:
             assert _chase_state_sent(
                 runtime, run(runtime, 0.2, AutopilotHeartbeat("HOLD", 4, True))
             )
+
+
+def test_a_split_bundle_is_logged_packet_by_packet() -> None:
+    config = config_of("cooperative_follow.yaml", "slash_b")
+    runtime = AgentRuntime(config)
+    runtime.max_packet_bytes = 40  # room for 24 bundle bytes: heartbeat (20) and status (21) split
+    out = run(runtime, 0.0, vehicle(0.0), AutopilotHeartbeat("MANUAL", 0, True))
+    packets = broadcast(out)
+    assert len(packets) == 2
+    rows = [
+        line.split(",")
+        for line in runtime.logbook.streams.messages.getvalue().splitlines()  # type: ignore[attr-defined]
+        if line.startswith("sent,") and ",*," in line
+    ]
+    assert [(r[4], r[5], r[6]) for r in rows] == [
+        ("1", str(len(packets[0].data)), "heartbeat"),
+        ("2", str(len(packets[1].data)), "agent_status"),
+    ]

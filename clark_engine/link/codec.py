@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 from clark_engine.link.auth import CounterStore, CounterStoreError, ReplayWindow, Tagger
 from clark_engine.link.errors import (
@@ -59,6 +60,15 @@ from clark_engine.link.wire import AGENT_ID_MAX, canonical_order, encode_entry, 
 # version, flags, mission id, sender, destination, counter high 16 bits, counter low 32 bits
 _HEADER = struct.Struct(">BBIHHHI")  # HEADER_BYTES long
 _MISSION_ID_MAX = (1 << 32) - 1
+
+
+@dataclass(frozen=True, slots=True)
+class SentPacket:
+    """One packet :meth:`Codec.encode_packets` made: its bytes, counter and messages."""
+
+    data: bytes
+    counter: int
+    messages: tuple[Message, ...]
 
 
 class Codec:
@@ -158,11 +168,22 @@ class Codec:
                 mission), a field is out of range, or the destination is not an id.
             CounterStoreError: The counter store cannot be written.
         """
+        return [sent.data for sent in self.encode_packets(messages, destination, max_packet_bytes)]
+
+    def encode_packets(
+        self, messages: Sequence[Message], destination: int, max_packet_bytes: int | None = None
+    ) -> list[SentPacket]:
+        """:meth:`encode`, telling which messages each packet carries and its counter.
+
+        The message log records every message with the packet that carries it, so a
+        split bundle is logged packet by packet.
+        """
         limit = self.max_packet_bytes if max_packet_bytes is None else max_packet_bytes
         if not 0 <= destination <= AGENT_ID_MAX:
             raise ValueError(f"destination {destination} is outside 0..{AGENT_ID_MAX}")
         room = limit - HEADER_BYTES - (TAG_BYTES if self._tagger else 0)
         groups: list[list[bytes]] = []
+        carried: list[list[Message]] = []
         used = room + 1  # forces a first group
         for message in canonical_order(messages):
             self._check_own(message)
@@ -177,12 +198,14 @@ class Codec:
                 )
             if used + len(entry) > room:
                 groups.append([])
+                carried.append([])
                 used = 0
             groups[-1].append(entry)
+            carried[-1].append(message)
             used += len(entry)
         flags = FLAG_AUTHENTICATED if self._tagger else 0
-        packets = []
-        for group in groups:
+        packets: list[SentPacket] = []
+        for group, inside in zip(groups, carried, strict=True):
             counter = self._take_counter()
             head = _HEADER.pack(
                 PROTOCOL_VERSION,
@@ -196,7 +219,7 @@ class Codec:
             packet = head + b"".join(group)
             if self._tagger is not None:
                 packet += self._tagger.tag(packet)
-            packets.append(packet)
+            packets.append(SentPacket(packet, counter, tuple(inside)))
         return packets
 
     def _check_own(self, message: Message) -> None:

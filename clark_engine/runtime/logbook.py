@@ -425,9 +425,9 @@ class Logbook:
             now_s: The runtime clock when it was sent or arrived.
             gps_time_ms: This agent's GPS time then, None while unknown.
             peer: Sent: the destination's name, or :data:`BROADCAST_PEER` for every
-                agent. Received and rejected: the sender's name (``#<id>`` for an
-                agent not in the mission, its id in digits; empty when the header
-                was unreadable).
+                agent. Received and rejected: the sender's name; for an agent not
+                in the mission, its id in digits (names start with a letter); empty
+                when the header was unreadable.
             counter: The packet counter; None for a rejected packet whose header
                 could not be read.
             size_bytes: The packet's size on the wire.

@@ -46,6 +46,7 @@ from clark_engine.link.messages import (
     Heartbeat,
     Message,
     ModeChangeRequest,
+    PictureData,
     Terminate,
 )
 from clark_engine.link.packet import BROADCAST, Packet
@@ -277,7 +278,10 @@ class AgentRuntime:
         peer = self._peer_name(packet.sender_id)
         for message in packet.messages:
             stamp = message.gps_time_ms or None
-            latency = gps_now - stamp if gps_now is not None and stamp else None
+            # Picture Data is stamped at capture, not when sent: no latency from it.
+            latency = None
+            if stamp is not None and gps_now is not None and not isinstance(message, PictureData):
+                latency = gps_now - stamp
             self.logbook.message(
                 "received",
                 now_s,
@@ -482,26 +486,26 @@ class AgentRuntime:
     def _send(self, messages: list[Message], destination: str, now_s: float) -> None:
         peer = self._peer_by_name.get(destination) if destination else None
         destination_id = peer.id if peer is not None else BROADCAST
-        packets = self.codec.encode(messages, destination_id, self.max_packet_bytes)
         gps = self._gps_now_ms(now_s)
-        for data in packets:
+        for sent in self.codec.encode_packets(messages, destination_id, self.max_packet_bytes):
             self._commands.append(
-                SendPacket(data, destination, destination_id, peer.radio_address if peer else None)
+                SendPacket(
+                    sent.data, destination, destination_id, peer.radio_address if peer else None
+                )
             )
-        counter = self.codec.next_counter - len(packets)
-        for message in messages:
-            self.logbook.message(
-                "sent",
-                now_s,
-                gps,
-                destination or BROADCAST_PEER,
-                counter,
-                sum(len(p) for p in packets),
-                MESSAGE_NAMES[type(message)],
-                message.gps_time_ms or None,
-                None,
-                "",
-            )
+            for message in sent.messages:
+                self.logbook.message(
+                    "sent",
+                    now_s,
+                    gps,
+                    destination or BROADCAST_PEER,
+                    sent.counter,
+                    len(sent.data),
+                    MESSAGE_NAMES[type(message)],
+                    message.gps_time_ms or None,
+                    None,
+                    "",
+                )
 
     def _telemetry_message(self, name: str) -> Message | None:
         me, gps = self.config.agent_id, self.context.gps_time_ms or 0
