@@ -61,7 +61,82 @@ def run_all(mission: Mission, bad_states: set[tuple[str, tuple[str, ...]]]) -> l
             findings.extend(check_states(mission, agent, agent.behavior))
             findings.extend(check_primitives(mission, agent, agent.behavior, bad_states))
     findings.extend(check_expectations(mission))
+    findings.extend(check_operator(mission))
+    findings.extend(check_faults(mission))
     return findings
+
+
+def _named_agent(mission: Mission, name: str, where: Location) -> Iterator[Finding]:
+    if name != "all" and name not in mission.agents and name not in mission.unresolved:
+        yield error(
+            "E-AGENT-UNKNOWN",
+            where,
+            f"there is no agent {name!r} in this mission; {_hint(name, mission.agents)}",
+        )
+
+
+def check_operator(mission: Mission) -> Iterator[Finding]:
+    """The operator's actions name agents, modes and channels that exist, in time order."""
+    last = -1.0
+    for item, where in zip(mission.operator, mission.operator_locations, strict=True):
+        at = float(item["at_s"])
+        if at < last:
+            yield warning(
+                "W-OPERATOR-ORDER",
+                where,
+                f"this action at {at:g} s is listed after one at {last:g} s; the dry run "
+                "acts in time order, so list them in that order to read the mission right",
+            )
+        last = max(last, at)
+        station_actions = [k for k in ("activate", "deactivate", "mode", "terminate") if k in item]
+        if station_actions and not mission.stations:
+            yield error(
+                "E-NO-STATION",
+                where,
+                f"{station_actions[0]} is sent by a mission control station, and this mission "
+                "has none; add an agent with role mcs",
+            )
+        for key in ("activate", "deactivate", "terminate"):
+            if key in item:
+                yield from _named_agent(mission, str(item[key]), where)
+        if "mode" in item:
+            name, mode = str(item["mode"]["agent"]), str(item["mode"]["mode"])
+            yield from _named_agent(mission, name, where)
+            agent = mission.agents.get(name)
+            if agent is not None and mode not in agent.hardware.modes:
+                yield error(
+                    "E-MODE-UNKNOWN",
+                    where,
+                    f"the autopilot of {name} has no mode {mode!r}; "
+                    + _hint(mode, agent.hardware.modes),
+                )
+        if "rc" in item:
+            name = str(item["rc"]["agent"])
+            yield from _named_agent(mission, name, where)
+            agent = mission.agents.get(name)
+            if agent is not None and not agent.is_vehicle:
+                yield error("E-ROLE", where, f"{name} is a station: it has no RC receiver")
+
+
+def check_faults(mission: Mission) -> Iterator[Finding]:
+    """Faults name agents that exist and windows that end after they start."""
+    for item, where in zip(mission.faults, mission.fault_locations, strict=True):
+        ((kind, body),) = item.items()
+        names = [str(n) for n in body.get("between", [])]
+        if "agent" in body:
+            names.append(str(body["agent"]))
+        for name in names:
+            yield from _named_agent(mission, name, where)
+        start, end = body.get("from_s"), body.get("to_s")
+        if start is not None and end is not None and float(end) <= float(start):
+            yield error(
+                "E-FAULT-WINDOW",
+                where,
+                f"the {kind} fault ends at {float(end):g} s, not after it starts at "
+                f"{float(start):g} s; make to_s later than from_s",
+            )
+        if kind == "station_silent" and not mission.stations:
+            yield error("E-NO-STATION", where, "there is no station to silence; remove the fault")
 
 
 def check_ids(mission: Mission) -> Iterator[Finding]:

@@ -280,6 +280,11 @@ class Mission:
         description: The author's note about the mission.
         source_sha256: Hash of the mission file's bytes, recorded in compiled configs.
         key_file: The ClarkLink key file as written (relative to the mission file), if any.
+        operator: What the station operator and pilots do in a dry run, as written.
+        operator_locations: Where each operator action was written.
+        faults: Faults a dry run injects, as written.
+        fault_locations: Where each fault was written.
+        sim: Dry-run settings (duration, seed, radio loss and latency, GPS noise).
         locations: Where each mission setting was written (``loop_hz`` -> location).
         check_locations: Where each dry-run check was written, in order.
         unresolved: Agents declared but too broken to resolve; references to them are
@@ -299,6 +304,11 @@ class Mission:
     description: str | None = None
     source_sha256: str = ""
     key_file: str | None = None
+    operator: list[dict[str, Any]] = field(default_factory=list)
+    operator_locations: list[Location] = field(default_factory=list)
+    faults: list[dict[str, Any]] = field(default_factory=list)
+    fault_locations: list[Location] = field(default_factory=list)
+    sim: dict[str, Any] = field(default_factory=dict)
     locations: dict[str, Location] = field(default_factory=dict)
     check_locations: list[Location] = field(default_factory=list)
     unresolved: set[str] = field(default_factory=set)

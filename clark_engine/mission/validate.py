@@ -256,6 +256,16 @@ def _build_mission(
     findings: list[Finding],
 ) -> Mission:
     section = data["mission"]
+
+    def listed(key: str) -> list[dict[str, Any]]:
+        value = data.get(key)
+        return (
+            list(value) if isinstance(value, list) and not _dirty(schema_findings, (key,)) else []
+        )
+
+    operator, faults = listed("operator"), listed("faults")
+    declared_sim = data.get("sim")
+    sim: dict[str, Any] = declared_sim if isinstance(declared_sim, dict) else {}
     declared_checks = data.get("checks")
     checks: list[dict[str, Any]] = (
         list(declared_checks)
@@ -279,6 +289,11 @@ def _build_mission(
         description=section.get("description"),
         source_sha256=hashlib.sha256(raw).hexdigest(),
         key_file=section.get("key_file"),
+        operator=operator,
+        operator_locations=[doc.location(("operator", i)) for i in range(len(operator))],
+        faults=faults,
+        fault_locations=[doc.location(("faults", i)) for i in range(len(faults))],
+        sim=dict(sim) if not _dirty(schema_findings, ("sim",)) else {},
         locations={key: doc.location(("mission", key)) for key in section},
         checks=checks,
         check_locations=[doc.location(("checks", i)) for i in range(len(checks))],

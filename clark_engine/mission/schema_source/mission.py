@@ -11,6 +11,7 @@ from clark_engine.mission.schema_source.common import (
     NAME_PATTERN,
     Schema,
     array,
+    boolean,
     integer,
     number,
     obj,
@@ -118,6 +119,7 @@ def _agent() -> Schema:
                 "Mode the vehicle is left in when the mission terminates; the autopilot "
                 "profile's terminal_mode when omitted."
             ),
+            "sim": _agent_sim(),
             "position": POINT_SCHEMA
             | {
                 "description": "Where the agent is: a station's location (for radio range "
@@ -201,6 +203,131 @@ def _check() -> Schema:
             ),
         },
     ) | {"minProperties": 1}
+
+
+def _window() -> dict[str, Schema]:
+    return {
+        "from_s": number("Start of the fault, simulated time.", unit="s", minimum=0),
+        "to_s": number("End of the fault, simulated time.", unit="s", exclusive_minimum=0),
+    }
+
+
+def _operator() -> Schema:
+    target = string("Agent name, or all.", pattern=r"^([a-z][a-z0-9_]*|all)$")
+    return obj(
+        "Something the station operator or a pilot does during a dry run, at a time; "
+        "exactly one action per item.",
+        {
+            "at_s": number("When, in simulated seconds from the start.", unit="s", minimum=0),
+            "activate": target | {"description": "Activate Controller to this agent (or all)."},
+            "deactivate": target
+            | {"description": "Deactivate the controller of this agent (or all)."},
+            "mode": obj(
+                "Mode Change Request from the station.",
+                {"agent": AGENT_NAME_SCHEMA, "mode": string("Mode name of its autopilot.")},
+                required=["agent", "mode"],
+            ),
+            "terminate": target | {"description": "Terminate this agent (or all): the mission."},
+            "rc": obj(
+                "A pilot moves a switch or stick: the RC input of one channel.",
+                {
+                    "agent": AGENT_NAME_SCHEMA,
+                    "channel": integer("RC channel.", minimum=1, maximum=18),
+                    "pwm_us": integer("Pulse width.", unit="us", minimum=800, maximum=2200),
+                },
+                required=["agent", "channel", "pwm_us"],
+            ),
+        },
+        required=["at_s"],
+    ) | {"minProperties": 2, "maxProperties": 2}
+
+
+def _fault() -> Schema:
+    return obj(
+        "A fault the dry run injects; exactly one kind per item.",
+        {
+            "kill": obj(
+                "An agent's mission computer dies: its runtime stops and its radio goes "
+                "silent; the autopilot flies on in its last mode.",
+                {"agent": AGENT_NAME_SCHEMA, "at_s": number("When.", unit="s", minimum=0)},
+                required=["agent", "at_s"],
+            ),
+            "link_drop": obj(
+                "The radio link between two agents drops, both ways.",
+                {
+                    "between": array("Two agents.", AGENT_NAME_SCHEMA, min_items=2)
+                    | {"maxItems": 2},
+                    **_window(),
+                },
+                required=["between", "from_s", "to_s"],
+            ),
+            "station_silent": obj(
+                "Every station's radio goes silent (the operator's side fails).",
+                _window(),
+                required=["from_s", "to_s"],
+            ),
+            "autopilot_disconnect": obj(
+                "An agent's autopilot link goes silent both ways.",
+                {"agent": AGENT_NAME_SCHEMA, **_window()},
+                required=["agent", "from_s", "to_s"],
+            ),
+            "corrupt": obj(
+                "A share of the radio packets delivered arrive with bytes flipped.",
+                {
+                    "share": number("Share of packets corrupted.", minimum=0, maximum=1),
+                    **_window(),
+                },
+                required=["share"],
+            ),
+        },
+    ) | {"minProperties": 1, "maxProperties": 1}
+
+
+def _sim() -> Schema:
+    return obj(
+        "How the dry run simulates this mission (clark dry-run).",
+        {
+            "duration_s": number(
+                "How long to simulate when --until is not given.",
+                unit="s",
+                exclusive_minimum=0,
+                maximum=86400,
+                default=300,
+            ),
+            "seed": integer("Random seed when --seed is not given.", minimum=0, default=0),
+            "radio_loss": number(
+                "Share of packets lost at random, before range losses.",
+                minimum=0,
+                maximum=1,
+                default=0.0,
+            ),
+            "radio_latency_s": number(
+                "Latency of the radio beyond serialisation.", unit="s", minimum=0, default=0.005
+            ),
+            "gps_noise_m": number(
+                "Standard deviation of simulated GPS error (thesis 5.1.5: 0.62 m mean error).",
+                unit="m",
+                minimum=0,
+                default=0.5,
+            ),
+        },
+    )
+
+
+def _agent_sim() -> Schema:
+    return obj(
+        "How this agent's vehicle starts in a dry run.",
+        {
+            "mode": string(
+                "Flight mode at the start; the autopilot's hold mode for aircraft and its "
+                "manual mode for rovers when omitted."
+            ),
+            "armed": boolean("Armed at the start.", default=True),
+            "heading_deg": number(
+                "Heading at the start.", unit="deg", minimum=0, maximum=360, default=0
+            ),
+        },
+    )
 
 
 def build() -> dict[str, Any]:
@@ -294,6 +421,18 @@ def build() -> dict[str, Any]:
                 "additionalProperties": {"$ref": "#/$defs/agent"},
             },
             "checks": array("Expectations the dry run evaluates.", {"$ref": "#/$defs/check"}),
+            "operator": array(
+                "What the station operator and pilots do during a dry run, in time order.",
+                {"$ref": "#/$defs/operator"},
+            ),
+            "faults": array("Faults the dry run injects.", {"$ref": "#/$defs/fault"}),
+            "sim": _sim(),
         },
-        "$defs": {"agent": _agent(), "check": _check(), **state_defs()},
+        "$defs": {
+            "agent": _agent(),
+            "check": _check(),
+            "operator": _operator(),
+            "fault": _fault(),
+            **state_defs(),
+        },
     }
