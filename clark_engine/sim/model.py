@@ -90,7 +90,7 @@ class VehicleModel(ABC):
 
     @abstractmethod
     def rc_inputs(self) -> tuple[int, ...]:
-        """RC input pulse widths as the autopilot sees them (pilot, or override), channel 1 first."""
+        """RC input pulse widths the autopilot sees (pilot, or override), channel 1 first."""
 
     @abstractmethod
     def servo_outputs(self) -> tuple[int, ...]:
