@@ -366,3 +366,77 @@ def test_a_split_bundle_is_logged_packet_by_packet() -> None:
         ("1", str(len(packets[0].data)), "heartbeat"),
         ("2", str(len(packets[1].data)), "agent_status"),
     ]
+
+
+def test_a_behaviour_that_handles_mcs_lost_overrides_the_failsafe(tmp_path: Path) -> None:
+    text = (
+        (ROOT / "missions" / "cooperative_follow.yaml")
+        .read_text(encoding="utf-8")
+        .replace(
+            "idle: {use: hold, transitions: {activate: chase}}",
+            "idle: {use: hold, transitions: {activate: chase, mcs_lost: chase}}",
+        )
+    )
+    runtime = AgentRuntime(config_of("cooperative_follow.yaml", "slash_b", text, tmp_path))
+    station = Peer(521, 1, AgentType.MCS)
+    run(runtime, 0.0, vehicle(0.0), AutopilotHeartbeat("MANUAL", 0, True), station.heartbeat(0.0))
+    for k in range(1, 36):
+        run(runtime, k / 10, AutopilotHeartbeat("HOLD", 4, True))
+    assert runtime.failsafe is None
+    assert runtime.machine is not None and runtime.machine.active_paths() == ("chase",)
+
+
+def test_a_station_never_heard_is_lost_too(slash_b: AgentRuntime) -> None:
+    for k in range(0, 36):
+        run(slash_b, k / 10, AutopilotHeartbeat("HOLD", 4, True))
+    assert slash_b.failsafe == "hold"
+
+
+def test_commands_held_back_while_the_autopilot_was_silent_are_sent_on_its_return(
+    slash_b: AgentRuntime,
+) -> None:
+    station = Peer(521, 1, AgentType.MCS)
+    slash_a = Peer(521, 2, AgentType.VEHICLE)
+    run(
+        slash_b,
+        0.0,
+        vehicle(0.0),
+        AutopilotHeartbeat("MANUAL", 0, True),
+        station.heartbeat(0.0),
+        slash_a.heartbeat(0.0, slash_a.status(0.0, 30.6380, -96.4787)),
+    )
+    for k in range(1, 40):  # the autopilot goes silent; peers keep talking
+        t = k / 10
+        run(
+            slash_b,
+            t,
+            station.heartbeat(t),
+            slash_a.heartbeat(t, slash_a.status(t, 30.6380, -96.4787)),
+        )
+    assert slash_b.autopilot_lost
+    (activate,) = station.codec.encode([ActivateController(1, GPS0, 3, True)], 3, 256)
+    out = run(slash_b, 4.0, PacketReceived(activate), station.heartbeat(4.0))
+    assert of(out, Goto) == [] and of(out, SetMode) == []
+    out = run(slash_b, 4.1, vehicle(4.1, mode="HOLD", custom_mode=4))  # it speaks again
+    assert SetMode("GUIDED", 15) in of(out, SetMode) and len(of(out, Goto)) == 1
+
+
+def test_activation_at_a_gps_time(slash_b: AgentRuntime) -> None:
+    station = Peer(521, 1, AgentType.MCS)
+    run(slash_b, 0.0, vehicle(0.0), AutopilotHeartbeat("MANUAL", 0, True), station.heartbeat(0.0))
+    later = GPS0 + 2000  # two seconds from now
+    (activate,) = station.codec.encode([ActivateController(1, GPS0, 3, True, later)], 3, 256)
+    run(slash_b, 0.1, PacketReceived(activate), AutopilotHeartbeat("HOLD", 4, True))
+    assert slash_b.machine is not None and slash_b.machine.active_paths() == ("idle",)
+    for k in range(2, 22):
+        run(slash_b, k / 10, AutopilotHeartbeat("HOLD", 4, True), station.heartbeat(k / 10))
+    assert slash_b.machine.active_paths() == ("chase",)
+
+
+def test_terminate_sends_a_last_terminated_heartbeat(slash_b: AgentRuntime) -> None:
+    station = Peer(521, 1, AgentType.MCS)
+    run(slash_b, 0.0, vehicle(0.0), AutopilotHeartbeat("MANUAL", 0, True), station.heartbeat(0.0))
+    out = run(slash_b, 0.1, station.heartbeat(0.1, Terminate(1, GPS0 + 100, 0)))
+    (last,) = broadcast(out)
+    (beat,) = Codec(521, 99).decode(last.data).messages
+    assert isinstance(beat, Heartbeat) and beat.condition.name == "TERMINATED"

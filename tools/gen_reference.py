@@ -817,9 +817,9 @@ def events_section() -> list[str]:
         "Events from the station ("
         + ", ".join(f"`{e}`" for e in station)
         + ") need an agent with role `mcs` in the mission "
-        "([[E-NO-STATION]]). The runtime that raises these events "
-        "on a vehicle is not built yet; validation and the compiled configs already use these "
-        "names and meanings.",
+        "([[E-NO-STATION]]). [docs/runtime.md](runtime.md) says where the runtime raises each "
+        "one. A station's Terminate ends an agent at once (thesis 7.3.5), so a `terminate` "
+        "transition is never taken ([[W-TERMINATE-EVENT]]).",
         "",
         *table(("Event", "Meaning"), ([f"`{n}`", md(m, cell=True)] for n, m in EVENTS)),
         "",

@@ -389,6 +389,14 @@ def _why_never(state: State) -> str:
 def _check_event(
     mission: Mission, agent: Agent, state: State, event: str, where: Location
 ) -> Iterator[Finding]:
+    if event == "terminate":
+        yield warning(
+            "W-TERMINATE-EVENT",
+            where,
+            "a station's Terminate ends the agent at once (thesis 7.3.5: terminal mode, "
+            "interfaces closed), so this transition is never taken; remove it",
+        )
+        return
     if event in SIMPLE_EVENTS:
         if event in STATION_EVENTS and not mission.stations:
             yield error(

@@ -28,7 +28,7 @@ the codec rejects every other packet before anything is looked at.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from clark_engine.link.auth import CounterStore
@@ -142,11 +142,21 @@ class AgentRuntime:
         )
         self.terminated = False
         self.failsafe: str | None = None
+        #: Called with every state change, after the runtime's own handling (the
+        #: simulator records them; a shell could show them).
+        self.state_listeners: list[Callable[[StateChange], None]] = []
         self._started = False
         self._tick = 0
         self._events: list[str] = []
         self._commands: list[Command] = []
         self._state_messages: list[BehaviorState] = []
+        # Activations the station timed for a GPS time: (gps ms, event).
+        self._scheduled: list[tuple[int, str]] = []
+        # The latest mode change and goto held back while the autopilot was silent,
+        # sent when it speaks again so the behaviour's intent is not lost.
+        self._withheld: dict[type, Command] = {}
+        self._station_heard = False
+        self._mcs_lost_raised = False
         # Messages primitives queued (Picture Data) wait here for the telemetry phase.
         self._pending_messages: list[tuple[Message, tuple[str, ...]]] = []
         self._gps_epoch_ms = gps_epoch_ms
@@ -219,15 +229,24 @@ class AgentRuntime:
         if state.gps_time_ms:
             self._vehicle_gps = (state.gps_time_ms, now_s)
             self.context.gps_time_ms = state.gps_time_ms
-        self._autopilot_seen_s = now_s
+        self._autopilot_heard(now_s)
         self._mode_seen(state.mode)
 
     def _autopilot_heartbeat(self, beat: AutopilotHeartbeat, now_s: float) -> None:
+        self._autopilot_heard(now_s)
+        self._mode_seen(beat.mode)
+
+    def _autopilot_heard(self, now_s: float) -> None:
         self._autopilot_seen_s = now_s
         if self._autopilot_lost:
             self._autopilot_lost = False
-            self.logbook.interface.warning("autopilot heard again; commanding it again")
-        self._mode_seen(beat.mode)
+            resend = [self._withheld[k] for k in (SetMode, Goto) if k in self._withheld]
+            self._withheld.clear()
+            self._commands.extend(resend)
+            self.logbook.interface.warning(
+                "autopilot heard again; commanding it again (%d held-back command(s) sent)",
+                len(resend),
+            )
 
     def _mode_seen(self, mode: str) -> None:
         if mode != self._last_mode:
@@ -333,10 +352,17 @@ class AgentRuntime:
                 self._terminate(now_s, None)
                 return
             if isinstance(message, ActivateController) and message.target_id in (0, me):
-                self._events.append("activate" if message.active else "deactivate")
-                self.logbook.mission.info(
-                    "%s from %s", "activate" if message.active else "deactivate", sender.name
-                )
+                event = "activate" if message.active else "deactivate"
+                gps_now = self._gps_now_ms(now_s)
+                if message.start_time_ms and (gps_now is None or message.start_time_ms > gps_now):
+                    # The station asked for a synchronised start at a GPS time.
+                    self._scheduled.append((message.start_time_ms, event))
+                    self.logbook.mission.info(
+                        "%s from %s at GPS time %d", event, sender.name, message.start_time_ms
+                    )
+                else:
+                    self._events.append(event)
+                    self.logbook.mission.info("%s from %s", event, sender.name)
             if isinstance(message, ModeChangeRequest) and message.target_id == me:
                 self._mode_request(message.mode, sender.name)
 
@@ -356,6 +382,9 @@ class AgentRuntime:
                 self._events.append(f"found:{event.name or event.agent_id}")
                 self.logbook.mission.info("found %s", event.name or event.agent_id)
                 self._stations_lost.discard(event.agent_id)
+                if event.agent_id in self._stations:
+                    self._station_heard = True
+                    self._mcs_lost_raised = False  # a later silence raises it again
             elif isinstance(event, AgentLost):
                 self._events.append(f"lost:{event.name or event.agent_id}")
                 self.logbook.mission.warning("lost %s (silent %.1f s)", event.name, event.silent_s)
@@ -427,6 +456,21 @@ class AgentRuntime:
 
     def _timeouts(self, now_s: float) -> None:
         self._fleet_events(self.fleet.check_timeouts(now_s))
+        if self._scheduled:
+            gps_now = self._gps_now_ms(now_s)
+            due = [e for e in self._scheduled if gps_now is not None and e[0] <= gps_now]
+            for item in due:
+                self._scheduled.remove(item)
+                self._events.append(item[1])
+        if (
+            self._stations
+            and not self._station_heard
+            and not self._mcs_lost_raised
+            and now_s > self.config.heartbeat_timeout_s
+        ):
+            # A station never heard is as silent as one that went quiet.
+            self.logbook.mission.error("no station heard for %.1f s", now_s)
+            self._mcs_lost()
         if not self.config.is_vehicle or self._autopilot_lost:
             return
         seen = self._autopilot_seen_s
@@ -441,12 +485,18 @@ class AgentRuntime:
 
     def _machine_phase(self) -> None:
         if self.machine is None:
+            if "mcs_lost" in self._events:
+                self._apply_failsafe()
             self._events.clear()
             return
         events, self._events = self._events, []
         for event in events:
-            if self.failsafe is None:
-                self.machine.dispatch(event, self.context)
+            taken = self.failsafe is None and self.machine.dispatch(event, self.context)
+            if event == "mcs_lost":
+                if taken:
+                    self.logbook.mission.warning("mcs_lost handled by the behaviour")
+                else:
+                    self._apply_failsafe()
             if self.terminated:
                 return
         if self.failsafe is None:
@@ -548,11 +598,19 @@ class AgentRuntime:
     # -- safety --------------------------------------------------------------------------
 
     def _mcs_lost(self) -> None:
+        """Queue mcs_lost; the machine phase gives the behaviour the first chance at it."""
+        if self._mcs_lost_raised:
+            return
+        self._mcs_lost_raised = True
         self._events.append("mcs_lost")
+        self.logbook.mission.error("every station is silent: mcs_lost")
+
+    def _apply_failsafe(self) -> None:
+        """The declared mcs_lost failsafe, when the behaviour does not handle the event."""
         action = (
             self.config.failsafe.get("mcs_lost", "hold") if self.config.is_vehicle else "continue"
         )
-        self.logbook.mission.error("every station is silent: mcs_lost, failsafe %s", action)
+        self.logbook.mission.error("failsafe %s", action)
         if action == "continue" or self.failsafe is not None:
             return
         mode = {
@@ -581,9 +639,13 @@ class AgentRuntime:
         terminal = mode or self.config.terminal_mode
         if self.config.is_vehicle and terminal is not None and terminal in self.config.modes:
             self._commands.append(SetMode(terminal, int(self.config.modes[terminal])))
+        self.terminated = True
+        # A last heartbeat tells every peer (and the station's view) this agent is done.
+        last = self._telemetry_message("heartbeat")
+        if last is not None:
+            self._send([last], "", now_s)
         self._commands.append(CloseInterfaces())
         self.logbook.mission.warning("terminated%s", f"; vehicle to {terminal}" if terminal else "")
-        self.terminated = True
         self.logbook.close()
 
     # -- machine callbacks ---------------------------------------------------------------
@@ -628,12 +690,17 @@ class AgentRuntime:
             return vehicle.ground_speed_m_s if vehicle is not None else None
         return None
 
+    @property
+    def autopilot_lost(self) -> bool:
+        """True while the autopilot is silent past its timeout (commands are held back)."""
+        return self._autopilot_lost
+
     def _on_change(self, change: StateChange) -> None:
         self.logbook.mission.info(
             "%s: %s -> %s (active: %s)",
             change.event,
             change.source or "(start)",
-            change.target,
+            change.target or "(behavior)",
             ", ".join(change.active),
         )
         if self._stations and self.machine is not None:
@@ -645,11 +712,17 @@ class AgentRuntime:
                     change.event,
                 )
             )
+        for listener in self.state_listeners:
+            listener(change)
 
     # -- output --------------------------------------------------------------------------
 
     def _drain(self) -> list[Command]:
         commands, self._commands = self._commands, []
+        if self._autopilot_lost and not self.terminated:
+            for command in commands:
+                if isinstance(command, SetMode | Goto):
+                    self._withheld[type(command)] = command
         if self._autopilot_lost or (self.terminated and not self._closing(commands)):
             commands = [c for c in commands if not isinstance(c, VEHICLE_COMMANDS)]
         return commands
