@@ -208,6 +208,26 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_dry_run(args: argparse.Namespace) -> int:
+    """Simulate the mission against a simulated fleet and evaluate its checks."""
+    from clark_engine.sim.dryrun import run_dry_run
+
+    if args.realtime:
+        raise UsageError(
+            "--realtime is not built yet: dry runs run on a virtual clock only "
+            "(see docs/dry-run.md)"
+        )
+    outcome = run_dry_run(
+        Path(args.mission),
+        seed=args.seed,
+        until_s=args.until,
+        report=Path(args.report) if args.report else None,
+        speed=args.speed,
+        faults=args.fault or (),
+    )
+    return outcome.exit_code
+
+
 def _period_s(text: str) -> float:
     """A positive, finite number of seconds; anything else is a usage error (exit 2)."""
     try:
@@ -261,6 +281,44 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--format", choices=("tree", "mermaid", "both"), default="both")
     p.set_defaults(func=cmd_explain)
+
+    p = sub.add_parser(
+        "dry-run", help="run the mission against a simulated fleet and evaluate its checks"
+    )
+    p.add_argument("mission", metavar="MISSION")
+    p.add_argument("--seed", type=int, help="random seed (the mission's sim.seed by default)")
+    p.add_argument(
+        "--until",
+        type=_period_s,
+        metavar="SECONDS",
+        help="simulated seconds to run (the mission's sim.duration_s by default)",
+    )
+    p.add_argument("--report", metavar="DIR", help="write logs, CSV, plots and summary.md here")
+    p.add_argument(
+        "--speed",
+        type=_period_s,
+        metavar="X",
+        help="pace the run at X simulated seconds per second (as fast as possible by default)",
+    )
+    p.add_argument(
+        "--fault",
+        action="append",
+        metavar="FAULT",
+        help="inject a fault (repeatable): kill:AGENT@T, link_drop:A,B@T1-T2, "
+        "station_silent@T1-T2, autopilot_disconnect:AGENT@T1-T2, corrupt:SHARE@T1-T2",
+    )
+    p.add_argument(
+        "--realtime",
+        action="store_true",
+        help="run at wall-clock speed with MAVLink ports for a ground station",
+    )
+    p.add_argument(
+        "--mavlink-port",
+        type=int,
+        metavar="BASE",
+        help="with --realtime: vehicle k's autopilot on UDP port BASE+k",
+    )
+    p.set_defaults(func=cmd_dry_run)
 
     p = sub.add_parser("keygen", help="write a new ClarkLink key file for mission.key_file")
     p.add_argument("path", metavar="PATH", help="where to write the key (must not exist)")

@@ -1,0 +1,1085 @@
+"""The autopilot adapter: the only place in the engine that knows MAVLink.
+
+:class:`AutopilotAdapter` turns the bytes an ArduPilot autopilot sends into the
+runtime's typed events (:class:`~clark_engine.runtime.events.VehicleState`,
+:class:`~clark_engine.runtime.events.AutopilotHeartbeat`,
+:class:`~clark_engine.runtime.events.RcChannels`, and the few events defined
+here), and the runtime's typed commands into the bytes ArduPilot obeys. It is
+the thesis's autopilot interface (requirements 4.3.1-4.3.6 and 7.1.1-7.1.5)
+without DroneKit, and it is pure: it owns no socket, no thread and no clock.
+The shell that owns the link hands it bytes and the time they arrived, and
+sends what it returns; the dry run drives the same adapter through an
+in-memory pipe to :class:`~clark_engine.sim.autopilot.SimAutopilot`, so the
+flight code path is the tested code path.
+
+Lifecycle, for a shell::
+
+    adapter = AutopilotAdapter(AutopilotSettings.from_config(config))
+    transport.send(adapter.start(now_s))            # heartbeat, stream requests, version request
+    ...every loop...
+    for event in adapter.receive(transport.receive(), now_s): runtime.deliver(event, now_s)
+    transport.send(adapter.command(command, now_s))  # for each command the runtime emits
+    transport.send(adapter.poll(now_s))              # heartbeat, override refresh, retries
+    ...on terminate...
+    transport.send(adapter.close(now_s)); transport.close()
+
+Decisions a reader would otherwise have to reverse-engineer:
+
+- One MAVLink 2 ``ardupilotmega`` codec object per adapter (pymavlink's
+  generated dialect module, never ``mavutil``'s process-wide dialect switch),
+  so two adapters in one process share nothing. MAVLink 1 frames still parse.
+- Only messages from the autopilot's own system and component id are used;
+  everything else on the link (a gimbal, a second vehicle behind a router, a
+  ground station's heartbeat) is counted and ignored.
+- Altitudes are relative to home, both ways: ``VehicleState.alt_m`` is
+  GLOBAL_POSITION_INT's ``relative_alt`` and a Goto is sent in the
+  ``GLOBAL_RELATIVE_ALT_INT`` frame. The engine's convention is that home is the
+  mission origin, so no origin altitude is needed and no AMSL datum can disagree.
+- Everything the autopilot must acknowledge (COMMAND_LONG / COMMAND_INT,
+  PARAM_SET, PARAM_REQUEST_READ) is tracked: resent by :meth:`poll` after
+  :data:`ACK_TIMEOUT_S` (COMMAND_LONG with the ``confirmation`` field counting
+  up, as the MAVLink command protocol asks) and, if still unanswered after
+  :data:`COMMAND_ATTEMPTS` sends or refused outright, reported as
+  :class:`CommandRefused`. MAVLink acknowledges a command by its number only,
+  so two outstanding commands with the same number are matched first in,
+  first out, as ArduPilot answers them.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, Final
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from clark_engine.runtime.commands import Command, Goto, RcOverride, SetMode, SetServo
+from clark_engine.runtime.config import AgentConfig, ConfigError
+from clark_engine.runtime.events import AutopilotHeartbeat, RcChannels, VehicleState
+
+GPS_EPOCH_UNIX_MS: Final = 315_964_800_000
+"""The GPS epoch, 1980-01-06 00:00:00 UTC, in milliseconds of Unix time."""
+
+GPS_LEAP_SECONDS: Final = 18
+"""GPS time minus UTC, in seconds: constant since 2017-01-01 (no leap second has been
+announced since, and the IERS plans none before their abolition)."""
+
+GCS_HEARTBEAT_PERIOD_S: Final = 1.0
+"""Our own HEARTBEAT period; ArduPilot's GCS failsafe (FS_GCS_ENABLE) expects 1 Hz."""
+
+OVERRIDE_REFRESH_S: Final = 0.5
+"""Active RC overrides are resent this often, well inside ArduPilot's RC_OVERRIDE_TIME (3 s)."""
+
+ACK_TIMEOUT_S: Final = 1.0
+"""How long an acknowledged request waits for its answer before it is resent."""
+
+COMMAND_ATTEMPTS: Final = 3
+"""Sends of one command (the first and two retries) before it is reported unanswered."""
+
+STREAM_SILENCE_S: Final = 3.0
+"""No GLOBAL_POSITION_INT for this long while heartbeats arrive: ask for the streams again
+(the autopilot rebooted, or another ground station turned them off)."""
+
+MOVING_SPEED_M_S: Final = 0.5
+"""Below this ground speed the course over ground is noise, and the heading is the yaw."""
+
+STREAMED_MESSAGES: Final = (
+    "GLOBAL_POSITION_INT",
+    "ATTITUDE",
+    "VFR_HUD",
+    "SYSTEM_TIME",
+    "RC_CHANNELS",
+    "SERVO_OUTPUT_RAW",
+    "SYS_STATUS",
+    "GPS_RAW_INT",
+)
+"""Messages :meth:`AutopilotAdapter.start` asks for at the profile's ``stream_rate_hz``."""
+
+RC_OVERRIDE_CHANNELS: Final = 18
+"""RC_CHANNELS_OVERRIDE carries channels 1-18."""
+
+_UINT16_MAX: Final = 65535
+_RC_IGNORE: Final = _UINT16_MAX  # "no change" for every channel
+_RC_RELEASE_LOW: Final = 0  # channels 1-8: give the channel back to the pilot
+_RC_RELEASE_HIGH: Final = _UINT16_MAX - 1  # channels 9-18: 0 means "ignore" there
+_FORCE_ARM_MAGIC: Final = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2: skip pre-arm checks
+
+POSITION_ONLY_TYPE_MASK: Final = (
+    mavlink2.POSITION_TARGET_TYPEMASK_VX_IGNORE
+    | mavlink2.POSITION_TARGET_TYPEMASK_VY_IGNORE
+    | mavlink2.POSITION_TARGET_TYPEMASK_VZ_IGNORE
+    | mavlink2.POSITION_TARGET_TYPEMASK_AX_IGNORE
+    | mavlink2.POSITION_TARGET_TYPEMASK_AY_IGNORE
+    | mavlink2.POSITION_TARGET_TYPEMASK_AZ_IGNORE
+    | mavlink2.POSITION_TARGET_TYPEMASK_YAW_IGNORE
+    | mavlink2.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
+)
+"""SET_POSITION_TARGET_GLOBAL_INT type_mask using lat, lon and alt only (0x0DF8)."""
+
+
+FIRMWARE_VEHICLE_TYPES: Final[Mapping[str, frozenset[int]]] = {
+    # Numbers, not names: MAVLink renamed the VTOL types 19-25 between releases.
+    "arduplane": frozenset({1, *range(19, 26)}),  # FIXED_WING; QuadPlane VTOL types
+    # QUADROTOR, COAXIAL, HELICOPTER, HEXAROTOR, OCTOROTOR, TRICOPTER, DODECAROTOR, DECAROTOR
+    "arducopter": frozenset({2, 3, 4, 13, 14, 15, 29, 35}),
+    "ardurover": frozenset({10, 11}),  # GROUND_ROVER, SURFACE_BOAT
+}
+"""HEARTBEAT vehicle types each ArduPilot firmware reports; a mismatch with the profile
+means the mode numbers would be read in the wrong table."""
+
+
+def gps_time_ms_from_unix_us(time_unix_usec: int) -> int:
+    """GPS time in milliseconds since the GPS epoch, from Unix time in microseconds.
+
+    GPS time does not count leap seconds, so it runs :data:`GPS_LEAP_SECONDS` ahead
+    of UTC. Integer arithmetic, so the result is exact to the millisecond (truncated).
+    """
+    return time_unix_usec // 1000 - GPS_EPOCH_UNIX_MS + GPS_LEAP_SECONDS * 1000
+
+
+# -- events this adapter adds to the runtime's ------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class ParamValue:
+    """An autopilot parameter's value (PARAM_VALUE), answering a read or echoing a set.
+
+    Attributes:
+        name: Parameter name (``RC_OVERRIDE_TIME``).
+        value: Its value; integer parameters arrive as their value in a float.
+        param_type: MAVLink's MAV_PARAM_TYPE of the parameter.
+        index: Its index in the autopilot's table.
+        count: Number of parameters the autopilot has.
+    """
+
+    name: str
+    value: float
+    param_type: int
+    index: int
+    count: int
+
+
+@dataclass(frozen=True, slots=True)
+class CommandRefused:
+    """The autopilot refused a request, or never answered it.
+
+    Attributes:
+        command: What was sent, in MAVLink's words (``MAV_CMD_DO_SET_MODE``, ``PARAM_SET``).
+        result: ArduPilot's answer without the prefix (``FAILED``, ``DENIED``,
+            ``UNSUPPORTED``, ``TEMPORARILY_REJECTED``), or ``NO_ANSWER`` after
+            :data:`COMMAND_ATTEMPTS` sends without one.
+        request: What the engine asked for, in words (``SetMode GUIDED (15)``).
+    """
+
+    command: str
+    result: str
+    request: str
+
+
+@dataclass(frozen=True, slots=True)
+class AutopilotMessage:
+    """A message asked for with :meth:`AutopilotAdapter.request_message` (thesis 7.1.5).
+
+    Attributes:
+        name: MAVLink message name (``HOME_POSITION``).
+        fields: Its fields as plain Python values, by MAVLink field name.
+    """
+
+    name: str
+    fields: Mapping[str, Any]
+
+
+AutopilotEvent = (
+    VehicleState | AutopilotHeartbeat | RcChannels | ParamValue | CommandRefused | AutopilotMessage
+)
+"""Everything :meth:`AutopilotAdapter.receive` returns."""
+
+
+# -- configuration ----------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class AutopilotSettings:
+    """What the adapter needs to know about one autopilot, from the agent's profile.
+
+    Attributes:
+        modes: Mode name -> ArduPilot custom_mode number, from the autopilot profile.
+        firmware: ``arduplane``, ``arducopter`` or ``ardurover``; decides how a Goto is
+            sent and which HEARTBEAT vehicle types are accepted. None: any ArduPilot.
+        system_id: The autopilot's MAVLink system id (SYSID_THISMAV).
+        component_id: The autopilot's component id (1, MAV_COMP_ID_AUTOPILOT1).
+        source_system_id: Ours. ArduPilot takes RC overrides only from SYSID_MYGCS (255).
+        source_component_id: Ours (191, MAV_COMP_ID_ONBOARD_COMPUTER).
+        stream_rate_hz: Rate asked for each of :data:`STREAMED_MESSAGES`.
+        heartbeat_timeout_s: Autopilot silence after which :meth:`AutopilotAdapter.lost`.
+    """
+
+    modes: Mapping[str, int]
+    firmware: str | None = None
+    system_id: int = 1
+    component_id: int = 1
+    source_system_id: int = 255
+    source_component_id: int = 191
+    stream_rate_hz: float = 10.0
+    heartbeat_timeout_s: float = 3.0
+
+    def __post_init__(self) -> None:
+        for name in ("system_id", "source_system_id"):
+            if not 1 <= getattr(self, name) <= 255:
+                raise ValueError(f"{name} must be 1..255, not {getattr(self, name)}")
+        for name in ("component_id", "source_component_id"):
+            if not 0 <= getattr(self, name) <= 255:
+                raise ValueError(f"{name} must be 0..255, not {getattr(self, name)}")
+        if not self.stream_rate_hz > 0:
+            raise ValueError(f"stream_rate_hz must be positive, not {self.stream_rate_hz}")
+        if not self.heartbeat_timeout_s > 0:
+            raise ValueError(
+                f"heartbeat_timeout_s must be positive, not {self.heartbeat_timeout_s}"
+            )
+        if self.firmware is not None and self.firmware not in FIRMWARE_VEHICLE_TYPES:
+            raise ValueError(f"unknown firmware {self.firmware!r}")
+
+    @classmethod
+    def from_profile(cls, autopilot: Mapping[str, Any]) -> AutopilotSettings:
+        """Settings from a resolved autopilot profile (``agent.hardware.autopilot``)."""
+        mav = autopilot.get("mavlink") or {}
+        return cls(
+            modes=dict(autopilot.get("modes") or {}),
+            firmware=autopilot.get("firmware"),
+            system_id=int(mav.get("system_id", 1)),
+            component_id=int(mav.get("component_id", 1)),
+            source_system_id=int(mav.get("source_system_id", 255)),
+            source_component_id=int(mav.get("source_component_id", 191)),
+            stream_rate_hz=float(autopilot.get("stream_rate_hz", 10.0)),
+            heartbeat_timeout_s=float(autopilot.get("heartbeat_timeout_s", 3.0)),
+        )
+
+    @classmethod
+    def from_config(cls, config: AgentConfig) -> AutopilotSettings:
+        """Settings from a compiled agent config.
+
+        Raises:
+            ConfigError: The agent has no autopilot (a station).
+        """
+        autopilot = (config.raw.get("agent", {}).get("hardware") or {}).get("autopilot")
+        if not autopilot:
+            raise ConfigError(
+                f"agent {config.agent} has no autopilot in its hardware profile; "
+                "only vehicles connect to one"
+            )
+        return cls.from_profile(autopilot)
+
+
+# -- internals ---------------------------------------------------------------------------
+
+
+class _Outbox:
+    """The file pymavlink writes encoded frames to; the adapter hands them back as bytes."""
+
+    def __init__(self) -> None:
+        self._data = bytearray()
+
+    def write(self, data: bytes) -> None:
+        self._data += data
+
+    def take(self) -> bytes:
+        data, self._data = bytes(self._data), bytearray()
+        return data
+
+
+@dataclass(slots=True)
+class _Request:
+    """One request waiting for the autopilot's answer.
+
+    ``key`` is the MAV_CMD number for commands (answered by COMMAND_ACK) and the
+    parameter name for parameter requests (answered by PARAM_VALUE). ``build``
+    makes the message for a given attempt (1 first). ``setup`` marks the stream
+    requests, which are retried for as long as the autopilot is heard.
+    """
+
+    command: str
+    key: int | str
+    request: str
+    build: Callable[[int], Any]
+    setup: bool = False
+    attempts: int = 0
+    due_s: float = 0.0
+
+
+def _result_name(result: int) -> str:
+    entry = mavlink2.enums["MAV_RESULT"].get(result)
+    name = entry.name if entry is not None else f"MAV_RESULT_{result}"
+    return str(name).removeprefix("MAV_RESULT_")
+
+
+def _command_name(command: int) -> str:
+    entry = mavlink2.enums["MAV_CMD"].get(command)
+    return str(entry.name) if entry is not None else f"MAV_CMD_{command}"
+
+
+def _message_id(name: str) -> int:
+    msg_id = getattr(mavlink2, f"MAVLINK_MSG_ID_{name}", None)
+    if not isinstance(msg_id, int):
+        raise ValueError(f"{name!r} is not a MAVLink message of the ardupilotmega dialect")
+    return msg_id
+
+
+def _param_id(name: str) -> bytes:
+    raw = name.encode("ascii", errors="strict") if name.isascii() else b""
+    if not raw or len(raw) > 16:
+        raise ValueError(f"parameter name {name!r} must be 1-16 ASCII characters")
+    return raw
+
+
+class AutopilotAdapter:
+    """MAVLink bytes <-> typed events and commands for one ArduPilot autopilot.
+
+    Thesis requirements, and where each is met: connect (4.3.1) - :meth:`start`;
+    state (4.3.2, 7.1.2) - :class:`VehicleState` from :meth:`receive`; command
+    (4.3.3, 7.1.1) - :meth:`command`, :meth:`arm`; verify (4.3.4) - :attr:`verified`
+    and :meth:`lost`; GPS time (4.3.5, 7.1.3) - ``VehicleState.gps_time_ms``;
+    close (4.3.6) - :meth:`close` (the shell then closes the transport); set
+    parameters (7.1.4) - :meth:`param_set`; other state (7.1.5) -
+    :meth:`request_message` and :meth:`latest`.
+
+    Every method that returns bytes returns complete MAVLink frames, possibly
+    several, possibly none (``b""``); send them in order.
+
+    Args:
+        settings: The autopilot's ids, modes and rates.
+        logger: Where refusals, mismatches and garbage are logged (the agent's
+            interface log); this module's logger by default.
+    """
+
+    def __init__(self, settings: AutopilotSettings, *, logger: logging.Logger | None = None):
+        self.settings = settings
+        self._log = logger or logging.getLogger(__name__)
+        self._outbox = _Outbox()
+        self._mav = mavlink2.MAVLink(
+            self._outbox,
+            srcSystem=settings.source_system_id,
+            srcComponent=settings.source_component_id,
+        )
+        self._parser = self._new_parser()
+        self._mode_names: dict[int, str] = {}
+        for name, number in settings.modes.items():
+            self._mode_names.setdefault(int(number), name)
+        self._interval_us = max(1, round(1e6 / settings.stream_rate_hz))
+
+        self._start_s: float | None = None
+        self._next_heartbeat_s = 0.0
+        self._requests: list[_Request] = []
+        self._late_events: list[AutopilotEvent] = []
+        self._overrides: dict[int, int] = {}
+        self._override_sent_s = -math.inf
+        self._speed_sent: float | None = None
+        self._wanted: set[str] = set()
+        self._latest: dict[str, Any] = {}
+        self._param_types: dict[str, int] = {}
+
+        # What the autopilot told us.
+        self._heartbeat: AutopilotHeartbeat | None = None
+        self._heartbeat_s: float | None = None
+        self._problem: str | None = None
+        self._version: int | None = None
+        self._next_verify_s = 0.0
+        self._verify_attempts = 0
+        self._attitude: Any = None
+        self._vfr_hud: Any = None
+        self._gps_at_boot_ms: tuple[int, int] | None = None  # (GPS ms, autopilot boot ms)
+        self._position_s: float | None = None
+        self._last_boot_ms: int | None = None
+        self._setup_s = -math.inf
+        self._setup_due = False
+        self._legacy_streams_due = False
+        self._state: VehicleState | None = None
+
+        self.bad_frames = 0
+        """Frames that failed their checksum or were not MAVLink (garbage on the link)."""
+        self.foreign_messages = 0
+        """Messages from other systems or components, ignored."""
+
+    # -- status -------------------------------------------------------------------------
+
+    @property
+    def verified(self) -> bool:
+        """The autopilot is the one configured and it works (thesis 4.3.4).
+
+        True once a HEARTBEAT from the configured system and component has been
+        heard, of the firmware's vehicle type, and AUTOPILOT_VERSION has answered
+        our request (so the autopilot processes commands, not only streams). When
+        the autopilot is heard again after :meth:`lost`, or has rebooted, it is
+        False until AUTOPILOT_VERSION answers anew; during the silence itself
+        :meth:`lost` is the answer.
+        """
+        return self._heartbeat is not None and self._version is not None and self._problem is None
+
+    @property
+    def problem(self) -> str | None:
+        """Why the autopilot heard is not the one configured, if it is not."""
+        return self._problem
+
+    @property
+    def flight_sw_version(self) -> str | None:
+        """ArduPilot's version (``4.5.7``) from AUTOPILOT_VERSION, None before it arrives."""
+        if self._version is None:
+            return None
+        v = self._version
+        return f"{(v >> 24) & 0xFF}.{(v >> 16) & 0xFF}.{(v >> 8) & 0xFF}"
+
+    @property
+    def state(self) -> VehicleState | None:
+        """The latest VehicleState, None before the first one."""
+        return self._state
+
+    @property
+    def active_overrides(self) -> Mapping[int, int]:
+        """RC channels we override now (channel -> pulse width), kept alive by :meth:`poll`."""
+        return dict(self._overrides)
+
+    def lost(self, now_s: float) -> bool:
+        """No autopilot HEARTBEAT for longer than ``heartbeat_timeout_s``.
+
+        Counted from :meth:`start` until the first heartbeat, so an autopilot that
+        never answers is lost too; False before :meth:`start`.
+        """
+        since = self._heartbeat_s if self._heartbeat_s is not None else self._start_s
+        return since is not None and now_s - since > self.settings.heartbeat_timeout_s
+
+    def latest(self, name: str) -> Mapping[str, Any] | None:
+        """The last message of this name from the autopilot, as fields (thesis 7.1.5).
+
+        Any message the autopilot sends is kept, streamed or not (``SYS_STATUS``,
+        ``GPS_RAW_INT``, ``SERVO_OUTPUT_RAW``...); None if none has arrived.
+        """
+        msg = self._latest.get(name)
+        return None if msg is None else self._fields(msg)
+
+    # -- connection ------------------------------------------------------------------------
+
+    def start(self, now_s: float) -> bytes:
+        """Open the conversation (thesis 4.3.1): what to send first.
+
+        Our HEARTBEAT; SET_MESSAGE_INTERVAL for each of :data:`STREAMED_MESSAGES`
+        at ``stream_rate_hz``; and MAV_CMD_REQUEST_MESSAGE for AUTOPILOT_VERSION,
+        whose answer completes :attr:`verified`. Whatever is lost (an autopilot
+        still booting, a UDP link with no peer yet) :meth:`poll` sends again.
+        """
+        self._start_s = now_s
+        self._heartbeat_out(now_s)
+        self._queue_setup(now_s)
+        self._verify(now_s)
+        self._send_due(now_s)
+        return self._outbox.take()
+
+    def poll(self, now_s: float) -> bytes:
+        """Periodic duties; call every loop (at least every 0.5 s).
+
+        - Our HEARTBEAT at 1 Hz (ArduPilot's GCS failsafe watches it).
+        - Active RC overrides resent every :data:`OVERRIDE_REFRESH_S`, so that
+          ArduPilot's RC_OVERRIDE_TIME (3 s) never hands the channels back.
+        - Unanswered requests resent after :data:`ACK_TIMEOUT_S`; commands given
+          up after :data:`COMMAND_ATTEMPTS` sends (reported by the next
+          :meth:`receive` as :class:`CommandRefused` ``NO_ANSWER``); stream
+          requests retried for as long as the autopilot is heard.
+        - The AUTOPILOT_VERSION request repeated every second until answered.
+        - The streams asked for again after a reconnection or a reboot, or when no
+          GLOBAL_POSITION_INT came for :data:`STREAM_SILENCE_S` while heartbeats do.
+        """
+        if self._start_s is None:
+            return self.start(now_s)
+        if now_s >= self._next_heartbeat_s:
+            self._heartbeat_out(now_s)
+        if self._overrides and now_s - self._override_sent_s >= OVERRIDE_REFRESH_S:
+            self._override_out(dict(self._overrides), now_s)
+        heard = self._heartbeat_s is not None and not self.lost(now_s)
+        if heard:
+            last_position_s = -math.inf if self._position_s is None else self._position_s
+            if self._setup_due:
+                self._queue_setup(now_s)
+            elif now_s - max(self._setup_s, last_position_s) >= STREAM_SILENCE_S:
+                self._log.info("autopilot sends no position; asking for the streams again")
+                self._queue_setup(now_s)
+            if self._legacy_streams_due:
+                self._legacy_streams_due = False
+                self._mav.send(
+                    self._mav.request_data_stream_encode(
+                        self.settings.system_id,
+                        self.settings.component_id,
+                        mavlink2.MAV_DATA_STREAM_ALL,
+                        max(1, round(self.settings.stream_rate_hz)),
+                        1,
+                    )
+                )
+        if self._version is None and now_s >= self._next_verify_s:
+            self._verify(now_s)
+        self._send_due(now_s, heard=heard)
+        return self._outbox.take()
+
+    def close(self, now_s: float) -> bytes:
+        """Leave the autopilot as the pilot expects it (thesis 4.3.6); send, then close.
+
+        Releases every active RC override at once (rather than letting ArduPilot
+        time them out 3 s later) and forgets pending requests. Closing the
+        transport is the shell's part.
+        """
+        if self._overrides:
+            self._override_out(dict.fromkeys(self._overrides, 0), now_s)
+            self._overrides.clear()
+        self._requests.clear()
+        return self._outbox.take()
+
+    # -- commands ----------------------------------------------------------------------------
+
+    def command(self, cmd: Command, now_s: float) -> bytes:
+        """Encode one runtime command (thesis 4.3.3, 7.1.1).
+
+        - :class:`Goto`: for ArduCopter and ArduRover (and an unknown firmware),
+          SET_POSITION_TARGET_GLOBAL_INT in ``GLOBAL_RELATIVE_ALT_INT`` with
+          position only (:data:`POSITION_ONLY_TYPE_MASK`; not acknowledged by
+          MAVLink). ArduPlane reads only the altitude from that message, so for
+          ArduPlane it is COMMAND_INT MAV_CMD_DO_REPOSITION in the same frame. Both
+          act only in the guided mode, as the runtime's primitives expect. A
+          ``speed_m_s`` is sent first as MAV_CMD_DO_CHANGE_SPEED (ground speed;
+          airspeed for ArduPlane, whose ground-speed type sets only a minimum),
+          and only when it differs from the last one sent.
+        - :class:`SetMode`: COMMAND_LONG MAV_CMD_DO_SET_MODE, base mode
+          MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, the profile's number for the name.
+        - :class:`SetServo`: COMMAND_LONG MAV_CMD_DO_SET_SERVO.
+        - :class:`RcOverride`: RC_CHANNELS_OVERRIDE with every overridden channel
+          at its width, the channels this command releases (width 0) at the
+          MAVLink release value (0 for channels 1-8, UINT16_MAX-1 for 9-18), and
+          every other channel at "ignore" (UINT16_MAX). Overrides stay active, and
+          :meth:`poll` keeps them alive, until released.
+        - Anything else (radio, payload, CloseInterfaces) is not the autopilot's:
+          ``b""``.
+        """
+        if isinstance(cmd, Goto):
+            self._goto(cmd, now_s)
+        elif isinstance(cmd, SetMode):
+            number = int(self.settings.modes.get(cmd.mode, cmd.custom_mode))
+            if cmd.mode in self.settings.modes and number != cmd.custom_mode:
+                self._log.warning(
+                    "SetMode %s: the profile says %d, the command %d; sending %d",
+                    cmd.mode,
+                    number,
+                    cmd.custom_mode,
+                    number,
+                )
+            self._command_long(
+                mavlink2.MAV_CMD_DO_SET_MODE,
+                f"SetMode {cmd.mode} ({number})",
+                now_s,
+                mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                number,
+            )
+        elif isinstance(cmd, SetServo):
+            self._command_long(
+                mavlink2.MAV_CMD_DO_SET_SERVO,
+                f"SetServo {cmd.servo} {cmd.pwm_us} us",
+                now_s,
+                cmd.servo,
+                cmd.pwm_us,
+            )
+        elif isinstance(cmd, RcOverride):
+            self._rc_override(cmd, now_s)
+        return self._outbox.take()
+
+    def arm(self, armed: bool, now_s: float, *, force: bool = False) -> bytes:
+        """Arm or disarm (MAV_CMD_COMPONENT_ARM_DISARM); ``force`` skips pre-arm checks."""
+        self._command_long(
+            mavlink2.MAV_CMD_COMPONENT_ARM_DISARM,
+            ("arm" if armed else "disarm") + (" (forced)" if force else ""),
+            now_s,
+            1 if armed else 0,
+            _FORCE_ARM_MAGIC if force else 0,
+        )
+        return self._outbox.take()
+
+    def param_request(self, name: str, now_s: float) -> bytes:
+        """Ask for one parameter (PARAM_REQUEST_READ); the answer is a :class:`ParamValue`.
+
+        Raises:
+            ValueError: The name is not 1-16 ASCII characters.
+        """
+        param_id = _param_id(name)
+        s = self.settings
+        self._track(
+            _Request(
+                "PARAM_REQUEST_READ",
+                name,
+                f"read {name}",
+                lambda _attempt: self._mav.param_request_read_encode(
+                    s.system_id, s.component_id, param_id, -1
+                ),
+            ),
+            now_s,
+        )
+        return self._outbox.take()
+
+    def param_set(self, name: str, value: float, now_s: float) -> bytes:
+        """Set one parameter (PARAM_SET, thesis 7.1.4); the echo is a :class:`ParamValue`.
+
+        The value travels as a float holding the number (ArduPilot's encoding, for
+        integer parameters too). The type is the one the autopilot last reported
+        for the name, else REAL32; ArduPilot converts to the parameter's own type.
+
+        Raises:
+            ValueError: The name is not 1-16 ASCII characters.
+        """
+        param_id = _param_id(name)
+        known = self._param_types.get(name, mavlink2.MAV_PARAM_TYPE_REAL32)
+        s = self.settings
+        self._track(
+            _Request(
+                "PARAM_SET",
+                name,
+                f"set {name} = {value:g}",
+                lambda _attempt: self._mav.param_set_encode(
+                    s.system_id, s.component_id, param_id, float(value), known
+                ),
+            ),
+            now_s,
+        )
+        return self._outbox.take()
+
+    def request_message(self, name: str, now_s: float) -> bytes:
+        """Ask for one message once (MAV_CMD_REQUEST_MESSAGE, thesis 7.1.5).
+
+        When it arrives, :meth:`receive` returns it as an :class:`AutopilotMessage`
+        (once); :meth:`latest` keeps it too.
+
+        Raises:
+            ValueError: No message of that name in the dialect.
+        """
+        msg_id = _message_id(name)
+        self._wanted.add(name)
+        self._command_long(mavlink2.MAV_CMD_REQUEST_MESSAGE, f"request {name}", now_s, msg_id)
+        return self._outbox.take()
+
+    # -- bytes in ---------------------------------------------------------------------------
+
+    def receive(self, data: bytes, now_s: float) -> list[AutopilotEvent]:
+        """Parse bytes from the autopilot link, in any chunking; never raises on their content.
+
+        Returns the events they carry, in arrival order, after any the adapter noticed
+        since the last call (commands :meth:`poll` gave up on):
+
+        - HEARTBEAT -> :class:`AutopilotHeartbeat` (mode named through the profile's
+          modes, ``UNKNOWN_<n>`` for a number it lacks; armed from base_mode).
+        - GLOBAL_POSITION_INT -> :class:`VehicleState`, merged with the latest
+          ATTITUDE (roll, pitch, yaw), VFR_HUD (ground speed, climb rate) and
+          SYSTEM_TIME (GPS time); not before a HEARTBEAT and an ATTITUDE have
+          arrived, since mode and attitude have no honest default.
+        - RC_CHANNELS -> :class:`RcChannels`, 18 channels, "unused" as 0.
+        - PARAM_VALUE -> :class:`ParamValue`; COMMAND_ACK refusals -> :class:`CommandRefused`;
+          a message asked for by :meth:`request_message` -> :class:`AutopilotMessage`.
+
+        ``gps_time_ms`` is SYSTEM_TIME's Unix time converted to GPS time, carried
+        forward to the position's own timestamp with the autopilot's boot clock
+        (both messages carry ``time_boot_ms``), so it is exact for the sample
+        however often SYSTEM_TIME comes; None until a SYSTEM_TIME with a non-zero
+        time (ArduPilot sends 0 before its GPS has time).
+        """
+        events = self._late_events
+        self._late_events = []
+        try:
+            messages = self._parser.parse_buffer(data) or []
+        except Exception:  # a link is untrusted input; a parser bug must not stop the flight
+            self._log.exception("MAVLink parser failed; dropping its buffer")
+            self.bad_frames += 1
+            self._parser = self._new_parser()
+            messages = []
+        for msg in messages:
+            self._handle(msg, now_s, events)
+        return events
+
+    # -- internals: receiving ----------------------------------------------------------------
+
+    def _new_parser(self) -> Any:
+        parser = mavlink2.MAVLink(None, self.settings.source_system_id, 0)
+        parser.robust_parsing = True  # garbage becomes BAD_DATA messages, never exceptions
+        return parser
+
+    def _handle(self, msg: Any, now_s: float, events: list[AutopilotEvent]) -> None:
+        kind = msg.get_type()
+        if kind == "BAD_DATA":
+            self.bad_frames += 1
+            return
+        if (msg.get_srcSystem(), msg.get_srcComponent()) != (
+            self.settings.system_id,
+            self.settings.component_id,
+        ):
+            self.foreign_messages += 1
+            return
+        self._latest[kind] = msg
+        if kind == "HEARTBEAT":
+            beat = self._on_heartbeat(msg, now_s)
+            if beat is not None:
+                events.append(beat)
+        elif kind == "GLOBAL_POSITION_INT":
+            self._check_boot(msg.time_boot_ms)
+            state = self._on_position(msg, now_s)
+            if state is not None:
+                events.append(state)
+        elif kind == "ATTITUDE":
+            self._attitude = msg
+        elif kind == "VFR_HUD":
+            self._vfr_hud = msg
+        elif kind == "SYSTEM_TIME":
+            self._check_boot(msg.time_boot_ms)
+            self._gps_at_boot_ms = (
+                (gps_time_ms_from_unix_us(msg.time_unix_usec), msg.time_boot_ms)
+                if msg.time_unix_usec
+                else None
+            )
+        elif kind == "RC_CHANNELS":
+            events.append(RcChannels(self._rc_values(msg)))
+        elif kind == "PARAM_VALUE":
+            events.append(self._on_param(msg))
+        elif kind == "COMMAND_ACK":
+            self._on_ack(msg, now_s, events)
+        elif kind == "AUTOPILOT_VERSION":
+            first = self._version is None
+            self._version = int(msg.flight_sw_version)
+            if first:
+                self._log.info(
+                    "autopilot %d answers: ArduPilot %s",
+                    self.settings.system_id,
+                    self.flight_sw_version,
+                )
+        if kind in self._wanted:
+            self._wanted.discard(kind)
+            events.append(AutopilotMessage(kind, self._fields(msg)))
+
+    def _on_heartbeat(self, msg: Any, now_s: float) -> AutopilotHeartbeat | None:
+        if msg.autopilot == mavlink2.MAV_AUTOPILOT_INVALID:
+            return None  # not a flight controller's heartbeat (a companion sharing the id)
+        if self._heartbeat_s is not None and now_s - self._heartbeat_s > (
+            self.settings.heartbeat_timeout_s
+        ):
+            self._reconnected(f"heard again after {now_s - self._heartbeat_s:.1f} s")
+        self._heartbeat_s = now_s
+        self._check_identity(msg)
+        custom_mode = int(msg.custom_mode)
+        beat = AutopilotHeartbeat(
+            mode=self._mode_names.get(custom_mode, f"UNKNOWN_{custom_mode}"),
+            custom_mode=custom_mode,
+            armed=bool(msg.base_mode & mavlink2.MAV_MODE_FLAG_SAFETY_ARMED),
+        )
+        self._heartbeat = beat
+        return beat
+
+    def _check_identity(self, msg: Any) -> None:
+        problem = None
+        if msg.autopilot != mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA:
+            problem = f"autopilot type {msg.autopilot} is not ArduPilot (3)"
+        elif self.settings.firmware is not None:
+            allowed = FIRMWARE_VEHICLE_TYPES[self.settings.firmware]
+            if msg.type not in allowed:
+                problem = (
+                    f"vehicle type {msg.type} in HEARTBEAT is not {self.settings.firmware}'s; "
+                    "check the autopilot profile (mode numbers differ between firmwares)"
+                )
+        if problem != self._problem:
+            if problem is not None:
+                self._log.error("autopilot %d: %s", self.settings.system_id, problem)
+            self._problem = problem
+
+    def _check_boot(self, time_boot_ms: int) -> None:
+        # The boot clock running backwards means the autopilot rebooted: its stream
+        # intervals are back to defaults and its SYSTEM_TIME reference is void.
+        if self._last_boot_ms is not None and time_boot_ms + 1000 < self._last_boot_ms:
+            self._reconnected("rebooted")
+        self._last_boot_ms = time_boot_ms
+
+    def _reconnected(self, why: str) -> None:
+        self._log.warning("autopilot %d %s; setting it up again", self.settings.system_id, why)
+        self._version = None
+        self._verify_attempts = 0
+        self._next_verify_s = -math.inf
+        self._setup_due = True  # poll asks for the streams again at once
+        self._gps_at_boot_ms = None
+        self._last_boot_ms = None
+        self._speed_sent = None
+
+    def _on_position(self, msg: Any, now_s: float) -> VehicleState | None:
+        self._position_s = now_s
+        if self._heartbeat is None or self._attitude is None:
+            return None
+        vx_m_s, vy_m_s = msg.vx / 100.0, msg.vy / 100.0
+        speed_m_s = math.hypot(vx_m_s, vy_m_s)
+        yaw_deg = math.degrees(self._attitude.yaw) % 360.0
+        if speed_m_s >= MOVING_SPEED_M_S:
+            heading_deg = math.degrees(math.atan2(vy_m_s, vx_m_s)) % 360.0
+        else:
+            heading_deg = yaw_deg
+        gps_ms: int | None = None
+        if self._gps_at_boot_ms is not None:
+            gps_at, boot_at = self._gps_at_boot_ms
+            gps_ms = gps_at + (msg.time_boot_ms - boot_at)
+        hud = self._vfr_hud
+        state = VehicleState(
+            gps_time_ms=gps_ms,
+            lat_deg=msg.lat / 1e7,
+            lon_deg=msg.lon / 1e7,
+            alt_m=msg.relative_alt / 1000.0,
+            ground_speed_m_s=float(hud.groundspeed) if hud is not None else speed_m_s,
+            climb_rate_m_s=float(hud.climb) if hud is not None else -msg.vz / 100.0,
+            heading_deg=heading_deg,
+            roll_deg=math.degrees(self._attitude.roll),
+            pitch_deg=math.degrees(self._attitude.pitch),
+            yaw_deg=yaw_deg,
+            mode=self._heartbeat.mode,
+            custom_mode=self._heartbeat.custom_mode,
+            armed=self._heartbeat.armed,
+        )
+        self._state = state
+        return state
+
+    @staticmethod
+    def _rc_values(msg: Any) -> tuple[int, ...]:
+        values = (getattr(msg, f"chan{i}_raw") for i in range(1, RC_OVERRIDE_CHANNELS + 1))
+        return tuple(0 if v == _UINT16_MAX else int(v) for v in values)
+
+    def _on_param(self, msg: Any) -> ParamValue:
+        name = str(msg.param_id)
+        self._param_types[name] = int(msg.param_type)
+        self._requests = [
+            r for r in self._requests if not (isinstance(r.key, str) and r.key == name)
+        ]
+        return ParamValue(
+            name=name,
+            value=float(msg.param_value),
+            param_type=int(msg.param_type),
+            index=int(msg.param_index),
+            count=int(msg.param_count),
+        )
+
+    def _on_ack(self, msg: Any, now_s: float, events: list[AutopilotEvent]) -> None:
+        s = self.settings
+        if msg.target_system not in (0, s.source_system_id) or msg.target_component not in (
+            0,
+            s.source_component_id,
+        ):
+            return  # another ground station's answer
+        request = next((r for r in self._requests if r.key == msg.command), None)
+        if request is None:
+            return  # the version probe, or a late duplicate of a retried command
+        if msg.result == mavlink2.MAV_RESULT_IN_PROGRESS:
+            request.due_s = now_s + ACK_TIMEOUT_S  # alive; wait for the final answer
+            return
+        self._requests.remove(request)
+        if msg.result == mavlink2.MAV_RESULT_ACCEPTED:
+            return
+        result = _result_name(msg.result)
+        self._log.warning("autopilot refused %s (%s): %s", request.request, request.command, result)
+        events.append(CommandRefused(request.command, result, request.request))
+        if (
+            request.setup
+            and msg.command == mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL
+            and msg.result == mavlink2.MAV_RESULT_UNSUPPORTED
+        ):
+            self._legacy_streams_due = True  # firmware older than SET_MESSAGE_INTERVAL
+
+    @staticmethod
+    def _fields(msg: Any) -> dict[str, Any]:
+        fields = dict(msg.to_dict())
+        fields.pop("mavpackettype", None)
+        return fields
+
+    # -- internals: sending ------------------------------------------------------------------
+
+    def _heartbeat_out(self, now_s: float) -> None:
+        self._mav.send(
+            self._mav.heartbeat_encode(
+                mavlink2.MAV_TYPE_GCS,
+                mavlink2.MAV_AUTOPILOT_INVALID,
+                0,
+                0,
+                mavlink2.MAV_STATE_ACTIVE,
+            )
+        )
+        # On the period grid, without drift; after a long gap, from now.
+        self._next_heartbeat_s += GCS_HEARTBEAT_PERIOD_S
+        if self._next_heartbeat_s <= now_s:
+            self._next_heartbeat_s = now_s + GCS_HEARTBEAT_PERIOD_S
+
+    def _verify(self, now_s: float) -> None:
+        # Untracked on purpose: it repeats until AUTOPILOT_VERSION arrives. Every other
+        # attempt uses the older MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, for firmware
+        # that predates MAV_CMD_REQUEST_MESSAGE.
+        s = self.settings
+        if self._verify_attempts % 2 == 0:
+            command, p1 = (
+                mavlink2.MAV_CMD_REQUEST_MESSAGE,
+                mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
+            )
+        else:
+            command, p1 = mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, 1
+        self._mav.send(
+            self._mav.command_long_encode(
+                s.system_id, s.component_id, command, 0, p1, 0, 0, 0, 0, 0, 0
+            )
+        )
+        self._verify_attempts += 1
+        self._next_verify_s = now_s + ACK_TIMEOUT_S
+
+    def _queue_setup(self, now_s: float) -> None:
+        self._setup_s = now_s
+        self._setup_due = False
+        self._requests = [r for r in self._requests if not r.setup]
+        for name in STREAMED_MESSAGES:
+            msg_id = _message_id(name)
+            self._requests.append(
+                _Request(
+                    "MAV_CMD_SET_MESSAGE_INTERVAL",
+                    mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL,
+                    f"stream {name} every {self._interval_us} us",
+                    self._long_builder(
+                        mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, (msg_id, self._interval_us)
+                    ),
+                    setup=True,
+                    due_s=now_s,
+                )
+            )
+
+    def _long_builder(self, command: int, params: tuple[float, ...]) -> Callable[[int], Any]:
+        s = self.settings
+        p = (*params, *(0.0,) * (7 - len(params)))
+
+        def build(attempt: int) -> Any:
+            return self._mav.command_long_encode(
+                s.system_id, s.component_id, command, min(attempt - 1, 255), *p
+            )
+
+        return build
+
+    def _command_long(self, command: int, request: str, now_s: float, *params: float) -> None:
+        self._track(
+            _Request(_command_name(command), command, request, self._long_builder(command, params)),
+            now_s,
+        )
+
+    def _track(self, request: _Request, now_s: float) -> None:
+        request.attempts = 1
+        request.due_s = now_s + ACK_TIMEOUT_S
+        self._mav.send(request.build(1))
+        self._requests.append(request)
+
+    def _send_due(self, now_s: float, *, heard: bool = True) -> None:
+        for request in list(self._requests):
+            if request.due_s > now_s:
+                continue
+            if request.setup:
+                if not heard and request.attempts > 0:
+                    continue  # nobody to ask; the setup is redone when it is heard
+            elif request.attempts >= COMMAND_ATTEMPTS:
+                self._requests.remove(request)
+                self._log.warning(
+                    "autopilot did not answer %s (%s) after %d sends",
+                    request.request,
+                    request.command,
+                    request.attempts,
+                )
+                self._late_events.append(
+                    CommandRefused(request.command, "NO_ANSWER", request.request)
+                )
+                continue
+            request.attempts += 1
+            request.due_s = now_s + ACK_TIMEOUT_S
+            self._mav.send(request.build(request.attempts))
+
+    def _goto(self, cmd: Goto, now_s: float) -> None:
+        s = self.settings
+        lat_e7, lon_e7 = round(cmd.lat_deg * 1e7), round(cmd.lon_deg * 1e7)
+        plane = s.firmware == "arduplane"
+        if cmd.speed_m_s is not None and cmd.speed_m_s != self._speed_sent:
+            self._speed_sent = cmd.speed_m_s
+            self._command_long(
+                mavlink2.MAV_CMD_DO_CHANGE_SPEED,
+                f"speed {cmd.speed_m_s:g} m/s",
+                now_s,
+                0 if plane else 1,  # SPEED_TYPE_AIRSPEED / SPEED_TYPE_GROUNDSPEED
+                cmd.speed_m_s,
+                -1,  # throttle: no change
+            )
+        where = f"Goto {cmd.lat_deg:.7f} {cmd.lon_deg:.7f} {cmd.alt_m:g} m"
+        if plane:
+            frame = mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+            self._track(
+                _Request(
+                    "MAV_CMD_DO_REPOSITION",
+                    mavlink2.MAV_CMD_DO_REPOSITION,
+                    where,
+                    lambda _attempt: self._mav.command_int_encode(
+                        s.system_id,
+                        s.component_id,
+                        frame,
+                        mavlink2.MAV_CMD_DO_REPOSITION,
+                        0,
+                        0,
+                        -1,  # speed: default
+                        0,  # flags: no mode change; the runtime owns the mode
+                        0,  # loiter radius: default
+                        math.nan,  # yaw / loiter direction: default
+                        lat_e7,
+                        lon_e7,
+                        float(cmd.alt_m),
+                    ),
+                ),
+                now_s,
+            )
+            return
+        time_boot_ms = round((now_s - (self._start_s or 0.0)) * 1000) & 0xFFFFFFFF
+        self._mav.send(
+            self._mav.set_position_target_global_int_encode(
+                time_boot_ms,
+                s.system_id,
+                s.component_id,
+                mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                POSITION_ONLY_TYPE_MASK,
+                lat_e7,
+                lon_e7,
+                float(cmd.alt_m),
+                0,
+                0,
+                0,
+                0,
+                0,
+                0,
+                0,
+                0,
+            )
+        )
+
+    def _rc_override(self, cmd: RcOverride, now_s: float) -> None:
+        changes: dict[int, int] = {}
+        for channel, pwm_us in cmd.pwm_us.items():
+            if not 1 <= channel <= RC_OVERRIDE_CHANNELS or not 0 <= pwm_us < _RC_RELEASE_HIGH:
+                self._log.error(
+                    "RcOverride channel %d width %d us is outside MAVLink's range; ignored",
+                    channel,
+                    pwm_us,
+                )
+                continue
+            changes[channel] = pwm_us
+            if pwm_us == 0:
+                self._overrides.pop(channel, None)
+            else:
+                self._overrides[channel] = pwm_us
+        if changes:
+            self._override_out({**self._overrides, **changes}, now_s)
+
+    def _override_out(self, channels: Mapping[int, int], now_s: float) -> None:
+        values = [_RC_IGNORE] * RC_OVERRIDE_CHANNELS
+        for channel, pwm_us in channels.items():
+            if pwm_us == 0:
+                values[channel - 1] = _RC_RELEASE_LOW if channel <= 8 else _RC_RELEASE_HIGH
+            else:
+                values[channel - 1] = pwm_us
+        s = self.settings
+        self._mav.send(self._mav.rc_channels_override_encode(s.system_id, s.component_id, *values))
+        self._override_sent_s = now_s

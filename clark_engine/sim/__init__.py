@@ -1,0 +1,1 @@
+"""The discrete-event simulator: simulated vehicles, autopilots, radio mesh and payloads."""

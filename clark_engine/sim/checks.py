@@ -1,0 +1,313 @@
+"""Evaluate a mission's ``checks:`` against what a dry run recorded.
+
+Each check states one expectation (see the mission schema); the result says
+what was expected, what was observed, and whether it held, for the table the
+dry run prints and writes into its report.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from clark_engine.mission.geo import Origin, parse_point
+from clark_engine.runtime.config import AgentConfig, StateSpec
+from clark_engine.sim.recording import Recording, distance_m
+
+
+@dataclass(frozen=True, slots=True)
+class CheckResult:
+    """One check's outcome."""
+
+    name: str
+    expected: str
+    observed: str
+    passed: bool
+
+
+def _label(check: Mapping[str, Any], kind: str, index: int) -> str:
+    return str(check.get("name") or f"check {index + 1}: {kind}")
+
+
+def evaluate(
+    checks: Sequence[Mapping[str, Any]],
+    recording: Recording,
+    configs: Mapping[str, AgentConfig],
+    origin: Origin,
+) -> list[CheckResult]:
+    """Evaluate every check, in the order the mission lists them."""
+    results = []
+    for index, check in enumerate(checks):
+        kind = next(k for k in check if k not in ("name", "by_s"))
+        by_s = float(check.get("by_s", recording.end_s))
+        body = check[kind]
+        label = _label(check, kind, index)
+        evaluator = _EVALUATORS[kind]
+        results.append(evaluator(label, body, by_s, recording, configs, origin))
+    return results
+
+
+def _distance(
+    label: str,
+    body: Mapping[str, Any],
+    by_s: float,
+    rec: Recording,
+    _configs: Mapping[str, AgentConfig],
+    _origin: Origin,
+) -> CheckResult:
+    """max: the two come within max of each other by by_s; min: they are min apart at by_s."""
+    a, b = (str(n) for n in body["between"])
+    ta, tb = rec.tracks.get(a), rec.tracks.get(b)
+    parts = []
+    if "max" in body:
+        parts.append(f"within {float(body['max']):g} m by {by_s:g} s")
+    if "min" in body:
+        parts.append(f"at least {float(body['min']):g} m apart at {by_s:g} s")
+    expected = f"{a} and {b} " + " and ".join(parts)
+    if ta is None or tb is None:
+        return CheckResult(label, expected, "no position recorded", False)
+    passed = True
+    observed = []
+    if "max" in body:
+        closest, when = math.inf, 0.0
+        for k in range(min(len(ta.times_s), len(tb.times_s))):
+            if ta.times_s[k] > by_s + 1e-9:
+                break
+            d = math.hypot(ta.north_m[k] - tb.north_m[k], ta.east_m[k] - tb.east_m[k])
+            if d < closest:
+                closest, when = d, ta.times_s[k]
+        passed = passed and closest <= float(body["max"])
+        observed.append(f"closest {closest:.1f} m at {when:.1f} s")
+    if "min" in body:
+        pa, pb = ta.at(by_s), tb.at(by_s)
+        if pa is None or pb is None:
+            return CheckResult(label, expected, "no position recorded", False)
+        d = distance_m(pa, pb)
+        passed = passed and d >= float(body["min"])
+        observed.append(f"{d:.1f} m at {by_s:g} s")
+    return CheckResult(label, expected, "; ".join(observed), passed)
+
+
+def _reached(
+    label: str,
+    body: Mapping[str, Any],
+    by_s: float,
+    rec: Recording,
+    _configs: Mapping[str, AgentConfig],
+    origin: Origin,
+) -> CheckResult:
+    agent = str(body["agent"])
+    target = parse_point(body["to"], origin)
+    tolerance = float(body.get("tolerance_m", 5.0))
+    point = (target.north_m, target.east_m, target.up_m)
+    expected = f"{agent} within {tolerance:g} m of ({point[0]:g}, {point[1]:g}) by {by_s:g} s"
+    track = rec.tracks.get(agent)
+    if track is None:
+        return CheckResult(label, expected, "no position recorded", False)
+    best = math.inf
+    when: float | None = None
+    for i, t in enumerate(track.times_s):
+        if t > by_s + 1e-9:
+            break
+        d = math.hypot(track.north_m[i] - point[0], track.east_m[i] - point[1])
+        if d < best:
+            best = d
+        if d <= tolerance and when is None:
+            when = t
+    if when is not None:
+        return CheckResult(label, expected, f"reached at {when:.1f} s", True)
+    return CheckResult(label, expected, f"closest {best:.1f} m", False)
+
+
+def _separation(
+    label: str,
+    body: Mapping[str, Any],
+    _by_s: float,
+    rec: Recording,
+    configs: Mapping[str, AgentConfig],
+    _origin: Origin,
+) -> CheckResult:
+    minimum = float(body["min"])
+    names = [str(n) for n in body.get("agents", [])] or [
+        n for n, c in configs.items() if c.is_vehicle and n in rec.tracks
+    ]
+    expected = f"vehicles at least {minimum:g} m apart at all times"
+    closest = math.inf
+    pair = ("", "")
+    when = 0.0
+    tracks = [(n, rec.tracks[n]) for n in names if n in rec.tracks]
+    for i, (name_a, a) in enumerate(tracks):
+        for name_b, b in tracks[i + 1 :]:
+            for k in range(min(len(a.times_s), len(b.times_s))):
+                d = math.dist(
+                    (a.north_m[k], a.east_m[k], a.up_m[k]), (b.north_m[k], b.east_m[k], b.up_m[k])
+                )
+                if d < closest:
+                    closest, pair, when = d, (name_a, name_b), a.times_s[k]
+    if math.isinf(closest):
+        return CheckResult(label, expected, "fewer than two vehicles", True)
+    observed = f"closest {closest:.1f} m ({pair[0]}-{pair[1]} at {when:.1f} s)"
+    return CheckResult(label, expected, observed, closest >= minimum)
+
+
+def _state(
+    label: str,
+    body: Mapping[str, Any],
+    by_s: float,
+    rec: Recording,
+    _configs: Mapping[str, AgentConfig],
+    _origin: Origin,
+) -> CheckResult:
+    agent, path = str(body["agent"]), str(body["reached"])
+    expected = f"{agent} in {path} by {by_s:g} s"
+    when = rec.entered_by(agent, path, by_s)
+    if when is None:
+        last = rec.states.get(agent, [])
+        where = ", ".join(last[-1].active) if last else "no state"
+        return CheckResult(label, expected, f"not reached (last: {where})", False)
+    return CheckResult(label, expected, f"entered at {when:.1f} s", True)
+
+
+def _photos(
+    label: str,
+    body: Mapping[str, Any],
+    _by_s: float,
+    rec: Recording,
+    _configs: Mapping[str, AgentConfig],
+    _origin: Origin,
+) -> CheckResult:
+    agent = str(body["agent"])
+    count = len(rec.photos.get(agent, []))
+    low, high = body.get("min"), body.get("max")
+    parts = []
+    if low is not None:
+        parts.append(f">= {low}")
+    if high is not None:
+        parts.append(f"<= {high}")
+    expected = f"{agent} photos " + (" and ".join(parts) or "any number")
+    passed = (low is None or count >= int(low)) and (high is None or count <= int(high))
+    return CheckResult(label, expected, f"{count} photos", passed)
+
+
+def _no_failsafe(
+    label: str,
+    body: Mapping[str, Any],
+    _by_s: float,
+    rec: Recording,
+    configs: Mapping[str, AgentConfig],
+    _origin: Origin,
+) -> CheckResult:
+    names = [str(n) for n in body.get("agents", [])] or list(configs)
+    events = [(t, n, what) for n in names for t, what in rec.safety.get(n, [])]
+    expected = "no failsafe on " + (", ".join(body.get("agents", [])) or "any agent")
+    if not events:
+        return CheckResult(label, expected, "none", True)
+    t, name, what = min(events)
+    return CheckResult(label, expected, f"{name} {what} at {t:.1f} s", False)
+
+
+def _find_state(spec: StateSpec | None, path: str) -> StateSpec | None:
+    if spec is None:
+        return None
+    for state in spec.walk():
+        if state.path == path:
+            return state
+    return None
+
+
+def expected_signal(state: StateSpec, loop_hz: float) -> list[int]:
+    """The pulse widths a doublet or sweep state must command, one per tick.
+
+    Computed here from the primitive's definition (independently of the
+    runtime's implementation), so the check compares the two.
+    """
+    params = state.params
+    channel = params["channel"]
+    trim, low, high = channel["pwm_trim_us"], channel["pwm_min_us"], channel["pwm_max_us"]
+
+    def clamp(value: float) -> int:
+        return int(min(max(round(value), low), high))
+
+    amplitude = float(params["amplitude_us"])
+    if state.primitive == "doublet":
+        n = round(float(params["width_s"]) * loop_hz)
+        sign = 1 if params.get("first", "up") == "up" else -1
+        return [clamp(trim + sign * amplitude)] * n + [clamp(trim - sign * amplitude)] * n + [trim]
+    f0, f1 = float(params["f_start_hz"]), float(params["f_stop_hz"])
+    duration = float(params["duration_s"])
+    fade_in, fade_out = float(params.get("fade_in_s", 0)), float(params.get("fade_out_s", 0))
+    out = []
+    k = 0
+    while True:
+        t = k / loop_hz
+        if t >= duration - 1e-9:
+            out.append(trim)
+            return out
+        if params.get("law", "linear") == "exponential" and f1 != f0:
+            ratio = f1 / f0
+            phase = 2 * math.pi * f0 * duration * (ratio ** (t / duration) - 1) / math.log(ratio)
+        else:
+            phase = 2 * math.pi * (f0 * t + (f1 - f0) * t * t / (2 * duration))
+        envelope = 1.0
+        if fade_in > 0 and t < fade_in:
+            envelope = t / fade_in
+        if fade_out > 0 and t > duration - fade_out:
+            envelope = min(envelope, (duration - t) / fade_out)
+        out.append(clamp(trim + amplitude * envelope * math.sin(phase)))
+        k += 1
+
+
+def _signal(
+    label: str,
+    body: Mapping[str, Any],
+    _by_s: float,
+    rec: Recording,
+    configs: Mapping[str, AgentConfig],
+    _origin: Origin,
+) -> CheckResult:
+    agent, path = str(body["agent"]), str(body["state"])
+    config = configs[agent]
+    state = _find_state(config.machine, path)
+    expected_text = f"{agent} {path}: the autopilot receives the primitive's signal"
+    if state is None or state.primitive not in ("doublet", "sine_sweep"):
+        return CheckResult(label, expected_text, "no doublet or sweep state there", False)
+    channel = state.params["channel"]
+    via = state.params.get("via", "rc_override")
+    key = f"rc{channel['rc']}" if via == "rc_override" else f"servo{channel['servo']}"
+    samples = rec.signals.get((agent, key), [])
+    intervals = rec.intervals(agent, path)
+    if not intervals:
+        return CheckResult(label, expected_text, "state never entered", False)
+    start, end = intervals[0]
+    received = [pwm for t, pwm in samples if start - 1e-9 <= t <= end + 1e-9]
+    want = expected_signal(state, config.loop_hz)
+    # A state entered by an event is first updated in its entry tick, one entered on
+    # the previous state's done a tick later: align on the first tick of the signal.
+    worst = math.inf
+    for offset in (0, 1):
+        got = received[offset : offset + len(want)]
+        if len(got) == len(want):
+            worst = min(worst, max(abs(a - b) for a, b in zip(got, want, strict=True)))
+    if math.isinf(worst):
+        return CheckResult(
+            label,
+            expected_text,
+            f"{len(received)} of {len(want)} samples (state left early)",
+            False,
+        )
+    shape = "doublet" if state.primitive == "doublet" else "sweep"
+    observed = f"{len(want)} samples, largest error {worst:g} us ({shape} on {key})"
+    return CheckResult(label, expected_text + " (within 1 us)", observed, worst <= 1)
+
+
+_EVALUATORS = {
+    "distance_m": _distance,
+    "reached": _reached,
+    "separation_m": _separation,
+    "state": _state,
+    "photos": _photos,
+    "no_failsafe": _no_failsafe,
+    "signal": _signal,
+}

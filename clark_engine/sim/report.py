@@ -1,0 +1,193 @@
+"""The dry run's report: plots of paths and control inputs, a state timeline, a summary.
+
+Written into ``--report DIR`` beside every agent's CSV and logs:
+
+* ``tracks.png``: every vehicle's path in metres from the origin, with its
+  waypoints and the positions of its pictures;
+* ``inputs.png``: the pulse widths the autopilots received for doublets and sweeps;
+* ``timeline.png``: which state each agent was in, over time;
+* ``summary.md``: the checks table, the state timeline as text, and the latency
+  and loss tables of ``clark analyze``.
+
+Plots use matplotlib's non-interactive Agg backend; files are written with fixed
+metadata so the same run gives the same bytes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from clark_engine.runtime.config import AgentConfig
+from clark_engine.sim.checks import CheckResult
+from clark_engine.sim.recording import Recording
+
+#: PNG metadata without the matplotlib version or a date, for reproducible files.
+_PNG_METADATA = {"Software": None}
+
+
+def _pyplot() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _waypoints(config: AgentConfig) -> list[tuple[float, float]]:
+    points: list[tuple[float, float]] = []
+    if config.machine is None:
+        return points
+    for state in config.machine.walk():
+        if state.primitive == "waypoint":
+            to = state.params["to"]
+            points.append((to["east_m"], to["north_m"]))
+        elif state.primitive == "waypoint_tour":
+            points.extend((p["east_m"], p["north_m"]) for p in state.params["waypoints"])
+    return points
+
+
+def plot_tracks(path: Path, recording: Recording, configs: Mapping[str, AgentConfig]) -> None:
+    """Every vehicle's path (east right, north up), waypoints and picture positions."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(8, 7), dpi=100)
+    for index, (name, track) in enumerate(sorted(recording.tracks.items())):
+        color = f"C{index % 10}"
+        ax.plot(track.east_m, track.north_m, color=color, linewidth=1.2, label=name)
+        if track.east_m:
+            ax.plot(track.east_m[0], track.north_m[0], "o", color=color, markersize=5)
+        points = _waypoints(configs[name]) if name in configs else []
+        if points:
+            ax.plot(*zip(*points, strict=True), "x", color=color, markersize=7, linestyle="none")
+        photos = recording.photos.get(name, [])
+        if photos:
+            ax.plot(
+                [p.east_m for p in photos],
+                [p.north_m for p in photos],
+                "^",
+                color=color,
+                markersize=4,
+                linestyle="none",
+                label=f"{name} photos",
+            )
+    ax.set_xlabel("east of origin (m)")
+    ax.set_ylabel("north of origin (m)")
+    ax.set_title("Paths (o start, x waypoints, ^ pictures)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, linewidth=0.3)
+    ax.legend(loc="best", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, metadata=_PNG_METADATA)
+    plt.close(fig)
+
+
+def plot_inputs(path: Path, recording: Recording) -> bool:
+    """The control signals the autopilots received; False (no file) when there were none."""
+    series = {key: values for key, values in sorted(recording.signals.items()) if values}
+    if not series:
+        return False
+    plt = _pyplot()
+    fig, axes = plt.subplots(len(series), 1, figsize=(9, 2.4 * len(series)), dpi=100, squeeze=False)
+    for ax, ((agent, channel), values) in zip(axes[:, 0], series.items(), strict=True):
+        ax.step([t for t, _ in values], [v for _, v in values], where="post", linewidth=1)
+        ax.set_ylabel(f"{agent} {channel} (us)")
+        ax.grid(True, linewidth=0.3)
+    axes[-1, 0].set_xlabel("simulated time (s)")
+    fig.suptitle("Control inputs received by the autopilots")
+    fig.tight_layout()
+    fig.savefig(path, metadata=_PNG_METADATA)
+    plt.close(fig)
+    return True
+
+
+def plot_timeline(path: Path, recording: Recording) -> None:
+    """One row per agent, a bar per state it was in."""
+    plt = _pyplot()
+    agents = sorted(a for a, entries in recording.states.items() if entries)
+    fig, ax = plt.subplots(figsize=(10, 0.8 + 0.6 * max(1, len(agents))), dpi=100)
+    palette: dict[str, str] = {}
+    for row, agent in enumerate(agents):
+        entries = recording.states[agent]
+        for i, entry in enumerate(entries):
+            end = entries[i + 1].time_s if i + 1 < len(entries) else recording.end_s
+            label = ", ".join(entry.active) or "(none)"
+            color = palette.setdefault(label, f"C{len(palette) % 10}")
+            ax.broken_barh(
+                [(entry.time_s, max(end - entry.time_s, 1e-3))], (row - 0.4, 0.8), facecolors=color
+            )
+            if end - entry.time_s > recording.end_s / 40:
+                ax.text(entry.time_s + 0.5, row, label, va="center", fontsize=7)
+    ax.set_yticks(range(len(agents)), agents)
+    ax.set_xlabel("simulated time (s)")
+    ax.set_title("Behaviour states")
+    ax.set_xlim(0, max(recording.end_s, 1e-3))
+    fig.tight_layout()
+    fig.savefig(path, metadata=_PNG_METADATA)
+    plt.close(fig)
+
+
+def checks_table(results: Sequence[CheckResult]) -> str:
+    """The checks as a Markdown table."""
+    lines = ["| check | expected | observed | result |", "|---|---|---|---|"]
+    for r in results:
+        lines.append(
+            f"| {r.name} | {r.expected} | {r.observed} | {'pass' if r.passed else '**FAIL**'} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def timeline_text(recording: Recording) -> str:
+    """Every state change of every agent, as a Markdown table."""
+    lines = ["| time (s) | agent | event | active states |", "|---:|---|---|---|"]
+    rows = [
+        (entry.time_s, agent, entry.event, ", ".join(entry.active) or "-")
+        for agent, entries in recording.states.items()
+        for entry in entries
+    ]
+    for t, agent, event, active in sorted(rows):
+        lines.append(f"| {t:.2f} | {agent} | {event} | {active} |")
+    return "\n".join(lines) + "\n"
+
+
+def write_summary(
+    path: Path,
+    *,
+    mission: str,
+    seed: int,
+    end_s: float,
+    wall_s: float,
+    results: Sequence[CheckResult],
+    recording: Recording,
+    latency: str,
+    plots: Sequence[str],
+) -> None:
+    """``summary.md``: the run, the checks, the timeline, the link tables."""
+    passed = sum(r.passed for r in results)
+    verdict = "all checks pass" if passed == len(results) else f"{len(results) - passed} failed"
+    text = [
+        f"# Dry run of {mission}",
+        "",
+        f"Seed {seed}; {end_s:g} simulated seconds in {wall_s:.1f} s of wall time "
+        f"({end_s / wall_s if wall_s > 0 else float('inf'):.0f}x real time); "
+        f"{passed} of {len(results)} checks pass ({verdict}).",
+        "",
+        "## Checks",
+        "",
+        checks_table(results) if results else "The mission declares no checks.\n",
+        "## Plots",
+        "",
+        *[f"![{p}]({p})" for p in plots],
+        "",
+        "## State timeline",
+        "",
+        timeline_text(recording),
+        "## Links (clark analyze)",
+        "",
+        "```",
+        latency.rstrip(),
+        "```",
+        "",
+    ]
+    path.write_text("\n".join(text), encoding="utf-8")
