@@ -151,7 +151,7 @@ def test_activation_by_the_station_makes_slash_b_follow(slash_b: AgentRuntime) -
     out = run(
         slash_b,
         t,
-        vehicle(t, lat=30.63797, mode="GUIDED", custom_mode=15),
+        vehicle(t, lat=30.63799, mode="GUIDED", custom_mode=15),
         AutopilotHeartbeat("GUIDED", 15, True),
     )
     t = 0.3

@@ -282,16 +282,20 @@ def test_waypoint_fails_without_a_guided_mode() -> None:
 
 def test_tour_visits_in_order_and_loops() -> None:
     config = compiled("cooperative_follow.yaml", "slash_a")
-    waypoints = params_of(config, "waypoint_tour")["waypoints"]
-    assert len(waypoints) == 8
+    params = params_of(config, "waypoint_tour")
+    waypoints, speed = params["waypoints"], params["speed_m_s"]
+    assert len(waypoints) == 8 and speed == 2
     run = Run(config, make_primitive(states_of(config, "waypoint_tour")[0]))
-    assert run.start(at(config, -5, -5)) == [set_mode(config, "GUIDED"), goto(waypoints[0])]
+    assert run.start(at(config, -5, -5)) == [
+        set_mode(config, "GUIDED"),
+        goto(waypoints[0], speed),
+    ]
     assert run.step(at(config, -5, -5)) == (Status.RUNNING, [])
     for lap in range(2):
         for index, point in enumerate(waypoints):
             here = vehicle(point["lat"], point["lon"])
             following = waypoints[(index + 1) % len(waypoints)]
-            assert run.step(here) == (Status.RUNNING, [goto(following)]), (lap, index)
+            assert run.step(here) == (Status.RUNNING, [goto(following, speed)]), (lap, index)
             assert run.step(here) == (Status.RUNNING, []), (lap, index)
 
 
