@@ -10,7 +10,16 @@ from __future__ import annotations
 PLATFORMS = ("anaconda", "dji_f450", "super_cub", "traxxas_slash")
 
 
-def fleet_mission(agents: int, loop_hz: float = 10, radio: str = "udp_lan") -> str:
+#: Every vehicle's telemetry by default: heartbeat and status bundle into one packet a
+#: second; the behaviour's state goes to the station only.
+LIGHT_TELEMETRY = "{heartbeat: 1, agent_status: 1, behavior_state: {rate_hz: 0.5, to: [mcs]}}"
+#: The schedule docs/performance.md's link-budget figures were measured with.
+HEAVY_TELEMETRY = "{heartbeat: 1, agent_status: 2, behavior_state: 1}"
+
+
+def fleet_mission(
+    agents: int, loop_hz: float = 10, radio: str = "udp_lan", telemetry: str = LIGHT_TELEMETRY
+) -> str:
     """A mission with one station and ``agents - 1`` vehicles, as YAML text.
 
     The radio defaults to the UDP LAN profile: a hundred agents' telemetry is far
@@ -46,7 +55,7 @@ def fleet_mission(agents: int, loop_hz: float = 10, radio: str = "udp_lan") -> s
             f"    id: {i}",
             f"    profile: {platform}",
             f"    hardware: {{radio: {address(i)}}}",
-            "    telemetry: {heartbeat: 1, agent_status: 2, behavior_state: 1}",
+            f"    telemetry: {telemetry}",
         ]
         if i % 4 == 0:  # anaconda: survey block with photos
             lines += [

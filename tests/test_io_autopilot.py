@@ -700,19 +700,17 @@ def test_start_sends_heartbeat_streams_and_version_request() -> None:
         for m in messages
         if m.get_type() == "COMMAND_LONG" and m.command == mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL
     }
-    assert intervals == dict.fromkeys(
-        (
-            "GLOBAL_POSITION_INT",
-            "ATTITUDE",
-            "VFR_HUD",
-            "SYSTEM_TIME",
-            "RC_CHANNELS",
-            "SERVO_OUTPUT_RAW",
-            "SYS_STATUS",
-            "GPS_RAW_INT",
-        ),
-        100_000.0,
-    )
+    # what the loop needs at the stream rate; clock, health and raw GPS slower
+    assert intervals == {
+        "GLOBAL_POSITION_INT": 100_000.0,
+        "ATTITUDE": 100_000.0,
+        "VFR_HUD": 100_000.0,
+        "RC_CHANNELS": 100_000.0,
+        "SYSTEM_TIME": 1_000_000.0,
+        "SYS_STATUS": 1_000_000.0,
+        "SERVO_OUTPUT_RAW": 500_000.0,
+        "GPS_RAW_INT": 500_000.0,
+    }
     version = [m for m in messages if getattr(m, "command", None) == 512]
     assert version[0].param1 == mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION
 

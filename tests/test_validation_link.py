@@ -16,7 +16,7 @@ from clark_engine.validation import mission_flows, validate_file, worst_messages
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from fleet import fleet_mission  # noqa: E402
+from fleet import HEAVY_TELEMETRY, fleet_mission  # noqa: E402
 
 COOP = (ROOT / "missions" / "cooperative_follow.yaml").read_text(encoding="utf-8")
 
@@ -77,8 +77,9 @@ def test_unicast_costs_a_packet_per_destination() -> None:
 
 
 def test_fleet_over_the_xbee_budget(tmp_path: Path) -> None:
-    assert "W-LINK-BUDGET" in codes(write(tmp_path, fleet_mission(20, radio="xbee")))
-    findings = validate_file(write(tmp_path, fleet_mission(50, radio="xbee")), "m.yaml").findings
+    heavy = {"radio": "xbee", "telemetry": HEAVY_TELEMETRY}
+    assert "W-LINK-BUDGET" in codes(write(tmp_path, fleet_mission(20, **heavy)))
+    findings = validate_file(write(tmp_path, fleet_mission(50, **heavy)), "m.yaml").findings
     (over,) = [f for f in findings if f.code == "E-LINK-BUDGET"]
     assert "247%" in over.message or "% of its measured 33 kbps" in over.message
     assert "by message: agent_status" in over.message

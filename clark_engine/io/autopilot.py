@@ -95,7 +95,17 @@ STREAMED_MESSAGES: Final = (
     "SYS_STATUS",
     "GPS_RAW_INT",
 )
-"""Messages :meth:`AutopilotAdapter.start` asks for at the profile's ``stream_rate_hz``."""
+"""Messages :meth:`AutopilotAdapter.start` asks for."""
+
+SLOW_STREAMS: Final = {
+    "SYSTEM_TIME": 1.0,
+    "SYS_STATUS": 1.0,
+    "GPS_RAW_INT": 2.0,
+    "SERVO_OUTPUT_RAW": 2.0,
+}
+"""Messages the runtime needs only now and then, asked for at these rates (Hz) or the
+profile's ``stream_rate_hz`` when slower: the clock's sync, health and raw GPS do not
+need the loop rate, and a serial link at 57600 baud has little to spare."""
 
 RC_OVERRIDE_CHANNELS: Final = 18
 """RC_CHANNELS_OVERRIDE carries channels 1-18."""
@@ -933,13 +943,16 @@ class AutopilotAdapter:
         self._requests = [r for r in self._requests if not r.setup]
         for name in STREAMED_MESSAGES:
             msg_id = _message_id(name)
+            interval_us = self._interval_us
+            if name in SLOW_STREAMS:
+                interval_us = max(interval_us, round(1e6 / SLOW_STREAMS[name]))
             self._requests.append(
                 _Request(
                     "MAV_CMD_SET_MESSAGE_INTERVAL",
                     mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL,
-                    f"stream {name} every {self._interval_us} us",
+                    f"stream {name} every {interval_us} us",
                     self._long_builder(
-                        mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, (msg_id, self._interval_us)
+                        mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, (msg_id, interval_us)
                     ),
                     setup=True,
                     due_s=now_s,

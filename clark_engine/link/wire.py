@@ -38,6 +38,7 @@ Decisions, each pinned by tests:
 
 from __future__ import annotations
 
+import functools
 import math
 import operator
 from collections.abc import Callable, Iterable, Sequence
@@ -463,6 +464,11 @@ _FROM_PB: dict[str, Callable[[Any], Message]] = {
 def parse_bundle(data: bytes) -> tuple[Message, ...]:
     """Decode a ``Bundle`` into messages, by type in :data:`MESSAGE_ORDER`, then as sent.
 
+    Recent results are remembered by their bytes: a broadcast reaches every agent of a
+    simulated fleet with the same bundle, and decoding is a pure function whose result
+    (frozen dataclasses) cannot be changed by whoever receives it. Each receiver's codec
+    still checks the header, the tag and its own replay window before this is called.
+
     Raises:
         MalformedPacket: For anything that is not a bundle this engine would send:
             bytes Protocol Buffers cannot parse (including invalid UTF-8 in a
@@ -470,6 +476,11 @@ def parse_bundle(data: bytes) -> tuple[Message, ...]:
             value outside its range (see the module docstring). Its
             ``sender_id`` and ``mission_id`` are unset: the codec fills them in.
     """
+    return _parse_bundle_cached(bytes(data))
+
+
+@functools.lru_cache(maxsize=512)
+def _parse_bundle_cached(data: bytes) -> tuple[Message, ...]:
     try:
         bundle = pb.Bundle.FromString(data)
     except DecodeError as exc:

@@ -449,7 +449,7 @@ class AgentRuntime:
                 self._collect_outbox()
             elif phase == "telemetry":
                 self._telemetry(now_s)
-            elif phase == "log":
+            elif phase == "log" and self.logbook.tables:
                 self.logbook.fleet_row(now_s, self.fleet.csv_header(), self.fleet.csv_rows(now_s))
         self._tick += 1
         return self._drain()

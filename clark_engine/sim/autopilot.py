@@ -253,6 +253,7 @@ class SimAutopilot:
 
         self._interval_us: dict[str, int | None] = {}  # per-message overrides; None: stopped
         self._due_us: dict[str, int] = {}
+        self._next_due_us = 0  # earliest due time over every stream (0: look again)
         self._deferred: list[str] = []  # messages asked for, sent after the acknowledgement
         self._params: dict[str, _Param] = {"SYSID_THISMAV": _Param(system_id, _INT16)}
         for name, value, kind in (*_COMMON_PARAMS, *_FIRMWARE_PARAMS[firmware]):
@@ -341,6 +342,8 @@ class SimAutopilot:
         """
         self._expire_overrides(now_s)
         now_us = round(now_s * 1e6)
+        if now_us < self._next_due_us and not self._outbox.data:
+            return b""  # nothing due and no answer queued: the common case, kept cheap
         for name in STREAM_GROUPS:
             interval = self._stream_interval_us(name)
             if interval is None:
@@ -352,6 +355,7 @@ class SimAutopilot:
             self._mav.send(self._build(name, now_s))
             due += interval
             self._due_us[name] = due if due > now_us else now_us + interval
+        self._next_due_us = min(self._due_us.values(), default=now_us)
         data, self._outbox.data = bytes(self._outbox.data), bytearray()
         return data
 
@@ -370,6 +374,7 @@ class SimAutopilot:
         return round(1e6 / rate_hz) if rate_hz > 0 else None
 
     def _set_interval(self, name: str, interval_us: int | None, now_s: float) -> None:
+        self._next_due_us = 0  # the schedule changed: look at every stream next time
         self._interval_us[name] = interval_us
         if interval_us is not None:
             self._due_us[name] = round(now_s * 1e6) + interval_us
@@ -779,6 +784,7 @@ class SimAutopilot:
     # -- parameters --------------------------------------------------------------------------
 
     def _set_param(self, name: str, value: float) -> None:
+        self._next_due_us = 0  # a stream-rate parameter may have changed
         entry = self._params[name]
         if entry.param_type in _INT_RANGES:
             low, high = _INT_RANGES[entry.param_type]

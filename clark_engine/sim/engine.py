@@ -20,6 +20,7 @@ mission's agent order.
 
 from __future__ import annotations
 
+import heapq
 import math
 import random
 import time
@@ -168,7 +169,7 @@ class DryRun:
             logbook = (
                 Logbook.to_folder(log_dir, config, overwrite=True)
                 if log_dir is not None
-                else Logbook.in_memory(config)
+                else Logbook.in_memory(config, tables=False)
             )
             runtime = AgentRuntime(config, key=key, logbook=logbook, gps_epoch_ms=gps_epoch_ms)
             offset = random.Random(f"{seed}:phase:{name}").random() / config.loop_hz
@@ -191,6 +192,17 @@ class DryRun:
             (float(item["at_s"]), index, item) for index, item in enumerate(mission.operator)
         )
         self._signal_channels()
+        self._position_cache: dict[str, tuple[float, float, float]] | None = None
+        #: Agent -> called with every byte string its simulated autopilot emits (real-time
+        #: mode forwards them to a ground station over UDP).
+        self.autopilot_taps: dict[str, Callable[[bytes], None]] = {}
+        #: Called once per loop iteration with the simulated time (real-time mode reads
+        #: its ground-station sockets here and passes what arrived to inject()).
+        self.on_step: Callable[[float], None] | None = None
+        # (next tick time, agent order, name): one heap instead of a scan per event
+        self._order = {name: i for i, name in enumerate(self.agents)}
+        self._ticks = [(a.next_tick_s(), self._order[a.name], a.name) for a in self.agents.values()]
+        heapq.heapify(self._ticks)
 
     # -- setup ---------------------------------------------------------------------------
 
@@ -294,7 +306,10 @@ class DryRun:
         while True:
             physics_s = physics_steps * PHYSICS_STEP_S
             candidates = [physics_s]
-            candidates.extend(a.next_tick_s() for a in self._ticking())
+            while self._ticks and not self._ticking_agent(self._ticks[0][2]):
+                heapq.heappop(self._ticks)
+            if self._ticks:
+                candidates.append(self._ticks[0][0])
             radio_s = self.radio.next_event_s()
             if radio_s is not None:
                 candidates.append(radio_s)
@@ -322,9 +337,15 @@ class DryRun:
             self._radio(t)
             self._cameras(t)
             self._scenario(t)
-            for sim_agent in self._ticking():
-                if abs(sim_agent.next_tick_s() - t) < 1e-9:
-                    self._tick(sim_agent, t)
+            while self._ticks and self._ticks[0][0] <= t + 1e-9:
+                _, order, name = heapq.heappop(self._ticks)
+                sim_agent = self.agents[name]
+                if not self._ticking_agent(name):
+                    continue
+                self._tick(sim_agent, t)
+                heapq.heappush(self._ticks, (sim_agent.next_tick_s(), order, name))
+            if self.on_step is not None:
+                self.on_step(t)
             if self.progress is not None and time.perf_counter() >= next_progress_wall:
                 self.progress(t, self.until_s)
                 next_progress_wall = time.perf_counter() + 1.0
@@ -346,16 +367,21 @@ class DryRun:
         if delay > 0:
             time.sleep(delay)
 
-    def _ticking(self) -> list[SimAgent]:
-        return [a for a in self.agents.values() if a.alive and not a.closed]
+    def _ticking_agent(self, name: str) -> bool:
+        agent = self.agents[name]
+        return agent.alive and not agent.closed
 
     def _physics(self, t_s: float) -> None:
+        self._position_cache = None
         for sim_agent in self.agents.values():
             if sim_agent.model is None or sim_agent.autopilot is None:
                 continue
             if t_s > 0:
                 sim_agent.model.step(PHYSICS_STEP_S)
             data = sim_agent.autopilot.advance(t_s)
+            tap = self.autopilot_taps.get(sim_agent.name)
+            if data and tap is not None:
+                tap(data)
             if not data or sim_agent.adapter is None or not sim_agent.alive or sim_agent.closed:
                 continue
             if not sim_agent.link_up(t_s):
@@ -379,6 +405,9 @@ class DryRun:
             )
 
     def _positions(self) -> dict[str, tuple[float, float, float]]:
+        """Every agent's position, as of the last physics step (cached until the next)."""
+        if self._position_cache is not None:
+            return self._position_cache
         positions: dict[str, tuple[float, float, float]] = {}
         for name, sim_agent in self.agents.items():
             if sim_agent.model is not None:
@@ -490,6 +519,12 @@ class DryRun:
                     self._to_autopilot(sim_agent, sim_agent.adapter.close(t_s), t_s)
                 if sim_agent.name in self.radio.agents:
                     self.radio.silence(sim_agent.name, t_s)
+
+    def inject(self, agent: str, data: bytes, t_s: float) -> None:
+        """Bytes from an outside ground station to an agent's simulated autopilot."""
+        autopilot = self.agents[agent].autopilot
+        if autopilot is not None and data:
+            autopilot.receive(data, t_s)
 
     def _to_autopilot(self, sim_agent: SimAgent, data: bytes, t_s: float) -> None:
         if data and sim_agent.autopilot is not None and sim_agent.link_up(t_s):
