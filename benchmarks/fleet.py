@@ -65,7 +65,7 @@ def fleet_mission(
                 "        survey:",
                 "          use: survey_with_photos",
                 f"          with: {{waypoints: [[{north}, {east}, 60],"
-                f" [{north + 200}, {east}, 60]]}}",
+                f" [{north + 200}, {east}, 60]], tolerance_m: 45}}",
                 "          transitions: {done: doublet}",
                 "        doublet: {use: aileron_doublet, transitions: {done: loiter}}",
                 "        loiter: {use: hold, final: true}",

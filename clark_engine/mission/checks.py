@@ -628,7 +628,8 @@ def check_expectations(mission: Mission) -> Iterator[Finding]:
                 "E-CHECK-SHAPE",
                 where,
                 "each check states exactly one expectation (distance_m, reached, separation_m, "
-                f"state, photos, no_failsafe or signal); this one has {len(kinds) or 'none'}",
+                f"state, photos, no_failsafe, failsafe or signal); this one has "
+                f"{len(kinds) or 'none'}",
             )
             continue
         body = check[kinds[0]]

@@ -302,6 +302,27 @@ def _signal(
     return CheckResult(label, expected_text + " (within 1 us)", observed, worst <= 1)
 
 
+def _failsafe(
+    label: str,
+    body: Mapping[str, Any],
+    by_s: float,
+    rec: Recording,
+    _configs: Mapping[str, AgentConfig],
+    _origin: Origin,
+) -> CheckResult:
+    agent, event = str(body["agent"]), str(body.get("event", "any"))
+    expected = f"{agent} {event if event != 'any' else 'a safety reaction'} by {by_s:g} s"
+    seen = [(t, what) for t, what in rec.safety.get(agent, []) if t <= by_s + 1e-9]
+    matching = [
+        (t, what) for t, what in seen if event == "any" or what in (event, f"failsafe {event}")
+    ]
+    if matching:
+        t, what = matching[0]
+        return CheckResult(label, expected, f"{what} at {t:.1f} s", True)
+    observed = ", ".join(f"{w} at {t:.1f} s" for t, w in seen) or "none"
+    return CheckResult(label, expected, observed, False)
+
+
 _EVALUATORS = {
     "distance_m": _distance,
     "reached": _reached,
@@ -309,5 +330,6 @@ _EVALUATORS = {
     "state": _state,
     "photos": _photos,
     "no_failsafe": _no_failsafe,
+    "failsafe": _failsafe,
     "signal": _signal,
 }

@@ -7,10 +7,11 @@ tour, a doublet and a sweep; they are declared and checked once, here.
 from __future__ import annotations
 
 import difflib
-from collections.abc import Iterable, Iterator
+import math
+from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
 
-from clark_engine.mission.findings import Finding, error
+from clark_engine.mission.findings import Finding, error, warning
 from clark_engine.mission.geo import LocalPoint, Origin, parse_point, to_global
 from clark_engine.mission.model import Channel
 from clark_engine.mission.primitives.base import UseContext
@@ -228,6 +229,45 @@ def _check_range(ctx: UseContext, point: LocalPoint, where: Any, label: str) -> 
                 f"{limit:.0f} m radio range; move it closer or the station nearer",
                 ctx.use_location,
             )
+
+
+#: A fixed-wing aircraft orbits a guided target at this multiple of its tightest turn
+#: radius (the dry run's model does; ArduPlane's own WP_LOITER_RAD defaults to 60 m).
+ORBIT_FACTOR = 1.5
+GRAVITY_M_S2 = 9.80665
+
+
+def orbit_radius_m(airframe: Mapping[str, Any], speed_m_s: float | None = None) -> float | None:
+    """How far from a guided target a fixed-wing aircraft circles it; None for others.
+
+    An aeroplane cannot stop: arriving at a target it circles it at a radius set by
+    its speed and its bank and turn-rate limits.
+    """
+    if airframe.get("class") != "fixed_wing":
+        return None
+    speed = float(speed_m_s or airframe.get("cruise_speed_m_s", 15.0))
+    bank = math.radians(float(airframe.get("max_bank_deg") or 45.0))
+    by_bank = speed * speed / (GRAVITY_M_S2 * math.tan(bank))
+    rate = math.radians(float(airframe.get("max_turn_rate_deg_s") or 0.0))
+    by_rate = speed / rate if rate > 0 else by_bank
+    return ORBIT_FACTOR * max(by_bank, by_rate)
+
+
+def check_orbit_tolerance(ctx: UseContext) -> Iterator[Finding]:
+    """A fixed-wing target must be 'reached' within a radius the aircraft can fly."""
+    airframe = ctx.agent.hardware.part("airframe") or {}
+    radius = orbit_radius_m(airframe, ctx.params.get("speed_m_s"))
+    tolerance = float(ctx.params.get("tolerance_m", 5.0))
+    if radius is not None and tolerance < radius:
+        yield warning(
+            "W-ORBIT-TOLERANCE",
+            ctx.locate("tolerance_m"),
+            f"{ctx.agent.name} ({ctx.agent.profile}) is a fixed-wing aircraft: it circles a "
+            f"target about {radius:.0f} m away and never comes within tolerance_m "
+            f"{tolerance:g} m, so the target is never reached; set tolerance_m to at least "
+            f"{math.ceil(radius)} m",
+            ctx.use_location,
+        )
 
 
 def check_speed(ctx: UseContext) -> Iterator[Finding]:

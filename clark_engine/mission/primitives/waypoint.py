@@ -13,6 +13,7 @@ from clark_engine.mission.primitives._shared import (
     POINT_SCHEMA,
     SPEED_SCHEMA,
     TOLERANCE_SCHEMA,
+    check_orbit_tolerance,
     check_points,
     check_speed,
 )
@@ -23,6 +24,7 @@ from clark_engine.mission.schema_source.common import obj
 def _check(ctx: UseContext) -> Iterator[Finding]:
     yield from check_points(ctx, [ctx.params["to"]], "to", indexed=False)
     yield from check_speed(ctx)
+    yield from check_orbit_tolerance(ctx)
 
 
 SPEC = PrimitiveSpec(

@@ -15,6 +15,7 @@ from clark_engine.mission.primitives._shared import (
     POINT_SCHEMA,
     SPEED_SCHEMA,
     TOLERANCE_SCHEMA,
+    check_orbit_tolerance,
     check_points,
     check_speed,
 )
@@ -29,6 +30,7 @@ def _events(params: Mapping[str, Any]) -> frozenset[str]:
 def _check(ctx: UseContext) -> Iterator[Finding]:
     yield from check_points(ctx, list(ctx.params["waypoints"]), "waypoints", indexed=True)
     yield from check_speed(ctx)
+    yield from check_orbit_tolerance(ctx)
 
 
 SPEC = PrimitiveSpec(

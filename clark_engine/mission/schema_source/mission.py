@@ -190,6 +190,19 @@ def _check() -> Schema:
                 "No failsafe is triggered on the listed agents (all when omitted).",
                 {"agents": array("Agents to watch.", AGENT_NAME_SCHEMA)},
             ),
+            "failsafe": obj(
+                "A safety reaction happens on an agent by by_s (for missions that inject "
+                "faults): the mcs_lost failsafe (hold, rtl, land) or autopilot_lost.",
+                {
+                    "agent": AGENT_NAME_SCHEMA,
+                    "event": string(
+                        "Which reaction.",
+                        enum=["hold", "rtl", "land", "autopilot_lost", "any"],
+                        default="any",
+                    ),
+                },
+                required=["agent"],
+            ),
             "signal": obj(
                 "The servo signal an agent commands in a state matches its primitive "
                 "(doublet shape, sweep frequency law).",
