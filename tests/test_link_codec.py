@@ -357,7 +357,7 @@ def test_replay_window_accepts_out_of_order_within_64_and_refuses_the_rest() -> 
 
 
 def test_replay_window_slides_with_the_highest_counter() -> None:
-    sender, receiver = Codec(MISSION, 2), Codec(MISSION, 1)
+    sender, receiver = Codec(MISSION, 2, KEY), Codec(MISSION, 1, KEY)
     early = from_counter(sender, 10)
     for n in range(1, 74):
         if n != 10:
@@ -369,6 +369,31 @@ def test_replay_window_slides_with_the_highest_counter() -> None:
     # A jump far ahead clears the window, and what is just behind the jump is fresh.
     receiver.decode(from_counter(sender, 1_000_000))
     assert receiver.decode(from_counter(sender, 999_999)).counter == 999_999
+
+
+def test_without_a_key_the_window_only_drops_duplicates() -> None:
+    """A garbled counter far ahead must not lock the sender out (found in a dry run).
+
+    Without a tag a counter proves nothing, so an unauthenticated packet older than
+    the window restarts it instead of being refused; duplicates are still dropped.
+    """
+    sender, receiver = Codec(MISSION, 2), Codec(MISSION, 1)
+    for n in range(1, 6):
+        receiver.decode(from_counter(sender, n))
+    garbled = bytearray(from_counter(sender, 6))
+    garbled[10] ^= 0x40  # the counter's top byte flipped on the way: 2**46 + 6
+    assert receiver.decode(bytes(garbled)).counter == (0x40 << 40) + 6
+    assert receiver.decode(from_counter(sender, 7)).counter == 7, "not locked out"
+    assert receiver.decode(from_counter(sender, 8)).counter == 8
+    with pytest.raises(ReplayedPacket):
+        receiver.decode(from_counter(sender, 8))  # a duplicate is still a duplicate
+
+
+def test_with_a_key_an_old_counter_is_still_a_replay() -> None:
+    sender, receiver = Codec(MISSION, 2, KEY), Codec(MISSION, 1, KEY)
+    receiver.decode(from_counter(sender, 1_000))
+    with pytest.raises(ReplayedPacket, match="older than the window"):
+        receiver.decode(from_counter(sender, 7))
 
 
 def test_each_sender_has_its_own_window() -> None:

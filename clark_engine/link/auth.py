@@ -113,6 +113,22 @@ class ReplayWindow:
         age = self.highest - counter
         return age < self.SIZE and not (self._seen >> age) & 1
 
+    def is_duplicate(self, counter: int) -> bool:
+        """True when ``counter`` was accepted and is still inside the window."""
+        age = self.highest - counter
+        return 0 <= age < self.SIZE and bool((self._seen >> age) & 1)
+
+    def restart(self, counter: int) -> None:
+        """Forget the window and start it again at ``counter``.
+
+        For unauthenticated packets only: there a counter older than the window is
+        a sender that restarted, or a counter garbled on the way, never a proof of
+        replay (anyone can forge any counter), and refusing it would silence the
+        sender until its counter caught up again.
+        """
+        self.highest = counter
+        self._seen = 1
+
     def commit(self, counter: int) -> None:
         """Record ``counter`` as accepted (call only after :meth:`is_fresh` said so)."""
         if counter > self.highest:

@@ -315,16 +315,24 @@ class Codec:
                 )
         counter = (high << 32) | low
         window = self._windows.get(sender_id)
+        restart = False
         if window is not None and not window.is_fresh(counter):
-            raise ReplayedPacket(
-                f"counter {counter} already seen or older than the window "
-                f"(highest {window.highest})",
-                **ids,
-            )
+            # Without a tag the window only drops duplicates: an older counter restarts it
+            # (see ReplayWindow.restart), so one garbled counter cannot lock a sender out.
+            if tagged or window.is_duplicate(counter):
+                raise ReplayedPacket(
+                    f"counter {counter} already seen or older than the window "
+                    f"(highest {window.highest})",
+                    **ids,
+                )
+            restart = True
         # Every check passed: only now does anything change.
         if window is None:
             window = self._windows[sender_id] = ReplayWindow()
-        window.commit(counter)
+        if restart:
+            window.restart(counter)
+        else:
+            window.commit(counter)
         return Packet(
             mission_id=mission_id,
             sender_id=sender_id,

@@ -1,0 +1,188 @@
+"""clark dry-run end to end: every example passes its own checks, runs are reproducible.
+
+These run the real thing: every agent's runtime, ClarkLink over the simulated mesh,
+MAVLink through pymavlink to the simulated autopilots. The shorter runs keep the
+suite quick; the examples run for their declared duration.
+"""
+
+from __future__ import annotations
+
+import io
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from clark_engine.errors import UsageError
+from clark_engine.sim.dryrun import parse_fault, run_dry_run
+
+ROOT = Path(__file__).resolve().parent.parent
+MISSIONS = sorted((ROOT / "missions").glob("*.yaml"))
+FOLLOW = ROOT / "missions" / "cooperative_follow.yaml"
+
+
+def dry_run(path: Path, **kwargs: object) -> tuple[int, str, str]:
+    """Run in process; the exit code, the checks table and the diagnostics."""
+    out, err = io.StringIO(), io.StringIO()
+    options: dict[str, object] = {"seed": None, "until_s": None, "report": None, "speed": None}
+    options.update(kwargs)
+    outcome = run_dry_run(path, out=out, err=err, **options)  # type: ignore[arg-type]
+    return outcome.exit_code, out.getvalue(), err.getvalue()
+
+
+@pytest.mark.parametrize("path", MISSIONS, ids=[p.stem for p in MISSIONS])
+def test_every_example_passes_its_checks(path: Path) -> None:
+    code, table, err = dry_run(path)
+    assert code == 0, table + err
+    assert "| pass |" in table and "FAIL" not in table
+    rows = [line for line in table.splitlines() if line.startswith("| ") and "---" not in line]
+    assert len(rows) >= 3, "an example checks what it demonstrates"
+
+
+def test_examples_cover_the_faults() -> None:
+    """The shipped examples show every kind of fault the dry run injects."""
+    text = "\n".join(p.read_text() for p in MISSIONS)
+    for kind in ("station_silent:", "kill:", "autopilot_disconnect:", "corrupt:"):
+        assert kind in text, kind
+
+
+def report_files(folder: Path) -> dict[str, bytes]:
+    return {
+        str(p.relative_to(folder)): p.read_bytes()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file() and p.suffix in (".csv", ".log")
+    }
+
+
+def test_same_seed_gives_byte_identical_logs(tmp_path: Path) -> None:
+    first, second, other = tmp_path / "a", tmp_path / "b", tmp_path / "c"
+    for folder, seed in ((first, 7), (second, 7), (other, 8)):
+        code, _, _ = dry_run(FOLLOW, seed=seed, until_s=40.0, report=folder)
+        assert code in (0, 1)
+    a, b = report_files(first), report_files(second)
+    assert a and a.keys() == b.keys()
+    for name in a:
+        assert a[name] == b[name], name
+    assert report_files(other) != a, "the seed changes the noise"
+
+
+def test_report_has_summary_plots_and_logs(tmp_path: Path) -> None:
+    folder = tmp_path / "report"
+    code, _, err = dry_run(FOLLOW, report=folder)
+    assert code == 0
+    assert f"report: {folder / 'summary.md'}" in err
+    for name in ("summary.md", "tracks.png", "timeline.png"):
+        assert (folder / name).stat().st_size > 0, name
+    assert (folder / "tracks.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    summary = (folder / "summary.md").read_text()
+    assert "Slash B reaches Slash A" in summary and "pass" in summary
+    for agent in ("mcs", "slash_a", "slash_b"):
+        for kind in ("mission.log", "messages.csv", "fleet.csv"):
+            assert (folder / "logs" / f"{agent}.{kind}").exists(), (agent, kind)
+
+
+def test_sysid_report_plots_the_control_inputs(tmp_path: Path) -> None:
+    folder = tmp_path / "report"
+    code, _, _ = dry_run(ROOT / "missions" / "supercub_sysid.yaml", report=folder)
+    assert code == 0
+    assert (folder / "inputs.png").stat().st_size > 0
+
+
+def test_failed_check_exits_1(tmp_path: Path) -> None:
+    mission = tmp_path / "m.yaml"
+    text = FOLLOW.read_text().replace("by_s: 75, distance_m", "by_s: 5, distance_m")
+    mission.write_text(text)
+    code, table, err = dry_run(mission)
+    assert code == 1
+    assert "**FAIL**" in table and "1 of 3 checks failed" in err
+
+
+def test_a_cli_fault_can_fail_a_mission() -> None:
+    """Killing the leader early: Slash B never catches it, and the check says so."""
+    code, table, _ = dry_run(FOLLOW, faults=["kill:slash_a@5"])
+    assert code == 1
+    assert "Slash B reaches Slash A" in table and "**FAIL**" in table
+
+
+def test_invalid_mission_exits_1_without_simulating(tmp_path: Path) -> None:
+    mission = tmp_path / "m.yaml"
+    mission.write_text(FOLLOW.read_text().replace("loop_hz: 10", "loop_hz: 0"))
+    code, table, err = dry_run(mission, report=tmp_path / "report")
+    assert code == 1
+    assert "m.yaml:" in err and "E-" in err
+    assert table == ""
+    assert not (tmp_path / "report").exists(), "nothing written for an invalid mission"
+
+
+@pytest.mark.parametrize(
+    ("text", "fault"),
+    [
+        ("kill:slash_a@30", {"kill": {"agent": "slash_a", "at_s": 30.0}}),
+        (
+            "link_drop:mcs,slash_b@10-20.5",
+            {"link_drop": {"between": ["mcs", "slash_b"], "from_s": 10.0, "to_s": 20.5}},
+        ),
+        ("station_silent@40-70", {"station_silent": {"from_s": 40.0, "to_s": 70.0}}),
+        (
+            "autopilot_disconnect:slash_b@1-2",
+            {"autopilot_disconnect": {"agent": "slash_b", "from_s": 1.0, "to_s": 2.0}},
+        ),
+        ("corrupt:0.25@0-60", {"corrupt": {"share": 0.25, "from_s": 0.0, "to_s": 60.0}}),
+    ],
+)
+def test_fault_forms(text: str, fault: dict[str, object]) -> None:
+    assert parse_fault(text) == fault
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "kill:slash_a",
+        "kill:slash_a@1-2",
+        "station_silent@5",
+        "station_silent@9-3",
+        "melt:a@1",
+        "link_drop:mcs@1-2",
+        "corrupt:lots@1-2",
+    ],
+)
+def test_bad_fault_is_a_usage_error(text: str) -> None:
+    with pytest.raises(UsageError, match="is not a fault"):
+        parse_fault(text)
+
+
+def cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "clark_engine", "dry-run", *args],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+
+
+def test_cli_exit_codes_and_no_tracebacks(tmp_path: Path) -> None:
+    good = cli(str(FOLLOW), "--until", "80")
+    assert good.returncode == 0, good.stderr
+    bad_fault = cli(str(FOLLOW), "--fault", "kill:nobody@3")
+    assert bad_fault.returncode == 2
+    assert "there is no agent 'nobody'" in bad_fault.stderr
+    missing = cli(str(tmp_path / "absent.yaml"))
+    assert missing.returncode == 2
+    blocked = tmp_path / "file"
+    blocked.write_text("")
+    unwritable = cli(str(FOLLOW), "--until", "5", "--report", str(blocked / "report"))
+    assert unwritable.returncode == 2
+    assert "cannot write the report" in unwritable.stderr
+    for result in (good, bad_fault, missing, unwritable):
+        assert "Traceback" not in result.stderr
+
+
+def test_cli_applies_a_station_loss() -> None:
+    """The station falls silent before it activates Slash B: the failsafe holds Slash B."""
+    result = cli(str(FOLLOW), "--until", "40", "--fault", "station_silent@5-35")
+    assert result.returncode == 1
+    failsafe_row = next(line for line in result.stdout.splitlines() if "| no failsafe" in line)
+    assert "slash_b failsafe hold" in failsafe_row and "**FAIL**" in failsafe_row
