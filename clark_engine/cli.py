@@ -211,12 +211,23 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 def cmd_dry_run(args: argparse.Namespace) -> int:
     """Simulate the mission against a simulated fleet and evaluate its checks."""
     from clark_engine.sim.dryrun import run_dry_run
+    from clark_engine.sim.realtime import DEFAULT_HOST
 
     if args.realtime:
-        raise UsageError(
-            "--realtime is not built yet: dry runs run on a virtual clock only "
-            "(see docs/dry-run.md)"
-        )
+        if args.mavlink_port is None:
+            raise UsageError(
+                "--realtime needs --mavlink-port BASE: vehicle k's autopilot listens on "
+                "UDP port BASE+k (e.g. --mavlink-port 14560; see docs/realtime.md)"
+            )
+        if args.speed is not None:
+            raise UsageError("--speed does not go with --realtime, which runs at speed 1")
+    else:
+        for given, option in (
+            (args.mavlink_port is not None, "--mavlink-port"),
+            (args.mavlink_host is not None, "--mavlink-host"),
+        ):
+            if given:
+                raise UsageError(f"{option} only applies with --realtime")
     outcome = run_dry_run(
         Path(args.mission),
         seed=args.seed,
@@ -224,6 +235,8 @@ def cmd_dry_run(args: argparse.Namespace) -> int:
         report=Path(args.report) if args.report else None,
         speed=args.speed,
         faults=args.fault or (),
+        realtime_base_port=args.mavlink_port if args.realtime else None,
+        realtime_host=args.mavlink_host or DEFAULT_HOST,
     )
     return outcome.exit_code
 
@@ -310,13 +323,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--realtime",
         action="store_true",
-        help="run at wall-clock speed with MAVLink ports for a ground station",
+        help="run at wall-clock speed with MAVLink ports for a ground station "
+        "(until --until or Ctrl-C)",
     )
     p.add_argument(
         "--mavlink-port",
         type=int,
         metavar="BASE",
-        help="with --realtime: vehicle k's autopilot on UDP port BASE+k",
+        help="with --realtime: vehicle k's autopilot listens on UDP port BASE+k; a station "
+        "connects with udpout:127.0.0.1:BASE+k",
+    )
+    p.add_argument(
+        "--mavlink-host",
+        metavar="ADDRESS",
+        help="with --realtime: the address to listen on (127.0.0.1 by default; 0.0.0.0 "
+        "for stations on other machines)",
     )
     p.set_defaults(func=cmd_dry_run)
 

@@ -181,7 +181,8 @@ class UdpTransport(Transport):
             self._sock.bind(bind if bind is not None else ("0.0.0.0", 0))
         except OSError as exc:
             self._sock.close()
-            raise TransportError(f"udp {bind}: cannot listen there ({exc.strerror})") from None
+            where = f"{bind[0]}:{bind[1]}" if bind is not None else "0.0.0.0:0"
+            raise TransportError(f"udp {where}: cannot listen there ({exc.strerror})") from None
         host, port = self._sock.getsockname()[:2]
         self.address: tuple[str, int] = (host, port)
         """The bound local address (with the real port when 0 was asked)."""

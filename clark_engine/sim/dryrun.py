@@ -10,14 +10,21 @@ from __future__ import annotations
 import re
 import shutil
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
 from clark_engine.errors import UsageError
+from clark_engine.mission.model import Mission
 from clark_engine.sim.checks import CheckResult, evaluate
 from clark_engine.sim.engine import DryRun, DryRunResult
+from clark_engine.sim.realtime import (
+    DEFAULT_HOST,
+    MavlinkBridge,
+    stop_on_interrupt,
+    vehicle_names,
+)
 from clark_engine.sim.report import (
     checks_table,
     plot_inputs,
@@ -96,14 +103,34 @@ def run_dry_run(
     report: Path | None,
     speed: float | None,
     faults: Sequence[str] = (),
-    out: TextIO = sys.stdout,
-    err: TextIO = sys.stderr,
+    realtime_base_port: int | None = None,
+    realtime_host: str = DEFAULT_HOST,
+    out: TextIO | None = None,
+    err: TextIO | None = None,
 ) -> Outcome:
     """Validate the mission, simulate it, evaluate its checks and write the report.
 
+    Args:
+        mission_path: The mission file.
+        seed: Seeds every random draw; the mission's ``sim.seed`` when None.
+        until_s: Simulated seconds to run; the mission's ``sim.duration_s`` when None.
+        report: Folder for logs, CSV, plots and ``summary.md``; none written when None.
+        speed: Simulated seconds per wall-clock second; as fast as possible when None.
+        faults: Command-line faults (:data:`FAULT_HELP`).
+        realtime_base_port: Real time with a ground station: run at wall-clock speed
+            (``speed`` is ignored) with vehicle k's simulated autopilot on UDP port
+            BASE + k (:mod:`clark_engine.sim.realtime`); Ctrl-C ends the run early
+            and the report is still written. Off when None.
+        realtime_host: The address those ports are bound to (loopback by default).
+        out: Where the checks table goes; ``sys.stdout`` (as it is at the call) when None.
+        err: Where progress and diagnostics go; ``sys.stderr`` when None.
+
     Raises:
-        UsageError: Unreadable mission, bad fault, or a report folder that cannot be made.
+        UsageError: Unreadable mission, bad fault, a report folder that cannot be made,
+            or (in real time) no vehicle or a port that cannot be bound.
     """
+    out = sys.stdout if out is None else out
+    err = sys.stderr if err is None else err
     extra = [parse_fault(text) for text in faults]
     validation = validate_file(mission_path, str(mission_path))
     for finding in validation.findings:
@@ -122,37 +149,21 @@ def run_dry_run(
                 raise UsageError(f"--fault {kind}: there is no agent {name!r} in the mission")
     seed = int(seed if seed is not None else mission.sim.get("seed", 0))
     until = float(until_s if until_s is not None else mission.sim.get("duration_s", 300.0))
-    log_dir: Path | None = None
-    if report is not None:
-        try:
-            report.mkdir(parents=True, exist_ok=True)
-            log_dir = report / "logs"
-            if log_dir.exists():
-                shutil.rmtree(log_dir)
-            log_dir.mkdir()
-        except OSError as exc:
-            raise UsageError(
-                f"cannot write the report to {report}: {exc.strerror or exc}"
-            ) from None
-    interactive = err.isatty() if hasattr(err, "isatty") else False
-    progress = _progress(err) if interactive or until > 60 else None
-    print(
-        f"dry run of {mission.name}: {len(mission.agents)} agents, {until:g} s, seed {seed}",
-        file=err,
+    # Real time: bind the ports first, so a port in use is reported before anything is written.
+    bridge = (
+        MavlinkBridge(vehicle_names(mission), realtime_base_port, host=realtime_host)
+        if realtime_base_port is not None
+        else None
     )
-    run = DryRun(
-        mission,
-        mission_path,
-        seed=seed,
-        until_s=until,
-        log_dir=log_dir,
-        extra_faults=extra,
-        progress=progress,
-        speed=speed,
-    )
-    result = run.run()
-    if progress is not None:
-        err.write("\n")
+    try:
+        result = _simulate(mission, mission_path, seed, until, report, speed, extra, bridge, err)
+    finally:
+        if bridge is not None:
+            bridge.close()
+    stopped_at_s = bridge.stopped_at_s if bridge is not None else None
+    if stopped_at_s is not None:
+        print(f"stopped at {stopped_at_s:.1f} s of {until:g} s (Ctrl-C)", file=err)
+    until = min(until, result.recording.end_s)  # earlier when Ctrl-C ended a real-time run
     results = evaluate(mission.checks, result.recording, result.configs, mission.origin)
     rate = until / result.wall_s if result.wall_s > 0 else float("inf")
     print(f"simulated {until:g} s in {result.wall_s:.1f} s ({rate:.0f}x real time)", file=err)
@@ -167,6 +178,78 @@ def run_dry_run(
     if failed:
         print(f"{len(failed)} of {len(results)} checks failed", file=err)
     return Outcome(1 if failed else 0, results, result)
+
+
+def _simulate(
+    mission: Mission,
+    mission_path: Path,
+    seed: int,
+    until_s: float,
+    report: Path | None,
+    speed: float | None,
+    faults: Sequence[Mapping[str, Any]],
+    bridge: MavlinkBridge | None,
+    err: TextIO,
+) -> DryRunResult:
+    """Make the report's log folder and run the simulation (in real time with a bridge).
+
+    Raises:
+        UsageError: The report folder cannot be made.
+    """
+    log_dir: Path | None = None
+    if report is not None:
+        try:
+            report.mkdir(parents=True, exist_ok=True)
+            log_dir = report / "logs"
+            if log_dir.exists():
+                shutil.rmtree(log_dir)
+            log_dir.mkdir()
+        except OSError as exc:
+            raise UsageError(
+                f"cannot write the report to {report}: {exc.strerror or exc}"
+            ) from None
+    interactive = err.isatty() if hasattr(err, "isatty") else False
+    progress = _progress(err) if interactive or until_s > 60 else None
+    print(
+        f"dry run of {mission.name}: {len(mission.agents)} agents, {until_s:g} s, seed {seed}",
+        file=err,
+    )
+    run = DryRun(
+        mission,
+        mission_path,
+        seed=seed,
+        until_s=until_s,
+        log_dir=log_dir,
+        extra_faults=faults,
+        progress=progress,
+        speed=1.0 if bridge is not None else speed,
+    )
+    if bridge is None:
+        result = run.run()
+    else:
+        # Wall-clock speed, each vehicle on its port; the ports were opened before the
+        # clock starts, so a station may connect first. Ctrl-C ends the run early.
+        bridge.attach(run)
+        for endpoint in bridge.endpoints:
+            print(
+                f"  {endpoint.agent}: MAVLink on udp {endpoint.address} (system id "
+                f"{endpoint.system_id}); e.g. mavproxy.py --master=udpout:{endpoint.address}",
+                file=err,
+            )
+        shared = len({e.system_id for e in bridge.endpoints}) < len(bridge.endpoints)
+        if shared:
+            print(
+                "  note: vehicles share a system id, so a station connected to several of them "
+                "takes them for one; give each its own (hardware: {autopilot: {mavlink: "
+                "{system_id: N}}}) to watch them together",
+                file=err,
+            )
+        with stop_on_interrupt(bridge.stop):
+            print("real time: Ctrl-C ends the run early (the report is still written)", file=err)
+            result = run.run()
+    if progress is not None:
+        err.write("\n")
+    return result
 
 
 def _write_report(
