@@ -1,8 +1,9 @@
-"""`make demo`: validate and compile every shipped example mission, then say where the output is.
+"""`make demo`: the engine's main job on the shipped examples.
 
-Until `clark dry-run` exists this is the engine's main job on the embedded
-examples: every mission is checked before flight and compiled into one config
-per agent under demo-output/.
+Every example mission is checked before flight and compiled into one config per
+agent under demo-output/; then the thesis's cooperation test (5.2.1) is dry-run:
+every agent's real runtime against a simulated fleet, its checks evaluated and a
+report (summary, plots, logs) written under demo-output/dry-run/.
 """
 
 from __future__ import annotations
@@ -14,9 +15,11 @@ from pathlib import Path
 from clark_engine.data import data_dir
 from clark_engine.mission.compiler import compile_mission, write_configs
 from clark_engine.mission.validate import display_path
+from clark_engine.sim.dryrun import run_dry_run
 from clark_engine.validation import validate_file
 
 OUTPUT = Path("demo-output")
+DRY_RUN = "cooperative_follow.yaml"
 
 
 def main() -> int:
@@ -54,7 +57,21 @@ def main() -> int:
             "W-NO-KEY: the thesis flew without authentication, and so do these examples;"
             " `clark keygen` and mission.key_file add it."
         )
-    print("Try: .venv/bin/clark explain missions/supercub_sysid.yaml --agent cub")
+    return dry_run(data_dir("missions") / DRY_RUN)
+
+
+def dry_run(path: Path) -> int:
+    """Dry-run one example with a report, and say where the report is."""
+    report = OUTPUT / "dry-run" / path.stem
+    print(f"\nDry run of {path.name}: every agent's runtime against a simulated fleet\n")
+    outcome = run_dry_run(path, seed=None, until_s=None, report=report, speed=None, err=sys.stdout)
+    print()
+    if outcome.exit_code != 0:
+        print("The dry run's checks failed; see the table above.")
+        return outcome.exit_code
+    print(f"All checks passed. Open {(report / 'summary.md').resolve()}")
+    print("Try: .venv/bin/clark dry-run missions/fault_station_loss.yaml --report out/")
+    print("     .venv/bin/clark explain missions/supercub_sysid.yaml --agent cub")
     return 0
 
 

@@ -378,6 +378,7 @@ def intro(sources: Sequence[str]) -> list[str]:
         "- [Failsafe](#failsafe)",
         "- [Points](#points)",
         "- [Dry-run checks](#dry-run-checks)",
+        "- [Dry-run operator, faults and settings](#dry-run-operator-faults-and-settings)",
         "- [States](#states)",
         "- [Transitions](#transitions)",
         "- [Events](#events)",
@@ -652,11 +653,12 @@ def checks_section(schema: Schema) -> list[str]:
         "",
         "`checks:` lists what a dry run of the mission must observe. "
         + md(str(check["description"]))
-        + " **`clark dry-run` is not built yet**: today `clark validate` checks that each item "
+        + " `clark dry-run` evaluates them and exits 1 when one fails "
+        "([dry-run.md](dry-run.md)); `clark validate` checks that each item "
         "has one expectation and that the agents and states it names exist "
         "([[E-CHECK-SHAPE]], "
         "[[E-AGENT-UNKNOWN]], "
-        "[[E-STATE-UNKNOWN]]); nothing evaluates them yet.",
+        "[[E-STATE-UNKNOWN]]).",
         "",
         "```yaml",
         "checks:",
@@ -692,6 +694,60 @@ def checks_section(schema: Schema) -> list[str]:
             *property_table(prop, prefix=""),
             "",
         ]
+    return lines
+
+
+def dry_run_inputs_section(schema: Schema) -> list[str]:
+    """What a dry run is told besides the checks: the operator's script, faults, settings."""
+    operator = schema["$defs"]["operator"]
+    fault = schema["$defs"]["fault"]
+    lines = [
+        "## Dry-run operator, faults and settings",
+        "",
+        "Three more top-level sections drive `clark dry-run` ([dry-run.md](dry-run.md)) and "
+        "are ignored in flight. `operator:` is the station operator's and the pilots' script. "
+        + md(str(operator["description"])),
+        "",
+        "```yaml",
+        "operator:",
+        "  - {at_s: 20, activate: slash_b}",
+        "  - {at_s: 30, mode: {agent: cub, mode: LOITER}}",
+        "  - {at_s: 35, rc: {agent: cub, channel: 7, pwm_us: 1900}}",
+        "faults:",
+        "  - station_silent: {from_s: 40, to_s: 70}",
+        "  - kill: {agent: slash_a, at_s: 30}",
+        "sim: {duration_s: 120, seed: 1, radio_loss: 0.05}",
+        "```",
+        "",
+        "### Operator actions",
+        "",
+        *property_table(operator, prefix=""),
+        "",
+        "### Faults",
+        "",
+        md(str(fault["description"])) + " A `--fault` option of `clark dry-run` adds one "
+        "from the command line.",
+        "",
+    ]
+    for name, prop in fault["properties"].items():
+        lines += [
+            f"#### `{name}`",
+            "",
+            md(str(prop.get("description", ""))),
+            "",
+            *property_table(prop, prefix=""),
+            "",
+        ]
+    sim = schema["properties"]["sim"]
+    lines += [
+        "### Simulation settings",
+        "",
+        "`sim:` " + md(str(sim["description"])) + " An agent's own `sim:` sets where and how "
+        "its simulated vehicle starts.",
+        "",
+        *property_table(sim, prefix=""),
+        "",
+    ]
     return lines
 
 
@@ -1145,6 +1201,7 @@ def generate() -> str:
         failsafe_section(mission),
         points_section(mission),
         checks_section(mission),
+        dry_run_inputs_section(mission),
         states_section(mission),
         transitions_section(mission),
         events_section(),

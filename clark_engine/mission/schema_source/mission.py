@@ -140,7 +140,8 @@ def _check() -> Schema:
                 "Simulated time by which the expectation must hold.", unit="s", minimum=0
             ),
             "distance_m": obj(
-                "Distance between two agents at by_s.",
+                "Distance between two agents: with max, they come within max of each other "
+                "by by_s; with min, they are at least min apart at by_s.",
                 {
                     "between": agents2,
                     "max": number("Largest allowed distance.", unit="m", minimum=0),
