@@ -98,6 +98,21 @@ def test_failed_check_exits_1(tmp_path: Path) -> None:
     assert "**FAIL**" in table and "1 of 3 checks failed" in err
 
 
+def test_a_sequence_out_of_order_fails(tmp_path: Path) -> None:
+    mission = tmp_path / "m.yaml"
+    sysid = ROOT / "missions" / "supercub_sysid.yaml"
+    text = sysid.read_text().replace(
+        "states: [excite.aileron, excite.rudder, excite.sweep]",
+        "states: [excite.aileron, excite.sweep, excite.rudder]",
+    )
+    assert text != sysid.read_text()
+    mission.write_text(text)
+    code, table, _ = dry_run(mission)
+    assert code == 1
+    row = next(line for line in table.splitlines() if "then the sweep" in line)
+    assert "excite.sweep at 28.2 s; then never excite.rudder" in row and "**FAIL**" in row
+
+
 def test_a_cli_fault_can_fail_a_mission() -> None:
     """Killing the leader early: Slash B never catches it, and the check says so."""
     code, table, _ = dry_run(FOLLOW, faults=["kill:slash_a@5"])

@@ -618,6 +618,17 @@ def _rehome(finding: Finding, state: State, mission: Mission) -> Finding:
     )
 
 
+def _checked_state_paths(kind: str, body: Any) -> list[str]:
+    """The state paths a check of ``kind`` names (none for kinds that name no state)."""
+    if not isinstance(body, Mapping):
+        return []
+    if kind == "sequence":
+        states = body.get("states")
+        return [p for p in states if isinstance(p, str)] if isinstance(states, list) else []
+    path = body.get("reached") if kind == "state" else body.get("state")
+    return [path] if kind in ("state", "signal") and isinstance(path, str) else []
+
+
 def check_expectations(mission: Mission) -> Iterator[Finding]:
     """Dry-run expectations name agents and states that exist."""
     for index, check in enumerate(mission.checks):
@@ -628,7 +639,7 @@ def check_expectations(mission: Mission) -> Iterator[Finding]:
                 "E-CHECK-SHAPE",
                 where,
                 "each check states exactly one expectation (distance_m, reached, separation_m, "
-                f"state, photos, no_failsafe, failsafe or signal); this one has "
+                f"state, sequence, photos, no_failsafe, failsafe or signal); this one has "
                 f"{len(kinds) or 'none'}",
             )
             continue
@@ -653,19 +664,19 @@ def check_expectations(mission: Mission) -> Iterator[Finding]:
                     f"the check names {name!r}, which is not an agent; "
                     + _hint(name, mission.agents),
                 )
-        state_path = body.get("reached") if kinds[0] == "state" else body.get("state")
-        if kinds[0] in ("state", "signal") and isinstance(state_path, str):
-            agent = mission.agents.get(str(body.get("agent")))
-            if agent is None:
-                continue
-            if agent.behavior is None:
-                yield error(
-                    "E-STATE-UNKNOWN",
-                    where,
-                    f"{agent.name} has no behaviour, so it never reaches {state_path!r}; "
-                    "give it a behavior or check another agent",
-                )
-                continue
+        paths = _checked_state_paths(kinds[0], body)
+        agent = mission.agents.get(str(body.get("agent"))) if paths else None
+        if agent is None:
+            continue
+        if agent.behavior is None:
+            yield error(
+                "E-STATE-UNKNOWN",
+                where,
+                f"{agent.name} has no behaviour, so it never reaches {paths[0]!r}; "
+                "give it a behavior or check another agent",
+            )
+            continue
+        for state_path in paths:
             state = agent.behavior.find(tuple(state_path.split(".")))
             if state is None:
                 yield error(

@@ -170,6 +170,33 @@ def _state(
     return CheckResult(label, expected, f"entered at {when:.1f} s", True)
 
 
+def _sequence(
+    label: str,
+    body: Mapping[str, Any],
+    by_s: float,
+    rec: Recording,
+    _configs: Mapping[str, AgentConfig],
+    _origin: Origin,
+) -> CheckResult:
+    agent = str(body["agent"])
+    paths = [str(p) for p in body["states"]]
+    expected = f"{agent} enters {' then '.join(paths)}, the last by {by_s:g} s"
+    seen: list[str] = []
+    for entry in rec.states.get(agent, []):
+        if entry.time_s > by_s + 1e-9:
+            break
+        # One change may enter several of them at once (a parent and its first child).
+        while len(seen) < len(paths) and any(
+            p == paths[len(seen)] or p.startswith(paths[len(seen)] + ".") for p in entry.entered
+        ):
+            seen.append(f"{paths[len(seen)]} at {entry.time_s:.1f} s")
+    if len(seen) == len(paths):
+        return CheckResult(label, expected, ", ".join(seen), True)
+    missing = paths[len(seen)]
+    observed = ", ".join(seen) + ("; then " if seen else "") + f"never {missing}"
+    return CheckResult(label, expected, observed, False)
+
+
 def _photos(
     label: str,
     body: Mapping[str, Any],
@@ -328,6 +355,7 @@ _EVALUATORS = {
     "reached": _reached,
     "separation_m": _separation,
     "state": _state,
+    "sequence": _sequence,
     "photos": _photos,
     "no_failsafe": _no_failsafe,
     "failsafe": _failsafe,

@@ -178,6 +178,19 @@ def _check() -> Schema:
                 },
                 required=["agent", "reached"],
             ),
+            "sequence": obj(
+                "An agent's behaviour enters these states in this order, the last by by_s "
+                "(each after the one before it; other states may come in between).",
+                {
+                    "agent": AGENT_NAME_SCHEMA,
+                    "states": array(
+                        "Dotted paths of the states, in the order they must be entered.",
+                        string("Dotted path of a state.", pattern=STATE_PATH_PATTERN),
+                        min_items=2,
+                    ),
+                },
+                required=["agent", "states"],
+            ),
             "photos": obj(
                 "Number of pictures an agent takes over the run.",
                 {
