@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import logging
 import math
+import operator
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Final
@@ -115,6 +116,10 @@ _RC_IGNORE: Final = _UINT16_MAX  # "no change" for every channel
 _RC_RELEASE_LOW: Final = 0  # channels 1-8: give the channel back to the pilot
 _RC_RELEASE_HIGH: Final = _UINT16_MAX - 1  # channels 9-18: 0 means "ignore" there
 _FORCE_ARM_MAGIC: Final = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2: skip pre-arm checks
+_RC_CHANNEL_FIELDS: Final = operator.attrgetter(
+    *(f"chan{i}_raw" for i in range(1, RC_OVERRIDE_CHANNELS + 1))
+)
+"""RC_CHANNELS' 18 widths as a tuple, read in one call (it arrives at the stream rate)."""
 
 POSITION_ONLY_TYPE_MASK: Final = (
     mavlink2.POSITION_TARGET_TYPEMASK_VX_IGNORE
@@ -295,6 +300,8 @@ class _Outbox:
         self._data += data
 
     def take(self) -> bytes:
+        if not self._data:
+            return b""  # most polls send nothing
         data, self._data = bytes(self._data), bytearray()
         return data
 
@@ -373,6 +380,8 @@ class AutopilotAdapter:
             srcComponent=settings.source_component_id,
         )
         self._parser = self._new_parser()
+        # (system, component) the messages used come from; settings are frozen
+        self._autopilot_ids = (settings.system_id, settings.component_id)
         self._mode_names: dict[int, str] = {}
         for name, number in settings.modes.items():
             self._mode_names.setdefault(int(number), name)
@@ -398,6 +407,9 @@ class AutopilotAdapter:
         self._verify_attempts = 0
         self._attitude: Any = None
         self._vfr_hud: Any = None
+        # The last RC_CHANNELS widths received, and _rc_values' answer for them.
+        self._rc_raw: tuple[int, ...] | None = None
+        self._rc: tuple[int, ...] = ()
         self._gps_at_boot_ms: tuple[int, int] | None = None  # (GPS ms, autopilot boot ms)
         self._position_s: float | None = None
         self._last_boot_ms: int | None = None
@@ -525,7 +537,8 @@ class AutopilotAdapter:
                 )
         if self._version is None and now_s >= self._next_verify_s:
             self._verify(now_s)
-        self._send_due(now_s, heard=heard)
+        if self._requests:
+            self._send_due(now_s, heard=heard)
         return self._outbox.take()
 
     def close(self, now_s: float) -> bytes:
@@ -718,10 +731,7 @@ class AutopilotAdapter:
         if kind == "BAD_DATA":
             self.bad_frames += 1
             return
-        if (msg.get_srcSystem(), msg.get_srcComponent()) != (
-            self.settings.system_id,
-            self.settings.component_id,
-        ):
+        if (msg.get_srcSystem(), msg.get_srcComponent()) != self._autopilot_ids:
             self.foreign_messages += 1
             return
         self._latest[kind] = msg
@@ -746,7 +756,7 @@ class AutopilotAdapter:
                 else None
             )
         elif kind == "RC_CHANNELS":
-            events.append(RcChannels(self._rc_values(msg)))
+            events.append(RcChannels(self._rc_values(_RC_CHANNEL_FIELDS(msg))))
         elif kind == "PARAM_VALUE":
             events.append(self._on_param(msg))
         elif kind == "COMMAND_ACK":
@@ -849,10 +859,15 @@ class AutopilotAdapter:
         self._state = state
         return state
 
-    @staticmethod
-    def _rc_values(msg: Any) -> tuple[int, ...]:
-        values = (getattr(msg, f"chan{i}_raw") for i in range(1, RC_OVERRIDE_CHANNELS + 1))
-        return tuple(0 if v == _UINT16_MAX else int(v) for v in values)
+    def _rc_values(self, raw: tuple[int, ...]) -> tuple[int, ...]:
+        """RC_CHANNELS' widths with "unused" as 0; the last answer again while they repeat.
+
+        They arrive at the stream rate and change only when a stick or an override moves.
+        """
+        if raw != self._rc_raw:
+            self._rc_raw = raw
+            self._rc = tuple(0 if v == _UINT16_MAX else int(v) for v in raw)
+        return self._rc
 
     def _on_param(self, msg: Any) -> ParamValue:
         name = str(msg.param_id)

@@ -39,7 +39,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import Any, Generic, TypeVar, cast
+from typing import Any, Generic, TypeVar
 
 from clark_engine.link.errors import (
     BadTag,
@@ -135,6 +135,16 @@ class _Order(Enum):
     LATE = 2  # below the highest, inside the window, not seen before: fills a gap
     DUPLICATE = 3  # seen before
     OUT_OF_WINDOW = 4  # too far below the highest to tell
+
+
+# Looking a member up on an Enum class costs a descriptor call in Python 3.11, and every
+# packet every agent receives is placed: the hot path uses these names.
+_NEW, _LATE, _DUPLICATE, _OUT_OF_WINDOW = (
+    _Order.NEW,
+    _Order.LATE,
+    _Order.DUPLICATE,
+    _Order.OUT_OF_WINDOW,
+)
 
 
 @dataclass(slots=True)
@@ -238,20 +248,20 @@ class LinkStats:
                     self._seen = ((self._seen << jump) | 1) & _WINDOW_MASK
             self._highest = counter
             self._sequenced += 1
-            return _Order.NEW
+            return _NEW
         behind = highest - counter
         if behind >= COUNTER_WINDOW:
             self.out_of_window += 1
-            return _Order.OUT_OF_WINDOW
+            return _OUT_OF_WINDOW
         bit = 1 << behind
         if self._seen & bit:
             self.duplicates += 1
-            return _Order.DUPLICATE
+            return _DUPLICATE
         self._seen |= bit
         if counter > self._floor:  # inside a gap that was counted as loss
             self.lost -= 1
             self._sequenced += 1
-        return _Order.LATE
+        return _LATE
 
     def _add_latency(self, latency_ms: float) -> None:
         """Welford's update: exact running mean and variance in O(1) memory."""
@@ -260,14 +270,16 @@ class LinkStats:
         if n == 1:
             self.latency_mean_ms = self.latency_min_ms = self.latency_max_ms = latency_ms
             return
-        mean = cast(float, self.latency_mean_ms)
+        # Set by the first sample. (Type comments, not typing.cast: this runs for every
+        # message every agent receives, and cast is a function call.)
+        mean: float = self.latency_mean_ms  # type: ignore[assignment]
         delta = latency_ms - mean
         mean += delta / n
         self.latency_mean_ms = mean
         self._latency_m2 += delta * (latency_ms - mean)
-        if latency_ms < cast(float, self.latency_min_ms):
+        if latency_ms < self.latency_min_ms:  # type: ignore[operator]
             self.latency_min_ms = latency_ms
-        if latency_ms > cast(float, self.latency_max_ms):
+        if latency_ms > self.latency_max_ms:  # type: ignore[operator]
             self.latency_max_ms = latency_ms
 
 
@@ -401,6 +413,9 @@ class FleetTable:
         self._records: dict[int, AgentRecord] = {}  # kept sorted by id
         self._banned: set[int] = set()  # sent a heartbeat of another mission in our packets
         self._foreign_reported: set[tuple[int, int | None]] = set()
+        # No agent that is not lost heard its last heartbeat before this (a lower bound):
+        # check_timeouts skips its scan while even this one is within the timeout.
+        self._oldest_heartbeat_s = math.inf
         #: Statistics of senders that are neither expected nor recorded.
         self.unattributed = LinkStats()
 
@@ -429,10 +444,10 @@ class FleetTable:
             return []
         counter = packet.counter
         stats = self._stats.get(sender)
-        order = _Order.NEW
+        order = _NEW
         if stats is not None:
             order = stats._order(counter)
-            if order is _Order.DUPLICATE:
+            if order is _DUPLICATE:
                 return []
         events: list[FleetEvent] = []
         messages = packet.messages
@@ -452,6 +467,8 @@ class FleetTable:
         stats.last_packet_s = now_s
         counts = stats.messages
         record = None if sender in self._banned else self._records.get(sender)
+        samples = None if record is None else record._samples
+        late = order is _LATE  # a late packet replaces only values from older ones
         for message in messages:
             if message.agent_id != sender:
                 stats.misattributed += 1
@@ -459,12 +476,12 @@ class FleetTable:
             cls = type(message)
             name = MESSAGE_NAMES.get(cls, cls.__name__)
             counts[name] = counts.get(name, 0) + 1
-            if gps_now_ms is not None and message.gps_time_ms > 0 and cls is not PictureData:
-                stats._add_latency(float(gps_now_ms - message.gps_time_ms))
-            if record is not None:
-                samples = record._samples
+            stamp = message.gps_time_ms
+            if gps_now_ms is not None and stamp > 0 and cls is not PictureData:
+                stats._add_latency(float(gps_now_ms - stamp))
+            if samples is not None:
                 old = samples.get(cls)
-                if old is None or order is not _Order.LATE or counter >= old.counter:
+                if old is None or not late or counter >= old.counter:
                     samples[cls] = Sample(message, now_s, counter, packet.authenticated)
         return events
 
@@ -477,6 +494,8 @@ class FleetTable:
                 self._banned.add(sender)
                 self._report_foreign(sender, heartbeat.mission_id, events)
             return False
+        if now_s < self._oldest_heartbeat_s:
+            self._oldest_heartbeat_s = now_s
         record = self._records.get(sender)
         if record is None:
             stats = self._stats.setdefault(sender, LinkStats())
@@ -548,9 +567,15 @@ class FleetTable:
 
         A lost agent keeps its record and last data; its next heartbeat brings an
         AgentFound with ``rejoined=True``.
+
+        Called every tick by every agent, so the scan is skipped while the oldest
+        heartbeat of an agent not lost is within the timeout: then all are.
         """
         events: list[FleetEvent] = []
         timeout_s = self.heartbeat_timeout_s
+        if now_s - self._oldest_heartbeat_s <= timeout_s:
+            return events
+        oldest_s = math.inf
         for record in self._records.values():
             if not record.lost:
                 silent_s = now_s - record.last_heartbeat_s
@@ -559,6 +584,9 @@ class FleetTable:
                     events.append(
                         AgentLost(record.agent_id, record.name, record.agent_type, silent_s)
                     )
+                elif record.last_heartbeat_s < oldest_s:
+                    oldest_s = record.last_heartbeat_s
+        self._oldest_heartbeat_s = oldest_s
         return events
 
     # ------------------------------------------------------------ access

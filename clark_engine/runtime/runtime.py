@@ -80,6 +80,8 @@ VEHICLE_COMMANDS = (Goto, SetMode, SetServo, RcOverride)
 #: auxiliary-switch thresholds); the events fire on crossing, not while held.
 RC_HIGH_US = 1800
 RC_LOW_US = 1200
+#: Messages that command an agent (a tuple: isinstance checks it faster than a union).
+_COMMAND_MESSAGES = (ModeChangeRequest, ActivateController, Terminate)
 
 
 class AgentRuntime:
@@ -164,9 +166,11 @@ class AgentRuntime:
         self._autopilot_seen_s: float | None = None
         self._autopilot_lost = False
         self._stations = {p.id for p in config.peers if p.role == "mcs"}
+        self._station_names = sorted(p.name for p in config.peers if p.role == "mcs")
         self._stations_lost: set[int] = set()
         self._last_mode: str | None = None
         self._rc_levels: dict[int, str] = {}
+        self._rc_last: tuple[int, ...] | None = None  # the widths _rc_levels was last set from
         self._rc_names: dict[int, list[str]] = {}
         for name, channel in config.channels.items():
             if channel.rc is not None:
@@ -222,6 +226,8 @@ class AgentRuntime:
                 self.machine.deliver_payload(self.context, event)
         elif isinstance(event, StationCommand):
             self._station_command(event, now_s)
+        if not self._commands:
+            return []  # most deliveries cause nothing
         return self._drain()
 
     def _vehicle(self, state: VehicleState, now_s: float) -> None:
@@ -256,6 +262,9 @@ class AgentRuntime:
             self._events.append(f"mode:{mode}")
 
     def _rc(self, channels: RcChannels) -> None:
+        if channels.pwm_us == self._rc_last:
+            return  # the same widths again (the usual case, at the stream rate): same levels
+        self._rc_last = channels.pwm_us
         for index, pwm in enumerate(channels.pwm_us):
             number = index + 1
             if pwm <= 0:
@@ -270,7 +279,7 @@ class AgentRuntime:
                 self._events.append(f"rc:{name}:{level}")
 
     def _receive(self, data: bytes, now_s: float) -> None:
-        gps_now = self._gps_now_ms(now_s)
+        gps_now = self.context.gps_time_ms  # deliver's _set_time just worked it out
         try:
             packet = self.codec.decode(data)
         except ClarkLinkError as exc:
@@ -293,7 +302,15 @@ class AgentRuntime:
             return
         if packet.destination_id not in (BROADCAST, self.config.agent_id):
             return
-        self._fleet_events(self.fleet.receive(packet, now_s, gps_now))
+        found = self.fleet.receive(packet, now_s, gps_now)
+        if found:  # rarely: a first heartbeat, a return, another mission
+            self._fleet_events(found)
+        if self.logbook.tables:  # a dry run without a report drops these rows: skip their work
+            self._log_received(packet, now_s, gps_now)
+        self._commands_in(packet, now_s)
+
+    def _log_received(self, packet: Packet, now_s: float, gps_now: int | None) -> None:
+        """One message-log row per message of an accepted packet."""
         peer = self._peer_name(packet.sender_id)
         for message in packet.messages:
             stamp = message.gps_time_ms or None
@@ -313,7 +330,6 @@ class AgentRuntime:
                 latency,
                 "",
             )
-        self._commands_in(packet, now_s)
 
     def _peer_name(self, agent_id: int | None) -> str:
         if agent_id is None:
@@ -323,13 +339,12 @@ class AgentRuntime:
 
     def _commands_in(self, packet: Packet, now_s: float) -> None:
         """Act on commands: only from a station of this mission, authenticated when keyed."""
-        commands = [
-            m
-            for m in packet.messages
-            if isinstance(m, ModeChangeRequest | ActivateController | Terminate)
-        ]
-        if not commands:
-            return
+        for message in packet.messages:
+            if isinstance(message, _COMMAND_MESSAGES):
+                break
+        else:
+            return  # telemetry only: the usual packet, looked at without building a list
+        commands = [m for m in packet.messages if isinstance(m, _COMMAND_MESSAGES)]
         sender = self._peer_by_id.get(packet.sender_id)
         if sender is None or sender.role != "mcs":
             self.logbook.mission.warning(
@@ -455,7 +470,9 @@ class AgentRuntime:
         return self._drain()
 
     def _timeouts(self, now_s: float) -> None:
-        self._fleet_events(self.fleet.check_timeouts(now_s))
+        lost = self.fleet.check_timeouts(now_s)
+        if lost:
+            self._fleet_events(lost)
         if self._scheduled:
             gps_now = self._gps_now_ms(now_s)
             due = [e for e in self._scheduled if gps_now is not None and e[0] <= gps_now]
@@ -527,7 +544,7 @@ class AgentRuntime:
                 by_destination.setdefault(destination, []).append(message)
         self._pending_messages.clear()
         for state in self._state_messages:
-            for station in sorted(p.name for p in self.config.peers if p.role == "mcs"):
+            for station in self._station_names:
                 by_destination.setdefault(station, []).append(state)
         self._state_messages.clear()
         for destination in sorted(by_destination):

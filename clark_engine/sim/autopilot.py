@@ -188,7 +188,8 @@ def _msg_id(name: str) -> int:
 
 
 def _clamp(value: float, low: int, high: int) -> int:
-    return max(low, min(high, round(value)))
+    rounded = round(value)  # (comparisons, not min and max: several per streamed message)
+    return low if rounded < low else high if rounded > high else rounded
 
 
 class SimAutopilot:
@@ -254,6 +255,26 @@ class SimAutopilot:
         self._interval_us: dict[str, int | None] = {}  # per-message overrides; None: stopped
         self._due_us: dict[str, int] = {}
         self._next_due_us = 0  # earliest due time over every stream (0: look again)
+        # Every stream's interval, in emission order, for advance() to go through whenever
+        # something is due; None: to be worked out again (a parameter or an interval changed).
+        self._schedule: tuple[tuple[str, int | None], ...] | None = None
+        # Message name -> the method that builds it, looked up once rather than per message.
+        self._builders: dict[str, Callable[[float], Any]] = {
+            name: getattr(self, f"_msg_{name.lower()}")
+            for name in (*STREAM_GROUPS, "HOME_POSITION", "AUTOPILOT_VERSION")
+        }
+        self._boot_ms_at_s = math.nan  # _boot_ms' last time (never equal to a time) and value
+        self._boot_ms_value = 0
+        # The truth every message built by one advance() call reports (see _truth).
+        self._advancing = False
+        self._advance_truth: Truth | None = None
+        # The RC inputs RC_CHANNELS last reported, and that message, to send again.
+        self._rc_key: tuple[int, ...] | None = None
+        self._rc_message: Any = None
+        # Messages sent again and again with new values (see _msg_global_position_int).
+        self._position_message = self._mav.global_position_int_encode(0, 0, 0, 0, 0, 0, 0, 0, 0)
+        self._attitude_message = self._mav.attitude_encode(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        self._hud_message = self._mav.vfr_hud_encode(0.0, 0.0, 0, 0, 0.0, 0.0)
         self._deferred: list[str] = []  # messages asked for, sent after the acknowledgement
         self._params: dict[str, _Param] = {"SYSID_THISMAV": _Param(system_id, _INT16)}
         for name, value, kind in (*_COMMON_PARAMS, *_FIRMWARE_PARAMS[firmware]):
@@ -340,26 +361,36 @@ class SimAutopilot:
         sent at most once per call, so call at least as often as the fastest rate.
         RC overrides older than RC_OVERRIDE_TIME are released first.
         """
-        self._expire_overrides(now_s)
+        if self._overrides:  # (usually there are none: a call saved at every step)
+            self._expire_overrides(now_s)
         now_us = round(now_s * 1e6)
         if now_us < self._next_due_us and not self._outbox.data:
             return b""  # nothing due and no answer queued: the common case, kept cheap
-        for name in STREAM_GROUPS:
-            interval = self._stream_interval_us(name)
+        due_us, send, builders = self._due_us, self._mav.send, self._builders
+        self._advancing = True
+        for name, interval in self._stream_schedule():
             if interval is None:
-                self._due_us.pop(name, None)
+                due_us.pop(name, None)
                 continue
-            due = self._due_us.setdefault(name, now_us)
+            due = due_us.setdefault(name, now_us)
             if now_us < due:
                 continue
-            self._mav.send(self._build(name, now_s))
+            send(builders[name](now_s))
             due += interval
-            self._due_us[name] = due if due > now_us else now_us + interval
-        self._next_due_us = min(self._due_us.values(), default=now_us)
+            due_us[name] = due if due > now_us else now_us + interval
+        self._advancing = False
+        self._advance_truth = None
+        self._next_due_us = min(due_us.values(), default=now_us)
         data, self._outbox.data = bytes(self._outbox.data), bytearray()
         return data
 
     # -- streams -----------------------------------------------------------------------------
+
+    def _stream_schedule(self) -> tuple[tuple[str, int | None], ...]:
+        """(message, interval in us or None when stopped) for every stream, in emission order."""
+        if self._schedule is None:
+            self._schedule = tuple((name, self._stream_interval_us(name)) for name in STREAM_GROUPS)
+        return self._schedule
 
     def _stream_interval_us(self, name: str) -> int | None:
         if name in self._interval_us:
@@ -375,12 +406,18 @@ class SimAutopilot:
 
     def _set_interval(self, name: str, interval_us: int | None, now_s: float) -> None:
         self._next_due_us = 0  # the schedule changed: look at every stream next time
+        self._schedule = None
         self._interval_us[name] = interval_us
         if interval_us is not None:
             self._due_us[name] = round(now_s * 1e6) + interval_us
 
     def _boot_ms(self, now_s: float) -> int:
-        return max(0, round((now_s - self.boot_s) * 1000)) & 0xFFFFFFFF
+        # Kept for the next call at the same time: up to four messages of one advance()
+        # carry it.
+        if now_s != self._boot_ms_at_s:
+            self._boot_ms_at_s = now_s
+            self._boot_ms_value = max(0, round((now_s - self.boot_s) * 1000)) & 0xFFFFFFFF
+        return self._boot_ms_value
 
     def _unix_us(self, now_s: float) -> int:
         if self.start_time_unix_us is None:
@@ -388,8 +425,22 @@ class SimAutopilot:
         return self.start_time_unix_us + round((now_s - self.boot_s) * 1e6)
 
     def _build(self, name: str, now_s: float) -> Any:
-        builder: Callable[[float], Any] = getattr(self, f"_msg_{name.lower()}")
-        return builder(now_s)
+        return self._builders[name](now_s)
+
+    def _truth(self) -> Truth:
+        """The model's true state, for the message builders.
+
+        Within one :meth:`advance` call the model does not move, and up to five of the
+        messages it sends report its state: it is read once per call. Outside one
+        (answers to requests, which follow commands that may change the model) it is
+        read afresh.
+        """
+        truth = self._advance_truth
+        if truth is None:
+            truth = self.model.truth()
+            if self._advancing:
+                self._advance_truth = truth
+        return truth
 
     def _msg_heartbeat(self, now_s: float) -> Any:
         armed = self.model.armed
@@ -429,11 +480,11 @@ class SimAutopilot:
         if fix is not None:
             lat, lon, alt = fix()
             return float(lat), float(lon), float(alt)
-        t = self.model.truth()
+        t = self._truth()
         return t.lat_deg, t.lon_deg, t.up_m
 
     def _msg_gps_raw_int(self, now_s: float) -> Any:
-        t = self.model.truth()
+        t = self._truth()
         lat, lon, up = self._position()
         unix_us = self._unix_us(now_s)
         return self._mav.gps_raw_int_encode(
@@ -449,52 +500,60 @@ class SimAutopilot:
             12,
         )
 
+    # GLOBAL_POSITION_INT, ATTITUDE and VFR_HUD go out at the telemetry rate: each is one
+    # pymavlink message object (built in __init__) whose fields are set before every send,
+    # which packs it anew, rather than a new object each time.
+
     def _msg_global_position_int(self, now_s: float) -> Any:
-        t = self.model.truth()
+        t = self._truth()
         lat, lon, up = self._position()
-        return self._mav.global_position_int_encode(
-            self._boot_ms(now_s),
-            round(lat * 1e7),
-            round(lon * 1e7),
-            round((self.home_alt_m + up) * 1000),
-            round(up * 1000),
-            _clamp(t.velocity_north_m_s * 100, -32768, 32767),
-            _clamp(t.velocity_east_m_s * 100, -32768, 32767),
-            _clamp(-t.climb_rate_m_s * 100, -32768, 32767),
-            round((t.yaw_deg % 360.0) * 100) % 36000,
-        )
+        msg = self._position_message
+        msg.time_boot_ms = self._boot_ms(now_s)
+        msg.lat = round(lat * 1e7)
+        msg.lon = round(lon * 1e7)
+        msg.alt = round((self.home_alt_m + up) * 1000)
+        msg.relative_alt = round(up * 1000)
+        msg.vx = _clamp(t.velocity_north_m_s * 100, -32768, 32767)
+        msg.vy = _clamp(t.velocity_east_m_s * 100, -32768, 32767)
+        msg.vz = _clamp(-t.climb_rate_m_s * 100, -32768, 32767)
+        msg.hdg = round((t.yaw_deg % 360.0) * 100) % 36000
+        return msg
 
     def _msg_attitude(self, now_s: float) -> Any:
-        t = self.model.truth()
-        return self._mav.attitude_encode(
-            self._boot_ms(now_s),
-            math.radians(t.roll_deg),
-            math.radians(t.pitch_deg),
-            math.radians(math.remainder(t.yaw_deg, 360.0)),
-            0.0,  # body rates: the model has none to report
-            0.0,
-            0.0,
-        )
+        t = self._truth()
+        msg = self._attitude_message  # body rates stay 0: the model has none to report
+        msg.time_boot_ms = self._boot_ms(now_s)
+        msg.roll = math.radians(t.roll_deg)
+        msg.pitch = math.radians(t.pitch_deg)
+        msg.yaw = math.radians(math.remainder(t.yaw_deg, 360.0))
+        return msg
 
     def _msg_vfr_hud(self, now_s: float) -> Any:
-        t = self.model.truth()
-        return self._mav.vfr_hud_encode(
-            t.airspeed_m_s,
-            t.ground_speed_m_s,
-            int(t.yaw_deg % 360.0),
-            _clamp(t.throttle_pct, 0, 100),
-            self.home_alt_m + t.up_m,
-            t.climb_rate_m_s,
-        )
+        t = self._truth()
+        msg = self._hud_message
+        msg.airspeed = t.airspeed_m_s
+        msg.groundspeed = t.ground_speed_m_s
+        msg.heading = int(t.yaw_deg % 360.0)
+        msg.throttle = _clamp(t.throttle_pct, 0, 100)
+        msg.alt = self.home_alt_m + t.up_m
+        msg.climb = t.climb_rate_m_s
+        return msg
 
     def _msg_system_time(self, now_s: float) -> Any:
         return self._mav.system_time_encode(self._unix_us(now_s), self._boot_ms(now_s))
 
     def _msg_rc_channels(self, now_s: float) -> Any:
-        inputs = list(self.model.rc_inputs())[:18]
-        values = [_clamp(v, 0, UINT16_MAX) if v else UINT16_MAX for v in inputs]
-        values += [UINT16_MAX] * (18 - len(values))
-        return self._mav.rc_channels_encode(self._boot_ms(now_s), len(inputs), *values, 255)
+        # The inputs change only when a stick or an override moves: the message is built
+        # anew then, and otherwise sent again with only its time updated (21 fields).
+        inputs = tuple(self.model.rc_inputs())
+        if inputs != self._rc_key or self._rc_message is None:
+            used = list(inputs)[:18]
+            values = [_clamp(v, 0, UINT16_MAX) if v else UINT16_MAX for v in used]
+            values += [UINT16_MAX] * (18 - len(values))
+            self._rc_key = inputs
+            self._rc_message = self._mav.rc_channels_encode(0, len(used), *values, 255)
+        self._rc_message.time_boot_ms = self._boot_ms(now_s)
+        return self._rc_message
 
     def _msg_servo_output_raw(self, now_s: float) -> Any:
         outputs = [_clamp(v, 0, UINT16_MAX) for v in list(self.model.servo_outputs())[:16]]
@@ -785,6 +844,7 @@ class SimAutopilot:
 
     def _set_param(self, name: str, value: float) -> None:
         self._next_due_us = 0  # a stream-rate parameter may have changed
+        self._schedule = None
         entry = self._params[name]
         if entry.param_type in _INT_RANGES:
             low, high = _INT_RANGES[entry.param_type]
@@ -839,6 +899,7 @@ class SimAutopilot:
             return int(mavlink2.MAV_RESULT_FAILED)  # ArduPilot: no such message to stream
         if interval_us == 0:
             self._interval_us.pop(name, None)
+            self._schedule = None
             default = self._default_interval_us(name)
             if default is not None:
                 self._due_us[name] = round(now_s * 1e6) + default

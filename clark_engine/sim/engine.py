@@ -203,6 +203,12 @@ class DryRun:
         self._order = {name: i for i, name in enumerate(self.agents)}
         self._ticks = [(a.next_tick_s(), self._order[a.name], a.name) for a in self.agents.values()]
         heapq.heapify(self._ticks)
+        # Every camera with its agent, in agent order; the earliest answer any of them has
+        # pending; and whether one was commanded or answered since that was worked out
+        # (so that the loop does not ask every camera at every event).
+        self._cameras_list = [(a, c) for a in self.agents.values() for c in a.cameras.values()]
+        self._cameras_s = math.inf
+        self._cameras_changed = True
 
     # -- setup ---------------------------------------------------------------------------
 
@@ -304,26 +310,29 @@ class DryRun:
         next_progress_wall = wall_start + 1.0
         t = 0.0
         while True:
+            # The next event: the earliest of the physics step, the next tick, radio
+            # arrival, camera answer, operator action and kill.
             physics_s = physics_steps * PHYSICS_STEP_S
-            candidates = [physics_s]
+            t = physics_s
             while self._ticks and not self._ticking_agent(self._ticks[0][2]):
                 heapq.heappop(self._ticks)
-            if self._ticks:
-                candidates.append(self._ticks[0][0])
+            if self._ticks and self._ticks[0][0] < t:
+                t = self._ticks[0][0]
             radio_s = self.radio.next_event_s()
-            if radio_s is not None:
-                candidates.append(radio_s)
-            candidates.extend(
-                s
-                for a in self.agents.values()
-                for c in a.cameras.values()
-                if (s := c.next_event_s()) is not None
-            )
-            if self._operator:
-                candidates.append(self._operator[0][0])
-            if self._kills:
-                candidates.append(self._kills[0][0])
-            t = min(candidates)
+            if radio_s is not None and radio_s < t:
+                t = radio_s
+            if self._cameras_changed:
+                self._cameras_changed = False
+                self._cameras_s = min(
+                    (s for _, c in self._cameras_list if (s := c.next_event_s()) is not None),
+                    default=math.inf,
+                )
+            if self._cameras_s < t:
+                t = self._cameras_s
+            if self._operator and self._operator[0][0] < t:
+                t = self._operator[0][0]
+            if self._kills and self._kills[0][0] < t:
+                t = self._kills[0][0]
             if t > self.until_s + 1e-9:
                 break
             if self.speed is not None:
@@ -335,7 +344,8 @@ class DryRun:
                     self._sample(t)
                     next_sample_s += SAMPLE_PERIOD_S
             self._radio(t)
-            self._cameras(t)
+            if self._cameras_s <= t or self._cameras_changed:  # else none has an answer due
+                self._cameras(t)
             self._scenario(t)
             while self._ticks and self._ticks[0][0] <= t + 1e-9:
                 _, order, name = heapq.heappop(self._ticks)
@@ -379,15 +389,19 @@ class DryRun:
             if t_s > 0:
                 sim_agent.model.step(PHYSICS_STEP_S)
             data = sim_agent.autopilot.advance(t_s)
+            if not data:
+                continue  # nothing due: the usual case between streamed messages
             tap = self.autopilot_taps.get(sim_agent.name)
-            if data and tap is not None:
+            if tap is not None:
                 tap(data)
-            if not data or sim_agent.adapter is None or not sim_agent.alive or sim_agent.closed:
+            if sim_agent.adapter is None or not sim_agent.alive or sim_agent.closed:
                 continue
             if not sim_agent.link_up(t_s):
                 continue
             for event in sim_agent.adapter.receive(data, t_s):
-                self._route(sim_agent, sim_agent.runtime.deliver(event, t_s), t_s)  # type: ignore[arg-type]
+                out = sim_agent.runtime.deliver(event, t_s)  # type: ignore[arg-type]
+                if out:
+                    self._route(sim_agent, out, t_s)
 
     def _sample(self, t_s: float) -> None:
         for name, track in self.recording.tracks.items():
@@ -423,24 +437,29 @@ class DryRun:
         return positions
 
     def _radio(self, t_s: float) -> None:
+        event: PacketReceived | None = None
         for delivery in self.radio.deliveries_until(t_s):
             receiver = self.agents[delivery.receiver]
             if not receiver.alive or receiver.closed:
                 continue
-            out = receiver.runtime.deliver(PacketReceived(delivery.packet), t_s)
-            self._route(receiver, out, t_s)
+            if event is None or event.data is not delivery.packet:
+                # One (immutable) event for every receiver of the same broadcast.
+                event = PacketReceived(delivery.packet)
+            out = receiver.runtime.deliver(event, t_s)
+            if out:
+                self._route(receiver, out, t_s)
 
     def _cameras(self, t_s: float) -> None:
-        for sim_agent in self.agents.values():
-            for camera in sim_agent.cameras.values():
-                for _at_s, event in camera.events_until(t_s):
-                    if event.kind == "captured" and sim_agent.model is not None:
-                        truth = sim_agent.model.truth()
-                        self.recording.photos.setdefault(sim_agent.name, []).append(
-                            Photo(t_s, truth.north_m, truth.east_m, truth.up_m)
-                        )
-                    if sim_agent.alive and not sim_agent.closed:
-                        self._route(sim_agent, sim_agent.runtime.deliver(event, t_s), t_s)
+        self._cameras_changed = True  # answers are taken (and answering may command others)
+        for sim_agent, camera in self._cameras_list:
+            for _at_s, event in camera.events_until(t_s):
+                if event.kind == "captured" and sim_agent.model is not None:
+                    truth = sim_agent.model.truth()
+                    self.recording.photos.setdefault(sim_agent.name, []).append(
+                        Photo(t_s, truth.north_m, truth.east_m, truth.up_m)
+                    )
+                if sim_agent.alive and not sim_agent.closed:
+                    self._route(sim_agent, sim_agent.runtime.deliver(event, t_s), t_s)
 
     def _scenario(self, t_s: float) -> None:
         while self._kills and self._kills[0][0] <= t_s + 1e-9:
@@ -491,11 +510,16 @@ class DryRun:
         if runtime.autopilot_lost and not sim_agent.autopilot_lost_seen:
             sim_agent.autopilot_lost_seen = True
             self.recording.safety.setdefault(sim_agent.name, []).append((t_s, "autopilot_lost"))
-        if sim_agent.model is not None:
-            inputs = sim_agent.model.rc_inputs()
-            outputs = sim_agent.model.servo_outputs()
+        model = sim_agent.model
+        if model is not None and sim_agent.signal_keys:
+            # RC inputs and servo outputs, each read only if a recorded signal is on it.
+            inputs: tuple[int, ...] | None = None
+            outputs: tuple[int, ...] | None = None
             for label, via, number in sim_agent.signal_keys:
-                values = inputs if via == "rc_override" else outputs
+                if via == "rc_override":
+                    values = inputs = model.rc_inputs() if inputs is None else inputs
+                else:
+                    values = outputs = model.servo_outputs() if outputs is None else outputs
                 pwm = values[number - 1] if number - 1 < len(values) else 0
                 self.recording.signals[(sim_agent.name, label)].append((t_s, int(pwm)))
 
@@ -506,13 +530,16 @@ class DryRun:
                     self._to_autopilot(sim_agent, sim_agent.adapter.command(command, t_s), t_s)
             elif isinstance(command, SendPacket):
                 if sim_agent.name in self.radio.agents:
+                    # Positions only matter to radios with a range: skip measuring them else.
+                    positions = self._positions() if self.radio.uses_positions else None
                     self.radio.send(
-                        sim_agent.name, command.data, command.destination, t_s, self._positions()
+                        sim_agent.name, command.data, command.destination, t_s, positions
                     )
             elif isinstance(command, PayloadCommand):
                 camera = sim_agent.cameras.get(command.payload)
                 if camera is not None:
                     camera.command(command, t_s)
+                    self._cameras_changed = True
             elif isinstance(command, CloseInterfaces):
                 sim_agent.closed = True
                 if sim_agent.adapter is not None:

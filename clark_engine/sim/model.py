@@ -12,16 +12,19 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
-from dataclasses import dataclass
+from typing import NamedTuple
 
 
-@dataclass(frozen=True, slots=True)
-class Truth:
+class Truth(NamedTuple):
     """The vehicle's true state (what a perfect sensor would read).
 
     Positions are in the mission's local frame (metres from the origin) and as
     latitude/longitude; altitude is above the origin (ArduPilot's relative
     altitude, home at the origin's altitude). Angles in degrees.
+
+    An immutable named tuple rather than a frozen dataclass: the simulator reads it
+    for every streamed position and every track sample of every vehicle, and a tuple
+    is built in one step where a frozen dataclass sets its 15 fields one by one.
     """
 
     north_m: float

@@ -84,8 +84,8 @@ import heapq
 import math
 import random
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field, fields, replace
-from typing import Any
+from dataclasses import dataclass, fields, replace
+from typing import Any, NamedTuple
 
 #: Fixed latency after the air time when the mesh is built without one, in seconds.
 DEFAULT_LATENCY_S = 0.005
@@ -156,12 +156,16 @@ class RadioSettings:
         return (size_bytes + self.frame_overhead_bytes) * 8 / self.throughput_bps
 
 
-@dataclass(frozen=True, slots=True)
-class Delivery:
+class Delivery(NamedTuple):
     """One packet arriving at one receiver.
 
-    The first five fields are the order deliveries come out in: time, then
+    The first four fields are the order deliveries come out in: time, then
     sender, receiver and send sequence, so equal times have a stable order.
+
+    An immutable named tuple rather than a frozen dataclass: the mesh makes one per
+    packet and receiver (a 50-agent fleet: 2,500 a simulated second), and a tuple is
+    built in one step where a frozen dataclass sets each field through
+    ``object.__setattr__``.
 
     Attributes:
         at_s: Arrival time (simulation seconds).
@@ -253,27 +257,13 @@ class _Window:
         return self.from_s <= t_s < self.to_s
 
 
-@dataclass(frozen=True, slots=True)
-class _Draws:
-    """The three values drawn for one (send, receiver)."""
-
-    loss: float
-    corrupt: float
-    flip_seed: int
-
-
-@dataclass(order=True, slots=True)
-class _Pending:
-    """A packet in flight to one receiver; ordered as deliveries come out."""
-
-    at_s: float
-    sender: str
-    receiver: str
-    sequence: int
-    packet: bytes = field(compare=False)
-    sent_s: float = field(compare=False)
-    loss_probability: float = field(compare=False)
-    draws: _Draws = field(compare=False)
+#: A packet in flight to one receiver: (at_s, sender, receiver, sequence, packet, sent_s,
+#: loss_probability, loss_draw, corrupt_draw, flip_seed, link). The mesh keeps these in
+#: a heap, so they come out as deliveries do: the first four fields are unique per item
+#: (one receiver per send sequence), so comparisons never reach the rest. Plain tuples,
+#: built and compared in C: a broadcast to 49 receivers makes 49 of them and costs
+#: hundreds of comparisons. ``link`` is the link's statistics, counted on arrival.
+_Pending = tuple[float, str, str, int, bytes, float, float, float, float, int, LinkStats]
 
 
 @dataclass(slots=True)
@@ -340,6 +330,8 @@ class RadioMesh:
         self.range_fade_factor = range_fade_factor
         self.max_queue_s = max_queue_s
         self._agents: dict[str, _Agent] = {}
+        self._names: tuple[str, ...] = ()  # sorted: the receivers of a broadcast, in order
+        self._ranged = False  # some radio has a range
         self._ids: set[int] = set()
         self._pending: list[_Pending] = []
         self._channel_free_s = 0.0
@@ -374,13 +366,20 @@ class RadioMesh:
             raise ValueError(f"agent id {agent_id} is already on the mesh")
         radio = RadioSettings.from_profile(profile)
         self._agents[name] = _Agent(name, agent_id, radio)
+        self._names = tuple(sorted(self._agents))
+        self._ranged = self._ranged or radio.range_m is not None
         self._ids.add(agent_id)
         self._queue_by_sender[name] = QueueStats()
 
     @property
     def agents(self) -> tuple[str, ...]:
         """Names of the agents on the mesh, sorted."""
-        return tuple(sorted(self._agents))
+        return self._names
+
+    @property
+    def uses_positions(self) -> bool:
+        """True when some radio on the mesh has a range: only then do positions matter."""
+        return self._ranged
 
     def radio(self, name: str) -> RadioSettings:
         """The radio settings of agent ``name``."""
@@ -451,18 +450,23 @@ class RadioMesh:
             self._agent(destination)
             receivers: Iterable[str] = (destination,)
         else:
-            receivers = sorted(name for name in self._agents if name != sender)
+            receivers = [name for name in self._names if name != sender]
         self._advance_clock(now_s)
         sequence = self._sequence
         self._sequence += 1
         radio = source.radio
-        targets = [(receiver, self._draw()) for receiver in receivers]
-        for receiver, _ in targets:
-            self._link(sender, receiver).sent += 1
+        rng = self._rng
+        # Each receiver's link and three draws, in name order (see the module docstring).
+        links = [self._link(sender, receiver) for receiver in receivers]
+        targets = [
+            (receiver, link, rng.random(), rng.random(), rng.getrandbits(64))
+            for receiver, link in zip(receivers, links, strict=True)
+        ]
+        for link in links:
+            link.sent += 1
 
         def count(outcome: str) -> None:
-            for receiver, _ in targets:
-                link = self._link(sender, receiver)
+            for link in links:
                 setattr(link, outcome, getattr(link, outcome) + 1)
 
         if len(packet) > radio.max_packet_bytes:
@@ -481,17 +485,33 @@ class RadioMesh:
         self._queue.add(queue_s, air_s)
         self._queue_by_sender[sender].add(queue_s, air_s)
         at_s = start_s + air_s + self.latency_s
-        for receiver, draws in targets:
-            p_loss = loss_probability(
-                _distance_m(positions, sender, receiver),
-                self._link_range_m(sender, receiver),
-                self.loss_rate,
-                self.range_fade_factor,
+        for receiver, link, loss_draw, corrupt_draw, flip_seed in targets:
+            range_m = self._link_range_m(sender, receiver) if self._ranged else None
+            # Without a range the distance law is the base rate: skip measuring the distance.
+            p_loss = (
+                self.loss_rate
+                if range_m is None
+                else loss_probability(
+                    _distance_m(positions, sender, receiver),
+                    range_m,
+                    self.loss_rate,
+                    self.range_fade_factor,
+                )
             )
-            heapq.heappush(
-                self._pending,
-                _Pending(at_s, sender, receiver, sequence, packet, now_s, p_loss, draws),
+            pending: _Pending = (
+                at_s,
+                sender,
+                receiver,
+                sequence,
+                packet,
+                now_s,
+                p_loss,
+                loss_draw,
+                corrupt_draw,
+                flip_seed,
+                link,
             )
+            heapq.heappush(self._pending, pending)
 
     def next_event_s(self) -> float | None:
         """Arrival time of the next packet in flight, None when nothing is in flight.
@@ -499,7 +519,7 @@ class RadioMesh:
         The packet may still turn out lost when it arrives; a wake-up for it then
         yields no delivery.
         """
-        return self._pending[0].at_s if self._pending else None
+        return self._pending[0][0] if self._pending else None
 
     def deliveries_until(self, t_s: float) -> list[Delivery]:
         """Every packet arriving at or before ``t_s``, in arrival order, losses removed.
@@ -508,9 +528,9 @@ class RadioMesh:
         """
         self._advance_clock(t_s)
         delivered: list[Delivery] = []
-        while self._pending and self._pending[0].at_s <= t_s:
-            item = heapq.heappop(self._pending)
-            delivery = self._resolve(item)
+        pending = self._pending
+        while pending and pending[0][0] <= t_s:
+            delivery = self._resolve(heapq.heappop(pending))
             if delivery is not None:
                 delivered.append(delivery)
         return delivered
@@ -557,10 +577,6 @@ class RadioMesh:
             raise ValueError(f"time went back: {now_s} s after the mesh was told {self._clock_s} s")
         self._clock_s = now_s
 
-    def _draw(self) -> _Draws:
-        rng = self._rng
-        return _Draws(rng.random(), rng.random(), rng.getrandbits(64))
-
     def _link(self, sender: str, receiver: str) -> LinkStats:
         stats = self._links.get((sender, receiver))
         if stats is None:
@@ -568,12 +584,11 @@ class RadioMesh:
         return stats
 
     def _link_range_m(self, sender: str, receiver: str) -> float | None:
-        ranges = [
-            r
-            for r in (self._agents[sender].radio.range_m, self._agents[receiver].radio.range_m)
-            if r is not None
-        ]
-        return min(ranges) if ranges else None
+        """The smaller range of the two radios; None when neither has one."""
+        a, b = self._agents[sender].radio.range_m, self._agents[receiver].radio.range_m
+        if a is None:
+            return b
+        return a if b is None else min(a, b)
 
     def _is_silenced(self, agent: str, t_s: float) -> bool:
         return any(w.covers(t_s) for w in self._silenced.get(agent, ()))
@@ -585,28 +600,26 @@ class RadioMesh:
         return max((share for w, share in self._corruption if w.covers(t_s)), default=0.0)
 
     def _resolve(self, item: _Pending) -> Delivery | None:
-        link = self._link(item.sender, item.receiver)
-        if self._is_dropped(item.sender, item.receiver, item.at_s) or self._is_silenced(
-            item.receiver, item.at_s
+        at_s, sender, receiver, sequence, packet, sent_s, p_loss, loss, corrupt, seed, link = item
+        # (Each fault look-up is skipped while no fault of its kind was ever injected.)
+        if (self._dropped_links and self._is_dropped(sender, receiver, at_s)) or (
+            self._silenced and self._is_silenced(receiver, at_s)
         ):
             link.lost_fault += 1
             return None
-        if item.draws.loss < self.loss_rate:
+        if loss < self.loss_rate:
             link.lost_random += 1
             return None
-        if item.draws.loss < item.loss_probability:
+        if loss < p_loss:
             link.lost_range += 1
             return None
-        packet = item.packet
         corrupted = False
-        if packet and item.draws.corrupt < self._corruption_share(item.at_s):
-            packet = _flip_bytes(packet, item.draws.flip_seed)
+        if packet and self._corruption and corrupt < self._corruption_share(at_s):
+            packet = _flip_bytes(packet, seed)
             corrupted = True
             link.corrupted += 1
         link.delivered += 1
-        return Delivery(
-            item.at_s, item.sender, item.receiver, item.sequence, packet, item.sent_s, corrupted
-        )
+        return Delivery(at_s, sender, receiver, sequence, packet, sent_s, corrupted)
 
 
 def _distance_m(positions: Mapping[str, Position] | None, a: str, b: str) -> float:

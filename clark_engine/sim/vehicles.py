@@ -412,6 +412,9 @@ class SimulatedVehicle(VehicleModel):
         self._override_us = [0] * RC_CHANNEL_COUNT
         self._override_until_s = [math.inf] * RC_CHANNEL_COUNT
         self._override_expiry_s = math.inf
+        # rc_inputs' last answer, good until an override lapses or the inputs are set.
+        self._rc_inputs: tuple[int, ...] | None = None
+        self._rc_inputs_until_s = math.inf
         self._rc_stale = True
         self._rc_roll = self._rc_pitch = self._rc_yaw = self._rc_thr = 0.0
 
@@ -609,6 +612,7 @@ class SimulatedVehicle(VehicleModel):
         Raises:
             ValueError: A channel outside 1..16 or a negative pulse width.
         """
+        self._rc_inputs = None
         until = (
             math.inf
             if self._rc_override_timeout_s is None
@@ -638,14 +642,29 @@ class SimulatedVehicle(VehicleModel):
             self._servo_us[servo - 1] = int(pwm_us)
 
     def rc_inputs(self) -> tuple[int, ...]:
-        """RC input pulse widths the autopilot sees (override, else pilot), channel 1 first."""
+        """RC input pulse widths the autopilot sees (override, else pilot), channel 1 first.
+
+        Asked for at the telemetry rate but changing only when a stick or an override
+        moves or an override lapses, so the answer is kept until one of those happens.
+        """
         now = self.time_s
-        return tuple(
+        if self._rc_inputs is not None and now < self._rc_inputs_until_s:
+            return self._rc_inputs
+        self._rc_inputs = tuple(
             over if over and now < until else pilot
             for pilot, over, until in zip(
                 self._pilot_us, self._override_us, self._override_until_s, strict=True
             )
         )
+        self._rc_inputs_until_s = min(
+            (
+                until
+                for over, until in zip(self._override_us, self._override_until_s, strict=True)
+                if over and now < until
+            ),
+            default=math.inf,
+        )
+        return self._rc_inputs
 
     def servo_outputs(self) -> tuple[int, ...]:
         """Servo output pulse widths, output 1 first; 0 for an output never driven."""
@@ -661,6 +680,7 @@ class SimulatedVehicle(VehicleModel):
         Raises:
             ValueError: A channel outside 1..16 or a negative pulse width.
         """
+        self._rc_inputs = None
         for channel, value in pwm_us.items():
             index = self._rc_index(channel)
             if value < 0:
@@ -722,6 +742,7 @@ class SimulatedVehicle(VehicleModel):
 
     def _refresh_rc(self) -> None:
         """Re-read the control channels (after a change, or when an override lapses)."""
+        self._rc_inputs = None
         now = self.time_s
         expiry = math.inf
         for index, until in enumerate(self._override_until_s):
