@@ -31,6 +31,15 @@ def _label(check: Mapping[str, Any], kind: str, index: int) -> str:
     return str(check.get("name") or f"check {index + 1}: {kind}")
 
 
+@dataclass(frozen=True, slots=True)
+class Run:
+    """What every check is evaluated against: the recording and the mission's agents."""
+
+    rec: Recording
+    configs: Mapping[str, AgentConfig]
+    origin: Origin
+
+
 def evaluate(
     checks: Sequence[Mapping[str, Any]],
     recording: Recording,
@@ -38,6 +47,7 @@ def evaluate(
     origin: Origin,
 ) -> list[CheckResult]:
     """Evaluate every check, in the order the mission lists them."""
+    run = Run(recording, configs, origin)
     results = []
     for index, check in enumerate(checks):
         kind = next(k for k in check if k not in ("name", "by_s"))
@@ -45,21 +55,14 @@ def evaluate(
         body = check[kind]
         label = _label(check, kind, index)
         evaluator = _EVALUATORS[kind]
-        results.append(evaluator(label, body, by_s, recording, configs, origin))
+        results.append(evaluator(label, body, by_s, run))
     return results
 
 
-def _distance(
-    label: str,
-    body: Mapping[str, Any],
-    by_s: float,
-    rec: Recording,
-    _configs: Mapping[str, AgentConfig],
-    _origin: Origin,
-) -> CheckResult:
+def _distance(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> CheckResult:
     """max: the two come within max of each other by by_s; min: they are min apart at by_s."""
     a, b = (str(n) for n in body["between"])
-    ta, tb = rec.tracks.get(a), rec.tracks.get(b)
+    ta, tb = run.rec.tracks.get(a), run.rec.tracks.get(b)
     parts = []
     if "max" in body:
         parts.append(f"within {float(body['max']):g} m by {by_s:g} s")
@@ -90,20 +93,13 @@ def _distance(
     return CheckResult(label, expected, "; ".join(observed), passed)
 
 
-def _reached(
-    label: str,
-    body: Mapping[str, Any],
-    by_s: float,
-    rec: Recording,
-    _configs: Mapping[str, AgentConfig],
-    origin: Origin,
-) -> CheckResult:
+def _reached(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> CheckResult:
     agent = str(body["agent"])
-    target = parse_point(body["to"], origin)
+    target = parse_point(body["to"], run.origin)
     tolerance = float(body.get("tolerance_m", 5.0))
     point = (target.north_m, target.east_m, target.up_m)
     expected = f"{agent} within {tolerance:g} m of ({point[0]:g}, {point[1]:g}) by {by_s:g} s"
-    track = rec.tracks.get(agent)
+    track = run.rec.tracks.get(agent)
     if track is None:
         return CheckResult(label, expected, "no position recorded", False)
     best = math.inf
@@ -121,23 +117,16 @@ def _reached(
     return CheckResult(label, expected, f"closest {best:.1f} m", False)
 
 
-def _separation(
-    label: str,
-    body: Mapping[str, Any],
-    _by_s: float,
-    rec: Recording,
-    configs: Mapping[str, AgentConfig],
-    _origin: Origin,
-) -> CheckResult:
+def _separation(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> CheckResult:
     minimum = float(body["min"])
     names = [str(n) for n in body.get("agents", [])] or [
-        n for n, c in configs.items() if c.is_vehicle and n in rec.tracks
+        n for n, c in run.configs.items() if c.is_vehicle and n in run.rec.tracks
     ]
     expected = f"vehicles at least {minimum:g} m apart at all times"
     closest = math.inf
     pair = ("", "")
     when = 0.0
-    tracks = [(n, rec.tracks[n]) for n in names if n in rec.tracks]
+    tracks = [(n, run.rec.tracks[n]) for n in names if n in run.rec.tracks]
     for i, (name_a, a) in enumerate(tracks):
         for name_b, b in tracks[i + 1 :]:
             for k in range(min(len(a.times_s), len(b.times_s))):
@@ -152,37 +141,23 @@ def _separation(
     return CheckResult(label, expected, observed, closest >= minimum)
 
 
-def _state(
-    label: str,
-    body: Mapping[str, Any],
-    by_s: float,
-    rec: Recording,
-    _configs: Mapping[str, AgentConfig],
-    _origin: Origin,
-) -> CheckResult:
+def _state(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> CheckResult:
     agent, path = str(body["agent"]), str(body["reached"])
     expected = f"{agent} in {path} by {by_s:g} s"
-    when = rec.entered_by(agent, path, by_s)
+    when = run.rec.entered_by(agent, path, by_s)
     if when is None:
-        last = rec.states.get(agent, [])
+        last = run.rec.states.get(agent, [])
         where = ", ".join(last[-1].active) if last else "no state"
         return CheckResult(label, expected, f"not reached (last: {where})", False)
     return CheckResult(label, expected, f"entered at {when:.1f} s", True)
 
 
-def _sequence(
-    label: str,
-    body: Mapping[str, Any],
-    by_s: float,
-    rec: Recording,
-    _configs: Mapping[str, AgentConfig],
-    _origin: Origin,
-) -> CheckResult:
+def _sequence(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> CheckResult:
     agent = str(body["agent"])
     paths = [str(p) for p in body["states"]]
     expected = f"{agent} enters {' then '.join(paths)}, the last by {by_s:g} s"
     seen: list[str] = []
-    for entry in rec.states.get(agent, []):
+    for entry in run.rec.states.get(agent, []):
         if entry.time_s > by_s + 1e-9:
             break
         # One change may enter several of them at once (a parent and its first child).
@@ -197,16 +172,9 @@ def _sequence(
     return CheckResult(label, expected, observed, False)
 
 
-def _photos(
-    label: str,
-    body: Mapping[str, Any],
-    _by_s: float,
-    rec: Recording,
-    _configs: Mapping[str, AgentConfig],
-    _origin: Origin,
-) -> CheckResult:
+def _photos(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> CheckResult:
     agent = str(body["agent"])
-    count = len(rec.photos.get(agent, []))
+    count = len(run.rec.photos.get(agent, []))
     low, high = body.get("min"), body.get("max")
     parts = []
     if low is not None:
@@ -218,16 +186,9 @@ def _photos(
     return CheckResult(label, expected, f"{count} photos", passed)
 
 
-def _no_failsafe(
-    label: str,
-    body: Mapping[str, Any],
-    _by_s: float,
-    rec: Recording,
-    configs: Mapping[str, AgentConfig],
-    _origin: Origin,
-) -> CheckResult:
-    names = [str(n) for n in body.get("agents", [])] or list(configs)
-    events = [(t, n, what) for n in names for t, what in rec.safety.get(n, [])]
+def _no_failsafe(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> CheckResult:
+    names = [str(n) for n in body.get("agents", [])] or list(run.configs)
+    events = [(t, n, what) for n in names for t, what in run.rec.safety.get(n, [])]
     expected = "no failsafe on " + (", ".join(body.get("agents", [])) or "any agent")
     if not events:
         return CheckResult(label, expected, "none", True)
@@ -286,16 +247,9 @@ def expected_signal(state: StateSpec, loop_hz: float) -> list[int]:
         k += 1
 
 
-def _signal(
-    label: str,
-    body: Mapping[str, Any],
-    _by_s: float,
-    rec: Recording,
-    configs: Mapping[str, AgentConfig],
-    _origin: Origin,
-) -> CheckResult:
+def _signal(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> CheckResult:
     agent, path = str(body["agent"]), str(body["state"])
-    config = configs[agent]
+    config = run.configs[agent]
     state = _find_state(config.machine, path)
     expected_text = f"{agent} {path}: the autopilot receives the primitive's signal"
     if state is None or state.primitive not in ("doublet", "sine_sweep"):
@@ -303,8 +257,8 @@ def _signal(
     channel = state.params["channel"]
     via = state.params.get("via", "rc_override")
     key = f"rc{channel['rc']}" if via == "rc_override" else f"servo{channel['servo']}"
-    samples = rec.signals.get((agent, key), [])
-    intervals = rec.intervals(agent, path)
+    samples = run.rec.signals.get((agent, key), [])
+    intervals = run.rec.intervals(agent, path)
     if not intervals:
         return CheckResult(label, expected_text, "state never entered", False)
     start, end = intervals[0]
@@ -329,17 +283,10 @@ def _signal(
     return CheckResult(label, expected_text + " (within 1 us)", observed, worst <= 1)
 
 
-def _failsafe(
-    label: str,
-    body: Mapping[str, Any],
-    by_s: float,
-    rec: Recording,
-    _configs: Mapping[str, AgentConfig],
-    _origin: Origin,
-) -> CheckResult:
+def _failsafe(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> CheckResult:
     agent, event = str(body["agent"]), str(body.get("event", "any"))
     expected = f"{agent} {event if event != 'any' else 'a safety reaction'} by {by_s:g} s"
-    seen = [(t, what) for t, what in rec.safety.get(agent, []) if t <= by_s + 1e-9]
+    seen = [(t, what) for t, what in run.rec.safety.get(agent, []) if t <= by_s + 1e-9]
     matching = [
         (t, what) for t, what in seen if event == "any" or what in (event, f"failsafe {event}")
     ]
