@@ -20,6 +20,7 @@ from typing import Any
 
 import pytest
 import yaml
+from fake_vehicle import RcServoBook
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -79,7 +80,7 @@ MODES = {"arduplane": PLANE_MODES, "arducopter": COPTER_MODES, "ardurover": ROVE
 METRES_PER_DEG = 111_320.0
 
 
-class FakeModel(VehicleModel):
+class FakeModel(RcServoBook, VehicleModel):
     """A kinematic point: flies straight at the guided target at its speed, nothing else."""
 
     def __init__(self, modes: Mapping[str, int], *, mode: str = "MANUAL") -> None:
@@ -91,9 +92,7 @@ class FakeModel(VehicleModel):
         self.target: tuple[float, float, float] | None = None
         self.speed_m_s = 10.0
         self.gotos: list[tuple[float, float, float, float | None]] = []
-        self.overrides: dict[int, int] = {}
-        self.pilot: dict[int, int] = {3: 1100}
-        self.servos = [1500] * 16
+        RcServoBook.__init__(self, pilot={3: 1100}, servo_count=16)
         self.roll_deg, self.pitch_deg, self.yaw_deg = 5.0, -2.0, 30.0
 
     def _cos(self) -> float:
@@ -154,25 +153,6 @@ class FakeModel(VehicleModel):
         if speed_m_s:
             self.speed_m_s = speed_m_s
         return True
-
-    def set_rc_override(self, pwm_us: Mapping[int, int]) -> None:
-        for channel, pwm in pwm_us.items():
-            if pwm == 0:
-                self.overrides.pop(channel, None)
-            else:
-                self.overrides[channel] = pwm
-
-    def set_servo(self, servo: int, pwm_us: int) -> None:
-        self.servos[servo - 1] = pwm_us
-
-    def rc_inputs(self) -> tuple[int, ...]:
-        return tuple(self.overrides.get(c, self.pilot.get(c, 0)) for c in range(1, 17))
-
-    def servo_outputs(self) -> tuple[int, ...]:
-        return tuple(self.servos)
-
-    def set_pilot(self, pwm_us: Mapping[int, int]) -> None:
-        self.pilot.update(pwm_us)
 
 
 class Link:

@@ -16,6 +16,7 @@ from typing import Any
 
 import pytest
 import yaml
+from fake_vehicle import RcServoBook
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.io.transports import UdpTransport
@@ -37,7 +38,7 @@ PLANE_MODES = modes_of("pixhawk_arduplane")
 COPTER_MODES = modes_of("pixhawk_arducopter")
 
 
-class FakeModel(VehicleModel):
+class FakeModel(RcServoBook, VehicleModel):
     """Stands still at home, remembering every call; enough to watch the autopilot layer."""
 
     def __init__(self, modes: Mapping[str, int], mode: str = "MANUAL") -> None:
@@ -46,10 +47,7 @@ class FakeModel(VehicleModel):
         self.armed = False
         self.up_m = 0.0
         self.gotos: list[tuple[float, float, float, float | None]] = []
-        self.overrides: dict[int, int] = {}
-        self.override_calls: list[dict[int, int]] = []
-        self.pilot: dict[int, int] = {1: 1500, 3: 1100}
-        self.servos = [1500] * 14
+        RcServoBook.__init__(self, pilot={1: 1500, 3: 1100}, servo_count=14)
 
     def step(self, dt_s: float) -> None:
         pass
@@ -86,26 +84,6 @@ class FakeModel(VehicleModel):
     def goto(self, lat_deg: float, lon_deg: float, alt_m: float, speed_m_s: float | None) -> bool:
         self.gotos.append((lat_deg, lon_deg, alt_m, speed_m_s))
         return True
-
-    def set_rc_override(self, pwm_us: Mapping[int, int]) -> None:
-        self.override_calls.append(dict(pwm_us))
-        for channel, pwm in pwm_us.items():
-            if pwm == 0:
-                self.overrides.pop(channel, None)
-            else:
-                self.overrides[channel] = pwm
-
-    def set_servo(self, servo: int, pwm_us: int) -> None:
-        self.servos[servo - 1] = pwm_us
-
-    def rc_inputs(self) -> tuple[int, ...]:
-        return tuple(self.overrides.get(c, self.pilot.get(c, 0)) for c in range(1, 17))
-
-    def servo_outputs(self) -> tuple[int, ...]:
-        return tuple(self.servos)
-
-    def set_pilot(self, pwm_us: Mapping[int, int]) -> None:
-        self.pilot.update(pwm_us)
 
 
 class Gcs:
