@@ -334,8 +334,10 @@ class RadioMesh:
         self._ranged = False  # some radio has a range
         self._ids: set[int] = set()
         self._pending: list[_Pending] = []
+        self._local: frozenset[str] | None = None  # receivers whose packets this mesh keeps
         self._channel_free_s = 0.0
-        self._clock_s = -math.inf
+        self._send_clock_s = -math.inf  # the last send's time
+        self._clock_s = -math.inf  # deliveries were taken up to this time
         self._sequence = 0
         self._dropped_links: dict[frozenset[str], list[_Window]] = {}
         self._silenced: dict[str, list[_Window]] = {}
@@ -384,6 +386,36 @@ class RadioMesh:
     def radio(self, name: str) -> RadioSettings:
         """The radio settings of agent ``name``."""
         return self._agent(name).radio
+
+    @property
+    def lookahead_s(self) -> float:
+        """The least time from any send to its arrival: the latency plus the shortest air time.
+
+        An empty packet still carries its sender's framing; a run split across processes
+        (:mod:`clark_engine.sim.parallel`) may simulate this long without hearing from the
+        other processes, since nothing sent meanwhile can arrive sooner.
+        """
+        air_s = min(
+            (a.radio.air_time_s(0) for a in self._agents.values()),
+            default=0.0,
+        )
+        return self.latency_s + air_s
+
+    def keep_receivers(self, names: Iterable[str]) -> None:
+        """Keep in-flight packets for these receivers only: this mesh is one process's copy.
+
+        A run split across processes gives each process a copy of the mesh. Every copy
+        takes every send, in the same order, so channel, sequence numbers and random draws
+        stay identical; each keeps (and resolves, and counts the arrival of) only the
+        packets for the agents it simulates. A link's statistics are then complete in the
+        copy of its receiver's process (:meth:`adopt_links` gathers them).
+        """
+        self._local = frozenset(names)
+
+    def adopt_links(self, links: Mapping[tuple[str, str], LinkStats]) -> None:
+        """Take these links' statistics as they are (from the copy that kept their packets)."""
+        for key, stats in links.items():
+            self._links[key] = _copy_link(stats)
 
     # -- faults --------------------------------------------------------------
 
@@ -441,7 +473,9 @@ class RadioMesh:
                 An agent missing from it (or no mapping at all) is taken as within range.
 
         Raises:
-            ValueError: Unknown sender or destination, a packet to oneself, or time going back.
+            ValueError: Unknown sender or destination, a packet to oneself, a send earlier
+                than the one before, or a packet that would arrive before a time whose
+                deliveries were already taken.
         """
         source = self._agent(sender)
         if destination == sender:
@@ -451,10 +485,20 @@ class RadioMesh:
             receivers: Iterable[str] = (destination,)
         else:
             receivers = [name for name in self._names if name != sender]
-        self._advance_clock(now_s)
+        if math.isnan(now_s) or now_s < self._send_clock_s:
+            raise ValueError(
+                f"time went back: a send at {now_s} s after one at {self._send_clock_s} s"
+            )
+        radio = source.radio
+        earliest_s = now_s + radio.air_time_s(len(packet)) + self.latency_s
+        if earliest_s < self._clock_s:
+            raise ValueError(
+                f"time went back: a packet sent at {now_s} s would arrive at {earliest_s} s "
+                f"or later, but deliveries up to {self._clock_s} s were already taken"
+            )
+        self._send_clock_s = now_s
         sequence = self._sequence
         self._sequence += 1
-        radio = source.radio
         rng = self._rng
         # Each receiver's link and three draws, in name order (see the module docstring).
         links = [self._link(sender, receiver) for receiver in receivers]
@@ -485,7 +529,10 @@ class RadioMesh:
         self._queue.add(queue_s, air_s)
         self._queue_by_sender[sender].add(queue_s, air_s)
         at_s = start_s + air_s + self.latency_s
+        local = self._local
         for receiver, link, loss_draw, corrupt_draw, flip_seed in targets:
+            if local is not None and receiver not in local:
+                continue  # another process's copy of the mesh keeps it
             range_m = self._link_range_m(sender, receiver) if self._ranged else None
             # Without a range the distance law is the base rate: skip measuring the distance.
             p_loss = (
@@ -574,7 +621,7 @@ class RadioMesh:
 
     def _advance_clock(self, now_s: float) -> None:
         if math.isnan(now_s) or now_s < self._clock_s:
-            raise ValueError(f"time went back: {now_s} s after the mesh was told {self._clock_s} s")
+            raise ValueError(f"time went back: deliveries up to {now_s} s after {self._clock_s} s")
         self._clock_s = now_s
 
     def _link(self, sender: str, receiver: str) -> LinkStats:
