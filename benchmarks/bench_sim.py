@@ -7,7 +7,13 @@ fresh process, so that peak memory is that run's alone. Printed per run: agents,
 simulated seconds, wall seconds of the simulation loop (validation, compilation and
 report excluded), the speed-up (simulated seconds per wall second; the issue's target
 is 10x for 50 agents at 10 Hz), agent ticks per wall second, and the process's peak
-resident memory.
+resident memory (of the process that gathers the run: a split run's other processes
+each hold their share).
+
+The fleets run twice: in one process and split across the usable cores
+(``--workers``, :mod:`clark_engine.sim.parallel`), whose logs are the same byte for
+byte. The examples run as ``clark dry-run`` runs them by default (one process: they
+have too few agents to gain from splitting).
 
 Run: python benchmarks/bench_sim.py [--quick]
 (--quick: the 50-agent fleet for 20 s only.)
@@ -27,8 +33,8 @@ ROOT = Path(__file__).resolve().parent.parent
 FLEET_SECONDS = 60.0
 
 
-def one(mission: Path, until_s: float | None) -> dict[str, float]:
-    """Dry-run ``mission`` in this process; the figures as a dict."""
+def one(mission: Path, until_s: float | None, workers: int | None) -> dict[str, float]:
+    """Dry-run ``mission`` in this process (split when ``workers`` > 1); the figures."""
     from clark_engine.sim.dryrun import run_dry_run
 
     outcome = run_dry_run(
@@ -37,15 +43,17 @@ def one(mission: Path, until_s: float | None) -> dict[str, float]:
         until_s=until_s,
         report=None,
         speed=None,
+        workers=workers,
         out=io.StringIO(),
         err=io.StringIO(),
     )
     result = outcome.result
     if result is None:
         raise SystemExit(f"{mission}: invalid mission")
-    ticks = sum(agent.ticks for agent in result.agents.values())
+    ticks = sum(result.ticks.values())
     return {
-        "agents": len(result.configs),
+        "agents": len(result.ticks),
+        "workers": float(result.workers),
         "sim_s": result.recording.end_s,
         "wall_s": result.wall_s,
         "ticks": float(ticks),
@@ -55,11 +63,9 @@ def one(mission: Path, until_s: float | None) -> dict[str, float]:
     }
 
 
-def measure(mission: Path, until_s: float | None) -> dict[str, float]:
+def measure(mission: Path, until_s: float | None, workers: int | None) -> dict[str, float]:
     """Run :func:`one` in a fresh interpreter, for a clean peak-memory figure."""
-    args = [sys.executable, __file__, "--one", str(mission)]
-    if until_s is not None:
-        args.append(str(until_s))
+    args = [sys.executable, __file__, "--one", str(mission), str(until_s), str(workers)]
     done = subprocess.run(args, capture_output=True, text=True, check=False, cwd=ROOT)
     if done.returncode != 0:
         raise SystemExit(done.stderr)
@@ -72,33 +78,43 @@ def main() -> None:
     from fleet import fleet_mission
 
     quick = "--quick" in sys.argv
-    cases: list[tuple[str, Path, float | None]] = [
-        (path.stem, path, None) for path in sorted((ROOT / "missions").glob("*.yaml"))
+    from clark_engine.sim.parallel import usable_cores
+
+    cores = usable_cores()
+    cases: list[tuple[str, Path, float | None, int | None]] = [
+        (path.stem, path, None, None) for path in sorted((ROOT / "missions").glob("*.yaml"))
     ]
     with tempfile.TemporaryDirectory() as tmp:
         for size in (10, 50):
             path = Path(tmp) / f"fleet_{size}.yaml"
             path.write_text(fleet_mission(size, loop_hz=10), encoding="utf-8")
             seconds = 20.0 if quick and size == 50 else FLEET_SECONDS
-            cases.append((f"generated fleet, {size} agents, 10 Hz", path, seconds))
+            label = f"generated fleet, {size} agents, 10 Hz"
+            cases.append((label, path, seconds, 1))
+            if cores > 1:
+                cases.append((label, path, seconds, cores))
         print(
-            f"{'mission':<38} {'agents':>6} {'sim s':>7} {'wall s':>7} {'speed-up':>9} "
-            f"{'ticks/s':>9} {'peak MiB':>9}"
+            f"{'mission':<38} {'agents':>6} {'procs':>5} {'sim s':>7} {'wall s':>7} "
+            f"{'speed-up':>9} {'ticks/s':>9} {'peak MiB':>9}"
         )
-        for label, path, until in cases:
-            f = measure(path, until)
+        for label, path, until, workers in cases:
+            f = measure(path, until, workers)
             speed = f["sim_s"] / f["wall_s"] if f["wall_s"] else float("inf")
             ticks = f["ticks"] / f["wall_s"] if f["wall_s"] else 0.0
             print(
-                f"{label:<38} {f['agents']:>6.0f} {f['sim_s']:>7.0f} {f['wall_s']:>7.2f} "
+                f"{label:<38} {f['agents']:>6.0f} {f['workers']:>5.0f} {f['sim_s']:>7.0f} "
+                f"{f['wall_s']:>7.2f} "
                 f"{speed:>8.1f}x {ticks:>9.0f} {f['peak_mib']:>9.0f}"
             )
 
 
 if __name__ == "__main__":
     if len(sys.argv) >= 3 and sys.argv[1] == "--one":
+        # --one MISSION [UNTIL|None [WORKERS|None]]: one run in this process, as JSON.
         sys.path.insert(0, str(ROOT))
-        until = float(sys.argv[3]) if len(sys.argv) > 3 else None
-        print(json.dumps(one(Path(sys.argv[2]), until)))
+        given = [*sys.argv[3:], "None", "None"]
+        until = None if given[0] == "None" else float(given[0])
+        workers = None if given[1] == "None" else int(given[1])
+        print(json.dumps(one(Path(sys.argv[2]), until, workers)))
     else:
         main()

@@ -237,8 +237,22 @@ def cmd_dry_run(args: argparse.Namespace) -> int:
         faults=args.fault or (),
         realtime_base_port=args.mavlink_port if args.realtime else None,
         realtime_host=args.mavlink_host or DEFAULT_HOST,
+        workers=args.workers,
     )
     return outcome.exit_code
+
+
+def _workers(text: str) -> int | None:
+    """``auto`` (None) or a number of processes of at least 1; anything else exits 2."""
+    if text == "auto":
+        return None
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be auto or a whole number >= 1, not {text!r}")
+    return value
 
 
 def _period_s(text: str) -> float:
@@ -312,6 +326,14 @@ def build_parser() -> argparse.ArgumentParser:
         type=_period_s,
         metavar="X",
         help="pace the run at X simulated seconds per second (as fast as possible by default)",
+    )
+    p.add_argument(
+        "--workers",
+        type=_workers,
+        default=None,
+        metavar="N",
+        help="split the agents across N processes (same results, faster on several cores); "
+        "auto (the default) splits missions of 12 agents or more over the usable cores",
     )
     p.add_argument(
         "--fault",

@@ -19,6 +19,7 @@ from clark_engine.errors import UsageError
 from clark_engine.mission.model import Mission
 from clark_engine.sim.checks import CheckResult, evaluate
 from clark_engine.sim.engine import DryRun, DryRunResult
+from clark_engine.sim.parallel import choose_workers, run_split
 from clark_engine.sim.realtime import (
     DEFAULT_HOST,
     MavlinkBridge,
@@ -105,6 +106,7 @@ def run_dry_run(
     faults: Sequence[str] = (),
     realtime_base_port: int | None = None,
     realtime_host: str = DEFAULT_HOST,
+    workers: int | None = None,
     out: TextIO | None = None,
     err: TextIO | None = None,
 ) -> Outcome:
@@ -122,6 +124,9 @@ def run_dry_run(
             BASE + k (:mod:`clark_engine.sim.realtime`); Ctrl-C ends the run early
             and the report is still written. Off when None.
         realtime_host: The address those ports are bound to (loopback by default).
+        workers: Split the agents across this many processes (:mod:`clark_engine.sim.parallel`:
+            the same results, sooner); automatic when None. Paced and real-time runs
+            stay in one process.
         out: Where the checks table goes; ``sys.stdout`` (as it is at the call) when None.
         err: Where progress and diagnostics go; ``sys.stderr`` when None.
 
@@ -156,7 +161,9 @@ def run_dry_run(
         else None
     )
     try:
-        result = _simulate(mission, mission_path, seed, until, report, speed, extra, bridge, err)
+        result = _simulate(
+            mission, mission_path, seed, until, report, speed, extra, bridge, workers, err
+        )
     finally:
         if bridge is not None:
             bridge.close()
@@ -189,6 +196,7 @@ def _simulate(
     speed: float | None,
     faults: Sequence[Mapping[str, Any]],
     bridge: MavlinkBridge | None,
+    workers: int | None,
     err: TextIO,
 ) -> DryRunResult:
     """Make the report's log folder and run the simulation (in real time with a bridge).
@@ -210,10 +218,34 @@ def _simulate(
             ) from None
     interactive = err.isatty() if hasattr(err, "isatty") else False
     progress = _progress(err) if interactive or until_s > 60 else None
+    paced = bridge is not None or speed is not None
+    processes = 1 if paced else choose_workers(workers, mission)
+    if workers is not None and workers > 1 and processes == 1 and not paced:
+        print(
+            "  note: this run stays in one process (no fork here, or the radio's latency "
+            "is too short to split on)",
+            file=err,
+        )
+    split = f", {processes} processes" if processes > 1 else ""
     print(
-        f"dry run of {mission.name}: {len(mission.agents)} agents, {until_s:g} s, seed {seed}",
+        f"dry run of {mission.name}: {len(mission.agents)} agents, {until_s:g} s, "
+        f"seed {seed}{split}",
         file=err,
     )
+    if processes > 1:
+        result = run_split(
+            mission,
+            mission_path,
+            workers=processes,
+            seed=seed,
+            until_s=until_s,
+            log_dir=log_dir,
+            extra_faults=faults,
+            progress=progress,
+        )
+        if progress is not None:
+            err.write("\n")
+        return result
     run = DryRun(
         mission,
         mission_path,

@@ -13,9 +13,20 @@ Time advances from event to event: vehicle physics every ``PHYSICS_STEP_S``,
 each agent's ticks at its ``loop_hz`` (with a seeded phase, since the thesis's
 agents were not synchronised), radio deliveries and camera answers when they
 are due, and the scenario's operator actions and faults at their times. Events
-at the same time are processed in a fixed order: physics and autopilot
-telemetry, radio deliveries, camera answers, scenario, then agent ticks in the
-mission's agent order.
+at the same time are processed in a fixed order: physics (every vehicle steps,
+then each agent hears its autopilot's telemetry), radio deliveries, camera
+answers, scenario, then agent ticks in the mission's agent order.
+
+Agents meet only through the radio: what one agent does at a time depends on
+its own events and on packets, and a packet arrives at least the mesh's
+lookahead (latency plus the shortest air time) after it was sent. So the agents
+can be split across processes (:mod:`clark_engine.sim.parallel`): each process
+simulates its share for one lookahead, then the processes swap what their
+agents handed to the radio, and every process replays all of it, in one global
+order, into its copy of the mesh. That order is the one a single process sends
+in, carried by a key on every send (time, visit of that time, phase, agent, a
+count), so a split run gives the same logs, CSV files and recording as a
+single process, byte for byte, whatever the number of processes.
 """
 
 from __future__ import annotations
@@ -24,10 +35,11 @@ import heapq
 import math
 import random
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
+from operator import itemgetter
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from clark_engine.io.autopilot import AutopilotAdapter, AutopilotSettings, gps_time_ms_from_unix_us
 from clark_engine.link.auth import load_key
@@ -52,7 +64,7 @@ from clark_engine.runtime.runtime import AgentRuntime
 from clark_engine.sim.autopilot import SimAutopilot
 from clark_engine.sim.camera import SimCamera
 from clark_engine.sim.model import VehicleModel
-from clark_engine.sim.radio import RadioMesh
+from clark_engine.sim.radio import LinkStats, Position, RadioMesh
 from clark_engine.sim.recording import Photo, Recording, StateEntry, Track
 from clark_engine.sim.vehicles import make_vehicle
 
@@ -66,6 +78,32 @@ START_UNIX_US = 1_767_225_600_000_000
 DEFAULT_START_UP_M = 40.0
 
 _AUTOPILOT_COMMANDS = (Goto, SetMode, SetServo, RcOverride)
+
+#: How much shorter than the mesh's lookahead a split run's window is.
+WINDOW_MARGIN_S = 1e-7
+
+#: Phases of one visit of a time, in the order they run (the third element of a key).
+_PHYSICS, _RADIO, _CAMERAS, _SCENARIO, _TICKS = range(5)
+
+#: Where a send or silence happened in the run's order: (time, visit of that time, phase,
+#: then three phase-specific parts naming the agent and the event, then a count within).
+#: A single process runs in increasing key order; a split run sorts by it.
+Key = tuple[Any, ...]
+#: What an agent did to the radio in a split run: (key, "send" or "silence", agent,
+#: packet, destination).
+Action = tuple[Key, str, str, bytes, str]
+#: Vehicles' true positions after the physics step at a time.
+GridPositions = tuple[float, dict[str, Position]]
+
+
+class Exchange(Protocol):
+    """How the processes of a split run swap what their agents did to the radio."""
+
+    def swap(
+        self, actions: list[Action], grid: list[GridPositions]
+    ) -> list[tuple[list[Action], list[GridPositions]]]:
+        """Send this process's actions and positions; return every other process's."""
+        ...
 
 
 @dataclass(slots=True)
@@ -111,18 +149,68 @@ class SimAgent:
 
 
 @dataclass(slots=True)
+class Share:
+    """What one process of a split run simulated, for the process that gathers them.
+
+    Attributes:
+        recording: Its agents' part of the recording.
+        ticks: Agent name -> ticks it ran.
+        links: The radio links into its agents, with complete statistics.
+    """
+
+    recording: Recording
+    ticks: dict[str, int]
+    links: dict[tuple[str, str], LinkStats]
+
+
+@dataclass(slots=True)
 class DryRunResult:
-    """What a dry run produced."""
+    """What a dry run produced.
+
+    Attributes:
+        recording: Tracks, states, signals, photos and safety events of every agent.
+        configs: Every agent's compiled config.
+        agents: The agents this process simulated (all of them unless the run was split).
+        radio: The mesh, with every link's statistics.
+        wall_s: Wall-clock seconds of the simulation loop.
+        ticks: Agent name -> ticks it ran.
+        workers: Processes the run was split across (1: not split).
+    """
 
     recording: Recording
     configs: dict[str, AgentConfig]
     agents: dict[str, SimAgent]
     radio: RadioMesh
     wall_s: float
+    ticks: dict[str, int] = field(default_factory=dict)
+    workers: int = 1
+
+
+def build_mesh(mission: Mission, seed: int) -> RadioMesh:
+    """The mission's radio mesh: its ``sim`` settings and every agent's radio."""
+    radio = RadioMesh(
+        random.Random(f"{seed}:radio"),
+        latency_s=float(mission.sim.get("radio_latency_s", 0.005)),
+        loss_rate=float(mission.sim.get("radio_loss", 0.0)),
+    )
+    for name, agent in mission.agents.items():
+        profile = agent.hardware.part("radio")
+        if profile is not None:
+            radio.add_agent(name, agent.id, profile)
+    return radio
+
+
+def split_window_s(radio: RadioMesh) -> float:
+    """Simulated time a split run's processes go between swaps: a hair under the lookahead.
+
+    The hair (:data:`WINDOW_MARGIN_S`) keeps rounding in an arrival time (start + air
+    time + latency) from ever landing a packet inside the window it was sent in.
+    """
+    return radio.lookahead_s - WINDOW_MARGIN_S
 
 
 class DryRun:
-    """One dry run of a validated mission.
+    """One dry run of a validated mission, or one process's share of a split run.
 
     Args:
         mission: The resolved mission (from validation, without errors).
@@ -135,6 +223,13 @@ class DryRun:
         progress: Called now and then with (simulated time, end time).
         speed: Run at this many simulated seconds per wall-clock second (1 is real
             time); as fast as possible when None.
+        owned: The agents this process simulates, with ``exchange``; every agent when None.
+        exchange: Swaps radio actions with the other processes of a split run, once
+            per :attr:`window_s` of simulated time (a hair under the mesh's lookahead);
+            None for a run in one process.
+
+    Raises:
+        ValueError: A split run on a mesh whose lookahead is too short to split on.
     """
 
     def __init__(
@@ -148,23 +243,25 @@ class DryRun:
         extra_faults: Sequence[Mapping[str, Any]] = (),
         progress: Callable[[float, float], None] | None = None,
         speed: float | None = None,
+        owned: Collection[str] | None = None,
+        exchange: Exchange | None = None,
     ) -> None:
         self.mission = mission
         self.seed = seed
         self.until_s = until_s
         self.progress = progress
         self.speed = speed
+        self.exchange = exchange
         self.recording = Recording()
         sim = mission.sim
-        self.radio = RadioMesh(
-            random.Random(f"{seed}:radio"),
-            latency_s=float(sim.get("radio_latency_s", 0.005)),
-            loss_rate=float(sim.get("radio_loss", 0.0)),
-        )
+        self.radio = build_mesh(mission, seed)
+        owned_set = set(mission.agents) if owned is None else set(owned)
         key = load_key(mission_path.parent / mission.key_file) if mission.key_file else None
         gps_epoch_ms = gps_time_ms_from_unix_us(START_UNIX_US)
         self.agents: dict[str, SimAgent] = {}
         for name, agent in mission.agents.items():
+            if name not in owned_set:
+                continue
             config = config_from_dict(agent_config(mission, agent))
             logbook = (
                 Logbook.to_folder(log_dir, config, overwrite=True)
@@ -177,9 +274,6 @@ class DryRun:
             self.agents[name] = sim_agent
             runtime.state_listeners.append(self._state_listener(name))
             self.recording.states[name] = []
-            radio = agent.hardware.part("radio")
-            if radio is not None:
-                self.radio.add_agent(name, agent.id, radio)
             for payload, profile in agent.hardware.payloads.items():
                 if profile.get("payload_kind") == "camera":
                     sim_agent.cameras[payload] = SimCamera(
@@ -187,12 +281,33 @@ class DryRun:
                     )
             if agent.is_vehicle:
                 self._build_vehicle(sim_agent, agent.raw, agent.hardware.parts, sim)
+        # Agent order (the tie-break of events at one time) is the mission's, whoever owns them.
+        self._order = {name: i for i, name in enumerate(mission.agents)}
+        self._vehicles = [a for a in self.agents.values() if a.model is not None]
+        # Stations and agents without a vehicle stay where the mission puts them.
+        self._fixed_positions: dict[str, Position] = {
+            name: (agent.position.north_m, agent.position.east_m, agent.position.up_m)
+            for name, agent in mission.agents.items()
+            if not agent.is_vehicle
+        }
         self._apply_faults([*mission.faults, *extra_faults])
-        self._operator = sorted(
+        station = next((a.name for a in mission.agents.values() if not a.is_vehicle), None)
+        operator = sorted(
             (float(item["at_s"]), index, item) for index, item in enumerate(mission.operator)
         )
+        # Each operator action goes to the process of the agent it acts on: a pilot's stick
+        # to the vehicle's, every other action to the (first) station's.
+        self._operator = [
+            entry
+            for entry in operator
+            if (str(entry[2]["rc"]["agent"]) if "rc" in entry[2] else station) in self.agents
+        ]
+        self._station = self.agents.get(station) if station is not None else None
         self._signal_channels()
-        self._position_cache: dict[str, tuple[float, float, float]] | None = None
+        #: Every agent's position after the last physics step (only kept when a radio has a
+        #: range: only then do positions matter to the mesh).
+        self._positions: dict[str, Position] = dict(self._fixed_positions)
+        self._ranged = self.radio.uses_positions
         #: Agent -> called with every byte string its simulated autopilot emits (real-time
         #: mode forwards them to a ground station over UDP).
         self.autopilot_taps: dict[str, Callable[[bytes], None]] = {}
@@ -200,15 +315,39 @@ class DryRun:
         #: its ground-station sockets here and passes what arrived to inject()).
         self.on_step: Callable[[float], None] | None = None
         # (next tick time, agent order, name): one heap instead of a scan per event
-        self._order = {name: i for i, name in enumerate(self.agents)}
         self._ticks = [(a.next_tick_s(), self._order[a.name], a.name) for a in self.agents.values()]
         heapq.heapify(self._ticks)
-        # Every camera with its agent, in agent order; the earliest answer any of them has
-        # pending; and whether one was commanded or answered since that was worked out
-        # (so that the loop does not ask every camera at every event).
-        self._cameras_list = [(a, c) for a in self.agents.values() for c in a.cameras.values()]
+        # Every camera with its agent and its index in the agent's payloads, in agent order;
+        # the earliest answer any of them has pending; and whether one was commanded or
+        # answered since that was worked out (so that the loop does not ask every camera
+        # at every event).
+        self._cameras_list = [
+            (a, i, c) for a in self.agents.values() for i, c in enumerate(a.cameras.values())
+        ]
         self._cameras_s = math.inf
         self._cameras_changed = True
+        # The loop's position: physics steps done, the next track sample, the time being
+        # processed and how many times it was visited before.
+        self._physics_steps = 0
+        self._next_sample_s = 0.0
+        self._t = -math.inf
+        self._visit = 0
+        # Where sends and silences are in the run's order (see Key), and, in a split run,
+        # what this process's agents did to the radio since the last swap.
+        self._key: Key = ()
+        self._key_n = 0
+        self._outbox: list[Action] | None = None
+        self._grid_out: list[GridPositions] = []
+        self._grid_last: dict[str, Position] = dict(self._fixed_positions)
+        #: Simulated seconds between swaps of a split run.
+        self.window_s = split_window_s(self.radio)
+        if exchange is not None:
+            if self.window_s <= 0:
+                raise ValueError(
+                    f"the radio's lookahead ({self.radio.lookahead_s} s) is too short to split on"
+                )
+            self._outbox = []
+            self.radio.keep_receivers(self.agents)
 
     # -- setup ---------------------------------------------------------------------------
 
@@ -255,12 +394,12 @@ class DryRun:
         self._to_autopilot(sim_agent, sim_agent.adapter.start(0.0), 0.0)
 
     def _apply_faults(self, faults: Sequence[Mapping[str, Any]]) -> None:
-        self._kills: list[tuple[float, str]] = []
+        kills: list[tuple[float, str]] = []
         for fault in faults:
             ((kind, body),) = fault.items()
             start, end = float(body.get("from_s", 0.0)), float(body.get("to_s", math.inf))
             if kind == "kill":
-                self._kills.append((float(body["at_s"]), str(body["agent"])))
+                kills.append((float(body["at_s"]), str(body["agent"])))
             elif kind == "link_drop":
                 a, b = (str(n) for n in body["between"])
                 self.radio.drop_link(a, b, start, end)
@@ -268,10 +407,17 @@ class DryRun:
                 for agent in self.mission.stations:
                     self.radio.silence(agent.name, start, end)
             elif kind == "autopilot_disconnect":
-                self.agents[str(body["agent"])].autopilot_down.append(Window(start, end))
+                victim = self.agents.get(str(body["agent"]))
+                if victim is not None:  # else another process of a split run simulates it
+                    victim.autopilot_down.append(Window(start, end))
             elif kind == "corrupt":
                 self.radio.corrupt(float(body["share"]), start, end)
-        self._kills.sort()
+        # (time, index in the mission's kill order, agent): the index keys the kill's silence.
+        self._kills = [
+            (at_s, index, name)
+            for index, (at_s, name) in enumerate(sorted(kills))
+            if name in self.agents
+        ]
 
     def _signal_channels(self) -> None:
         """The control channels each agent's doublets and sweeps drive, to record."""
@@ -303,16 +449,55 @@ class DryRun:
     # -- the loop ------------------------------------------------------------------------
 
     def run(self) -> DryRunResult:
-        """Simulate until ``until_s``; returns what was recorded."""
-        wall_start = time.perf_counter()
-        physics_steps = 0
-        next_sample_s = 0.0
-        next_progress_wall = wall_start + 1.0
-        t = 0.0
+        """Simulate until ``until_s``; returns what was recorded.
+
+        In a split run, this process's share: stop at every ``window_s`` to swap radio
+        actions with the other processes (all of them swap the same number of times).
+        """
+        self._wall_start = time.perf_counter()
+        self._next_progress_wall = self._wall_start + 1.0
+        try:
+            if self.exchange is None:
+                self._advance(math.inf, last=True)
+            else:
+                window = 1
+                while window * self.window_s <= self.until_s:
+                    self._advance(window * self.window_s, last=False)
+                    self._swap()
+                    window += 1
+                self._advance(math.inf, last=True)
+                self._swap()  # the last window's sends, for the links' statistics
+        finally:  # the logs so far are complete rows, even when the run failed
+            for sim_agent in self.agents.values():
+                sim_agent.logbook.close()
+        self.recording.end_s = min(self._t, self.until_s)
+        return DryRunResult(
+            self.recording,
+            {name: a.config for name, a in self.agents.items()},
+            self.agents,
+            self.radio,
+            time.perf_counter() - self._wall_start,
+            ticks={name: a.ticks for name, a in self.agents.items()},
+        )
+
+    def share(self) -> Share:
+        """What this process simulated, for the process gathering a split run's shares."""
+        links = self.radio.links()
+        return Share(
+            self.recording,
+            {name: a.ticks for name, a in self.agents.items()},
+            {key: stats for key, stats in links.items() if key[1] in self.agents},
+        )
+
+    def _advance(self, end_s: float, *, last: bool) -> None:
+        """Process every event before ``end_s``; when ``last``, up to ``until_s``.
+
+        ``until_s`` is read at every event: a real-time run's Ctrl-C lowers it.
+        """
         while True:
             # The next event: the earliest of the physics step, the next tick, radio
             # arrival, camera answer, operator action and kill.
-            physics_s = physics_steps * PHYSICS_STEP_S
+            physics_s = self._physics_steps * PHYSICS_STEP_S
             t = physics_s
             while self._ticks and not self._ticking_agent(self._ticks[0][2]):
                 heapq.heappop(self._ticks)
@@ -324,7 +509,7 @@ class DryRun:
             if self._cameras_changed:
                 self._cameras_changed = False
                 self._cameras_s = min(
-                    (s for _, c in self._cameras_list if (s := c.next_event_s()) is not None),
+                    (s for _, _, c in self._cameras_list if (s := c.next_event_s()) is not None),
                     default=math.inf,
                 )
             if self._cameras_s < t:
@@ -333,46 +518,74 @@ class DryRun:
                 t = self._operator[0][0]
             if self._kills and self._kills[0][0] < t:
                 t = self._kills[0][0]
-            if t > self.until_s + 1e-9:
+            if (t > self.until_s + 1e-9) if last else (t >= end_s):
                 break
+            # Each agent's events at a time depend on its own events only: nothing here
+            # may merge events of different times, or a split run would differ.
+            self._visit = self._visit + 1 if t == self._t else 0
+            self._t = t
             if self.speed is not None:
-                self._pace(wall_start, t)
-            if abs(t - physics_s) < 1e-9:
+                self._pace(t)
+            if t == physics_s:
                 self._physics(t)
-                physics_steps += 1
-                if t >= next_sample_s - 1e-9:
+                self._physics_steps += 1
+                if t >= self._next_sample_s - 1e-9:
                     self._sample(t)
-                    next_sample_s += SAMPLE_PERIOD_S
+                    self._next_sample_s += SAMPLE_PERIOD_S
             self._radio(t)
             if self._cameras_s <= t or self._cameras_changed:  # else none has an answer due
                 self._cameras(t)
             self._scenario(t)
-            while self._ticks and self._ticks[0][0] <= t + 1e-9:
+            while self._ticks and self._ticks[0][0] <= t:
                 _, order, name = heapq.heappop(self._ticks)
                 sim_agent = self.agents[name]
                 if not self._ticking_agent(name):
                     continue
+                self._key = (t, self._visit, _TICKS, order, 0, 0)
+                self._key_n = 0
                 self._tick(sim_agent, t)
                 heapq.heappush(self._ticks, (sim_agent.next_tick_s(), order, name))
             if self.on_step is not None:
                 self.on_step(t)
-            if self.progress is not None and time.perf_counter() >= next_progress_wall:
+            if self.progress is not None and time.perf_counter() >= self._next_progress_wall:
                 self.progress(t, self.until_s)
-                next_progress_wall = time.perf_counter() + 1.0
-        self.recording.end_s = min(t, self.until_s)
-        for sim_agent in self.agents.values():
-            sim_agent.logbook.close()
-        return DryRunResult(
-            self.recording,
-            {name: a.config for name, a in self.agents.items()},
-            self.agents,
-            self.radio,
-            time.perf_counter() - wall_start,
-        )
+                self._next_progress_wall = time.perf_counter() + 1.0
 
-    def _pace(self, wall_start: float, t_s: float) -> None:
+    def _swap(self) -> None:
+        """Swap radio actions with the other processes and replay them all, in key order."""
+        assert self.exchange is not None and self._outbox is not None
+        own, grid = self._outbox, self._grid_out
+        others = self.exchange.swap(own, grid)
+        self._outbox, self._grid_out = [], []
+        # Every vehicle's position at each physics step of the window, when ranges matter.
+        steps: dict[float, dict[str, Position]] = {}
+        if self._ranged:
+            for t_s, seen in [*grid, *(g for _, other in others for g in other)]:
+                steps.setdefault(t_s, {}).update(seen)
+        times = sorted(steps)
+        step = 0
+        for key, kind, name, data, destination in heapq.merge(
+            own, *(actions for actions, _ in others), key=itemgetter(0)
+        ):
+            t_s = key[0]
+            if kind == "silence":
+                if name not in self.agents:  # this process's own were silenced at once
+                    self.radio.silence(name, t_s)
+                continue
+            positions: dict[str, Position] | None = None
+            if self._ranged:
+                # As the sender saw them: after the last physics step at or before the send.
+                while step < len(times) and times[step] <= t_s:
+                    self._grid_last.update(steps[times[step]])
+                    step += 1
+                positions = self._grid_last
+            self.radio.send(name, data, destination, t_s, positions)
+        for t_s in times[step:]:
+            self._grid_last.update(steps[t_s])
+
+    def _pace(self, t_s: float) -> None:
         assert self.speed is not None
-        due = wall_start + t_s / self.speed
+        due = self._wall_start + t_s / self.speed
         delay = due - time.perf_counter()
         if delay > 0:
             time.sleep(delay)
@@ -382,15 +595,25 @@ class DryRun:
         return agent.alive and not agent.closed
 
     def _physics(self, t_s: float) -> None:
-        self._position_cache = None
-        for sim_agent in self.agents.values():
-            if sim_agent.model is None or sim_agent.autopilot is None:
-                continue
+        # Every vehicle steps first, so that any packet sent at this time sees every
+        # vehicle where this step put it; then each agent hears its autopilot.
+        heard: list[tuple[SimAgent, bytes]] = []
+        for sim_agent in self._vehicles:
+            assert sim_agent.model is not None and sim_agent.autopilot is not None
             if t_s > 0:
                 sim_agent.model.step(PHYSICS_STEP_S)
             data = sim_agent.autopilot.advance(t_s)
-            if not data:
-                continue  # nothing due: the usual case between streamed messages
+            if data:  # else nothing due: the usual case between streamed messages
+                heard.append((sim_agent, data))
+        if self._ranged:
+            here: dict[str, Position] = {}
+            for sim_agent in self._vehicles:
+                truth = sim_agent.model.truth()  # type: ignore[union-attr]
+                here[sim_agent.name] = (truth.north_m, truth.east_m, truth.up_m)
+            self._positions.update(here)
+            if self._outbox is not None:
+                self._grid_out.append((t_s, here))
+        for sim_agent, data in heard:
             tap = self.autopilot_taps.get(sim_agent.name)
             if tap is not None:
                 tap(data)
@@ -398,6 +621,8 @@ class DryRun:
                 continue
             if not sim_agent.link_up(t_s):
                 continue
+            self._key = (t_s, self._visit, _PHYSICS, self._order[sim_agent.name], 0, 0)
+            self._key_n = 0
             for event in sim_agent.adapter.receive(data, t_s):
                 out = sim_agent.runtime.deliver(event, t_s)  # type: ignore[arg-type]
                 if out:
@@ -418,24 +643,6 @@ class DryRun:
                 truth.yaw_deg,
             )
 
-    def _positions(self) -> dict[str, tuple[float, float, float]]:
-        """Every agent's position, as of the last physics step (cached until the next)."""
-        if self._position_cache is not None:
-            return self._position_cache
-        positions: dict[str, tuple[float, float, float]] = {}
-        for name, sim_agent in self.agents.items():
-            if sim_agent.model is not None:
-                truth = sim_agent.model.truth()
-                positions[name] = (truth.north_m, truth.east_m, truth.up_m)
-            else:
-                agent = self.mission.agents[name]
-                positions[name] = (
-                    agent.position.north_m,
-                    agent.position.east_m,
-                    agent.position.up_m,
-                )
-        return positions
-
     def _radio(self, t_s: float) -> None:
         event: PacketReceived | None = None
         for delivery in self.radio.deliveries_until(t_s):
@@ -447,29 +654,45 @@ class DryRun:
                 event = PacketReceived(delivery.packet)
             out = receiver.runtime.deliver(event, t_s)
             if out:
+                self._key = (
+                    t_s,
+                    self._visit,
+                    _RADIO,
+                    delivery.sender,
+                    delivery.receiver,
+                    delivery.sequence,
+                )
+                self._key_n = 0
                 self._route(receiver, out, t_s)
 
     def _cameras(self, t_s: float) -> None:
         self._cameras_changed = True  # answers are taken (and answering may command others)
-        for sim_agent, camera in self._cameras_list:
-            for _at_s, event in camera.events_until(t_s):
+        for sim_agent, index, camera in self._cameras_list:
+            for answer, (_at_s, event) in enumerate(camera.events_until(t_s)):
                 if event.kind == "captured" and sim_agent.model is not None:
                     truth = sim_agent.model.truth()
                     self.recording.photos.setdefault(sim_agent.name, []).append(
                         Photo(t_s, truth.north_m, truth.east_m, truth.up_m)
                     )
                 if sim_agent.alive and not sim_agent.closed:
+                    order = self._order[sim_agent.name]
+                    self._key = (t_s, self._visit, _CAMERAS, order, index, answer)
+                    self._key_n = 0
                     self._route(sim_agent, sim_agent.runtime.deliver(event, t_s), t_s)
 
     def _scenario(self, t_s: float) -> None:
-        while self._kills and self._kills[0][0] <= t_s + 1e-9:
-            _, name = self._kills.pop(0)
+        while self._kills and self._kills[0][0] <= t_s:
+            _, index, name = self._kills.pop(0)
             sim_agent = self.agents[name]
             sim_agent.alive = False
             sim_agent.logbook.mission.error("killed by the dry run's fault at %.2f s", t_s)
-            self.radio.silence(name, t_s)
-        while self._operator and self._operator[0][0] <= t_s + 1e-9:
-            _, _, item = self._operator.pop(0)
+            self._key = (t_s, self._visit, _SCENARIO, 0, index, 0)
+            self._key_n = 0
+            self._silence(name, t_s)
+        while self._operator and self._operator[0][0] <= t_s:
+            _, index, item = self._operator.pop(0)
+            self._key = (t_s, self._visit, _SCENARIO, 1, index, 0)
+            self._key_n = 0
             self._operate(item, t_s)
 
     def _operate(self, item: Mapping[str, Any], t_s: float) -> None:
@@ -479,11 +702,8 @@ class DryRun:
             if model is not None:
                 model.set_pilot({int(body["channel"]): int(body["pwm_us"])})
             return
-        stations = [a for a in self.agents.values() if not a.config.is_vehicle]
-        if not stations:
-            return
-        station = stations[0]
-        if not station.alive or station.closed:
+        station = self._station
+        if station is None or not station.alive or station.closed:
             return
         for action in ("activate", "deactivate", "terminate"):
             if action in item:
@@ -529,11 +749,19 @@ class DryRun:
                 if sim_agent.adapter is not None:
                     self._to_autopilot(sim_agent, sim_agent.adapter.command(command, t_s), t_s)
             elif isinstance(command, SendPacket):
-                if sim_agent.name in self.radio.agents:
-                    # Positions only matter to radios with a range: skip measuring them else.
-                    positions = self._positions() if self.radio.uses_positions else None
+                if sim_agent.name not in self.radio.agents:
+                    continue
+                if self._outbox is None:
+                    # Positions only matter to radios with a range.
+                    positions = self._positions if self._ranged else None
                     self.radio.send(
                         sim_agent.name, command.data, command.destination, t_s, positions
+                    )
+                else:  # replayed in the run's order at the next swap
+                    key = (*self._key, self._key_n)
+                    self._key_n += 1
+                    self._outbox.append(
+                        (key, "send", sim_agent.name, command.data, command.destination)
                     )
             elif isinstance(command, PayloadCommand):
                 camera = sim_agent.cameras.get(command.payload)
@@ -545,7 +773,17 @@ class DryRun:
                 if sim_agent.adapter is not None:
                     self._to_autopilot(sim_agent, sim_agent.adapter.close(t_s), t_s)
                 if sim_agent.name in self.radio.agents:
-                    self.radio.silence(sim_agent.name, t_s)
+                    self._silence(sim_agent.name, t_s)
+
+    def _silence(self, name: str, t_s: float) -> None:
+        """Silence an agent's radio from ``t_s`` on (and tell the other processes)."""
+        if name not in self.radio.agents:
+            return
+        self.radio.silence(name, t_s)
+        if self._outbox is not None:
+            key = (*self._key, self._key_n)
+            self._key_n += 1
+            self._outbox.append((key, "silence", name, b"", ""))
 
     def inject(self, agent: str, data: bytes, t_s: float) -> None:
         """Bytes from an outside ground station to an agent's simulated autopilot."""

@@ -1,0 +1,204 @@
+"""A dry run split across processes gives what one process gives, byte for byte.
+
+Splitting (clark_engine.sim.parallel) is only worth having if it changes the speed
+and nothing else: the same logs, CSV files, recording and link statistics whatever
+the number of processes. These runs cover every way agents meet (broadcasts and
+unicasts over ranged XBee radios, so positions matter; the operator's commands and
+a pilot's stick; cameras) and every fault (kill, link drop, station silence,
+autopilot disconnect, corruption), each of which crosses between processes.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import subprocess
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from clark_engine.mission.model import Mission
+from clark_engine.sim import parallel
+from clark_engine.sim.engine import DryRun, DryRunResult
+from clark_engine.sim.parallel import (
+    WorkerFailed,
+    choose_workers,
+    partition,
+    run_split,
+)
+from clark_engine.validation import validate_file
+
+ROOT = Path(__file__).resolve().parent.parent
+MISSIONS = ROOT / "missions"
+
+pytestmark = pytest.mark.skipif(not parallel.can_split(), reason="no fork on this platform")
+
+
+def load(path: Path) -> Mission:
+    validation = validate_file(path, str(path))
+    assert validation.mission is not None, [f.format_text() for f in validation.findings]
+    return validation.mission
+
+
+def simulate(
+    path: Path,
+    workers: int,
+    until_s: float,
+    log_dir: Path,
+    faults: Sequence[Mapping[str, Any]] = (),
+) -> DryRunResult:
+    mission = load(path)
+    log_dir.mkdir(parents=True)
+    seed = int(mission.sim.get("seed", 0))
+    if workers == 1:
+        run = DryRun(
+            mission, path, seed=seed, until_s=until_s, log_dir=log_dir, extra_faults=faults
+        )
+        return run.run()
+    return run_split(
+        mission,
+        path,
+        workers=workers,
+        seed=seed,
+        until_s=until_s,
+        log_dir=log_dir,
+        extra_faults=faults,
+        progress=None,
+    )
+
+
+def files(folder: Path) -> dict[str, bytes]:
+    return {
+        str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()
+    }
+
+
+CASES = [
+    # ranged XBee radios, a kill, an autopilot disconnect, 20 % corruption; plus a link drop
+    (
+        "fault_lost_peer",
+        60.0,
+        [{"link_drop": {"between": ["slash_b", "mcs"], "from_s": 10.0, "to_s": 25.0}}],
+    ),
+    ("fault_station_loss", 70.0, []),  # the station goes silent; failsafes
+    ("cooperative_follow", 60.0, []),  # the operator activates a follower
+    ("supercub_sysid_rc", 40.0, []),  # a pilot's switch on the RC (an operator rc action)
+    ("three_vehicles_payload", 40.0, []),  # cameras
+]
+
+
+@pytest.mark.parametrize(("name", "until_s", "faults"), CASES, ids=[c[0] for c in CASES])
+def test_a_split_run_is_byte_identical_to_one_process(
+    tmp_path: Path, name: str, until_s: float, faults: list[dict[str, Any]]
+) -> None:
+    path = MISSIONS / f"{name}.yaml"
+    one = simulate(path, 1, until_s, tmp_path / "one", faults)
+    workers = 3 if name == "fault_lost_peer" else 2
+    split = simulate(path, workers, until_s, tmp_path / "split", faults)
+    assert split.workers == workers
+    expected = files(tmp_path / "one")
+    assert expected, "the run wrote logs"
+    assert files(tmp_path / "split") == expected
+    assert split.recording == one.recording
+    assert split.radio.links() == one.radio.links()
+    assert split.ticks == one.ticks
+    assert sum(one.ticks.values()) > 0
+
+
+def test_the_split_exercises_what_it_claims(tmp_path: Path) -> None:
+    """The byte-identity above is not vacuous: packets crossed and were lost to faults."""
+    path = MISSIONS / "fault_lost_peer.yaml"
+    mission = load(path)
+    assert mission.agents["slash_a"].hardware.radio_range_m is not None  # positions matter
+    result = simulate(path, 2, 60.0, tmp_path / "run")
+    shares = partition(mission, 2)
+    assert all(shares), shares
+    crossing = [
+        stats
+        for (sender, receiver), stats in result.radio.links().items()
+        if any(sender in s and receiver not in s for s in shares)
+    ]
+    assert sum(s.delivered for s in crossing) > 100
+    assert sum(s.corrupted for s in crossing) > 0
+    assert sum(s.lost_fault for s in crossing) > 0  # the dead leader's radio
+
+
+def test_partition_is_balanced_and_complete() -> None:
+    mission = load(MISSIONS / "three_vehicles_payload.yaml")
+    for workers in (1, 2, 3, 4):
+        shares = partition(mission, workers)
+        assert sorted(n for s in shares for n in s) == sorted(mission.agents)
+        assert len(shares) == workers
+    assert partition(mission, 2) == partition(mission, 2)
+
+
+def test_choose_workers(tmp_path: Path) -> None:
+    small = load(MISSIONS / "cooperative_follow.yaml")
+    assert choose_workers(None, small) == 1  # too few agents to gain
+    assert choose_workers(2, small) == 2
+    assert choose_workers(64, small) == len(small.agents)  # at most one per agent
+    text = (MISSIONS / "cooperative_follow.yaml").read_text()
+    assert "sim: {duration_s: 120, seed: 1}" in text
+    instant = tmp_path / "instant.yaml"
+    instant.write_text(
+        text.replace(
+            "sim: {duration_s: 120, seed: 1}", "sim: {duration_s: 120, seed: 1, radio_latency_s: 0}"
+        )
+    )
+    # XBee air time alone (18 framing bytes at 33 kbit/s) still leaves a few milliseconds.
+    assert choose_workers(2, load(instant)) == 2
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        from fleet import fleet_mission
+    finally:
+        sys.path.pop(0)
+    fleet = tmp_path / "fleet.yaml"
+    fleet.write_text(fleet_mission(parallel.AUTO_MIN_AGENTS))
+    expected = min(parallel.usable_cores(), parallel.AUTO_MAX_WORKERS)
+    assert choose_workers(None, load(fleet)) == expected
+    fast = tmp_path / "fast.yaml"
+    fast.write_text(fleet_mission(parallel.AUTO_MIN_AGENTS) + "sim: {radio_latency_s: 0}\n")
+    # a UDP LAN with no latency: a lookahead of microseconds is not worth splitting on
+    assert choose_workers(2, load(fast)) == 1
+
+
+def test_a_failing_worker_is_reported_not_hung(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    parent = os.getpid()
+    original = DryRun._tick
+
+    def tick(self: DryRun, sim_agent: Any, t_s: float) -> None:
+        if os.getpid() != parent and t_s > 5.0:
+            raise RuntimeError("boom in a worker")
+        original(self, sim_agent, t_s)
+
+    monkeypatch.setattr(DryRun, "_tick", tick)  # forked workers inherit the patch
+    with pytest.raises(WorkerFailed, match="boom in a worker"):
+        simulate(MISSIONS / "cooperative_follow.yaml", 2, 30.0, tmp_path / "run")
+    assert multiprocessing.active_children() == []
+
+
+def test_cli_workers_option(tmp_path: Path) -> None:
+    mission = MISSIONS / "cooperative_follow.yaml"
+
+    def clark(*args: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            [sys.executable, "-m", "clark_engine", "dry-run", str(mission), *args],
+            capture_output=True,
+            text=True,
+            cwd=ROOT,
+            check=False,
+        )
+
+    one = clark("--workers", "1")
+    two = clark("--workers", "2")
+    assert one.returncode == two.returncode == 0, one.stderr + two.stderr
+    assert one.stdout == two.stdout  # the checks table
+    assert "2 processes" in two.stderr and "processes" not in one.stderr
+    bad = clark("--workers", "0")
+    assert bad.returncode == 2
+    assert "--workers" in bad.stderr and "Traceback" not in bad.stderr
