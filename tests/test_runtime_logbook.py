@@ -255,6 +255,13 @@ def test_message_refuses_what_would_make_a_bad_row() -> None:
     assert lines(logbook.streams.messages) == [",".join(MESSAGE_LOG_COLUMNS)]
 
 
+def test_a_fleet_cell_never_breaks_a_line() -> None:
+    logbook = Logbook.in_memory(config())
+    logbook.fleet_row(0.5, ["a", "b"], [[1, "two\nlines"], [2, "cr\rhere"], [3, "plain"]])
+    written = text(logbook.streams.fleet)
+    assert written == "now_s,a,b\n0.5,1,two lines\n0.5,2,cr here\n0.5,3,plain\n"
+
+
 def test_fleet_rows_from_the_fleet_table() -> None:
     table = FleetTable(1, 521, 3.0, {2: "slash_a"})
     beat = Heartbeat(agent_id=2, gps_time_ms=GPS_MS, mission_id=521, agent_type=AgentType.VEHICLE)

@@ -176,6 +176,30 @@ def _plain(text: str) -> str:
     return text
 
 
+def _csv_text(
+    now_s: float,
+    header: Sequence[str] | None,
+    rows: Sequence[Sequence[_CsvCell]],
+    *,
+    plain: bool,
+) -> str:
+    """The fleet CSV's lines for one tick: the header when given, then ``now_s`` and each row.
+
+    With ``plain``, line breaks inside text cells become spaces (:func:`_plain`).
+    """
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    if header is not None:
+        writer.writerow(["now_s", *header])
+    if plain:
+        writer.writerows(
+            [now_s, *(_plain(c) if isinstance(c, str) else c for c in row)] for row in rows
+        )
+    else:
+        writer.writerows([now_s, *row] for row in rows)
+    return buffer.getvalue()
+
+
 def _cell(value: int | float | None) -> _CsvCell:
     """An absent figure as an empty cell."""
     return "" if value is None else value
@@ -401,19 +425,24 @@ class Logbook:
         if not self.tables:
             return
         width = len(header)
-        buffer = io.StringIO()
-        writer = csv.writer(buffer, lineterminator="\n")
+        for row in rows:
+            if len(row) != width:
+                raise ValueError(f"fleet CSV row has {len(row)} cells for {width} columns")
         with self._csv_lock:
-            if self._fleet_header is None:
+            lines = len(rows)
+            first = self._fleet_header is None
+            if first:
                 self._fleet_header = list(header)
-                writer.writerow(["now_s", *header])
+                lines += 1
             elif self._fleet_header != list(header):
                 raise ValueError("fleet CSV header changed after the first row")
-            for row in rows:
-                if len(row) != width:
-                    raise ValueError(f"fleet CSV row has {len(row)} cells for {width} columns")
-                writer.writerow([now_s, *(_plain(c) if isinstance(c, str) else c for c in row)])
-            self._write(self.streams.fleet, buffer.getvalue())
+            # Every tick writes a row per agent (a 50-agent fleet: 500 rows a second per
+            # agent), so the rows are written as they are and only re-written cell by cell
+            # in the rare case that a cell would have broken a line.
+            text = _csv_text(now_s, header if first else None, rows, plain=False)
+            if text.count("\n") != lines or "\r" in text:
+                text = _csv_text(now_s, header if first else None, rows, plain=True)
+            self._write(self.streams.fleet, text)
 
     def message(
         self,
