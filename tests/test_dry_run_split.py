@@ -114,7 +114,7 @@ def test_the_split_exercises_what_it_claims(tmp_path: Path) -> None:
     mission = load(path)
     assert mission.agents["slash_a"].hardware.radio_range_m is not None  # positions matter
     result = simulate(path, 2, 60.0, tmp_path / "run")
-    shares = partition(mission, 2)
+    shares = partition(mission, 2, int(mission.sim.get("seed", 0)))
     assert all(shares), shares
     crossing = [
         stats
@@ -129,10 +129,11 @@ def test_the_split_exercises_what_it_claims(tmp_path: Path) -> None:
 def test_partition_is_balanced_and_complete() -> None:
     mission = load(MISSIONS / "three_vehicles_payload.yaml")
     for workers in (1, 2, 3, 4):
-        shares = partition(mission, workers)
+        shares = partition(mission, workers, 1)
         assert sorted(n for s in shares for n in s) == sorted(mission.agents)
         assert len(shares) == workers
-    assert partition(mission, 2) == partition(mission, 2)
+        assert max(map(len, shares)) - min(map(len, shares)) <= 1
+    assert partition(mission, 2, 1) == partition(mission, 2, 1)
 
 
 def test_choose_workers(tmp_path: Path) -> None:

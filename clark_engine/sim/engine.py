@@ -186,6 +186,15 @@ class DryRunResult:
     workers: int = 1
 
 
+def tick_phase(seed: int, agent: str) -> float:
+    """Where in its loop period (0..1) an agent's first tick falls.
+
+    Seeded per agent: the thesis's agents were not synchronised, and a run must be
+    reproducible.
+    """
+    return random.Random(f"{seed}:phase:{agent}").random()
+
+
 def build_mesh(mission: Mission, seed: int) -> RadioMesh:
     """The mission's radio mesh: its ``sim`` settings and every agent's radio."""
     radio = RadioMesh(
@@ -269,7 +278,7 @@ class DryRun:
                 else Logbook.in_memory(config, tables=False)
             )
             runtime = AgentRuntime(config, key=key, logbook=logbook, gps_epoch_ms=gps_epoch_ms)
-            offset = random.Random(f"{seed}:phase:{name}").random() / config.loop_hz
+            offset = tick_phase(seed, name) / config.loop_hz
             sim_agent = SimAgent(name, config, runtime, logbook, offset)
             self.agents[name] = sim_agent
             runtime.state_listeners.append(self._state_listener(name))

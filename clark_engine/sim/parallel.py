@@ -39,6 +39,7 @@ from clark_engine.sim.engine import (
     Share,
     build_mesh,
     split_window_s,
+    tick_phase,
 )
 
 #: Fewest agents for which ``--workers auto`` splits a run: below it, swapping every few
@@ -102,21 +103,20 @@ def choose_workers(requested: int | None, mission: Mission) -> int:
     return max(1, min(usable_cores(), AUTO_MAX_WORKERS, agents))
 
 
-def partition(mission: Mission, workers: int) -> list[list[str]]:
-    """Agents per process, balanced by cost: a vehicle (physics, MAVLink) outweighs a station.
+def partition(mission: Mission, workers: int, seed: int) -> list[list[str]]:
+    """Agents per process, dealt in the order of their ticks' phases.
 
-    Deterministic, though the results do not depend on it: a split run gives the same
-    results however the agents are shared out.
+    Every process waits for the slowest at each swap, so what matters is that each
+    window's work is shared out, not only the whole run's. An agent's tick (its
+    behaviour, its fleet table, its logs) is its costliest moment; every agent ticks at
+    the mission's loop rate with a seeded phase, so dealing the agents round-robin in
+    phase order puts consecutive ticks in different processes. Deterministic, though the
+    results do not depend on it: a split run gives the same results however the agents
+    are shared out.
     """
-    costs = [(3 if agent.is_vehicle else 1, name) for name, agent in mission.agents.items()]
-    shares: list[list[str]] = [[] for _ in range(workers)]
-    loads = [0] * workers
-    for cost, name in sorted(costs, key=lambda item: -item[0]):  # stable: mission order
-        least = loads.index(min(loads))
-        shares[least].append(name)
-        loads[least] += cost
+    names = sorted(mission.agents, key=lambda name: (tick_phase(seed, name), name))
     order = {name: i for i, name in enumerate(mission.agents)}
-    return [sorted(share, key=order.__getitem__) for share in shares]
+    return [sorted(names[k::workers], key=order.__getitem__) for k in range(workers)]
 
 
 class SocketExchange:
@@ -268,7 +268,7 @@ def run_split(
     Raises:
         WorkerFailed: Another process failed (its traceback is in the message).
     """
-    shares = partition(mission, workers)
+    shares = partition(mission, workers, seed)
     # Worker i talks to worker j (i < j) through pairs[i, j]: i holds end 0, j end 1.
     pairs = {(i, j): socket.socketpair() for i in range(workers) for j in range(i + 1, workers)}
 
