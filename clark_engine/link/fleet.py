@@ -36,6 +36,7 @@ that owns it.
 from __future__ import annotations
 
 import math
+import operator
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import Enum
@@ -370,6 +371,20 @@ _CSV_HEADER = (
 
 CsvValue = str | float | int
 
+_STATUS_CELLS = operator.attrgetter(*_STATUS_FIELDS)
+_ATTITUDE_CELLS = operator.attrgetter(*_ATTITUDE_FIELDS)
+_NO_STATUS: tuple[CsvValue, ...] = ("",) * (len(_STATUS_FIELDS) + 1)  # and its age
+_NO_ATTITUDE: tuple[CsvValue, ...] = ("",) * len(_ATTITUDE_FIELDS)
+_MESSAGE_COLUMNS = tuple(MESSAGE_NAMES.values())
+_ZEROS = (0,) * len(_MESSAGE_COLUMNS)  # the count of a message never received
+# (Two tables: both are IntEnums, whose members with equal values are equal keys.)
+_TYPE_NAMES = {member: member.name.lower() for member in AgentType}
+_CONDITION_NAMES = {member: member.name.lower() for member in Condition}
+_COUNT_CELLS = operator.attrgetter(
+    *("duplicates", "out_of_window", "resyncs", "bad_tags", "malformed", "foreign"),
+    *("misattributed", "latency_count"),
+)
+
 
 def _blank(value: float | None) -> CsvValue:
     """An absent figure as an empty CSV cell."""
@@ -641,50 +656,42 @@ class FleetTable:
 
         Absent values (no status yet, fewer than two latency samples) are empty
         strings; flags are 0 or 1; types and conditions are lower-case names.
+
+        Every tick exports every agent (a 50-agent fleet: 500 rows a second per agent),
+        so fields are read in groups by :func:`operator.attrgetter`, in C.
         """
         rows: list[list[CsvValue]] = []
-        names = tuple(MESSAGE_NAMES.values())
         for record in self._records.values():
             stats = record.stats
-            status = record._samples.get(AgentStatus)
-            attitude = record._samples.get(AgentAttitude)
+            samples = record._samples
+            status = samples.get(AgentStatus)
+            attitude = samples.get(AgentAttitude)
             row: list[CsvValue] = [
                 record.agent_id,
                 record.name,
-                record.agent_type.name.lower(),
-                record.condition.name.lower(),
+                _TYPE_NAMES[record.agent_type],
+                _CONDITION_NAMES[record.condition],
                 int(record.lost),
                 now_s - record.last_heartbeat_s,
             ]
             if status is None:
-                row += [""] * (len(_STATUS_FIELDS) + 1)
+                row += _NO_STATUS
             else:
-                row += [getattr(status.value, f) for f in _STATUS_FIELDS]
+                row += _STATUS_CELLS(status.value)
                 row.append(now_s - status.received_s)
-            if attitude is None:
-                row += [""] * len(_ATTITUDE_FIELDS)
-            else:
-                row += [getattr(attitude.value, f) for f in _ATTITUDE_FIELDS]
+            row += _NO_ATTITUDE if attitude is None else _ATTITUDE_CELLS(attitude.value)
             last_s = stats.last_packet_s
             rejected_s = stats.last_rejected_s
+            messages = stats.messages
             row += [
-                _blank(None if last_s is None else now_s - last_s),
-                _blank(None if rejected_s is None else now_s - rejected_s),
+                "" if last_s is None else now_s - last_s,
+                "" if rejected_s is None else now_s - rejected_s,
                 stats.packets,
                 stats.bytes,
-            ]
-            row += [stats.messages.get(name, 0) for name in names]
-            row += [
+                *map(messages.get, _MESSAGE_COLUMNS, _ZEROS),
                 stats.lost,
                 _blank(stats.loss_ratio),
-                stats.duplicates,
-                stats.out_of_window,
-                stats.resyncs,
-                stats.bad_tags,
-                stats.malformed,
-                stats.foreign,
-                stats.misattributed,
-                stats.latency_count,
+                *_COUNT_CELLS(stats),
                 _blank(stats.latency_mean_ms),
                 _blank(stats.latency_std_ms),
                 _blank(stats.latency_min_ms),
