@@ -12,8 +12,10 @@ each hold their share).
 
 The fleets run twice: in one process and split across the usable cores
 (``--workers``, :mod:`clark_engine.sim.parallel`), whose logs are the same byte for
-byte. The examples run as ``clark dry-run`` runs them by default (one process: they
-have too few agents to gain from splitting).
+byte. The 50-agent fleet runs again writing every agent's logs and CSV files, as
+``--report`` does (``logs``): each agent's fleet CSV has a row per agent per tick.
+The examples run as ``clark dry-run`` runs them by default (one process: they have
+too few agents to gain from splitting).
 
 Run: python benchmarks/bench_sim.py [--quick]
 (--quick: the 50-agent fleet for 20 s only.)
@@ -33,20 +35,27 @@ ROOT = Path(__file__).resolve().parent.parent
 FLEET_SECONDS = 60.0
 
 
-def one(mission: Path, until_s: float | None, workers: int | None) -> dict[str, float]:
-    """Dry-run ``mission`` in this process (split when ``workers`` > 1); the figures."""
+def one(
+    mission: Path, until_s: float | None, workers: int | None, report: bool
+) -> dict[str, float]:
+    """Dry-run ``mission`` in this process (split when ``workers`` > 1); the figures.
+
+    With ``report``, every agent's logs and CSV files are written (into a temporary
+    folder) as ``--report`` writes them; the plots, drawn after the loop, are not timed.
+    """
     from clark_engine.sim.dryrun import run_dry_run
 
-    outcome = run_dry_run(
-        mission,
-        seed=None,
-        until_s=until_s,
-        report=None,
-        speed=None,
-        workers=workers,
-        out=io.StringIO(),
-        err=io.StringIO(),
-    )
+    with tempfile.TemporaryDirectory() as tmp:
+        outcome = run_dry_run(
+            mission,
+            seed=None,
+            until_s=until_s,
+            report=Path(tmp) / "report" if report else None,
+            speed=None,
+            workers=workers,
+            out=io.StringIO(),
+            err=io.StringIO(),
+        )
     result = outcome.result
     if result is None:
         raise SystemExit(f"{mission}: invalid mission")
@@ -63,9 +72,13 @@ def one(mission: Path, until_s: float | None, workers: int | None) -> dict[str, 
     }
 
 
-def measure(mission: Path, until_s: float | None, workers: int | None) -> dict[str, float]:
+def measure(
+    mission: Path, until_s: float | None, workers: int | None, report: bool = False
+) -> dict[str, float]:
     """Run :func:`one` in a fresh interpreter, for a clean peak-memory figure."""
     args = [sys.executable, __file__, "--one", str(mission), str(until_s), str(workers)]
+    if report:
+        args.append("--report")
     done = subprocess.run(args, capture_output=True, text=True, check=False, cwd=ROOT)
     if done.returncode != 0:
         raise SystemExit(done.stderr)
@@ -81,8 +94,8 @@ def main() -> None:
     from clark_engine.sim.parallel import usable_cores
 
     cores = usable_cores()
-    cases: list[tuple[str, Path, float | None, int | None]] = [
-        (path.stem, path, None, None) for path in sorted((ROOT / "missions").glob("*.yaml"))
+    cases: list[tuple[str, Path, float | None, int | None, bool]] = [
+        (path.stem, path, None, None, False) for path in sorted((ROOT / "missions").glob("*.yaml"))
     ]
     with tempfile.TemporaryDirectory() as tmp:
         for size in (10, 50):
@@ -90,19 +103,21 @@ def main() -> None:
             path.write_text(fleet_mission(size, loop_hz=10), encoding="utf-8")
             seconds = 20.0 if quick and size == 50 else FLEET_SECONDS
             label = f"generated fleet, {size} agents, 10 Hz"
-            cases.append((label, path, seconds, 1))
-            if cores > 1:
-                cases.append((label, path, seconds, cores))
+            for report in (False, True) if size == 50 else (False,):
+                tag = f"{label}{', logs' if report else ''}"
+                cases.append((tag, path, seconds, 1, report))
+                if cores > 1:
+                    cases.append((tag, path, seconds, cores, report))
         print(
-            f"{'mission':<38} {'agents':>6} {'procs':>5} {'sim s':>7} {'wall s':>7} "
+            f"{'mission':<40} {'agents':>6} {'procs':>5} {'sim s':>7} {'wall s':>7} "
             f"{'speed-up':>9} {'ticks/s':>9} {'peak MiB':>9}"
         )
-        for label, path, until, workers in cases:
-            f = measure(path, until, workers)
+        for label, path, until, workers, report in cases:
+            f = measure(path, until, workers, report)
             speed = f["sim_s"] / f["wall_s"] if f["wall_s"] else float("inf")
             ticks = f["ticks"] / f["wall_s"] if f["wall_s"] else 0.0
             print(
-                f"{label:<38} {f['agents']:>6.0f} {f['workers']:>5.0f} {f['sim_s']:>7.0f} "
+                f"{label:<40} {f['agents']:>6.0f} {f['workers']:>5.0f} {f['sim_s']:>7.0f} "
                 f"{f['wall_s']:>7.2f} "
                 f"{speed:>8.1f}x {ticks:>9.0f} {f['peak_mib']:>9.0f}"
             )
@@ -110,11 +125,12 @@ def main() -> None:
 
 if __name__ == "__main__":
     if len(sys.argv) >= 3 and sys.argv[1] == "--one":
-        # --one MISSION [UNTIL|None [WORKERS|None]]: one run in this process, as JSON.
+        # --one MISSION [UNTIL|None [WORKERS|None]] [--report]: one run here, as JSON.
         sys.path.insert(0, str(ROOT))
-        given = [*sys.argv[3:], "None", "None"]
+        given = [*(a for a in sys.argv[3:] if a != "--report"), "None", "None"]
         until = None if given[0] == "None" else float(given[0])
         workers = None if given[1] == "None" else int(given[1])
-        print(json.dumps(one(Path(sys.argv[2]), until, workers)))
+        figures = one(Path(sys.argv[2]), until, workers, "--report" in sys.argv)
+        print(json.dumps(figures))
     else:
         main()

@@ -77,6 +77,9 @@ def test_report_has_summary_plots_and_logs(tmp_path: Path) -> None:
     assert (folder / "tracks.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     summary = (folder / "summary.md").read_text()
     assert "Slash B reaches Slash A" in summary and "pass" in summary
+    # Slash A's behaviour is one block: its state is the root, named rather than blank.
+    assert "| slash_a | start | (the whole behaviour) |" in summary
+    assert "| slash_b | activate | chase |" in summary
     for agent in ("mcs", "slash_a", "slash_b"):
         for kind in ("mission.log", "messages.csv", "fleet.csv"):
             assert (folder / "logs" / f"{agent}.{kind}").exists(), (agent, kind)

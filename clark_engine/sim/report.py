@@ -102,6 +102,17 @@ def plot_inputs(path: Path, recording: Recording) -> bool:
     return True
 
 
+def states_label(active: Sequence[str]) -> str:
+    """Active leaf states as the report shows them.
+
+    A behaviour that is one primitive or block has one state, the root, whose path is
+    empty: it is named rather than shown blank.
+    """
+    if not active:
+        return "(none)"
+    return ", ".join(path or "(the whole behaviour)" for path in active)
+
+
 def plot_timeline(path: Path, recording: Recording) -> None:
     """One row per agent, a bar per state it was in."""
     plt = _pyplot()
@@ -112,7 +123,7 @@ def plot_timeline(path: Path, recording: Recording) -> None:
         entries = recording.states[agent]
         for i, entry in enumerate(entries):
             end = entries[i + 1].time_s if i + 1 < len(entries) else recording.end_s
-            label = ", ".join(entry.active) or "(none)"
+            label = states_label(entry.active)
             color = palette.setdefault(label, f"C{len(palette) % 10}")
             ax.broken_barh(
                 [(entry.time_s, max(end - entry.time_s, 1e-3))], (row - 0.4, 0.8), facecolors=color
@@ -142,7 +153,7 @@ def timeline_text(recording: Recording) -> str:
     """Every state change of every agent, as a Markdown table."""
     lines = ["| time (s) | agent | event | active states |", "|---:|---|---|---|"]
     rows = [
-        (entry.time_s, agent, entry.event, ", ".join(entry.active) or "-")
+        (entry.time_s, agent, entry.event, states_label(entry.active))
         for agent, entries in recording.states.items()
         for entry in entries
     ]
