@@ -426,7 +426,11 @@ class FleetTable:
         self._names.pop(own_id, None)
         self._stats: dict[int, LinkStats] = {peer: LinkStats() for peer in self._names}
         self._records: dict[int, AgentRecord] = {}  # kept sorted by id
-        self._banned: set[int] = set()  # sent a heartbeat of another mission in our packets
+        # Senders that put a heartbeat of another mission in a packet of ours. Defence in
+        # depth: the codec already refuses such a packet as MalformedPacket, so through
+        # Codec.decode this never fills; it guards callers that hand packets to receive()
+        # directly (tests, tools replaying a message log).
+        self._banned: set[int] = set()
         self._foreign_reported: set[tuple[int, int | None]] = set()
         # No agent that is not lost heard its last heartbeat before this (a lower bound):
         # check_timeouts skips its scan while even this one is within the timeout.
