@@ -220,12 +220,14 @@ def _simulate(
     progress = _progress(err) if interactive or until_s > 60 else None
     paced = bridge is not None or speed is not None
     processes = 1 if paced else choose_workers(workers, mission)
-    if workers is not None and workers > 1 and processes == 1 and not paced:
-        print(
-            "  note: this run stays in one process (no fork here, or the radio's latency "
-            "is too short to split on)",
-            file=err,
+    if workers is not None and workers > 1 and processes == 1:
+        why = (
+            "a paced or real-time run follows the wall clock"
+            if paced
+            else "processes cannot be forked here, or the radio's lookahead (latency plus "
+            "framing air time) is under 1 ms"
         )
+        print(f"  note: --workers {workers} ignored: {why}; the run stays in one process", file=err)
     split = f", {processes} processes" if processes > 1 else ""
     print(
         f"dry run of {mission.name}: {len(mission.agents)} agents, {until_s:g} s, "
