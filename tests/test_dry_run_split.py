@@ -183,6 +183,24 @@ def test_a_failing_worker_is_reported_not_hung(
     assert multiprocessing.active_children() == []
 
 
+def test_a_vanished_worker_is_reported_not_hung(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A worker killed outright (no error frame, say by the OOM killer) is noticed too."""
+    parent = os.getpid()
+    original = DryRun._tick
+
+    def tick(self: DryRun, sim_agent: Any, t_s: float) -> None:
+        if os.getpid() != parent and t_s > 5.0:
+            os._exit(9)
+        original(self, sim_agent, t_s)
+
+    monkeypatch.setattr(DryRun, "_tick", tick)
+    with pytest.raises(WorkerFailed, match="worker 1"):
+        simulate(MISSIONS / "cooperative_follow.yaml", 2, 30.0, tmp_path / "run")
+    assert multiprocessing.active_children() == []
+
+
 def test_cli_workers_option(tmp_path: Path) -> None:
     mission = MISSIONS / "cooperative_follow.yaml"
 

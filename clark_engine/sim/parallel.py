@@ -136,7 +136,7 @@ class SocketExchange:
         self, actions: list[Action], grid: list[GridPositions]
     ) -> list[tuple[list[Action], list[GridPositions]]]:
         """Send this process's batch to every other process; return theirs, in worker order."""
-        frames = self._exchange(_BATCH, pickle.dumps((actions, grid), pickle.HIGHEST_PROTOCOL))
+        frames = self._exchange(pickle.dumps((actions, grid), pickle.HIGHEST_PROTOCOL))
         return [pickle.loads(frames[index]) for index in self.peers]
 
     def send_error(self, text: str) -> None:
@@ -167,12 +167,14 @@ class SocketExchange:
 
     def receive_share(self, index: int) -> Share:
         """Wait for worker ``index``'s share of the results."""
-        frame = self._read_frames({index})[index]
+        while (frame := self._next_frame(index, _SHARE)) is None:
+            select.select([self.peers[index]], [], [])
         share: Share = pickle.loads(frame)
         return share
 
-    def _exchange(self, kind: bytes, payload: bytes) -> dict[int, bytes]:
-        frame = memoryview(_frame(kind, payload))
+    def _exchange(self, payload: bytes) -> dict[int, bytes]:
+        """Write one batch to every peer and read one from each, whichever can go first."""
+        frame = memoryview(_frame(_BATCH, payload))
         unsent = {index: frame for index in self.peers}
         frames: dict[int, bytes] = {}
         spin_until = time.perf_counter() + SPIN_S
@@ -190,10 +192,9 @@ class SocketExchange:
                     unsent[index] = rest[sent:]
             for index in self.peers:
                 if index not in frames:
-                    self._pull(index)
-                    frame_bytes = self._take(index)
-                    if frame_bytes is not None:
-                        frames[index] = frame_bytes
+                    got = self._next_frame(index, _BATCH)
+                    if got is not None:
+                        frames[index] = got
             if not unsent and len(frames) == len(self.peers):
                 return frames
             if not unsent and time.perf_counter() < spin_until:
@@ -202,46 +203,39 @@ class SocketExchange:
             writers = [self.peers[i] for i in unsent]
             select.select(readers, writers, [])
 
-    def _read_frames(self, wanted: set[int]) -> dict[int, bytes]:
-        frames: dict[int, bytes] = {}
-        while True:
-            for index in wanted - frames.keys():
-                self._pull(index)
-                frame_bytes = self._take(index)
-                if frame_bytes is not None:
-                    frames[index] = frame_bytes
-            if len(frames) == len(wanted):
-                return frames
-            select.select([self.peers[i] for i in wanted - frames.keys()], [], [])
+    def _next_frame(self, index: int, kind: bytes) -> bytes | None:
+        """Worker ``index``'s next frame of ``kind`` if it has all arrived, else None.
 
-    def _pull(self, index: int) -> None:
-        """Read what worker ``index`` has sent so far into its inbox."""
-        while True:
+        Raises:
+            WorkerFailed: The worker sent an error, another kind of frame, or closed
+                its end before the frame was whole.
+        """
+        inbox = self._inbox[index]
+        sock = self.peers[index]
+        closed = False
+        while True:  # read what has arrived
             try:
-                chunk = self.peers[index].recv(1 << 20)
+                chunk = sock.recv(1 << 20)
             except BlockingIOError:
-                return
+                break
             except OSError as exc:
                 raise WorkerFailed(f"worker {index} is gone ({exc})") from None
             if not chunk:
-                if len(self._inbox[index]) < _HEADER:
-                    raise WorkerFailed(f"worker {index} ended without a word")
-                return
-            self._inbox[index] += chunk
-
-    def _take(self, index: int) -> bytes | None:
-        """The next whole frame from worker ``index``'s inbox, or None before it is whole."""
-        inbox = self._inbox[index]
-        if len(inbox) < _HEADER:
+                closed = True
+                break
+            inbox += chunk
+        size = int.from_bytes(inbox[1:_HEADER], "big") if len(inbox) >= _HEADER else -1
+        if size < 0 or len(inbox) < _HEADER + size:
+            if closed:
+                raise WorkerFailed(f"worker {index} ended in the middle of the run")
             return None
-        size = int.from_bytes(inbox[1:_HEADER], "big")
-        if len(inbox) < _HEADER + size:
-            return None
-        kind = bytes(inbox[:1])
+        got = bytes(inbox[:1])
         payload = bytes(inbox[_HEADER : _HEADER + size])
         del inbox[: _HEADER + size]
-        if kind == _ERROR:
+        if got == _ERROR:
             raise WorkerFailed(f"worker {index} failed:\n{payload.decode('utf-8', 'replace')}")
+        if got != kind:
+            raise WorkerFailed(f"worker {index} sent a {got!r} frame where {kind!r} was due")
         return payload
 
 
