@@ -17,8 +17,10 @@ byte. The 50-agent fleet runs again writing every agent's logs and CSV files, as
 The examples run as ``clark dry-run`` runs them by default (one process: they have
 too few agents to gain from splitting).
 
-Run: python benchmarks/bench_sim.py [--quick]
-(--quick: the 50-agent fleet for 20 s only.)
+Run: python benchmarks/bench_sim.py [--quick] [--repeat N]
+(--quick: the 50-agent fleet for 20 s only. --repeat N: only the 50-agent fleet, N times
+in one process and N times split, alternating, with each run's figures and the medians:
+on a shared machine wall times move by tens of per cent from one minute to the next.)
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from __future__ import annotations
 import io
 import json
 import resource
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -86,6 +89,34 @@ def measure(
     return figures
 
 
+def repeat(times: int) -> None:
+    """The 50-agent fleet ``times`` times alone and split, alternating; medians at the end."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from fleet import fleet_mission
+
+    from clark_engine.sim.parallel import usable_cores
+
+    cores = usable_cores()
+    speeds: dict[int, list[float]] = {1: [], cores: []}
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "fleet_50.yaml"
+        path.write_text(fleet_mission(50, loop_hz=10), encoding="utf-8")
+        for run in range(times):
+            for workers in speeds:
+                f = measure(path, FLEET_SECONDS, workers)
+                speeds[workers].append(f["sim_s"] / f["wall_s"])
+                print(
+                    f"run {run + 1}: 50 agents, {workers} process(es): "
+                    f"wall {f['wall_s']:.2f} s, {speeds[workers][-1]:.1f}x",
+                    flush=True,
+                )
+    for workers, values in speeds.items():
+        print(
+            f"{workers} process(es): median {statistics.median(values):.1f}x "
+            f"(min {min(values):.1f}x, max {max(values):.1f}x, {len(values)} runs)"
+        )
+
+
 def main() -> None:
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from fleet import fleet_mission
@@ -132,5 +163,7 @@ if __name__ == "__main__":
         workers = None if given[1] == "None" else int(given[1])
         figures = one(Path(sys.argv[2]), until, workers, "--report" in sys.argv)
         print(json.dumps(figures))
+    elif "--repeat" in sys.argv:
+        repeat(int(sys.argv[sys.argv.index("--repeat") + 1]))
     else:
         main()
