@@ -28,7 +28,6 @@ from the top of the repository), and any absolute path of the temporary folder a
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import importlib
 import io
@@ -43,6 +42,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import docgen  # tools/docgen.py, beside this script
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -561,36 +561,14 @@ def generate(source_path: Path = SOURCE) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Write, print or check docs/check-codes.md; returns the exit code."""
-    parser = argparse.ArgumentParser(description="Generate docs/check-codes.md from its examples.")
-    group = parser.add_mutually_exclusive_group()
-    group.add_argument(
-        "--check", action="store_true", help="exit 1 if docs/check-codes.md is out of date"
+    return docgen.run(
+        OUTPUT,
+        generate,
+        argv,
+        tool="gen_check_codes.py",
+        description="Generate docs/check-codes.md from its examples.",
+        errors=(SourceError,),
     )
-    group.add_argument("--stdout", action="store_true", help="print instead of writing")
-    args = parser.parse_args(argv)
-    try:
-        text = generate()
-    except SourceError as exc:
-        print(
-            f"tools/gen_check_codes.py: docs/check-codes.md not generated:\n{exc}", file=sys.stderr
-        )
-        return 1
-    if args.stdout:
-        sys.stdout.write(text)
-        return 0
-    if args.check:
-        current = OUTPUT.read_text(encoding="utf-8") if OUTPUT.exists() else ""
-        if current != text:
-            print(
-                "docs/check-codes.md is out of date; run: python tools/gen_check_codes.py",
-                file=sys.stderr,
-            )
-            return 1
-        print("docs/check-codes.md is up to date")
-        return 0
-    OUTPUT.write_text(text, encoding="utf-8")
-    print(f"wrote {OUTPUT.relative_to(ROOT).as_posix()}")
-    return 0
 
 
 if __name__ == "__main__":

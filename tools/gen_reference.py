@@ -20,7 +20,6 @@ The output is deterministic: the same sources always give the same bytes.
 
 from __future__ import annotations
 
-import argparse
 import ast
 import importlib
 import inspect
@@ -31,6 +30,8 @@ from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
 from typing import Any
+
+import docgen  # tools/docgen.py, beside this script
 
 ROOT = Path(__file__).resolve().parents[1]
 OUTPUT = ROOT / "docs" / "reference.md"
@@ -1217,31 +1218,13 @@ def generate() -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Write, print or check docs/reference.md; returns the exit code."""
-    parser = argparse.ArgumentParser(description="Generate docs/reference.md from its sources.")
-    group = parser.add_mutually_exclusive_group()
-    group.add_argument(
-        "--check", action="store_true", help="exit 1 if docs/reference.md is out of date"
+    return docgen.run(
+        OUTPUT,
+        generate,
+        argv,
+        tool="gen_reference.py",
+        description="Generate docs/reference.md from its sources.",
     )
-    group.add_argument("--stdout", action="store_true", help="print instead of writing")
-    args = parser.parse_args(argv)
-    text = generate()
-    if args.stdout:
-        sys.stdout.write(text)
-        return 0
-    if args.check:
-        current = OUTPUT.read_text(encoding="utf-8") if OUTPUT.exists() else ""
-        if current != text:
-            print(
-                "docs/reference.md is out of date; run: python tools/gen_reference.py",
-                file=sys.stderr,
-            )
-            return 1
-        print("docs/reference.md is up to date")
-        return 0
-    OUTPUT.parent.mkdir(parents=True, exist_ok=True)
-    OUTPUT.write_text(text, encoding="utf-8")
-    print(f"wrote {OUTPUT.relative_to(ROOT).as_posix()}")
-    return 0
 
 
 if __name__ == "__main__":
