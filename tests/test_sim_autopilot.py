@@ -399,6 +399,38 @@ def test_do_reposition() -> None:
     assert model.gotos == [(30.633, -96.483, 40.0, None)]
 
 
+def test_guided_mission_item_as_mavproxy_sends_it() -> None:
+    """MAVProxy's ``guided LAT LON ALT``: MISSION_ITEM_INT with current = 2, in GUIDED only."""
+    sim, model = make_sim("arducopter")
+    gcs = Gcs()
+
+    def item(current: int, alt_m: float, mission_type: int = 0, integer: bool = True) -> bytes:
+        encode = gcs.mav.mission_item_int_encode if integer else gcs.mav.mission_item_encode
+        x, y = (306330000, -964830000) if integer else (30.633, -96.483)
+        frame = mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+        return gcs.frame(
+            encode(1, 1, 0, frame, 16, current, 0, 0, 0, 0, 0, x, y, alt_m, mission_type)
+        )
+
+    def answer(data: bytes) -> int:
+        (ack,) = [m for m in ask(sim, gcs, data) if m.get_type() == "MISSION_ACK"]
+        assert (ack.target_system, ack.target_component) == (255, 190)
+        return int(ack.type)
+
+    assert answer(item(2, 30.0)) == mavlink2.MAV_MISSION_ERROR  # not in GUIDED
+    assert model.gotos == []
+    model.set_mode("GUIDED")
+    assert answer(item(2, 30.0)) == mavlink2.MAV_MISSION_ACCEPTED
+    assert model.gotos == [(30.633, -96.483, 30.0, None)]
+    assert answer(item(3, 45.0)) == mavlink2.MAV_MISSION_ACCEPTED  # altitude change
+    assert model.gotos[-1] == (30.633, -96.483, 45.0, None)
+    assert answer(item(2, 20.0, integer=False)) == mavlink2.MAV_MISSION_ACCEPTED
+    assert model.gotos[-1] == pytest.approx((30.633, -96.483, 20.0, None))
+    assert answer(item(0, 20.0)) == mavlink2.MAV_MISSION_ERROR  # no upload in progress
+    assert answer(item(2, 20.0, mission_type=1)) == mavlink2.MAV_MISSION_UNSUPPORTED
+    assert len(model.gotos) == 3
+
+
 def test_rc_override_semantics() -> None:
     sim, model = make_sim()
     gcs, stranger = Gcs(255, 191), Gcs(250, 190)

@@ -44,6 +44,9 @@ stations, tracked by system and component id, may talk to it at once):
 - PARAM_REQUEST_LIST / PARAM_REQUEST_READ / PARAM_SET -> PARAM_VALUE from a
   small table; MISSION_REQUEST_LIST -> MISSION_COUNT 0 (there is never a
   mission; an upload is refused with MISSION_ACK UNSUPPORTED, a clear accepted);
+  MISSION_ITEM(_INT) with ``current`` 2, the guided-mode waypoint MAVProxy's
+  ``guided`` sends (in the guided mode only), or 3, an altitude change, answered
+  with MISSION_ACK as ArduPilot answers them;
   FILE_TRANSFER_PROTOCOL -> a NAK (UnknownCommand), so ground stations fall
   back to the plain parameter protocol; TIMESYNC.
 
@@ -654,6 +657,13 @@ class SimAutopilot:
                     msg.mission_type,
                 )
             )
+        elif kind in ("MISSION_ITEM_INT", "MISSION_ITEM"):
+            result = self._mission_item(msg, integer=kind == "MISSION_ITEM_INT")
+            self._mav.send(
+                self._mav.mission_ack_encode(
+                    asker.system_id, asker.component_id, result, msg.mission_type
+                )
+            )
         elif kind == "MISSION_CLEAR_ALL":
             self._mav.send(
                 self._mav.mission_ack_encode(
@@ -777,6 +787,30 @@ class SimAutopilot:
         if speed > 0:
             self._speed_m_s = float(speed)
         return self._result(self._goto(lat_e7 / 1e7, lon_e7 / 1e7, alt_m))
+
+    def _mission_item(self, msg: Any, *, integer: bool) -> int:
+        """A mission item outside an upload: ArduPilot's guided waypoint and altitude change.
+
+        As ArduPilot's GCS_MAVLINK::handle_mission_item: ``current`` 2 is a guided-mode
+        waypoint (accepted in the guided mode only; MAVProxy's ``guided LAT LON ALT``
+        sends one), ``current`` 3 an altitude change (always accepted); any other item
+        arrives outside an upload, which is an error (uploads are refused here).
+        """
+        if msg.mission_type != mavlink2.MAV_MISSION_TYPE_MISSION:
+            return int(mavlink2.MAV_MISSION_UNSUPPORTED)
+        if msg.current not in (2, 3):
+            return int(mavlink2.MAV_MISSION_ERROR)
+        alt_m = self._relative_alt_m(msg.z, msg.frame)
+        lat_deg, lon_deg = (msg.x / 1e7, msg.y / 1e7) if integer else (msg.x, msg.y)
+        if alt_m is None or not (abs(lat_deg) <= 90 and abs(lon_deg) <= 180):
+            return int(mavlink2.MAV_MISSION_UNSUPPORTED_FRAME)
+        if msg.current == 3:
+            if self._target is not None and self._in_guided():
+                self._goto(self._target[0], self._target[1], alt_m)
+            return int(mavlink2.MAV_MISSION_ACCEPTED)
+        if not self._in_guided() or not self._goto(lat_deg, lon_deg, alt_m):
+            return int(mavlink2.MAV_MISSION_ERROR)
+        return int(mavlink2.MAV_MISSION_ACCEPTED)
 
     def _position_target(self, msg: Any) -> None:
         if not self._in_guided():
