@@ -10,6 +10,7 @@ autopilot disconnect, corruption), each of which crosses between processes.
 
 from __future__ import annotations
 
+import io
 import multiprocessing
 import os
 import re
@@ -23,6 +24,7 @@ import pytest
 
 from clark_engine.mission.model import Mission
 from clark_engine.sim import parallel
+from clark_engine.sim.dryrun import run_dry_run
 from clark_engine.sim.engine import DryRun, DryRunResult
 from clark_engine.sim.parallel import (
     WorkerFailed,
@@ -118,6 +120,32 @@ def test_a_split_run_is_byte_identical_to_one_process(
     assert split.radio.links() == one.radio.links()
     assert split.ticks == one.ticks
     assert sum(one.ticks.values()) > 0
+    assert split.configs == one.configs  # the checks and the plots read every agent's
+    assert list(split.configs) == list(one.configs)
+
+
+@pytest.mark.parametrize("name", ["supercub_sysid", "three_vehicles_payload", "fault_lost_peer"])
+def test_a_split_run_gives_the_same_checks_table(name: str) -> None:
+    """Checks read every agent's config (signals, separation, failsafes): none may be missing."""
+    path = MISSIONS / f"{name}.yaml"
+    tables = []
+    for workers in (1, 2):
+        out, err = io.StringIO(), io.StringIO()
+        outcome = run_dry_run(
+            path,
+            seed=None,
+            until_s=None,
+            report=None,
+            speed=None,
+            workers=workers,
+            out=out,
+            err=err,
+        )
+        assert outcome.result is not None and outcome.result.workers == workers, err.getvalue()
+        assert outcome.exit_code == 0, out.getvalue() + err.getvalue()
+        tables.append(out.getvalue())
+    assert tables[0] == tables[1]
+    assert tables[0].count("| pass |") >= 3
 
 
 def test_the_split_exercises_what_it_claims(tmp_path: Path) -> None:

@@ -154,11 +154,13 @@ class Share:
 
     Attributes:
         recording: Its agents' part of the recording.
+        configs: Its agents' compiled configs.
         ticks: Agent name -> ticks it ran.
         links: The radio links into its agents, with complete statistics.
     """
 
     recording: Recording
+    configs: dict[str, AgentConfig]
     ticks: dict[str, int]
     links: dict[tuple[str, str], LinkStats]
 
@@ -494,6 +496,7 @@ class DryRun:
         links = self.radio.links()
         return Share(
             self.recording,
+            {name: a.config for name, a in self.agents.items()},
             {name: a.ticks for name, a in self.agents.items()},
             {key: stats for key, stats in links.items() if key[1] in self.agents},
         )

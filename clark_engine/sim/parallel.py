@@ -312,6 +312,7 @@ def run_split(
         for index in range(1, workers):
             _gather(result, exchange.receive_share(index))
         _order_recording(result, mission)
+        result.configs = {name: result.configs[name] for name in mission.agents}
         result.ticks = {name: result.ticks[name] for name in mission.agents}
         result.workers = workers
         return result
@@ -361,6 +362,7 @@ def _gather(result: DryRunResult, share: Share) -> None:
     recording.signals.update(share.recording.signals)
     recording.photos.update(share.recording.photos)
     recording.safety.update(share.recording.safety)
+    result.configs.update(share.configs)
     result.ticks.update(share.ticks)
     result.radio.adopt_links(share.links)
 
