@@ -24,6 +24,7 @@ import os
 import pickle
 import select
 import socket
+import sys
 import time
 import traceback
 from collections.abc import Callable, Mapping, Sequence
@@ -91,14 +92,16 @@ def choose_workers(requested: int | None, mission: Mission) -> int:
         1 when the run cannot be split (no fork, a lookahead under :data:`MIN_WINDOW_S`,
         a single agent); else the requested number (at most one per agent), or
         automatically one per usable core (at most :data:`AUTO_MAX_WORKERS`) for
-        missions of :data:`AUTO_MIN_AGENTS` agents or more.
+        missions of :data:`AUTO_MIN_AGENTS` agents or more, on Linux. (Elsewhere only
+        when asked: macOS can fork, but Python calls forking there unsafe, since some
+        system libraries do not survive it.)
     """
     agents = len(mission.agents)
     if not can_split() or agents < 2 or split_window_s(build_mesh(mission, 0)) < MIN_WINDOW_S:
         return 1
     if requested is not None:
         return max(1, min(requested, agents))
-    if agents < AUTO_MIN_AGENTS:
+    if agents < AUTO_MIN_AGENTS or not sys.platform.startswith("linux"):
         return 1
     return max(1, min(usable_cores(), AUTO_MAX_WORKERS, agents))
 
