@@ -333,7 +333,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="N",
         help="split the agents across N processes (same results, faster on several cores); "
-        "auto (the default) splits missions of 12 agents or more over the usable cores",
+        "auto (the default) splits missions of 12 agents or more over the usable cores on Linux",
     )
     p.add_argument(
         "--fault",
