@@ -124,10 +124,12 @@ def test_a_split_run_is_byte_identical_to_one_process(
     assert list(split.configs) == list(one.configs)
 
 
-@pytest.mark.parametrize("name", ["supercub_sysid", "three_vehicles_payload", "fault_lost_peer"])
-def test_a_split_run_gives_the_same_checks_table(name: str) -> None:
+EXAMPLES = sorted(MISSIONS.glob("*.yaml"))
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=[p.stem for p in EXAMPLES])
+def test_a_split_run_gives_the_same_checks_table(path: Path) -> None:
     """Checks read every agent's config (signals, separation, failsafes): none may be missing."""
-    path = MISSIONS / f"{name}.yaml"
     tables = []
     for workers in (1, 2):
         out, err = io.StringIO(), io.StringIO()
