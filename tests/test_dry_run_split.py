@@ -21,6 +21,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from clark_engine.mission.model import Mission
 from clark_engine.sim import parallel
@@ -122,6 +124,89 @@ def test_a_split_run_is_byte_identical_to_one_process(
     assert sum(one.ticks.values()) > 0
     assert split.configs == one.configs  # the checks and the plots read every agent's
     assert list(split.configs) == list(one.configs)
+
+
+def fleet(agents: int, tmp_path: Path) -> Path:
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        from fleet import fleet_mission
+    finally:
+        sys.path.pop(0)
+    path = tmp_path / f"fleet_{agents}.yaml"
+    path.write_text(fleet_mission(agents, radio="xbee"))
+    return path
+
+
+FAULTS = st.one_of(
+    st.builds(
+        lambda victim, at_s: {"kill": {"agent": f"v{victim:03d}", "at_s": at_s}},
+        st.integers(2, 7),
+        st.floats(0.0, 12.0),
+    ),
+    st.builds(
+        lambda a, b, t1, span: {
+            "link_drop": {"between": [f"v{a:03d}", f"v{b:03d}"], "from_s": t1, "to_s": t1 + span}
+        },
+        st.integers(2, 4),
+        st.integers(5, 7),
+        st.floats(0.0, 10.0),
+        st.floats(0.5, 5.0),
+    ),
+    st.builds(
+        lambda share, t1: {"corrupt": {"share": share, "from_s": t1, "to_s": t1 + 5.0}},
+        st.floats(0.0, 1.0),
+        st.floats(0.0, 10.0),
+    ),
+    st.builds(lambda t1: {"station_silent": {"from_s": t1, "to_s": t1 + 4.0}}, st.floats(0, 10)),
+)
+
+
+@settings(
+    max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    agents=st.integers(7, 8),
+    seed=st.integers(0, 2**16),
+    workers=st.integers(2, 4),
+    faults=st.lists(FAULTS, max_size=3),
+)
+def test_any_split_of_any_fleet_is_identical(
+    tmp_path_factory: pytest.TempPathFactory,
+    agents: int,
+    seed: int,
+    workers: int,
+    faults: list[dict[str, Any]],
+) -> None:
+    """Random fleets, seeds, faults and numbers of processes: always the same bytes."""
+    tmp_path = tmp_path_factory.mktemp("fleet")
+    path = fleet(agents, tmp_path)
+    mission = load(path)
+    runs = []
+    for count, folder in ((1, "one"), (workers, "split")):
+        log_dir = tmp_path / folder
+        log_dir.mkdir()
+        if count == 1:
+            run = DryRun(
+                mission, path, seed=seed, until_s=15.0, log_dir=log_dir, extra_faults=faults
+            )
+            runs.append(run.run())
+        else:
+            runs.append(
+                run_split(
+                    mission,
+                    path,
+                    workers=count,
+                    seed=seed,
+                    until_s=15.0,
+                    log_dir=log_dir,
+                    extra_faults=faults,
+                    progress=None,
+                )
+            )
+    one, split = runs
+    assert files(tmp_path / "split") == files(tmp_path / "one")
+    assert split.recording == one.recording
+    assert split.radio.links() == one.radio.links()
 
 
 EXAMPLES = sorted(MISSIONS.glob("*.yaml"))
