@@ -98,3 +98,14 @@ def fleet_mission(
                 f" [{north + 30}, {east + 30}]]}}",
             ]
     return "\n".join(lines) + "\n"
+
+
+if __name__ == "__main__":
+    # python benchmarks/fleet.py N [LOOP_HZ] > fleet.yaml: a generated fleet to try things on.
+    import sys
+
+    if len(sys.argv) not in (2, 3) or not sys.argv[1].isdigit() or int(sys.argv[1]) < 2:
+        sys.exit("usage: python benchmarks/fleet.py AGENTS [LOOP_HZ] > fleet.yaml  (AGENTS >= 2)")
+    sys.stdout.write(
+        fleet_mission(int(sys.argv[1]), loop_hz=float(sys.argv[2]) if len(sys.argv) == 3 else 10)
+    )
