@@ -14,8 +14,10 @@ import io
 import multiprocessing
 import os
 import re
+import signal
 import subprocess
 import sys
+import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -30,6 +32,7 @@ from clark_engine.sim.dryrun import run_dry_run
 from clark_engine.sim.engine import DryRun, DryRunResult
 from clark_engine.sim.parallel import (
     WorkerFailed,
+    WorkerVanished,
     choose_workers,
     partition,
     run_split,
@@ -323,9 +326,39 @@ def test_a_vanished_worker_is_reported_not_hung(
         original(self, sim_agent, t_s)
 
     monkeypatch.setattr(DryRun, "_tick", tick)
-    with pytest.raises(WorkerFailed, match="worker 1"):
+    with pytest.raises(WorkerVanished, match=r"worker process 1 (ended|is gone)"):
         simulate(MISSIONS / "cooperative_follow.yaml", 2, 30.0, tmp_path / "run")
     assert multiprocessing.active_children() == []
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc for the worker")
+def test_cli_reports_a_killed_worker_in_one_line(tmp_path: Path) -> None:
+    """kill -9 on a worker mid-run: exit 2, what happened and what to do, no traceback."""
+    mission = fleet(12, tmp_path)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "clark_engine", "dry-run", str(mission), "--until", "3000"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
+    try:
+        children: list[int] = []
+        deadline = time.monotonic() + 30
+        while not children and time.monotonic() < deadline:
+            time.sleep(0.1)
+            tasks = Path(f"/proc/{proc.pid}/task/{proc.pid}/children")
+            children = [int(c) for c in tasks.read_text().split()] if tasks.exists() else []
+        assert children, "the run was not split"
+        os.kill(children[0], signal.SIGKILL)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 2, err
+    assert "worker process 1" in err and "--workers 1" in err
+    assert "Traceback" not in err
 
 
 def test_cli_workers_option(tmp_path: Path) -> None:

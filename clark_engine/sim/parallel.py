@@ -31,6 +31,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from clark_engine.errors import UsageError
 from clark_engine.mission.model import Mission
 from clark_engine.sim.engine import (
     Action,
@@ -65,7 +66,21 @@ _HEADER = 5  # one kind byte and a 4-byte big-endian length
 
 
 class WorkerFailed(RuntimeError):
-    """Another process of a split run failed or vanished; its traceback is the message."""
+    """Another process of a split run raised: a bug, whose traceback is the message."""
+
+
+class WorkerVanished(UsageError):
+    """Another process of a split run ended without a word: killed, or out of memory.
+
+    Not a bug in the engine but something done to it, so the command line reports it
+    in one line (exit 2) instead of a traceback.
+    """
+
+    def __init__(self, index: int, why: str) -> None:
+        super().__init__(
+            f"the dry run's worker process {index} {why} (was it killed, or out of memory?); "
+            "the run is incomplete: run it again, or in one process with --workers 1"
+        )
 
 
 def usable_cores() -> int:
@@ -188,7 +203,7 @@ class SocketExchange:
                 except BlockingIOError:
                     sent = 0
                 except OSError as exc:
-                    raise WorkerFailed(f"worker {index} is gone ({exc})") from None
+                    raise WorkerVanished(index, f"is gone ({exc.strerror or exc})") from None
                 if sent == len(rest):
                     del unsent[index]
                 else:
@@ -210,8 +225,8 @@ class SocketExchange:
         """Worker ``index``'s next frame of ``kind`` if it has all arrived, else None.
 
         Raises:
-            WorkerFailed: The worker sent an error, another kind of frame, or closed
-                its end before the frame was whole.
+            WorkerFailed: The worker sent an error or another kind of frame.
+            WorkerVanished: The worker closed its end before the frame was whole.
         """
         inbox = self._inbox[index]
         sock = self.peers[index]
@@ -222,7 +237,7 @@ class SocketExchange:
             except BlockingIOError:
                 break
             except OSError as exc:
-                raise WorkerFailed(f"worker {index} is gone ({exc})") from None
+                raise WorkerVanished(index, f"is gone ({exc.strerror or exc})") from None
             if not chunk:
                 closed = True
                 break
@@ -230,7 +245,7 @@ class SocketExchange:
         size = int.from_bytes(inbox[1:_HEADER], "big") if len(inbox) >= _HEADER else -1
         if size < 0 or len(inbox) < _HEADER + size:
             if closed:
-                raise WorkerFailed(f"worker {index} ended in the middle of the run")
+                raise WorkerVanished(index, "ended in the middle of the run")
             return None
         got = bytes(inbox[:1])
         payload = bytes(inbox[_HEADER : _HEADER + size])
@@ -263,7 +278,8 @@ def run_split(
     its own agents' logs into ``log_dir``.
 
     Raises:
-        WorkerFailed: Another process failed (its traceback is in the message).
+        WorkerFailed: Another process raised (its traceback is in the message).
+        WorkerVanished: Another process ended without a word.
     """
     shares = partition(mission, workers, seed)
     # Worker i talks to worker j (i < j) through pairs[i, j]: i holds end 0, j end 1.
@@ -347,7 +363,7 @@ def _child(
         run = DryRun(mission, mission_path, owned=owned, exchange=exchange, **settings)
         run.run()
         exchange.send_share(0, run.share())
-    except WorkerFailed:
+    except (WorkerFailed, WorkerVanished):
         pass  # another process failed first and says why
     except BaseException:
         exchange.send_error(f"(worker {me}) {traceback.format_exc()}")
