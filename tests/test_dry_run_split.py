@@ -18,7 +18,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -129,14 +129,15 @@ def test_a_split_run_is_byte_identical_to_one_process(
     assert list(split.configs) == list(one.configs)
 
 
-def fleet(agents: int, tmp_path: Path) -> Path:
+def fleet(agents: int, tmp_path: Path, radio: str = "xbee", extra: str = "") -> Path:
+    """A generated fleet (benchmarks/fleet.py) written to ``tmp_path``, plus ``extra`` YAML."""
     sys.path.insert(0, str(ROOT / "benchmarks"))
     try:
         from fleet import fleet_mission
     finally:
         sys.path.pop(0)
-    path = tmp_path / f"fleet_{agents}.yaml"
-    path.write_text(fleet_mission(agents, radio="xbee"))
+    path = tmp_path / f"fleet_{agents}_{radio}{'_extra' if extra else ''}.yaml"
+    path.write_text(fleet_mission(agents, radio=radio) + extra)
     return path
 
 
@@ -281,52 +282,47 @@ def test_choose_workers(tmp_path: Path) -> None:
     )
     # XBee air time alone (18 framing bytes at 33 kbit/s) still leaves a few milliseconds.
     assert choose_workers(2, load(instant)) == 2
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    try:
-        from fleet import fleet_mission
-    finally:
-        sys.path.pop(0)
-    fleet = tmp_path / "fleet.yaml"
-    fleet.write_text(fleet_mission(parallel.AUTO_MIN_AGENTS))
+    big = fleet(parallel.AUTO_MIN_AGENTS, tmp_path, radio="udp_lan")
     expected = min(parallel.usable_cores(), parallel.AUTO_MAX_WORKERS)
-    assert choose_workers(None, load(fleet)) == expected
-    fast = tmp_path / "fast.yaml"
-    fast.write_text(fleet_mission(parallel.AUTO_MIN_AGENTS) + "sim: {radio_latency_s: 0}\n")
+    assert choose_workers(None, load(big)) == expected
+    fast = fleet(parallel.AUTO_MIN_AGENTS, tmp_path, "udp_lan", "sim: {radio_latency_s: 0}\n")
     # a UDP LAN with no latency: a lookahead of microseconds is not worth splitting on
     assert choose_workers(2, load(fast)) == 1
 
 
+def _raise() -> None:
+    raise RuntimeError("boom in a worker")
+
+
+def _vanish() -> None:
+    os._exit(9)  # no error frame: as the OOM killer or kill -9 would end it
+
+
+@pytest.mark.parametrize(
+    ("fail", "error", "pattern"),
+    [
+        (_raise, WorkerFailed, "boom in a worker"),  # a bug: its traceback is the message
+        (_vanish, WorkerVanished, r"worker process 1 (ended|is gone)"),
+    ],
+    ids=["raises", "vanishes"],
+)
 def test_a_failing_worker_is_reported_not_hung(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    fail: Callable[[], None],
+    error: type[Exception],
+    pattern: str,
 ) -> None:
     parent = os.getpid()
     original = DryRun._tick
 
     def tick(self: DryRun, sim_agent: Any, t_s: float) -> None:
         if os.getpid() != parent and t_s > 5.0:
-            raise RuntimeError("boom in a worker")
+            fail()
         original(self, sim_agent, t_s)
 
     monkeypatch.setattr(DryRun, "_tick", tick)  # forked workers inherit the patch
-    with pytest.raises(WorkerFailed, match="boom in a worker"):
-        simulate(MISSIONS / "cooperative_follow.yaml", 2, 30.0, tmp_path / "run")
-    assert multiprocessing.active_children() == []
-
-
-def test_a_vanished_worker_is_reported_not_hung(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """A worker killed outright (no error frame, say by the OOM killer) is noticed too."""
-    parent = os.getpid()
-    original = DryRun._tick
-
-    def tick(self: DryRun, sim_agent: Any, t_s: float) -> None:
-        if os.getpid() != parent and t_s > 5.0:
-            os._exit(9)
-        original(self, sim_agent, t_s)
-
-    monkeypatch.setattr(DryRun, "_tick", tick)
-    with pytest.raises(WorkerVanished, match=r"worker process 1 (ended|is gone)"):
+    with pytest.raises(error, match=pattern):
         simulate(MISSIONS / "cooperative_follow.yaml", 2, 30.0, tmp_path / "run")
     assert multiprocessing.active_children() == []
 
