@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import csv
+import io
 import statistics
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from clark_engine.link.errors import (
     BadTag,
@@ -20,6 +24,7 @@ from clark_engine.link.fleet import (
     MAX_FOREIGN_REPORTS,
     AgentFound,
     AgentLost,
+    CsvValue,
     FleetTable,
     ForeignAgent,
     LinkStats,
@@ -395,3 +400,95 @@ def _stats_after(counters: list[int]) -> LinkStats:
     stats = table.stats(3)
     assert stats is not None
     return stats
+
+
+def csv_text(rows: list[list[CsvValue]]) -> str:
+    buffer = io.StringIO()
+    csv.writer(buffer, lineterminator="\n").writerows(rows)
+    return buffer.getvalue()
+
+
+EVENT = st.one_of(
+    # (kind, agent, counter step, GPS lateness in ms, a figure)
+    st.tuples(
+        st.just("heartbeat"),
+        st.sampled_from([1, 3, 4]),
+        st.integers(-3, 4),
+        st.integers(-50, 400),
+        st.floats(-1e3, 1e3, allow_nan=False),
+    ),
+    st.tuples(
+        st.just("status"),
+        st.sampled_from([1, 3, 4]),
+        st.integers(-3, 4),
+        st.integers(-50, 400),
+        st.floats(-1e3, 1e3, allow_nan=False),
+    ),
+    st.tuples(
+        st.just("attitude"),
+        st.sampled_from([3, 4]),
+        st.integers(-3, 4),
+        st.integers(0, 400),
+        st.floats(-180, 180, allow_nan=False),
+    ),
+    st.tuples(st.just("error"), st.sampled_from([3, 4, 9]), st.just(0), st.just(0), st.just(0.0)),
+    st.tuples(st.just("wait"), st.just(0), st.just(0), st.just(0), st.floats(0.01, 5.0)),
+)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(EVENT, max_size=40))
+def test_csv_rows_as_text_write_the_same_csv(
+    events: list[tuple[str, int, int, int, float]],
+) -> None:
+    """The cached text cells of csv_rows(text=True) write what the values write, byte for byte."""
+    table = FleetTable(OWN, MISSION, heartbeat_timeout_s=3.0, expected={1: "mcs", 3: "slash_b"})
+    now_s = 0.0
+    counters = {1: 100, 3: 100, 4: 100, 9: 100}
+    for kind, agent, step, late_ms, figure in events:
+        if kind == "wait":
+            now_s += figure
+            table.check_timeouts(now_s)
+        elif kind == "error":
+            table.note_error(BadTag("forged", sender_id=agent, mission_id=MISSION), now_s)
+        else:
+            counters[agent] = max(0, counters[agent] + step)
+            stamp = GPS_MS + round(now_s * 1000) - late_ms
+            message: Message = (
+                hb(agent, stamp)
+                if kind == "heartbeat"
+                else status(agent, stamp, lat_deg=figure / 10)
+                if kind == "status"
+                else AgentAttitude(agent, stamp, figure, -figure, 0.0)
+            )
+            table.receive(
+                packet(agent, counters[agent], message), now_s, GPS_MS + round(now_s * 1000)
+            )
+        assert csv_text(table.csv_rows(now_s, text=True)) == csv_text(table.csv_rows(now_s))
+
+
+def test_csv_rows_as_text_follow_every_change(table: FleetTable) -> None:
+    """Each kept group of text cells is made again when its values change."""
+    steps: list[tuple[float, Packet | None]] = [
+        (0.0, packet(3, 1, hb(3), status(3, lat_deg=30.1))),
+        (0.5, packet(3, 2, status(3, GPS_MS + 500, lat_deg=30.2))),  # a new status
+        (0.7, packet(3, 3, attitude(3, GPS_MS + 650))),
+        (0.9, packet(3, 4, AgentAttitude(3, GPS_MS + 880, -4.0, 2.5, 180.0))),  # new attitude
+        (1.0, packet(1, 7, hb(1, GPS_MS + 900, kind=AgentType.MCS))),
+        (1.2, None),  # a forged packet: a counter moves, nothing else
+        (1.4, packet(3, 9, hb(3, GPS_MS + 1300))),  # four packets lost: loss ratio moves
+        (9.0, None),
+    ]
+    written: list[str] = []
+    for now_s, received in steps:
+        if received is None:
+            table.note_error(BadTag("forged", sender_id=3, mission_id=MISSION), now_s)
+            table.check_timeouts(now_s)
+        else:
+            table.receive(received, now_s, GPS_MS + round(now_s * 1000))
+        text = csv_text(table.csv_rows(now_s, text=True))
+        assert text == csv_text(table.csv_rows(now_s))
+        written.append(text)
+    assert "30.2" in written[1] and "30.1" not in written[1]
+    assert "-4.0" in written[3]
+    assert len(set(written)) == len(written)

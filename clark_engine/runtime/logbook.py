@@ -191,12 +191,13 @@ def _csv_text(
     writer = csv.writer(buffer, lineterminator="\n")
     if header is not None:
         writer.writerow(["now_s", *header])
+    now = repr(now_s)  # as the csv module writes a float, once for every row of the tick
     if plain:
         writer.writerows(
-            [now_s, *(_plain(c) if isinstance(c, str) else c for c in row)] for row in rows
+            [now, *(_plain(c) if isinstance(c, str) else c for c in row)] for row in rows
         )
     else:
-        writer.writerows([now_s, *row] for row in rows)
+        writer.writerows([now, *row] for row in rows)
     return buffer.getvalue()
 
 

@@ -465,7 +465,8 @@ class AgentRuntime:
             elif phase == "telemetry":
                 self._telemetry(now_s)
             elif phase == "log" and self.logbook.tables:
-                self.logbook.fleet_row(now_s, self.fleet.csv_header(), self.fleet.csv_rows(now_s))
+                rows = self.fleet.csv_rows(now_s, text=True)
+                self.logbook.fleet_row(now_s, self.fleet.csv_header(), rows)
         self._tick += 1
         return self._drain()
 
