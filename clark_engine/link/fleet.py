@@ -421,45 +421,38 @@ _STATS_KEY = operator.attrgetter(
 )
 
 
+class _SampleText:
+    """One message's CSV cells as text, made again only for a new sample.
+
+    A new message is stored as a new :class:`Sample` object, so identity tells a change.
+    """
+
+    __slots__ = ("_cells", "_empty", "_sample", "_text")
+
+    def __init__(self, cells: operator.attrgetter[Any], empty: tuple[CsvValue, ...]) -> None:
+        self._cells = cells
+        self._empty = empty
+        self._sample: Sample[Any] | None = None
+        self._text = empty
+
+    def __call__(self, sample: Sample[Any] | None) -> tuple[CsvValue, ...]:
+        if sample is not self._sample:
+            self._sample = sample
+            self._text = self._empty if sample is None else _texts(self._cells(sample.value))
+        return self._text
+
+
 class _CsvTexts:
     """One agent's CSV cells that change only when a packet arrives, kept as text."""
 
-    __slots__ = (
-        "_attitude",
-        "_attitude_text",
-        "_key",
-        "_link",
-        "_stats_text",
-        "_status",
-        "_status_text",
-    )
+    __slots__ = ("_key", "_link", "_stats_text", "attitude", "status")
 
     def __init__(self) -> None:
-        self._status: Sample[Any] | None = None
-        self._status_text: tuple[CsvValue, ...] = _NO_STATUS
-        self._attitude: Sample[Any] | None = None
-        self._attitude_text: tuple[CsvValue, ...] = _NO_ATTITUDE
+        self.status = _SampleText(_STATUS_CELLS, _NO_STATUS)
+        self.attitude = _SampleText(_ATTITUDE_CELLS, _NO_ATTITUDE)
         self._link: LinkStats | None = None  # held, so that its identity stays its own
         self._key: tuple[int, ...] | None = None
         self._stats_text: tuple[str, ...] = ()
-
-    def status(self, sample: Sample[Any] | None) -> tuple[CsvValue, ...]:
-        """The status cells (a new sample is a new object: identity tells a change)."""
-        if sample is not self._status:
-            self._status = sample
-            self._status_text = (
-                _NO_STATUS if sample is None else _texts(_STATUS_CELLS(sample.value))
-            )
-        return self._status_text
-
-    def attitude(self, sample: Sample[Any] | None) -> tuple[CsvValue, ...]:
-        """The attitude cells."""
-        if sample is not self._attitude:
-            self._attitude = sample
-            self._attitude_text = (
-                _NO_ATTITUDE if sample is None else _texts(_ATTITUDE_CELLS(sample.value))
-            )
-        return self._attitude_text
 
     def stats(self, stats: LinkStats) -> tuple[str, ...]:
         """The counts and latency cells, formatted again only when a counter moved."""
