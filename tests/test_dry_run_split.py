@@ -297,6 +297,19 @@ def _vanish() -> None:
     os._exit(9)  # no error frame: as the OOM killer or kill -9 would end it
 
 
+def fail_in_workers(monkeypatch: pytest.MonkeyPatch, fail: Callable[[], None]) -> None:
+    """Make every forked worker call ``fail`` at its first tick after 5 s (they inherit it)."""
+    parent = os.getpid()
+    original = DryRun._tick
+
+    def tick(self: DryRun, sim_agent: Any, t_s: float) -> None:
+        if os.getpid() != parent and t_s > 5.0:
+            fail()
+        original(self, sim_agent, t_s)
+
+    monkeypatch.setattr(DryRun, "_tick", tick)
+
+
 @pytest.mark.parametrize(
     ("fail", "error", "pattern"),
     [
@@ -312,15 +325,7 @@ def test_a_failing_worker_is_reported_not_hung(
     error: type[Exception],
     pattern: str,
 ) -> None:
-    parent = os.getpid()
-    original = DryRun._tick
-
-    def tick(self: DryRun, sim_agent: Any, t_s: float) -> None:
-        if os.getpid() != parent and t_s > 5.0:
-            fail()
-        original(self, sim_agent, t_s)
-
-    monkeypatch.setattr(DryRun, "_tick", tick)  # forked workers inherit the patch
+    fail_in_workers(monkeypatch, fail)
     with pytest.raises(error, match=pattern):
         simulate(MISSIONS / "cooperative_follow.yaml", 2, 30.0, tmp_path / "run")
     assert multiprocessing.active_children() == []
@@ -330,15 +335,7 @@ def test_cli_reports_a_vanished_worker_in_one_line(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A worker gone mid-run (kill -9, out of memory): exit 2, what to do, no traceback."""
-    parent = os.getpid()
-    original = DryRun._tick
-
-    def tick(self: DryRun, sim_agent: Any, t_s: float) -> None:
-        if os.getpid() != parent and t_s > 5.0:
-            _vanish()
-        original(self, sim_agent, t_s)
-
-    monkeypatch.setattr(DryRun, "_tick", tick)
+    fail_in_workers(monkeypatch, _vanish)
     mission = MISSIONS / "cooperative_follow.yaml"
     code = cli.main(["dry-run", str(mission), "--workers", "2", "--until", "30"])
     err = capsys.readouterr().err
