@@ -1,0 +1,110 @@
+"""Fixtures of the conformance suite: one test ground station per backend.
+
+``peer`` is parametrised over every backend (``sim-rover`` ... ``sitl-plane``). A
+simulated vehicle is built afresh for every test (it costs milliseconds); a SITL
+vehicle of each kind is booted once and shared by the scenarios that leave it as
+they found it (reading, streams and mode changes put back), since its time to get
+ready costs wall time. ``fresh_peer`` always boots a new vehicle, for scenarios that
+change state (arming) or need the first seconds after boot.
+
+The scenarios are run grouped by backend (all of ``sitl-rover``, then all of
+``sitl-copter``...), and only one shared SITL vehicle runs at a time: a SITL
+vehicle runs on whether or not anyone reads it, so interleaving the kinds would
+keep three of them busy on a two-core machine.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from harness import BACKENDS, Peer, backend_params, open_peer
+
+HERE = Path(__file__).resolve().parent
+
+
+#: Files whose scenarios run last in their backend's group: they wait for the vehicle to
+#: get ready (about 40 s of its time), and that wait overlaps the other scenarios if they
+#: ran first on the shared vehicle.
+RUN_LAST = ("test_readiness.py",)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Run this folder's scenarios grouped by backend, in file order within a group."""
+    places = [i for i, item in enumerate(items) if HERE in item.path.parents]
+
+    def order(item: pytest.Item) -> tuple[int, bool]:
+        callspec = getattr(item, "callspec", None)
+        params = callspec.params if callspec is not None else {}
+        backend = params.get("peer", params.get("fresh_peer"))
+        group = BACKENDS.index(backend) if backend in BACKENDS else -1
+        return group, item.path.name in RUN_LAST
+
+    grouped = sorted((items[i] for i in places), key=order)
+    for place, item in zip(places, grouped, strict=True):
+        items[place] = item
+
+
+class SharedSitl:
+    """The shared SITL vehicle: one at a time, booted on first use, stopped when another
+    kind is asked for and at the end of the session."""
+
+    def __init__(self) -> None:
+        self._backend = ""
+        self._peer: Peer | None = None
+
+    def get(self, backend: str) -> Peer:
+        """The shared peer of ``backend``, booting it (again, if it died) as needed."""
+        peer = self._peer
+        if peer is not None and self._backend == backend:
+            try:
+                peer.link.check()
+            except Exception:
+                self.close()
+            else:
+                peer.sync()  # what it said since the last scenario
+                return peer
+        self.close()
+        self._peer = open_peer(backend)
+        self._backend = backend
+        return self._peer
+
+    def close(self) -> None:
+        """Stop the shared SITL process."""
+        peer, self._peer = self._peer, None
+        if peer is not None:
+            peer.close()
+
+
+@pytest.fixture(scope="session")
+def shared_sitl() -> Iterator[SharedSitl]:
+    pool = SharedSitl()
+    try:
+        yield pool
+    finally:
+        pool.close()
+
+
+@pytest.fixture(params=backend_params())
+def peer(request: pytest.FixtureRequest, shared_sitl: SharedSitl) -> Iterator[Peer]:
+    """A ground station on the backend's vehicle (shared for SITL: leave it as found)."""
+    backend: str = request.param
+    if backend.startswith("sitl-"):
+        yield shared_sitl.get(backend)
+        return
+    fresh = open_peer(backend)
+    try:
+        yield fresh
+    finally:
+        fresh.close()
+
+
+@pytest.fixture(params=backend_params())
+def fresh_peer(request: pytest.FixtureRequest) -> Iterator[Peer]:
+    """A ground station on a vehicle booted for this test alone."""
+    fresh = open_peer(request.param)
+    try:
+        yield fresh
+    finally:
+        fresh.close()

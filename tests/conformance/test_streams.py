@@ -1,0 +1,78 @@
+"""Streams: MAV_CMD_SET_MESSAGE_INTERVAL and GET_MESSAGE_INTERVAL on GLOBAL_POSITION_INT."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+from harness import Peer, backends
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+STREAM = "GLOBAL_POSITION_INT"
+WINDOW_S = 2.0
+
+
+def rate_hz(peer: Peer) -> float:
+    """The stream's rate over WINDOW_S of the autopilot's time, by its own time stamps."""
+    peer.run_for(0.5)  # a change takes effect from the autopilot's next update
+    start_ms = peer.now_s * 1000
+    end_ms = start_ms + WINDOW_S * 1000
+    seen = [m for m in peer.run_for(WINDOW_S + 0.5) if m.get_type() == STREAM]
+    inside = [m for m in seen if start_ms <= m.time_boot_ms < end_ms]
+    return len(inside) / WINDOW_S
+
+
+def reported_interval_us(peer: Peer) -> int:
+    mark = peer.mark()
+    ack = peer.command_long(
+        mavlink2.MAV_CMD_GET_MESSAGE_INTERVAL, getattr(mavlink2, f"MAVLINK_MSG_ID_{STREAM}")
+    )
+    assert ack.result == mavlink2.MAV_RESULT_ACCEPTED
+    answer = peer.wait_for("MESSAGE_INTERVAL", 1.0, since=mark)
+    return int(answer.interval_us)
+
+
+@pytest.fixture
+def restored(peer: Peer) -> Iterator[Peer]:
+    """The peer; its stream goes back to the default rate afterwards (a shared SITL)."""
+    yield peer
+    peer.message_interval(STREAM, 0)
+
+
+@pytest.mark.parametrize("interval_us", [200_000, 500_000])
+def test_set_message_interval_sets_the_rate(restored: Peer, interval_us: int) -> None:
+    peer = restored
+    ack = peer.message_interval(STREAM, interval_us)
+    assert ack.result == mavlink2.MAV_RESULT_ACCEPTED
+    assert rate_hz(peer) == pytest.approx(1e6 / interval_us, abs=0.5)
+    assert reported_interval_us(peer) == interval_us
+
+
+def test_interval_minus_one_stops_it(restored: Peer) -> None:
+    peer = restored
+    assert peer.message_interval(STREAM, -1).result == mavlink2.MAV_RESULT_ACCEPTED
+    assert rate_hz(peer) == 0
+    assert reported_interval_us(peer) == -1
+
+
+def test_interval_zero_restores_the_default(restored: Peer) -> None:
+    peer = restored
+    default_us = reported_interval_us(peer)
+    default_hz = rate_hz(peer)
+    peer.message_interval(STREAM, 200_000)
+    peer.run_for(1.0)
+    assert peer.message_interval(STREAM, 0).result == mavlink2.MAV_RESULT_ACCEPTED
+    assert rate_hz(peer) == pytest.approx(default_hz, abs=0.5)
+    assert reported_interval_us(peer) == default_us
+
+
+@backends(
+    gaps={
+        "sim": "sim: refuses an interval for a message it cannot stream with FAILED; "
+        "ArduPilot says DENIED"
+    }
+)
+def test_a_message_that_cannot_stream_is_denied(peer: Peer) -> None:
+    assert peer.message_interval("COMMAND_ACK", 200_000).result == mavlink2.MAV_RESULT_DENIED
+    ack = peer.command_long(mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, 60000, 200_000)
+    assert ack.result == mavlink2.MAV_RESULT_DENIED
