@@ -10,6 +10,10 @@ from __future__ import annotations
 PLATFORMS = ("anaconda", "dji_f450", "super_cub", "traxxas_slash")
 
 
+#: Aircraft start in flight, handed over by their pilots at this height (``launch.airborne``);
+#: rovers start on the ground.
+HANDOVER_HEIGHT_M = {"anaconda": 60, "dji_f450": 20, "super_cub": 60}
+
 #: Every vehicle's telemetry by default: heartbeat and status bundle into one packet a
 #: second; the behaviour's state goes to the station only.
 LIGHT_TELEMETRY = "{heartbeat: 1, agent_status: 1, behavior_state: {rate_hz: 0.5, to: [mcs]}}"
@@ -57,6 +61,11 @@ def fleet_mission(
             f"    hardware: {{radio: {address(i)}}}",
             f"    telemetry: {telemetry}",
         ]
+        if platform in HANDOVER_HEIGHT_M:  # aircraft: their pilots hand them over in flight
+            lines += [
+                "    launch: {airborne: true}",
+                f"    position: [{north}, {east}, {HANDOVER_HEIGHT_M[platform]}]",
+            ]
         if i % 4 == 0:  # anaconda: survey block with photos
             lines += [
                 "    behavior:",
@@ -65,7 +74,7 @@ def fleet_mission(
                 "        survey:",
                 "          use: survey_with_photos",
                 f"          with: {{waypoints: [[{north}, {east}, 60],"
-                f" [{north + 200}, {east}, 60]], tolerance_m: 45}}",
+                f" [{north + 200}, {east}, 60]], tolerance_m: 75}}",
                 "          transitions: {done: doublet}",
                 "        doublet: {use: aileron_doublet, transitions: {done: loiter}}",
                 "        loiter: {use: hold, final: true}",

@@ -39,3 +39,62 @@ class RcServoBook:
 
     def set_pilot(self, pwm_us: Mapping[int, int]) -> None:
         self.pilot.update(pwm_us)
+
+
+class FakeModelHooks:
+    """The rest of a VehicleModel's interface for test doubles that stand still or fly simply.
+
+    What the autopilot layer calls that such a double has no physics for: parameters
+    are kept (``params``), speeds and homes recorded, takeoffs and missions refused, and
+    the landed state read off ``up_m`` (on the ground at 0).
+    """
+
+    up_m: float
+    armed: bool
+
+    def __init__(self) -> None:
+        self.params: dict[str, float] = {}
+        self.speeds: list[float] = []
+        self.homes: list[tuple[float, float, float]] = []
+        self.touchdown_s: float | None = None
+
+    def configure(self, params: Mapping[str, float]) -> None:
+        self.params.update(params)
+
+    def set_speed(self, speed_m_s: float) -> None:
+        self.speeds.append(speed_m_s)
+
+    def takeoff(self, alt_m: float, delay_s: float) -> bool:
+        return False
+
+    def set_home(self, north_m: float, east_m: float, up_m: float) -> None:
+        self.homes.append((north_m, east_m, up_m))
+
+    def auto_target(
+        self, north_m: float, east_m: float, alt_m: float, speed_m_s: float | None
+    ) -> bool:
+        return False
+
+    def auto_takeoff(self, alt_m: float) -> bool:
+        return False
+
+    def auto_land(self) -> None:
+        pass
+
+    @property
+    def airborne(self) -> bool:
+        return self.up_m > 0.0
+
+    @property
+    def landed_state(self) -> str:
+        return "in_air" if self.airborne else "on_ground"
+
+    @property
+    def target_reached(self) -> bool:
+        return False
+
+    def arm(self, armed: bool, force: bool = False) -> bool:
+        if not armed and self.airborne and not force:
+            return False
+        self.armed = armed
+        return True

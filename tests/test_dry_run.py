@@ -94,7 +94,7 @@ def test_sysid_report_plots_the_control_inputs(tmp_path: Path) -> None:
 
 def test_failed_check_exits_1(tmp_path: Path) -> None:
     mission = tmp_path / "m.yaml"
-    text = FOLLOW.read_text().replace("by_s: 75, distance_m", "by_s: 5, distance_m")
+    text = FOLLOW.read_text().replace("by_s: 120, distance_m", "by_s: 5, distance_m")
     mission.write_text(text)
     code, table, err = dry_run(mission)
     assert code == 1
@@ -182,7 +182,7 @@ def cli(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 def test_cli_exit_codes_and_no_tracebacks(tmp_path: Path) -> None:
-    good = cli(str(FOLLOW), "--until", "80")
+    good = cli(str(FOLLOW), "--until", "130")
     assert good.returncode == 0, good.stderr
     bad_fault = cli(str(FOLLOW), "--fault", "kill:nobody@3")
     assert bad_fault.returncode == 2

@@ -20,7 +20,7 @@ from typing import Any
 
 import pytest
 import yaml
-from fake_vehicle import RcServoBook
+from fake_vehicle import FakeModelHooks, RcServoBook
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -29,6 +29,8 @@ from clark_engine.io.autopilot import (
     ACK_TIMEOUT_S,
     COMMAND_ATTEMPTS,
     POSITION_ONLY_TYPE_MASK,
+    POSITION_VELOCITY_TYPE_MASK,
+    REASON_WAIT_S,
     AutopilotAdapter,
     AutopilotEvent,
     AutopilotMessage,
@@ -65,6 +67,7 @@ ROOT = Path(__file__).resolve().parent.parent
 HOME = (30.6319, -96.4826, 90.0)
 START_UNIX_US = 1_700_000_000_123_456  # 2023-11-14 22:13:20.123456 UTC
 STEP_S = 0.05
+BOOTED_S = 100.0  # how long before time 0 the simulated autopilots powered on
 
 
 def profile(name: str) -> dict[str, Any]:
@@ -80,7 +83,7 @@ MODES = {"arduplane": PLANE_MODES, "arducopter": COPTER_MODES, "ardurover": ROVE
 METRES_PER_DEG = 111_320.0
 
 
-class FakeModel(RcServoBook, VehicleModel):
+class FakeModel(FakeModelHooks, RcServoBook, VehicleModel):
     """A kinematic point: flies straight at the guided target at its speed, nothing else."""
 
     def __init__(self, modes: Mapping[str, int], *, mode: str = "MANUAL") -> None:
@@ -92,6 +95,7 @@ class FakeModel(RcServoBook, VehicleModel):
         self.target: tuple[float, float, float] | None = None
         self.speed_m_s = 10.0
         self.gotos: list[tuple[float, float, float, float | None]] = []
+        FakeModelHooks.__init__(self)
         RcServoBook.__init__(self, pilot={3: 1100}, servo_count=16)
         self.roll_deg, self.pitch_deg, self.yaw_deg = 5.0, -2.0, 30.0
 
@@ -143,9 +147,8 @@ class FakeModel(RcServoBook, VehicleModel):
         self.mode = mode
         return True
 
-    def arm(self, armed: bool) -> bool:
-        self.armed = armed
-        return True
+    def set_speed(self, speed_m_s: float) -> None:
+        self.speed_m_s = speed_m_s
 
     def goto(self, lat_deg: float, lon_deg: float, alt_m: float, speed_m_s: float | None) -> bool:
         self.target = (lat_deg, lon_deg, alt_m)
@@ -211,10 +214,11 @@ class Bench:
             self.model,
             firmware=firmware,
             system_id=system_id,
-            home_lat_deg=HOME[0],
-            home_lon_deg=HOME[1],
-            home_alt_m=HOME[2],
+            origin_lat_deg=HOME[0],
+            origin_lon_deg=HOME[1],
+            origin_alt_m=HOME[2],
             start_time_unix_us=start_time_unix_us,
+            boot_s=-BOOTED_S,  # powered on long ago: ready, as the contract tests assume
         )
         self.adapter = AutopilotAdapter(
             AutopilotSettings(modes=modes, firmware=firmware, system_id=system_id)
@@ -377,7 +381,7 @@ def test_goto_outside_guided_is_ignored_as_by_arducopter(bench_for: Any) -> None
 
 def test_goto_outside_guided_is_refused_by_arduplane(bench: Bench) -> None:
     bench.command(Goto(30.6329, -96.4816, 25.0))
-    bench.run(0.5)
+    bench.run(1.0)  # a refusal waits REASON_WAIT_S for ArduPilot's reason
     assert bench.model.gotos == []
     refused = bench.of(CommandRefused)
     assert refused[-1].command == "MAV_CMD_DO_REPOSITION"
@@ -395,9 +399,11 @@ def test_set_mode_changes_the_mode(bench: Bench) -> None:
 
 def test_refused_command_is_reported(bench: Bench) -> None:
     bench.command(SetMode("NO_SUCH_MODE", 99))
-    bench.run(0.5)
+    bench.run(1.0)  # a refusal waits REASON_WAIT_S for ArduPilot's reason, and has it
     assert bench.of(CommandRefused) == [
-        CommandRefused("MAV_CMD_DO_SET_MODE", "FAILED", "SetMode NO_SUCH_MODE (99)")
+        CommandRefused(
+            "MAV_CMD_DO_SET_MODE", "FAILED", "SetMode NO_SUCH_MODE (99)", "No such mode 99"
+        )
     ]
     assert bench.model.mode == "MANUAL"
 
@@ -461,7 +467,7 @@ def test_param_get_and_set(bench: Bench) -> None:
         3.0,
         mavlink2.MAV_PARAM_TYPE_REAL32,
     )
-    assert value.count > value.index >= 0
+    assert value.index == 65535  # ArduPilot's index for an answer by name
     bench.send(bench.adapter.param_set("WP_RADIUS", 120, bench.now_s))
     bench.run(0.5)
     assert bench.of(ParamValue)[-1].name == "WP_RADIUS"
@@ -506,14 +512,14 @@ def test_reboot_is_noticed_and_streams_asked_for_again(
     bench.sim = SimAutopilot(
         bench.model,
         firmware="arduplane",
-        home_lat_deg=HOME[0],
-        home_lon_deg=HOME[1],
-        home_alt_m=HOME[2],
+        origin_lat_deg=HOME[0],
+        origin_lon_deg=HOME[1],
+        origin_alt_m=HOME[2],
         start_time_unix_us=START_UNIX_US,
         boot_s=bench.now_s,
     )
     with caplog.at_level(logging.WARNING):
-        bench.run(2.5)
+        bench.run(12.0)  # as ArduPlane: streams after 2.5 s, positions after its GPS fix
     assert "rebooted; setting it up again" in caplog.text  # the boot clock ran backwards
     assert bench.adapter.verified
     recent = bench.now_s - 1.0
@@ -549,15 +555,16 @@ def test_two_benches_in_one_process_are_independent(bench_for: Any) -> None:
 # -- the adapter alone: parsing -------------------------------------------------------------
 
 
-def sim_stream(system_id: int = 1, seconds: float = 0.5) -> bytes:
+def sim_stream(system_id: int = 1, seconds: float = 1.5) -> bytes:
     model = FakeModel(PLANE_MODES)
     sim = SimAutopilot(
         model,
         firmware="arduplane",
         system_id=system_id,
-        home_lat_deg=HOME[0],
-        home_lon_deg=HOME[1],
+        origin_lat_deg=HOME[0],
+        origin_lon_deg=HOME[1],
         start_time_unix_us=START_UNIX_US,
+        boot_s=-BOOTED_S,
     )
     return b"".join(sim.advance(i * 0.25) for i in range(round(seconds / 0.25) + 1))
 
@@ -680,7 +687,7 @@ def test_start_sends_heartbeat_streams_and_version_request() -> None:
         for m in messages
         if m.get_type() == "COMMAND_LONG" and m.command == mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL
     }
-    # what the loop needs at the stream rate; clock, health and raw GPS slower
+    # what the loop needs at the stream rate; clock, health, readiness and raw GPS slower
     assert intervals == {
         "GLOBAL_POSITION_INT": 100_000.0,
         "ATTITUDE": 100_000.0,
@@ -690,6 +697,8 @@ def test_start_sends_heartbeat_streams_and_version_request() -> None:
         "SYS_STATUS": 1_000_000.0,
         "SERVO_OUTPUT_RAW": 500_000.0,
         "GPS_RAW_INT": 500_000.0,
+        "EKF_STATUS_REPORT": 1_000_000.0,  # readiness
+        "EXTENDED_SYS_STATE": 1_000_000.0,  # landed or flying
     }
     version = [m for m in messages if getattr(m, "command", None) == 512]
     assert version[0].param1 == mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION
@@ -704,8 +713,14 @@ def test_goto_frames() -> None:
     assert target.type_mask == POSITION_ONLY_TYPE_MASK == 0x0DF8
     assert (target.lat_int, target.lon_int, target.alt) == (301234567, -967654321, 42.5)
     assert (target.target_system, target.target_component, target.time_boot_ms) == (1, 1, 1000)
-    speed, target = decode(copter.command(Goto(30.0, -96.0, 10.0, 7.5), 1.0))
+    # The speed after the target: ArduRover refuses a speed before its guided target.
+    target, speed = decode(copter.command(Goto(30.0, -96.0, 10.0, 7.5), 1.0))
+    assert target.get_type() == "SET_POSITION_TARGET_GLOBAL_INT"
     assert (speed.command, speed.param1, speed.param2, speed.param3) == (178, 1, 7.5, -1)
+    # A moving target carries its velocity (ArduCopter moves it on with it).
+    (moving,) = decode(copter.command(Goto(30.0, -96.0, 10.0, 7.5, 1.5, -2.0), 1.0))
+    assert moving.type_mask == POSITION_VELOCITY_TYPE_MASK == 0x0DC0
+    assert (moving.vx, moving.vy, moving.vz) == (1.5, -2.0, 0.0)
     plane = fresh_adapter()
     (reposition,) = decode(plane.command(Goto(30.1234567, -96.7654321, 42.5), 1.0))
     assert (reposition.get_type(), reposition.command) == ("COMMAND_INT", 192)
@@ -769,7 +784,8 @@ def test_ack_for_another_ground_station_is_not_ours() -> None:
     theirs = mav.command_ack_encode(183, mavlink2.MAV_RESULT_FAILED, 0, 0, 254, 190).pack(mav)
     assert adapter.receive(theirs, 0.1) == []
     ours = mav.command_ack_encode(183, mavlink2.MAV_RESULT_DENIED, 0, 0, 255, 191).pack(mav)
-    assert adapter.receive(ours, 0.2) == [
+    assert adapter.receive(ours, 0.2) == []  # reported once its reason had time to come
+    assert adapter.receive(b"", 0.2 + REASON_WAIT_S) == [
         CommandRefused("MAV_CMD_DO_SET_SERVO", "DENIED", "SetServo 5 1500 us")
     ]
 
@@ -780,7 +796,8 @@ def test_old_firmware_gets_request_data_stream() -> None:
     mav = mavlink2.MAVLink(None, 1, 1)
     beat = mav.heartbeat_encode(1, 3, 1, 0, 3).pack(mav)
     refusal = mav.command_ack_encode(511, mavlink2.MAV_RESULT_UNSUPPORTED, 0, 0, 255, 191)
-    events = adapter.receive(beat + refusal.pack(mav), 0.1)
+    adapter.receive(beat + refusal.pack(mav), 0.1)
+    events = adapter.receive(b"", 0.1 + REASON_WAIT_S)
     assert events[-1] == CommandRefused(
         "MAV_CMD_SET_MESSAGE_INTERVAL", "UNSUPPORTED", "stream GLOBAL_POSITION_INT every 100000 us"
     )

@@ -73,12 +73,31 @@ def idle() -> None:
     time.sleep(0.05)
 
 
+READY_S = 2.0
+"""How soon the simulated autopilots of the real-time runs here are ready: ArduPilot's own
+40-odd seconds (the dry run's default) would make every test wait that long."""
+
+
+def quick_mission(folder: Path) -> Path:
+    """The cooperative-follow example with autopilots ready after :data:`READY_S`."""
+    path = folder / MISSION.name
+    text = MISSION.read_text(encoding="utf-8")
+    quick = text.replace(
+        "sim: {duration_s: 170, seed: 1}",
+        f"sim: {{duration_s: 170, seed: 1, autopilot_ready_s: {READY_S}}}",
+    )
+    assert quick != text
+    path.write_text(quick, encoding="utf-8")
+    return path
+
+
 @contextmanager
-def realtime_run(base_port: int) -> Iterator[tuple[DryRun, MavlinkBridge]]:
+def realtime_run(base_port: int, folder: Path) -> Iterator[tuple[DryRun, MavlinkBridge]]:
     """The example mission in real time on a thread, its vehicles from ``base_port`` on."""
-    mission = validate_file(MISSION, str(MISSION)).mission
+    path = quick_mission(folder)
+    mission = validate_file(path, str(path)).mission
     assert mission is not None
-    run = DryRun(mission, MISSION, seed=1, until_s=60.0, speed=1.0)
+    run = DryRun(mission, path, seed=1, until_s=60.0, speed=1.0, wall_clock=True)
     bridge = MavlinkBridge(vehicle_names(mission), base_port)
     bridge.attach(run)
     results: list[DryRunResult] = []
@@ -223,12 +242,14 @@ def test_a_port_in_use_exits_2_before_anything_is_written(
 # -- ground stations ------------------------------------------------------------------------
 
 
-def test_mavutil_watches_and_commands_a_vehicle_the_engine_flies(mavutil: Any) -> None:
+def test_mavutil_watches_and_commands_a_vehicle_the_engine_flies(
+    mavutil: Any, tmp_path: Path
+) -> None:
     base = free_base_port(2)
     mission = validate_file(MISSION, str(MISSION)).mission
     assert mission is not None
     origin = mission.origin
-    with realtime_run(base) as (run, bridge):
+    with realtime_run(base, tmp_path) as (run, bridge):
         a, b = Station(mavutil, base), Station(mavutil, base + 1)
         try:
 
@@ -236,8 +257,12 @@ def test_mavutil_watches_and_commands_a_vehicle_the_engine_flies(mavutil: Any) -
                 a.pump()
                 b.pump()
 
-            wanted = {"HEARTBEAT", "GLOBAL_POSITION_INT"}
-            wait_for(lambda: wanted <= a.last.keys() and wanted <= b.last.keys(), "telemetry", pump)
+            def located(station: Station) -> bool:
+                position = station.last.get("GLOBAL_POSITION_INT")
+                return "HEARTBEAT" in station.last and position is not None and position.lat != 0
+
+            # Before its GPS fix ArduPilot reports 0, 0; the autopilots are quick here.
+            wait_for(lambda: located(a) and located(b), "telemetry with positions", pump)
             assert len(bridge.peers("slash_a")) == 1
             # Vehicle 0 is slash_a, at the origin; vehicle 1 is slash_b, 15 m south, 10 m west.
             heartbeat = a.last["HEARTBEAT"]
@@ -251,9 +276,12 @@ def test_mavutil_watches_and_commands_a_vehicle_the_engine_flies(mavutil: Any) -
             position = b.last["GLOBAL_POSITION_INT"]
             start_b = parse_point([-15, -10], origin)
             assert distance_m(position.lat / 1e7, position.lon / 1e7, start_b, origin) < 5
-            # The engine flies slash_a's tour in GUIDED, armed; slash_b holds, waiting.
-            assert a.link.flightmode == "GUIDED" and a.link.motors_armed()
-            assert b.link.flightmode == "HOLD"
+            # Once ready, its pilot arms slash_a and the engine flies its tour in GUIDED;
+            # slash_b holds, waiting.
+            wait_for(
+                lambda: a.link.flightmode == "GUIDED" and a.link.motors_armed(), "GUIDED", pump
+            )
+            wait_for(lambda: b.link.flightmode == "HOLD", "HOLD", pump)
 
             # The station takes slash_a out of the engine's hands: HOLD.
             a.link.set_mode("HOLD")
@@ -284,7 +312,7 @@ def test_mavutil_watches_and_commands_a_vehicle_the_engine_flies(mavutil: Any) -
             b.close()
 
 
-def test_mavsdk_watches_and_commands_a_vehicle() -> None:
+def test_mavsdk_watches_and_commands_a_vehicle(tmp_path: Path) -> None:
     mavsdk = pytest.importorskip(
         "mavsdk", minversion="4.1", reason="MAVSDK 4 (pip install 'mavsdk>=4.1') is not installed"
     )
@@ -295,7 +323,7 @@ def test_mavsdk_watches_and_commands_a_vehicle() -> None:
     mission = validate_file(MISSION, str(MISSION)).mission
     assert mission is not None
     origin, home = mission.origin, parse_point([0, 0], mission.origin)
-    with realtime_run(base) as (run, _bridge):
+    with realtime_run(base, tmp_path) as (run, _bridge):
         config = mavsdk.Configuration.create_with_component_type(
             mavsdk.ComponentType.GROUND_STATION
         )

@@ -33,6 +33,8 @@ from clark_engine.runtime.commands import (
 from clark_engine.runtime.config import AgentConfig, config_from_dict
 from clark_engine.runtime.events import (
     AutopilotHeartbeat,
+    AutopilotStatus,
+    LandedState,
     PacketReceived,
     RcChannels,
     StationCommand,
@@ -88,8 +90,19 @@ class Peer:
         return AgentStatus(self.id, GPS0 + int(t * 1000), lat, lon, 0.0, 2.0, 0.0, 90.0, 10)
 
 
+READY = AutopilotStatus(
+    gps_fix_type=3,
+    position_ok=True,
+    prearm_ok=True,
+    home=(30.6372, -96.4787, 90.0),
+    landed=LandedState.IN_AIR,
+)
+"""An autopilot that is ready (the launch gate's condition) and flying."""
+
+
 def run(runtime: AgentRuntime, t: float, *events: object) -> list[object]:
-    out: list[object] = []
+    """Deliver the events (after a ready autopilot status), then tick."""
+    out: list[object] = list(runtime.deliver(READY, t))
     for event in events:
         out += runtime.deliver(event, t)  # type: ignore[arg-type]
     out += runtime.tick(t)

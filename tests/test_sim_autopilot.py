@@ -16,11 +16,11 @@ from typing import Any
 
 import pytest
 import yaml
-from fake_vehicle import RcServoBook
+from fake_vehicle import FakeModelHooks, RcServoBook
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.io.transports import UdpTransport
-from clark_engine.sim.autopilot import SimAutopilot
+from clark_engine.sim.autopilot import STREAM_GROUPS, SimAutopilot
 from clark_engine.sim.model import Truth, VehicleModel
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -38,7 +38,7 @@ PLANE_MODES = modes_of("pixhawk_arduplane")
 COPTER_MODES = modes_of("pixhawk_arducopter")
 
 
-class FakeModel(RcServoBook, VehicleModel):
+class FakeModel(FakeModelHooks, RcServoBook, VehicleModel):
     """Stands still at home, remembering every call; enough to watch the autopilot layer."""
 
     def __init__(self, modes: Mapping[str, int], mode: str = "MANUAL") -> None:
@@ -47,6 +47,7 @@ class FakeModel(RcServoBook, VehicleModel):
         self.armed = False
         self.up_m = 0.0
         self.gotos: list[tuple[float, float, float, float | None]] = []
+        FakeModelHooks.__init__(self)
         RcServoBook.__init__(self, pilot={1: 1500, 3: 1100}, servo_count=14)
 
     def step(self, dt_s: float) -> None:
@@ -77,10 +78,6 @@ class FakeModel(RcServoBook, VehicleModel):
         self.mode = mode
         return True
 
-    def arm(self, armed: bool) -> bool:
-        self.armed = armed
-        return True
-
     def goto(self, lat_deg: float, lon_deg: float, alt_m: float, speed_m_s: float | None) -> bool:
         self.gotos.append((lat_deg, lon_deg, alt_m, speed_m_s))
         return True
@@ -109,13 +106,15 @@ class Gcs:
 
 
 def make_sim(firmware: str = "arduplane", **kwargs: Any) -> tuple[SimAutopilot, FakeModel]:
+    """A simulated autopilot powered on 100 s before time 0 (ready) unless ``boot_s`` says."""
     model = FakeModel(PLANE_MODES if firmware == "arduplane" else COPTER_MODES)
+    kwargs.setdefault("boot_s", -100.0)
     sim = SimAutopilot(
         model,
         firmware=firmware,
-        home_lat_deg=HOME[0],
-        home_lon_deg=HOME[1],
-        home_alt_m=HOME[2],
+        origin_lat_deg=HOME[0],
+        origin_lon_deg=HOME[1],
+        origin_alt_m=HOME[2],
         start_time_unix_us=START_UNIX_US,
         **kwargs,
     )
@@ -134,11 +133,15 @@ def run(
 
 
 def ask(sim: SimAutopilot, gcs: Gcs, data: bytes, now_s: float = 1.0) -> list[Any]:
-    """Send bytes, collect the answers (everything the next advance emits that is not streamed)."""
+    """Send bytes, collect the answers (what the next advance emits that is not streamed).
+
+    The first advance is made before the bytes arrive, so that what the autopilot says
+    by itself at start (its home) is not taken for an answer.
+    """
+    sim.advance(now_s)
     sim.receive(data, now_s)
-    streamed = {"HEARTBEAT", "SYS_STATUS", "GPS_RAW_INT", "GLOBAL_POSITION_INT", "ATTITUDE"}
-    streamed |= {"VFR_HUD", "SYSTEM_TIME", "RC_CHANNELS", "SERVO_OUTPUT_RAW"}
-    return [m for m in gcs.parse(sim.advance(now_s)) if m.get_type() not in streamed]
+    unasked = {*STREAM_GROUPS, "HOME_POSITION"}
+    return [m for m in gcs.parse(sim.advance(now_s)) if m.get_type() not in unasked]
 
 
 def ack_of(messages: list[Any]) -> tuple[int, int]:
@@ -154,7 +157,7 @@ def test_every_frame_is_valid_mavlink2_in_sequence() -> None:
     data = b"".join(sim.advance(i * 0.05) for i in range(100))
     gcs = Gcs()
     messages = gcs.parse(data)
-    assert len(messages) > 100
+    assert len(messages) > 60  # five seconds of ArduPlane's default 1 Hz streams
     assert gcs.parser.total_receive_errors == 0
     seqs = []
     for msg in messages:
@@ -168,20 +171,21 @@ def test_every_frame_is_valid_mavlink2_in_sequence() -> None:
 def test_golden_frames() -> None:
     sim, _model = make_sim()
     frames = {m.get_type(): bytes(m.get_msgbuf()) for m in Gcs().parse(sim.advance(0.0))}
-    # HEARTBEAT: custom_mode 0 (MANUAL), type 1 (fixed wing), autopilot 3 (ArduPilot),
-    # base_mode 1 (custom mode enabled), status 3 (standby), version 3.
-    assert frames["HEARTBEAT"].hex() == "fd090000000101000000000000000103010303894b"
-    # SYSTEM_TIME: 1700000000123456 us of Unix time, boot time 0 (zeros truncated).
-    assert frames["SYSTEM_TIME"].hex() == "fd07000006010102000040222018240a066cfb"
+    # HEARTBEAT (sequence 1, after the HOME_POSITION it has since boot): custom_mode 0
+    # (MANUAL), type 1 (fixed wing), autopilot 3 (ArduPilot), base_mode 81 (custom mode,
+    # stabilize and manual input enabled, as ArduPlane's), status 3 (standby), version 3.
+    assert frames["HEARTBEAT"].hex() == "fd0900000101010000000000000001035103038f10"
+    # SYSTEM_TIME (sequence 10): 1700000000123456 us of Unix time, boot time 100 s.
+    assert frames["SYSTEM_TIME"].hex() == "fd0b00000a010102000040222018240a0600a086014b62"
 
 
 def test_stream_contents() -> None:
-    sim, model = make_sim()
+    sim, model = make_sim()  # home at the model, on the ground, from boot
     model.up_m = 12.345
     model.armed = True
     messages = {m.get_type(): m for m in Gcs().parse(sim.advance(2.5))}
     position = messages["GLOBAL_POSITION_INT"]
-    assert (position.time_boot_ms, position.lat, position.lon) == (2500, 306319000, -964826000)
+    assert (position.time_boot_ms, position.lat, position.lon) == (102500, 306319000, -964826000)
     assert (position.alt, position.relative_alt) == (102345, 12345)
     assert (position.vx, position.vy, position.vz, position.hdg) == (100, -200, -50, 27150)
     attitude = messages["ATTITUDE"]
@@ -198,11 +202,14 @@ def test_stream_contents() -> None:
     servo = messages["SERVO_OUTPUT_RAW"]
     assert (servo.servo1_raw, servo.servo14_raw, servo.servo15_raw) == (1500, 1500, 0)
     beat = messages["HEARTBEAT"]
-    assert beat.base_mode == (
-        mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
-    )
-    assert beat.system_status == mavlink2.MAV_STATE_ACTIVE
-    assert messages["SYS_STATUS"].voltage_battery == 65535  # not measured
+    assert beat.base_mode == 81 | mavlink2.MAV_MODE_FLAG_SAFETY_ARMED  # ArduPlane in MANUAL
+    assert beat.system_status == mavlink2.MAV_STATE_ACTIVE  # flying
+    status = messages["SYS_STATUS"]
+    assert (status.voltage_battery, status.battery_remaining) == (12600, 100)  # as SITL's
+    assert status.current_battery == round(23.0 * 0.42 * 100)  # 42 % throttle of 23 A
+    assert status.onboard_control_sensors_health & mavlink2.MAV_SYS_STATUS_PREARM_CHECK
+    assert messages["EKF_STATUS_REPORT"].flags == 0x33F  # an absolute position
+    assert messages["EXTENDED_SYS_STATE"].landed_state == mavlink2.MAV_LANDED_STATE_IN_AIR
 
 
 @pytest.mark.parametrize(
@@ -227,13 +234,15 @@ def test_default_streams() -> None:
     sim, _ = make_sim()
     gcs = Gcs()
     pairs = [(0.0, m) for m in gcs.parse(sim.advance(0.0))] + run(sim, gcs, 0.0, 1.99)
-    assert count(pairs, "HEARTBEAT") == 2  # 1 Hz
-    assert count(pairs, "SYSTEM_TIME") == 2  # SR0_EXTRA3 1
-    assert count(pairs, "GLOBAL_POSITION_INT") == 8  # SR0_POSITION 4
-    assert count(pairs, "ATTITUDE") == 8  # SR0_EXTRA1 4
-    assert count(pairs, "VFR_HUD") == 8  # SR0_EXTRA2 4
-    assert count(pairs, "SYS_STATUS") == count(pairs, "GPS_RAW_INT") == 4  # SR0_EXT_STAT 2
-    assert count(pairs, "RC_CHANNELS") == count(pairs, "SERVO_OUTPUT_RAW") == 4  # SR0_RC_CHAN 2
+    # ArduPlane streams everything at 1 Hz until asked otherwise (measured).
+    for name in ("HEARTBEAT", "SYSTEM_TIME", "GLOBAL_POSITION_INT", "ATTITUDE", "VFR_HUD"):
+        assert count(pairs, name) == 2, name
+    for name in ("SYS_STATUS", "GPS_RAW_INT", "RC_CHANNELS", "SERVO_OUTPUT_RAW"):
+        assert count(pairs, name) == 2, name
+    # ArduCopter streams nothing but its heartbeat (measured).
+    copter, _ = make_sim("arducopter")
+    pairs = [(0.0, m) for m in gcs.parse(copter.advance(0.0))] + run(copter, gcs, 0.0, 1.99)
+    assert {m.get_type() for _t, m in pairs} <= {"HEARTBEAT", "HOME_POSITION"}
 
 
 def test_message_intervals_are_honoured_on_a_virtual_clock() -> None:
@@ -249,11 +258,13 @@ def test_message_intervals_are_honoured_on_a_virtual_clock() -> None:
     assert {b - a for a, b in itertools.pairwise(times)} == {50}
     ask(sim, gcs, gcs.command(511, position, -1), now_s=2.0)  # stop it
     assert count(run(sim, gcs, 2.0, 4.0), "GLOBAL_POSITION_INT") == 0
-    ask(sim, gcs, gcs.command(511, position, 0), now_s=4.0)  # back to the default
-    assert count(run(sim, gcs, 4.0, 6.0), "GLOBAL_POSITION_INT") == 8
+    ask(sim, gcs, gcs.command(511, position, 0), now_s=4.0)  # back to the default, 1 Hz
+    assert count(run(sim, gcs, 4.0, 6.0), "GLOBAL_POSITION_INT") == 2
     answers = ask(sim, gcs, gcs.command(510, position), now_s=6.0)
     interval = [m for m in answers if m.get_type() == "MESSAGE_INTERVAL"]
-    assert (interval[0].message_id, interval[0].interval_us) == (position, 250_000)
+    assert (interval[0].message_id, interval[0].interval_us) == (position, 1_000_000)
+    # Faster than 40 Hz is DENIED, as ArduPilot does (measured), and changes nothing.
+    assert ack_of(ask(sim, gcs, gcs.command(511, position, 20_000), now_s=6.0)) == (511, 2)
 
 
 def test_request_data_stream_sets_a_group() -> None:
@@ -281,7 +292,7 @@ def test_request_data_stream_sets_a_group() -> None:
         ((183, 17, 1700), mavlink2.MAV_RESULT_FAILED),
         ((178, 0, 12, -1), mavlink2.MAV_RESULT_FAILED),  # ArduPlane: speed only in guided/auto
         ((511, 33, 100_000), mavlink2.MAV_RESULT_ACCEPTED),
-        ((511, 9999, 100_000), mavlink2.MAV_RESULT_FAILED),  # nothing to stream
+        ((511, 9999, 100_000), mavlink2.MAV_RESULT_DENIED),  # nothing to stream
         ((512, 242), mavlink2.MAV_RESULT_ACCEPTED),  # REQUEST_MESSAGE HOME_POSITION
         ((512, 148), mavlink2.MAV_RESULT_ACCEPTED),  # AUTOPILOT_VERSION
         ((512, 12345), mavlink2.MAV_RESULT_FAILED),
@@ -308,8 +319,9 @@ def test_commands_act_on_the_model() -> None:
     assert model.servos[8] == 1700
     ask(sim, gcs, gcs.command(176, 1, PLANE_MODES["GUIDED"]))
     assert ack_of(ask(sim, gcs, gcs.command(178, 0, 18.0, -1))) == (178, 0)
+    assert model.speeds == [18.0]
     answers = ask(sim, gcs, gcs.frame(gcs.mav.set_mode_encode(1, 1, PLANE_MODES["RTL"])))
-    assert ack_of(answers) == (mavlink2.MAVLINK_MSG_ID_SET_MODE, 0)  # ArduPilot acks with 11
+    assert not [m for m in answers if m.get_type() == "COMMAND_ACK"]  # ArduPilot 4.7: no ack
     assert model.mode == "RTL"
 
 
@@ -343,10 +355,11 @@ def test_requested_messages_follow_their_ack() -> None:
     assert [m.get_type() for m in answers] == ["COMMAND_ACK", "AUTOPILOT_VERSION"]
     version = answers[1]
     assert version.flight_sw_version == (4 << 24) | (5 << 16) | (7 << 8) | 255
-    assert version.capabilities & mavlink2.MAV_PROTOCOL_CAPABILITY_MAVLINK2
-    assert not version.capabilities & mavlink2.MAV_PROTOCOL_CAPABILITY_FTP
-    answers = ask(sim, gcs, gcs.command(512, mavlink2.MAVLINK_MSG_ID_HOME_POSITION))
-    home = answers[1]
+    assert version.capabilities == 0xF36F  # exactly ArduPlane SITL's
+    sim.receive(gcs.command(512, mavlink2.MAVLINK_MSG_ID_HOME_POSITION), 1.0)
+    replies = gcs.parse(sim.advance(1.0))
+    assert [m.get_type() for m in replies][:2] == ["COMMAND_ACK", "HOME_POSITION"]
+    home = replies[1]
     assert (home.latitude, home.longitude, home.altitude) == (306319000, -964826000, 90000)
 
 
@@ -367,8 +380,8 @@ def test_position_targets() -> None:
     )
     ask(sim, gcs, gcs.frame(amsl))
     assert model.gotos[-1][2] == pytest.approx(10.0)  # 100 m AMSL is 10 m above home
-    ask(sim, gcs, gcs.command(178, 1, 6.0, -1))  # a new speed re-flies the target
-    assert model.gotos[-1] == pytest.approx((30.632, -96.482, 10.0, 6.0))
+    ask(sim, gcs, gcs.command(178, 1, 6.0, -1))  # the leg's speed, kept for later targets
+    assert model.speeds == [6.0]
 
 
 def test_arduplane_takes_only_altitude_from_position_targets() -> None:
@@ -514,7 +527,7 @@ def test_timesync() -> None:
     sim, _ = make_sim()
     gcs = Gcs()
     (answer,) = ask(sim, gcs, gcs.frame(gcs.mav.timesync_encode(0, 123456789)), now_s=2.0)
-    assert (answer.tc1, answer.ts1) == (2_000_000_000, 123456789)
+    assert (answer.tc1, answer.ts1) == (102_000_000_000, 123456789)  # its boot clock, in ns
 
 
 def test_garbage_is_counted_and_skipped() -> None:
@@ -545,10 +558,10 @@ def test_from_profile() -> None:
         rover = yaml.safe_load(f)
     rover["mavlink"] = {"system_id": 7, "component_id": 1}
     model = FakeModel(rover["modes"])
-    sim = SimAutopilot.from_profile(model, rover, home_lat_deg=HOME[0], home_lon_deg=HOME[1])
+    sim = SimAutopilot.from_profile(model, rover, origin_lat_deg=HOME[0], origin_lon_deg=HOME[1])
     assert (sim.sysid, sim.firmware, sim.guided_mode) == (7, "ardurover", "GUIDED")
     with pytest.raises(ValueError, match="unknown firmware"):
-        SimAutopilot(model, firmware="px4", home_lat_deg=0.0, home_lon_deg=0.0)
+        SimAutopilot(model, firmware="px4", origin_lat_deg=0.0, origin_lon_deg=0.0)
 
 
 # -- an independent ground station: pymavlink's mavutil over UDP loopback -------------------

@@ -377,6 +377,7 @@ def intro(sources: Sequence[str]) -> list[str]:
         "- [Agents](#agents)",
         "- [Telemetry](#telemetry)",
         "- [Failsafe](#failsafe)",
+        "- [Launch](#launch)",
         "- [Points](#points)",
         "- [Dry-run checks](#dry-run-checks)",
         "- [Dry-run operator, faults and settings](#dry-run-operator-faults-and-settings)",
@@ -564,6 +565,61 @@ def failsafe_section(schema: Schema) -> list[str]:
         "mission is a warning ([[W-NO-STATION]]).",
         "",
         *property_table(failsafe),
+        "",
+    ]
+
+
+def launch_section(schema: Schema) -> list[str]:
+    """The ``launch:`` mapping: who arms a vehicle and whether it starts flying."""
+    launch = schema["$defs"]["agent"]["properties"]["launch"]
+    return [
+        "## Launch",
+        "",
+        md(str(launch["description"])),
+        "",
+        *property_table(launch),
+        "",
+        "```yaml",
+        "agents:",
+        "  slash:                         # no launch: on the ground, armed by its pilot",
+        "    id: 2",
+        "    profile: traxxas_slash",
+        "  f450:",
+        "    id: 3",
+        "    profile: dji_f450",
+        "    launch: {armed_by: engine}   # on the ground; the engine arms it to take off",
+        "  cub:",
+        "    id: 4",
+        "    profile: super_cub",
+        "    launch: {airborne: true}     # the pilot arms it, takes off and hands it over",
+        "    position: [0, 0, 60]         # here, 60 m above the origin",
+        "```",
+        "",
+        "- **`armed_by: pilot`** (the default, as in the thesis's flights): the safety pilot "
+        "arms the vehicle, and the engine never does. The behaviour starts once the vehicle "
+        "is armed. An aircraft on the ground then takes off in a [`takeoff`](#takeoff) state.",
+        "- **`armed_by: engine`**: the engine arms the vehicle when its behaviour first needs "
+        "it, on entering a guided state ([`waypoint`](#waypoint), "
+        "[`waypoint_tour`](#waypoint_tour), [`follow_agent`](#follow_agent)) or a "
+        "[`takeoff`](#takeoff). The behaviour starts once the autopilot is ready (its "
+        "profile's `wait_ready`).",
+        "- **`airborne: true`** (aircraft only, with `armed_by: pilot`): the pilot arms the "
+        "aircraft and takes off before the behaviour starts; the behaviour starts once it "
+        "flies. Its `position` gives the height at which the pilot hands it over, and the "
+        "dry run starts it there, flying.",
+        "",
+        "A vehicle without `airborne` starts on the ground, so its `position` has no height "
+        "above the origin, and an airborne one needs that height (both "
+        "[[E-LAUNCH-HEIGHT]]). A rover is never airborne, and the engine never arms a vehicle "
+        "its pilot hands over in flight ([[E-LAUNCH-AIRBORNE]]); a station has no `launch` "
+        "([[E-LAUNCH-STATION]]). A multirotor or fixed-wing aircraft that starts on the "
+        "ground and flies to guided targets with no `takeoff` state anywhere in its behaviour "
+        "is warned about ([[W-TAKEOFF-MISSING]]): ArduCopter ignores guided targets until it "
+        "has taken off.",
+        "",
+        "`launch` replaces the agent's `sim.armed` of earlier versions, which is gone: an agent "
+        "that still writes it is reported ([[E-KEY-UNKNOWN]]). Compiled configs carry `launch` "
+        "for every vehicle, its defaults filled in (`null` for stations), for the runtime.",
         "",
     ]
 
@@ -1200,6 +1256,7 @@ def generate() -> str:
         agents_section(mission),
         telemetry_section(mission),
         failsafe_section(mission),
+        launch_section(mission),
         points_section(mission),
         checks_section(mission),
         dry_run_inputs_section(mission),

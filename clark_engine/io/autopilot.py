@@ -51,14 +51,31 @@ import logging
 import math
 import operator
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Final
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from clark_engine.runtime.commands import Command, Goto, RcOverride, SetMode, SetServo
+from clark_engine.runtime.commands import (
+    Arm,
+    Command,
+    Goto,
+    RcOverride,
+    SetMode,
+    SetServo,
+    Takeoff,
+)
 from clark_engine.runtime.config import AgentConfig, ConfigError
-from clark_engine.runtime.events import AutopilotHeartbeat, RcChannels, VehicleState
+from clark_engine.runtime.events import (
+    AutopilotHeartbeat,
+    AutopilotStatus,
+    AutopilotText,
+    CommandRefused,
+    LandedState,
+    RcChannels,
+    VehicleState,
+)
+from clark_engine.untrusted import printable
 
 GPS_EPOCH_UNIX_MS: Final = 315_964_800_000
 """The GPS epoch, 1980-01-06 00:00:00 UTC, in milliseconds of Unix time."""
@@ -95,6 +112,8 @@ STREAMED_MESSAGES: Final = (
     "SERVO_OUTPUT_RAW",
     "SYS_STATUS",
     "GPS_RAW_INT",
+    "EKF_STATUS_REPORT",
+    "EXTENDED_SYS_STATE",
 )
 """Messages :meth:`AutopilotAdapter.start` asks for."""
 
@@ -103,10 +122,49 @@ SLOW_STREAMS: Final = {
     "SYS_STATUS": 1.0,
     "GPS_RAW_INT": 2.0,
     "SERVO_OUTPUT_RAW": 2.0,
+    "EKF_STATUS_REPORT": 1.0,
+    "EXTENDED_SYS_STATE": 1.0,
 }
 """Messages the runtime needs only now and then, asked for at these rates (Hz) or the
-profile's ``stream_rate_hz`` when slower: the clock's sync, health and raw GPS do not
-need the loop rate, and a serial link at 57600 baud has little to spare."""
+profile's ``stream_rate_hz`` when slower: the clock's sync, health, readiness and raw
+GPS do not need the loop rate, and a serial link at 57600 baud has little to spare."""
+
+OPTIONAL_STREAMS: Final = frozenset({"EXTENDED_SYS_STATE"})
+"""Streams an ArduPilot firmware may not have (ArduRover has no landed state): a refusal
+is noted in the interface log, not reported as a refused command."""
+
+HOME_REQUEST_PERIOD_S: Final = 2.0
+"""HOME_POSITION is asked for this often until it arrives. ArduPilot sends it by itself
+when home is set, but not to a ground station that connects afterwards."""
+
+REASON_WINDOW_S: Final = 1.0
+"""STATUSTEXT warnings this long before a refusal are its reason (ArduPilot explains a
+refused arm or mode change in a STATUSTEXT, queued around the COMMAND_ACK)."""
+
+REASON_WAIT_S: Final = 0.5
+"""A refusal waits this long for its STATUSTEXT before it is reported."""
+
+SPEED_RETRY_S: Final = 1.0
+"""A refused speed change is sent again this long after (ArduRover refuses one until its
+guided mode has a target; it is never dropped)."""
+
+EKF_POS_HORIZ_ABS: Final = 0x10
+"""EKF_STATUS_REPORT flag: the EKF estimates an absolute horizontal position."""
+
+EKF_CONST_POS_MODE: Final = 0x80
+"""EKF_STATUS_REPORT flag: no position source; the EKF assumes the vehicle is still."""
+
+PREARM_CHECK_BIT: Final = 0x10000000
+"""MAV_SYS_STATUS_PREARM_CHECK in SYS_STATUS: present when the autopilot reports it,
+healthy when its pre-arm checks pass."""
+
+_LANDED_STATES: Final[Mapping[int, LandedState]] = {
+    0: LandedState.UNKNOWN,
+    1: LandedState.ON_GROUND,
+    2: LandedState.IN_AIR,
+    3: LandedState.TAKING_OFF,
+    4: LandedState.LANDING,
+}
 
 RC_OVERRIDE_CHANNELS: Final = 18
 """RC_CHANNELS_OVERRIDE carries channels 1-18."""
@@ -116,6 +174,10 @@ _RC_IGNORE: Final = _UINT16_MAX  # "no change" for every channel
 _RC_RELEASE_LOW: Final = 0  # channels 1-8: give the channel back to the pilot
 _RC_RELEASE_HIGH: Final = _UINT16_MAX - 1  # channels 9-18: 0 means "ignore" there
 _FORCE_ARM_MAGIC: Final = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2: skip pre-arm checks
+_STATUS_MESSAGES: Final = frozenset(
+    {"GPS_RAW_INT", "EKF_STATUS_REPORT", "SYS_STATUS", "HOME_POSITION", "EXTENDED_SYS_STATE"}
+)
+"""Messages :attr:`AutopilotAdapter.status` is made of."""
 _RC_CHANNEL_FIELDS: Final = operator.attrgetter(
     *(f"chan{i}_raw" for i in range(1, RC_OVERRIDE_CHANNELS + 1))
 )
@@ -132,6 +194,17 @@ POSITION_ONLY_TYPE_MASK: Final = (
     | mavlink2.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
 )
 """SET_POSITION_TARGET_GLOBAL_INT type_mask using lat, lon and alt only (0x0DF8)."""
+
+POSITION_VELOCITY_TYPE_MASK: Final = (
+    mavlink2.POSITION_TARGET_TYPEMASK_AX_IGNORE
+    | mavlink2.POSITION_TARGET_TYPEMASK_AY_IGNORE
+    | mavlink2.POSITION_TARGET_TYPEMASK_AZ_IGNORE
+    | mavlink2.POSITION_TARGET_TYPEMASK_YAW_IGNORE
+    | mavlink2.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
+)
+"""The same with the target's velocity too (0x0DC0): ArduCopter moves the target on
+with it between messages, so a moving target is followed without lag. ArduRover ignores
+the velocity of a position target (measured), so it gets position only."""
 
 
 FIRMWARE_VEHICLE_TYPES: Final[Mapping[str, frozenset[int]]] = {
@@ -177,23 +250,6 @@ class ParamValue:
 
 
 @dataclass(frozen=True, slots=True)
-class CommandRefused:
-    """The autopilot refused a request, or never answered it.
-
-    Attributes:
-        command: What was sent, in MAVLink's words (``MAV_CMD_DO_SET_MODE``, ``PARAM_SET``).
-        result: ArduPilot's answer without the prefix (``FAILED``, ``DENIED``,
-            ``UNSUPPORTED``, ``TEMPORARILY_REJECTED``), or ``NO_ANSWER`` after
-            :data:`COMMAND_ATTEMPTS` sends without one.
-        request: What the engine asked for, in words (``SetMode GUIDED (15)``).
-    """
-
-    command: str
-    result: str
-    request: str
-
-
-@dataclass(frozen=True, slots=True)
 class AutopilotMessage:
     """A message asked for with :meth:`AutopilotAdapter.request_message` (thesis 7.1.5).
 
@@ -207,7 +263,14 @@ class AutopilotMessage:
 
 
 AutopilotEvent = (
-    VehicleState | AutopilotHeartbeat | RcChannels | ParamValue | CommandRefused | AutopilotMessage
+    VehicleState
+    | AutopilotHeartbeat
+    | AutopilotStatus
+    | AutopilotText
+    | RcChannels
+    | ParamValue
+    | CommandRefused
+    | AutopilotMessage
 )
 """Everything :meth:`AutopilotAdapter.receive` returns."""
 
@@ -313,7 +376,10 @@ class _Request:
     ``key`` is the MAV_CMD number for commands (answered by COMMAND_ACK) and the
     parameter name for parameter requests (answered by PARAM_VALUE). ``build``
     makes the message for a given attempt (1 first). ``setup`` marks the stream
-    requests, which are retried for as long as the autopilot is heard.
+    requests, which are retried for as long as the autopilot is heard. ``answered``,
+    when given, hears how it ended (the MAV_RESULT, or None when it was given up
+    unanswered) and reports a refusal itself; without it a refusal is reported as
+    :class:`CommandRefused`.
     """
 
     command: str
@@ -321,6 +387,7 @@ class _Request:
     request: str
     build: Callable[[int], Any]
     setup: bool = False
+    answered: Callable[[int | None, float], None] | None = None
     attempts: int = 0
     due_s: float = 0.0
 
@@ -393,7 +460,12 @@ class AutopilotAdapter:
         self._late_events: list[AutopilotEvent] = []
         self._overrides: dict[int, int] = {}
         self._override_sent_s = -math.inf
-        self._speed_sent: float | None = None
+        # The speed the runtime asked for, the one the autopilot accepted in its current
+        # mode, and when a refused or unanswered change may be sent again (see _speed).
+        self._speed_wanted: float | None = None
+        self._speed_accepted: float | None = None
+        self._speed_retry_s = -math.inf
+        self._targeted = False  # a position target was sent in the current mode
         self._wanted: set[str] = set()
         self._latest: dict[str, Any] = {}
         self._param_types: dict[str, int] = {}
@@ -417,6 +489,13 @@ class AutopilotAdapter:
         self._setup_due = False
         self._legacy_streams_due = False
         self._state: VehicleState | None = None
+        # Readiness (AutopilotStatus), and when HOME_POSITION is next asked for.
+        self._status = AutopilotStatus()
+        self._next_home_request_s = -math.inf
+        # Recent STATUSTEXT warnings (time, escaped text), the reasons of refusals; and
+        # refusals waiting REASON_WAIT_S for theirs: (due time, refusal, refused at).
+        self._warnings: list[tuple[float, str]] = []
+        self._refusals: list[tuple[float, CommandRefused, float]] = []
 
         self.bad_frames = 0
         """Frames that failed their checksum or were not MAVLink (garbage on the link)."""
@@ -455,6 +534,11 @@ class AutopilotAdapter:
     def state(self) -> VehicleState | None:
         """The latest VehicleState, None before the first one."""
         return self._state
+
+    @property
+    def status(self) -> AutopilotStatus:
+        """Readiness and landed state as the autopilot last reported them."""
+        return self._status
 
     @property
     def active_overrides(self) -> Mapping[int, int]:
@@ -537,8 +621,13 @@ class AutopilotAdapter:
                 )
         if self._version is None and now_s >= self._next_verify_s:
             self._verify(now_s)
+        elif heard and self._status.home is None and now_s >= self._next_home_request_s:
+            self._request_home(now_s)
         if self._requests:
             self._send_due(now_s, heard=heard)
+        if heard:
+            self._speed(now_s)
+        self._release_refusals(now_s, self._late_events)
         return self._outbox.take()
 
     def close(self, now_s: float) -> bytes:
@@ -562,12 +651,16 @@ class AutopilotAdapter:
         - :class:`Goto`: for ArduCopter and ArduRover (and an unknown firmware),
           SET_POSITION_TARGET_GLOBAL_INT in ``GLOBAL_RELATIVE_ALT_INT`` with
           position only (:data:`POSITION_ONLY_TYPE_MASK`; not acknowledged by
-          MAVLink). ArduPlane reads only the altitude from that message, so for
-          ArduPlane it is COMMAND_INT MAV_CMD_DO_REPOSITION in the same frame. Both
-          act only in the guided mode, as the runtime's primitives expect. A
-          ``speed_m_s`` is sent first as MAV_CMD_DO_CHANGE_SPEED (ground speed;
-          airspeed for ArduPlane, whose ground-speed type sets only a minimum),
-          and only when it differs from the last one sent.
+          MAVLink), or for ArduCopter with the target's velocity when it has one
+          (:data:`POSITION_VELOCITY_TYPE_MASK`). ArduPlane reads only the altitude
+          from that message, so for ArduPlane it is COMMAND_INT
+          MAV_CMD_DO_REPOSITION in the same frame. Both act only in the guided mode,
+          as the runtime's primitives expect. A ``speed_m_s`` follows as
+          MAV_CMD_DO_CHANGE_SPEED (ground speed; airspeed for ArduPlane, whose
+          ground-speed type sets only a minimum), after the target, since ArduRover
+          refuses one before its guided mode has a target; sent again after a
+          refusal until the autopilot takes it, and again after a mode change
+          (ArduPilot starts each mode at its default speed).
         - :class:`SetMode`: COMMAND_LONG MAV_CMD_DO_SET_MODE, base mode
           MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, the profile's number for the name.
         - :class:`SetServo`: COMMAND_LONG MAV_CMD_DO_SET_SERVO.
@@ -581,6 +674,11 @@ class AutopilotAdapter:
         """
         if isinstance(cmd, Goto):
             self._goto(cmd, now_s)
+            self._speed(now_s)
+        elif isinstance(cmd, Arm):
+            return self.arm(cmd.armed, now_s)
+        elif isinstance(cmd, Takeoff):
+            self._takeoff(cmd, now_s)
         elif isinstance(cmd, SetMode):
             number = int(self.settings.modes.get(cmd.mode, cmd.custom_mode))
             if cmd.mode in self.settings.modes and number != cmd.custom_mode:
@@ -652,6 +750,10 @@ class AutopilotAdapter:
         Raises:
             ValueError: The name is not 1-16 ASCII characters.
         """
+        self._param_set(name, value, now_s)
+        return self._outbox.take()
+
+    def _param_set(self, name: str, value: float, now_s: float) -> None:
         param_id = _param_id(name)
         known = self._param_types.get(name, mavlink2.MAV_PARAM_TYPE_REAL32)
         s = self.settings
@@ -666,7 +768,6 @@ class AutopilotAdapter:
             ),
             now_s,
         )
-        return self._outbox.take()
 
     def request_message(self, name: str, now_s: float) -> bytes:
         """Ask for one message once (MAV_CMD_REQUEST_MESSAGE, thesis 7.1.5).
@@ -695,7 +796,14 @@ class AutopilotAdapter:
         - GLOBAL_POSITION_INT -> :class:`VehicleState`, merged with the latest
           ATTITUDE (roll, pitch, yaw), VFR_HUD (ground speed, climb rate) and
           SYSTEM_TIME (GPS time); not before a HEARTBEAT and an ATTITUDE have
-          arrived, since mode and attitude have no honest default.
+          arrived, since mode and attitude have no honest default, and not while
+          latitude and longitude are both 0, ArduPilot's "no position" before its
+          first GPS fix (a peer must never be told the vehicle is off Africa).
+        - STATUSTEXT -> :class:`AutopilotText` (also logged, escaped, in the
+          interface log).
+        - GPS_RAW_INT, EKF_STATUS_REPORT, SYS_STATUS, HOME_POSITION and
+          EXTENDED_SYS_STATE -> :class:`AutopilotStatus` when readiness or the
+          landed state changed.
         - RC_CHANNELS -> :class:`RcChannels`, 18 channels, "unused" as 0.
         - PARAM_VALUE -> :class:`ParamValue`; COMMAND_ACK refusals -> :class:`CommandRefused`;
           a message asked for by :meth:`request_message` -> :class:`AutopilotMessage`.
@@ -717,6 +825,7 @@ class AutopilotAdapter:
             messages = []
         for msg in messages:
             self._handle(msg, now_s, events)
+        self._release_refusals(now_s, events)
         return events
 
     # -- internals: receiving ----------------------------------------------------------------
@@ -761,6 +870,12 @@ class AutopilotAdapter:
             events.append(self._on_param(msg))
         elif kind == "COMMAND_ACK":
             self._on_ack(msg, now_s, events)
+        elif kind == "STATUSTEXT":
+            events.append(self._on_text(msg, now_s))
+        elif kind in _STATUS_MESSAGES:
+            status = self._on_status(kind, msg)
+            if status is not None:
+                events.append(status)
         elif kind == "AUTOPILOT_VERSION":
             first = self._version is None
             self._version = int(msg.flight_sw_version)
@@ -774,6 +889,56 @@ class AutopilotAdapter:
             self._wanted.discard(kind)
             events.append(AutopilotMessage(kind, self._fields(msg)))
 
+    def _on_text(self, msg: Any, now_s: float) -> AutopilotText:
+        severity = int(msg.severity)
+        text = str(msg.text)
+        shown = printable(text)
+        if severity <= mavlink2.MAV_SEVERITY_WARNING:
+            self._warnings = [w for w in self._warnings if now_s - w[0] <= REASON_WINDOW_S]
+            self._warnings.append((now_s, shown))
+        level = (
+            logging.WARNING
+            if severity <= mavlink2.MAV_SEVERITY_WARNING
+            else logging.INFO
+            if severity <= mavlink2.MAV_SEVERITY_INFO
+            else logging.DEBUG
+        )
+        self._log.log(level, "autopilot %d says: %s", self.settings.system_id, shown)
+        return AutopilotText(severity, text)
+
+    def _on_status(self, kind: str, msg: Any) -> AutopilotStatus | None:
+        """Fold one readiness message into :attr:`status`; the new status when it changed."""
+        old = self._status
+        if kind == "GPS_RAW_INT":
+            new = replace(old, gps_fix_type=int(msg.fix_type))
+        elif kind == "EKF_STATUS_REPORT":
+            flags = int(msg.flags)
+            ok = bool(flags & EKF_POS_HORIZ_ABS) and not flags & EKF_CONST_POS_MODE
+            new = replace(old, position_ok=ok)
+        elif kind == "SYS_STATUS":
+            reported = int(msg.onboard_control_sensors_present) & PREARM_CHECK_BIT
+            healthy = int(msg.onboard_control_sensors_health) & PREARM_CHECK_BIT
+            new = replace(old, prearm_ok=bool(healthy) if reported else None)
+        elif kind == "HOME_POSITION":
+            home = (msg.latitude / 1e7, msg.longitude / 1e7, msg.altitude / 1000.0)
+            new = replace(old, home=home)
+        else:  # EXTENDED_SYS_STATE
+            landed = _LANDED_STATES.get(int(msg.landed_state), LandedState.UNKNOWN)
+            new = replace(old, landed=landed)
+        if new == old:
+            return None
+        self._status = new
+        if new.ready != old.ready or new.waiting_for != old.waiting_for:
+            if new.ready:
+                self._log.info("autopilot %d is ready", self.settings.system_id)
+            else:
+                self._log.info(
+                    "autopilot %d waits for %s",
+                    self.settings.system_id,
+                    ", ".join(new.waiting_for),
+                )
+        return new
+
     def _on_heartbeat(self, msg: Any, now_s: float) -> AutopilotHeartbeat | None:
         if msg.autopilot == mavlink2.MAV_AUTOPILOT_INVALID:
             return None  # not a flight controller's heartbeat (a companion sharing the id)
@@ -784,6 +949,10 @@ class AutopilotAdapter:
         self._heartbeat_s = now_s
         self._check_identity(msg)
         custom_mode = int(msg.custom_mode)
+        if self._heartbeat is not None and custom_mode != self._heartbeat.custom_mode:
+            # A new mode starts at its default speed, with no guided target.
+            self._speed_accepted = None
+            self._targeted = False
         beat = AutopilotHeartbeat(
             mode=self._mode_names.get(custom_mode, f"UNKNOWN_{custom_mode}"),
             custom_mode=custom_mode,
@@ -823,12 +992,17 @@ class AutopilotAdapter:
         self._setup_due = True  # poll asks for the streams again at once
         self._gps_at_boot_ms = None
         self._last_boot_ms = None
-        self._speed_sent = None
+        self._speed_accepted = None
+        self._speed_retry_s = -math.inf
+        self._status = AutopilotStatus()  # a rebooted autopilot gets ready again
+        self._next_home_request_s = -math.inf
 
     def _on_position(self, msg: Any, now_s: float) -> VehicleState | None:
         self._position_s = now_s
         if self._heartbeat is None or self._attitude is None:
             return None
+        if msg.lat == 0 and msg.lon == 0:
+            return None  # ArduPilot's "no position yet" (before its first GPS fix)
         vx_m_s, vy_m_s = msg.vx / 100.0, msg.vy / 100.0
         speed_m_s = math.hypot(vx_m_s, vy_m_s)
         yaw_deg = math.degrees(self._attitude.yaw) % 360.0
@@ -897,17 +1071,36 @@ class AutopilotAdapter:
             request.due_s = now_s + ACK_TIMEOUT_S  # alive; wait for the final answer
             return
         self._requests.remove(request)
-        if msg.result == mavlink2.MAV_RESULT_ACCEPTED:
-            return
-        result = _result_name(msg.result)
-        self._log.warning("autopilot refused %s (%s): %s", request.request, request.command, result)
-        events.append(CommandRefused(request.command, result, request.request))
+        if request.answered is not None:
+            request.answered(int(msg.result), now_s)
+        elif msg.result != mavlink2.MAV_RESULT_ACCEPTED:
+            # Reported once its STATUSTEXT, if any, has had time to arrive.
+            refusal = CommandRefused(request.command, _result_name(msg.result), request.request)
+            self._refusals.append((now_s + REASON_WAIT_S, refusal, now_s))
         if (
             request.setup
             and msg.command == mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL
             and msg.result == mavlink2.MAV_RESULT_UNSUPPORTED
         ):
             self._legacy_streams_due = True  # firmware older than SET_MESSAGE_INTERVAL
+
+    def _release_refusals(self, now_s: float, events: list[AutopilotEvent]) -> None:
+        """Report the refusals whose wait for a reason is over, with their reasons."""
+        if not self._refusals or self._refusals[0][0] > now_s:
+            return
+        while self._refusals and self._refusals[0][0] <= now_s:
+            _due, refusal, at_s = self._refusals.pop(0)
+            reason = "; ".join(
+                text for t, text in self._warnings if at_s - REASON_WINDOW_S <= t <= now_s
+            )
+            self._log.warning(
+                "autopilot refused %s (%s): %s%s",
+                refusal.request,
+                refusal.command,
+                refusal.result,
+                f": {reason}" if reason else "",
+            )
+            events.append(replace(refusal, reason=reason))
 
     @staticmethod
     def _fields(msg: Any) -> dict[str, Any]:
@@ -952,6 +1145,26 @@ class AutopilotAdapter:
         self._verify_attempts += 1
         self._next_verify_s = now_s + ACK_TIMEOUT_S
 
+    def _request_home(self, now_s: float) -> None:
+        # Untracked, like the version probe: until home is set ArduPilot has none to send.
+        s = self.settings
+        self._mav.send(
+            self._mav.command_long_encode(
+                s.system_id,
+                s.component_id,
+                mavlink2.MAV_CMD_REQUEST_MESSAGE,
+                0,
+                mavlink2.MAVLINK_MSG_ID_HOME_POSITION,
+                0,
+                0,
+                0,
+                0,
+                0,
+                0,
+            )
+        )
+        self._next_home_request_s = now_s + HOME_REQUEST_PERIOD_S
+
     def _queue_setup(self, now_s: float) -> None:
         self._setup_s = now_s
         self._setup_due = False
@@ -970,9 +1183,18 @@ class AutopilotAdapter:
                         mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, (msg_id, interval_us)
                     ),
                     setup=True,
+                    answered=self._optional_stream(name) if name in OPTIONAL_STREAMS else None,
                     due_s=now_s,
                 )
             )
+
+    def _optional_stream(self, name: str) -> Callable[[int | None, float], None]:
+        def answered(result: int | None, _now_s: float) -> None:
+            if result != mavlink2.MAV_RESULT_ACCEPTED:
+                why = "no answer" if result is None else _result_name(result)
+                self._log.info("autopilot does not stream %s (%s)", name, why)
+
+        return answered
 
     def _long_builder(self, command: int, params: tuple[float, ...]) -> Callable[[int], Any]:
         s = self.settings
@@ -1012,9 +1234,12 @@ class AutopilotAdapter:
                     request.command,
                     request.attempts,
                 )
-                self._late_events.append(
-                    CommandRefused(request.command, "NO_ANSWER", request.request)
-                )
+                if request.answered is not None:
+                    request.answered(None, now_s)
+                else:
+                    self._late_events.append(
+                        CommandRefused(request.command, "NO_ANSWER", request.request)
+                    )
                 continue
             request.attempts += 1
             request.due_s = now_s + ACK_TIMEOUT_S
@@ -1024,16 +1249,8 @@ class AutopilotAdapter:
         s = self.settings
         lat_e7, lon_e7 = round(cmd.lat_deg * 1e7), round(cmd.lon_deg * 1e7)
         plane = s.firmware == "arduplane"
-        if cmd.speed_m_s is not None and cmd.speed_m_s != self._speed_sent:
-            self._speed_sent = cmd.speed_m_s
-            self._command_long(
-                mavlink2.MAV_CMD_DO_CHANGE_SPEED,
-                f"speed {cmd.speed_m_s:g} m/s",
-                now_s,
-                0 if plane else 1,  # SPEED_TYPE_AIRSPEED / SPEED_TYPE_GROUNDSPEED
-                cmd.speed_m_s,
-                -1,  # throttle: no change
-            )
+        self._speed_wanted = cmd.speed_m_s
+        self._targeted = True
         where = f"Goto {cmd.lat_deg:.7f} {cmd.lon_deg:.7f} {cmd.alt_m:g} m"
         if plane:
             frame = mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
@@ -1062,18 +1279,25 @@ class AutopilotAdapter:
             )
             return
         time_boot_ms = round((now_s - (self._start_s or 0.0)) * 1000) & 0xFFFFFFFF
+        moving = (
+            s.firmware == "arducopter"
+            and cmd.velocity_north_m_s is not None
+            and cmd.velocity_east_m_s is not None
+        )
+        vn_m_s = float(cmd.velocity_north_m_s or 0.0) if moving else 0.0
+        ve_m_s = float(cmd.velocity_east_m_s or 0.0) if moving else 0.0
         self._mav.send(
             self._mav.set_position_target_global_int_encode(
                 time_boot_ms,
                 s.system_id,
                 s.component_id,
                 mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
-                POSITION_ONLY_TYPE_MASK,
+                POSITION_VELOCITY_TYPE_MASK if moving else POSITION_ONLY_TYPE_MASK,
                 lat_e7,
                 lon_e7,
                 float(cmd.alt_m),
-                0,
-                0,
+                vn_m_s,
+                ve_m_s,
                 0,
                 0,
                 0,
@@ -1082,6 +1306,90 @@ class AutopilotAdapter:
                 0,
             )
         )
+
+    def _takeoff(self, cmd: Takeoff, now_s: float) -> None:
+        """ArduCopter: MAV_CMD_NAV_TAKEOFF. ArduPlane: TKOFF_ALT, then its TAKEOFF mode.
+
+        ArduPlane's NAV_TAKEOFF is for quadplanes only (FAILED on a fixed wing); a
+        fixed wing takes off in its TAKEOFF mode, armed, to TKOFF_ALT, so that
+        parameter is set to the altitude asked for first (it is written to the
+        autopilot's storage, as any PARAM_SET is).
+        """
+        if self.settings.firmware == "arduplane":
+            number = self.settings.modes.get("TAKEOFF")
+            if number is None:
+                self._log.error("Takeoff: the autopilot profile has no TAKEOFF mode")
+                return
+            self._param_set("TKOFF_ALT", round(cmd.alt_m), now_s)
+            self._command_long(
+                mavlink2.MAV_CMD_DO_SET_MODE,
+                f"SetMode TAKEOFF ({number}) to take off to {cmd.alt_m:g} m",
+                now_s,
+                mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                int(number),
+            )
+            return
+        self._command_long(
+            mavlink2.MAV_CMD_NAV_TAKEOFF,
+            f"takeoff to {cmd.alt_m:g} m",
+            now_s,
+            0,
+            0,
+            0,
+            math.nan,  # yaw: unchanged
+            0,
+            0,
+            float(cmd.alt_m),
+        )
+
+    def _speed(self, now_s: float) -> None:
+        """Send the speed the runtime wants, until the autopilot accepts it.
+
+        After the position target, not before: ArduRover refuses a speed change in
+        its guided mode until that mode has a target. A refusal or no answer is
+        retried :data:`SPEED_RETRY_S` later (by :meth:`poll`); a mode change forgets
+        the accepted speed, because ArduPilot starts every mode at its default speed.
+        """
+        wanted = self._speed_wanted
+        if (
+            wanted is None
+            or wanted == self._speed_accepted
+            or not self._targeted
+            or now_s < self._speed_retry_s
+        ):
+            return
+        self._speed_retry_s = math.inf  # until answered
+        plane = self.settings.firmware == "arduplane"
+        self._track(
+            _Request(
+                "MAV_CMD_DO_CHANGE_SPEED",
+                mavlink2.MAV_CMD_DO_CHANGE_SPEED,
+                f"speed {wanted:g} m/s",
+                self._long_builder(
+                    mavlink2.MAV_CMD_DO_CHANGE_SPEED,
+                    # SPEED_TYPE_AIRSPEED for ArduPlane (its ground-speed type sets only a
+                    # minimum), SPEED_TYPE_GROUNDSPEED otherwise; throttle -1: no change.
+                    (0 if plane else 1, wanted, -1),
+                ),
+                answered=lambda result, at_s: self._speed_answered(wanted, result, at_s),
+            ),
+            now_s,
+        )
+
+    def _speed_answered(self, speed_m_s: float, result: int | None, now_s: float) -> None:
+        if result == mavlink2.MAV_RESULT_ACCEPTED:
+            self._speed_accepted = speed_m_s
+            self._speed_retry_s = -math.inf
+            return
+        why = "no answer" if result is None else _result_name(result)
+        if self._speed_retry_s != now_s + SPEED_RETRY_S:
+            self._log.info(
+                "autopilot did not take speed %g m/s (%s); sending it again in %g s",
+                speed_m_s,
+                why,
+                SPEED_RETRY_S,
+            )
+        self._speed_retry_s = now_s + SPEED_RETRY_S
 
     def _rc_override(self, cmd: RcOverride, now_s: float) -> None:
         changes: dict[int, int] = {}

@@ -57,9 +57,11 @@ def run_all(mission: Mission, bad_states: set[tuple[str, tuple[str, ...]]]) -> l
             )
         findings.extend(check_telemetry(mission, agent))
         findings.extend(check_agent_modes(mission, agent))
+        findings.extend(check_launch(agent))
         if agent.behavior is not None:
             findings.extend(check_states(mission, agent, agent.behavior))
             findings.extend(check_primitives(mission, agent, agent.behavior, bad_states))
+            findings.extend(check_takeoff(agent, agent.behavior))
     findings.extend(check_expectations(mission))
     findings.extend(check_operator(mission))
     findings.extend(check_faults(mission))
@@ -295,6 +297,101 @@ def check_agent_modes(mission: Mission, agent: Agent) -> Iterator[Finding]:
             "failsafe.mcs_lost can never trigger: the mission has no station (role mcs); "
             "add one or remove it",
         )
+
+
+def check_launch(agent: Agent) -> Iterator[Finding]:
+    """``launch`` fits the agent, and the start position's height agrees with it.
+
+    A station has nothing to launch; only an aircraft can be handed over in flight,
+    and only by the pilot who armed it; a vehicle on the ground starts at no height,
+    and one handed over in flight starts at the height the pilot hands it over at
+    (the dry run starts it there, flying).
+    """
+    if not agent.is_vehicle:
+        if "launch" in agent.raw:
+            yield error(
+                "E-LAUNCH-STATION",
+                _raw_loc(agent, "launch"),
+                f"{agent.name} is a station (role mcs) and has no vehicle to arm or fly; "
+                "remove launch",
+            )
+        return
+    launch = agent.launch
+    if launch is None:
+        return
+    rover = agent.airframe_class == "rover"
+    position = agent.position
+    if launch.airborne and rover:
+        yield error(
+            "E-LAUNCH-AIRBORNE",
+            launch.locate("airborne"),
+            f"{agent.name} ({agent.profile}) is a rover and never flies; remove launch.airborne",
+        )
+        return
+    if launch.airborne and launch.engine_arms:
+        yield error(
+            "E-LAUNCH-AIRBORNE",
+            launch.locate("airborne"),
+            f"airborne: true says the pilot arms {agent.name} and takes off before its "
+            "behaviour starts, so the engine never arms it; write armed_by: pilot, or leave "
+            "airborne out and take off in a takeoff state",
+            launch.locate("armed_by"),
+        )
+    if launch.airborne and position.up_m <= 0:
+        yield error(
+            "E-LAUNCH-HEIGHT",
+            _raw_loc(agent, "position") if "position" in agent.raw else launch.locate("airborne"),
+            f"{agent.name} starts airborne, but its position has no height above the origin; "
+            "say at what height the pilot hands it over: position: "
+            f"[{position.north_m:.0f}, {position.east_m:.0f}, <up_m>]",
+            launch.locate("airborne"),
+        )
+    if not launch.airborne and position.up_m > 0:
+        fix = (
+            "remove up_m"
+            if rover
+            else "remove up_m, or declare launch: {airborne: true} if the pilot takes off "
+            "before the behaviour starts"
+        )
+        yield error(
+            "E-LAUNCH-HEIGHT",
+            _raw_loc(agent, "position"),
+            f"{agent.name} starts on the ground{' (a rover)' if rover else ''}, but its position "
+            f"is {position.up_m:g} m above the origin; {fix}",
+            *([launch.location] if "launch" in agent.raw else []),
+        )
+
+
+#: Primitives that send the autopilot guided targets.
+GUIDED_PRIMITIVES = ("waypoint", "waypoint_tour", "follow_agent")
+
+#: Why an aircraft on the ground goes nowhere for a guided target, by airframe class.
+_GROUNDED = {
+    "multirotor": "ArduCopter ignores guided targets until it has taken off",
+    "fixed_wing": "ArduPlane does not take off to reach a guided target",
+}
+
+
+def check_takeoff(agent: Agent, root: State) -> Iterator[Finding]:
+    """An aircraft that starts on the ground takes off before it flies to guided targets."""
+    launch = agent.launch
+    grounded = _GROUNDED.get(agent.airframe_class or "")
+    if launch is None or launch.airborne or grounded is None:
+        return
+    states = root.walk()
+    if any(state.primitive == "takeoff" for state in states):
+        return
+    guided = next((s for s in states if s.primitive in GUIDED_PRIMITIVES), None)
+    if guided is None:
+        return
+    what = f"state {guided.dotted} ({guided.primitive})" if guided.path else guided.primitive
+    yield warning(
+        "W-TAKEOFF-MISSING",
+        guided.mission_use or guided.use_location or guided.location,
+        f"{agent.name} ({agent.profile}) starts on the ground and its {what} flies to a "
+        f"guided target, but no state takes off, and {grounded}; add a takeoff state before "
+        "the first guided one, or declare launch: {airborne: true} if the pilot takes off",
+    )
 
 
 def check_states(mission: Mission, agent: Agent, root: State) -> Iterator[Finding]:

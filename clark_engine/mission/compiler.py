@@ -148,6 +148,13 @@ def _peers(agent: Agent, mission: Mission) -> list[dict[str, Any]]:
     return peers
 
 
+def _launch(agent: Agent) -> dict[str, Any] | None:
+    """How a vehicle gets going (``launch``, defaults filled in); None for a station."""
+    if not agent.is_vehicle or agent.launch is None:
+        return None
+    return {"armed_by": agent.launch.armed_by, "airborne": agent.launch.airborne}
+
+
 def agent_config(mission: Mission, agent: Agent) -> dict[str, Any]:
     """The compiled config of one agent (plain data, valid against agent-config)."""
     hw = agent.hardware
@@ -198,6 +205,7 @@ def agent_config(mission: Mission, agent: Agent) -> dict[str, Any]:
             "profile": agent.profile,
             "terminal_mode": agent.terminal_mode if is_vehicle else None,
             "failsafe": dict(agent.failsafe) if is_vehicle else {},
+            "launch": _launch(agent),
             "position": _point(agent.position, mission),
             "hardware": {
                 "profiles": dict(sorted(hw.part_profiles.items())),

@@ -219,6 +219,43 @@ class State:
         return node
 
 
+#: Who may arm a vehicle (``launch.armed_by``); the first is the default.
+ARMED_BY = ("pilot", "engine")
+
+
+@dataclass(frozen=True, slots=True)
+class Launch:
+    """How a vehicle gets going before its behaviour runs (the mission's ``launch``).
+
+    Real ArduPilot vehicles start disarmed on the ground: someone arms them and an
+    aircraft must take off before it goes anywhere. The mission says who does what,
+    so that checks can tell a vehicle that will never leave the ground from one the
+    pilot hands over in flight, and the runtime knows when the behaviour may start.
+
+    Attributes:
+        armed_by: ``pilot`` (the safety pilot arms; the engine never does) or
+            ``engine`` (the engine arms when the behaviour first needs it).
+        airborne: The pilot has armed the aircraft and taken off before the behaviour
+            starts.
+        location: Where ``launch`` was written; the agent's own place when it was not.
+        key_locations: Where ``armed_by`` and ``airborne`` were written, when they were.
+    """
+
+    armed_by: str
+    airborne: bool
+    location: Location
+    key_locations: tuple[tuple[str, Location], ...] = ()
+
+    @property
+    def engine_arms(self) -> bool:
+        """True when the engine may arm the vehicle."""
+        return self.armed_by == "engine"
+
+    def locate(self, key: str) -> Location:
+        """Where ``key`` of ``launch`` was written, else where ``launch`` itself was."""
+        return dict(self.key_locations).get(key, self.location)
+
+
 @dataclass(slots=True)
 class Agent:
     """One agent of the mission: a vehicle or a mission control station.
@@ -234,6 +271,9 @@ class Agent:
         failsafe: Situation (``mcs_lost``) -> action (``hold``, ``rtl``, ``land``, ``continue``).
         terminal_mode: Mode the vehicle is put in when the mission terminates.
         position: Where the agent is in the local frame (stations; vehicles start here).
+        launch: How a vehicle gets going (defaults when not written); None for stations,
+            and for a vehicle whose ``launch`` or ``position`` the schema rejected (that
+            error says why, and the launch checks wait until it is fixed).
         radio_address: Its radio's network address, if given.
         location: Where the agent was declared.
         raw: The agent's mapping as written (for the compiler's pass-through fields).
@@ -253,6 +293,7 @@ class Agent:
     position: LocalPoint
     radio_address: str | None
     location: Location
+    launch: Launch | None = None
     raw: dict[str, Any] = field(default_factory=dict)
     locations: dict[str, Location] = field(default_factory=dict)
 
@@ -260,6 +301,13 @@ class Agent:
     def is_vehicle(self) -> bool:
         """True for vehicles, False for mission control stations."""
         return self.role == "vehicle"
+
+    @property
+    def airframe_class(self) -> str | None:
+        """``fixed_wing``, ``multirotor`` or ``rover``; None for stations."""
+        airframe = self.hardware.part("airframe") or {}
+        value = airframe.get("class")
+        return str(value) if value is not None else None
 
 
 @dataclass(slots=True)

@@ -596,7 +596,14 @@ class HardwareResolver:
         return findings
 
 
-_MODE_ROLES = ("guided_mode", "hold_mode", "rtl_mode", "terminal_mode", "manual_mode")
+_MODE_ROLES = (
+    "guided_mode",
+    "hold_mode",
+    "rtl_mode",
+    "land_mode",
+    "terminal_mode",
+    "manual_mode",
+)
 
 
 def _part_rules(kind: str, part: Composed, fallback: Location) -> list[Finding]:

@@ -22,7 +22,14 @@ from clark_engine.mission.checks import run_all
 from clark_engine.mission.findings import DocPath, Finding, Location, error, warning
 from clark_engine.mission.geo import LocalPoint, Origin, parse_point
 from clark_engine.mission.machine import BehaviorResolver
-from clark_engine.mission.model import TELEMETRY_MESSAGES, Agent, Mission, Telemetry
+from clark_engine.mission.model import (
+    ARMED_BY,
+    TELEMETRY_MESSAGES,
+    Agent,
+    Launch,
+    Mission,
+    Telemetry,
+)
 from clark_engine.mission.profiles import HardwareResolver, ProfileLibrary
 from clark_engine.mission.schemas import validate_data
 from clark_engine.mission.yaml_loader import Document, YamlLoadError, decode_text, load_yaml
@@ -416,6 +423,14 @@ def _build_agent(
             ("address",), doc.location(path)
         )
     locations.setdefault("telemetry", doc.location(path))
+    # Launch checks compare launch with the start position; with either one broken the
+    # schema's error comes first and they wait.
+    launch = (
+        _launch(doc, path, raw)
+        if role == "vehicle"
+        and not any(_dirty(schema_findings, (*path, key)) for key in ("launch", "position"))
+        else None
+    )
     return Agent(
         name=name,
         id=int(raw["id"]),
@@ -429,8 +444,22 @@ def _build_agent(
         position=position,
         radio_address=str(radio["address"]) if radio.get("address") is not None else None,
         location=doc.location(path),
+        launch=launch,
         raw=raw,
         locations=locations,
+    )
+
+
+def _launch(doc: Document, path: DocPath, raw: Mapping[str, Any]) -> Launch:
+    """A vehicle's ``launch`` as written, its defaults filled in, with where each part is."""
+    declared = raw.get("launch")
+    given: Mapping[str, Any] = declared if isinstance(declared, Mapping) else {}
+    where = (*path, "launch")
+    return Launch(
+        armed_by=str(given.get("armed_by", ARMED_BY[0])),
+        airborne=bool(given.get("airborne", False)),
+        location=doc.location(where) if "launch" in raw else doc.location(path),
+        key_locations=tuple((key, doc.location((*where, key))) for key in given),
     )
 
 

@@ -18,12 +18,17 @@ class Goto:
         lon_deg: Target longitude.
         alt_m: Target altitude above the mission origin (ignored by rovers).
         speed_m_s: Requested ground speed, None for the autopilot's own.
+        velocity_north_m_s: The target's own velocity north, for a target that moves
+            (ArduCopter flies it as a position and velocity target); None: a fixed point.
+        velocity_east_m_s: The target's own velocity east.
     """
 
     lat_deg: float
     lon_deg: float
     alt_m: float
     speed_m_s: float | None = None
+    velocity_north_m_s: float | None = None
+    velocity_east_m_s: float | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -32,6 +37,28 @@ class SetMode:
 
     mode: str
     custom_mode: int
+
+
+@dataclass(frozen=True, slots=True)
+class Arm:
+    """Arm or disarm the motors (MAV_CMD_COMPONENT_ARM_DISARM).
+
+    ArduPilot runs its arming checks first and refuses with its reason (a
+    ``PreArm:`` text) when one fails; the engine never forces an arm.
+    """
+
+    armed: bool = True
+
+
+@dataclass(frozen=True, slots=True)
+class Takeoff:
+    """Take off and climb to ``alt_m`` above home (MAV_CMD_NAV_TAKEOFF).
+
+    ArduCopter takes it in the guided mode, armed and on the ground; the takeoff
+    primitive sees to those.
+    """
+
+    alt_m: float
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,4 +107,14 @@ class CloseInterfaces:
     """Terminate: close the autopilot, radio and payload connections (thesis 7.3.5)."""
 
 
-Command = Goto | SetMode | SetServo | RcOverride | PayloadCommand | SendPacket | CloseInterfaces
+Command = (
+    Goto
+    | SetMode
+    | Arm
+    | Takeoff
+    | SetServo
+    | RcOverride
+    | PayloadCommand
+    | SendPacket
+    | CloseInterfaces
+)

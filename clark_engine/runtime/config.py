@@ -93,6 +93,25 @@ class PeerSpec:
 
 
 @dataclass(frozen=True, slots=True)
+class LaunchSpec:
+    """How a vehicle gets going before its behaviour runs (the mission's ``launch``).
+
+    Attributes:
+        armed_by: ``pilot``: the safety pilot arms and the engine never does;
+            ``engine``: the engine arms when the behaviour first needs it.
+        airborne: The pilot has the aircraft flying before the behaviour starts.
+    """
+
+    armed_by: str = "pilot"
+    airborne: bool = False
+
+    @property
+    def engine_arms(self) -> bool:
+        """True when the engine may arm the vehicle."""
+        return self.armed_by == "engine"
+
+
+@dataclass(frozen=True, slots=True)
 class AgentConfig:
     """Everything one agent runs from.
 
@@ -122,6 +141,10 @@ class AgentConfig:
     hold_mode: str | None
     guided_mode: str | None
     rtl_mode: str | None
+    land_mode: str | None
+    airframe_class: str | None
+    launch: LaunchSpec
+    wait_ready: bool
     failsafe: Mapping[str, str]
     channels: Mapping[str, ChannelSpec]
     payloads: Mapping[str, Mapping[str, Any]]
@@ -135,6 +158,11 @@ class AgentConfig:
     def is_vehicle(self) -> bool:
         """True for vehicles, False for stations."""
         return self.role == "vehicle"
+
+    @property
+    def is_aircraft(self) -> bool:
+        """True for vehicles that fly (any airframe but a rover)."""
+        return self.is_vehicle and self.airframe_class != "rover"
 
     def peer(self, name: str) -> PeerSpec | None:
         """A peer by name."""
@@ -182,6 +210,8 @@ def config_from_dict(data: Mapping[str, Any]) -> AgentConfig:
     mission, agent = data["mission"], data["agent"]
     hardware = agent["hardware"]
     autopilot = hardware.get("autopilot") or {}
+    airframe = hardware.get("airframe") or {}
+    launch = agent.get("launch") or {}
     channels = {
         name: ChannelSpec(
             name,
@@ -215,6 +245,13 @@ def config_from_dict(data: Mapping[str, Any]) -> AgentConfig:
         hold_mode=autopilot.get("hold_mode"),
         guided_mode=autopilot.get("guided_mode"),
         rtl_mode=autopilot.get("rtl_mode"),
+        land_mode=autopilot.get("land_mode"),
+        airframe_class=airframe.get("class"),
+        launch=LaunchSpec(
+            armed_by=str(launch.get("armed_by", "pilot")),
+            airborne=bool(launch.get("airborne", False)),
+        ),
+        wait_ready=bool(autopilot.get("wait_ready", True)),
         failsafe=dict(agent.get("failsafe") or {}),
         channels=channels,
         payloads=dict(hardware.get("payloads") or {}),

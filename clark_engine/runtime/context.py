@@ -18,7 +18,7 @@ from clark_engine.link.fleet import FleetTable
 from clark_engine.link.messages import AgentStatus, Message
 from clark_engine.runtime.commands import Command
 from clark_engine.runtime.config import AgentConfig
-from clark_engine.runtime.events import VehicleState
+from clark_engine.runtime.events import AutopilotStatus, VehicleState
 
 EARTH_RADIUS_M = 6_371_008.8
 
@@ -49,6 +49,7 @@ class PrimitiveContext:
         now_s: The runtime clock: seconds since the runtime started (virtual in a dry run).
         tick: Index of the current tick.
         vehicle: The autopilot's latest state, None until one arrives (and for stations).
+        autopilot: The autopilot's latest readiness and landed state, None until reported.
         gps_time_ms: Best estimate of GPS time now (None before the autopilot gave one).
         outbox: Commands and messages queued by primitives in this call.
         terminate_requested: Set by the terminate primitive; the runtime then terminates
@@ -62,6 +63,7 @@ class PrimitiveContext:
     now_s: float = 0.0
     tick: int = 0
     vehicle: VehicleState | None = None
+    autopilot: AutopilotStatus | None = None
     gps_time_ms: int | None = None
     outbox: Outbox = field(default_factory=Outbox)
     log: logging.Logger = field(default_factory=lambda: logging.getLogger("clark.runtime"))

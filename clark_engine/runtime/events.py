@@ -9,6 +9,7 @@ angles in degrees, positions in degrees and metres above the mission origin.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import Enum
 
 
 @dataclass(frozen=True, slots=True)
@@ -53,6 +54,98 @@ class AutopilotHeartbeat:
     mode: str
     custom_mode: int
     armed: bool
+
+
+class LandedState(Enum):
+    """Whether the vehicle is on the ground or flying (MAVLink's MAV_LANDED_STATE)."""
+
+    UNKNOWN = "unknown"
+    ON_GROUND = "on_ground"
+    IN_AIR = "in_air"
+    TAKING_OFF = "taking_off"
+    LANDING = "landing"
+
+
+@dataclass(frozen=True, slots=True)
+class AutopilotStatus:
+    """What the autopilot reports about its readiness and whether it flies.
+
+    The adapter sends one whenever any field changes. ``ready`` is the gate the
+    runtime waits for before a behaviour starts (``wait_ready`` in the autopilot
+    profile): ArduPilot refuses to arm until its pre-arm checks pass, and refuses
+    the guided mode until its EKF has an absolute position.
+
+    Attributes:
+        gps_fix_type: GPS_RAW_INT's fix type (0-1 none, 2 2-D, 3 3-D, 4 DGPS, 5-6 RTK).
+        position_ok: The EKF estimates an absolute horizontal position
+            (EKF_STATUS_REPORT, and not in its constant-position mode); None before
+            the first report.
+        prearm_ok: SYS_STATUS's pre-arm check bit is healthy; None when the autopilot
+            does not report that bit.
+        home: Home (latitude, longitude, altitude above mean sea level) from
+            HOME_POSITION; None until the autopilot has set it.
+        landed: On the ground or in the air (EXTENDED_SYS_STATE); UNKNOWN when the
+            autopilot does not say.
+    """
+
+    gps_fix_type: int = 0
+    position_ok: bool | None = None
+    prearm_ok: bool | None = None
+    home: tuple[float, float, float] | None = None
+    landed: LandedState = LandedState.UNKNOWN
+
+    @property
+    def ready(self) -> bool:
+        """A 3-D fix, an EKF position, passed pre-arm checks (when reported) and a home."""
+        return not self.waiting_for
+
+    @property
+    def waiting_for(self) -> tuple[str, ...]:
+        """What readiness still waits for, in words, in the order ArduPilot gets there."""
+        missing: list[str] = []
+        if self.gps_fix_type < 3:
+            missing.append("a 3-D GPS fix")
+        if not self.position_ok:
+            missing.append("an EKF position")
+        if self.prearm_ok is False:
+            missing.append("the pre-arm checks")
+        if self.home is None:
+            missing.append("a home position")
+        return tuple(missing)
+
+
+@dataclass(frozen=True, slots=True)
+class AutopilotText:
+    """A STATUSTEXT from the autopilot (a PreArm reason, a mode refusal, a notice).
+
+    Attributes:
+        severity: MAVLink's MAV_SEVERITY (0 emergency .. 7 debug).
+        text: The text as received; untrusted: escape it before writing it anywhere.
+    """
+
+    severity: int
+    text: str
+
+
+@dataclass(frozen=True, slots=True)
+class CommandRefused:
+    """The autopilot refused a command, or never answered it (from the autopilot adapter).
+
+    Attributes:
+        command: What was sent, in MAVLink's words (``MAV_CMD_DO_SET_MODE``, ``PARAM_SET``).
+        result: ArduPilot's answer without the prefix (``FAILED``, ``DENIED``,
+            ``UNSUPPORTED``, ``TEMPORARILY_REJECTED``), or ``NO_ANSWER`` after
+            the adapter's last retry went unanswered.
+        request: What the engine asked for, in words (``SetMode GUIDED (15)``).
+        reason: ArduPilot's explanation: the warnings it sent in STATUSTEXT around the
+            refusal (``PreArm: Need Position Estimate``), escaped, joined by ``; ``;
+            empty when it gave none.
+    """
+
+    command: str
+    result: str
+    request: str
+    reason: str = ""
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,5 +200,13 @@ class StationCommand:
 
 
 Event = (
-    VehicleState | AutopilotHeartbeat | RcChannels | PacketReceived | PayloadEvent | StationCommand
+    VehicleState
+    | AutopilotHeartbeat
+    | AutopilotStatus
+    | AutopilotText
+    | CommandRefused
+    | RcChannels
+    | PacketReceived
+    | PayloadEvent
+    | StationCommand
 )

@@ -51,6 +51,7 @@ from clark_engine.link.messages import (
 )
 from clark_engine.link.packet import BROADCAST, Packet
 from clark_engine.runtime.commands import (
+    Arm,
     CloseInterfaces,
     Command,
     Goto,
@@ -58,11 +59,14 @@ from clark_engine.runtime.commands import (
     SendPacket,
     SetMode,
     SetServo,
+    Takeoff,
 )
 from clark_engine.runtime.config import AgentConfig
 from clark_engine.runtime.context import PrimitiveContext, ground_distance_m
 from clark_engine.runtime.events import (
     AutopilotHeartbeat,
+    AutopilotStatus,
+    CommandRefused,
     Event,
     PacketReceived,
     PayloadEvent,
@@ -70,12 +74,13 @@ from clark_engine.runtime.events import (
     StationCommand,
     VehicleState,
 )
+from clark_engine.runtime.launch import LaunchGate
 from clark_engine.runtime.logbook import BROADCAST_PEER, Logbook
 from clark_engine.runtime.machine import BehaviorMachine, StateChange
 from clark_engine.runtime.primitives import make_primitive
 
 #: Commands that move the vehicle; never sent while the autopilot is lost or after terminate.
-VEHICLE_COMMANDS = (Goto, SetMode, SetServo, RcOverride)
+VEHICLE_COMMANDS = (Goto, SetMode, Arm, Takeoff, SetServo, RcOverride)
 #: An RC input above this is a switch in its high position, below the low one (ArduPilot's
 #: auxiliary-switch thresholds); the events fire on crossing, not while held.
 RC_HIGH_US = 1800
@@ -144,6 +149,8 @@ class AgentRuntime:
         )
         self.terminated = False
         self.failsafe: str | None = None
+        #: When the behaviour may start (readiness, arming, take-off, as the mission says).
+        self.launch = LaunchGate(config, self.logbook.mission)
         #: Called with every state change, after the runtime's own handling (the
         #: simulator records them; a shell could show them).
         self.state_listeners: list[Callable[[StateChange], None]] = []
@@ -221,6 +228,15 @@ class AgentRuntime:
             self._autopilot_heartbeat(event, now_s)
         elif isinstance(event, RcChannels):
             self._rc(event)
+        elif isinstance(event, AutopilotStatus):
+            self.context.autopilot = event
+        elif isinstance(event, CommandRefused):
+            self.logbook.mission.warning(
+                "autopilot refused %s: %s%s",
+                event.request,
+                event.result,
+                f" ({event.reason})" if event.reason else "",
+            )
         elif isinstance(event, PayloadEvent):
             if self.machine is not None and self._started:
                 self.machine.deliver_payload(self.context, event)
@@ -448,7 +464,11 @@ class AgentRuntime:
             return []
         self._set_time(now_s)
         self.context.tick = self._tick
-        if not self._started:
+        if (
+            not self._started
+            and self.failsafe is None
+            and self.launch.update(self.context.autopilot, self.context.vehicle)
+        ):
             self._started = True
             if self.machine is not None:
                 self.machine.start(self.context)
@@ -502,9 +522,17 @@ class AgentRuntime:
             )
 
     def _machine_phase(self) -> None:
-        if self.machine is None:
+        if self.machine is None or not self._started:
             if "mcs_lost" in self._events:
                 self._apply_failsafe()
+            ignored = [e for e in self._events if e != "mcs_lost"]
+            if self.machine is not None and ignored:
+                # An activation before the vehicle can fly must not act minutes later.
+                self.logbook.mission.info(
+                    "before the behaviour starts (waiting for %s): ignored %s",
+                    ", ".join(self.launch.waiting_for) or "the next tick",
+                    ", ".join(ignored),
+                )
             self._events.clear()
             return
         events, self._events = self._events, []

@@ -2,58 +2,70 @@
 
 :class:`SimAutopilot` speaks MAVLink 2 as ArduPilot does, so that the engine's
 real :class:`~clark_engine.io.autopilot.AutopilotAdapter` (and pymavlink,
-MAVProxy or a ground station, in real-time mode) can fly a simulated vehicle
-without knowing it is one. It wraps a :class:`~clark_engine.sim.model.VehicleModel`
-(the physics and flight modes) and adds only what the autopilot's MAVLink layer
-does: streams at requested intervals, commands and their acknowledgements,
-parameters, and the handful of services ground stations probe when they connect.
+MAVProxy, MAVSDK or a ground station, in real-time mode) can fly a simulated
+vehicle without knowing it is one. It wraps a
+:class:`~clark_engine.sim.model.VehicleModel` (the physics and flight modes) and
+adds what ArduPilot's own logic does around them: it boots, gets ready, checks
+before it arms, refuses what ArduPilot refuses with ArduPilot's words, keeps home,
+disarms a landed copter, streams at requested intervals and answers commands.
+
+It is never kinder than ArduPilot where the engine or a ground station can tell.
+The facts it follows are per firmware in :mod:`clark_engine.sim.firmware`, each
+measured on ArduPilot SITL; ``tests/conformance`` runs the same scenarios against
+this class and against SITL, and docs/autopilot-fidelity.md tables the result.
 
 It is pure and deterministic: no clock, no socket, no randomness. The simulator
 hands it incoming bytes with :meth:`SimAutopilot.receive` and collects what it
 emits with :meth:`SimAutopilot.advance`; both take the virtual time. Replies to
-requests are queued by ``receive`` and leave with the next ``advance``. The
-model is stepped by the simulator, not here; sensor noise, if any, is the
-model's (its ``truth()`` is reported as it is, but positions come through the model's
-``gps_fix()`` when it has one, with the GPS's noise and rate).
+requests are queued by ``receive`` and leave with the next ``advance``.
 
-What it emits, as ArduPilot does:
+What it does, in ArduPilot's order:
 
-- HEARTBEAT at 1 Hz: the firmware's vehicle type, MAV_AUTOPILOT_ARDUPILOTMEGA,
-  base_mode with CUSTOM_MODE_ENABLED (and SAFETY_ARMED when armed), custom_mode
-  from the model's mode.
-- SYS_STATUS, GPS_RAW_INT, GLOBAL_POSITION_INT, ATTITUDE, VFR_HUD, SYSTEM_TIME,
-  RC_CHANNELS, SERVO_OUTPUT_RAW at rates from the SR0_* stream parameters by
-  default (ArduPilot's stream groups: EXT_STAT, POSITION, EXTRA1, EXTRA2,
-  EXTRA3, RC_CHAN), overridden per message by MAV_CMD_SET_MESSAGE_INTERVAL
-  (interval -1 stops a message, 0 restores its default) or per group by
-  REQUEST_DATA_STREAM.
+- **Boot** (:class:`~clark_engine.sim.firmware.BootTimes`, counted from ``boot_s``):
+  HEARTBEAT from power-on (INITIALISING for a second where the firmware has it),
+  its boot STATUSTEXTs, then the streams from "ArduPilot Ready"; a stream request
+  before that is acknowledged and lost, as ArduPilot's is. No position (0, 0) and
+  GPS fix 0 until the fix; SYSTEM_TIME's Unix time 0 until then; home set when the
+  firmware sets it (HOME_POSITION sent then); the EKF's flags step from
+  uninitialised to attitude to an absolute position; the pre-arm check bit of
+  SYS_STATUS set once arming would pass in the current mode.
+- **Arming** (MAV_CMD_COMPONENT_ARM_DISARM): refused with CRITICAL ``Arm: ...``
+  texts and FAILED while a check fails (the boot phase, a mode that is not armable,
+  a mode that needs a position before the EKF has one); while checks fail a
+  ``PreArm: ...`` text every 30 s. Forced arming skips the checks. Home moves to
+  where the vehicle is at every arming. Disarming in the air is refused (FAILED,
+  no text) unless forced. ArduCopter disarms by itself DISARM_DELAY after arming
+  if it has not taken off, and 2 s after touching down in LAND or RTL. Arming a
+  plane in TAKEOFF launches it.
+- **Modes** (MAV_CMD_DO_SET_MODE acknowledged; the SET_MODE message is not, as in
+  ArduPilot 4.7): an unknown number is FAILED with "No such mode N"; the
+  firmware's refusals (ArduRover's modes that need the EKF origin, ArduCopter's
+  AUTO when armed on the ground without a takeoff item, ArduPlane's AUTOLAND on
+  the ground) are FAILED with its texts; ArduPlane's AUTO without a mission
+  becomes RTL at once; ArduCopter's LAND on the ground disarms it.
+- **Commands**: DO_CHANGE_SPEED as each firmware accepts it; NAV_TAKEOFF
+  (ArduCopter: guided, armed, landed; COMMAND_INT in the relative-altitude frame);
+  NAV_LAND; NAV_RETURN_TO_LAUNCH; NAV_LOITER_UNLIM; DO_SET_HOME; GET_HOME_POSITION;
+  DO_REPOSITION (COMMAND_INT); DO_SET_SERVO; SET_MESSAGE_INTERVAL,
+  GET_MESSAGE_INTERVAL, REQUEST_MESSAGE, REQUEST_AUTOPILOT_CAPABILITIES; anything
+  else UNSUPPORTED. SET_POSITION_TARGET_GLOBAL_INT in guided (position, or position
+  and velocity, which ArduCopter extrapolates; ArduPlane takes only the altitude);
+  RC_CHANNELS_OVERRIDE from SYSID_MYGCS, lapsing after RC_OVERRIDE_TIME; the
+  guided-mode MISSION_ITEM(_INT) of MAVProxy's ``guided``; PARAM_* (a PARAM_VALUE
+  answering a read by name or a set carries index 65535, as ArduPilot's);
+  FILE_TRANSFER_PROTOCOL (a NAK, so stations fall back to parameters); TIMESYNC.
+- **Streams**: HEARTBEAT at 1 Hz; SYS_STATUS, GPS_RAW_INT, GLOBAL_POSITION_INT,
+  ATTITUDE (with body rates), VFR_HUD, SYSTEM_TIME, RC_CHANNELS, SERVO_OUTPUT_RAW,
+  EKF_STATUS_REPORT, EXTENDED_SYS_STATE (ArduCopter, ArduPlane), MISSION_CURRENT,
+  BATTERY_STATUS, NAV_CONTROLLER_OUTPUT and POSITION_TARGET_GLOBAL_INT (while the
+  mode flies to a target) at rates from the SR0_* stream parameters (ArduCopter
+  streams nothing until asked), overridden per message by
+  MAV_CMD_SET_MESSAGE_INTERVAL (-1 stops, 0 restores the default) or per group by
+  REQUEST_DATA_STREAM. STATUSTEXT whenever ArduPilot would speak.
 
-What it answers (each COMMAND_ACK addressed to whoever asked; several ground
-stations, tracked by system and component id, may talk to it at once):
-
-- COMMAND_LONG / COMMAND_INT: DO_SET_MODE, COMPONENT_ARM_DISARM, DO_SET_SERVO,
-  DO_CHANGE_SPEED, SET_MESSAGE_INTERVAL, GET_MESSAGE_INTERVAL, REQUEST_MESSAGE
-  (HOME_POSITION, AUTOPILOT_VERSION and the streamed messages),
-  REQUEST_AUTOPILOT_CAPABILITIES, GET_HOME_POSITION, and DO_REPOSITION
-  (COMMAND_INT only); anything else MAV_RESULT_UNSUPPORTED.
-- SET_MODE (acknowledged with command = 11, as ArduPilot does);
-  SET_POSITION_TARGET_GLOBAL_INT (in the guided mode only; ArduPlane takes
-  only the altitude from it, as the real one does); RC_CHANNELS_OVERRIDE (from
-  SYSID_MYGCS only, with MAVLink's ignore and release values, each channel
-  timing out after RC_OVERRIDE_TIME).
-- PARAM_REQUEST_LIST / PARAM_REQUEST_READ / PARAM_SET -> PARAM_VALUE from a
-  small table; MISSION_REQUEST_LIST -> MISSION_COUNT 0 (there is never a
-  mission; an upload is refused with MISSION_ACK UNSUPPORTED, a clear accepted);
-  MISSION_ITEM(_INT) with ``current`` 2, the guided-mode waypoint MAVProxy's
-  ``guided`` sends (in the guided mode only), or 3, an altitude change, answered
-  with MISSION_ACK as ArduPilot answers them;
-  FILE_TRANSFER_PROTOCOL -> a NAK (UnknownCommand), so ground stations fall
-  back to the plain parameter protocol; TIMESYNC.
-
-Not simulated: missions (AUTO flies whatever the model does in AUTO), fences,
-rally points, velocity or attitude targets, signing, battery (SYS_STATUS
-reports the battery as not measured), and more than one MAVLink channel (all
-peers share one byte stream, as behind a router).
+Not simulated: missions (uploads are refused; AUTO is flown as the hold mode when a
+firmware lets it be entered), fences, rally points, signing, terrain, and more than
+one MAVLink channel (all peers share one byte stream, as behind a router).
 """
 
 from __future__ import annotations
@@ -66,6 +78,14 @@ from typing import Any, Final
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from clark_engine.mission.geo import EARTH_RADIUS_M
+from clark_engine.sim.firmware import (
+    COMMON_PARAMS,
+    FIRMWARES,
+    FORCE_MAGIC,
+    BootTimes,
+    Firmware,
+)
 from clark_engine.sim.model import Truth, VehicleModel
 
 FIRMWARE_TYPES: Final[Mapping[str, int]] = {
@@ -78,7 +98,46 @@ FIRMWARE_TYPES: Final[Mapping[str, int]] = {
 FIRMWARE_VERSION: Final = (4, 5, 7)
 """The ArduPilot release the simulation claims in AUTOPILOT_VERSION."""
 
+CAPABILITIES: Final[Mapping[str, int]] = {
+    "ardurover": 0xF1EF,
+    "arducopter": 0xFBEF,
+    "arduplane": 0xF36F,
+}
+"""AUTOPILOT_VERSION capabilities, exactly as the SITL builds report them."""
+
+_M_PER_DEG_LAT: Final = math.radians(1.0) * EARTH_RADIUS_M
+"""Metres per degree of latitude, on the sphere the vehicle models use."""
+
 HEARTBEAT_INTERVAL_US: Final = 1_000_000
+INITIALISING_S: Final = 1.0
+"""How long a firmware with an INITIALISING mode reports it after power-on."""
+PREARM_REPORT_PERIOD_S: Final = 30.0
+"""ArduPilot prints failing pre-arm checks this often (AP_Arming's PREARM_DISPLAY_PERIOD)."""
+LANDED_REPORT_DELAY_S: Final = 1.6
+"""ArduCopter's land detector: on the ground this long after touchdown (measured 1.6 s)."""
+LAND_DISARM_DELAY_S: Final = 2.05
+"""ArduCopter disarms this long after touching down in LAND or RTL (measured)."""
+SPOOLED_AFTER_S: Final = 4.7
+"""A copter armed this long ago has its motors spooled up for a takeoff (measured)."""
+TAKEOFF_DELAY_SPOOLING_S: Final = 3.25
+"""From NAV_TAKEOFF to the climb when the motors still spool up (measured 3.25-3.35 s)."""
+TAKEOFF_DELAY_SPOOLED_S: Final = 1.5
+"""From NAV_TAKEOFF to the climb when already spooled (measured 1.55 s)."""
+GUIDED_TIMEOUT_S: Final = 3.0
+"""ArduCopter's GUID_TIMEOUT: a velocity target lapses this long after the last one."""
+MIN_INTERVAL_US: Final = 25_000
+"""The fastest stream ArduPilot grants (40 Hz; a faster request is DENIED, measured)."""
+PLANE_HOME_PERIOD_S: Final = 6.0
+"""ArduPlane re-sends HOME_POSITION this often while disarmed (measured)."""
+BATTERY_VOLTAGE_MV: Final = 12600
+"""The battery's voltage (SITL's SIM_BATT_VOLTAGE; it does not sag in SITL either)."""
+FULL_THROTTLE_CURRENT_A: Final[Mapping[str, float]] = {
+    "arducopter": 56.0,
+    "arduplane": 23.0,
+    "ardurover": 10.0,
+}
+"""Battery current at full throttle, so a hovering copter draws ~28 A and a cruising
+plane ~11 A, as SITL's do."""
 
 UINT16_MAX: Final = 65535
 _RC_RELEASE_HIGH: Final = UINT16_MAX - 1
@@ -86,20 +145,38 @@ _FTP_OP_NAK: Final = 129
 _FTP_ERR_UNKNOWN_COMMAND: Final = 7
 _FTP_HEADER: Final = struct.Struct("<HBBBBBBI")
 _FTP_PAYLOAD_BYTES: Final = 251
+_PARAM_INDEX_BY_NAME: Final = 65535
+
+_INFO, _NOTICE, _WARNING, _CRITICAL = (
+    mavlink2.MAV_SEVERITY_INFO,
+    mavlink2.MAV_SEVERITY_NOTICE,
+    mavlink2.MAV_SEVERITY_WARNING,
+    mavlink2.MAV_SEVERITY_CRITICAL,
+)
 
 STREAM_GROUPS: Final[Mapping[str, str | None]] = {
     "HEARTBEAT": None,
     "SYS_STATUS": "SR0_EXT_STAT",
     "GPS_RAW_INT": "SR0_EXT_STAT",
+    "MISSION_CURRENT": "SR0_EXT_STAT",
+    "NAV_CONTROLLER_OUTPUT": "SR0_EXT_STAT",
+    "POSITION_TARGET_GLOBAL_INT": "SR0_EXT_STAT",
+    "EXTENDED_SYS_STATE": "SR0_EXT_STAT",
     "GLOBAL_POSITION_INT": "SR0_POSITION",
     "ATTITUDE": "SR0_EXTRA1",
     "VFR_HUD": "SR0_EXTRA2",
     "SYSTEM_TIME": "SR0_EXTRA3",
+    "EKF_STATUS_REPORT": "SR0_EXTRA3",
+    "BATTERY_STATUS": "SR0_EXTRA3",
     "RC_CHANNELS": "SR0_RC_CHAN",
     "SERVO_OUTPUT_RAW": "SR0_RC_CHAN",
 }
 """Streamed messages, in emission order, and the SR0_* parameter (Hz) that sets each
-one's default rate (None: HEARTBEAT, always 1 Hz by default)."""
+one's default rate (None: HEARTBEAT, always 1 Hz by default), as ArduPilot groups them."""
+
+_NOT_STREAMED: Final[Mapping[str, frozenset[str]]] = {}
+"""Streams a firmware does not have (none yet: ArduRover streams EXTENDED_SYS_STATE too,
+with an undefined landed state)."""
 
 _DATA_STREAM_PARAMS: Final[Mapping[int, str]] = {
     mavlink2.MAV_DATA_STREAM_RAW_SENSORS: "SR0_RAW_SENS",
@@ -112,11 +189,10 @@ _DATA_STREAM_PARAMS: Final[Mapping[int, str]] = {
     mavlink2.MAV_DATA_STREAM_EXTRA3: "SR0_EXTRA3",
 }
 
-_INT8, _INT16, _INT32, _REAL32 = (
+_INT8, _INT16, _INT32 = (
     mavlink2.MAV_PARAM_TYPE_INT8,
     mavlink2.MAV_PARAM_TYPE_INT16,
     mavlink2.MAV_PARAM_TYPE_INT32,
-    mavlink2.MAV_PARAM_TYPE_REAL32,
 )
 _INT_RANGES: Final[Mapping[int, tuple[int, int]]] = {
     _INT8: (-128, 127),
@@ -124,44 +200,71 @@ _INT_RANGES: Final[Mapping[int, tuple[int, int]]] = {
     _INT32: (-(2**31), 2**31 - 1),
 }
 
-_COMMON_PARAMS: Final[tuple[tuple[str, float, int], ...]] = (
-    ("SYSID_MYGCS", 255, _INT16),
-    ("RC_OVERRIDE_TIME", 3.0, _REAL32),
-    ("FS_GCS_ENABLE", 0, _INT8),
-    ("SR0_RAW_SENS", 0, _INT16),
-    ("SR0_EXT_STAT", 2, _INT16),
-    ("SR0_RC_CHAN", 2, _INT16),
-    ("SR0_RAW_CTRL", 0, _INT16),
-    ("SR0_POSITION", 4, _INT16),
-    ("SR0_EXTRA1", 4, _INT16),
-    ("SR0_EXTRA2", 4, _INT16),
-    ("SR0_EXTRA3", 1, _INT16),
-    ("SR0_PARAMS", 10, _INT16),
-)
-"""Parameters every firmware has (after SYSID_THISMAV), with ArduPilot's defaults, except
-the SR0_* stream rates: ArduPilot's depend on the board, these are typical GCS settings."""
+_AUTO_MODES: Final = frozenset({"AUTO", "RTL", "SMART_RTL", "LAND", "LOITER", "TAKEOFF"})
+"""Modes that fly themselves (HEARTBEAT's GUIDED_ENABLED flag)."""
 
-_FIRMWARE_PARAMS: Final[Mapping[str, tuple[tuple[str, float, int], ...]]] = {
-    "arduplane": (
-        ("AIRSPEED_CRUISE", 15.0, _REAL32),
-        ("AIRSPEED_MIN", 9, _INT16),
-        ("AIRSPEED_MAX", 22, _INT16),
-        ("WP_RADIUS", 90, _INT16),
-    ),
-    "arducopter": (
-        ("WPNAV_SPEED", 1000.0, _REAL32),
-        ("WPNAV_SPEED_UP", 250.0, _REAL32),
-        ("RTL_ALT", 1500, _INT32),
-        ("FRAME_CLASS", 1, _INT8),
-    ),
-    "ardurover": (
-        ("CRUISE_SPEED", 2.0, _REAL32),
-        ("CRUISE_THROTTLE", 50, _INT8),
-        ("WP_SPEED", 2.0, _REAL32),
-        ("WP_RADIUS", 2.0, _REAL32),
-    ),
+_LANDED: Final[Mapping[str, int]] = {
+    "on_ground": mavlink2.MAV_LANDED_STATE_ON_GROUND,
+    "in_air": mavlink2.MAV_LANDED_STATE_IN_AIR,
+    "taking_off": mavlink2.MAV_LANDED_STATE_TAKEOFF,
+    "landing": mavlink2.MAV_LANDED_STATE_LANDING,
 }
-"""A few parameters per firmware with ArduPilot's defaults (units as ArduPilot's)."""
+
+_SENSORS: Final = {
+    name: int(getattr(mavlink2, f"MAV_SYS_STATUS_{name}"))
+    for name in (
+        "SENSOR_3D_GYRO",
+        "SENSOR_3D_ACCEL",
+        "SENSOR_3D_MAG",
+        "SENSOR_ABSOLUTE_PRESSURE",
+        "SENSOR_DIFFERENTIAL_PRESSURE",
+        "SENSOR_GPS",
+        "SENSOR_ANGULAR_RATE_CONTROL",
+        "SENSOR_ATTITUDE_STABILIZATION",
+        "SENSOR_YAW_POSITION",
+        "SENSOR_Z_ALTITUDE_CONTROL",
+        "SENSOR_XY_POSITION_CONTROL",
+        "SENSOR_MOTOR_OUTPUTS",
+        "SENSOR_RC_RECEIVER",
+        "AHRS",
+        "SENSOR_BATTERY",
+        "PREARM_CHECK",
+    )
+}
+_PREARM_BIT: Final = _SENSORS["PREARM_CHECK"]
+_GPS_BIT: Final = _SENSORS["SENSOR_GPS"]
+_AHRS_BIT: Final = _SENSORS["AHRS"]
+_CONTROL_BITS: Final = (
+    _SENSORS["SENSOR_Z_ALTITUDE_CONTROL"] | _SENSORS["SENSOR_XY_POSITION_CONTROL"]
+)
+_BASE_SENSORS: Final = (
+    _SENSORS["SENSOR_3D_GYRO"]
+    | _SENSORS["SENSOR_3D_ACCEL"]
+    | _SENSORS["SENSOR_3D_MAG"]
+    | _SENSORS["SENSOR_ABSOLUTE_PRESSURE"]
+    | _SENSORS["SENSOR_MOTOR_OUTPUTS"]
+    | _SENSORS["SENSOR_RC_RECEIVER"]
+    | _SENSORS["SENSOR_BATTERY"]
+)
+"""Sensors present, enabled and healthy on every firmware from power-on (SITL's)."""
+
+_EKF_UNINITIALISED: Final = 0x400
+_EKF_ATTITUDE_ONLY: Final = 0xA7  # attitude, velocities, vertical position, constant position
+_EKF_POSITION: Final = 0x33F  # ... and absolute and relative horizontal position
+_EKF_UNINITIALISED_S: Final = 3.6
+"""EKF_STATUS_REPORT says uninitialised until this long after power-on (measured 3.6-4 s)."""
+
+_BOOT_TEXTS: Final[tuple[tuple[str, float, int, str], ...]] = (
+    ("streams_s", 0.0, _INFO, "ArduPilot Ready"),
+    ("streams_s", 0.0, _INFO, "AHRS: DCM active"),
+    ("gps_fix_s", -0.3, _INFO, "GPS 1: detected u-blox"),
+    ("origin_s", 0.0, _INFO, "EKF3 IMU0 origin set"),
+    ("origin_s", 0.0, _INFO, "EKF3 IMU1 origin set"),
+    ("position_s", 0.0, _INFO, "EKF3 IMU0 is using GPS"),
+    ("position_s", 0.0, _INFO, "EKF3 IMU1 is using GPS"),
+    ("position_s", 0.0, _INFO, "AHRS: EKF3 active"),
+)
+"""STATUSTEXTs ArduPilot prints as it boots: (step of BootTimes, offset s, severity, text)."""
 
 
 @dataclass(slots=True)
@@ -195,6 +298,14 @@ def _clamp(value: float, low: int, high: int) -> int:
     return low if rounded < low else high if rounded > high else rounded
 
 
+_ACCEPTED, _DENIED, _FAILED, _UNSUPPORTED = (
+    int(mavlink2.MAV_RESULT_ACCEPTED),
+    int(mavlink2.MAV_RESULT_DENIED),
+    int(mavlink2.MAV_RESULT_FAILED),
+    int(mavlink2.MAV_RESULT_UNSUPPORTED),
+)
+
+
 class SimAutopilot:
     """One simulated ArduPilot autopilot; see the module docstring for what it does.
 
@@ -205,15 +316,20 @@ class SimAutopilot:
         component_id: Its component id (1).
         modes: Mode name -> custom_mode number; the model's by default.
         guided_mode: The mode in which position targets are flown.
-        home_lat_deg: Home latitude (the mission origin).
-        home_lon_deg: Home longitude.
-        home_alt_m: Home altitude above mean sea level; GLOBAL_POSITION_INT's ``alt``
-            is this plus the model's height above home.
-        start_time_unix_us: Unix time at ``boot_s``, as its GPS would know it; None
-            for a GPS without time (SYSTEM_TIME then carries 0, as ArduPilot's does).
-        boot_s: The simulator time at which it boots (``time_boot_ms`` counts from here).
+        origin_lat_deg: Latitude of the mission origin (the model's local frame).
+        origin_lon_deg: Longitude of the mission origin.
+        origin_alt_m: Altitude of the origin above mean sea level; the model's
+            heights are above it.
+        start_time_unix_us: Unix time at the simulator's time 0, as its GPS would know
+            it; None for a GPS without time (SYSTEM_TIME then carries 0).
+        boot_s: The simulator time at which it powers on. An autopilot that powered
+            on long before the run starts (a vehicle the pilot flew up) is ready from
+            the run's first instant.
+        boot: Its boot timeline; the firmware's (measured on SITL) by default.
         params: Parameter values to start from instead of the defaults (names must
             exist in its table).
+        unix_clock_us: The wall clock in Unix microseconds, for SYSTEM_TIME in real
+            time; None: the simulated clock from ``start_time_unix_us``.
 
     Raises:
         ValueError: Unknown firmware or parameter name.
@@ -228,27 +344,32 @@ class SimAutopilot:
         component_id: int = 1,
         modes: Mapping[str, int] | None = None,
         guided_mode: str = "GUIDED",
-        home_lat_deg: float,
-        home_lon_deg: float,
-        home_alt_m: float = 0.0,
+        origin_lat_deg: float,
+        origin_lon_deg: float,
+        origin_alt_m: float = 0.0,
         start_time_unix_us: int | None = None,
         boot_s: float = 0.0,
+        boot: BootTimes | None = None,
         params: Mapping[str, float] | None = None,
+        unix_clock_us: Callable[[], int] | None = None,
     ) -> None:
         if firmware not in FIRMWARE_TYPES:
             raise ValueError(f"unknown firmware {firmware!r}; use one of {sorted(FIRMWARE_TYPES)}")
         self.model = model
         self.firmware = firmware
+        self.fw: Firmware = FIRMWARES[firmware]
+        self.boot_times = boot if boot is not None else self.fw.boot
         self._sysid = system_id
         self._compid = component_id
         self.modes: Mapping[str, int] = dict(modes if modes is not None else model.modes)
         self._mode_names = {number: name for name, number in reversed(self.modes.items())}
         self.guided_mode = guided_mode
-        self.home_lat_deg = home_lat_deg
-        self.home_lon_deg = home_lon_deg
-        self.home_alt_m = home_alt_m
+        self.origin_lat_deg = origin_lat_deg
+        self.origin_lon_deg = origin_lon_deg
+        self.origin_alt_m = origin_alt_m
         self.start_time_unix_us = start_time_unix_us
         self.boot_s = boot_s
+        self._unix_clock_us = unix_clock_us
 
         self._outbox = _Outbox()
         self._mav = mavlink2.MAVLink(self._outbox, srcSystem=system_id, srcComponent=component_id)
@@ -261,6 +382,7 @@ class SimAutopilot:
         # Every stream's interval, in emission order, for advance() to go through whenever
         # something is due; None: to be worked out again (a parameter or an interval changed).
         self._schedule: tuple[tuple[str, int | None], ...] | None = None
+        self._absent = _NOT_STREAMED.get(firmware, frozenset())
         # Message name -> the method that builds it, looked up once rather than per message.
         self._builders: dict[str, Callable[[float], Any]] = {
             name: getattr(self, f"_msg_{name.lower()}")
@@ -280,17 +402,37 @@ class SimAutopilot:
         self._hud_message = self._mav.vfr_hud_encode(0.0, 0.0, 0, 0, 0.0, 0.0)
         self._deferred: list[str] = []  # messages asked for, sent after the acknowledgement
         self._params: dict[str, _Param] = {"SYSID_THISMAV": _Param(system_id, _INT16)}
-        for name, value, kind in (*_COMMON_PARAMS, *_FIRMWARE_PARAMS[firmware]):
+        for name, (value, kind) in {**COMMON_PARAMS, **self.fw.params}.items():
+            if name.startswith("SR0_") and name != "SR0_PARAMS":
+                value = self.fw.default_stream_hz if value else 0.0
             self._params[name] = _Param(float(value), kind)
         for name, value in (params or {}).items():
             if name not in self._params:
                 raise ValueError(f"no parameter {name!r} in the simulated {firmware}")
             self._set_param(name, value)
+        self.model.configure(self.param_values())
 
         self._overrides: dict[int, tuple[int, float]] = {}  # channel -> (width, set at)
-        self._target: tuple[float, float, float] | None = None  # guided lat, lon, alt
-        self._speed_m_s: float | None = None
+        self._target: tuple[float, float, float] | None = None  # guided lat, lon, rel alt
+        # A velocity target (ArduCopter extrapolates it): position, velocity n/e, set at.
+        self._velocity_target: tuple[float, float, float, float, float, float] | None = None
         self._peers: dict[tuple[int, int], float] = {}
+        # Readiness and arming.
+        self._home: tuple[float, float, float] | None = None  # lat, lon, alt AMSL
+        self._home_sent_s = -math.inf
+        self._armed_s: float | None = self._boot_armed()
+        self._ground_since_s: float | None = None  # armed and on the ground since
+        self._was_flying = self.model.airborne
+        self._touchdown_s: float | None = None
+        self._texts_due = self._boot_text_schedule()
+        self._next_prearm_report_s = boot_s + PREARM_REPORT_PERIOD_S
+        self._last_mode = self.model.mode
+        if boot_s + self.boot_times.home_s <= 0.0:
+            self._home_here(0.0)  # powered on long enough before time 0 to have a home
+        # ATTITUDE body rates from successive attitudes: (time, roll, pitch, yaw) in rad.
+        self._attitude_before: tuple[float, float, float, float] | None = None
+        self._battery_mah = 0.0
+        self._battery_s: float | None = None
 
         self.bad_frames = 0
         """Garbage and corrupted frames received."""
@@ -301,30 +443,44 @@ class SimAutopilot:
         model: VehicleModel,
         autopilot: Mapping[str, Any],
         *,
-        home_lat_deg: float,
-        home_lon_deg: float,
-        home_alt_m: float = 0.0,
+        origin_lat_deg: float,
+        origin_lon_deg: float,
+        origin_alt_m: float = 0.0,
         start_time_unix_us: int | None = None,
         boot_s: float = 0.0,
+        boot: BootTimes | None = None,
+        unix_clock_us: Callable[[], int] | None = None,
     ) -> SimAutopilot:
         """The autopilot a resolved profile (``agent.hardware.autopilot``) describes.
 
-        Firmware, ids, modes and guided mode come from the profile, so the engine's
-        adapter, built from the same profile, finds it where it expects it.
+        Firmware, ids, modes, guided mode and parameters come from the profile, so the
+        engine's adapter, built from the same profile, finds it where it expects it.
+        Profile parameters this simulation does not have are left out (a real
+        autopilot has hundreds; they change nothing here).
         """
         mav = autopilot.get("mavlink") or {}
+        firmware = str(autopilot["firmware"])
+        known = {"SYSID_THISMAV", *COMMON_PARAMS, *FIRMWARES[firmware].params}
+        params = {
+            str(name): float(value)
+            for name, value in (autopilot.get("parameters") or {}).items()
+            if name in known
+        }
         return cls(
             model,
-            firmware=str(autopilot["firmware"]),
+            firmware=firmware,
             system_id=int(mav.get("system_id", 1)),
             component_id=int(mav.get("component_id", 1)),
             modes=dict(autopilot.get("modes") or model.modes),
             guided_mode=str(autopilot.get("guided_mode", "GUIDED")),
-            home_lat_deg=home_lat_deg,
-            home_lon_deg=home_lon_deg,
-            home_alt_m=home_alt_m,
+            origin_lat_deg=origin_lat_deg,
+            origin_lon_deg=origin_lon_deg,
+            origin_alt_m=origin_alt_m,
             start_time_unix_us=start_time_unix_us,
             boot_s=boot_s,
+            boot=boot,
+            params=params,
+            unix_clock_us=unix_clock_us,
         )
 
     # -- public -----------------------------------------------------------------------------
@@ -339,10 +495,33 @@ class SimAutopilot:
         """Ground stations heard: (system id, component id) -> time of their last heartbeat."""
         return dict(self._peers)
 
+    @property
+    def home(self) -> tuple[float, float, float] | None:
+        """Home (latitude, longitude, altitude above mean sea level), None until set."""
+        return self._home
+
     def param(self, name: str) -> float | None:
         """A parameter's value, None if it has no such parameter."""
         entry = self._params.get(name)
         return None if entry is None else entry.value
+
+    def param_values(self) -> dict[str, float]:
+        """Every parameter's value by name (what the vehicle model is configured from)."""
+        return {name: entry.value for name, entry in self._params.items()}
+
+    def set_home(self, lat_deg: float, lon_deg: float, alt_m: float, now_s: float) -> None:
+        """Set home (as DO_SET_HOME does), e.g. where a pilot took off before the run."""
+        self._home = (lat_deg, lon_deg, alt_m)
+        north = (lat_deg - self.origin_lat_deg) * _M_PER_DEG_LAT
+        east = (
+            (lon_deg - self.origin_lon_deg)
+            * _M_PER_DEG_LAT
+            * math.cos(math.radians(self.origin_lat_deg))
+        )
+        self.model.set_home(north, east, alt_m - self.origin_alt_m)
+        if "HOME_POSITION" not in self._deferred:
+            self._deferred.append("HOME_POSITION")
+        self._next_due_us = 0
 
     def receive(self, data: bytes, now_s: float) -> None:
         """Take bytes from the ground station side and act on every complete message.
@@ -357,7 +536,7 @@ class SimAutopilot:
             self._handle(msg, now_s)
 
     def advance(self, now_s: float) -> bytes:
-        """Everything due by ``now_s``: queued answers first, then the streams due.
+        """Everything due by ``now_s``: ArduPilot's own doings, queued answers, the streams due.
 
         Each stream is due on its own grid of intervals from its first emission
         (integer microseconds, so a virtual clock keeps exact rates); a message is
@@ -366,237 +545,243 @@ class SimAutopilot:
         """
         if self._overrides:  # (usually there are none: a call saved at every step)
             self._expire_overrides(now_s)
+        self._supervise(now_s)
+        if self._deferred:
+            self._send_deferred(now_s)
         now_us = round(now_s * 1e6)
         if now_us < self._next_due_us and not self._outbox.data:
             return b""  # nothing due and no answer queued: the common case, kept cheap
         due_us, send, builders = self._due_us, self._mav.send, self._builders
         self._advancing = True
+        streaming = now_s - self.boot_s >= self.boot_times.streams_s
         for name, interval in self._stream_schedule():
-            if interval is None:
+            if interval is None or (not streaming and name != "HEARTBEAT"):
                 due_us.pop(name, None)
                 continue
             due = due_us.setdefault(name, now_us)
             if now_us < due:
                 continue
-            send(builders[name](now_s))
+            message = builders[name](now_s)
+            if message is not None:
+                send(message)
             due += interval
             due_us[name] = due if due > now_us else now_us + interval
         self._advancing = False
         self._advance_truth = None
         self._next_due_us = min(due_us.values(), default=now_us)
+        if not streaming:
+            self._next_due_us = min(
+                self._next_due_us, round((self.boot_s + self.boot_times.streams_s) * 1e6)
+            )
         data, self._outbox.data = bytes(self._outbox.data), bytearray()
         return data
 
-    # -- streams -----------------------------------------------------------------------------
+    # -- ArduPilot's own doings ---------------------------------------------------------------
 
-    def _stream_schedule(self) -> tuple[tuple[str, int | None], ...]:
-        """(message, interval in us or None when stopped) for every stream, in emission order."""
-        if self._schedule is None:
-            self._schedule = tuple((name, self._stream_interval_us(name)) for name in STREAM_GROUPS)
-        return self._schedule
+    def _boot_armed(self) -> float | None:
+        """When an autopilot built armed was armed (a vehicle the pilot flies already)."""
+        return self.boot_s if self.model.armed else None
 
-    def _stream_interval_us(self, name: str) -> int | None:
-        if name in self._interval_us:
-            return self._interval_us[name]
-        return self._default_interval_us(name)
+    def _boot_text_schedule(self) -> list[tuple[float, int, str]]:
+        texts = [
+            (self.boot_s + getattr(self.boot_times, step) + offset, severity, text)
+            for step, offset, severity, text in _BOOT_TEXTS
+        ]
+        # An autopilot that booted before the run said these before anyone listened.
+        return sorted((t for t in texts if t[0] >= 0.0), key=lambda t: t[0])
 
-    def _default_interval_us(self, name: str) -> int | None:
-        group = STREAM_GROUPS.get(name)
-        if group is None:
-            return HEARTBEAT_INTERVAL_US if name == "HEARTBEAT" else None
-        rate_hz = self._params[group].value
-        return round(1e6 / rate_hz) if rate_hz > 0 else None
+    def _age_s(self, now_s: float) -> float:
+        return now_s - self.boot_s
 
-    def _set_interval(self, name: str, interval_us: int | None, now_s: float) -> None:
-        self._next_due_us = 0  # the schedule changed: look at every stream next time
-        self._schedule = None
-        self._interval_us[name] = interval_us
-        if interval_us is not None:
-            self._due_us[name] = round(now_s * 1e6) + interval_us
+    def _gps_fix(self, now_s: float) -> bool:
+        return self._age_s(now_s) >= self.boot_times.gps_fix_s
 
-    def _boot_ms(self, now_s: float) -> int:
-        # Kept for the next call at the same time: up to four messages of one advance()
-        # carry it.
-        if now_s != self._boot_ms_at_s:
-            self._boot_ms_at_s = now_s
-            self._boot_ms_value = max(0, round((now_s - self.boot_s) * 1000)) & 0xFFFFFFFF
-        return self._boot_ms_value
+    def _origin_set(self, now_s: float) -> bool:
+        return self._age_s(now_s) >= self.boot_times.origin_s
 
-    def _unix_us(self, now_s: float) -> int:
-        if self.start_time_unix_us is None:
-            return 0
-        return self.start_time_unix_us + round((now_s - self.boot_s) * 1e6)
+    def _position_ok(self, now_s: float) -> bool:
+        return self._age_s(now_s) >= self.boot_times.position_s
 
-    def _build(self, name: str, now_s: float) -> Any:
-        return self._builders[name](now_s)
+    def _supervise(self, now_s: float) -> None:
+        """What ArduPilot does by itself: boot texts, home, pre-arm reports, auto-disarm."""
+        if self._texts_due and self._texts_due[0][0] <= now_s:
+            while self._texts_due and self._texts_due[0][0] <= now_s:
+                _at, severity, text = self._texts_due.pop(0)
+                self._text(severity, text)
+        if self._home is None and self._age_s(now_s) >= self.boot_times.home_s:
+            self._home_here(now_s)
+        elif (
+            self.fw.home_at == "while_disarmed"
+            and self._home is not None
+            and not self.model.armed
+            and now_s - self._home_sent_s >= PLANE_HOME_PERIOD_S
+            and "HOME_POSITION" not in self._deferred
+        ):
+            self._home_here(now_s)  # ArduPlane's home follows its GPS until it arms
+        if now_s >= self._next_prearm_report_s:
+            self._next_prearm_report_s = now_s + PREARM_REPORT_PERIOD_S
+            if not self.model.armed:
+                for reason in self._arm_refusals(now_s, self.model.mode):
+                    self._text(_CRITICAL, "Pre" + reason)
+        if self._velocity_target is not None:
+            self._fly_velocity_target(now_s)
+        self._landing_and_disarm(now_s)
 
-    def _truth(self) -> Truth:
-        """The model's true state, for the message builders.
+    def _landing_and_disarm(self, now_s: float) -> None:
+        """Touchdowns, and ArduCopter's disarms after one or after an idle arm."""
+        model = self.model
+        flying = model.airborne
+        if self._was_flying and not flying:
+            self._touchdown_s = now_s
+            if model.armed:
+                self._ground_since_s = now_s
+        self._was_flying = flying
+        delay_s = self.fw.auto_disarm_s
+        if delay_s is None or not model.armed or flying or self._ground_since_s is None:
+            return
+        landed_in = self._touchdown_s is not None and self._touchdown_s >= self._ground_since_s
+        landing_mode = model.mode in ("LAND", "RTL", "SMART_RTL")
+        wait_s = LAND_DISARM_DELAY_S if landed_in and landing_mode else delay_s
+        if "DISARM_DELAY" in self._params and not (landed_in and landing_mode):
+            wait_s = self._params["DISARM_DELAY"].value  # 0 turns the idle disarm off
+        if wait_s > 0 and now_s - self._ground_since_s >= wait_s:
+            self._disarm(now_s)
 
-        Within one :meth:`advance` call the model does not move, and up to five of the
-        messages it sends report its state: it is read once per call. Outside one
-        (answers to requests, which follow commands that may change the model) it is
-        read afresh.
+    def _text(self, severity: int, text: str) -> None:
+        """A STATUSTEXT, as ArduPilot's gcs().send_text."""
+        self._mav.send(self._mav.statustext_encode(severity, text.encode("ascii")[:50]))
+
+    # -- arming ------------------------------------------------------------------------------
+
+    def _arm_refusals(self, now_s: float, mode: str) -> list[str]:
+        """Why arming in ``mode`` is refused now ("Arm: ..." texts); empty when it is not.
+
+        As ArduPilot, every failing check says so: the boot phase's sensor check, a
+        position the mode needs, and the mode itself.
         """
-        truth = self._advance_truth
-        if truth is None:
-            truth = self.model.truth()
-            if self._advancing:
-                self._advance_truth = truth
-        return truth
+        age, boot, fw = self._age_s(now_s), self.boot_times, self.fw
+        reasons: list[str] = []
+        if age < boot.attitude_s:
+            reasons.append("Arm: EKF attitude is bad")
+        elif age < boot.gps_fix_s:
+            reasons.append("Arm: GPS 1: Bad fix")
+        elif self._home is None:
+            reasons.append("Arm: AHRS: waiting for home")
+        elif age < boot.prearm_s:
+            reasons.append("Arm: Gyros inconsistent")
+        if mode in fw.arm_needs_position and not self._position_ok(now_s):
+            reasons.append(fw.no_position_text)
+        if mode == "AUTO" and fw.name == "arducopter":
+            reasons.append("Arm: Mode requires mission")  # no mission in this simulation
+        elif mode in fw.not_armable:
+            reasons.append(fw.not_armable_text.format(mode=fw.spell(mode)))
+        return reasons
 
-    def _msg_heartbeat(self, now_s: float) -> Any:
-        armed = self.model.armed
-        base_mode = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
-        if armed:
-            base_mode |= mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
-        return self._mav.heartbeat_encode(
-            FIRMWARE_TYPES[self.firmware],
-            mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA,
-            base_mode,
-            self.modes.get(self.model.mode, 0),
-            mavlink2.MAV_STATE_ACTIVE if armed else mavlink2.MAV_STATE_STANDBY,
-        )
+    def _prearm_healthy(self, now_s: float) -> bool:
+        return not self._arm_refusals(now_s, self.model.mode)
 
-    def _msg_sys_status(self, now_s: float) -> Any:
-        sensors = (
-            mavlink2.MAV_SYS_STATUS_SENSOR_3D_GYRO
-            | mavlink2.MAV_SYS_STATUS_SENSOR_3D_ACCEL
-            | mavlink2.MAV_SYS_STATUS_SENSOR_3D_MAG
-            | mavlink2.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
-            | mavlink2.MAV_SYS_STATUS_SENSOR_GPS
-            | mavlink2.MAV_SYS_STATUS_SENSOR_RC_RECEIVER
-            | mavlink2.MAV_SYS_STATUS_AHRS
-        )
-        # Battery not measured: UINT16_MAX volts, -1 current and remaining (MAVLink's "unknown").
-        return self._mav.sys_status_encode(
-            sensors, sensors, sensors, 100, UINT16_MAX, -1, -1, 0, 0, 0, 0, 0, 0
-        )
+    def _arm_command(self, p1: float, p2: float, now_s: float) -> int:
+        if p1 not in (0.0, 1.0):
+            return _UNSUPPORTED
+        force = p2 in FORCE_MAGIC
+        model = self.model
+        if p1 == 0.0:
+            if not model.armed:
+                return _ACCEPTED
+            if model.airborne and not force:
+                return _FAILED  # ArduPilot: no disarming in the air, and no text
+            self._disarm(now_s, force=force)
+            return _ACCEPTED
+        if model.armed:
+            return _ACCEPTED
+        if not force:
+            refusals = self._arm_refusals(now_s, model.mode)
+            if refusals:
+                for reason in refusals:
+                    self._text(_CRITICAL, reason)
+                return _FAILED
+        if not model.arm(True):
+            return _FAILED
+        self._armed_s = now_s
+        self._ground_since_s = None if model.airborne else now_s
+        self._text(_INFO, self.fw.armed_text)
+        if self.fw.home_at == "arming":
+            self._home_here(now_s)
+        if self.firmware == "arduplane" and model.mode == "TAKEOFF":
+            self._text(_INFO, "Armed AUTO, xaccel = -0.0 m/s/s, waiting 0.2 sec")
+            self._text(_INFO, "Triggered AUTO. GPS speed = 0.0")
+        return _ACCEPTED
 
-    def _position(self) -> tuple[float, float, float]:
-        """Latitude, longitude and height above home as the GPS reports them.
+    def _disarm(self, now_s: float, *, force: bool = False) -> None:
+        if self.model.arm(False, force=force):
+            self._armed_s = None
+            self._ground_since_s = None
+            self._text(_INFO, self.fw.disarmed_text)
+            if self.fw.home_at == "disarming":
+                self._home_here(now_s)
 
-        A model with a GPS (``gps_fix``: seeded noise at the receiver's rate) is read
-        through it, as ArduPilot reads its receiver; otherwise the truth is reported.
-        """
-        fix = getattr(self.model, "gps_fix", None)
-        if fix is not None:
-            lat, lon, alt = fix()
-            return float(lat), float(lon), float(alt)
-        t = self._truth()
-        return t.lat_deg, t.lon_deg, t.up_m
+    def _home_here(self, now_s: float) -> None:
+        """Home where the vehicle is now (ArduPilot's own re-setting of home)."""
+        truth = self.model.truth()
+        self.set_home(truth.lat_deg, truth.lon_deg, self.origin_alt_m + truth.up_m, now_s)
 
-    def _msg_gps_raw_int(self, now_s: float) -> Any:
-        t = self._truth()
-        lat, lon, up = self._position()
-        unix_us = self._unix_us(now_s)
-        return self._mav.gps_raw_int_encode(
-            unix_us if unix_us else round((now_s - self.boot_s) * 1e6),
-            mavlink2.GPS_FIX_TYPE_3D_FIX,
-            round(lat * 1e7),
-            round(lon * 1e7),
-            round((self.home_alt_m + up) * 1000),
-            121,  # HDOP 1.21
-            200,  # VDOP 2.00
-            _clamp(t.ground_speed_m_s * 100, 0, UINT16_MAX - 1),
-            round((t.heading_deg % 360.0) * 100) % 36000,
-            12,
-        )
+    # -- modes -------------------------------------------------------------------------------
 
-    # GLOBAL_POSITION_INT, ATTITUDE and VFR_HUD go out at the telemetry rate: each is one
-    # pymavlink message object (built in __init__) whose fields are set before every send,
-    # which packs it anew, rather than a new object each time.
+    def _set_mode(self, base_mode: int, custom_mode: int, now_s: float) -> int:
+        # Like ArduPilot: only custom modes; an unknown number is FAILED with a warning.
+        if not base_mode & mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            return _DENIED
+        name = self._mode_names.get(custom_mode)
+        if name is None or name == "INITIALISING":
+            self._text(_WARNING, f"No such mode {custom_mode}")
+            return _FAILED
+        return self._enter_mode(name, now_s)
 
-    def _msg_global_position_int(self, now_s: float) -> Any:
-        t = self._truth()
-        lat, lon, up = self._position()
-        msg = self._position_message
-        msg.time_boot_ms = self._boot_ms(now_s)
-        msg.lat = round(lat * 1e7)
-        msg.lon = round(lon * 1e7)
-        msg.alt = round((self.home_alt_m + up) * 1000)
-        msg.relative_alt = round(up * 1000)
-        msg.vx = _clamp(t.velocity_north_m_s * 100, -32768, 32767)
-        msg.vy = _clamp(t.velocity_east_m_s * 100, -32768, 32767)
-        msg.vz = _clamp(-t.climb_rate_m_s * 100, -32768, 32767)
-        msg.hdg = round((t.yaw_deg % 360.0) * 100) % 36000
-        return msg
+    def _enter_mode(self, name: str, now_s: float) -> int:
+        model, fw = self.model, self.fw
+        if name == model.mode:
+            return _ACCEPTED
+        refusal = self._mode_refusal(name, now_s)
+        if refusal is not None or not model.set_mode(name):
+            for severity, text in refusal or [(_WARNING, fw.mode_refused_text)]:
+                self._text(severity, text.format(mode=fw.spell(name)))
+            return _FAILED
+        self._target = None  # ArduPilot forgets the guided target on changing mode
+        self._velocity_target = None
+        self._last_mode = name
+        if fw.name == "arducopter" and name == "LAND" and model.armed and not model.airborne:
+            self._disarm(now_s)  # LAND on the ground: landed at once
+        if fw.name == "arduplane" and name == "AUTO":
+            self._text(_INFO, "Mission complete, changing mode to RTL")
+            model.set_mode("RTL")
+            self._last_mode = "RTL"
+        return _ACCEPTED
 
-    def _msg_attitude(self, now_s: float) -> Any:
-        t = self._truth()
-        msg = self._attitude_message  # body rates stay 0: the model has none to report
-        msg.time_boot_ms = self._boot_ms(now_s)
-        msg.roll = math.radians(t.roll_deg)
-        msg.pitch = math.radians(t.pitch_deg)
-        msg.yaw = math.radians(math.remainder(t.yaw_deg, 360.0))
-        return msg
+    def _mode_refusal(self, name: str, now_s: float) -> list[tuple[int, str]] | None:
+        """ArduPilot's refusal of entering ``name`` now, as (severity, text)s; None: allowed."""
+        fw, model = self.fw, self.model
+        refused = [(_WARNING, fw.mode_refused_text)]
+        if name in fw.never_settable:
+            return refused
+        if fw.name == "ardurover":
+            if name == "AUTO":
+                return [(_NOTICE, "No Mission. Can't set AUTO."), *refused]
+            if model.armed:
+                if name in fw.set_needs_position_armed and not self._position_ok(now_s):
+                    return refused
+            elif name in fw.set_needs_origin and not self._origin_set(now_s):
+                return refused
+        elif fw.name == "arducopter":
+            if name in fw.set_needs_origin and not self._position_ok(now_s):
+                return refused
+            if name == "AUTO" and model.armed and not model.airborne:
+                return refused  # no mission here, so nothing to take off with
+        elif fw.name == "arduplane" and name == "AUTOLAND" and not model.airborne:
+            return [(_WARNING, "Must already be flying!"), *refused]
+        return None
 
-    def _msg_vfr_hud(self, now_s: float) -> Any:
-        t = self._truth()
-        msg = self._hud_message
-        msg.airspeed = t.airspeed_m_s
-        msg.groundspeed = t.ground_speed_m_s
-        msg.heading = int(t.yaw_deg % 360.0)
-        msg.throttle = _clamp(t.throttle_pct, 0, 100)
-        msg.alt = self.home_alt_m + t.up_m
-        msg.climb = t.climb_rate_m_s
-        return msg
-
-    def _msg_system_time(self, now_s: float) -> Any:
-        return self._mav.system_time_encode(self._unix_us(now_s), self._boot_ms(now_s))
-
-    def _msg_rc_channels(self, now_s: float) -> Any:
-        # The inputs change only when a stick or an override moves: the message is built
-        # anew then, and otherwise sent again with only its time updated (21 fields).
-        inputs = tuple(self.model.rc_inputs())
-        if inputs != self._rc_key or self._rc_message is None:
-            used = list(inputs)[:18]
-            values = [_clamp(v, 0, UINT16_MAX) if v else UINT16_MAX for v in used]
-            values += [UINT16_MAX] * (18 - len(values))
-            self._rc_key = inputs
-            self._rc_message = self._mav.rc_channels_encode(0, len(used), *values, 255)
-        self._rc_message.time_boot_ms = self._boot_ms(now_s)
-        return self._rc_message
-
-    def _msg_servo_output_raw(self, now_s: float) -> Any:
-        outputs = [_clamp(v, 0, UINT16_MAX) for v in list(self.model.servo_outputs())[:16]]
-        outputs += [0] * (16 - len(outputs))
-        time_us = max(0, round((now_s - self.boot_s) * 1e6)) & 0xFFFFFFFF
-        return self._mav.servo_output_raw_encode(time_us, 0, *outputs)
-
-    def _msg_home_position(self, now_s: float) -> Any:
-        return self._mav.home_position_encode(
-            round(self.home_lat_deg * 1e7),
-            round(self.home_lon_deg * 1e7),
-            round(self.home_alt_m * 1000),
-            0.0,
-            0.0,
-            0.0,
-            [1.0, 0.0, 0.0, 0.0],
-            0.0,
-            0.0,
-            0.0,
-        )
-
-    def _msg_autopilot_version(self, now_s: float) -> Any:
-        major, minor, patch = FIRMWARE_VERSION
-        capabilities = (
-            mavlink2.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT
-            | mavlink2.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
-            | mavlink2.MAV_PROTOCOL_CAPABILITY_MISSION_INT
-            | mavlink2.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
-            | mavlink2.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
-            | mavlink2.MAV_PROTOCOL_CAPABILITY_MAVLINK2
-            | mavlink2.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST
-        )
-        version = (
-            (major << 24) | (minor << 16) | (patch << 8) | mavlink2.FIRMWARE_VERSION_TYPE_OFFICIAL
-        )
-        zeros8 = [0] * 8
-        uid = int.from_bytes(b"CLARK", "big") << 16 | self._sysid << 8 | self._compid
-        return self._mav.autopilot_version_encode(
-            capabilities, version, 0, 0, 0, zeros8, zeros8, zeros8, 0, 0, uid
-        )
+    def _in_guided(self) -> bool:
+        return self.model.mode == self.guided_mode
 
     # -- handling ---------------------------------------------------------------------------
 
@@ -624,10 +809,9 @@ class SimAutopilot:
             self._ack(msg.command, result, asker)
             self._send_deferred(now_s)
         elif kind == "SET_MODE":
-            result = self._set_mode(msg.base_mode, msg.custom_mode)
-            self._ack(_msg_id("SET_MODE"), result, asker)
+            self._set_mode(msg.base_mode, msg.custom_mode, now_s)  # ArduPilot 4.7: no ack
         elif kind == "SET_POSITION_TARGET_GLOBAL_INT":
-            self._position_target(msg)
+            self._position_target(msg, now_s)
         elif kind == "RC_CHANNELS_OVERRIDE":
             self._rc_override(msg, now_s)
         elif kind == "PARAM_REQUEST_LIST":
@@ -639,7 +823,7 @@ class SimAutopilot:
             name = str(msg.param_id)
             if name in self._params:  # ArduPilot ignores unknown names without a word
                 self._set_param(name, msg.param_value)
-                self._send_param(name, list(self._params).index(name))
+                self._send_param(name, _PARAM_INDEX_BY_NAME)
         elif kind == "REQUEST_DATA_STREAM":
             self._request_data_stream(msg)
         elif kind == "MISSION_REQUEST_LIST":
@@ -658,7 +842,7 @@ class SimAutopilot:
                 )
             )
         elif kind in ("MISSION_ITEM_INT", "MISSION_ITEM"):
-            result = self._mission_item(msg, integer=kind == "MISSION_ITEM_INT")
+            result = self._mission_item(msg, now_s, integer=kind == "MISSION_ITEM_INT")
             self._mav.send(
                 self._mav.mission_ack_encode(
                     asker.system_id, asker.component_id, result, msg.mission_type
@@ -685,7 +869,9 @@ class SimAutopilot:
 
     def _send_deferred(self, now_s: float) -> None:
         for name in self._deferred:
-            self._mav.send(self._build(name, now_s))
+            message = self._build(name, now_s)
+            if message is not None:
+                self._mav.send(message)
         self._deferred.clear()
 
     def _command(
@@ -694,101 +880,166 @@ class SimAutopilot:
         """Carry out one COMMAND_LONG (``frame`` None) or COMMAND_INT; returns MAV_RESULT."""
         p1, p2 = params[0], params[1]
         if command == mavlink2.MAV_CMD_DO_SET_MODE:
-            return self._set_mode(int(p1), int(p2))
+            return self._set_mode(int(p1), int(p2), now_s)
         if command == mavlink2.MAV_CMD_COMPONENT_ARM_DISARM:
-            if p1 not in (0.0, 1.0):
-                return int(mavlink2.MAV_RESULT_UNSUPPORTED)
-            return self._result(self.model.arm(p1 == 1.0))
+            return self._arm_command(p1, p2, now_s)
         if command == mavlink2.MAV_CMD_DO_SET_SERVO:
             servo = int(p1)
-            if not 1 <= servo <= 16:
-                return int(mavlink2.MAV_RESULT_FAILED)
+            in_use = getattr(self.model, "servo_function", None)
+            if not 1 <= servo <= 16 or (in_use is not None and in_use(servo) is not None):
+                self._text(_INFO, f"ServoRelayEvent: Channel {servo} is already in use")
+                return _FAILED
             self.model.set_servo(servo, int(p2))
-            return int(mavlink2.MAV_RESULT_ACCEPTED)
+            return _ACCEPTED
         if command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
-            return self._change_speed(p2)
+            return self._change_speed(int(p1), p2)
+        if command == mavlink2.MAV_CMD_NAV_TAKEOFF:
+            return self._takeoff(z, frame, now_s)
+        if command == mavlink2.MAV_CMD_NAV_LAND:
+            if self.firmware != "arducopter":
+                return _UNSUPPORTED
+            return self._enter_mode("LAND", now_s)
+        if command == mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+            return self._enter_mode("RTL", now_s)
+        if command == mavlink2.MAV_CMD_NAV_LOITER_UNLIM and self.firmware == "arducopter":
+            return self._enter_mode("LOITER", now_s)
+        if command == mavlink2.MAV_CMD_DO_SET_HOME:
+            return self._set_home_command(params, z, frame, now_s)
         if command == mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL:
             return self._message_interval(int(p1), int(p2), now_s)
         if command == mavlink2.MAV_CMD_GET_MESSAGE_INTERVAL:
             name = self._streamed_name(int(p1))
             if name is None:
-                return int(mavlink2.MAV_RESULT_FAILED)
+                return _FAILED
             interval = self._stream_interval_us(name)
             self._mav.send(
                 self._mav.message_interval_encode(int(p1), -1 if interval is None else interval)
             )
-            return int(mavlink2.MAV_RESULT_ACCEPTED)
+            return _ACCEPTED
         if command == mavlink2.MAV_CMD_REQUEST_MESSAGE:
             return self._request_message(int(p1))
         if command == mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             if p1 != 1.0:
-                return int(mavlink2.MAV_RESULT_DENIED)
+                return _DENIED
             return self._request_message(_msg_id("AUTOPILOT_VERSION"))
         if command == mavlink2.MAV_CMD_GET_HOME_POSITION:
+            if self._home is None:
+                return _FAILED
             return self._request_message(_msg_id("HOME_POSITION"))
         if command == mavlink2.MAV_CMD_DO_REPOSITION and frame is not None:
-            return self._reposition(params, z, frame)
-        return int(mavlink2.MAV_RESULT_UNSUPPORTED)
+            return self._reposition(params, z, frame, now_s)
+        return _UNSUPPORTED
 
-    @staticmethod
-    def _result(ok: bool) -> int:
-        return int(mavlink2.MAV_RESULT_ACCEPTED if ok else mavlink2.MAV_RESULT_FAILED)
+    def _takeoff(self, alt_m: float, frame: int | None, now_s: float) -> int:
+        """MAV_CMD_NAV_TAKEOFF: ArduCopter's guided takeoff; ArduPlane's is quadplane-only."""
+        if self.firmware != "arducopter":
+            if self.firmware == "arduplane":
+                return _DENIED if frame is not None else _FAILED
+            return _UNSUPPORTED
+        if frame is not None and frame != mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT:
+            return _DENIED
+        model = self.model
+        if not (alt_m > 0) or not model.armed or model.airborne or not self._in_guided():
+            return _FAILED
+        armed_for_s = now_s - (self._armed_s if self._armed_s is not None else now_s)
+        delay_s = (
+            TAKEOFF_DELAY_SPOOLED_S
+            if armed_for_s >= SPOOLED_AFTER_S
+            else (TAKEOFF_DELAY_SPOOLING_S)
+        )
+        if not model.takeoff(float(alt_m), delay_s):
+            return _FAILED
+        self._ground_since_s = None  # taking off: no auto-disarm
+        return _ACCEPTED
 
-    def _set_mode(self, base_mode: int, custom_mode: int) -> int:
-        # Like ArduPilot: only custom modes; an unknown number or a refusal is FAILED.
-        if not base_mode & mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
-            return int(mavlink2.MAV_RESULT_DENIED)
-        name = self._mode_names.get(custom_mode)
-        if name is None or not self.model.set_mode(name):
-            return int(mavlink2.MAV_RESULT_FAILED)
-        if name != self.guided_mode:
-            self._target = None  # ArduPilot forgets the guided target on leaving guided
-        return int(mavlink2.MAV_RESULT_ACCEPTED)
+    def _set_home_command(
+        self, params: tuple[float, ...], z: float, frame: int | None, now_s: float
+    ) -> int:
+        if params[0] == 1.0:
+            if not self._gps_fix(now_s):
+                return _FAILED
+            truth = self.model.truth()
+            self.set_home(truth.lat_deg, truth.lon_deg, self.origin_alt_m + truth.up_m, now_s)
+            return _ACCEPTED
+        lat, lon = params[4], params[5]
+        if frame is not None:  # COMMAND_INT: degrees * 1e7
+            lat, lon = lat / 1e7, lon / 1e7
+        if not (abs(lat) <= 90 and abs(lon) <= 180) or (lat == 0 and lon == 0):
+            return _FAILED
+        self.set_home(float(lat), float(lon), float(z), now_s)
+        return _ACCEPTED
 
-    def _in_guided(self) -> bool:
-        return self.model.mode == self.guided_mode
+    def _change_speed(self, speed_type: int, speed_m_s: float) -> int:
+        """MAV_CMD_DO_CHANGE_SPEED, accepted where each firmware accepts it (measured)."""
+        mode, model = self.model.mode, self.model
+        if self.firmware == "arducopter":
+            if speed_m_s <= 0:
+                return _DENIED
+            if mode not in (self.guided_mode, "AUTO"):
+                return _FAILED
+            if speed_type in (0, 1):  # ArduCopter takes an airspeed as a ground speed
+                model.set_speed(float(speed_m_s))
+            return _ACCEPTED
+        if self.firmware == "ardurover":
+            if speed_type not in (0, 1):
+                return _DENIED
+            if speed_m_s <= 0.05:
+                return _FAILED
+            guided_leg = mode == self.guided_mode and self._target is not None
+            if not (guided_leg or mode == "AUTO"):
+                return _FAILED  # MANUAL, HOLD, and guided before its first target
+            model.set_speed(float(speed_m_s))
+            return _ACCEPTED
+        # ArduPlane: guided and auto only; an airspeed within its limits.
+        if mode not in (self.guided_mode, "AUTO"):
+            return _FAILED
+        if speed_type == 1:
+            if speed_m_s < 0:
+                return _FAILED
+            self._text(_INFO, f"Set groundspeed {speed_m_s:g}")
+            return _ACCEPTED
+        low, high = self._params["AIRSPEED_MIN"].value, self._params["AIRSPEED_MAX"].value
+        if not low <= speed_m_s <= high:
+            return _FAILED
+        model.set_speed(float(speed_m_s))
+        self._text(_INFO, f"Set airspeed {speed_m_s:g} m/s")
+        return _ACCEPTED
 
     def _goto(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
         self._target = (lat_deg, lon_deg, alt_m)
-        return self.model.goto(lat_deg, lon_deg, alt_m, self._speed_m_s)
+        return self.model.goto(lat_deg, lon_deg, alt_m, None)
 
     def _relative_alt_m(self, alt: float, frame: int) -> float | None:
+        """A target's height above the origin (the model's frame) from its frame's altitude."""
+        home_alt = self._home[2] if self._home is not None else self.origin_alt_m
         if frame in (
             mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
             mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT,
             mavlink2.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT,  # flat terrain at home's altitude
             mavlink2.MAV_FRAME_GLOBAL_TERRAIN_ALT,
         ):
-            return float(alt)
+            return float(alt) + home_alt - self.origin_alt_m
         if frame in (mavlink2.MAV_FRAME_GLOBAL_INT, mavlink2.MAV_FRAME_GLOBAL):
-            return float(alt) - self.home_alt_m
+            return float(alt) - self.origin_alt_m
         return None
 
-    def _change_speed(self, speed_m_s: float) -> int:
-        if speed_m_s <= 0:
-            return int(mavlink2.MAV_RESULT_FAILED)  # -1 is "no change"; nothing to do
-        if self.firmware == "arduplane" and self.model.mode not in (self.guided_mode, "AUTO"):
-            return int(mavlink2.MAV_RESULT_FAILED)  # ArduPlane: guided and auto only
-        self._speed_m_s = float(speed_m_s)
-        if self._target is not None and self._in_guided():
-            self._goto(*self._target)
-        return int(mavlink2.MAV_RESULT_ACCEPTED)
-
-    def _reposition(self, params: tuple[float, ...], z: float, frame: int) -> int:
+    def _reposition(self, params: tuple[float, ...], z: float, frame: int, now_s: float) -> int:
         speed, flags, lat_e7, lon_e7 = params[0], int(params[1]), params[4], params[5]
         alt_m = self._relative_alt_m(z, frame)
         if alt_m is None or not (abs(lat_e7) <= 90e7 and abs(lon_e7) <= 180e7):
-            return int(mavlink2.MAV_RESULT_DENIED)
+            return _DENIED
         change_mode = bool(flags & mavlink2.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE)
         if change_mode and not self._in_guided():
-            self.model.set_mode(self.guided_mode)
+            self._enter_mode(self.guided_mode, now_s)
         if not self._in_guided():
-            return int(mavlink2.MAV_RESULT_FAILED)
+            return _FAILED
+        if not self._goto(lat_e7 / 1e7, lon_e7 / 1e7, alt_m):
+            return _FAILED
         if speed > 0:
-            self._speed_m_s = float(speed)
-        return self._result(self._goto(lat_e7 / 1e7, lon_e7 / 1e7, alt_m))
+            self.model.set_speed(float(speed))
+        return _ACCEPTED
 
-    def _mission_item(self, msg: Any, *, integer: bool) -> int:
+    def _mission_item(self, msg: Any, now_s: float, *, integer: bool) -> int:
         """A mission item outside an upload: ArduPilot's guided waypoint and altitude change.
 
         As ArduPilot's GCS_MAVLINK::handle_mission_item: ``current`` 2 is a guided-mode
@@ -812,7 +1063,7 @@ class SimAutopilot:
             return int(mavlink2.MAV_MISSION_ERROR)
         return int(mavlink2.MAV_MISSION_ACCEPTED)
 
-    def _position_target(self, msg: Any) -> None:
+    def _position_target(self, msg: Any, now_s: float) -> None:
         if not self._in_guided():
             return  # ArduPilot drops position targets outside guided
         alt_m = self._relative_alt_m(msg.alt, msg.coordinate_frame)
@@ -834,8 +1085,30 @@ class SimAutopilot:
             self._goto(lat_deg, lon_deg, alt_m)
             return
         if position_ignored:
-            return  # velocity and acceleration targets are not simulated
-        self._goto(msg.lat_int / 1e7, msg.lon_int / 1e7, alt_m)
+            return  # velocity-only and acceleration targets are not simulated
+        lat_deg, lon_deg = msg.lat_int / 1e7, msg.lon_int / 1e7
+        velocity_ignored = mask & (
+            mavlink2.POSITION_TARGET_TYPEMASK_VX_IGNORE
+            | mavlink2.POSITION_TARGET_TYPEMASK_VY_IGNORE
+        )
+        self._velocity_target = None
+        if not velocity_ignored and self.firmware == "arducopter":
+            # ArduCopter's guided position and velocity target: the position moves on
+            # with the velocity until the next one (or GUID_TIMEOUT).
+            self._velocity_target = (lat_deg, lon_deg, alt_m, msg.vx, msg.vy, now_s)
+        self._goto(lat_deg, lon_deg, alt_m)
+
+    def _fly_velocity_target(self, now_s: float) -> None:
+        assert self._velocity_target is not None
+        lat_deg, lon_deg, alt_m, vn, ve, at_s = self._velocity_target
+        elapsed_s = now_s - at_s
+        if elapsed_s > GUIDED_TIMEOUT_S or not self._in_guided():
+            self._velocity_target = None
+            return
+        lat = lat_deg + vn * elapsed_s / _M_PER_DEG_LAT
+        lon = lon_deg + ve * elapsed_s / (_M_PER_DEG_LAT * math.cos(math.radians(lat_deg)))
+        self._target = (lat, lon, alt_m)
+        self.model.goto(lat, lon, alt_m, None)
 
     def _rc_override(self, msg: Any, now_s: float) -> None:
         if msg.get_srcSystem() != round(self._params["SYSID_MYGCS"].value):
@@ -890,6 +1163,8 @@ class SimAutopilot:
                 if group == name:
                     self._interval_us.pop(stream, None)
                     self._due_us.pop(stream, None)
+        elif hasattr(self, "model"):
+            self.model.configure({name: entry.value})
 
     def _send_param(self, name: str, index: int) -> None:
         entry = self._params[name]
@@ -907,7 +1182,7 @@ class SimAutopilot:
             return
         name = str(msg.param_id)
         if name in self._params:
-            self._send_param(name, names.index(name))
+            self._send_param(name, _PARAM_INDEX_BY_NAME)
 
     def _request_data_stream(self, msg: Any) -> None:
         rate_hz = msg.req_message_rate if msg.start_stop else 0
@@ -921,16 +1196,22 @@ class SimAutopilot:
 
     # -- message requests ---------------------------------------------------------------------
 
-    @staticmethod
-    def _streamed_name(msg_id: int) -> str | None:
+    def _streamed_name(self, msg_id: int) -> str | None:
         entry = mavlink2.mavlink_map.get(msg_id)
         name = None if entry is None else str(entry.msgname)
-        return name if name in STREAM_GROUPS else None
+        return name if name in STREAM_GROUPS and name not in self._absent else None
 
     def _message_interval(self, msg_id: int, interval_us: int, now_s: float) -> int:
         name = self._streamed_name(msg_id)
         if name is None:
-            return int(mavlink2.MAV_RESULT_FAILED)  # ArduPilot: no such message to stream
+            self._text(_INFO, f"No ap_message for mavlink id ({msg_id})")
+            return _DENIED  # ArduPilot: no such message to stream
+        if 0 < interval_us < MIN_INTERVAL_US:
+            self._text(_INFO, f"Requested rate for message ID {msg_id} too fast. Increas")
+            self._text(_INFO, "e SCHED_LOOP_RATE")
+            return _DENIED
+        if self._age_s(now_s) < self.boot_times.streams_s:
+            return _ACCEPTED  # before "ArduPilot Ready": acknowledged, and lost (measured)
         if interval_us == 0:
             self._interval_us.pop(name, None)
             self._schedule = None
@@ -940,17 +1221,21 @@ class SimAutopilot:
         elif interval_us < 0:
             self._set_interval(name, None, now_s)
         else:
-            self._set_interval(name, max(1000, interval_us), now_s)  # ArduPilot: 1 ms at least
-        return int(mavlink2.MAV_RESULT_ACCEPTED)
+            self._set_interval(name, interval_us, now_s)
+        return _ACCEPTED
 
     def _request_message(self, msg_id: int) -> int:
         entry = mavlink2.mavlink_map.get(msg_id)
         name = None if entry is None else str(entry.msgname)
-        if name not in (*STREAM_GROUPS, "HOME_POSITION", "AUTOPILOT_VERSION"):
-            return int(mavlink2.MAV_RESULT_FAILED)
-        # ArduPilot acknowledges first and sends the message from its next update.
+        if (
+            name not in (*STREAM_GROUPS, "HOME_POSITION", "AUTOPILOT_VERSION")
+            or name in self._absent
+        ):
+            return _FAILED
+        # ArduPilot acknowledges first and sends the message from its next update (and
+        # HOME_POSITION only once home is set).
         self._deferred.append(str(name))
-        return int(mavlink2.MAV_RESULT_ACCEPTED)
+        return _ACCEPTED
 
     def _ftp_nak(self, msg: Any, asker: _Asker) -> None:
         seq, session, opcode = struct.unpack_from("<HBB", bytes(msg.payload[:4]))
@@ -961,4 +1246,399 @@ class SimAutopilot:
             self._mav.file_transfer_protocol_encode(
                 msg.target_network, asker.system_id, asker.component_id, payload
             )
+        )
+
+    # -- streams -----------------------------------------------------------------------------
+
+    def _stream_schedule(self) -> tuple[tuple[str, int | None], ...]:
+        """(message, interval in us or None when stopped) for every stream, in emission order."""
+        if self._schedule is None:
+            self._schedule = tuple(
+                (name, None if name in self._absent else self._stream_interval_us(name))
+                for name in STREAM_GROUPS
+            )
+        return self._schedule
+
+    def _stream_interval_us(self, name: str) -> int | None:
+        if name in self._interval_us:
+            return self._interval_us[name]
+        return self._default_interval_us(name)
+
+    def _default_interval_us(self, name: str) -> int | None:
+        group = STREAM_GROUPS.get(name)
+        if group is None:
+            return HEARTBEAT_INTERVAL_US if name == "HEARTBEAT" else None
+        rate_hz = self._params[group].value
+        return round(1e6 / rate_hz) if rate_hz > 0 else None
+
+    def _set_interval(self, name: str, interval_us: int | None, now_s: float) -> None:
+        self._next_due_us = 0  # the schedule changed: look at every stream next time
+        self._schedule = None
+        self._interval_us[name] = interval_us
+        if interval_us is not None:
+            self._due_us[name] = round(now_s * 1e6) + interval_us
+
+    def _boot_ms(self, now_s: float) -> int:
+        # Kept for the next call at the same time: up to four messages of one advance()
+        # carry it.
+        if now_s != self._boot_ms_at_s:
+            self._boot_ms_at_s = now_s
+            self._boot_ms_value = max(0, round((now_s - self.boot_s) * 1000)) & 0xFFFFFFFF
+        return self._boot_ms_value
+
+    def _unix_us(self, now_s: float) -> int:
+        """The GPS's Unix time: 0 before its fix, then the wall clock or the simulated one."""
+        if not self._gps_fix(now_s):
+            return 0
+        if self._unix_clock_us is not None:
+            return self._unix_clock_us()
+        if self.start_time_unix_us is None:
+            return 0
+        return self.start_time_unix_us + round(now_s * 1e6)
+
+    def _build(self, name: str, now_s: float) -> Any:
+        return self._builders[name](now_s)
+
+    def _truth(self) -> Truth:
+        """The model's true state, for the message builders.
+
+        Within one :meth:`advance` call the model does not move, and up to five of the
+        messages it sends report its state: it is read once per call. Outside one
+        (answers to requests, which follow commands that may change the model) it is
+        read afresh.
+        """
+        truth = self._advance_truth
+        if truth is None:
+            truth = self.model.truth()
+            if self._advancing:
+                self._advance_truth = truth
+        return truth
+
+    def _landed_state(self, now_s: float) -> int:
+        """MAV_LANDED_STATE, with ArduCopter's land detector lag after a touchdown."""
+        state = self.model.landed_state
+        if (
+            state == "on_ground"
+            and self._touchdown_s is not None
+            and now_s - self._touchdown_s < LANDED_REPORT_DELAY_S
+            and self.model.armed
+        ):
+            state = "landing"
+        return _LANDED[state]
+
+    def _msg_heartbeat(self, now_s: float) -> Any:
+        model = self.model
+        armed = model.armed
+        booting = self._age_s(now_s) < INITIALISING_S
+        custom_mode = (
+            self.fw.initialising_mode
+            if booting and self.fw.initialising_mode is not None
+            else self.modes.get(model.mode, 0)
+        )
+        base_mode = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+        auto = model.mode == self.guided_mode or model.mode in _AUTO_MODES
+        if self.firmware == "ardurover":
+            # Measured: MANUAL 0x41, HOLD 0x01, GUIDED/RTL/AUTO 0x09.
+            if auto:
+                base_mode |= mavlink2.MAV_MODE_FLAG_GUIDED_ENABLED
+            elif model.mode != "HOLD":
+                base_mode |= mavlink2.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
+        else:
+            base_mode |= (
+                mavlink2.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
+                | mavlink2.MAV_MODE_FLAG_STABILIZE_ENABLED
+            )
+            if auto:
+                base_mode |= mavlink2.MAV_MODE_FLAG_GUIDED_ENABLED
+        if armed:
+            base_mode |= mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
+        if self._age_s(now_s) < self.boot_times.streams_s:
+            status = mavlink2.MAV_STATE_BOOT
+        elif self.firmware == "ardurover":
+            hold = model.mode == "HOLD"
+            status = mavlink2.MAV_STATE_STANDBY if hold else mavlink2.MAV_STATE_ACTIVE
+        elif model.airborne:
+            status = mavlink2.MAV_STATE_ACTIVE
+        else:
+            status = mavlink2.MAV_STATE_STANDBY
+        return self._mav.heartbeat_encode(
+            FIRMWARE_TYPES[self.firmware],
+            mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA,
+            base_mode,
+            custom_mode,
+            status,
+        )
+
+    def _msg_sys_status(self, now_s: float) -> Any:
+        fixed = self._gps_fix(now_s)
+        present = _BASE_SENSORS | _CONTROL_BITS | _AHRS_BIT | _PREARM_BIT
+        present |= (
+            _SENSORS["SENSOR_ANGULAR_RATE_CONTROL"]
+            | _SENSORS["SENSOR_ATTITUDE_STABILIZATION"]
+            | _SENSORS["SENSOR_YAW_POSITION"]
+        )
+        if self.firmware == "arduplane":
+            present |= _SENSORS["SENSOR_DIFFERENTIAL_PRESSURE"]
+        if fixed:
+            present |= _GPS_BIT
+        enabled = _BASE_SENSORS | _PREARM_BIT | (_GPS_BIT if fixed else 0)
+        if self.model.airborne:
+            enabled |= _CONTROL_BITS
+        if self._origin_set(now_s):
+            enabled |= _AHRS_BIT
+        health = enabled & ~(_PREARM_BIT | _AHRS_BIT)
+        if self._position_ok(now_s):
+            health |= _AHRS_BIT
+        if self.model.armed or self._prearm_healthy(now_s):
+            health |= _PREARM_BIT
+        current_ca, remaining = self._battery(now_s)
+        return self._mav.sys_status_encode(
+            present, enabled, health, 0, BATTERY_VOLTAGE_MV, current_ca, remaining, 0, 0, 0, 0, 0, 0
+        )
+
+    def _battery(self, now_s: float) -> tuple[int, int]:
+        """Current (cA) and remaining charge (%), drawn at the throttle the model reports."""
+        throttle = max(0.0, min(1.0, abs(self._truth().throttle_pct) / 100.0))
+        current_a = FULL_THROTTLE_CURRENT_A[self.firmware] * throttle if self.model.armed else 0.0
+        if self._battery_s is not None and now_s > self._battery_s:
+            self._battery_mah += current_a * (now_s - self._battery_s) / 3.6
+        self._battery_s = now_s
+        capacity = max(self._params["BATT_CAPACITY"].value, 1.0)
+        remaining = max(0, round(100.0 * (1.0 - self._battery_mah / capacity)))
+        return round(current_a * 100), remaining
+
+    def _position(self, now_s: float) -> tuple[float, float, float]:
+        """Latitude, longitude and height above the origin as the GPS reports them.
+
+        Before the GPS has a fix ArduPilot reports 0, 0 (and a height near 0). A model
+        with a GPS (``gps_fix``: seeded noise at the receiver's rate) is read through it,
+        as ArduPilot reads its receiver; otherwise the truth is reported.
+        """
+        if not self._gps_fix(now_s):
+            return 0.0, 0.0, 0.0
+        fix = getattr(self.model, "gps_fix", None)
+        if fix is not None:
+            lat, lon, alt = fix()
+            return float(lat), float(lon), float(alt)
+        t = self._truth()
+        return t.lat_deg, t.lon_deg, t.up_m
+
+    def _home_alt_m(self) -> float:
+        return self._home[2] if self._home is not None else self.origin_alt_m
+
+    def _msg_gps_raw_int(self, now_s: float) -> Any:
+        t = self._truth()
+        lat, lon, up = self._position(now_s)
+        fixed = self._gps_fix(now_s)
+        unix_us = self._unix_us(now_s)
+        return self._mav.gps_raw_int_encode(
+            unix_us if unix_us else round((now_s - self.boot_s) * 1e6),
+            mavlink2.GPS_FIX_TYPE_3D_FIX if fixed else mavlink2.GPS_FIX_TYPE_NO_FIX,
+            round(lat * 1e7),
+            round(lon * 1e7),
+            round((self.origin_alt_m + up) * 1000) if fixed else 0,
+            121 if fixed else UINT16_MAX,  # HDOP 1.21
+            200 if fixed else UINT16_MAX,  # VDOP 2.00
+            _clamp(t.ground_speed_m_s * 100, 0, UINT16_MAX - 1) if fixed else 0,
+            round((t.heading_deg % 360.0) * 100) % 36000 if fixed else 0,
+            10 if fixed else 0,
+        )
+
+    # GLOBAL_POSITION_INT, ATTITUDE and VFR_HUD go out at the telemetry rate: each is one
+    # pymavlink message object (built in __init__) whose fields are set before every send,
+    # which packs it anew, rather than a new object each time.
+
+    def _msg_global_position_int(self, now_s: float) -> Any:
+        t = self._truth()
+        lat, lon, up = self._position(now_s)
+        msg = self._position_message
+        msg.time_boot_ms = self._boot_ms(now_s)
+        msg.lat = round(lat * 1e7)
+        msg.lon = round(lon * 1e7)
+        msg.alt = round((self.origin_alt_m + up) * 1000)
+        msg.relative_alt = round((self.origin_alt_m + up - self._home_alt_m()) * 1000)
+        msg.vx = _clamp(t.velocity_north_m_s * 100, -32768, 32767)
+        msg.vy = _clamp(t.velocity_east_m_s * 100, -32768, 32767)
+        msg.vz = _clamp(-t.climb_rate_m_s * 100, -32768, 32767)
+        msg.hdg = round((t.yaw_deg % 360.0) * 100) % 36000
+        return msg
+
+    def _msg_attitude(self, now_s: float) -> Any:
+        t = self._truth()
+        msg = self._attitude_message
+        roll, pitch = math.radians(t.roll_deg), math.radians(t.pitch_deg)
+        yaw = math.radians(math.remainder(t.yaw_deg, 360.0))
+        # Body rates from the change since the last ATTITUDE (Euler rates: close enough
+        # to body rates at the modest angles these models fly).
+        rates = (0.0, 0.0, 0.0)
+        before = self._attitude_before
+        if before is not None and now_s > before[0]:
+            dt_s = now_s - before[0]
+            rates = (
+                (roll - before[1]) / dt_s,
+                (pitch - before[2]) / dt_s,
+                math.remainder(yaw - before[3], math.tau) / dt_s,
+            )
+        self._attitude_before = (now_s, roll, pitch, yaw)
+        msg.time_boot_ms = self._boot_ms(now_s)
+        msg.roll, msg.pitch, msg.yaw = roll, pitch, yaw
+        msg.rollspeed, msg.pitchspeed, msg.yawspeed = rates
+        return msg
+
+    def _msg_vfr_hud(self, now_s: float) -> Any:
+        t = self._truth()
+        msg = self._hud_message
+        msg.airspeed = t.airspeed_m_s
+        msg.groundspeed = t.ground_speed_m_s
+        msg.heading = int(t.yaw_deg % 360.0)
+        msg.throttle = _clamp(t.throttle_pct, 0, 100)
+        msg.alt = self.origin_alt_m + t.up_m
+        msg.climb = t.climb_rate_m_s
+        return msg
+
+    def _msg_system_time(self, now_s: float) -> Any:
+        return self._mav.system_time_encode(self._unix_us(now_s), self._boot_ms(now_s))
+
+    def _msg_rc_channels(self, now_s: float) -> Any:
+        # The inputs change only when a stick or an override moves: the message is built
+        # anew then, and otherwise sent again with only its time updated (21 fields).
+        inputs = tuple(self.model.rc_inputs())
+        if inputs != self._rc_key or self._rc_message is None:
+            used = list(inputs)[:18]
+            values = [_clamp(v, 0, UINT16_MAX) if v else UINT16_MAX for v in used]
+            values += [UINT16_MAX] * (18 - len(values))
+            self._rc_key = inputs
+            self._rc_message = self._mav.rc_channels_encode(0, len(used), *values, 255)
+        self._rc_message.time_boot_ms = self._boot_ms(now_s)
+        return self._rc_message
+
+    def _msg_servo_output_raw(self, now_s: float) -> Any:
+        outputs = [_clamp(v, 0, UINT16_MAX) for v in list(self.model.servo_outputs())[:16]]
+        outputs += [0] * (16 - len(outputs))
+        time_us = max(0, round((now_s - self.boot_s) * 1e6)) & 0xFFFFFFFF
+        return self._mav.servo_output_raw_encode(time_us, 0, *outputs)
+
+    def _msg_ekf_status_report(self, now_s: float) -> Any:
+        age = self._age_s(now_s)
+        if age < _EKF_UNINITIALISED_S:
+            flags = _EKF_UNINITIALISED
+        elif age < self.boot_times.attitude_s:
+            flags = 0
+        elif age < self.boot_times.position_s:
+            flags = _EKF_ATTITUDE_ONLY
+        else:
+            flags = _EKF_POSITION
+        return self._mav.ekf_status_report_encode(flags, 0.02, 0.01, 0.01, 0.03, 0.0, 0.0)
+
+    def _msg_extended_sys_state(self, now_s: float) -> Any:
+        if self.firmware == "ardurover":  # no landed state (measured: 0, 0)
+            return self._mav.extended_sys_state_encode(
+                mavlink2.MAV_VTOL_STATE_UNDEFINED, mavlink2.MAV_LANDED_STATE_UNDEFINED
+            )
+        vtol = (
+            mavlink2.MAV_VTOL_STATE_MC
+            if self.firmware == "arducopter"
+            else mavlink2.MAV_VTOL_STATE_UNDEFINED
+        )
+        return self._mav.extended_sys_state_encode(vtol, self._landed_state(now_s))
+
+    def _msg_mission_current(self, now_s: float) -> Any:
+        return self._mav.mission_current_encode(0, 0, mavlink2.MISSION_STATE_NO_MISSION, 0)
+
+    def _msg_battery_status(self, now_s: float) -> Any:
+        current_ca, remaining = self._battery(now_s)
+        return self._mav.battery_status_encode(
+            0,
+            mavlink2.MAV_BATTERY_FUNCTION_UNKNOWN,
+            mavlink2.MAV_BATTERY_TYPE_UNKNOWN,
+            32767,
+            [BATTERY_VOLTAGE_MV] + [UINT16_MAX] * 9,
+            current_ca,
+            round(self._battery_mah),
+            -1,
+            remaining,
+        )
+
+    def _waypoint_target(self) -> tuple[float, float, float] | None:
+        """The point the current mode flies to (lat, lon, height above origin), if any."""
+        mode = self.model.mode
+        if mode == self.guided_mode:
+            return self._target
+        if mode in ("RTL", "SMART_RTL") and self._home is not None:
+            return self._home[0], self._home[1], self._home[2] - self.origin_alt_m
+        return None
+
+    def _msg_nav_controller_output(self, now_s: float) -> Any:
+        t = self._truth()
+        target = self._waypoint_target()
+        bearing_deg, distance_m, alt_error_m = 0.0, 0.0, 0.0
+        if target is not None:
+            north = (target[0] - t.lat_deg) * _M_PER_DEG_LAT
+            east = (target[1] - t.lon_deg) * _M_PER_DEG_LAT * math.cos(math.radians(t.lat_deg))
+            bearing_deg = math.degrees(math.atan2(east, north)) % 360.0
+            distance_m = math.hypot(north, east)
+            alt_error_m = target[2] - t.up_m
+        return self._mav.nav_controller_output_encode(
+            t.roll_deg,
+            t.pitch_deg,
+            round(t.heading_deg) % 360,
+            round(bearing_deg) % 360,
+            min(round(distance_m), UINT16_MAX),
+            alt_error_m,
+            0.0,
+            0.0,
+        )
+
+    def _msg_position_target_global_int(self, now_s: float) -> Any:
+        target = self._waypoint_target()
+        if target is None:
+            return None  # ArduPilot sends it only while the mode flies to a target
+        return self._mav.position_target_global_int_encode(
+            self._boot_ms(now_s),
+            mavlink2.MAV_FRAME_GLOBAL,
+            0xFDF8,
+            round(target[0] * 1e7),
+            round(target[1] * 1e7),
+            self.origin_alt_m + target[2],
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+        )
+
+    def _msg_home_position(self, now_s: float) -> Any:
+        if self._home is None:
+            return None  # ArduPilot acknowledges the request and sends nothing
+        self._home_sent_s = now_s
+        lat, lon, alt = self._home
+        truth = self._truth()
+        north = (truth.lat_deg - lat) * _M_PER_DEG_LAT
+        east = (truth.lon_deg - lon) * _M_PER_DEG_LAT * math.cos(math.radians(lat))
+        return self._mav.home_position_encode(
+            round(lat * 1e7),
+            round(lon * 1e7),
+            round(alt * 1000),
+            -north,
+            -east,
+            0.0,
+            [math.nan] * 4,
+            0.0,
+            0.0,
+            0.0,
+            round((now_s - self.boot_s) * 1e6),
+        )
+
+    def _msg_autopilot_version(self, now_s: float) -> Any:
+        major, minor, patch = FIRMWARE_VERSION
+        version = (
+            (major << 24) | (minor << 16) | (patch << 8) | mavlink2.FIRMWARE_VERSION_TYPE_OFFICIAL
+        )
+        zeros8 = [0] * 8
+        uid = int.from_bytes(b"CLARK", "big") << 16 | self._sysid << 8 | self._compid
+        return self._mav.autopilot_version_encode(
+            CAPABILITIES[self.firmware], version, 0, 0, 0, zeros8, zeros8, zeros8, 0, 0, uid
         )

@@ -45,8 +45,9 @@ from clark_engine.io.autopilot import AutopilotAdapter, AutopilotSettings, gps_t
 from clark_engine.link.auth import load_key
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.geo import parse_point
-from clark_engine.mission.model import Mission
+from clark_engine.mission.model import Agent, Mission
 from clark_engine.runtime.commands import (
+    Arm,
     CloseInterfaces,
     Command,
     Goto,
@@ -55,17 +56,24 @@ from clark_engine.runtime.commands import (
     SendPacket,
     SetMode,
     SetServo,
+    Takeoff,
 )
 from clark_engine.runtime.config import AgentConfig, config_from_dict
+from clark_engine.runtime.context import offset_position
 from clark_engine.runtime.events import PacketReceived, StationCommand
 from clark_engine.runtime.logbook import Logbook
 from clark_engine.runtime.machine import StateChange
 from clark_engine.runtime.runtime import AgentRuntime
 from clark_engine.sim.autopilot import SimAutopilot
+from clark_engine.sim.backend import SimulatedBackend, VehicleBackend
 from clark_engine.sim.camera import SimCamera
+from clark_engine.sim.firmware import FIRMWARES
 from clark_engine.sim.model import VehicleModel
+from clark_engine.sim.pilot import SimPilot
 from clark_engine.sim.radio import LinkStats, Position, RadioMesh
 from clark_engine.sim.recording import Photo, Recording, StateEntry, Track
+from clark_engine.sim.sitl import Home, SitlInstall, SitlProcess, vehicle_for_firmware
+from clark_engine.sim.sitl_backend import SitlBackend
 from clark_engine.sim.vehicles import make_vehicle
 
 #: Vehicle physics and autopilot telemetry step.
@@ -74,10 +82,11 @@ PHYSICS_STEP_S = 0.02
 SAMPLE_PERIOD_S = 0.1
 #: The simulated GPS time at t = 0: 2026-01-01 00:00:00 UTC, fixed for reproducible logs.
 START_UNIX_US = 1_767_225_600_000_000
-#: Aircraft starting with no height start at this height (take-offs are not simulated).
-DEFAULT_START_UP_M = 40.0
+#: How long before the run an aircraft the pilot hands over in flight was powered on,
+#: beyond its autopilot's boot: it is ready, and its pilot took off, before time 0.
+AIRBORNE_BOOTED_S = 60.0
 
-_AUTOPILOT_COMMANDS = (Goto, SetMode, SetServo, RcOverride)
+_AUTOPILOT_COMMANDS = (Goto, SetMode, Arm, Takeoff, SetServo, RcOverride)
 
 #: How much shorter than the mesh's lookahead a split run's window is.
 WINDOW_MARGIN_S = 1e-7
@@ -127,9 +136,9 @@ class SimAgent:
     runtime: AgentRuntime
     logbook: Logbook
     tick_offset_s: float
-    model: VehicleModel | None = None
-    autopilot: SimAutopilot | None = None
+    backend: VehicleBackend | None = None
     adapter: AutopilotAdapter | None = None
+    pilot: SimPilot | None = None
     cameras: dict[str, SimCamera] = field(default_factory=dict)
     alive: bool = True
     closed: bool = False
@@ -146,6 +155,18 @@ class SimAgent:
     def link_up(self, t_s: float) -> bool:
         """True when its autopilot link is not disconnected by a fault."""
         return not any(w.covers(t_s) for w in self.autopilot_down)
+
+    @property
+    def model(self) -> VehicleModel | None:
+        """The simulated vehicle's model (None for a station or a SITL vehicle)."""
+        backend = self.backend
+        return backend.model if isinstance(backend, SimulatedBackend) else None
+
+    @property
+    def autopilot(self) -> SimAutopilot | None:
+        """The simulated autopilot (None for a station or a SITL vehicle)."""
+        backend = self.backend
+        return backend.autopilot if isinstance(backend, SimulatedBackend) else None
 
 
 @dataclass(slots=True)
@@ -220,6 +241,159 @@ def split_window_s(radio: RadioMesh) -> float:
     return radio.lookahead_s - WINDOW_MARGIN_S
 
 
+def build_vehicle(
+    mission: Mission, agent: Agent, config: AgentConfig, seed: int, *, wall_clock: bool = False
+) -> tuple[SimulatedBackend, SimPilot]:
+    """One vehicle of a dry run: its simulated autopilot and physics, and its safety pilot.
+
+    A vehicle starts as the mission's ``launch`` says: on the ground, disarmed, in
+    the mode its firmware boots in, its autopilot powered on at time 0 (so it needs
+    ArduPilot's tens of seconds to get ready; ``sim.autopilot_ready_s`` changes
+    that); or, when the pilot hands it over in flight, in the air at its
+    ``position``, armed, in its hold mode, its autopilot long ready and home where
+    it took off (the ground below its position).
+
+    Args:
+        mission: The resolved mission (origin, ``sim`` settings).
+        agent: The vehicle.
+        config: Its compiled config (its channels).
+        seed: The run's seed (the vehicle's GPS noise is drawn from it).
+        wall_clock: SYSTEM_TIME gives the wall clock's time (real-time runs).
+    """
+    sim = mission.sim
+    raw = agent.raw
+    start = parse_point(raw["position"], mission.origin) if "position" in raw else None
+    north, east, up = (start.north_m, start.east_m, start.up_m) if start else (0.0, 0.0, 0.0)
+    airframe, autopilot = agent.hardware.parts["airframe"], agent.hardware.parts["autopilot"]
+    setup = raw.get("sim") or {}
+    launch = agent.launch
+    airborne = launch is not None and launch.airborne and airframe.get("class") != "rover"
+    firmware = FIRMWARES[str(autopilot["firmware"])]
+    ready_s = sim.get("autopilot_ready_s")
+    boot = firmware.boot if ready_s is None else firmware.boot.scaled(float(ready_s))
+    start_mode = setup.get("mode") or (
+        autopilot.get("hold_mode") if airborne else firmware.boot_mode
+    )
+    model = make_vehicle(
+        airframe,
+        autopilot,
+        config.channels,
+        mission.origin,
+        (north, east, up if airborne else 0.0),
+        random.Random(f"{seed}:vehicle:{agent.name}"),
+        gps_noise_m=float(sim.get("gps_noise_m", 0.5)),
+        heading_deg=float(setup.get("heading_deg", 0.0)),
+        armed=airborne,
+        mode=start_mode,
+        rc_override_timeout_s=None,  # the simulated autopilot's RC_OVERRIDE_TIME applies
+    )
+    # An aircraft the pilot flew up was powered on long before: ready, home set.
+    boot_s = -(max(boot.position_s, boot.prearm_s) + AIRBORNE_BOOTED_S) if airborne else 0.0
+    simulated = SimAutopilot.from_profile(
+        model,
+        autopilot,
+        origin_lat_deg=mission.origin.lat_deg,
+        origin_lon_deg=mission.origin.lon_deg,
+        origin_alt_m=mission.origin.alt_m,
+        start_time_unix_us=START_UNIX_US,
+        boot_s=boot_s,
+        boot=boot,
+        unix_clock_us=(lambda: time.time_ns() // 1000) if wall_clock else None,
+    )
+    if airborne:
+        takeoff_point = offset_position(mission.origin.lat_deg, mission.origin.lon_deg, north, east)
+        simulated.set_home(*takeoff_point, mission.origin.alt_m, 0.0)
+    backend = SimulatedBackend(model, simulated)
+    throttle = config.channels.get("throttle")
+    copter_throttle = throttle if airframe.get("class") == "multirotor" else None
+    pilot = SimPilot(
+        backend,
+        system_id=simulated.sysid,
+        arms=not airborne and (launch is None or launch.armed_by == "pilot"),
+        throttle_rc=copter_throttle.rc if copter_throttle is not None else None,
+        throttle_mid_us=(copter_throttle.pwm_min_us + copter_throttle.pwm_max_us) // 2
+        if copter_throttle is not None
+        else 1500,
+    )
+    return backend, pilot
+
+
+def build_sitl_vehicle(
+    mission: Mission, agent: Agent, config: AgentConfig, install: SitlInstall, speedup: float
+) -> tuple[SitlBackend, SimPilot, dict[str, Any] | None]:
+    """One vehicle of a dry run on real ArduPilot SITL, started (listening, not connected).
+
+    SITL boots at the ground point below the agent's ``position`` (its home), heading
+    its ``sim.heading_deg``, with the firmware's flight parameters as the simulated
+    autopilot has them (its defaults and the profile's ``parameters``).
+
+    Returns:
+        The backend, its pilot, and for a vehicle the pilot hands over in flight the
+        arguments of :meth:`SitlBackend.fly_up` (None for one that starts on the ground).
+    """
+    raw = agent.raw
+    start = parse_point(raw["position"], mission.origin) if "position" in raw else None
+    north, east, up = (start.north_m, start.east_m, start.up_m) if start else (0.0, 0.0, 0.0)
+    airframe, autopilot = agent.hardware.parts["airframe"], agent.hardware.parts["autopilot"]
+    setup = raw.get("sim") or {}
+    launch = agent.launch
+    airborne = launch is not None and launch.airborne and airframe.get("class") != "rover"
+    firmware = FIRMWARES[str(autopilot["firmware"])]
+    lat, lon = offset_position(mission.origin.lat_deg, mission.origin.lon_deg, north, east)
+    heading = float(setup.get("heading_deg", 0.0))
+    process = SitlProcess(
+        install,
+        vehicle_for_firmware(firmware.name),
+        Home(lat, lon, mission.origin.alt_m, heading),
+        speedup=speedup,
+    )
+    params = {name: firmware.params[name][0] for name in firmware.flight_params}
+    params.update(
+        {
+            str(name): float(value)
+            for name, value in (autopilot.get("parameters") or {}).items()
+            if name in firmware.flight_params
+        }
+    )
+    mav = autopilot.get("mavlink") or {}
+    process.start()
+    backend = SitlBackend(
+        process,
+        origin=mission.origin,
+        firmware=firmware.name,
+        system_id=int(mav.get("system_id", 1)),
+        component_id=int(mav.get("component_id", 1)),
+        params=params,
+    )
+    throttle = config.channels.get("throttle")
+    copter_throttle = throttle if airframe.get("class") == "multirotor" else None
+    throttle_at = (
+        (int(copter_throttle.rc), (copter_throttle.pwm_min_us + copter_throttle.pwm_max_us) // 2)
+        if copter_throttle is not None and copter_throttle.rc is not None
+        else None
+    )
+    pilot = SimPilot(
+        backend,
+        system_id=backend.system_id,
+        arms=not airborne and (launch is None or launch.armed_by == "pilot"),
+        throttle_rc=throttle_at[0] if throttle_at is not None else None,
+        throttle_mid_us=throttle_at[1] if throttle_at is not None else 1500,
+    )
+    plan = (
+        {
+            "up_m": up,
+            "north_m": north,
+            "east_m": east,
+            "modes": dict(autopilot["modes"]),
+            "hold_mode": str(autopilot.get("hold_mode")),
+            "throttle": throttle_at,
+        }
+        if airborne
+        else None
+    )
+    return backend, pilot, plan
+
+
 class DryRun:
     """One dry run of a validated mission, or one process's share of a split run.
 
@@ -238,6 +412,12 @@ class DryRun:
         exchange: Swaps radio actions with the other processes of a split run, once
             per :attr:`window_s` of simulated time (a hair under the mesh's lookahead);
             None for a run in one process.
+        wall_clock: The simulated autopilots' SYSTEM_TIME gives the wall clock's time
+            (a real-time run with ground stations), not the simulated one.
+        sitl: Fly every vehicle's autopilot as a real ArduPilot SITL process from this
+            install instead of the simulated one (:mod:`clark_engine.sim.sitl_backend`);
+            SITL's clock then sets the pace. None: the simulated autopilot.
+        sitl_speedup: SITL's speed-up (1: real time).
 
     Raises:
         ValueError: A split run on a mesh whose lookahead is too short to split on.
@@ -256,15 +436,21 @@ class DryRun:
         speed: float | None = None,
         owned: Collection[str] | None = None,
         exchange: Exchange | None = None,
+        wall_clock: bool = False,
+        sitl: SitlInstall | None = None,
+        sitl_speedup: float = 10.0,
     ) -> None:
         self.mission = mission
+        self.wall_clock = wall_clock
+        self.sitl = sitl
+        self.sitl_speedup = sitl_speedup
+        self._preflights: dict[str, dict[str, Any]] = {}
         self.seed = seed
         self.until_s = until_s
         self.progress = progress
         self.speed = speed
         self.exchange = exchange
         self.recording = Recording()
-        sim = mission.sim
         self.radio = build_mesh(mission, seed)
         owned_set = set(mission.agents) if owned is None else set(owned)
         key = load_key(mission_path.parent / mission.key_file) if mission.key_file else None
@@ -291,10 +477,10 @@ class DryRun:
                         payload, profile, random.Random(f"{seed}:camera:{name}:{payload}")
                     )
             if agent.is_vehicle:
-                self._build_vehicle(sim_agent, agent.raw, agent.hardware.parts, sim)
+                self._build_vehicle(sim_agent, agent)
         # Agent order (the tie-break of events at one time) is the mission's, whoever owns them.
         self._order = {name: i for i, name in enumerate(mission.agents)}
-        self._vehicles = [a for a in self.agents.values() if a.model is not None]
+        self._vehicles = [a for a in self.agents.values() if a.backend is not None]
         # Stations and agents without a vehicle stay where the mission puts them.
         self._fixed_positions: dict[str, Position] = {
             name: (agent.position.north_m, agent.position.east_m, agent.position.up_m)
@@ -362,47 +548,52 @@ class DryRun:
 
     # -- setup ---------------------------------------------------------------------------
 
-    def _build_vehicle(
-        self,
-        sim_agent: SimAgent,
-        raw: Mapping[str, Any],
-        parts: Mapping[str, Mapping[str, Any]],
-        sim: Mapping[str, Any],
-    ) -> None:
-        mission = self.mission
-        start = parse_point(raw["position"], mission.origin) if "position" in raw else None
-        north, east, up = (start.north_m, start.east_m, start.up_m) if start else (0.0, 0.0, 0.0)
-        airframe, autopilot = parts["airframe"], parts["autopilot"]
-        setup = raw.get("sim") or {}
-        if airframe.get("class") != "rover" and up <= 0:
-            up = DEFAULT_START_UP_M
-        model = make_vehicle(
-            airframe,
-            autopilot,
-            sim_agent.config.channels,
-            mission.origin,
-            (north, east, up),
-            random.Random(f"{self.seed}:vehicle:{sim_agent.name}"),
-            gps_noise_m=float(sim.get("gps_noise_m", 0.5)),
-            heading_deg=float(setup.get("heading_deg", 0.0)),
-            armed=bool(setup.get("armed", True)),
-            mode=setup.get("mode"),
-            rc_override_timeout_s=None,  # the simulated autopilot's RC_OVERRIDE_TIME applies
-        )
-        sim_agent.model = model
-        sim_agent.autopilot = SimAutopilot.from_profile(
-            model,
-            autopilot,
-            home_lat_deg=mission.origin.lat_deg,
-            home_lon_deg=mission.origin.lon_deg,
-            home_alt_m=mission.origin.alt_m,
-            start_time_unix_us=START_UNIX_US,
-        )
+    def _build_vehicle(self, sim_agent: SimAgent, agent: Agent) -> None:
+        """The vehicle's autopilot and physics (simulated, or SITL), its pilot, its adapter."""
+        if self.sitl is not None:
+            backend, pilot, plan = build_sitl_vehicle(
+                self.mission, agent, sim_agent.config, self.sitl, self.sitl_speedup
+            )
+            sim_agent.backend, sim_agent.pilot = backend, pilot
+            if plan is not None:
+                self._preflights[sim_agent.name] = plan
+        else:
+            sim_agent.backend, sim_agent.pilot = build_vehicle(
+                self.mission, agent, sim_agent.config, self.seed, wall_clock=self.wall_clock
+            )
         sim_agent.adapter = AutopilotAdapter(
             AutopilotSettings.from_config(sim_agent.config), logger=sim_agent.logbook.interface
         )
         self.recording.tracks[sim_agent.name] = Track()
-        self._to_autopilot(sim_agent, sim_agent.adapter.start(0.0), 0.0)
+        if self.sitl is None:
+            self._to_autopilot(sim_agent, sim_agent.adapter.start(0.0), 0.0)
+
+    def _open_sitl(self) -> None:
+        """Connect every SITL vehicle; fly up those handed over in flight first.
+
+        A vehicle flown up before the run has its own clock well past 0 when the run
+        starts; one on the ground is connected (its clock starts) as the run starts.
+        """
+        for name, plan in self._preflights.items():
+            backend = self.agents[name].backend
+            assert isinstance(backend, SitlBackend)
+            backend.connect()
+            backend.fly_up(**plan)
+        for sim_agent in self._vehicles:
+            backend = sim_agent.backend
+            assert isinstance(backend, SitlBackend)
+            if sim_agent.name not in self._preflights:
+                backend.connect()
+                backend.start_run_here()
+        for sim_agent in self._vehicles:
+            assert sim_agent.adapter is not None
+            self._to_autopilot(sim_agent, sim_agent.adapter.start(0.0), 0.0)
+
+    def close(self) -> None:
+        """Stop what the run started outside this process (SITL); safe to call twice."""
+        for sim_agent in self._vehicles:
+            if sim_agent.backend is not None:
+                sim_agent.backend.close()
 
     def _apply_faults(self, faults: Sequence[Mapping[str, Any]]) -> None:
         kills: list[tuple[float, str]] = []
@@ -468,6 +659,9 @@ class DryRun:
         self._wall_start = time.perf_counter()
         self._next_progress_wall = self._wall_start + 1.0
         try:
+            if self.sitl is not None:
+                self._open_sitl()
+                self._wall_start = time.perf_counter()  # the run, not the pre-flights
             if self.exchange is None:
                 self._advance(math.inf, last=True)
             else:
@@ -481,6 +675,7 @@ class DryRun:
         finally:  # the logs so far are complete rows, even when the run failed
             for sim_agent in self.agents.values():
                 sim_agent.logbook.close()
+            self.close()
         self.recording.end_s = min(self._t, self.until_s)
         return DryRunResult(
             self.recording,
@@ -610,17 +805,16 @@ class DryRun:
         # Every vehicle steps first, so that any packet sent at this time sees every
         # vehicle where this step put it; then each agent hears its autopilot.
         heard: list[tuple[SimAgent, bytes]] = []
+        dt_s = PHYSICS_STEP_S if t_s > 0 else 0.0
         for sim_agent in self._vehicles:
-            assert sim_agent.model is not None and sim_agent.autopilot is not None
-            if t_s > 0:
-                sim_agent.model.step(PHYSICS_STEP_S)
-            data = sim_agent.autopilot.advance(t_s)
+            assert sim_agent.backend is not None
+            data = sim_agent.backend.step(t_s, dt_s)
             if data:  # else nothing due: the usual case between streamed messages
                 heard.append((sim_agent, data))
         if self._ranged:
             here: dict[str, Position] = {}
             for sim_agent in self._vehicles:
-                truth = sim_agent.model.truth()  # type: ignore[union-attr]
+                truth = sim_agent.backend.truth()  # type: ignore[union-attr]
                 here[sim_agent.name] = (truth.north_m, truth.east_m, truth.up_m)
             self._positions.update(here)
             if self._outbox is not None:
@@ -629,6 +823,9 @@ class DryRun:
             tap = self.autopilot_taps.get(sim_agent.name)
             if tap is not None:
                 tap(data)
+            pilot = sim_agent.pilot
+            if pilot is not None and not pilot.done:
+                pilot.hear(data, t_s)
             if sim_agent.adapter is None or not sim_agent.alive or sim_agent.closed:
                 continue
             if not sim_agent.link_up(t_s):
@@ -642,9 +839,9 @@ class DryRun:
 
     def _sample(self, t_s: float) -> None:
         for name, track in self.recording.tracks.items():
-            model = self.agents[name].model
-            assert model is not None
-            truth = model.truth()
+            backend = self.agents[name].backend
+            assert backend is not None
+            truth = backend.truth()
             track.add(
                 t_s,
                 truth.north_m,
@@ -681,8 +878,8 @@ class DryRun:
         self._cameras_changed = True  # answers are taken (and answering may command others)
         for sim_agent, index, camera in self._cameras_list:
             for answer, (_at_s, event) in enumerate(camera.events_until(t_s)):
-                if event.kind == "captured" and sim_agent.model is not None:
-                    truth = sim_agent.model.truth()
+                if event.kind == "captured" and sim_agent.backend is not None:
+                    truth = sim_agent.backend.truth()
                     self.recording.photos.setdefault(sim_agent.name, []).append(
                         Photo(t_s, truth.north_m, truth.east_m, truth.up_m)
                     )
@@ -710,9 +907,9 @@ class DryRun:
     def _operate(self, item: Mapping[str, Any], t_s: float) -> None:
         if "rc" in item:
             body = item["rc"]
-            model = self.agents[str(body["agent"])].model
-            if model is not None:
-                model.set_pilot({int(body["channel"]): int(body["pwm_us"])})
+            backend = self.agents[str(body["agent"])].backend
+            if backend is not None:
+                backend.set_pilot({int(body["channel"]): int(body["pwm_us"])})
             return
         station = self._station
         if station is None or not station.alive or station.closed:
@@ -742,16 +939,16 @@ class DryRun:
         if runtime.autopilot_lost and not sim_agent.autopilot_lost_seen:
             sim_agent.autopilot_lost_seen = True
             self.recording.safety.setdefault(sim_agent.name, []).append((t_s, "autopilot_lost"))
-        model = sim_agent.model
-        if model is not None and sim_agent.signal_keys:
+        backend = sim_agent.backend
+        if backend is not None and sim_agent.signal_keys:
             # RC inputs and servo outputs, each read only if a recorded signal is on it.
             inputs: tuple[int, ...] | None = None
             outputs: tuple[int, ...] | None = None
             for label, via, number in sim_agent.signal_keys:
                 if via == "rc_override":
-                    values = inputs = model.rc_inputs() if inputs is None else inputs
+                    values = inputs = backend.rc_inputs() if inputs is None else inputs
                 else:
-                    values = outputs = model.servo_outputs() if outputs is None else outputs
+                    values = outputs = backend.servo_outputs() if outputs is None else outputs
                 pwm = values[number - 1] if number - 1 < len(values) else 0
                 self.recording.signals[(sim_agent.name, label)].append((t_s, int(pwm)))
 
@@ -799,10 +996,10 @@ class DryRun:
 
     def inject(self, agent: str, data: bytes, t_s: float) -> None:
         """Bytes from an outside ground station to an agent's simulated autopilot."""
-        autopilot = self.agents[agent].autopilot
-        if autopilot is not None and data:
-            autopilot.receive(data, t_s)
+        backend = self.agents[agent].backend
+        if backend is not None and data:
+            backend.send(data, t_s)
 
     def _to_autopilot(self, sim_agent: SimAgent, data: bytes, t_s: float) -> None:
-        if data and sim_agent.autopilot is not None and sim_agent.link_up(t_s):
-            sim_agent.autopilot.receive(data, t_s)
+        if data and sim_agent.backend is not None and sim_agent.link_up(t_s):
+            sim_agent.backend.send(data, t_s)

@@ -181,10 +181,10 @@ class MavlinkBridge:
         endpoints = []
         for name, transport in self._transports.items():
             agent = run.agents.get(name)
-            if agent is None or agent.autopilot is None:
+            if agent is None or agent.backend is None:
                 raise ValueError(f"{name!r} is not a simulated vehicle of this run")
             host, port = transport.address
-            endpoints.append(Endpoint(name, host, port, agent.autopilot.sysid))
+            endpoints.append(Endpoint(name, host, port, agent.backend.system_id))
         for name, transport in self._transports.items():
             run.autopilot_taps[name] = self._tap(transport, run.autopilot_taps.get(name))
         self._run = run

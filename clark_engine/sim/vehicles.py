@@ -1,14 +1,24 @@
 """Point-mass vehicle models for the dry run: multirotor, fixed wing and rover.
 
 Each model is a :class:`~clark_engine.sim.model.VehicleModel`: the physics and
-the flight-mode logic of one vehicle, limited by its airframe profile, with no
-knowledge of MAVLink. They are point masses with first-order attitude dynamics:
-enough to make a behaviour's commands visible (a guided leg flies to its point,
-an aileron doublet rolls the aircraft, a rover stops at its waypoint) and cheap
-enough that a 50-vehicle dry run at 50 Hz runs far faster than real time. They
-are not flight-dynamics models: no wind, no aerodynamic coefficients, no
-motor or battery model. Every gain and constant below that is not in the
-profile is an ArduPilot default or a stated assumption.
+the flight-mode logic of one vehicle, limited by its airframe profile and flown
+as ArduPilot flies it, with no knowledge of MAVLink. They are point masses with
+first-order attitude dynamics: enough to make a behaviour's commands visible (a
+guided leg flies to its point, an aileron doublet rolls the aircraft, a rover
+stops at its waypoint) and cheap enough that a 50-vehicle dry run at 50 Hz runs
+far faster than real time. They are not flight-dynamics models: no wind, no
+aerodynamic coefficients, no motor or battery model.
+
+The project's promise is that what passes the dry run flies on real ArduPilot,
+so a model must never be kinder than ArduPilot: it flies ArduPilot's parameters
+(:meth:`SimulatedVehicle.configure`, ArduPilot's names and units, ArduPilot's
+defaults until the autopilot layer says otherwise), and where ArduPilot's
+behaviour was measured on SITL (the build in ``../shared/ardupilot-sitl``, the
+fact sheets of the conformance work) the constants below are fitted to those
+measurements and say so. Every other constant is an ArduPilot default or a
+stated assumption. New parameter values apply at the next mode entry or target
+(a rover's only at the next mode entry: a PARAM_SET of WP_SPEED mid-leg, or
+before a new target, changes nothing on ArduRover until GUIDED is re-entered).
 
 Conventions:
     Local frame north/east/up in metres from the mission origin; angles are
@@ -17,38 +27,58 @@ Conventions:
     [0, 360) (what ArduPilot reports in VFR_HUD and GLOBAL_POSITION_INT). RC
     polarity is ArduPilot's: a pulse above trim rolls right, pitches the nose
     UP (the pitch stick pulled back), yaws right, steers right, and on a
-    centred rover throttle drives forward.
+    centred rover throttle drives forward. Heights that ArduPilot measures
+    above home (RTL_ALT, LAND_ALT_LOW, a takeoff's altitude, TKOFF_ALT,
+    RTL_ALTITUDE) are above :attr:`SimulatedVehicle.home_m`; the ground is flat
+    at the origin's altitude (up 0).
 
 Mode classification (ArduPilot mode names from the autopilot profile; the
-profile's ``guided_mode``, ``hold_mode``, ``rtl_mode`` and ``manual_mode``
-roles come first, then the names below):
+profile's ``guided_mode``, ``hold_mode``, ``rtl_mode``, ``land_mode`` and
+``manual_mode`` roles come first, then the names below):
 
 =========== ================================ ======================= ==================
 behaviour   multirotor (ArduCopter)          fixed wing (ArduPlane)  rover (ArduRover)
 =========== ================================ ======================= ==================
-manual      STABILIZE ACRO RATE_ACRO         MANUAL STABILIZE        MANUAL ACRO
-            ALT_HOLD SPORT DRIFT POSHOLD     TRAINING ACRO FBWA      STEERING SIMPLE
-            FLOWHOLD                         FBWB CRUISE AUTOTUNE
+manual      STABILIZE ACRO RATE_ACRO DRIFT   MANUAL STABILIZE        MANUAL ACRO
+            ALT_HOLD SPORT FLOWHOLD          TRAINING ACRO FBWA      STEERING SIMPLE
+                                             FBWB CRUISE AUTOTUNE
 guided      GUIDED                           GUIDED                  GUIDED
-hold        LOITER BRAKE                     LOITER                  HOLD LOITER
+auto        AUTO                             AUTO                    AUTO
+hold        LOITER BRAKE POSHOLD CIRCLE      LOITER                  HOLD LOITER
 rtl         RTL SMART_RTL AUTO_RTL           RTL                     RTL SMART_RTL
 land        LAND                             (none)                  (none)
+takeoff     (none)                           TAKEOFF                 (none)
 refused     (none)                           INITIALISING, Q modes   INITIALISING
 =========== ================================ ======================= ==================
 
-Every other mode of the profile (AUTO with no mission, CIRCLE, TAKEOFF, FOLLOW,
-THROW, ...) is accepted and flown as the hold mode: the model has no mission,
-no follow target and no launch detection, so it does what a careful pilot
-expects of an unmodelled mode, stay put. ``unsimulated_modes`` lists them.
+Every other mode of the profile (THROW, FLIP, FOLLOW, ZIGZAG, ArduPlane's
+CIRCLE and AUTOLAND, ArduRover's CIRCLE, ...) is accepted and flown as the hold
+mode: the model has no follow target and no landing sequence for them, so it
+does what a careful pilot expects of an unmodelled mode, stay put.
+``unsimulated_modes`` lists them (an ArduCopter one that takes the pilot's
+throttle as a climb rate, ZIGZAG, AUTOTUNE, SYSTEMID, still does, below).
 ArduPlane refuses its Q (quadplane) modes on an aircraft without VTOL motors
-and nobody can select INITIALISING, so the models refuse them too.
+and nobody can select INITIALISING, so the models refuse them too. SMART_RTL
+flies as RTL (straight home, not back along the path).
 
-Arming: a vehicle on the ground starts disarmed or armed as its builder says
-(the dry run's default is armed, as the mission's ``sim.armed`` says); a
-vehicle that starts in the air must start armed. Disarming is refused while
-airborne (ArduCopter refuses it unless forced; the model has no force). A
-disarmed vehicle's motors are stopped: on the ground it does not move.
-ArduCopter's LAND disarms on touchdown, and so does the model.
+Copter throttle (measured on SITL, whose RC throttle rests at its minimum):
+STABILIZE, ACRO, RATE_ACRO and DRIFT pass the stick to the motors, mid stick
+hovering, so a copter flown only over MAVLink that enters one of them in the
+air with the stick at its minimum falls with its motors at idle (SITL hit the
+ground at 14.4 m/s from 20 m). ALT_HOLD, SPORT, FLOWHOLD, LOITER, POSHOLD and
+CIRCLE take the stick as a climb rate: above and below a dead band around mid
+stick (THR_DZ) it climbs at up to PILOT_SPEED_UP and descends at up to
+PILOT_SPEED_DN (PILOT_SPEED_UP when 0), so at the minimum they descend at
+2.5 m/s until they land (SITL: 2.44 m/s). GUIDED, AUTO, RTL, LAND and BRAKE
+hold or control their height themselves.
+
+Arming: a vehicle on the ground starts disarmed or armed as its builder says;
+a vehicle that starts in the air must start armed. The autopilot layer does the
+arming checks and every disarm after a landing (ArduCopter's 2 s after a
+touchdown in LAND or RTL, its 10 s idle disarm); the models never disarm
+themselves. Disarming in the air is refused unless forced; a forced disarm
+stops the motors where the vehicle is: a copter falls (and reports
+``on_ground`` at once, as ArduCopter's landed state does), a plane glides.
 
 RC and servos: the pilot's transmitter starts with every mapped channel at its
 trim, the throttle at its minimum (copter, plane) or trim (rover, centred),
@@ -77,11 +107,11 @@ from abc import abstractmethod
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from enum import Enum
-from typing import Any, ClassVar, NamedTuple, Protocol
+from typing import Any, ClassVar, Final, NamedTuple, Protocol
 
 from clark_engine.errors import ClarkError
 from clark_engine.mission.geo import EARTH_RADIUS_M, Origin
-from clark_engine.sim.model import Truth, VehicleModel
+from clark_engine.sim.model import LandedState, Truth, VehicleModel
 
 #: Standard gravity, m/s^2.
 G_M_S2 = 9.80665
@@ -108,8 +138,151 @@ DEFAULT_RC_OVERRIDE_TIMEOUT_S = 3.0
 #: Pulse width reported for an RC channel the profile does not map (receiver centre).
 UNMAPPED_RC_US = 1500
 
+# --- ArduPilot's parameters the models read (names and units as ArduPilot's) -----------
+
+COPTER_DEFAULT_PARAMS: Final[Mapping[str, float]] = {
+    "WPNAV_SPEED": 1000.0,  # cm/s, guided/auto horizontal speed
+    "WPNAV_ACCEL": 250.0,  # cm/s^2, horizontal acceleration
+    "WPNAV_SPEED_UP": 250.0,  # cm/s, climb rate
+    "WPNAV_SPEED_DN": 150.0,  # cm/s, descent rate
+    "WPNAV_ACCEL_Z": 100.0,  # cm/s^2, vertical acceleration
+    "WPNAV_RADIUS": 200.0,  # cm, waypoint radius
+    "RTL_ALT": 1500.0,  # cm above home
+    "RTL_ALT_FINAL": 0.0,  # cm above home; 0 lands
+    "RTL_CLIMB_MIN": 0.0,  # cm
+    "RTL_CONE_SLOPE": 3.0,  # RTL climbs at most distance * slope near home
+    "RTL_SPEED": 0.0,  # cm/s; 0: WPNAV_SPEED
+    "RTL_LOIT_TIME": 5000.0,  # ms above home before descending
+    "LAND_SPEED": 50.0,  # cm/s below LAND_ALT_LOW
+    "LAND_SPEED_HIGH": 0.0,  # cm/s above LAND_ALT_LOW; 0: WPNAV_SPEED_DN
+    "LAND_ALT_LOW": 1000.0,  # cm above home
+    "PILOT_SPEED_UP": 250.0,  # cm/s, full-stick climb in the pilot's climb-rate modes
+    "PILOT_SPEED_DN": 0.0,  # cm/s; 0: PILOT_SPEED_UP
+    "PILOT_ACCEL_Z": 250.0,  # cm/s^2
+    "THR_DZ": 100.0,  # dead band around mid stick, in 1/1000 of the throttle range
+    "CIRCLE_RADIUS": 1000.0,  # cm
+    "CIRCLE_RATE": 20.0,  # deg/s, positive clockwise
+}
+"""ArduCopter's defaults (AC_WPNav, AC_Circle, Copter Parameters.cpp) for what the model
+reads; SITL's copter.parm has the same values."""
+
+PLANE_DEFAULT_PARAMS: Final[Mapping[str, float]] = {
+    "AIRSPEED_CRUISE": 15.0,  # m/s, guided/auto airspeed
+    "AIRSPEED_MIN": 9.0,  # m/s
+    "AIRSPEED_MAX": 22.0,  # m/s
+    "TKOFF_ALT": 50.0,  # m above home, TAKEOFF mode's climb
+    "TKOFF_DIST": 200.0,  # m ahead on the takeoff heading: TAKEOFF mode's loiter point
+    "TKOFF_LVL_ALT": 10.0,  # m, wings level below this in a takeoff
+    "WP_RADIUS": 90.0,  # m, a waypoint is reached within it
+    "WP_LOITER_RAD": 60.0,  # m, the loiter radius
+    "RTL_ALTITUDE": 100.0,  # m above home
+    "RTL_RADIUS": 0.0,  # m; 0: WP_LOITER_RAD
+    "ROLL_LIMIT_DEG": 45.0,  # deg, never above the airframe's max_bank_deg
+    "LAND_FLARE_ALT": 3.0,  # m
+    "TECS_LAND_SINK": 0.25,  # m/s in the flare
+}
+"""ArduPlane's defaults (Plane Parameters.cpp, AP_TECS, AP_Landing). SITL's plane.parm
+differs (AIRSPEED_CRUISE 22, AIRSPEED_MIN 10, AIRSPEED_MAX 30, WP_RADIUS 50,
+WP_LOITER_RAD 80, ROLL_LIMIT_DEG 65): the autopilot layer passes what it holds."""
+
+ROVER_DEFAULT_PARAMS: Final[Mapping[str, float]] = {
+    "WP_SPEED": 2.0,  # m/s, guided/auto speed
+    "RTL_SPEED": 0.0,  # m/s; 0: WP_SPEED
+    "WP_RADIUS": 2.0,  # m, a waypoint is reached within it
+    "ATC_ACCEL_MAX": 1.0,  # m/s^2
+    "ATC_DECEL_MAX": 0.0,  # m/s^2; 0: ATC_ACCEL_MAX
+    "ATC_TURN_MAX_G": 0.6,  # lateral acceleration limit, g
+    "TURN_RADIUS": 0.9,  # m, tightest turn
+}
+"""ArduRover's defaults (AR_WPNav, AR_AttitudeControl, Rover Parameters.cpp). SITL's
+rover.parm differs (WP_SPEED 5, CRUISE_SPEED 5, WP_RADIUS 3). CRUISE_SPEED is not read:
+GUIDED drives at WP_SPEED whatever CRUISE_SPEED says (measured)."""
+
+# --- multirotor constants (measured on ArduCopter SITL unless marked) -----------------
+
+COPTER_RAMP_FRACTION: Final = 0.8
+"""Share of WPNAV_ACCEL a copter's horizontal speed ramps up at: SITL's jerk-limited
+S-curve went from 0.55 to 8.36 m/s in 3.85 s, about 2.0 of WPNAV_ACCEL's 2.5 m/s^2. It
+brakes at the full WPNAV_ACCEL on a square-root profile: with both, legs take 9.9 s for
+50 m (SITL: within 0.5 m after 9.38 s), 12.0 s for 70.7 m (11.45 s), 29.9 s for 250 m
+(29.85 s) and 22.6 s for 100 m at 5 m/s (21.8 s), never less than SITL."""
+COPTER_XY_GAIN_1_S: Final = 1.0
+"""Horizontal position gain, 1/s (ArduCopter PSC_POSXY_P)."""
+COPTER_Z_BRAKE_FRACTION: Final = 0.6
+"""Share of WPNAV_ACCEL_Z a copter brakes at on its square-root approach to a height
+(ramping up at the full WPNAV_ACCEL_Z, 1 m/s^2). Fitted with :data:`COPTER_Z_GAIN_1_S` to
+SITL's 10 m NAV_TAKEOFF: 2.5 m/s reached after about 2 s, 2.1 m/s at 6 m, 1.2 at 8.6 m, 0.4
+at 9.9 m, 9.9 m 6.2-6.5 s after the climb started, no overshoot (the model: 6.8 s)."""
+COPTER_Z_GAIN_1_S: Final = 3.0
+"""Gain of the last part of a copter's approach to a height, 1/s (fitted, see above)."""
+COPTER_WP_DONE_M: Final = 0.5
+"""A copter's waypoint is reached within this distance (or WPNAV_RADIUS, if smaller):
+ArduCopter's reached_wp_destination needs its S-curve finished, the copter about there."""
+COPTER_TAKEOFF_DONE_M: Final = 0.1
+"""A takeoff is complete (landed_state IN_AIR) within this height of its altitude."""
+COPTER_AUTO_TAKEOFF_DELAY_S: Final = 0.5
+"""From MISSION_START to the climb of a copter armed for several seconds: SITL was at
+0.29 m climbing 1.18 m/s 1.1 s after MISSION_START (moving from about +0.5 s) and said
+"Mission: 2 WP" (the 10 m takeoff done) at +7.3 s; the model: +7.3 s."""
+COPTER_FALL_TERMINAL_M_S: Final = 17.0
+"""Terminal speed of a copter falling with its motors at idle or stopped, fitted to
+SITL's "SIM Hit ground" speeds: 11.85 m/s from 10 m (forced disarm), 14.4 m/s from 20 m
+and 15.6 m/s from 30 m (STABILIZE, throttle at minimum). The model gives 11.9, 14.6, 15.9."""
+COPTER_MAX_THRUST_RATIO: Final = 2.0
+"""Thrust over weight at full throttle in the direct-throttle modes (an assumption, a
+typical quadcopter); mid stick hovers, the minimum is motors at idle (no thrust)."""
+COPTER_RTL_ALT_MIN_M: Final = 2.0
+"""ArduCopter's RTL_ALT_MIN (200 cm): RTL never returns lower."""
+COPTER_RTL_MIN_CONE_SLOPE: Final = 0.5
+"""ArduCopter's RTL_MIN_CONE_SLOPE: a shallower RTL_CONE_SLOPE turns the cone off."""
+COPTER_RTL_SETTLE_S: Final = 2.5
+"""Time RTL spends arriving above home before its RTL_LOIT_TIME starts, fitted: SITL
+began the final descent 7.5 s after RTL was set directly above home (no climb, no leg,
+no turn) and 7.15 s after passing over home on a 50 m return, with RTL_LOIT_TIME 5 s."""
+COPTER_RTL_YAW_TOLERANCE_RAD: Final = math.radians(2.0)
+"""RTL's loiter above home ends only with the nose within 2 degrees of its heading at
+arming (ArduCopter's RESET_TO_ARMED_YAW): SITL hovered 5-7 s for a 5 s RTL_LOIT_TIME."""
+
+# --- fixed-wing constants --------------------------------------------------------------
+
+PLANE_LOITER_RADIUS_FACTOR: Final = 1.15
+"""The radius SITL flies over WP_LOITER_RAD: 92-93 m for 80 m at 22 m/s. It grows with
+airspeed (86.6 m at 15 m/s, 98.5 m at 28, 101 m at 30); the model keeps the 22 m/s ratio."""
+PLANE_LAUNCH_DELAY_S: Final = 0.2
+"""From arming in TAKEOFF (or AUTO with a takeoff) to the launch: ArduPlane's "Armed
+AUTO, xaccel = ..., waiting 0.2 sec" then "Triggered AUTO"."""
+PLANE_CLIMB_SLEW_M_S2: Final = 2.5
+"""How fast the automatic modes change their commanded climb rate (TECS in outline),
+fitted to SITL's TAKEOFF: climbing 7-10 m/s through TKOFF_ALT 50 m it peaked at 59.2 m
+3 s later, then settled back to 50 m."""
+PLANE_LAND_SLOPE_DEG: Final = 3.1
+"""Glide slope of a landing with no approach to fit it to: SITL's AUTO landing said
+"Landing glide slope 3.1 degrees" (sink 0.8-1.4 m/s at 16 m/s)."""
+
+# --- rover constants (measured on ArduRover SITL) ---------------------------------------
+
+ROVER_APPROACH_DECEL_FRACTION: Final = 0.6
+"""Share of the deceleration limit (ATC_DECEL_MAX, or ATC_ACCEL_MAX when 0) the rover
+brakes at on its square-root approach to a target. Fitted: on SITL's 40 m GUIDED legs
+speed^2 / (2 * distance to the stop) stayed at 0.58-0.63 m/s^2 from 5 m/s down to 1 m/s
+(5 m/s to stop in about 8.7 s) with ATC_ACCEL_MAX 1 and ATC_DECEL_MAX 0."""
+ROVER_APPROACH_GAIN_1_S: Final = 1.3
+"""Gain of the rover's last half metre to a target, 1/s (fitted: 0.78 m/s at 0.66 m from
+the stop, 0.57 at 0.45, 0.38 at 0.29)."""
+ROVER_STOP_SPEED_M_S: Final = 0.1
+"""ArduRover's ATC_STOP_SPEED: at a target, below this it is stopped."""
+ROVER_MIN_SPEED_M_S: Final = 0.05
+"""AR_WPNav's lowest waypoint speed (SITL with WP_SPEED 0 crawled at 0.04 m/s)."""
+ROVER_START_DELAY_S: Final = 0.84
+"""From a new target to the first motion of a rover at rest (SITL: 0.84 s, in every run,
+at speedup 1 and 10): its speed controller winding up."""
+
 _TAU = 2.0 * math.pi
 _HALF_PI = 0.5 * math.pi
+_INF = math.inf
+
+# What a guided/auto command is (VehicleModel.target_reached answers for it).
+_CMD_NONE, _CMD_TARGET, _CMD_TAKEOFF, _CMD_LAND = range(4)
 
 
 class VehicleSetupError(ClarkError):
@@ -137,12 +310,16 @@ class ModeBehaviour(Enum):
     """Fly the RC inputs (the pilot's sticks or an RC override)."""
     GUIDED = "guided"
     """Fly to the last goto target and stop there (loiter around it, fixed wing)."""
+    AUTO = "auto"
+    """Fly what a mission executor sets: auto_target, auto_takeoff, auto_land."""
     HOLD = "hold"
     """Stay where the mode was entered (loiter around it, fixed wing)."""
     RTL = "rtl"
-    """Return to the start point and hold there."""
+    """Return home: a copter lands there, a plane circles it, a rover stops there."""
     LAND = "land"
-    """Descend where the mode was entered and disarm on touchdown (multirotor)."""
+    """Descend where the mode was entered until touchdown (multirotor)."""
+    TAKEOFF = "takeoff"
+    """ArduPlane's TAKEOFF: launch, climb to TKOFF_ALT, loiter TKOFF_DIST ahead."""
 
 
 class ChannelLike(Protocol):
@@ -175,11 +352,16 @@ class AirframeLimits:
 
     Attributes:
         airframe_class: ``multirotor``, ``fixed_wing`` or ``rover``.
-        cruise_speed_m_s: Speed the autopilot flies when no speed is requested.
+        cruise_speed_m_s: The speed a pilot cruises at (an aircraft that starts in
+            the air flies it); the automatic modes fly ArduPilot's parameters
+            (WPNAV_SPEED, AIRSPEED_CRUISE, WP_SPEED) instead.
         max_speed_m_s: Never exceeded (horizontal speed; airspeed, fixed wing).
         min_speed_m_s: Never undershot while flying (fixed wing stall margin).
         max_climb_rate_m_s: Never exceeded upward.
-        max_descent_rate_m_s: Never exceeded downward.
+        max_descent_rate_m_s: Never exceeded downward by a fixed wing. A
+            multirotor descends as its autopilot's parameters say (WPNAV_SPEED_DN,
+            LAND_SPEED, PILOT_SPEED_DN) or, motors at idle, falls: ArduCopter does
+            not know this number.
         max_turn_rate_deg_s: Never exceeded yaw rate.
         max_bank_deg: Largest roll angle (fixed wing; the lean angle of a multirotor
             when given, else ArduCopter's ANGLE_MAX of 30 degrees).
@@ -320,10 +502,11 @@ def sqrt_controller(error: float, p_gain: float, accel_max: float, dt_s: float) 
 
 
 class SimulatedVehicle(VehicleModel):
-    """What every model shares: modes, arming, RC inputs, servo outputs, GPS, truth.
+    """What every model shares: modes, arming, parameters, RC, servos, GPS, truth.
 
-    Subclasses supply the physics (``_advance``) and what entering a mode sets up
-    (``_enter``). Construct them through :func:`make_vehicle`.
+    Subclasses supply the physics (``_advance``), what entering a mode sets up
+    (``_enter``) and how a target or a speed change is taken (``_set_target``,
+    ``_set_speed``). Construct them through :func:`make_vehicle`.
 
     Attributes:
         modes: Mode name -> ArduPilot custom_mode number, from the autopilot profile.
@@ -331,18 +514,28 @@ class SimulatedVehicle(VehicleModel):
         armed: True when the motors are armed.
         limits: The airframe's limits.
         origin: The mission origin (latitude, longitude, altitude of 0 m up).
-        start_m: The start point (north, east, up), where RTL returns.
+        start_m: The start point (north, east, up).
+        home_m: Home (north, east, up): where RTL returns and what heights ArduPilot
+            measures above home are measured from. The start point on the ground
+            until :meth:`set_home` moves it.
         time_s: Simulated time since the vehicle was built.
+        touchdown_s: Time of the last touchdown; None while flying or never flown.
+        touchdown_speed_m_s: Descent rate at the last touchdown (SITL's "SIM Hit
+            ground at ... m/s"); None before one.
         unsimulated_modes: Modes of the profile flown as the hold mode (see module doc).
         roll_time_constant_s: First-order lag of roll behind its command.
         pitch_time_constant_s: First-order lag of pitch behind its command.
     """
 
     airframe_class: ClassVar[str] = ""
+    #: ArduPilot's parameter defaults for this firmware (what ``configure`` overrides).
+    PARAM_DEFAULTS: ClassVar[Mapping[str, float]] = {}
     _MANUAL_MODES: ClassVar[frozenset[str]] = frozenset()
     _HOLD_MODES: ClassVar[frozenset[str]] = frozenset()
     _RTL_MODES: ClassVar[frozenset[str]] = frozenset()
     _LAND_MODES: ClassVar[frozenset[str]] = frozenset()
+    _TAKEOFF_MODES: ClassVar[frozenset[str]] = frozenset()
+    _AUTO_MODES: ClassVar[frozenset[str]] = frozenset({"AUTO"})
     _REFUSED_MODES: ClassVar[frozenset[str]] = frozenset()
     #: Channel names read as (roll, pitch, yaw, throttle) inputs.
     _CONTROL_NAMES: ClassVar[tuple[str, str, str, str]] = ("", "", "", "")
@@ -386,14 +579,22 @@ class SimulatedVehicle(VehicleModel):
         self._m_per_deg_lon = self._m_per_deg_lat * math.cos(math.radians(origin.lat_deg))
         self._max_turn_rad_s = math.radians(limits.max_turn_rate_deg_s)
         self.time_s = 0.0
+        self._now_s = 0.0  # start of the sub-step being integrated
+        self.touchdown_s: float | None = None
+        self.touchdown_speed_m_s: float | None = None
+        self._params: dict[str, float] = dict(self.PARAM_DEFAULTS)
+        self._configured = False
+        self._command = _CMD_NONE
 
         # State (subclasses add their own).
         up = start_m[2] if self.airframe_class != "rover" else 0.0
         self.start_m = (float(start_m[0]), float(start_m[1]), float(up))
+        self.home_m = (self.start_m[0], self.start_m[1], 0.0)
         self._n, self._e, self._u = self.start_m
         self._vn = self._ve = self._vu = 0.0
         self._roll = self._pitch = 0.0
         self._yaw = _wrap_pi(math.radians(heading_deg))
+        self._armed_yaw = self._yaw
         self._thr = 0.0
         # Normalised actuator demands, for the servo outputs: roll/pitch/yaw in
         # [-1, 1]; throttle in [0, 1] ([-1, 1] when centred).
@@ -462,12 +663,15 @@ class SimulatedVehicle(VehicleModel):
             autopilot.get("guided_mode"): ModeBehaviour.GUIDED,
             autopilot.get("hold_mode"): ModeBehaviour.HOLD,
             autopilot.get("rtl_mode"): ModeBehaviour.RTL,
+            autopilot.get("land_mode"): ModeBehaviour.LAND,
             autopilot.get("manual_mode"): ModeBehaviour.MANUAL,
         }
         behaviours: dict[str, ModeBehaviour] = {}
         unsimulated: set[str] = set()
         for name in self.modes:
-            if name in roles:
+            if name in roles and not (
+                roles[name] is ModeBehaviour.LAND and self.airframe_class != "multirotor"
+            ):
                 behaviours[name] = roles[name]
             elif name in self._REFUSED_MODES:
                 continue
@@ -479,6 +683,10 @@ class SimulatedVehicle(VehicleModel):
                 behaviours[name] = ModeBehaviour.RTL
             elif name in self._LAND_MODES:
                 behaviours[name] = ModeBehaviour.LAND
+            elif name in self._TAKEOFF_MODES:
+                behaviours[name] = ModeBehaviour.TAKEOFF
+            elif name in self._AUTO_MODES:
+                behaviours[name] = ModeBehaviour.AUTO
             elif name == "GUIDED":
                 behaviours[name] = ModeBehaviour.GUIDED
             else:
@@ -526,9 +734,13 @@ class SimulatedVehicle(VehicleModel):
         if self._rc_stale or self.time_s >= self._override_expiry_s:
             self._refresh_rc()
         advance = self._advance
+        now = self.time_s
         for _ in range(count):
+            self._now_s = now
             advance(h)
+            now += h
         self.time_s += dt_s
+        self._now_s = self.time_s
         if self.time_s >= self._next_fix_s:
             self._take_fix()
 
@@ -558,7 +770,8 @@ class SimulatedVehicle(VehicleModel):
         """Switch flight mode; False when the profile has no such mode or it is refused.
 
         Setting the current mode again changes nothing (as in ArduPilot): a guided
-        target is kept, a hold point is not moved.
+        target is kept, a hold point is not moved. Entering a mode takes the latest
+        parameters and resets the leg speed to their default.
         """
         behaviour = self._behaviours.get(mode)
         if behaviour is None:
@@ -570,12 +783,42 @@ class SimulatedVehicle(VehicleModel):
         self._enter(behaviour)
         return True
 
-    def arm(self, armed: bool) -> bool:
-        """Arm or disarm; disarming in the air is refused (False)."""
-        if not armed and self.airborne:
+    def arm(self, armed: bool, force: bool = False) -> bool:
+        """Arm, or disarm (refused in the air unless ``force``: then the motors stop there)."""
+        if armed:
+            if not self.armed:
+                self._armed_yaw = self._yaw
+            self.armed = True
+            return True
+        if self.airborne and not force:
             return False
-        self.armed = armed
+        self.armed = False
+        self._disarmed()
         return True
+
+    def configure(self, params: Mapping[str, float]) -> None:
+        """Take the autopilot's parameter table (ArduPilot's names and units).
+
+        Only the names in :attr:`PARAM_DEFAULTS` are read; a missing or non-finite
+        value keeps ArduPilot's default. The values apply at the next mode entry or
+        target; the first call applies to the current mode at once (it is the
+        autopilot's table at power-on).
+        """
+        merged = dict(self.PARAM_DEFAULTS)
+        for name, value in params.items():
+            if name in merged:
+                number = float(value)
+                if math.isfinite(number):
+                    merged[name] = number
+        self._params = merged
+        if not self._configured:
+            self._configured = True
+            self._apply_params_now()
+
+    @property
+    def params(self) -> Mapping[str, float]:
+        """The parameter values the model holds (ArduPilot's names and units)."""
+        return self._params
 
     def goto(self, lat_deg: float, lon_deg: float, alt_m: float, speed_m_s: float | None) -> bool:
         """Set the guided target; refused (False) outside the guided mode, as ArduPilot does.
@@ -584,23 +827,67 @@ class SimulatedVehicle(VehicleModel):
             lat_deg: Target latitude.
             lon_deg: Target longitude.
             alt_m: Target altitude above the origin; clamped to the airframe's
-                ``max_altitude_m`` (and for a fixed wing, raised to its lowest
-                automatic altitude); ignored by rovers.
-            speed_m_s: Requested speed, clamped to the airframe's limits; None or 0
-                for the cruise speed.
+                ``max_altitude_m``; ignored by rovers.
+            speed_m_s: Requested speed (as DO_CHANGE_SPEED: kept for later targets in
+                this mode); None, zero or negative keeps the current leg speed.
         """
         if self._behaviour is not ModeBehaviour.GUIDED:
             return False
-        if not all(math.isfinite(v) for v in (lat_deg, lon_deg, alt_m)):
+        return self._take_target(
+            (lat_deg - self.origin.lat_deg) * self._m_per_deg_lat,
+            (lon_deg - self.origin.lon_deg) * self._m_per_deg_lon,
+            alt_m,
+            speed_m_s,
+        )
+
+    def auto_target(
+        self, north_m: float, east_m: float, alt_m: float, speed_m_s: float | None
+    ) -> bool:
+        """Set the target AUTO flies (a mission executor's waypoint); False outside AUTO.
+
+        Flown as a guided target is; ``alt_m`` is above the origin, ``speed_m_s`` None
+        keeps the current leg speed.
+        """
+        if self._behaviour is not ModeBehaviour.AUTO:
+            return False
+        return self._take_target(north_m, east_m, alt_m, speed_m_s)
+
+    def _take_target(
+        self, north_m: float, east_m: float, alt_m: float, speed_m_s: float | None
+    ) -> bool:
+        if not (math.isfinite(north_m) and math.isfinite(east_m) and math.isfinite(alt_m)):
             return False
         if speed_m_s is not None and not math.isfinite(speed_m_s):
             return False
-        north = (lat_deg - self.origin.lat_deg) * self._m_per_deg_lat
-        east = (lon_deg - self.origin.lon_deg) * self._m_per_deg_lon
-        alt = min(alt_m, self.limits.max_altitude_m)
-        speed = self._speed_request(speed_m_s)
-        self._set_target(north, east, alt, speed)
+        speed = speed_m_s if speed_m_s is not None and speed_m_s > 0.0 else None
+        self._set_target(north_m, east_m, min(alt_m, self.limits.max_altitude_m), speed)
         return True
+
+    def set_speed(self, speed_m_s: float) -> None:
+        """DO_CHANGE_SPEED as the autopilot layer accepted it: this mode's leg speed.
+
+        Kept for later targets in the same mode, back to the parameter default on
+        entering a mode; clamped to the airframe's limits. Zero, negative or
+        non-finite speeds are ignored (ArduPilot refuses them).
+        """
+        if math.isfinite(speed_m_s) and speed_m_s > 0.0:
+            self._set_speed(speed_m_s)
+
+    def set_home(self, north_m: float, east_m: float, up_m: float) -> None:
+        """Move home (where RTL returns; heights above home are measured from it)."""
+        if math.isfinite(north_m) and math.isfinite(east_m) and math.isfinite(up_m):
+            self.home_m = (float(north_m), float(east_m), float(up_m))
+
+    def takeoff(self, alt_m: float, delay_s: float) -> bool:
+        """A guided takeoff (MAV_CMD_NAV_TAKEOFF); refused unless the model supports it."""
+        return False
+
+    def auto_takeoff(self, alt_m: float) -> bool:
+        """A mission's takeoff item in AUTO; refused unless the model supports it."""
+        return False
+
+    def auto_land(self) -> None:
+        """A mission's land item in AUTO (a rover stops where it is)."""
 
     def set_rc_override(self, pwm_us: Mapping[int, int]) -> None:
         """Override RC inputs (channel -> pulse width; 0 releases the channel to the pilot).
@@ -692,7 +979,17 @@ class SimulatedVehicle(VehicleModel):
 
     @property
     def airborne(self) -> bool:
-        """True while flying (disarming is refused then)."""
+        """True while physically off the ground (a normal disarm is refused then)."""
+        return False
+
+    @property
+    def landed_state(self) -> LandedState:
+        """On the ground, taking off, in the air or landing."""
+        return "on_ground"
+
+    @property
+    def target_reached(self) -> bool:
+        """The current guided/auto command is complete (False with none)."""
         return False
 
     @property
@@ -713,10 +1010,6 @@ class SimulatedVehicle(VehicleModel):
         if not 1 <= servo <= SERVO_OUTPUT_COUNT:
             return None
         return self._servo_functions[servo - 1]
-
-    def takeoff(self, alt_m: float) -> bool:
-        """Take off to ``alt_m`` (MAV_CMD_NAV_TAKEOFF); refused unless the model supports it."""
-        return False
 
     def gps_fix(self) -> GpsFix:
         """The latest GPS fix: the true position at the fix time plus Gaussian error.
@@ -801,22 +1094,27 @@ class SimulatedVehicle(VehicleModel):
         self._fix_time_s = self.time_s
         self._next_fix_s = (index + 1) * self._gps_period_s - 1e-9
 
-    def _speed_request(self, speed_m_s: float | None) -> float:
-        limits = self.limits
-        if speed_m_s is None or speed_m_s <= 0.0:
-            return limits.cruise_speed_m_s
-        return _clamp(speed_m_s, limits.min_speed_m_s, limits.max_speed_m_s)
-
     def _stopping_point(self, accel_m_s2: float) -> tuple[float, float]:
         """Where braking at ``accel_m_s2`` from the current velocity ends (ArduPilot's)."""
         speed = math.hypot(self._vn, self._ve)
         reach = speed / (2.0 * accel_m_s2)
         return self._n + self._vn * reach, self._e + self._ve * reach
 
+    def _touched_down(self, sink_m_s: float) -> None:
+        """Record a touchdown now (the autopilot layer times its disarm from it)."""
+        self.touchdown_s = self._now_s
+        self.touchdown_speed_m_s = sink_m_s
+
     def _airspeed(self, ground_speed_m_s: float) -> float:
         return ground_speed_m_s
 
     # --- subclass hooks ---------------------------------------------------------------
+
+    def _apply_params_now(self) -> None:
+        """Take the parameters into the current mode at once (the first ``configure``)."""
+
+    def _disarmed(self) -> None:
+        """The motors were stopped (cancel what needed them)."""
 
     @abstractmethod
     def _advance(self, h: float) -> None:
@@ -827,69 +1125,116 @@ class SimulatedVehicle(VehicleModel):
         """Set up a newly entered mode (hold point, guided target, RTL target)."""
 
     @abstractmethod
-    def _set_target(self, north_m: float, east_m: float, alt_m: float, speed_m_s: float) -> None:
-        """Take a new guided target (local frame, altitude clamped, speed limited)."""
+    def _set_target(
+        self, north_m: float, east_m: float, alt_m: float, speed_m_s: float | None
+    ) -> None:
+        """Take a new guided/auto target (local frame, altitude clamped to the ceiling)."""
+
+    @abstractmethod
+    def _set_speed(self, speed_m_s: float) -> None:
+        """Take a new leg speed (positive and finite)."""
+
+
+# Multirotor sub-states: what the automatic controller does now.
+(
+    _C_MANUAL,  # fly the sticks (STABILIZE and the pilot's climb-rate modes)
+    _C_HOLD,  # hold a point in 3-D (BRAKE, guided without a target, after a takeoff)
+    _C_LINE,  # fly a straight 3-D line to the target (guided, auto, takeoff)
+    _C_PILOT,  # hold the horizontal point, climb as the throttle stick says (LOITER)
+    _C_LAND,  # hold the horizontal point, descend as LAND does
+    _C_CIRCLE,  # ArduCopter's CIRCLE, climbing as the stick says
+    _C_RTL_CLIMB,  # RTL: up to the return altitude
+    _C_RTL_RETURN,  # RTL: home at the return altitude
+    _C_RTL_LOITER,  # RTL: RTL_LOIT_TIME above home
+    _C_RTL_FINAL,  # RTL: down to RTL_ALT_FINAL, then hold
+) = range(10)
+#: Sub-states that hold a horizontal point and fly a vertical rate.
+_C_RATE_SUBS: Final = frozenset({_C_LAND, _C_PILOT, _C_CIRCLE})
 
 
 class Multirotor(SimulatedVehicle):
-    """A multirotor: hovers, leans to accelerate, climbs and descends within its limits.
+    """A multirotor: hovers, leans to accelerate, climbs and descends as ArduCopter flies.
 
-    Automatic modes (guided, hold, RTL, land) follow ArduCopter's position
-    controller in outline: the desired velocity is the square-root controller's
-    braking profile toward the target (P gain 1/s near it), capped at the
-    requested speed (cruise, ArduCopter's WPNAV_SPEED, when none) and at the
-    climb/descent limits; the velocity follows it with at most 2.5 m/s^2
-    (WPNAV_ACCEL, PILOT_ACCEL_Z). So it stops at a target without overshoot.
-    Roll and pitch are the lean angles that produce the commanded acceleration
-    (plus air drag), through a first-order lag; the nose turns toward the target
-    at up to ``max_turn_rate_deg_s`` while more than 2 m away.
+    Automatic modes follow ArduCopter's position controller in outline. A target
+    (guided, auto, a takeoff, RTL's legs) is flown as a straight 3-D line, as
+    ArduCopter's waypoint navigation flies it: the speed along the line is the
+    square-root braking profile toward the target, capped so that its horizontal
+    part stays within the leg speed (WPNAV_SPEED, or DO_CHANGE_SPEED's, never
+    above WPNAV_SPEED or the airframe's ``max_speed_m_s``) and its vertical part
+    within WPNAV_SPEED_UP (and the airframe's climb limit) or WPNAV_SPEED_DN; it
+    ramps up at :data:`COPTER_RAMP_FRACTION` of WPNAV_ACCEL (and WPNAV_ACCEL_Z) and
+    brakes at WPNAV_ACCEL (and :data:`COPTER_Z_BRAKE_FRACTION` of WPNAV_ACCEL_Z). So
+    it stops at a target without overshoot, taking as long as SITL does (see the
+    constants). Roll and pitch are the lean angles that produce the commanded
+    acceleration (plus air drag), through a first-order lag; the nose turns toward
+    the target at up to ``max_turn_rate_deg_s`` while more than 2 m away.
 
-    Manual modes fly the sticks as STABILIZE does: roll and pitch sticks set the
-    lean angle (full stick = the max lean), the lean accelerates the vehicle
-    (``g * tan(lean)``) against linear drag sized so full lean settles at
-    ``max_speed_m_s``; the yaw stick sets the yaw rate; the throttle stick sets
-    the climb rate around mid stick (10 % dead band, ArduCopter's THR_DZ), so
-    mid stick hovers and minimum throttle descends and stays on the ground.
+    On the ground it stays put unless armed and told to leave it: a guided
+    :meth:`takeoff` (climbing after its ``delay_s``, the motors' spool-up), AUTO's
+    :meth:`auto_takeoff`, or the pilot's throttle (above hover in STABILIZE and
+    ACRO, above the dead band in ALT_HOLD, LOITER and the other climb-rate modes).
+    A guided target sent on the ground is stored but does not take off (measured);
+    a later takeoff climbs straight up and hovers there. A target sent during the
+    takeoff climb ends the takeoff (landed_state in_air at once) and is flown as a
+    straight line from where the copter is. Hold, BRAKE, RTL and LAND never take off.
 
-    On the ground a multirotor stays put unless armed and either told to climb
-    (throttle above mid in a manual mode) or given a guided target (or takeoff)
-    above it: a guided goto from the ground is flown as takeoff then goto, so a
-    mission needs no separate takeoff step. Hold, RTL and land modes never take
-    off. LAND descends at the descent limit above 10 m and 0.5 m/s below
-    (ArduCopter LAND_SPEED) and disarms on touchdown. RTL climbs to at least
-    15 m (ArduCopter RTL_ALT), returns over the start point and holds there
-    (ArduCopter would land; RTL_ALT_FINAL > 0 holds as the model does).
+    LAND (and AUTO's :meth:`auto_land`) holds the point where it started and descends
+    at WPNAV_SPEED_DN (LAND_SPEED_HIGH when set) above LAND_ALT_LOW, blending down to
+    LAND_SPEED below it on ArduCopter's square-root profile; landed_state is
+    ``landing`` from the moment it starts in the air. RTL is ArduCopter's: the return
+    altitude is RTL_ALT, at least the current height (plus RTL_CLIMB_MIN), lowered
+    near home by the RTL cone (RTL_CONE_SLOPE times the distance); it climbs there
+    over the point where it stopped, flies home at WPNAV_SPEED (RTL_SPEED when set),
+    hovers RTL_LOIT_TIME (after :data:`COPTER_RTL_SETTLE_S`) and until its nose is back
+    at its heading at arming, then lands as LAND does (landed_state ``landing`` during
+    that descent), or with RTL_ALT_FINAL above 0 descends to it and holds. The model
+    never disarms: after a touchdown it idles on the ground until the autopilot layer
+    disarms it.
+
+    Manual modes fly the sticks: roll and pitch set the lean angle (full stick = the
+    max lean), the lean accelerates the vehicle (``g * tan(lean)``) against linear
+    drag sized so full lean settles at ``max_speed_m_s``; the yaw stick sets the yaw
+    rate. The throttle stick sets the thrust in STABILIZE, ACRO, RATE_ACRO and DRIFT
+    (mid stick hovers, full stick :data:`COPTER_MAX_THRUST_RATIO` times the weight,
+    the minimum leaves the motors at idle: a free fall with drag toward
+    :data:`COPTER_FALL_TERMINAL_M_S`), and a climb rate in ALT_HOLD, SPORT and FLOWHOLD
+    (see the module doc). LOITER and POSHOLD hold where they stopped with the sticks
+    centred (the model does not fly their roll and pitch sticks) and climb as the
+    throttle stick says; CIRCLE flies ArduCopter's circle (CIRCLE_RADIUS around a
+    centre that far ahead of the nose, CIRCLE_RATE, the nose on the centre) and climbs
+    as the stick says. A copter disarmed in the air (a forced disarm) falls the same way.
     """
 
     airframe_class = "multirotor"
+    PARAM_DEFAULTS = COPTER_DEFAULT_PARAMS
     _MANUAL_MODES = frozenset(
-        {"STABILIZE", "ACRO", "RATE_ACRO", "ALT_HOLD", "SPORT", "DRIFT", "POSHOLD", "FLOWHOLD"}
+        {"STABILIZE", "ACRO", "RATE_ACRO", "ALT_HOLD", "SPORT", "DRIFT", "FLOWHOLD"}
     )
-    _HOLD_MODES = frozenset({"LOITER", "BRAKE"})
+    _HOLD_MODES = frozenset({"LOITER", "BRAKE", "POSHOLD", "CIRCLE"})
     _RTL_MODES = frozenset({"RTL", "SMART_RTL", "AUTO_RTL"})
     _LAND_MODES = frozenset({"LAND"})
     _CONTROL_NAMES = ("roll", "pitch", "yaw", "throttle")
+    #: Modes whose throttle stick is a climb rate (ArduCopter's get_pilot_desired_climb_rate).
+    PILOT_CLIMB_MODES: ClassVar[frozenset[str]] = frozenset(
+        {
+            "ALT_HOLD",
+            "SPORT",
+            "FLOWHOLD",
+            "LOITER",
+            "POSHOLD",
+            "CIRCLE",
+            "ZIGZAG",
+            "AUTOTUNE",
+            "SYSTEMID",
+        }
+    )
 
-    #: Horizontal acceleration limit in automatic modes (ArduCopter WPNAV_ACCEL).
-    accel_xy_m_s2: float = 2.5
-    #: Vertical acceleration limit (ArduCopter PILOT_ACCEL_Z / PSC_JERK_Z shaping).
-    accel_z_m_s2: float = 2.5
-    #: Position P gain, 1/s (ArduCopter PSC_POSXY_P and PSC_POSZ_P).
-    position_gain_1_s: float = 1.0
     #: Lean angle when the profile gives none (ArduCopter ANGLE_MAX).
     default_max_lean_deg: float = 30.0
     #: Throttle that hovers, reported in Truth.throttle_pct.
     hover_throttle: float = 0.5
-    #: ArduCopter RTL_ALT.
-    rtl_altitude_m: float = 15.0
-    #: ArduCopter LAND_SPEED and LAND_ALT_LOW.
-    land_speed_m_s: float = 0.5
-    land_slow_below_m: float = 10.0
     #: Motors on outputs 1..4 (a quad, as the profiles' only multirotor is).
     motor_count: int = 4
-
-    def _default_mode(self, autopilot: Mapping[str, Any]) -> str:
-        return str(autopilot.get("hold_mode") or "")
 
     def _servo_function_table(self) -> list[str | None]:
         table: list[str | None] = [None] * SERVO_OUTPUT_COUNT
@@ -908,14 +1253,29 @@ class Multirotor(SimulatedVehicle):
         lean_deg = limits.max_bank_deg or self.default_max_lean_deg
         self._max_lean_rad = math.radians(lean_deg)
         self._max_speed = limits.max_speed_m_s
-        self._max_climb = limits.max_climb_rate_m_s
-        self._max_descent = limits.max_descent_rate_m_s
         # Linear drag so that full lean settles at the maximum speed.
         self._drag_1_s = G_M_S2 * math.tan(self._max_lean_rad) / self._max_speed
+        # Quadratic vertical drag of a falling copter: g at the terminal speed.
+        self._fall_drag_1_m = G_M_S2 / (COPTER_FALL_TERMINAL_M_S * COPTER_FALL_TERMINAL_M_S)
         self._landed = self._u <= 0.0
         self._tn, self._te, self._tu = self._n, self._e, self._u
-        self._target_speed = limits.cruise_speed_m_s
+        self._sub = _C_HOLD
         self._face_target = False
+        self._path_speed = 0.0
+        self._takeoff_at_s: float | None = None
+        self._takeoff_alt = 0.0
+        self._taking_off = False
+        self._landing = False
+        self._speed_set = False
+        self._pilot_climb = False
+        self._alt_hold = self._u
+        self._rtl_alt = self._u
+        self._phase_since_s = 0.0
+        self._circle_n = self._circle_e = self._circle_angle = 0.0
+        self._circle_radius = self._circle_rate = self._circle_rate_max = 0.0
+        self._circle_accel = 0.0
+        self._capture()
+        self._leg_speed = self._wp_speed
         if not self._landed:
             self._thr = self.hover_throttle
             # A pilot who is flying holds mid throttle (hover), not the minimum.
@@ -923,134 +1283,513 @@ class Multirotor(SimulatedVehicle):
             if throttle is not None and throttle.rc is not None:
                 self._pilot_us[throttle.rc - 1] = (throttle.min_us + throttle.max_us) // 2
 
+    def _capture(self) -> None:
+        """Read ArduCopter's parameters into SI units (at a mode entry or a target)."""
+        p = self._params
+        limits = self.limits
+        self._wp_speed = _clamp(p["WPNAV_SPEED"] / 100.0, 0.2, limits.max_speed_m_s)
+        accel = max(p["WPNAV_ACCEL"] / 100.0, 0.5)
+        self._brake_xy = accel
+        self._accel_xy = accel * COPTER_RAMP_FRACTION
+        self._climb_max = _clamp(p["WPNAV_SPEED_UP"] / 100.0, 0.1, limits.max_climb_rate_m_s)
+        self._descent_max = max(abs(p["WPNAV_SPEED_DN"]) / 100.0, 0.1)
+        self._accel_z = max(p["WPNAV_ACCEL_Z"] / 100.0, 0.1)
+        self._brake_z = self._accel_z * COPTER_Z_BRAKE_FRACTION
+        self._reach_m = max(min(p["WPNAV_RADIUS"] / 100.0, COPTER_WP_DONE_M), 0.05)
+        self._land_speed = max(abs(p["LAND_SPEED"]) / 100.0, 0.1)
+        high = abs(p["LAND_SPEED_HIGH"]) / 100.0 or self._descent_max
+        self._land_speed_high = max(high, self._land_speed)  # "don't speed up for landing"
+        self._land_alt_low = max(p["LAND_ALT_LOW"] / 100.0, 1.0)
+        up = max(p["PILOT_SPEED_UP"] / 100.0, 0.1)
+        self._pilot_up = min(up, limits.max_climb_rate_m_s)
+        self._pilot_down = abs(p["PILOT_SPEED_DN"]) / 100.0 or up
+        self._pilot_accel = max(p["PILOT_ACCEL_Z"] / 100.0, 0.5)
+        self._thr_dz = _clamp(p["THR_DZ"] / 1000.0, 0.0, 0.3)
+
+    def _default_speed(self) -> float:
+        if self._behaviour is ModeBehaviour.RTL and self._params["RTL_SPEED"] > 0.0:
+            return _clamp(self._params["RTL_SPEED"] / 100.0, 0.2, self._max_speed)
+        return self._wp_speed
+
+    def _apply_params_now(self) -> None:
+        self._capture()
+        if not self._speed_set:
+            self._leg_speed = self._default_speed()
+
+    def _aim(self) -> None:
+        """Start a new line: its speed is the velocity's share in the target's direction."""
+        dn, de, du = self._tn - self._n, self._te - self._e, self._tu - self._u
+        distance = math.sqrt(dn * dn + de * de + du * du)
+        along = self._vn * dn + self._ve * de + self._vu * du
+        self._path_speed = max(along / distance, 0.0) if distance > 1e-9 else 0.0
+
     @property
     def airborne(self) -> bool:
         """True unless on the ground."""
         return not self._landed
 
-    def takeoff(self, alt_m: float) -> bool:
-        """Climb straight up to ``alt_m`` in the guided mode (armed, on the ground)."""
+    @property
+    def landed_state(self) -> LandedState:
+        """ArduCopter's landed state.
+
+        On the ground (also at once after a forced disarm, while still falling),
+        taking off, landing (LAND, RTL's final descent, AUTO's land) or in the air.
+        """
+        if self._landed or not self.armed:
+            return "on_ground"
+        if self._taking_off:
+            return "taking_off"
+        if self._landing:
+            return "landing"
+        return "in_air"
+
+    @property
+    def target_reached(self) -> bool:
+        """The target within min(WPNAV_RADIUS, 0.5 m), the takeoff at its altitude, landed."""
+        command = self._command
+        if command == _CMD_TARGET:
+            dn, de, du = self._tn - self._n, self._te - self._e, self._tu - self._u
+            return dn * dn + de * de + du * du <= self._reach_m * self._reach_m
+        if command == _CMD_TAKEOFF:
+            return (
+                not self._landed
+                and self._takeoff_at_s is None
+                and abs(self._u - self._takeoff_alt) <= COPTER_TAKEOFF_DONE_M
+            )
+        if command == _CMD_LAND:
+            return self._landed
+        return False
+
+    def takeoff(self, alt_m: float, delay_s: float) -> bool:
+        """A guided takeoff to ``alt_m`` above home: climb after ``delay_s``, then hover.
+
+        Refused (False) unless in the guided mode, armed and on the ground (also
+        while the climb has started: ArduCopter answers FAILED), or with an altitude
+        not above the copter. Sent again before the climb starts, it is accepted
+        and the climb starts no later than first planned. The climb is vertical at
+        up to WPNAV_SPEED_UP, braking to stop at the altitude without overshoot;
+        landed_state is ``taking_off`` from the climb's start until within 0.1 m.
+        """
         if self._behaviour is not ModeBehaviour.GUIDED or not self.armed or not self._landed:
             return False
-        if not math.isfinite(alt_m) or alt_m <= 0.0:
+        return self._begin_takeoff(alt_m, delay_s)
+
+    def auto_takeoff(self, alt_m: float, delay_s: float = COPTER_AUTO_TAKEOFF_DELAY_S) -> bool:
+        """AUTO's takeoff item (after MISSION_START): climb to ``alt_m`` above home.
+
+        On the ground as :meth:`takeoff` (the climb after ``delay_s``); in the air, a
+        climb there if below it. False outside AUTO or disarmed.
+        """
+        if self._behaviour is not ModeBehaviour.AUTO or not self.armed:
             return False
-        self._tn, self._te = self._n, self._e
-        self._tu = min(alt_m, self.limits.max_altitude_m)
+        if self._landed:
+            return self._begin_takeoff(alt_m, delay_s)
+        if not math.isfinite(alt_m):
+            return False
+        self._capture()
+        alt = min(max(self.home_m[2] + alt_m, self._u), self.limits.max_altitude_m)
+        stop_n, stop_e = self._stopping_point(self._brake_xy)
+        self._tn, self._te, self._tu = stop_n, stop_e, alt
+        self._takeoff_alt = alt
+        self._sub, self._face_target, self._landing = _C_LINE, False, False
+        self._command = _CMD_TAKEOFF
+        self._aim()
         return True
 
-    def _enter(self, behaviour: ModeBehaviour) -> None:
-        stop_n, stop_e = self._stopping_point(self.accel_xy_m_s2)
-        self._target_speed = self.limits.cruise_speed_m_s
-        self._face_target = False
-        if behaviour is ModeBehaviour.RTL:
-            self._tn, self._te = self.start_m[0], self.start_m[1]
-            self._tu = min(max(self._u, self.rtl_altitude_m), self.limits.max_altitude_m)
-            self._face_target = True
-        else:
-            # Guided starts by holding where it stops, as ArduCopter's does.
-            self._tn, self._te, self._tu = stop_n, stop_e, self._u
-            self._face_target = behaviour is ModeBehaviour.GUIDED
+    def auto_land(self) -> None:
+        """AUTO's land item: land where the copter is, as LAND does."""
+        if self._behaviour is not ModeBehaviour.AUTO:
+            return
+        self._command = _CMD_LAND
+        self._takeoff_at_s = None
+        if self._landed:
+            return
+        self._capture()
+        self._tn, self._te = self._stopping_point(self._brake_xy)
+        self._sub, self._face_target = _C_LAND, False
+        self._taking_off, self._landing = False, True
 
-    def _set_target(self, north_m: float, east_m: float, alt_m: float, speed_m_s: float) -> None:
+    def _begin_takeoff(self, alt_m: float, delay_s: float) -> bool:
+        if not (math.isfinite(alt_m) and math.isfinite(delay_s)) or alt_m <= 0.0:
+            return False
+        alt = min(self.home_m[2] + alt_m, self.limits.max_altitude_m)
+        if alt <= self._u + COPTER_TAKEOFF_DONE_M:
+            return False
+        start = self.time_s + max(delay_s, 0.0)
+        if self._takeoff_at_s is not None and self._takeoff_at_s < start:
+            start = self._takeoff_at_s
+        self._capture()
+        self._takeoff_at_s = start
+        self._takeoff_alt = alt
+        self._tn, self._te, self._tu = self._n, self._e, alt
+        self._sub, self._face_target, self._landing = _C_LINE, False, False
+        self._command = _CMD_TAKEOFF
+        self._path_speed = 0.0
+        return True
+
+    def _disarmed(self) -> None:
+        self._takeoff_at_s = None
+        self._taking_off = False
+
+    def _enter(self, behaviour: ModeBehaviour) -> None:
+        self._capture()
+        self._speed_set = False
+        self._leg_speed = self._default_speed()
+        self._takeoff_at_s = None
+        self._taking_off = False
+        self._landing = False
+        self._command = _CMD_NONE
+        self._face_target = False
+        self._pilot_climb = self.mode in self.PILOT_CLIMB_MODES
+        self._alt_hold = self._u
+        # Automatic modes start by holding where the copter stops, as ArduCopter's do.
+        stop_n, stop_e = self._stopping_point(self._brake_xy)
+        self._tn, self._te, self._tu = stop_n, stop_e, self._u
+        if behaviour is ModeBehaviour.MANUAL:
+            self._sub = _C_MANUAL
+        elif behaviour is ModeBehaviour.RTL:
+            self._start_rtl(stop_n, stop_e)
+        elif behaviour is ModeBehaviour.LAND:
+            self._sub = _C_LAND
+            self._landing = not self._landed
+        elif behaviour is ModeBehaviour.HOLD:
+            if self.mode == "CIRCLE":
+                self._start_circle()
+            else:
+                self._sub = _C_PILOT if self._pilot_climb else _C_HOLD
+        else:
+            self._sub = _C_HOLD
+            self._face_target = True
+        self._aim()
+
+    def _start_rtl(self, origin_n: float, origin_e: float) -> None:
+        """ArduCopter's ModeRTL::build_path and compute_return_target."""
+        p = self._params
+        home_n, home_e, home_u = self.home_m
+        current = self._u - home_u
+        lowest = max(COPTER_RTL_ALT_MIN_M, current + max(0.0, p["RTL_CLIMB_MIN"] / 100.0))
+        target = max(p["RTL_ALT"] / 100.0, lowest)
+        if p["RTL_CONE_SLOPE"] >= COPTER_RTL_MIN_CONE_SLOPE:
+            distance = math.hypot(origin_n - home_n, origin_e - home_e)
+            target = min(target, max(distance * p["RTL_CONE_SLOPE"], lowest))
+        target = max(target, current)
+        self._rtl_alt = min(home_u + target, self.limits.max_altitude_m)
+        self._tn, self._te, self._tu = origin_n, origin_e, self._rtl_alt
+        self._sub = _C_RTL_CLIMB
+
+    def _start_circle(self) -> None:
+        """ArduCopter's CIRCLE: the centre CIRCLE_RADIUS ahead of the nose."""
+        p = self._params
+        radius = max(p["CIRCLE_RADIUS"] / 100.0, 0.0)
+        rate = math.radians(p["CIRCLE_RATE"])
+        yaw = self._yaw
+        self._circle_n = self._n + radius * math.cos(yaw)
+        self._circle_e = self._e + radius * math.sin(yaw)
+        self._circle_radius = radius
+        self._circle_angle = yaw + math.pi
+        if radius > 0.0:
+            # AC_Circle: the rate is limited so the speed stays within WPNAV_SPEED, and
+            # it ramps at WPNAV_ACCEL over the radius (at least 2 deg/s^2).
+            rate = math.copysign(min(abs(rate), self._wp_speed / radius), rate)
+            self._circle_accel = max(self._brake_xy / radius, math.radians(2.0))
+        else:
+            self._circle_accel = math.radians(90.0)
+        self._circle_rate_max = rate
+        self._circle_rate = 0.0
+        self._tn, self._te = self._n, self._e
+        self._sub = _C_CIRCLE
+
+    def _set_target(
+        self, north_m: float, east_m: float, alt_m: float, speed_m_s: float | None
+    ) -> None:
+        self._capture()
+        if speed_m_s is not None:
+            self._set_speed(speed_m_s)
+        elif not self._speed_set:
+            self._leg_speed = self._default_speed()
         self._tn, self._te, self._tu = north_m, east_m, max(alt_m, 0.0)
-        self._target_speed = speed_m_s
+        self._sub, self._face_target, self._landing = _C_LINE, True, False
+        self._command = _CMD_TARGET
+        self._aim()
+        # On the ground (also while spooling up for a takeoff) a target is stored and
+        # the copter stays there; in a takeoff climb it ends the takeoff.
+        self._takeoff_at_s = None
+        self._taking_off = False
+
+    def _set_speed(self, speed_m_s: float) -> None:
+        # ArduCopter flies no faster than WPNAV_SPEED (SITL: 20 m/s requested, 10 flown).
+        cap = min(max(self._params["WPNAV_SPEED"] / 100.0, 0.2), self._max_speed)
+        self._leg_speed = min(speed_m_s, cap)
+        self._speed_set = True
+
+    # --- physics ----------------------------------------------------------------------
 
     def _advance(self, h: float) -> None:
-        behaviour = self._behaviour
         if self._landed:
-            if not self.armed:
-                return
-            if behaviour is ModeBehaviour.MANUAL:
-                if self._rc_thr <= 0.6:
-                    self._thr = 0.0
-                    return
-            elif behaviour is ModeBehaviour.GUIDED and self._tu > 0.0:
-                pass
-            else:
+            if not self.armed or not self._lift_off_wanted():
                 self._thr = 0.0
-                if behaviour is ModeBehaviour.LAND:
-                    self.armed = False
                 return
             self._landed = False
-        if behaviour is ModeBehaviour.MANUAL:
+            self.touchdown_s = None
+            if self._takeoff_at_s is not None:
+                self._takeoff_at_s = None
+                self._taking_off = True
+            self._alt_hold = self._u
+        if not self.armed:
+            self._fall(h)
+            return
+        if self._sub == _C_MANUAL:
             self._advance_manual(h)
         else:
-            self._advance_auto(h, behaviour is ModeBehaviour.LAND)
+            self._advance_auto(h)
         if self._u >= self.limits.max_altitude_m and self._vu > 0.0:
             self._u = self.limits.max_altitude_m
             self._vu = 0.0
 
+    def _lift_off_wanted(self) -> bool:
+        start = self._takeoff_at_s
+        if start is not None:
+            return self._now_s >= start
+        if self._pilot_climb and (self._sub == _C_MANUAL or self._sub == _C_PILOT):
+            return self._rc_thr > 0.5 + self._thr_dz
+        if self._sub == _C_MANUAL:
+            return self._rc_thr > 0.5  # above hover
+        return False
+
     def _touchdown(self) -> None:
+        self._touched_down(-self._vu)
         self._u = 0.0
         self._vn = self._ve = self._vu = 0.0
         self._roll = self._pitch = 0.0
         self._thr = 0.0
         self._landed = True
-        if self._behaviour is ModeBehaviour.LAND:
-            self.armed = False
+        self._taking_off = False
+        self._landing = False
 
-    def _climb_demand(self, h: float, climb_m_s: float) -> float:
-        """Change the climb rate toward ``climb_m_s`` at the vertical acceleration limit."""
-        step = self.accel_z_m_s2 * h
-        change = _clamp(climb_m_s - self._vu, -step, step)
+    def _fall(self, h: float) -> None:
+        """Motors stopped (or at idle): gravity against quadratic drag, attitude level."""
+        vu = self._vu
+        vu += (-G_M_S2 - self._fall_drag_1_m * vu * abs(vu)) * h
+        decay = 1.0 - self._drag_1_s * h
+        self._vn *= decay
+        self._ve *= decay
+        self._vu = vu
+        self._n += self._vn * h
+        self._e += self._ve * h
+        self._u += vu * h
+        self._roll -= self._roll * self._roll_alpha
+        self._pitch -= self._pitch * self._pitch_alpha
+        self._thr = 0.0
+        if self._u <= 0.0:
+            self._touchdown()
+
+    def _pilot_rate(self) -> float | None:
+        """The climb rate the throttle stick asks for; None in the dead band (hold)."""
+        stick = self._rc_thr
+        top = 0.5 + self._thr_dz
+        bottom = 0.5 - self._thr_dz
+        if stick > top:
+            return self._pilot_up * (stick - top) / (1.0 - top)
+        if stick < bottom:
+            return -self._pilot_down * (bottom - stick) / bottom
+        return None
+
+    def _pilot_vertical(self, h: float) -> float:
+        """Climb at the stick's rate, or hold the height where the stick was centred."""
+        rate = self._pilot_rate()
+        if rate is None:
+            want = _clamp(
+                sqrt_controller(self._alt_hold - self._u, COPTER_Z_GAIN_1_S, self._brake_z, h),
+                -self._pilot_down,
+                self._pilot_up,
+            )
+        else:
+            want = rate
+            self._alt_hold = self._u + self._vu * h
+        step = self._pilot_accel * h
+        change = _clamp(want - self._vu, -step, step)
         self._vu += change
         return change / h
 
-    def _advance_auto(self, h: float, landing: bool) -> None:
-        n, e, u, vn, ve = self._n, self._e, self._u, self._vn, self._ve
-        accel = self.accel_xy_m_s2
-        gain = self.position_gain_1_s
-        # Horizontal: braking profile toward the target, acceleration-limited.
+    def _advance_auto(self, h: float) -> None:
+        sub = self._sub
+        if _C_RTL_CLIMB <= sub <= _C_RTL_LOITER:
+            sub = self._rtl_progress()
+        n, e, u = self._n, self._e, self._u
+        vn, ve, vu = self._vn, self._ve, self._vu
         dn, de = self._tn - n, self._te - e
-        distance = math.sqrt(dn * dn + de * de)
-        if distance > 1e-9:
-            speed = sqrt_controller(distance, gain, accel, h)
-            if speed > self._target_speed:
-                speed = self._target_speed
-            scale = speed / distance
-            want_n, want_e = dn * scale, de * scale
+        if sub in _C_RATE_SUBS:
+            # Horizontal: hold the point (or fly the circle); vertical: a rate.
+            if sub == _C_CIRCLE:
+                want_n, want_e = self._circle_velocity(h)
+                dn, de = self._circle_n - n, self._circle_e - e
+            else:
+                distance = math.sqrt(dn * dn + de * de)
+                if distance > 1e-9:
+                    speed = sqrt_controller(distance, COPTER_XY_GAIN_1_S, self._brake_xy, h)
+                    if speed > self._leg_speed:
+                        speed = self._leg_speed
+                    want_n, want_e = dn * speed / distance, de * speed / distance
+                else:
+                    want_n = want_e = 0.0
+            dvn, dve = want_n - vn, want_e - ve
+            change = math.sqrt(dvn * dvn + dve * dve)
+            faster = want_n * want_n + want_e * want_e >= vn * vn + ve * ve
+            step = (self._accel_xy if faster else self._brake_xy) * h
+            if change > step:
+                dvn *= step / change
+                dve *= step / change
+            if sub == _C_LAND:
+                above = u - self.home_m[2] - self._land_alt_low
+                rate = self._land_speed
+                if above > 0.0:
+                    rate = _clamp(
+                        sqrt_controller(above, 1.0, self._accel_z, h),
+                        self._land_speed,
+                        self._land_speed_high,
+                    )
+                step_z = self._accel_z * h
+                change_z = _clamp(-rate - vu, -step_z, step_z)
+                self._vu = vu + change_z
+                accel_up = change_z / h
+            else:
+                accel_up = self._pilot_vertical(h)
         else:
-            want_n = want_e = 0.0
-        dvn, dve = want_n - vn, want_e - ve
-        change = math.sqrt(dvn * dvn + dve * dve)
-        step = accel * h
-        if change > step:
-            dvn *= step / change
-            dve *= step / change
+            # A straight 3-D line to the target (ArduCopter's waypoint navigation): the
+            # speed along the line ramps and brakes within both axes' limits, and each
+            # axis follows its share within its own limits (so a line flown from rest
+            # stays straight, and a copter already climbing eases onto the new line).
+            du = self._tu - u
+            flat = dn * dn + de * de
+            distance = math.sqrt(flat + du * du)
+            path = self._path_speed
+            if distance > 1e-9:
+                hf = math.sqrt(flat) / distance
+                vf = abs(du) / distance
+                top = ramp = brake = _INF
+                if hf > 1e-9:
+                    top = self._leg_speed / hf
+                    ramp = self._accel_xy / hf
+                    brake = self._brake_xy / hf
+                if vf > 1e-9:
+                    vertical = self._climb_max if du > 0.0 else self._descent_max
+                    top = min(top, vertical / vf)
+                    ramp = min(ramp, self._accel_z / vf)
+                    brake = min(brake, self._brake_z / vf)
+                gain = (COPTER_XY_GAIN_1_S * hf + COPTER_Z_GAIN_1_S * vf) / (hf + vf)
+                speed = sqrt_controller(distance, gain, brake, h)
+                if speed > top:
+                    speed = top
+                path = speed if speed < path else min(speed, path + ramp * h)
+                scale = path / distance
+                want_n, want_e, want_u = dn * scale, de * scale, du * scale
+            else:
+                path = want_n = want_e = want_u = 0.0
+            self._path_speed = path
+            dvn, dve = want_n - vn, want_e - ve
+            change = math.sqrt(dvn * dvn + dve * dve)
+            faster = want_n * want_n + want_e * want_e >= vn * vn + ve * ve
+            step = (self._accel_xy if faster else self._brake_xy) * h
+            if change > step:
+                dvn *= step / change
+                dve *= step / change
+            step = self._accel_z * h
+            dvu = _clamp(want_u - vu, -step, step)
+            self._vu = vu + dvu
+            accel_up = dvu / h
         vn += dvn
         ve += dve
-        # Vertical.
-        if landing:
-            slow = self.land_speed_m_s if u <= self.land_slow_below_m else self._max_descent
-            climb = -min(slow, self._max_descent)
-        else:
-            climb = _clamp(
-                sqrt_controller(self._tu - u, gain, self.accel_z_m_s2, h),
-                -self._max_descent,
-                self._max_climb,
-            )
-        accel_up = self._climb_demand(h, climb)
         n += vn * h
         e += ve * h
         u += self._vu * h
         self._n, self._e, self._u, self._vn, self._ve = n, e, u, vn, ve
-        if u <= 0.0 and climb <= 0.0:
-            if landing or vn * vn + ve * ve < 0.25:
+        if u <= 0.0 and self._vu <= 0.0:
+            # LAND, the pilot's stick, a target on the ground or a slow arrival: landed.
+            if sub in _C_RATE_SUBS or self._tu <= 0.0 or vn * vn + ve * ve < 0.25:
                 self._touchdown()
                 return
             self._u = 0.0
-            self._vu = max(self._vu, 0.0)
-        # Yaw toward the target while far from it.
+            self._vu = 0.0
+        if self._taking_off and abs(self._tu - self._u) <= COPTER_TAKEOFF_DONE_M:
+            self._taking_off = False
+        # Yaw: toward the target while far from it, the centre of a circle, or (RTL's
+        # loiter above home) back to the heading at arming.
         yaw = self._yaw
-        if self._face_target and distance > 2.0:
+        if sub == _C_RTL_LOITER:
+            error = _wrap_pi(self._armed_yaw - yaw)
+        elif sub == _C_CIRCLE or (self._face_target and dn * dn + de * de > 4.0):
             error = _wrap_pi(math.atan2(de, dn) - yaw)
+        else:
+            error = 0.0
+        if error:
             limit = self._max_turn_rad_s
             yaw = _wrap_pi(yaw + _clamp(2.0 * error, -limit, limit) * h)
             self._yaw = yaw
-        # Attitude: the lean that produces this acceleration (and holds off drag).
+        self._attitude(h, dvn / h, dve / h, accel_up)
+
+    def _circle_velocity(self, h: float) -> tuple[float, float]:
+        """The velocity that flies ArduCopter's circle (feed-forward plus position)."""
+        step = self._circle_accel * h
+        self._circle_rate += _clamp(self._circle_rate_max - self._circle_rate, -step, step)
+        angle = self._circle_angle + self._circle_rate * h
+        if angle >= math.pi:
+            angle -= _TAU
+        elif angle < -math.pi:
+            angle += _TAU
+        self._circle_angle = angle
+        radius = self._circle_radius
+        cos_a, sin_a = math.cos(angle), math.sin(angle)
+        self._tn = self._circle_n + radius * cos_a
+        self._te = self._circle_e + radius * sin_a
+        tangential = self._circle_rate * radius
+        want_n = -tangential * sin_a + COPTER_XY_GAIN_1_S * (self._tn - self._n)
+        want_e = tangential * cos_a + COPTER_XY_GAIN_1_S * (self._te - self._e)
+        speed = math.sqrt(want_n * want_n + want_e * want_e)
+        if speed > self._leg_speed:
+            want_n *= self._leg_speed / speed
+            want_e *= self._leg_speed / speed
+        return want_n, want_e
+
+    def _rtl_progress(self) -> int:
+        """Move RTL on: climb -> return -> loiter above home -> land (or final height)."""
+        sub = self._sub
+        if sub == _C_RTL_LOITER:
+            now = self._now_s
+            hover_s = max(self._params["RTL_LOIT_TIME"], 0.0) / 1000.0 + COPTER_RTL_SETTLE_S
+            done = now - self._phase_since_s >= hover_s
+            if done and abs(_wrap_pi(self._yaw - self._armed_yaw)) <= (
+                COPTER_RTL_YAW_TOLERANCE_RAD
+            ):
+                final = self._params["RTL_ALT_FINAL"] / 100.0
+                if final > 0.0:
+                    self._tu = min(self.home_m[2] + final, self.limits.max_altitude_m)
+                    self._aim()
+                    sub = _C_RTL_FINAL
+                else:
+                    sub = _C_LAND
+                    self._landing = True
+                self._sub = sub
+            return sub
+        dn, de, du = self._tn - self._n, self._te - self._e, self._tu - self._u
+        if dn * dn + de * de + du * du <= self._reach_m * self._reach_m:
+            if sub == _C_RTL_CLIMB:
+                self._tn, self._te, self._tu = self.home_m[0], self.home_m[1], self._rtl_alt
+                self._face_target = True
+                self._aim()
+                sub = _C_RTL_RETURN
+            else:
+                self._face_target = False
+                self._phase_since_s = self._now_s
+                sub = _C_RTL_LOITER
+            self._sub = sub
+        return sub
+
+    def _attitude(self, h: float, accel_n: float, accel_e: float, accel_up: float) -> None:
+        """Lean into the commanded acceleration (and hold off drag); throttle pays for it."""
         drag = self._drag_1_s
-        accel_n = dvn / h + drag * vn
-        accel_e = dve / h + drag * ve
+        accel_n += drag * self._vn
+        accel_e += drag * self._ve
+        yaw = self._yaw
         cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
         forward = accel_n * cos_yaw + accel_e * sin_yaw
         right = -accel_n * sin_yaw + accel_e * cos_yaw
@@ -1084,30 +1823,43 @@ class Multirotor(SimulatedVehicle):
         if speed > self._max_speed:
             vn *= self._max_speed / speed
             ve *= self._max_speed / speed
-        # Throttle stick: climb rate around mid stick with a 10 % dead band.
-        stick = self._rc_thr
-        if stick > 0.6:
-            climb = (stick - 0.6) / 0.4 * self._max_climb
-        elif stick < 0.4:
-            climb = (stick - 0.4) / 0.4 * self._max_descent
+        if self._pilot_climb:
+            accel_up = self._pilot_vertical(h)
+            thrust = self.hover_throttle * (1.0 + accel_up / G_M_S2)
         else:
-            climb = 0.0
-        accel_up = self._climb_demand(h, climb)
+            # The stick is the thrust (angle boost keeps a hover level when leaning):
+            # mid stick hovers, the minimum idles the motors.
+            stick = self._rc_thr
+            ratio = (
+                2.0 * stick
+                if stick <= 0.5
+                else 1.0 + (stick - 0.5) * 2.0 * (COPTER_MAX_THRUST_RATIO - 1.0)
+            )
+            vu = self._vu
+            accel_up = G_M_S2 * (ratio - 1.0) - self._fall_drag_1_m * vu * abs(vu)
+            vu += accel_up * h
+            if vu > self.limits.max_climb_rate_m_s:
+                vu = self.limits.max_climb_rate_m_s
+            self._vu = vu
+            thrust = self.hover_throttle * ratio
         self._vn, self._ve = vn, ve
         self._n += vn * h
         self._e += ve * h
         self._u += self._vu * h
-        if self._u <= 0.0 and climb <= 0.0:
+        if self._u <= 0.0 and self._vu <= 0.0:
             self._touchdown()
             return
-        self._u = max(self._u, 0.0)
-        self._thr = _clamp(
-            self.hover_throttle
-            * (1.0 + accel_up / G_M_S2)
-            / (math.cos(self._roll) * math.cos(self._pitch)),
-            0.0,
-            1.0,
-        )
+        self._thr = _clamp(thrust / (math.cos(self._roll) * math.cos(self._pitch)), 0.0, 1.0)
+
+
+# Fixed-wing sub-states.
+(
+    _P_MANUAL,  # fly the sticks (FBWA and the other pilot modes)
+    _P_LOITER,  # loiter around a centre (guided, auto, hold, RTL, after a takeoff)
+    _P_LAUNCH,  # on the ground, waiting to launch (TAKEOFF, AUTO's takeoff)
+    _P_CLIMB,  # the takeoff climb along the launch heading
+    _P_LAND,  # a glide-slope landing straight ahead
+) = range(5)
 
 
 class FixedWing(SimulatedVehicle):
@@ -1115,7 +1867,8 @@ class FixedWing(SimulatedVehicle):
 
     Lateral: coordinated turns, turn rate ``g * tan(roll) / V``, never above
     ``max_turn_rate_deg_s``; roll follows its command through a first-order lag
-    (``roll_time_constant_s``). The rudder adds a skidding yaw rate of up to half
+    (``roll_time_constant_s``), never beyond the airframe's ``max_bank_deg`` nor
+    ArduPlane's ROLL_LIMIT_DEG. The rudder adds a skidding yaw rate of up to half
     the turn-rate limit.
 
     Longitudinal (an energy model): the flight path follows the pitch attitude,
@@ -1130,19 +1883,40 @@ class FixedWing(SimulatedVehicle):
     the aircraft never flies below ``min_speed_m_s``.
 
     Automatic modes fly one controller: loiter clockwise around a centre (the
-    guided target, the hold point, the start point for RTL) at radius
-    ``loiter_radius_factor`` times the tightest turn radius at the loiter speed
-    (``V^2 / (g tan(max bank))`` or ``V / max turn rate``, whichever is larger),
-    with a vector-field course law that flies straight at a far centre and
-    settles on the circle near it. So a guided goto flies to the point and then
-    circles it, as ArduPlane's GUIDED does. Altitude: climb rate proportional to
-    the error within the limits; throttle holds the speed (cruise, or the guided
-    request) and pays for the climb. Automatic altitudes are never below
-    ``min_auto_altitude_m`` (the model has no landing approach), and the wings
-    stay level below 10 m. The RC sticks are mixed in (ArduPlane's default
-    STICK_MIXING, FBW style): an aileron deflection adds ``deflection * max
-    bank`` to the roll command, elevator likewise to pitch, so a doublet shows
-    in the attitude in these modes too.
+    guided or auto target, the point where GUIDED, AUTO or LOITER was entered,
+    home for RTL) at WP_LOITER_RAD times :data:`PLANE_LOITER_RADIUS_FACTOR` (RTL:
+    RTL_RADIUS when set), never tighter than ``loiter_radius_factor`` times the
+    tightest turn at the loiter speed (``V^2 / (g tan(max bank))`` or
+    ``V / max turn rate``, whichever is larger), with a vector-field course law that
+    flies straight at a far centre and settles on the circle near it. So a guided
+    goto flies to the point and then circles it, as ArduPlane's GUIDED does; RTL
+    flies home and circles it at RTL_ALTITUDE above home indefinitely (RTL_AUTOLAND
+    0). Airspeed: AIRSPEED_CRUISE (or DO_CHANGE_SPEED's) within AIRSPEED_MIN..MAX and
+    the airframe's limits. Altitude: climb rate proportional to the error within the
+    limits, its changes slewed at :data:`PLANE_CLIMB_SLEW_M_S2`; throttle holds the
+    speed and pays for the climb. The RC sticks are mixed in (ArduPlane's default
+    STICK_MIXING, FBW style): an aileron deflection adds ``deflection * max bank``
+    to the roll command, elevator likewise to pitch, so a doublet shows in the
+    attitude in these modes too.
+
+    Takeoff is by mode, as on ArduPlane: armed in TAKEOFF (or armed in AUTO after
+    :meth:`auto_takeoff`) on the ground it launches :data:`PLANE_LAUNCH_DELAY_S`
+    later: a full-throttle ground roll along its heading, liftoff at minimum speed,
+    a full-throttle climb at up to the airframe's climb limit along that heading,
+    wings level below TKOFF_LVL_ALT; landed_state ``taking_off`` from the roll to
+    TKOFF_ALT (the mission's altitude for AUTO), then ``in_air``, overshooting a
+    little as SITL does. TAKEOFF then loiters at TKOFF_ALT around the point
+    TKOFF_DIST ahead on the takeoff heading and never ends by itself; AUTO loiters
+    where the climb ended until the executor sets a target. Entered in the air,
+    TAKEOFF loiters at TKOFF_ALT (or higher) TKOFF_DIST ahead. Every other
+    automatic mode armed on the ground stays put with the throttle at 0 (measured);
+    ArduPlane's NAV_TAKEOFF command is quadplane-only, so :meth:`takeoff` refuses.
+
+    Landing (AUTO's :meth:`auto_land`): straight ahead along the current course at
+    the landing airspeed ((AIRSPEED_MIN + AIRSPEED_CRUISE) / 2, SITL's 16 m/s) down
+    a :data:`PLANE_LAND_SLOPE_DEG` glide slope, flaring below LAND_FLARE_ALT to
+    touch down at TECS_LAND_SINK; landed_state ``landing`` until the touchdown, then
+    it rolls out and stops. ArduPlane has no LAND mode; AUTOLAND is not simulated.
 
     Manual modes (MANUAL, FBWA and the other pilot modes) all fly as FBWA does:
     the aileron deflection commands a roll angle (full deflection = max bank), the
@@ -1150,21 +1924,21 @@ class FixedWing(SimulatedVehicle):
     LIM_PITCH_MAX/MIN), the rudder a yaw rate, the throttle stick the throttle.
     MANUAL on a real aircraft commands surface deflection, i.e. rates; a
     trimmed, statically stable aircraft settles to an attitude for a held
-    deflection, which is what this models, without its rate dynamics.
-
-    On the ground the aircraft rolls along its heading: manual throttle
-    accelerates it, the rudder steers it, and at minimum speed up elevator lifts
-    it off. An automatic mode entered on the ground is flown as a runway takeoff
-    at full throttle (ArduPlane would need TAKEOFF or an AUTO mission). Touching
-    the ground in a manual mode lands it; it then brakes to a stop.
+    deflection, which is what this models, without its rate dynamics. On the
+    ground manual throttle accelerates it along its heading, the rudder steers it,
+    and at minimum speed up elevator lifts it off. Touching the ground lands it
+    (any mode); it then brakes to a stop. Disarmed (a forced disarm in the air) the
+    throttle is 0 and it glides.
     """
 
     airframe_class = "fixed_wing"
+    PARAM_DEFAULTS = PLANE_DEFAULT_PARAMS
     _MANUAL_MODES = frozenset(
         {"MANUAL", "STABILIZE", "TRAINING", "ACRO", "FBWA", "FBWB", "CRUISE", "AUTOTUNE"}
     )
     _HOLD_MODES = frozenset({"LOITER"})
     _RTL_MODES = frozenset({"RTL"})
+    _TAKEOFF_MODES = frozenset({"TAKEOFF"})
     _REFUSED_MODES = frozenset(
         {
             "INITIALISING",
@@ -1187,9 +1961,7 @@ class FixedWing(SimulatedVehicle):
     #: Highest and lowest pitch (ArduPlane LIM_PITCH_MAX, LIM_PITCH_MIN).
     max_pitch_deg: float = 20.0
     min_pitch_deg: float = -25.0
-    #: Lowest altitude an automatic mode flies at (about 100 ft).
-    min_auto_altitude_m: float = 30.0
-    #: Loiter radius over the tightest turn radius at the loiter speed.
+    #: The loiter radius is at least this times the tightest turn at the loiter speed.
     loiter_radius_factor: float = 1.5
     #: Time constant of the automatic speed hold.
     speed_time_constant_s: float = 2.0
@@ -1201,16 +1973,13 @@ class FixedWing(SimulatedVehicle):
     orbit_gain: float = 2.0
     #: Braking on the ground, m/s^2.
     ground_decel_m_s2: float = 2.0
-    #: Below this, automatic modes keep the wings level (ArduPlane's TKOFF_LVL_ALT).
-    level_below_m: float = 10.0
 
     def _setup(self) -> None:
         limits = self.limits
         self._v_min = max(limits.min_speed_m_s, 1.0)
         self._v_max = max(limits.max_speed_m_s, self._v_min)
         cruise = _clamp(limits.cruise_speed_m_s, self._v_min, self._v_max)
-        bank_deg = limits.max_bank_deg if limits.max_bank_deg else 45.0
-        self._max_bank = math.radians(bank_deg)
+        self._airframe_bank = math.radians(limits.max_bank_deg if limits.max_bank_deg else 45.0)
         self._max_pitch = math.radians(self.max_pitch_deg)
         self._min_pitch = math.radians(self.min_pitch_deg)
         self._rudder_rate = 0.5 * self._max_turn_rad_s
@@ -1224,9 +1993,18 @@ class FixedWing(SimulatedVehicle):
         self._flying = self._u > 0.0
         self._speed = cruise if self._flying else 0.0
         self._yaw_rate = 0.0
-        self._cn, self._ce, self._ch = self._n, self._e, self._auto_altitude(self._u)
-        self._target_speed = cruise
-        self._radius = self._loiter_radius(cruise)
+        self._climb_cmd = 0.0
+        self._sub = _P_LOITER
+        self._speed_set = False
+        self._launch_at_s: float | None = None
+        self._launch_n, self._launch_e, self._launch_yaw = self._n, self._e, self._yaw
+        self._course = self._yaw
+        self._takeoff_alt = 0.0
+        self._capture()
+        self._cn, self._ce, self._ch = self._n, self._e, self._u
+        self._target_speed = self._auto_speed()
+        self._radius_param = self._loiter_rad
+        self._radius = self._loiter_radius(self._target_speed)
         if self._flying:
             # Level flight at cruise; a pilot who is flying holds the cruise throttle.
             self._vn = cruise * math.cos(self._yaw)
@@ -1236,6 +2014,24 @@ class FixedWing(SimulatedVehicle):
             throttle = self._controls[3]
             if throttle is not None and throttle.rc is not None:
                 self._pilot_us[throttle.rc - 1] = throttle.pwm_from_fraction(self._thr)
+
+    def _capture(self) -> None:
+        """Read ArduPlane's parameters (at a mode entry or a target)."""
+        p = self._params
+        low = max(self._v_min, p["AIRSPEED_MIN"])
+        high = min(self._v_max, p["AIRSPEED_MAX"])
+        self._speed_low, self._speed_high = low, max(high, low)
+        self._cruise = _clamp(p["AIRSPEED_CRUISE"], self._speed_low, self._speed_high)
+        self._loiter_rad = abs(p["WP_LOITER_RAD"])
+        self._wp_radius = max(p["WP_RADIUS"], 1.0)
+        limit = math.radians(p["ROLL_LIMIT_DEG"]) if p["ROLL_LIMIT_DEG"] > 0.0 else _INF
+        self._max_bank = min(self._airframe_bank, limit)
+        self._level_below = max(p["TKOFF_LVL_ALT"], 0.0)
+        self._flare_alt = max(p["LAND_FLARE_ALT"], 0.0)
+        self._land_sink = max(p["TECS_LAND_SINK"], 0.05)
+
+    def _auto_speed(self) -> float:
+        return self._cruise
 
     def _set_step(self, h: float) -> None:
         super()._set_step(h)
@@ -1247,6 +2043,38 @@ class FixedWing(SimulatedVehicle):
         return self._flying
 
     @property
+    def landed_state(self) -> LandedState:
+        """ArduPlane's landed state.
+
+        Taking off from the launch to the takeoff altitude, landing until the
+        touchdown, else in the air or on the ground.
+        """
+        sub = self._sub
+        if not self._flying:
+            start = self._launch_at_s
+            if sub == _P_LAUNCH and self.armed and start is not None and self.time_s >= start:
+                return "taking_off"
+            return "on_ground"
+        if sub == _P_CLIMB:
+            return "taking_off"
+        if sub == _P_LAND:
+            return "landing"
+        return "in_air"
+
+    @property
+    def target_reached(self) -> bool:
+        """The target within WP_RADIUS, the takeoff climb done, or landed."""
+        command = self._command
+        if command == _CMD_TARGET:
+            dn, de = self._cn - self._n, self._ce - self._e
+            return dn * dn + de * de <= self._wp_radius * self._wp_radius
+        if command == _CMD_TAKEOFF:
+            return self._flying and self._sub != _P_CLIMB and self._sub != _P_LAUNCH
+        if command == _CMD_LAND:
+            return not self._flying
+        return False
+
+    @property
     def loiter_radius_m(self) -> float:
         """Radius of the current loiter circle."""
         return self._radius
@@ -1255,51 +2083,187 @@ class FixedWing(SimulatedVehicle):
         return self._speed
 
     def _loiter_radius(self, speed_m_s: float) -> float:
+        """WP_LOITER_RAD as SITL flies it, never tighter than the airframe can turn."""
         by_bank = speed_m_s * speed_m_s / (G_M_S2 * math.tan(self._max_bank))
         by_rate = speed_m_s / self._max_turn_rad_s if self._max_turn_rad_s > 0 else by_bank
-        return self.loiter_radius_factor * max(by_bank, by_rate)
+        tightest = self.loiter_radius_factor * max(by_bank, by_rate)
+        return max(PLANE_LOITER_RADIUS_FACTOR * self._radius_param, tightest)
 
-    def _auto_altitude(self, alt_m: float) -> float:
-        return min(max(alt_m, self.min_auto_altitude_m), self.limits.max_altitude_m)
+    def _clamp_altitude(self, alt_m: float) -> float:
+        return _clamp(alt_m, 0.0, self.limits.max_altitude_m)
+
+    def _apply_params_now(self) -> None:
+        self._capture()
+        if not self._speed_set:
+            self._target_speed = self._auto_speed()
+        if self._behaviour is ModeBehaviour.RTL and self._params["RTL_RADIUS"] > 0.0:
+            self._radius_param = abs(self._params["RTL_RADIUS"])
+        else:
+            self._radius_param = self._loiter_rad
+        self._radius = self._loiter_radius(self._target_speed)
+        if self._behaviour is ModeBehaviour.RTL:
+            self._ch = self._clamp_altitude(self.home_m[2] + self._params["RTL_ALTITUDE"])
+
+    def _disarmed(self) -> None:
+        if not self._flying:
+            self._launch_at_s = None
 
     def _enter(self, behaviour: ModeBehaviour) -> None:
+        self._command = _CMD_NONE
+        self._launch_at_s = None
         if behaviour is ModeBehaviour.MANUAL:
+            self._sub = _P_MANUAL
             return
-        cruise = _clamp(self.limits.cruise_speed_m_s, self._v_min, self._v_max)
-        self._target_speed = cruise
-        self._radius = self._loiter_radius(cruise)
-        self._ch = self._auto_altitude(self._u)
+        self._capture()
+        self._speed_set = False
+        self._target_speed = self._auto_speed()
+        self._radius_param = self._loiter_rad
+        self._sub = _P_LOITER
+        home_n, home_e, home_u = self.home_m
         if behaviour is ModeBehaviour.RTL:
-            self._cn, self._ce = self.start_m[0], self.start_m[1]
+            self._cn, self._ce = home_n, home_e
+            self._ch = self._clamp_altitude(home_u + self._params["RTL_ALTITUDE"])
+            if self._params["RTL_RADIUS"] > 0.0:
+                self._radius_param = abs(self._params["RTL_RADIUS"])
+        elif behaviour is ModeBehaviour.TAKEOFF:
+            altitude = self._clamp_altitude(home_u + self._params["TKOFF_ALT"])
+            self._takeoff_alt = altitude
+            if self._flying:
+                self._loiter_ahead(self._n, self._e, self._yaw)
+                self._ch = max(self._u, altitude)
+            else:
+                self._sub = _P_LAUNCH
+        elif behaviour is ModeBehaviour.LAND and self._flying:
+            self._start_landing()
         else:
-            self._cn, self._ce = self._n, self._e
-
-    def _set_target(self, north_m: float, east_m: float, alt_m: float, speed_m_s: float) -> None:
-        self._cn, self._ce, self._ch = north_m, east_m, self._auto_altitude(alt_m)
-        self._target_speed = _clamp(speed_m_s, self._v_min, self._v_max)
+            self._cn, self._ce, self._ch = self._n, self._e, self._u
         self._radius = self._loiter_radius(self._target_speed)
+
+    def _loiter_ahead(self, north_m: float, east_m: float, yaw_rad: float) -> None:
+        """TAKEOFF's loiter: TKOFF_DIST ahead of ``north_m, east_m`` on ``yaw_rad``."""
+        distance = max(self._params["TKOFF_DIST"], 0.0)
+        self._cn = north_m + distance * math.cos(yaw_rad)
+        self._ce = east_m + distance * math.sin(yaw_rad)
+        self._ch = self._takeoff_alt
+        self._sub = _P_LOITER
+
+    def _start_landing(self) -> None:
+        self._course = self._yaw
+        self._target_speed = _clamp(
+            0.5 * (self._params["AIRSPEED_MIN"] + self._params["AIRSPEED_CRUISE"]),
+            self._v_min,
+            self._v_max,
+        )
+        self._sub = _P_LAND
+
+    def _set_target(
+        self, north_m: float, east_m: float, alt_m: float, speed_m_s: float | None
+    ) -> None:
+        self._capture()
+        self._radius_param = self._loiter_rad
+        if speed_m_s is not None:
+            self._set_speed(speed_m_s)
+        elif not self._speed_set:
+            self._target_speed = self._auto_speed()
+        self._cn, self._ce, self._ch = north_m, east_m, self._clamp_altitude(alt_m)
+        self._radius = self._loiter_radius(self._target_speed)
+        self._command = _CMD_TARGET
+        if self._flying:
+            self._sub = _P_LOITER
+        elif self._sub == _P_LAUNCH:
+            self._launch_at_s = None
+            self._sub = _P_LOITER
+
+    def _set_speed(self, speed_m_s: float) -> None:
+        self._target_speed = _clamp(speed_m_s, self._v_min, self._v_max)
+        self._speed_set = True
+        self._radius = self._loiter_radius(self._target_speed)
+
+    def auto_takeoff(self, alt_m: float) -> bool:
+        """AUTO's takeoff item: launch and climb to ``alt_m`` above home.
+
+        On the ground the launch starts on arming (at once when armed), as ArduPlane's
+        AUTO with a takeoff item does; in the air it climbs there. False outside AUTO.
+        """
+        if self._behaviour is not ModeBehaviour.AUTO or not math.isfinite(alt_m):
+            return False
+        self._capture()
+        self._takeoff_alt = self._clamp_altitude(self.home_m[2] + alt_m)
+        self._command = _CMD_TAKEOFF
+        if self._flying:
+            self._cn, self._ce = self._n, self._e
+            self._ch = max(self._ch, self._takeoff_alt)
+            self._sub = _P_LOITER
+        else:
+            self._sub = _P_LAUNCH
+            self._launch_at_s = None
+        return True
+
+    def auto_land(self) -> None:
+        """AUTO's land item: a glide-slope landing straight ahead."""
+        if self._behaviour is not ModeBehaviour.AUTO:
+            return
+        self._command = _CMD_LAND
+        if self._flying:
+            self._capture()
+            self._start_landing()
+
+    # --- physics ----------------------------------------------------------------------
 
     def _advance(self, h: float) -> None:
         speed = self._speed
-        if self._behaviour is ModeBehaviour.MANUAL:
+        sub = self._sub
+        level = False
+        if sub == _P_MANUAL:
             roll_cmd = self._rc_roll * self._max_bank
             elevator = self._rc_pitch
             pitch_cmd = elevator * (self._max_pitch if elevator > 0.0 else -self._min_pitch)
             yaw_rate_cmd = self._rc_yaw * self._rudder_rate
             throttle = self._rc_thr
             lift_off = pitch_cmd > 0.0
-        elif self._flying:
-            roll_cmd, pitch_cmd, throttle = self._autopilot(speed)
+            self._climb_cmd = self._vu
+        elif not self._flying:
+            roll_cmd = pitch_cmd = yaw_rate_cmd = throttle = 0.0
+            lift_off = False
+            self._climb_cmd = 0.0
+            if sub == _P_LAUNCH and self.armed:
+                start = self._launch_at_s
+                if start is None:
+                    self._launch_at_s = self._now_s + PLANE_LAUNCH_DELAY_S
+                    self._launch_n, self._launch_e, self._launch_yaw = self._n, self._e, self._yaw
+                    self._course = self._yaw
+                elif self._now_s >= start:
+                    # The ground roll: full throttle, holding the launch heading.
+                    throttle = 1.0
+                    lift_off = True
+                    yaw_rate_cmd = self.course_gain_1_s * _wrap_pi(self._course - self._yaw)
+        else:
+            if sub == _P_CLIMB:
+                # Full throttle at up to the climb limit, holding the launch course.
+                roll_cmd = self._course_roll(speed, self._course)
+                pitch_cmd = self._pitch_for(h, speed, self._max_climb)
+                throttle = 1.0
+                level = self._u - self.home_m[2] < self._level_below
+            elif sub == _P_LAND:
+                roll_cmd = self._course_roll(speed, self._course)
+                height = self._u
+                sink = speed * math.sin(math.radians(PLANE_LAND_SLOPE_DEG))
+                if height < self._flare_alt and self._flare_alt > 0.0:
+                    sink = max(self._land_sink, sink * height / self._flare_alt)
+                pitch_cmd = self._pitch_for(h, speed, -sink)
+                throttle = self._speed_throttle(speed)
+                level = height < self._level_below
+            else:
+                roll_cmd = self._loiter_roll(speed)
+                pitch_cmd = self._pitch_for(h, speed, self.altitude_gain_1_s * (self._ch - self._u))
+                throttle = self._speed_throttle(speed)
             # FBW stick mixing.
             roll_cmd += self._rc_roll * self._max_bank
             elevator = self._rc_pitch
             pitch_cmd += elevator * (self._max_pitch if elevator > 0.0 else -self._min_pitch)
             yaw_rate_cmd = self._rc_yaw * self._rudder_rate
-            if self._u < self.level_below_m:
+            if level:
                 roll_cmd = 0.0
-            lift_off = True
-        else:
-            roll_cmd, pitch_cmd, yaw_rate_cmd, throttle = 0.0, 0.0, 0.0, 1.0
             lift_off = True
         if not self.armed:
             throttle = 0.0
@@ -1314,11 +2278,23 @@ class FixedWing(SimulatedVehicle):
         self._thr = throttle
         if self._flying:
             self._fly(h, speed, roll_cmd, pitch_cmd, yaw_rate_cmd, throttle)
+            if not self._flying and self._sub == _P_CLIMB:
+                self._sub = _P_LOITER
         else:
             self._roll_on_ground(h, speed, yaw_rate_cmd, throttle, lift_off)
+            if self._flying and self._sub == _P_LAUNCH:
+                self._sub = _P_CLIMB
+        if self._sub == _P_CLIMB and self._u >= self._takeoff_alt:
+            # Takeoff complete: TAKEOFF loiters TKOFF_DIST ahead, AUTO where it is.
+            if self._behaviour is ModeBehaviour.TAKEOFF:
+                self._loiter_ahead(self._launch_n, self._launch_e, self._launch_yaw)
+            else:
+                self._cn, self._ce, self._ch = self._n, self._e, self._takeoff_alt
+                self._sub = _P_LOITER
+            self._radius = self._loiter_radius(self._target_speed)
 
-    def _autopilot(self, speed: float) -> tuple[float, float, float]:
-        """Roll, pitch and throttle commands that loiter around the centre."""
+    def _loiter_roll(self, speed: float) -> float:
+        """Roll command that loiters clockwise around the centre (a vector field)."""
         dn, de = self._n - self._cn, self._e - self._ce
         distance = math.sqrt(dn * dn + de * de)
         radius = self._radius
@@ -1328,17 +2304,28 @@ class FixedWing(SimulatedVehicle):
         feed_forward = speed / (distance if distance > radius else radius)
         limit = self._max_turn_rad_s
         turn = _clamp(self.course_gain_1_s * error + feed_forward, -limit, limit)
-        roll_cmd = math.atan(turn * speed / G_M_S2)
-        climb = _clamp(
-            self.altitude_gain_1_s * (self._ch - self._u), -self._max_descent, self._max_climb
-        )
-        pitch_cmd = math.asin(_clamp(climb / speed, -1.0, 1.0))
-        # Throttle: hold the speed and pay for the current climb (TECS in outline).
+        return math.atan(turn * speed / G_M_S2)
+
+    def _course_roll(self, speed: float, course: float) -> float:
+        """Roll command that holds a course."""
+        limit = self._max_turn_rad_s
+        turn = _clamp(self.course_gain_1_s * _wrap_pi(course - self._yaw), -limit, limit)
+        return math.atan(turn * speed / G_M_S2)
+
+    def _pitch_for(self, h: float, speed: float, climb_m_s: float) -> float:
+        """Pitch for a climb rate, the autopilot's climb command slewed (TECS in outline)."""
+        want = _clamp(climb_m_s, -self._max_descent, self._max_climb)
+        step = PLANE_CLIMB_SLEW_M_S2 * h
+        command = self._climb_cmd + _clamp(want - self._climb_cmd, -step, step)
+        self._climb_cmd = command
+        return math.asin(_clamp(command / speed, -1.0, 1.0))
+
+    def _speed_throttle(self, speed: float) -> float:
+        """Throttle that holds the target speed and pays for the current climb."""
         accel = (self._target_speed - speed) / self.speed_time_constant_s
         accel += G_M_S2 * self._vu / speed
         level_speed = speed + accel / self._k_1_s
-        throttle = _clamp((level_speed - self._v_idle) / (self._v_max - self._v_idle), 0.0, 1.0)
-        return roll_cmd, pitch_cmd, throttle
+        return _clamp((level_speed - self._v_idle) / (self._v_max - self._v_idle), 0.0, 1.0)
 
     def _fly(
         self,
@@ -1385,6 +2372,7 @@ class FixedWing(SimulatedVehicle):
         self._u = up
         if up <= 0.0 and climb < 0.0:
             # Touchdown: rolling out along the heading, wings and nose level.
+            self._touched_down(-climb)
             self._u = 0.0
             self._vu = 0.0
             self._roll = self._pitch = 0.0
@@ -1409,30 +2397,41 @@ class FixedWing(SimulatedVehicle):
         self._yaw, self._speed, self._vn, self._ve, self._vu = yaw, speed, vn, ve, 0.0
         if lift_off and self.armed and speed >= self._v_min:
             self._flying = True
+            self.touchdown_s = None
             self._speed = max(speed, self._v_min)
 
 
 class Rover(SimulatedVehicle):
     """A ground vehicle: drives on the ground (up is always 0), steers within its turn rate.
 
-    Speed follows its command at up to ``accel_m_s2``. Steering follows its
-    command through a first-order lag (``roll_time_constant_s``); full steering
-    turns at ``max_turn_rate_deg_s`` once rolling at ``full_steer_speed_m_s`` or
-    faster (slower, proportionally less: a car cannot turn in place), and never
-    beyond a lateral acceleration of 0.6 g (ArduRover's ATC_TURN_MAX_G).
+    Steering follows its command through a first-order lag
+    (``roll_time_constant_s``); full steering turns at ``max_turn_rate_deg_s``
+    once rolling at ``full_steer_speed_m_s`` or faster (slower, proportionally
+    less: a car cannot turn in place), never tighter than TURN_RADIUS and never
+    beyond a lateral acceleration of ATC_TURN_MAX_G.
 
-    Guided and RTL drive toward the target at the requested (or cruise) speed,
-    slowing on the square-root braking profile and while pointed away from it,
-    steering at a turn rate proportional to the heading error; within
-    ``arrival_radius_m`` (ArduRover's WP_RADIUS default) the rover stops and
-    stays stopped. Hold stops where it is (ArduRover's HOLD). Manual modes:
-    the steering channel steers, the throttle channel (centred) drives forward
-    above trim and reverses below it, full stick meaning ``max_speed_m_s``.
-    Roll and pitch are always 0. The throttle in the truth is signed (negative
-    in reverse).
+    Guided, AUTO and RTL drive toward the target at the leg speed (WP_SPEED, or
+    RTL_SPEED for RTL when set, or DO_CHANGE_SPEED's; at least
+    :data:`ROVER_MIN_SPEED_M_S`, never above ``max_speed_m_s``; the airframe's
+    ``cruise_speed_m_s`` is not read, nor is ArduRover's CRUISE_SPEED), steering at a
+    turn rate proportional to the heading error and slowing while pointed away. It
+    sets off :data:`ROVER_START_DELAY_S` after a target reaches it at rest (SITL's
+    speed controller winding up), speeds up at ATC_ACCEL_MAX and brakes into the
+    target on a square-root profile at :data:`ROVER_APPROACH_DECEL_FRACTION` of its
+    deceleration limit (ATC_DECEL_MAX, ATC_ACCEL_MAX when 0): SITL's 5 m/s to a stop
+    over about 8.7 s. It stops at the target and stays stopped (RTL and AUTO stay in
+    their mode, as ArduRover's do); the target counts as reached within WP_RADIUS
+    (ArduRover's), where a mission executor moves on. A target behind it within
+    WP_RADIUS is reached where it is. Hold (and a guided mode entered with no
+    target) stops where it is, braking at the deceleration limit. Manual modes: the
+    steering channel steers, the throttle channel (centred) drives forward above
+    trim and reverses below it, full stick meaning ``max_speed_m_s`` reached at up
+    to ``accel_m_s2``. Roll and pitch are always 0. The throttle in the truth is
+    signed (negative in reverse).
     """
 
     airframe_class = "rover"
+    PARAM_DEFAULTS = ROVER_DEFAULT_PARAMS
     _MANUAL_MODES = frozenset({"MANUAL", "ACRO", "STEERING", "SIMPLE"})
     _HOLD_MODES = frozenset({"HOLD", "LOITER"})
     _RTL_MODES = frozenset({"RTL", "SMART_RTL"})
@@ -1440,14 +2439,10 @@ class Rover(SimulatedVehicle):
     _CONTROL_NAMES = ("steering", "", "", "throttle")
     _THROTTLE_CENTRED = True
 
-    #: Speed change limit, m/s^2.
+    #: Speed change limit in the manual modes (the motor's, an assumption), m/s^2.
     accel_m_s2: float = 2.5
-    #: Lateral acceleration limit (ArduRover ATC_TURN_MAX_G 0.6 g).
-    max_lateral_accel_m_s2: float = 0.6 * G_M_S2
     #: Speed from which full steering gives the full turn rate.
     full_steer_speed_m_s: float = 1.0
-    #: Distance at which a guided or RTL target counts as reached (ArduRover WP_RADIUS).
-    arrival_radius_m: float = 2.0
     #: Turn rate per radian of heading error, 1/s.
     heading_gain_1_s: float = 2.0
     #: Lowest speed while turning toward a target behind the rover.
@@ -1461,57 +2456,130 @@ class Rover(SimulatedVehicle):
         self._speed = 0.0
         self._steer = 0.0
         self._tn, self._te = self._n, self._e
-        self._target_speed = self.limits.cruise_speed_m_s
         self._arrived = True
+        self._speed_set = False
+        self._wind_up_s = 0.0
+        self._capture()
+        self._leg_speed = self._default_speed()
+
+    def _capture(self) -> None:
+        """Read ArduRover's parameters (only at a mode entry: ArduRover's own rule)."""
+        p = self._params
+        self._accel = max(p["ATC_ACCEL_MAX"], 0.1)
+        self._decel = max(p["ATC_DECEL_MAX"], 0.0) or self._accel
+        self._approach_decel = self._decel * ROVER_APPROACH_DECEL_FRACTION
+        self._wp_radius = max(p["WP_RADIUS"], 0.1)
+        self._lateral_accel = max(p["ATC_TURN_MAX_G"], 0.05) * G_M_S2
+        self._turn_radius = max(p["TURN_RADIUS"], 0.0)
+
+    def _default_speed(self) -> float:
+        p = self._params
+        speed = p["WP_SPEED"]
+        if self._behaviour is ModeBehaviour.RTL and p["RTL_SPEED"] > 0.0:
+            speed = p["RTL_SPEED"]
+        return _clamp(speed, ROVER_MIN_SPEED_M_S, self.limits.max_speed_m_s)
+
+    def _apply_params_now(self) -> None:
+        self._capture()
+        if not self._speed_set:
+            self._leg_speed = self._default_speed()
+
+    @property
+    def target_reached(self) -> bool:
+        """Stopped at the target, or within WP_RADIUS of it (ArduRover's reached)."""
+        if self._command != _CMD_TARGET:
+            return False
+        if self._arrived:
+            return True
+        dn, de = self._tn - self._n, self._te - self._e
+        return dn * dn + de * de <= self._wp_radius * self._wp_radius
 
     def _enter(self, behaviour: ModeBehaviour) -> None:
-        self._target_speed = self.limits.cruise_speed_m_s
+        self._capture()
+        self._speed_set = False
+        self._leg_speed = self._default_speed()
+        self._command = _CMD_NONE
         if behaviour is ModeBehaviour.RTL:
-            self._tn, self._te = self.start_m[0], self.start_m[1]
+            self._tn, self._te = self.home_m[0], self.home_m[1]
             self._arrived = False
+            self._command = _CMD_TARGET
         else:
             self._tn, self._te = self._n, self._e
             self._arrived = True
 
-    def _set_target(self, north_m: float, east_m: float, alt_m: float, speed_m_s: float) -> None:
+    def _set_target(
+        self, north_m: float, east_m: float, alt_m: float, speed_m_s: float | None
+    ) -> None:
+        # ArduRover takes new parameters only on entering a mode, not with a target.
+        if speed_m_s is not None:
+            self._set_speed(speed_m_s)
         self._tn, self._te = north_m, east_m
-        self._target_speed = speed_m_s
         self._arrived = False
+        self._command = _CMD_TARGET
+
+    def _set_speed(self, speed_m_s: float) -> None:
+        self._leg_speed = _clamp(speed_m_s, ROVER_MIN_SPEED_M_S, self.limits.max_speed_m_s)
+        self._speed_set = True
+
+    def auto_land(self) -> None:
+        """A land item means nothing to a rover: it stops where it is."""
+        if self._behaviour is ModeBehaviour.AUTO:
+            self._tn, self._te = self._n, self._e
+            self._arrived = True
+            self._command = _CMD_NONE
 
     def _advance(self, h: float) -> None:
         behaviour = self._behaviour
         speed = self._speed
         yaw = self._yaw
+        up = down = self.accel_m_s2
         if behaviour is ModeBehaviour.MANUAL:
             steer_cmd = self._rc_roll
             speed_cmd = self._rc_thr * self.limits.max_speed_m_s
-        elif self._arrived or behaviour is ModeBehaviour.HOLD:
-            steer_cmd = speed_cmd = 0.0
         else:
-            dn, de = self._tn - self._n, self._te - self._e
-            distance = math.sqrt(dn * dn + de * de)
-            if distance < self.arrival_radius_m:
-                self._arrived = True
-                steer_cmd = speed_cmd = 0.0
-            else:
-                error = _wrap_pi(math.atan2(de, dn) - yaw)
-                limit = self._max_turn_rad_s
-                rate = _clamp(self.heading_gain_1_s * error, -limit, limit)
-                steer_cmd = rate / limit if limit > 0 else 0.0
-                speed_cmd = min(
-                    self._target_speed, sqrt_controller(distance, 1.0, self.accel_m_s2, h)
+            up, down = self._accel, self._decel
+            steer_cmd = speed_cmd = 0.0
+            if not self._arrived and behaviour is not ModeBehaviour.HOLD:
+                dn, de = self._tn - self._n, self._te - self._e
+                distance = math.sqrt(dn * dn + de * de)
+                error = _wrap_pi(math.atan2(de, dn) - yaw) if distance > 1e-9 else 0.0
+                approach = sqrt_controller(
+                    distance, ROVER_APPROACH_GAIN_1_S, self._approach_decel, h
                 )
-                speed_cmd = max(speed_cmd * math.cos(error), min(self.crawl_speed_m_s, speed_cmd))
+                if approach < ROVER_STOP_SPEED_M_S or (
+                    distance <= self._wp_radius and abs(error) > _HALF_PI
+                ):
+                    self._arrived = True
+                else:
+                    limit = self._max_turn_rad_s
+                    rate = _clamp(self.heading_gain_1_s * error, -limit, limit)
+                    steer_cmd = rate / limit if limit > 0 else 0.0
+                    speed_cmd = min(self._leg_speed, approach)
+                    speed_cmd = max(
+                        speed_cmd * math.cos(error), min(self.crawl_speed_m_s, speed_cmd)
+                    )
+            # From rest, the speed controller winds up before the rover moves.
+            if speed_cmd > 0.0 and speed < ROVER_MIN_SPEED_M_S and self.armed:
+                if self._wind_up_s < ROVER_START_DELAY_S:
+                    self._wind_up_s += h
+                    speed_cmd = 0.0
+            elif speed_cmd <= 0.0:
+                self._wind_up_s = 0.0
         if not self.armed:
             speed_cmd = 0.0
-        step = self.accel_m_s2 * h
-        speed += _clamp(speed_cmd - speed, -step, step)
+        if speed_cmd >= speed:
+            speed += min(speed_cmd - speed, up * h)
+        else:
+            speed -= min(speed - speed_cmd, down * h)
         self._steer += (steer_cmd - self._steer) * self._roll_alpha
         limit = self._max_turn_rad_s
         if speed != 0.0:
-            lateral = self.max_lateral_accel_m_s2 / abs(speed)
+            moving = abs(speed)
+            lateral = self._lateral_accel / moving
             if lateral < limit:
                 limit = lateral
+            if self._turn_radius > 0.0 and moving < limit * self._turn_radius:
+                limit = moving / self._turn_radius
         scale = _clamp(speed / self.full_steer_speed_m_s, -1.0, 1.0)
         turn = _clamp(self._steer * self._max_turn_rad_s * scale, -limit, limit)
         yaw += turn * h
@@ -1571,7 +2639,8 @@ def make_vehicle(
         gps_rate_hz: GPS fix rate; the autopilot profile's ``gps_rate_hz`` when None,
             else :data:`DEFAULT_GPS_RATE_HZ`.
         heading_deg: Heading at the start.
-        armed: Armed at the start (the mission's ``sim.armed``, default true).
+        armed: Armed at the start (the dry run arms a vehicle its pilot hands over in
+            flight; one on the ground is armed later, through its autopilot).
         mode: Mode at the start; the hold mode for aircraft, the manual mode for
             rovers when None (the mission's ``sim.mode`` default).
         rc_override_timeout_s: How long an RC override lasts unless refreshed;

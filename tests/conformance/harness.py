@@ -22,7 +22,6 @@ from __future__ import annotations
 import functools
 import math
 import os
-import random
 import select
 import socket
 import time
@@ -36,14 +35,12 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.mission.compiler import agent_config
-from clark_engine.mission.geo import parse_point
 from clark_engine.mission.model import Mission
 from clark_engine.runtime.config import config_from_dict
 from clark_engine.sim.autopilot import SimAutopilot
-from clark_engine.sim.engine import DEFAULT_START_UP_M, PHYSICS_STEP_S, START_UNIX_US
+from clark_engine.sim.engine import PHYSICS_STEP_S, build_vehicle
 from clark_engine.sim.model import VehicleModel
 from clark_engine.sim.sitl import ENV_SITL, Home, SitlError, SitlInstall, SitlProcess
-from clark_engine.sim.vehicles import make_vehicle
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -217,47 +214,18 @@ class SimLink:
 
 
 def build_sim_link(spec: VehicleSpec) -> SimLink:
-    """The simulated vehicle and autopilot, built as ``DryRun._build_vehicle`` builds them.
+    """The simulated vehicle and autopilot, built by the dry run's own :func:`build_vehicle`.
 
-    The same calls with the same arguments (the agent's compiled channels, its
-    hardware parts, the mission's origin, ``sim`` settings and seed), but without the
-    engine's own MAVLink adapter: the test ground station is the only one talking.
+    The same function ``clark dry-run`` builds every vehicle with (the agent's
+    compiled channels, hardware parts, the mission's origin, ``sim`` settings and
+    seed), but without the engine's MAVLink adapter and pilot: the test ground
+    station is the only one talking.
     """
     mission = spec.mission
     agent = mission.agents[AGENT]
     config = config_from_dict(agent_config(mission, agent))
-    raw = agent.raw
-    parts = agent.hardware.parts
-    sim = mission.sim
-    seed = int(sim.get("seed", 0))
-    start = parse_point(raw["position"], mission.origin) if "position" in raw else None
-    north, east, up = (start.north_m, start.east_m, start.up_m) if start else (0.0, 0.0, 0.0)
-    airframe, autopilot = parts["airframe"], parts["autopilot"]
-    setup = raw.get("sim") or {}
-    if airframe.get("class") != "rover" and up <= 0:
-        up = DEFAULT_START_UP_M
-    model = make_vehicle(
-        airframe,
-        autopilot,
-        config.channels,
-        mission.origin,
-        (north, east, up),
-        random.Random(f"{seed}:vehicle:{AGENT}"),
-        gps_noise_m=float(sim.get("gps_noise_m", 0.5)),
-        heading_deg=float(setup.get("heading_deg", 0.0)),
-        armed=bool(setup.get("armed", True)),
-        mode=setup.get("mode"),
-        rc_override_timeout_s=None,
-    )
-    sim_autopilot = SimAutopilot.from_profile(
-        model,
-        autopilot,
-        home_lat_deg=mission.origin.lat_deg,
-        home_lon_deg=mission.origin.lon_deg,
-        home_alt_m=mission.origin.alt_m,
-        start_time_unix_us=START_UNIX_US,
-    )
-    return SimLink(model, sim_autopilot, f"simulated {autopilot['firmware']}")
+    backend, _pilot = build_vehicle(mission, agent, config, int(mission.sim.get("seed", 0)))
+    return SimLink(backend.model, backend.autopilot, f"simulated {spec.autopilot['firmware']}")
 
 
 class SitlLink:

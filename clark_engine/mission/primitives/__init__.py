@@ -13,9 +13,12 @@ from clark_engine.mission.primitives import (
     doublet,
     follow_agent,
     hold,
+    land,
     photo_trigger,
+    return_home,
     set_mode,
     sine_sweep,
+    takeoff,
     terminate,
     wait,
     waypoint,
@@ -34,6 +37,9 @@ _MODULES = (
     set_mode,
     wait,
     terminate,
+    takeoff,
+    land,
+    return_home,
 )
 
 #: Primitive name -> declaration, in the order the language reference lists them.

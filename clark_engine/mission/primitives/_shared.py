@@ -11,7 +11,7 @@ import math
 from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
 
-from clark_engine.mission.findings import Finding, error, warning
+from clark_engine.mission.findings import Finding, Location, error, warning
 from clark_engine.mission.geo import LocalPoint, Origin, parse_point, to_global
 from clark_engine.mission.model import Channel
 from clark_engine.mission.primitives.base import UseContext
@@ -175,31 +175,112 @@ def check_points(
     ctx: UseContext, points: list[Any], param: str, *, indexed: bool
 ) -> Iterator[Finding]:
     """Every point stays under the ceiling and within radio range of the station(s)."""
-    mission, agent = ctx.mission, ctx.agent
-    is_air = (agent.hardware.part("airframe") or {}).get("class") != "rover"
+    mission = ctx.mission
     for index, raw in enumerate(points):
         point = parse_point(raw, mission.origin)
         where = ctx.locate(f"{param}[{index}]" if indexed else param)
         label = f"waypoint {index}" if indexed else "the waypoint"
-        if is_air and point.up_m > mission.ceiling_m:
-            yield error(
-                "E-ALTITUDE-CEILING",
-                where,
-                f"{label} is {point.up_m:g} m above the origin, over the mission ceiling of "
-                f"{mission.ceiling_m:g} m; fly lower or raise mission.ceiling_m",
-                ctx.use_location,
-            )
-        if is_air and point.up_m < 0:
-            yield error(
-                "E-ALTITUDE-CEILING",
-                where,
-                f"{label} is {-point.up_m:g} m below the origin; give a height above the origin",
-                ctx.use_location,
-            )
+        yield from check_ceiling(ctx, point.up_m, where, label)
         yield from _check_range(ctx, point, where, label)
         problem = off_the_globe(point, mission.origin)
         if problem:
             yield error("E-POSITION", where, f"{label} {problem}", ctx.use_location)
+
+
+def check_ceiling(
+    ctx: UseContext, up_m: float, where: Location, label: str, above: str = "the origin"
+) -> Iterator[Finding]:
+    """An aircraft's height must lie between the ground and the mission ceiling.
+
+    Rovers are not checked: they drive on the ground whatever height a point gives.
+
+    Args:
+        ctx: The use being checked.
+        up_m: The height, above ``above``.
+        where: Where the height was written.
+        label: What the height belongs to, as the message names it ("waypoint 2").
+        above: What the height is measured from: the origin, or home for a takeoff
+            (a vehicle starts on the ground, no higher than the origin, so a height above
+            home over the ceiling is over it above the origin too).
+    """
+    if ctx.agent.airframe_class == "rover":
+        return
+    ceiling_m = ctx.mission.ceiling_m
+    if up_m > ceiling_m:
+        yield error(
+            "E-ALTITUDE-CEILING",
+            where,
+            f"{label} is {up_m:g} m above {above}, over the mission ceiling of "
+            f"{ceiling_m:g} m; fly lower or raise mission.ceiling_m",
+            ctx.use_location,
+        )
+    if up_m < 0:
+        yield error(
+            "E-ALTITUDE-CEILING",
+            where,
+            f"{label} is {-up_m:g} m below {above}; give a height above {above}",
+            ctx.use_location,
+        )
+
+
+#: How a mission names each airframe class in a sentence.
+AIRFRAME_NAMES = {
+    "fixed_wing": "a fixed-wing aircraft",
+    "multirotor": "a multirotor",
+    "rover": "a rover",
+}
+
+
+def check_airframe(
+    ctx: UseContext, primitive: str, refused: Mapping[str, str]
+) -> Iterator[Finding]:
+    """A primitive that only some airframes can fly must not be given to the others.
+
+    Args:
+        ctx: The use being checked.
+        primitive: The primitive's name, for the message.
+        refused: Airframe class -> why the primitive cannot run on it and what to use
+            instead (the message's second half).
+    """
+    kind = ctx.agent.airframe_class
+    if kind is None or kind not in refused:
+        return
+    yield error(
+        "E-AIRFRAME-PRIMITIVE",
+        ctx.use_location,
+        f"{primitive} cannot run on {ctx.agent.name} ({ctx.agent.profile}), "
+        f"{AIRFRAME_NAMES.get(kind, kind)}: {refused[kind]}",
+    )
+
+
+def check_mode_role(
+    ctx: UseContext, primitive: str, role: str, usual: str, does: str
+) -> Iterator[Finding]:
+    """A primitive that flies in one of the autopilot's mode roles needs the profile to name it.
+
+    Args:
+        ctx: The use being checked.
+        primitive: The primitive's name, for the message.
+        role: The autopilot profile key (``land_mode``, ``rtl_mode``).
+        usual: The mode ArduPilot usually has for it (``LAND``), suggested when the
+            autopilot has a mode of that name.
+        does: What the mode does, for the message ("lands").
+    """
+    autopilot = ctx.agent.hardware.part("autopilot") or {}
+    if autopilot.get(role) is not None:
+        return
+    profile = ctx.agent.hardware.part_profiles.get("autopilot", ctx.agent.profile)
+    fix = (
+        f"add {role}: {usual} to that profile"
+        if usual in ctx.agent.hardware.modes
+        else f"add {role} naming one of its modes that {does}, or use another primitive"
+    )
+    yield error(
+        "E-MODE-MISSING",
+        ctx.use_location,
+        f"{primitive} flies in the autopilot's {role}, and the autopilot profile of "
+        f"{ctx.agent.name} ({profile}) names none; {fix}",
+    )
 
 
 def off_the_globe(point: LocalPoint, origin: Origin) -> str | None:
@@ -231,40 +312,64 @@ def _check_range(ctx: UseContext, point: LocalPoint, where: Any, label: str) -> 
             )
 
 
-#: A fixed-wing aircraft orbits a guided target at this multiple of its tightest turn
-#: radius (the dry run's model does; ArduPlane's own WP_LOITER_RAD defaults to 60 m).
+#: A fixed-wing aircraft never orbits tighter than this multiple of its tightest turn
+#: radius (the dry run's model does the same: clark_engine.sim.vehicles).
 ORBIT_FACTOR = 1.5
+#: ArduPlane flies its loiter circle about this much wider than WP_LOITER_RAD (92-93 m
+#: for 80 m at 22 m/s on ArduPlane SITL; the dry run's model uses the same factor).
+LOITER_RADIUS_FACTOR = 1.15
+#: ArduPlane's defaults of the parameters that set the circle (m, m/s).
+DEFAULT_WP_LOITER_RAD_M = 60.0
+DEFAULT_AIRSPEED_CRUISE_M_S = 15.0
 GRAVITY_M_S2 = 9.80665
 
 
-def orbit_radius_m(airframe: Mapping[str, Any], speed_m_s: float | None = None) -> float | None:
+def orbit_radius_m(
+    airframe: Mapping[str, Any],
+    autopilot: Mapping[str, Any] | None = None,
+    speed_m_s: float | None = None,
+) -> float | None:
     """How far from a guided target a fixed-wing aircraft circles it; None for others.
 
-    An aeroplane cannot stop: arriving at a target it circles it at a radius set by
-    its speed and its bank and turn-rate limits.
+    An aeroplane cannot stop: arriving at a target it circles it, at ArduPlane's
+    WP_LOITER_RAD (as flown: :data:`LOITER_RADIUS_FACTOR` wider) unless its speed and
+    its bank and turn-rate limits force a wider circle. Parameters come from the
+    autopilot profile's ``parameters``, else ArduPlane's defaults.
     """
     if airframe.get("class") != "fixed_wing":
         return None
-    speed = float(speed_m_s or airframe.get("cruise_speed_m_s", 15.0))
+    params = (autopilot or {}).get("parameters") or {}
+    cruise = float(params.get("AIRSPEED_CRUISE", DEFAULT_AIRSPEED_CRUISE_M_S))
+    speed = float(speed_m_s or cruise)
     bank = math.radians(float(airframe.get("max_bank_deg") or 45.0))
     by_bank = speed * speed / (GRAVITY_M_S2 * math.tan(bank))
     rate = math.radians(float(airframe.get("max_turn_rate_deg_s") or 0.0))
     by_rate = speed / rate if rate > 0 else by_bank
-    return ORBIT_FACTOR * max(by_bank, by_rate)
+    loiter = LOITER_RADIUS_FACTOR * float(params.get("WP_LOITER_RAD", DEFAULT_WP_LOITER_RAD_M))
+    return max(loiter, ORBIT_FACTOR * max(by_bank, by_rate))
 
 
-def check_orbit_tolerance(ctx: UseContext) -> Iterator[Finding]:
-    """A fixed-wing target must be 'reached' within a radius the aircraft can fly."""
+def check_orbit_tolerance(
+    ctx: UseContext, circled: str = "a target", reached: str = "the target"
+) -> Iterator[Finding]:
+    """A fixed-wing target must be 'reached' within a radius the aircraft can fly.
+
+    Args:
+        ctx: The use being checked.
+        circled: What the aircraft circles, as the message says it ("home in RTL").
+        reached: The same, as the subject of "is never reached".
+    """
     airframe = ctx.agent.hardware.part("airframe") or {}
-    radius = orbit_radius_m(airframe, ctx.params.get("speed_m_s"))
+    autopilot = ctx.agent.hardware.part("autopilot") or {}
+    radius = orbit_radius_m(airframe, autopilot, ctx.params.get("speed_m_s"))
     tolerance = float(ctx.params.get("tolerance_m", 5.0))
     if radius is not None and tolerance < radius:
         yield warning(
             "W-ORBIT-TOLERANCE",
             ctx.locate("tolerance_m"),
-            f"{ctx.agent.name} ({ctx.agent.profile}) is a fixed-wing aircraft: it circles a "
-            f"target about {radius:.0f} m away and never comes within tolerance_m "
-            f"{tolerance:g} m, so the target is never reached; set tolerance_m to at least "
+            f"{ctx.agent.name} ({ctx.agent.profile}) is a fixed-wing aircraft: it circles "
+            f"{circled} about {radius:.0f} m away and never comes within tolerance_m "
+            f"{tolerance:g} m, so {reached} is never reached; set tolerance_m to at least "
             f"{math.ceil(radius)} m",
             ctx.use_location,
         )

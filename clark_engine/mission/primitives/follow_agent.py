@@ -2,8 +2,9 @@
 
 The target's position comes from its Agent Status messages, so the target must
 send agent_status, to this agent, at least as often as the follower re-targets
-(thesis 5.2.1: Slash B drives to Slash A). Done on reaching the target unless
-``continuous``.
+(thesis 5.2.1: Slash B drives to Slash A). The guided target leads the target by
+``lead_s`` along its reported velocity, so that the follower keeps up with it.
+Done on reaching the target unless ``continuous``.
 """
 
 from __future__ import annotations
@@ -116,6 +117,16 @@ SPEC = PrimitiveSpec(
                 exclusive_minimum=0,
                 maximum=50,
                 default=1,
+            ),
+            "lead_s": number(
+                "Aim this many seconds ahead of the target, along the velocity it reports: "
+                "ArduPilot trails a moving guided target (ArduRover by about 2.3 s of its "
+                "speed, measured on SITL), so a follower aimed at where the target is never "
+                "reaches it. 0 aims at the reported position.",
+                unit="s",
+                minimum=0,
+                maximum=30,
+                default=2.5,
             ),
             "tolerance_m": TOLERANCE_SCHEMA,
             "continuous": boolean(

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from clark_engine.mission.model import TELEMETRY_MESSAGES
+from clark_engine.mission.model import ARMED_BY, TELEMETRY_MESSAGES
 from clark_engine.mission.schema_source.common import (
     DIALECT,
     NAME_PATTERN,
@@ -246,6 +246,24 @@ def build() -> dict[str, Any]:
                         "type": "object",
                         "description": "Situation -> action (mcs_lost: hold...).",
                     },
+                    "launch": _nullable(
+                        obj(
+                            "How the vehicle gets going before its behaviour runs (the "
+                            "mission's launch, defaults filled in); null for a station.",
+                            {
+                                "armed_by": string(
+                                    "pilot: the safety pilot arms and the engine never does; "
+                                    "engine: the engine arms when the behaviour first needs it.",
+                                    enum=list(ARMED_BY),
+                                ),
+                                "airborne": boolean(
+                                    "The pilot has armed the aircraft and taken off before "
+                                    "the behaviour starts."
+                                ),
+                            },
+                            required=["armed_by", "airborne"],
+                        )
+                    ),
                     "position": _point(),
                     "hardware": obj(
                         "The merged hardware, every part resolved.",
@@ -280,6 +298,7 @@ def build() -> dict[str, Any]:
                     "profile",
                     "terminal_mode",
                     "failsafe",
+                    "launch",
                     "position",
                     "hardware",
                 ],

@@ -522,7 +522,8 @@ def _autopilot_properties() -> dict[str, Schema]:
             default=50,
         ),
         "wait_ready": boolean(
-            "Wait for the autopilot's first heartbeat, parameters and GPS before starting.",
+            "Wait for the autopilot's first heartbeat, parameters and GPS before the behaviour "
+            "starts.",
             default=True,
         ),
         "heartbeat_timeout_s": number(
@@ -554,6 +555,12 @@ def _autopilot_properties() -> dict[str, Schema]:
             "Mode (a name from `modes`) that holds position or circles in place.", **mode_name
         ),
         "rtl_mode": string("Mode (a name from `modes`) that returns to launch.", **mode_name),
+        "land_mode": string(
+            "Mode (a name from `modes`) that lands where the vehicle is; the land primitive "
+            "needs it (ArduCopter: LAND). Leave it out for firmware that cannot land on the "
+            "spot (ArduPlane lands through an AUTO mission; a rover never flies).",
+            **mode_name,
+        ),
         "terminal_mode": string(
             "Mode (a name from `modes`) the vehicle is put in when the mission terminates.",
             **mode_name,
@@ -562,6 +569,19 @@ def _autopilot_properties() -> dict[str, Schema]:
             "Mode (a name from `modes`) in which the pilot's sticks drive the controls directly.",
             **mode_name,
         ),
+        "parameters": {
+            "type": "object",
+            "description": "ArduPilot parameters this vehicle's autopilot is set up with, where "
+            "they differ from the firmware's defaults and matter to how it flies (WP_SPEED, "
+            "WPNAV_SPEED, AIRSPEED_CRUISE, ...), in ArduPilot's names and units. The dry run's "
+            "simulated autopilot flies with them, and a SITL autopilot (--autopilot sitl) is "
+            "set to them before the run; the engine never writes them to a real vehicle.",
+            "propertyNames": {
+                "pattern": "^[A-Z][A-Z0-9_]{0,15}$",
+                "description": "An ArduPilot parameter name (upper case, at most 16 characters).",
+            },
+            "additionalProperties": {"type": "number", "description": "Its value."},
+        },
         "rc_channel_count": integer(
             "Number of RC input channels the autopilot reports.",
             minimum=1,

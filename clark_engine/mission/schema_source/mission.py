@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from clark_engine.mission.model import TELEMETRY_MESSAGES
+from clark_engine.mission.model import ARMED_BY, TELEMETRY_MESSAGES
 from clark_engine.mission.primitives._shared import AGENT_NAME_SCHEMA, POINT_SCHEMA
 from clark_engine.mission.schema_source.common import (
     DIALECT,
@@ -119,11 +119,14 @@ def _agent() -> Schema:
                 "Mode the vehicle is left in when the mission terminates; the autopilot "
                 "profile's terminal_mode when omitted."
             ),
+            "launch": _launch(),
             "sim": _agent_sim(),
             "position": POINT_SCHEMA
             | {
                 "description": "Where the agent is: a station's location (for radio range "
-                "checks), a vehicle's start. The mission origin when omitted."
+                "checks), a vehicle's start. A vehicle starts on the ground (no up_m) unless "
+                "launch.airborne, when up_m is the height at which the pilot hands it over. "
+                "The mission origin when omitted."
             },
         },
         required=["id", "profile"],
@@ -337,6 +340,39 @@ def _sim() -> Schema:
                 minimum=0,
                 default=0.5,
             ),
+            "autopilot_ready_s": number(
+                "Seconds from power-on until a simulated autopilot can arm and fly: its GPS "
+                "fix, EKF position and pre-arm checks come in ArduPilot's order, sooner or "
+                "later. Each firmware's own timing measured on ArduPilot SITL when omitted "
+                "(about 42 s for ArduRover and ArduCopter, 23 s for ArduPlane).",
+                unit="s",
+                exclusive_minimum=0,
+                maximum=600,
+            ),
+        },
+    )
+
+
+def _launch() -> Schema:
+    return obj(
+        "Vehicles only: how the vehicle gets going before its behaviour runs. A real "
+        "ArduPilot vehicle starts disarmed on the ground; this says who arms it and whether "
+        "the pilot has it flying before the behaviour starts.",
+        {
+            "armed_by": string(
+                "Who arms the vehicle. pilot: the safety pilot arms it and the engine never "
+                "does; the behaviour starts once it is armed (and, with airborne, flying). "
+                "engine: the engine arms it when its behaviour first needs it (a guided or "
+                "takeoff state); the behaviour starts once the autopilot is ready.",
+                enum=list(ARMED_BY),
+                default=ARMED_BY[0],
+            ),
+            "airborne": boolean(
+                "Aircraft only: the pilot has armed it and taken off before the behaviour "
+                "starts, and the behaviour starts once it flies. Needs armed_by pilot and a "
+                "position whose up_m is the height at which the pilot hands it over.",
+                default=False,
+            ),
         },
     )
 
@@ -349,7 +385,6 @@ def _agent_sim() -> Schema:
                 "Flight mode at the start; the autopilot's hold mode for aircraft and its "
                 "manual mode for rovers when omitted."
             ),
-            "armed": boolean("Armed at the start.", default=True),
             "heading_deg": number(
                 "Heading at the start.", unit="deg", minimum=0, maximum=360, default=0
             ),

@@ -18,9 +18,12 @@ from clark_engine.runtime.primitives.base import Primitive
 from clark_engine.runtime.primitives.doublet import Doublet
 from clark_engine.runtime.primitives.follow_agent import FollowAgent
 from clark_engine.runtime.primitives.hold import Hold
+from clark_engine.runtime.primitives.land import Land
 from clark_engine.runtime.primitives.photo_trigger import PhotoTrigger
+from clark_engine.runtime.primitives.return_home import ReturnHome
 from clark_engine.runtime.primitives.set_mode import SetModePrimitive
 from clark_engine.runtime.primitives.sine_sweep import SineSweep
+from clark_engine.runtime.primitives.takeoff import Takeoff
 from clark_engine.runtime.primitives.terminate import Terminate
 from clark_engine.runtime.primitives.wait import Wait
 from clark_engine.runtime.primitives.waypoint import Waypoint
@@ -37,6 +40,9 @@ _CLASSES: tuple[type[Primitive], ...] = (
     SetModePrimitive,
     Wait,
     Terminate,
+    Takeoff,
+    Land,
+    ReturnHome,
 )
 
 #: Primitive name (as missions write it after ``use:``) -> its runtime class.
@@ -72,10 +78,13 @@ __all__ = [
     "Doublet",
     "FollowAgent",
     "Hold",
+    "Land",
     "PhotoTrigger",
     "Primitive",
+    "ReturnHome",
     "SetModePrimitive",
     "SineSweep",
+    "Takeoff",
     "Terminate",
     "Wait",
     "Waypoint",

@@ -12,9 +12,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from clark_engine.runtime.commands import Command, Goto, RcOverride, SetMode, SetServo
-from clark_engine.runtime.config import AgentConfig, ConfigError
+from clark_engine.runtime.commands import Arm, Command, Goto, RcOverride, SetMode, SetServo
+from clark_engine.runtime.config import ConfigError
 from clark_engine.runtime.context import PrimitiveContext
+from clark_engine.runtime.launch import is_airborne
 
 #: Slack when comparing runtime-clock times: ``k / loop_hz`` summed or divided in
 #: floating point may land a hair before a deadline it reaches exactly.
@@ -78,18 +79,6 @@ class Target:
         return cls(float(point["lat"]), float(point["lon"]), float(point.get("alt_m", 0.0)))
 
 
-def is_air_vehicle(config: AgentConfig) -> bool:
-    """True unless the agent's airframe is a rover.
-
-    The same rule as the mission layer's altitude checks: anything that is not
-    declared a rover flies, so its altitude matters.
-    """
-    agent = config.raw.get("agent") or {}
-    hardware = agent.get("hardware") or {}
-    airframe = hardware.get("airframe") or {}
-    return airframe.get("class") != "rover"
-
-
 def distance_m(ctx: PrimitiveContext, target: Target, *, three_d: bool) -> float | None:
     """Distance from the vehicle to a target, None before the first vehicle state.
 
@@ -115,6 +104,50 @@ def reported_mode(ctx: PrimitiveContext) -> str | None:
     return ctx.vehicle.mode if ctx.vehicle is not None else None
 
 
+#: Time between two Arm commands while the vehicle stays disarmed (ArduPilot explains a
+#: refusal in a STATUSTEXT, logged; its pre-arm checks may pass a moment later).
+ARM_RETRY_S = 5.0
+
+
+class EngineArming:
+    """Arms the vehicle for a state that needs it, when the mission lets the engine arm.
+
+    With ``launch.armed_by: engine``, :meth:`begin` sends Arm when the vehicle is
+    not armed, and :meth:`update` sends it again every :data:`ARM_RETRY_S` while it
+    stays disarmed (a refusal's reason is in the mission log). Once the vehicle
+    has been seen armed in the state, the engine never arms it again there: a
+    vehicle disarmed after that was disarmed by its pilot, its failsafe or
+    ArduCopter's auto-disarm, and a pilot's disarm is never fought. With
+    ``armed_by: pilot`` it commands nothing.
+    """
+
+    def __init__(self) -> None:
+        self._sent_s: float | None = None
+        self.was_armed = False
+        """The vehicle has been seen armed since :meth:`begin`."""
+
+    def begin(self, ctx: PrimitiveContext) -> None:
+        """Arm now when the engine may and the vehicle is not armed."""
+        self._sent_s = None
+        self.was_armed = ctx.vehicle is not None and ctx.vehicle.armed
+        if ctx.config.launch.engine_arms and not self.was_armed:
+            self._arm(ctx)
+
+    def update(self, ctx: PrimitiveContext) -> None:
+        """Note arming; send Arm again when it is due."""
+        if ctx.vehicle is not None and ctx.vehicle.armed:
+            self.was_armed = True
+            return
+        if self.was_armed or self._sent_s is None:
+            return
+        if ctx.now_s - self._sent_s + TIME_EPSILON_S >= ARM_RETRY_S:
+            self._arm(ctx)
+
+    def _arm(self, ctx: PrimitiveContext) -> None:
+        self._sent_s = ctx.now_s
+        ctx.command(Arm())
+
+
 class GuidedLeg:
     """Guided navigation towards one target at a time (thesis 5.2.1).
 
@@ -124,15 +157,20 @@ class GuidedLeg:
       already reports guided, because that report may be a tick old and the
       previous state may just have asked for another mode; ArduPilot treats a
       change to the mode it is already in as a no-op, so the extra command costs
-      nothing and can never leave the vehicle in the wrong mode.
+      nothing and can never leave the vehicle in the wrong mode. When the engine
+      arms the vehicle (``launch.armed_by: engine``) and it is disarmed, Arm
+      follows (:class:`EngineArming`).
     - :meth:`go` sends a Goto. The leg never sends SetMode again: if the pilot or
       the station moves the vehicle out of guided mode, the engine does not fight
       them, and the autopilot ignores guided targets outside guided mode.
     - :meth:`track` re-sends the current Goto when the vehicle is seen *entering*
       guided mode (reported guided now, another mode or no state at the previous
-      look). ArduPilot resets its guided target to where the vehicle stands on
-      entering GUIDED (Copter and Rover stop, Plane loiters), so without this a
-      vehicle switched back to guided by the station would sit still forever.
+      look), when it is seen *armed* after being disarmed, and when it is seen
+      *flying* after being on the ground. ArduPilot resets its guided target to
+      where the vehicle stands on entering GUIDED (Copter and Rover stop, Plane
+      loiters), and ArduCopter ignores targets while it is on the ground, so
+      without this a vehicle switched back to guided by the station, armed late
+      by its pilot or lifted off by a takeoff would sit still forever.
 
     Args:
         speed_m_s: Ground speed to request, None for the autopilot's own.
@@ -141,15 +179,17 @@ class GuidedLeg:
     def __init__(self, speed_m_s: float | None) -> None:
         self.speed_m_s = speed_m_s
         self.target: Target | None = None
+        self._velocity: tuple[float, float] | None = None
         self.failed = False
         self._guided_mode: str | None = None
-        self._seen_mode: str | None = None
+        self._seen: tuple[str | None, bool, bool] = (None, False, False)
+        self._arming = EngineArming()
 
     def begin(self, ctx: PrimitiveContext) -> None:
-        """Enter guided mode; marks the leg failed when the autopilot has none."""
+        """Enter guided mode (and arm, when the engine does); failed without a guided mode."""
         self.target = None
         self._guided_mode = ctx.config.guided_mode
-        self._seen_mode = reported_mode(ctx)
+        self._seen = self._look(ctx)
         self.failed = self._guided_mode is None
         if self._guided_mode is None:
             ctx.log.error(
@@ -158,20 +198,42 @@ class GuidedLeg:
             )
             return
         ctx.command(mode_command(ctx, self._guided_mode))
+        self._arming.begin(ctx)
 
-    def go(self, ctx: PrimitiveContext, target: Target) -> None:
-        """Send a guided target now."""
+    def go(
+        self,
+        ctx: PrimitiveContext,
+        target: Target,
+        velocity_m_s: tuple[float, float] | None = None,
+    ) -> None:
+        """Send a guided target now; with ``velocity_m_s`` (north, east), a moving one."""
         self.target = target
-        self._seen_mode = reported_mode(ctx)
-        ctx.command(Goto(target.lat_deg, target.lon_deg, target.alt_m, self.speed_m_s))
+        self._velocity = velocity_m_s
+        self._seen = self._look(ctx)
+        north, east = velocity_m_s if velocity_m_s is not None else (None, None)
+        ctx.command(Goto(target.lat_deg, target.lon_deg, target.alt_m, self.speed_m_s, north, east))
 
     def track(self, ctx: PrimitiveContext) -> None:
-        """Follow the reported mode; re-send the target when the vehicle enters guided."""
-        mode = reported_mode(ctx)
-        entered = mode is not None and mode == self._guided_mode and self._seen_mode != mode
-        self._seen_mode = mode
-        if entered and self.target is not None:
-            self.go(ctx, self.target)
+        """Re-send the target when the vehicle enters guided, is armed or lifts off."""
+        self._arming.update(ctx)
+        mode, armed, flying = seen = self._look(ctx)
+        was_mode, was_armed, was_flying = self._seen
+        self._seen = seen
+        entered = mode is not None and mode == self._guided_mode and was_mode != mode
+        if self.target is not None and (
+            entered or (armed and not was_armed) or (flying and not was_flying)
+        ):
+            self.go(ctx, self.target, self._velocity)
+
+    @staticmethod
+    def _look(ctx: PrimitiveContext) -> tuple[str | None, bool, bool]:
+        """(mode, armed, flying) as last reported."""
+        vehicle = ctx.vehicle
+        return (
+            reported_mode(ctx),
+            vehicle is not None and vehicle.armed,
+            ctx.config.is_aircraft and is_airborne(ctx.autopilot, vehicle),
+        )
 
 
 @dataclass(frozen=True, slots=True)

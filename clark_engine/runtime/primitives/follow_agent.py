@@ -28,6 +28,7 @@ keeps moving the waypoint as the target moves.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -38,7 +39,6 @@ from clark_engine.runtime.primitives._shared import (
     Schedule,
     Target,
     distance_m,
-    is_air_vehicle,
 )
 from clark_engine.runtime.primitives.base import Primitive
 
@@ -67,6 +67,7 @@ class FollowAgent(Primitive):
         self.offset_east_m = float(offset.get("east_m", 0.0))
         self.offset_up_m = float(offset.get("up_m", 0.0))
         self.retarget_period_s = 1.0 / float(params.get("retarget_hz", 1.0))
+        self.lead_s = float(params.get("lead_s", 2.5))
         self.tolerance_m = float(params.get("tolerance_m", 5.0))
         self.continuous = bool(params.get("continuous", False))
         self._leg = GuidedLeg(None)
@@ -74,15 +75,31 @@ class FollowAgent(Primitive):
         self._schedule = Schedule(self.retarget_period_s)
 
     def goal(self, status: AgentStatus) -> Target:
-        """Where to go for a given status of the target: its position plus the offset."""
+        """Where to be for a given status of the target: its position plus the offset."""
         lat_deg, lon_deg = offset_position(
             status.lat_deg, status.lon_deg, self.offset_north_m, self.offset_east_m
         )
         return Target(lat_deg, lon_deg, status.alt_m + self.offset_up_m)
 
+    @staticmethod
+    def velocity(status: AgentStatus) -> tuple[float, float]:
+        """The target's reported velocity north and east, m/s."""
+        heading = math.radians(status.heading_deg)
+        speed = max(status.ground_speed_m_s, 0.0)
+        return speed * math.cos(heading), speed * math.sin(heading)
+
+    def aim(self, status: AgentStatus) -> Target:
+        """The guided target: the goal moved ``lead_s`` ahead along the target's velocity."""
+        goal = self.goal(status)
+        north, east = self.velocity(status)
+        lat_deg, lon_deg = offset_position(
+            goal.lat_deg, goal.lon_deg, north * self.lead_s, east * self.lead_s
+        )
+        return Target(lat_deg, lon_deg, goal.alt_m)
+
     def start(self, ctx: PrimitiveContext) -> None:
         """Enter guided mode; send the goal at once when the target's status is known."""
-        self._three_d = is_air_vehicle(ctx.config)
+        self._three_d = ctx.config.is_aircraft
         self._schedule = Schedule(self.retarget_period_s)
         self._leg.begin(ctx)
         if not self._leg.failed:
@@ -108,4 +125,4 @@ class FollowAgent(Primitive):
             self._schedule.begin(ctx.now_s)
         elif not self._schedule.due(ctx.now_s):
             return
-        self._leg.go(ctx, self.goal(status))
+        self._leg.go(ctx, self.aim(status), self.velocity(status))

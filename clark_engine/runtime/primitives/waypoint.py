@@ -27,7 +27,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from clark_engine.runtime.context import PrimitiveContext, Status
-from clark_engine.runtime.primitives._shared import GuidedLeg, Target, distance_m, is_air_vehicle
+from clark_engine.runtime.primitives._shared import GuidedLeg, Target, distance_m
 from clark_engine.runtime.primitives.base import Primitive
 
 
@@ -53,7 +53,7 @@ class Waypoint(Primitive):
 
     def start(self, ctx: PrimitiveContext) -> None:
         """Enter guided mode and send the point."""
-        self._three_d = is_air_vehicle(ctx.config)
+        self._three_d = ctx.config.is_aircraft
         self._leg.begin(ctx)
         if not self._leg.failed:
             self._leg.go(ctx, self.target)

@@ -22,7 +22,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from clark_engine.runtime.context import PrimitiveContext, Status
-from clark_engine.runtime.primitives._shared import GuidedLeg, Target, distance_m, is_air_vehicle
+from clark_engine.runtime.primitives._shared import GuidedLeg, Target, distance_m
 from clark_engine.runtime.primitives.base import Primitive
 
 
@@ -52,7 +52,7 @@ class WaypointTour(Primitive):
 
     def start(self, ctx: PrimitiveContext) -> None:
         """Enter guided mode and send the first waypoint."""
-        self._three_d = is_air_vehicle(ctx.config)
+        self._three_d = ctx.config.is_aircraft
         self.index = 0
         self._leg.begin(ctx)
         if not self._leg.failed:

@@ -1,0 +1,58 @@
+"""takeoff: leave the ground and climb to ``alt_m`` above home.
+
+A real aircraft starts on the ground, and ArduPilot flies it nowhere until it has
+taken off: ArduCopter ignores guided targets until then. ArduCopter takes off in
+its guided mode, armed, on MAV_CMD_NAV_TAKEOFF; ArduPlane takes off in its own
+TAKEOFF mode. The state waits for the vehicle to be armed (by the pilot, or by
+the engine with ``launch.armed_by: engine``) and raises ``done`` once it flies
+within ``tolerance_m`` below ``alt_m``. ``alt_m`` is above home, the place the
+vehicle took off from, and must stay under the mission ceiling. Aircraft only;
+a vehicle the pilot hands over in flight (``launch.airborne``) needs none.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from clark_engine.mission.findings import Finding
+from clark_engine.mission.primitives._shared import check_airframe, check_ceiling
+from clark_engine.mission.primitives.base import PrimitiveSpec, UseContext, raises_done
+from clark_engine.mission.schema_source.common import number, obj
+
+
+def _check(ctx: UseContext) -> Iterator[Finding]:
+    yield from check_airframe(
+        ctx,
+        "takeoff",
+        {"rover": "a rover never leaves the ground; drive it with waypoint or waypoint_tour"},
+    )
+    alt_m = float(ctx.params["alt_m"])
+    yield from check_ceiling(ctx, alt_m, ctx.locate("alt_m"), "the takeoff altitude", "home")
+
+
+SPEC = PrimitiveSpec(
+    name="takeoff",
+    summary=(
+        "Take off and climb to alt_m above home (ArduCopter: guided takeoff; ArduPlane: its "
+        "TAKEOFF mode); done within tolerance_m of it."
+    ),
+    params=obj(
+        "Parameters of takeoff.",
+        {
+            "alt_m": number(
+                "Altitude above home to climb to; at most mission.ceiling_m.",
+                unit="m",
+                exclusive_minimum=0,
+            ),
+            "tolerance_m": number(
+                "How far below alt_m counts as there.",
+                unit="m",
+                minimum=0,
+                default=1,
+            ),
+        },
+        required=["alt_m"],
+    ),
+    events=raises_done,
+    check=_check,
+)

@@ -1,0 +1,106 @@
+"""When a vehicle's behaviour may start: ready, armed, flying, as the mission declares.
+
+A real ArduPilot needs tens of seconds after power-on before it can fly: its
+GPS gets a fix, its EKF an absolute position, its pre-arm checks pass. Someone
+then arms it, and an aircraft takes off. The mission says who does what
+(``launch``: the safety pilot arms, or the engine does when the behaviour needs
+it; the pilot may also take off first), and the autopilot profile says whether
+to wait for readiness (``wait_ready``). :class:`LaunchGate` turns that and what
+the autopilot reports into one answer: may the behaviour start now? Until it
+may, the runtime runs its safety rules and telemetry but no primitive, so
+nothing is commanded that the autopilot would refuse or ignore.
+
+The gate opens once and stays open: a vehicle disarmed later (by its pilot, or
+ArduCopter's auto-disarm after landing) keeps its behaviour; what happens then
+is the behaviour's business and the pilot's.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Final
+
+from clark_engine.runtime.config import AgentConfig
+from clark_engine.runtime.events import AutopilotStatus, LandedState, VehicleState
+
+AIRBORNE_ALT_M: Final = 2.0
+"""Height above home that counts as flying when the autopilot gives no landed state."""
+
+
+def is_airborne(status: AutopilotStatus | None, vehicle: VehicleState | None) -> bool:
+    """True when the vehicle flies: by its autopilot's landed state, else armed and up.
+
+    ArduCopter and ArduPlane report a landed state (EXTENDED_SYS_STATE); without
+    one, an armed vehicle more than :data:`AIRBORNE_ALT_M` above home is flying.
+    """
+    landed = status.landed if status is not None else LandedState.UNKNOWN
+    if landed is not LandedState.UNKNOWN:
+        return landed is not LandedState.ON_GROUND
+    return vehicle is not None and vehicle.armed and vehicle.alt_m > AIRBORNE_ALT_M
+
+
+class LaunchGate:
+    """Decides when an agent's behaviour starts; logs what it waits for as that changes.
+
+    Stations and vehicles with nothing to wait for open at once.
+
+    Args:
+        config: The agent's compiled config (``launch``, ``wait_ready``).
+        log: The agent's mission log.
+    """
+
+    def __init__(self, config: AgentConfig, log: logging.Logger) -> None:
+        self._config = config
+        self._log = log
+        self._open = not config.is_vehicle
+        self._waiting: tuple[str, ...] | None = None
+
+    @property
+    def open(self) -> bool:
+        """True once the behaviour may start."""
+        return self._open
+
+    @property
+    def waiting_for(self) -> tuple[str, ...]:
+        """What the gate waits for, in words (empty once open)."""
+        return () if self._open else (self._waiting or ())
+
+    def update(self, status: AutopilotStatus | None, vehicle: VehicleState | None) -> bool:
+        """Look again at what the autopilot reports; True when the gate is (now) open."""
+        if self._open:
+            return True
+        missing = self._missing(status, vehicle)
+        if not missing:
+            self._open = True
+            launch = self._config.launch
+            how = (
+                "armed and flown up by the pilot"
+                if launch.airborne
+                else "armed by the pilot"
+                if not launch.engine_arms
+                else "the engine arms it when the behaviour needs it"
+            )
+            self._log.info("launch: the autopilot is ready; %s; the behaviour starts", how)
+            return True
+        if missing != self._waiting:
+            self._waiting = missing
+            self._log.info("launch: the behaviour waits for %s", ", ".join(missing))
+        return False
+
+    def _missing(
+        self, status: AutopilotStatus | None, vehicle: VehicleState | None
+    ) -> tuple[str, ...]:
+        config = self._config
+        missing: list[str] = []
+        if vehicle is None:
+            missing.append("the autopilot's first state")
+        if config.wait_ready:
+            if status is None:
+                missing.append("the autopilot's readiness report")
+            else:
+                missing.extend(status.waiting_for)
+        if not config.launch.engine_arms and (vehicle is None or not vehicle.armed):
+            missing.append("the pilot to arm it")
+        if config.launch.airborne and not is_airborne(status, vehicle):
+            missing.append("the pilot to take off")
+        return tuple(missing)

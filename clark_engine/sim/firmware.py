@@ -1,0 +1,313 @@
+"""How each ArduPilot firmware behaves where a ground station or the engine can tell.
+
+The simulated autopilot (:mod:`clark_engine.sim.autopilot`) is only worth its
+name where it refuses what ArduPilot refuses, says what ArduPilot says and takes
+as long as ArduPilot takes. Those facts differ between ArduRover, ArduCopter and
+ArduPlane and are data, not logic, so they live here, one :class:`Firmware` per
+firmware, with where each was measured: every number below was read off the
+ArduPilot SITL builds in ``../shared/ardupilot-sitl`` (master of 2025-07-21),
+booted fresh at the mission origin, unless it says "ArduPilot default" (the
+firmware's parameter default, which SITL's own parameter files may change).
+
+The conformance suite (``tests/conformance``) runs the same scenarios against
+this simulation and against SITL, so a fact here that drifts from the real
+firmware fails a test; docs/autopilot-fidelity.md tables what each does.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Final
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+_INT8, _INT16, _INT32, _REAL32 = (
+    mavlink2.MAV_PARAM_TYPE_INT8,
+    mavlink2.MAV_PARAM_TYPE_INT16,
+    mavlink2.MAV_PARAM_TYPE_INT32,
+    mavlink2.MAV_PARAM_TYPE_REAL32,
+)
+
+FORCE_MAGIC: Final = frozenset({2989.0, 21196.0})
+"""MAV_CMD_COMPONENT_ARM_DISARM param2 values that skip the checks (ArduPilot's)."""
+
+
+@dataclass(frozen=True, slots=True)
+class BootTimes:
+    """When a freshly powered ArduPilot gets ready, in seconds after power-on.
+
+    Attributes:
+        streams_s: "ArduPilot Ready": messages other than HEARTBEAT start, and a
+            stream request is kept from here on (before, it is acknowledged and lost).
+        attitude_s: The EKF has an attitude (EKF_STATUS_REPORT flags 0xA7).
+        gps_fix_s: The GPS has a 3-D fix; positions are 0, 0 before it.
+        origin_s: The EKF origin is set ("EKF3 IMU0 origin set").
+        home_s: Home is set and HOME_POSITION first sent.
+        prearm_s: The pre-arm checks pass in a mode that needs no position.
+        position_s: The EKF uses the GPS: an absolute horizontal position
+            (flags 0x33F); modes and arming that need a position are possible.
+    """
+
+    streams_s: float
+    attitude_s: float
+    gps_fix_s: float
+    origin_s: float
+    home_s: float
+    prearm_s: float
+    position_s: float
+
+    def scaled(self, ready_s: float) -> BootTimes:
+        """The same sequence, stretched or squeezed so that the last step comes at ``ready_s``.
+
+        For a dry run that wants its vehicles ready sooner (or later) than SITL's
+        (``sim.autopilot_ready_s``); the order of the steps is kept.
+        """
+        last = max(self.prearm_s, self.position_s)
+        k = ready_s / last if last > 0 else 1.0
+        return BootTimes(*(getattr(self, name) * k for name in self.__dataclass_fields__))
+
+
+@dataclass(frozen=True, slots=True)
+class Firmware:
+    """One firmware's rules, texts, timings and parameter defaults.
+
+    Attributes:
+        name: ``ardurover``, ``arducopter`` or ``arduplane``.
+        boot: Its boot timeline (SITL's).
+        boot_mode: The mode it boots in (what its mode switch selects in SITL).
+        initialising_mode: The mode number reported for the first second, or None.
+        default_stream_hz: Rate of every telemetry stream before a ground station
+            asks for one (ArduCopter streams nothing; ArduRover and ArduPlane 1 Hz).
+        not_armable: Modes arming is refused in.
+        arm_needs_position: Modes arming in needs an EKF position.
+        set_needs_origin: Modes that cannot be entered before the EKF origin is set
+            (disarmed; ArduRover).
+        set_needs_position_armed: Modes that cannot be entered armed before the EKF
+            has an absolute position (ArduRover).
+        home_at: When home moves to where the vehicle is: ``arming`` (ArduCopter),
+            ``disarming`` (ArduRover), ``while_disarmed`` (ArduPlane follows its GPS
+            until armed).
+        never_settable: Modes always refused (no follow target configured...).
+        mode_refused_text: The WARNING on a refused mode change; ``{mode}`` is the
+            mode's name as ArduPilot spells it.
+        not_armable_text: The CRITICAL text when the mode is not armable.
+        no_position_text: The CRITICAL text when arming needs a position it lacks.
+        armed_text: The INFO text of a successful arm.
+        disarmed_text: The INFO text of a disarm.
+        auto_disarm_s: Seconds on the ground after arming before it disarms by itself
+            (ArduCopter's DISARM_DELAY); None: never.
+        params: Parameter name -> (ArduPilot default, MAV_PARAM_TYPE) beyond the
+            common ones.
+        flight_params: The parameters that shape how the vehicle moves (speeds,
+            accelerations, radii, heights): a SITL autopilot standing in for the
+            simulated one (``clark dry-run --autopilot sitl``) is set to the same values,
+            so that the two fly the same vehicle. The others (throttle tuning, stream
+            rates) stay SITL's own, tuned for its vehicle model.
+        spelled: Mode name -> how ArduPilot's texts spell it (SMART_RTL -> SMARTRTL).
+    """
+
+    name: str
+    boot: BootTimes
+    boot_mode: str
+    initialising_mode: int | None
+    default_stream_hz: float
+    not_armable: frozenset[str]
+    arm_needs_position: frozenset[str]
+    set_needs_origin: frozenset[str]
+    set_needs_position_armed: frozenset[str]
+    home_at: str
+    never_settable: frozenset[str]
+    mode_refused_text: str
+    not_armable_text: str
+    no_position_text: str
+    armed_text: str
+    disarmed_text: str
+    auto_disarm_s: float | None
+    params: Mapping[str, tuple[float, int]] = field(default_factory=dict)
+    flight_params: tuple[str, ...] = ()
+    spelled: Mapping[str, str] = field(default_factory=dict)
+
+    def spell(self, mode: str) -> str:
+        """A mode's name as this firmware's texts spell it."""
+        return self.spelled.get(mode, mode)
+
+
+COMMON_PARAMS: Final[Mapping[str, tuple[float, int]]] = {
+    "SYSID_MYGCS": (255, _INT16),
+    "RC_OVERRIDE_TIME": (3.0, _REAL32),
+    "FS_GCS_ENABLE": (0, _INT8),
+    "BATT_CAPACITY": (3300, _INT32),
+    "SR0_RAW_SENS": (0, _INT16),
+    "SR0_EXT_STAT": (1, _INT16),
+    "SR0_RC_CHAN": (1, _INT16),
+    "SR0_RAW_CTRL": (0, _INT16),
+    "SR0_POSITION": (1, _INT16),
+    "SR0_EXTRA1": (1, _INT16),
+    "SR0_EXTRA2": (1, _INT16),
+    "SR0_EXTRA3": (1, _INT16),
+    "SR0_PARAMS": (10, _INT16),
+}
+"""Parameters every firmware has (after SYSID_THISMAV), with ArduPilot's defaults. The
+SR0_* stream rates are the firmware's own (Firmware.default_stream_hz) at start."""
+
+ROVER: Final = Firmware(
+    name="ardurover",
+    boot=BootTimes(
+        streams_s=2.5,
+        attitude_s=6.05,
+        gps_fix_s=9.05,
+        origin_s=19.85,
+        home_s=10.05,
+        prearm_s=24.0,
+        position_s=41.85,
+    ),
+    boot_mode="MANUAL",
+    initialising_mode=16,
+    default_stream_hz=1.0,
+    not_armable=frozenset({"RTL", "SMART_RTL"}),
+    arm_needs_position=frozenset(
+        {"GUIDED", "LOITER", "CIRCLE", "SIMPLE", "STEERING", "ACRO", "AUTO", "RTL", "SMART_RTL"}
+    ),
+    set_needs_origin=frozenset({"RTL", "SMART_RTL", "LOITER", "CIRCLE"}),
+    set_needs_position_armed=frozenset({"GUIDED", "RTL", "SMART_RTL", "AUTO", "LOITER", "CIRCLE"}),
+    home_at="disarming",
+    never_settable=frozenset({"FOLLOW", "DOCK"}),
+    mode_refused_text="Flight mode change failed",
+    not_armable_text="Arm: Mode not armable",
+    no_position_text="Arm: AHRS: not using configured AHRS type",
+    armed_text="Throttle armed",
+    disarmed_text="Throttle disarmed",
+    auto_disarm_s=None,
+    params={
+        # ArduRover defaults (AR_WPNav, AR_AttitudeControl, Rover/Parameters.cpp).
+        "CRUISE_SPEED": (2.0, _REAL32),
+        "CRUISE_THROTTLE": (50, _INT8),
+        "WP_SPEED": (2.0, _REAL32),
+        "WP_RADIUS": (2.0, _REAL32),
+        "WP_ACCEL": (0.0, _REAL32),
+        "ATC_ACCEL_MAX": (1.0, _REAL32),
+        "ATC_DECEL_MAX": (0.0, _REAL32),
+        "ATC_TURN_MAX_G": (0.6, _REAL32),
+        "TURN_RADIUS": (0.9, _REAL32),
+        "RTL_SPEED": (0.0, _REAL32),
+    },
+    flight_params=(
+        "WP_SPEED",
+        "WP_RADIUS",
+        "WP_ACCEL",
+        "ATC_ACCEL_MAX",
+        "ATC_DECEL_MAX",
+        "RTL_SPEED",
+    ),
+)
+
+COPTER: Final = Firmware(
+    name="arducopter",
+    boot=BootTimes(
+        streams_s=2.45,
+        attitude_s=6.0,
+        gps_fix_s=10.0,
+        origin_s=20.0,
+        home_s=20.0,
+        prearm_s=23.5,
+        position_s=41.5,
+    ),
+    boot_mode="STABILIZE",
+    initialising_mode=None,
+    default_stream_hz=0.0,
+    not_armable=frozenset({"RTL", "CIRCLE", "LAND", "BRAKE", "SMART_RTL", "AUTO"}),
+    arm_needs_position=frozenset(
+        {"GUIDED", "LOITER", "POSHOLD", "AUTO", "RTL", "CIRCLE", "BRAKE", "SMART_RTL"}
+    ),
+    set_needs_origin=frozenset({"SMART_RTL"}),
+    set_needs_position_armed=frozenset(),
+    home_at="arming",
+    never_settable=frozenset(),
+    mode_refused_text="Mode change to {mode} failed: init failed",
+    not_armable_text="Arm: {mode} mode not armable",
+    no_position_text="Arm: Need Position Estimate",
+    armed_text="Arming motors",
+    disarmed_text="Disarming motors",
+    auto_disarm_s=10.0,
+    params={
+        # ArduCopter defaults (AC_WPNav, Copter Parameters.cpp), cm and cm/s as ArduPilot.
+        "WPNAV_SPEED": (1000.0, _REAL32),
+        "WPNAV_ACCEL": (250.0, _REAL32),
+        "WPNAV_SPEED_UP": (250.0, _REAL32),
+        "WPNAV_SPEED_DN": (150.0, _REAL32),
+        "WPNAV_RADIUS": (200.0, _REAL32),
+        "RTL_ALT": (1500, _INT32),
+        "RTL_LOIT_TIME": (5000, _INT32),
+        "LAND_SPEED": (50, _INT16),
+        "LAND_ALT_LOW": (1000, _INT16),
+        "PILOT_SPEED_UP": (250, _INT16),
+        "DISARM_DELAY": (10, _INT8),
+        "FRAME_CLASS": (1, _INT8),
+    },
+    flight_params=(
+        "WPNAV_SPEED",
+        "WPNAV_ACCEL",
+        "WPNAV_SPEED_UP",
+        "WPNAV_SPEED_DN",
+        "WPNAV_RADIUS",
+        "RTL_ALT",
+        "RTL_LOIT_TIME",
+        "LAND_SPEED",
+        "LAND_ALT_LOW",
+        "DISARM_DELAY",
+    ),
+    spelled={"SMART_RTL": "SMARTRTL"},
+)
+
+PLANE: Final = Firmware(
+    name="arduplane",
+    boot=BootTimes(
+        streams_s=2.5,
+        attitude_s=12.2,
+        gps_fix_s=9.3,
+        origin_s=19.3,
+        home_s=10.1,
+        prearm_s=23.0,
+        position_s=20.4,
+    ),
+    boot_mode="MANUAL",
+    initialising_mode=16,
+    default_stream_hz=1.0,
+    not_armable=frozenset({"RTL"}),
+    arm_needs_position=frozenset(),
+    set_needs_origin=frozenset(),
+    set_needs_position_armed=frozenset(),
+    home_at="while_disarmed",
+    never_settable=frozenset(),
+    mode_refused_text="Flight mode change failed",
+    not_armable_text="Arm: {mode} mode not armable",
+    no_position_text="Arm: Need Position Estimate",
+    armed_text="Throttle armed",
+    disarmed_text="Throttle disarmed",
+    auto_disarm_s=None,
+    params={
+        # ArduPlane defaults (Plane Parameters.cpp): airspeeds in m/s.
+        "AIRSPEED_CRUISE": (15.0, _REAL32),
+        "AIRSPEED_MIN": (9, _INT16),
+        "AIRSPEED_MAX": (22, _INT16),
+        "TKOFF_ALT": (50, _INT16),
+        "TKOFF_DIST": (200, _INT16),
+        "WP_RADIUS": (90, _INT16),
+        "WP_LOITER_RAD": (60, _INT16),
+        "RTL_ALTITUDE": (100, _INT16),
+        "LAND_DISARMDELAY": (20, _INT8),
+    },
+    flight_params=(
+        "AIRSPEED_CRUISE",
+        "AIRSPEED_MIN",
+        "AIRSPEED_MAX",
+        "TKOFF_ALT",
+        "WP_RADIUS",
+        "WP_LOITER_RAD",
+        "RTL_ALTITUDE",
+    ),
+)
+
+FIRMWARES: Final[Mapping[str, Firmware]] = {f.name: f for f in (ROVER, COPTER, PLANE)}
+"""Every simulated firmware by name."""

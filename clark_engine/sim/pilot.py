@@ -1,0 +1,148 @@
+"""The safety pilot of a dry run: arms a vehicle the mission says the pilot arms.
+
+In the thesis's flights a safety pilot armed every vehicle with the transmitter
+and, for an aircraft, took off; the mission computer took over after that. A
+mission says so with ``launch: {armed_by: pilot}`` (the default), and the runtime
+then waits for an armed vehicle before its behaviour starts. In a dry run nobody
+holds a transmitter, so :class:`SimPilot` does the pilot's part, through the
+same autopilot the engine talks to and by MAVLink, as a pilot's handheld ground
+station would (a stick-arming pilot goes through the same arming checks):
+
+- It watches the autopilot's own messages (HEARTBEAT, SYS_STATUS) and, once the
+  pre-arm checks pass and the autopilot has a position, arms the vehicle in the
+  mode it is in, as a pilot waiting for the ready light does. It asks again every
+  :data:`ARM_RETRY_S` until the vehicle is armed, and never again after that: a
+  vehicle disarmed later (its pilot's business, a copter's auto-disarm after
+  landing) stays disarmed.
+- A multirotor's pilot centres the throttle stick once the copter flies, as a
+  safety pilot does before an automatic mode: ArduCopter's LOITER and ALT_HOLD
+  climb or sink with that stick, and at its minimum a copter in LOITER lands.
+
+The pilot sends from system 255, component 25 (MAV_COMP_ID_USER1), so neither the
+engine's adapter (component 191) nor a ground station (usually 190) takes the
+autopilot's answers to the pilot for its own. It speaks through the vehicle
+backend directly: a fault that cuts the mission computer's cable to the autopilot
+does not cut the pilot's radio. Vehicles the pilot hands over in flight
+(``launch.airborne``) start in the air in the simulation; real SITL vehicles are
+flown up before the run starts (see :mod:`clark_engine.sim.sitl_backend`).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Final
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from clark_engine.sim.backend import VehicleBackend
+
+ARM_RETRY_S: Final = 2.0
+"""Time between two arm commands while the vehicle stays disarmed."""
+
+PILOT_SYSTEM_ID: Final = 255
+PILOT_COMPONENT_ID: Final = 25
+"""The pilot's MAVLink ids: the ground-station system, a component of its own (USER1)."""
+
+_PREARM_BIT: Final = mavlink2.MAV_SYS_STATUS_PREARM_CHECK
+_POSITION_FLAGS: Final = mavlink2.EKF_POS_HORIZ_ABS
+
+
+class SimPilot:
+    """One vehicle's simulated safety pilot.
+
+    Args:
+        backend: The vehicle: the pilot reads what its autopilot sends and sends to it.
+        system_id: The autopilot's system id.
+        component_id: The autopilot's component id.
+        arms: The mission says the pilot arms this vehicle.
+        throttle_rc: A multirotor's throttle RC input channel, centred once it flies;
+            None for other vehicles.
+        throttle_mid_us: The throttle stick's middle, in microseconds.
+    """
+
+    def __init__(
+        self,
+        backend: VehicleBackend,
+        *,
+        system_id: int,
+        component_id: int = 1,
+        arms: bool,
+        throttle_rc: int | None = None,
+        throttle_mid_us: int = 1500,
+    ) -> None:
+        self.backend = backend
+        self._target = (system_id, component_id)
+        self.arms = arms
+        self._throttle = (throttle_rc, throttle_mid_us) if throttle_rc is not None else None
+        self._out = bytearray()
+        self._mav = mavlink2.MAVLink(
+            self, srcSystem=PILOT_SYSTEM_ID, srcComponent=PILOT_COMPONENT_ID
+        )
+        self._parser = mavlink2.MAVLink(None, PILOT_SYSTEM_ID, PILOT_COMPONENT_ID)
+        self._parser.robust_parsing = True
+        self._armed = False
+        self._ever_armed = False
+        self._prearm_ok = False
+        self._position_ok = False
+        self._flying = False
+        self._throttle_centred = False
+        self._next_arm_s = 0.0
+        self.armed_at_s: float | None = None
+        """When the pilot saw the vehicle armed the first time (for the report)."""
+
+    @property
+    def done(self) -> bool:
+        """The pilot has nothing left to do (the engine stops feeding it)."""
+        return (not self.arms or self._ever_armed) and (
+            self._throttle is None or self._throttle_centred
+        )
+
+    def write(self, data: bytes) -> None:
+        """Where pymavlink puts the pilot's encoded frames."""
+        self._out += data
+
+    def hear(self, data: bytes, now_s: float) -> None:
+        """What the autopilot sent; then act on it."""
+        for msg in self._parser.parse_buffer(data) or []:
+            self._note(msg, now_s)
+        self._act(now_s)
+
+    def _note(self, msg: Any, now_s: float) -> None:
+        if (msg.get_srcSystem(), msg.get_srcComponent()) != self._target:
+            return
+        kind = msg.get_type()
+        if kind == "HEARTBEAT":
+            self._armed = bool(msg.base_mode & mavlink2.MAV_MODE_FLAG_SAFETY_ARMED)
+            if self._armed and not self._ever_armed:
+                self._ever_armed = True
+                self.armed_at_s = now_s
+        elif kind == "SYS_STATUS":
+            self._prearm_ok = bool(msg.onboard_control_sensors_health & _PREARM_BIT)
+        elif kind == "EKF_STATUS_REPORT":
+            self._position_ok = bool(msg.flags & _POSITION_FLAGS)
+        elif kind == "GLOBAL_POSITION_INT":
+            self._position_ok = self._position_ok or (msg.lat != 0 or msg.lon != 0)
+        elif kind == "EXTENDED_SYS_STATE":
+            self._flying = msg.landed_state in (
+                mavlink2.MAV_LANDED_STATE_IN_AIR,
+                mavlink2.MAV_LANDED_STATE_LANDING,
+            )
+
+    def _act(self, now_s: float) -> None:
+        if (
+            self.arms
+            and not self._ever_armed
+            and self._prearm_ok
+            and self._position_ok
+            and now_s >= self._next_arm_s
+        ):
+            self._next_arm_s = now_s + ARM_RETRY_S
+            system, component = self._target
+            self._mav.command_long_send(
+                system, component, mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0
+            )
+            data, self._out = bytes(self._out), bytearray()
+            self.backend.send(data, now_s)
+        if self._throttle is not None and self._flying and not self._throttle_centred:
+            self._throttle_centred = True
+            channel, mid_us = self._throttle
+            self.backend.set_pilot({channel: mid_us})

@@ -1,0 +1,443 @@
+"""Real ArduPilot SITL behind a dry run's vehicle (``clark dry-run --autopilot sitl``).
+
+The promise of a dry run is that what passes it flies on the real autopilot, and
+the strongest evidence is to run the same mission with the real autopilot's code.
+:class:`SitlBackend` puts one ArduPilot SITL process (:mod:`clark_engine.sim.sitl`)
+behind the dry run's :class:`~clark_engine.sim.backend.VehicleBackend`: the
+engine's runtime and MAVLink adapter, the radio mesh, the cameras, the operator
+script and the checks stay exactly as in a simulated run.
+
+Time. SITL runs on its own clock (real time times its speed-up) and cannot be
+paused, so it sets the pace: :meth:`SitlBackend.step` returns once the SITL
+vehicle's clock (the ``time_boot_ms`` of what it sends) has passed the run's time,
+so the engine is never ahead of any autopilot. The backend asks SITL for a
+message with a time stamp 40 times a second as its clock, and for SIM_STATE (the
+simulator's true position and attitude) 20 times a second for the tracks, the
+checks and the radio ranges.
+
+Set-up. Before the run, each SITL autopilot is given the parameters the simulated
+autopilot flies with (the firmware's defaults the simulation uses, and the
+profile's ``parameters``), since SITL's own parameter files differ (its ArduRover
+drives at 5 m/s). A vehicle the mission hands over in flight
+(``launch.airborne``) is flown up before the run by the backend, as its pilot
+would: ready, armed, taken off (ArduCopter's guided takeoff, ArduPlane's TAKEOFF
+mode), flown to its ``position`` and left in its hold mode with the throttle
+stick centred; the run starts after that, with its clock at that moment.
+
+The backend speaks to SITL from system 255, component 26 (MAV_COMP_ID_USER2); the
+simulated pilot uses component 25 and the engine's adapter 191.
+"""
+
+from __future__ import annotations
+
+import math
+import select
+import socket
+import time
+from collections.abc import Mapping
+from typing import Any, Final
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from clark_engine.mission.geo import EARTH_RADIUS_M, Origin
+from clark_engine.sim.backend import VehicleBackend
+from clark_engine.sim.model import Truth
+from clark_engine.sim.sitl import SitlError, SitlProcess
+
+CLOCK_MESSAGE: Final = "SCALED_PRESSURE"
+"""A cheap time-stamped message the engine's adapter never asks for: the backend's clock."""
+CLOCK_INTERVAL_US: Final = 25_000
+"""40 Hz, the fastest ArduPilot streams (measured)."""
+TRUTH_INTERVAL_US: Final = 50_000
+"""SIM_STATE at 20 Hz: the true position for tracks (sampled at 10 Hz) and radio ranges."""
+REQUEST_RETRY_WALL_S: Final = 0.3
+"""Stream requests are repeated this often (wall clock) until the stream arrives:
+ArduPilot acknowledges and loses those sent before it is ready (measured)."""
+STALL_WALL_S: Final = 60.0
+"""Wall seconds without a byte from SITL after which the run gives up on it."""
+PARAM_RETRY_WALL_S: Final = 1.0
+"""A parameter not echoed is set again this often; one SITL lacks is given up after 5."""
+
+_SYSTEM, _COMPONENT = 255, 26
+_M_PER_DEG_LAT: Final = math.radians(1.0) * EARTH_RADIUS_M
+
+
+class SitlBackend(VehicleBackend):
+    """One vehicle's autopilot and physics as a real ArduPilot SITL process.
+
+    Args:
+        process: The started SITL process (listening, not yet connected).
+        origin: The mission origin (the local frame of tracks and checks).
+        firmware: ``ardurover``, ``arducopter`` or ``arduplane``.
+        system_id: The autopilot's MAVLink system id.
+        component_id: Its component id.
+        params: Parameters to set before the run (ArduPilot names and units).
+    """
+
+    def __init__(
+        self,
+        process: SitlProcess,
+        *,
+        origin: Origin,
+        firmware: str,
+        system_id: int = 1,
+        component_id: int = 1,
+        params: Mapping[str, float] | None = None,
+    ) -> None:
+        self.process = process
+        self.origin = origin
+        self.firmware = firmware
+        self._target = (system_id, component_id)
+        self._params_due: dict[str, float] = dict(params or {})
+        self._param_tries: dict[str, int] = {}
+        self._next_param_wall = 0.0
+        self._sock: socket.socket | None = None
+        self._out = bytearray()
+        self._mav = mavlink2.MAVLink(self, srcSystem=_SYSTEM, srcComponent=_COMPONENT)
+        self._parser = mavlink2.MAVLink(None, _SYSTEM, _COMPONENT)
+        self._parser.robust_parsing = True
+        self._inbox = bytearray()
+        self._clock_s: float | None = None
+        self._offset_s = 0.0
+        self._streams_wanted = {CLOCK_MESSAGE: CLOCK_INTERVAL_US, "SIM_STATE": TRUTH_INTERVAL_US}
+        self._streams_seen: set[str] = set()
+        self._next_request_wall = 0.0
+        self._last_byte_wall = time.monotonic()
+        self._latest: dict[str, Any] = {}
+        self._truth = Truth(0.0, 0.0, 0.0, origin.lat_deg, origin.lon_deg, *(0.0,) * 10)
+        self._rc: tuple[int, ...] = ()
+        self._servos: tuple[int, ...] = ()
+        self._pilot_us = [0] * 16
+
+    # -- the interface ----------------------------------------------------------------------
+
+    @property
+    def system_id(self) -> int:
+        """The SITL autopilot's system id."""
+        return self._target[0]
+
+    @property
+    def clock_s(self) -> float | None:
+        """The SITL vehicle's own time (its boot clock), None before its first time stamp."""
+        return self._clock_s
+
+    def connect(self, timeout_s: float = 30.0) -> None:
+        """Connect to SITL (its clock starts), and ask for the backend's own streams."""
+        self._sock = self.process.connect(timeout_s=timeout_s)
+        self._sock.setblocking(False)
+        self._last_byte_wall = time.monotonic()
+        self._duties()
+
+    def start_run_here(self) -> None:
+        """Make the SITL vehicle's current time the run's time 0 (after a pre-flight)."""
+        self._offset_s = self._clock_s or 0.0
+
+    def step(self, t_s: float, dt_s: float) -> bytes:
+        """Wait until SITL has passed the run's time ``t_s``; what it sent since the last step.
+
+        Raises:
+            SitlError: SITL exited, or sent nothing for :data:`STALL_WALL_S`.
+        """
+        want_s = t_s + self._offset_s
+        while self._clock_s is None or self._clock_s < want_s:
+            self._duties()
+            self._read(0.05)
+        data, self._inbox = bytes(self._inbox), bytearray()
+        return data
+
+    def send(self, data: bytes, t_s: float) -> None:
+        """Bytes to SITL (the engine's adapter, or the simulated pilot)."""
+        if data and self._sock is not None:
+            self._sock.setblocking(True)
+            try:
+                self._sock.sendall(data)
+            except OSError as exc:
+                raise self.process.failure(f"the MAVLink connection broke ({exc})") from exc
+            finally:
+                self._sock.setblocking(False)
+
+    def truth(self) -> Truth:
+        """The simulator's true state (SIM_STATE), with VFR_HUD's airspeed and throttle."""
+        return self._truth
+
+    def rc_inputs(self) -> tuple[int, ...]:
+        """RC_CHANNELS as SITL last reported them."""
+        return self._rc
+
+    def servo_outputs(self) -> tuple[int, ...]:
+        """SERVO_OUTPUT_RAW as SITL last reported them."""
+        return self._servos
+
+    def set_pilot(self, pwm_us: Mapping[int, int]) -> None:
+        """The pilot's sticks and switches, to SITL's RC input (its radio receiver)."""
+        for channel, value in pwm_us.items():
+            if 1 <= channel <= 16:
+                self._pilot_us[channel - 1] = int(value)
+        self.process.rc_input(self._pilot_us)
+
+    def close(self) -> None:
+        """Close the connection and stop SITL."""
+        if self._sock is not None:
+            self._sock.close()
+            self._sock = None
+        self.process.stop()
+
+    # -- what the backend does itself -------------------------------------------------------
+
+    def write(self, data: bytes) -> None:
+        """Where the backend's own pymavlink encoder puts its frames."""
+        self._out += data
+
+    def _flush(self) -> None:
+        if self._out:
+            data, self._out = bytes(self._out), bytearray()
+            self.send(data, 0.0)
+
+    def _duties(self) -> None:
+        """Ask for the backend's streams until they come; set the parameters until echoed."""
+        now = time.monotonic()
+        if now >= self._next_request_wall:
+            self._next_request_wall = now + REQUEST_RETRY_WALL_S
+            system, component = self._target
+            for name, interval_us in self._streams_wanted.items():
+                if name not in self._streams_seen:
+                    msg_id = int(getattr(mavlink2, f"MAVLINK_MSG_ID_{name}"))
+                    self._mav.command_long_send(
+                        system, component, mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                        msg_id, interval_us, 0, 0, 0, 0, 0,
+                    )  # fmt: skip
+        if self._params_due and now >= self._next_param_wall:
+            self._next_param_wall = now + PARAM_RETRY_WALL_S
+            for name, value in list(self._params_due.items()):
+                tries = self._param_tries.get(name, 0) + 1
+                if tries > 5:  # SITL has no such parameter (it never answers those)
+                    del self._params_due[name]
+                    continue
+                self._param_tries[name] = tries
+                self._mav.param_set_send(
+                    self._target[0], self._target[1], name.encode("ascii"), float(value),
+                    mavlink2.MAV_PARAM_TYPE_REAL32,
+                )  # fmt: skip
+        self._flush()
+
+    def _read(self, timeout_s: float) -> bool:
+        """Read what SITL sent (waiting up to ``timeout_s``); False when nothing came."""
+        sock = self._sock
+        if sock is None:
+            raise SitlError("the SITL backend is not connected")
+        ready, _, _ = select.select([sock], [], [], timeout_s)
+        if not ready:
+            if time.monotonic() - self._last_byte_wall > STALL_WALL_S:
+                self.process.raise_if_exited()
+                raise self.process.failure(f"sent nothing for {STALL_WALL_S:g} s")
+            return False
+        try:
+            data = sock.recv(65536)
+        except BlockingIOError:
+            return False
+        except OSError as exc:
+            raise self.process.failure(f"the MAVLink connection broke ({exc})") from exc
+        if not data:
+            self.process.raise_if_exited()
+            raise self.process.failure("closed the MAVLink connection")
+        self._last_byte_wall = time.monotonic()
+        self._inbox += data
+        for msg in self._parser.parse_buffer(data) or []:
+            self._note(msg)
+        return True
+
+    def _note(self, msg: Any) -> None:
+        if (msg.get_srcSystem(), msg.get_srcComponent()) != self._target:
+            return
+        kind = msg.get_type()
+        if kind == "BAD_DATA":
+            return
+        self._latest[kind] = msg
+        boot_ms = getattr(msg, "time_boot_ms", None)
+        if isinstance(boot_ms, int) and boot_ms > 0:
+            clock_s = boot_ms / 1000.0
+            if self._clock_s is None or clock_s > self._clock_s:
+                self._clock_s = clock_s
+        if kind in self._streams_wanted:
+            self._streams_seen.add(kind)
+        if kind == "SIM_STATE":
+            self._truth = self._truth_from(msg)
+        elif kind == "RC_CHANNELS":
+            self._rc = tuple(
+                0 if v == 65535 else int(v)
+                for v in (getattr(msg, f"chan{i}_raw") for i in range(1, 19))
+            )
+        elif kind == "SERVO_OUTPUT_RAW":
+            self._servos = tuple(int(getattr(msg, f"servo{i}_raw")) for i in range(1, 17))
+        elif kind == "PARAM_VALUE":
+            self._params_due.pop(str(msg.param_id), None)
+
+    def _truth_from(self, msg: Any) -> Truth:
+        origin = self.origin
+        lat, lon = float(msg.lat_int) / 1e7, float(msg.lon_int) / 1e7
+        north = (lat - origin.lat_deg) * _M_PER_DEG_LAT
+        east = (lon - origin.lon_deg) * _M_PER_DEG_LAT * math.cos(math.radians(origin.lat_deg))
+        up = float(msg.alt) - origin.alt_m
+        if self.firmware == "ardurover":
+            up = 0.0  # a rover is on the ground; SITL's terrain height is not the origin's
+        vn, ve, vd = float(msg.vn), float(msg.ve), float(msg.vd)
+        ground = math.hypot(vn, ve)
+        yaw = math.degrees(float(msg.yaw))
+        hud = self._latest.get("VFR_HUD")
+        return Truth(
+            north_m=north,
+            east_m=east,
+            up_m=up,
+            lat_deg=lat,
+            lon_deg=lon,
+            velocity_north_m_s=vn,
+            velocity_east_m_s=ve,
+            climb_rate_m_s=-vd,
+            roll_deg=math.degrees(float(msg.roll)),
+            pitch_deg=math.degrees(float(msg.pitch)),
+            yaw_deg=yaw,
+            ground_speed_m_s=ground,
+            heading_deg=yaw % 360.0,
+            airspeed_m_s=float(hud.airspeed) if hud is not None else ground,
+            throttle_pct=float(hud.throttle) if hud is not None else 0.0,
+        )
+
+    # -- the pilot's part before the run ------------------------------------------------------
+
+    def fly_up(
+        self,
+        *,
+        up_m: float,
+        north_m: float,
+        east_m: float,
+        modes: Mapping[str, int],
+        hold_mode: str,
+        throttle: tuple[int, int] | None = None,
+        within_s: float = 600.0,
+    ) -> None:
+        """Fly the vehicle up to its start point, as its pilot does before the run.
+
+        Waits until the autopilot is ready (pre-arm checks, an EKF position); arms;
+        takes off to ``up_m`` (ArduCopter: guided and NAV_TAKEOFF; ArduPlane: TKOFF_ALT
+        and its TAKEOFF mode); flies in guided to ``north_m``/``east_m``; centres a
+        copter's throttle stick (``throttle``: its RC channel and middle width) and
+        leaves it in ``hold_mode``. Then the run's time 0 is now.
+
+        Args:
+            up_m: Height above home to hand over at.
+            north_m: Where to hand over, metres north of the origin.
+            east_m: Metres east of the origin.
+            modes: The autopilot's mode numbers by name.
+            hold_mode: The mode to hand over in (LOITER).
+            throttle: A copter's throttle RC channel and mid-stick width.
+            within_s: SITL seconds the whole pre-flight may take.
+
+        Raises:
+            SitlError: SITL exited, stalled, or did not get there in time.
+        """
+        for name in ("SYS_STATUS", "EKF_STATUS_REPORT", "EXTENDED_SYS_STATE"):
+            self._streams_wanted[name] = 500_000
+        self._streams_wanted["GLOBAL_POSITION_INT"] = 200_000
+        self._streams_wanted["HEARTBEAT"] = 1_000_000
+        deadline = [self._clock_s or 0.0]
+        deadline[0] += within_s
+
+        def wait(what: str, done: Any, act: Any = None, every_s: float = 2.0) -> None:
+            next_act = -math.inf
+            while not done():
+                now = self._clock_s or 0.0
+                if now > deadline[0]:
+                    raise self.process.failure(f"pre-flight: did not {what} in time")
+                if act is not None and now >= next_act:
+                    next_act = now + every_s
+                    act()
+                    self._flush()
+                self._duties()
+                self._read(0.05)
+
+        def prearm_ok() -> bool:
+            status, ekf = self._latest.get("SYS_STATUS"), self._latest.get("EKF_STATUS_REPORT")
+            bit = mavlink2.MAV_SYS_STATUS_PREARM_CHECK
+            return (
+                status is not None
+                and bool(status.onboard_control_sensors_health & bit)
+                and ekf is not None
+                and bool(ekf.flags & mavlink2.EKF_POS_HORIZ_ABS)
+            )
+
+        def armed() -> bool:
+            beat = self._latest.get("HEARTBEAT")
+            return beat is not None and bool(beat.base_mode & mavlink2.MAV_MODE_FLAG_SAFETY_ARMED)
+
+        def in_mode(name: str) -> Any:
+            def check() -> bool:
+                beat = self._latest.get("HEARTBEAT")
+                return beat is not None and beat.custom_mode == modes[name]
+
+            return check
+
+        def height_m() -> float:
+            position = self._latest.get("GLOBAL_POSITION_INT")
+            return float(position.relative_alt) / 1000.0 if position is not None else 0.0
+
+        def command(cmd: int, *params: float) -> None:
+            values = (*params, *(0.0,) * (7 - len(params)))
+            self._mav.command_long_send(*self._target, cmd, 0, *values)
+
+        def set_mode(name: str) -> None:
+            command(
+                mavlink2.MAV_CMD_DO_SET_MODE,
+                mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                modes[name],
+            )
+
+        wait("get ready", prearm_ok)
+        if self.firmware == "arduplane":
+            self._params_due["TKOFF_ALT"] = round(up_m)
+            wait("set TKOFF_ALT", lambda: "TKOFF_ALT" not in self._params_due)
+            wait("enter TAKEOFF", in_mode("TAKEOFF"), lambda: set_mode("TAKEOFF"))
+            wait("arm", armed, lambda: command(mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, 1))
+            wait("climb", lambda: height_m() >= up_m - 3.0)
+        else:
+            wait("enter GUIDED", in_mode("GUIDED"), lambda: set_mode("GUIDED"))
+            wait("arm", armed, lambda: command(mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, 1))
+            wait(
+                "climb",
+                lambda: height_m() >= up_m - 0.5,
+                lambda: command(mavlink2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, 0, 0, up_m),
+                every_s=5.0,
+            )
+        wait("enter GUIDED", in_mode("GUIDED"), lambda: set_mode("GUIDED"))
+        lat = self.origin.lat_deg + north_m / _M_PER_DEG_LAT
+        lon = self.origin.lon_deg + east_m / (
+            _M_PER_DEG_LAT * math.cos(math.radians(self.origin.lat_deg))
+        )
+
+        def go() -> None:
+            frame = mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+            if self.firmware == "arduplane":
+                self._mav.command_int_send(
+                    *self._target, frame, mavlink2.MAV_CMD_DO_REPOSITION, 0, 0,
+                    -1, 0, 0, 0, round(lat * 1e7), round(lon * 1e7), up_m,
+                )  # fmt: skip
+            else:
+                self._mav.set_position_target_global_int_send(
+                    0, *self._target, frame, 0x0DF8, round(lat * 1e7), round(lon * 1e7), up_m,
+                    0, 0, 0, 0, 0, 0, 0, 0,
+                )  # fmt: skip
+
+        arrival_m = 150.0 if self.firmware == "arduplane" else 2.0
+
+        def there() -> bool:
+            truth = self._truth
+            return math.hypot(truth.north_m - north_m, truth.east_m - east_m) <= arrival_m
+
+        wait("reach its start point", there, go, every_s=5.0)
+        if throttle is not None:
+            channel, mid_us = throttle
+            self.set_pilot({channel: mid_us})
+        wait(f"enter {hold_mode}", in_mode(hold_mode), lambda: set_mode(hold_mode))
+        for name in ("SYS_STATUS", "EKF_STATUS_REPORT", "EXTENDED_SYS_STATE", "HEARTBEAT"):
+            self._streams_wanted.pop(name, None)
+        self._streams_wanted.pop("GLOBAL_POSITION_INT", None)
+        self.start_run_here()
