@@ -227,7 +227,8 @@ def test_waypoint_rover_goes_guided_and_is_done_within_ground_tolerance() -> Non
     run = Run(config, make_primitive(states_of(config, "waypoint")[0]))
     far = at(config, 0, 0, mode="MANUAL")
     assert run.start(far) == [set_mode(config, "GUIDED"), goto(point)]
-    assert run.step() == (Status.RUNNING, [])
+    # still MANUAL a tick (2 s) later: refused or lost, so asked again
+    assert run.step() == (Status.RUNNING, [set_mode(config, "GUIDED")])
     # the vehicle enters guided: the target is sent again (ArduPilot reset it)
     assert run.step(at(config, 0, 0)) == (Status.RUNNING, [goto(point)])
     assert run.step(at(config, 10, 5)) == (Status.RUNNING, [])
@@ -237,12 +238,12 @@ def test_waypoint_rover_goes_guided_and_is_done_within_ground_tolerance() -> Non
     assert run.step(at(config, 28.5, 20, alt_m=40)) == (Status.DONE, [])
 
 
-def test_waypoint_without_vehicle_state_runs_and_commands_nothing_more() -> None:
+def test_waypoint_without_vehicle_state_runs_and_only_asks_for_guided_again() -> None:
     config = compiled(*SLASH)
     run = Run(config, make_primitive(states_of(config, "waypoint")[0]))
     assert run.start() == [set_mode(config, "GUIDED"), goto(params_of(config, "waypoint")["to"])]
-    for _ in range(5):
-        assert run.step() == (Status.RUNNING, [])
+    for _ in range(5):  # no report of guided yet: asked again every tick (2 s), nothing else
+        assert run.step() == (Status.RUNNING, [set_mode(config, "GUIDED")])
 
 
 def test_waypoint_does_not_fight_a_mode_change_and_resumes_on_guided() -> None:
@@ -656,6 +657,34 @@ def test_hold_switches_to_the_hold_mode_and_runs_forever() -> None:
     run = Run(config, make_primitive(states_of(config, "hold")[0]))
     assert run.start(at(config, 0, 0, mode="LOITER")) == [set_mode(config, "LOITER")]
     for _ in range(20):
+        assert run.step(at(config, 0, 0, mode="MANUAL")) == (Status.RUNNING, [])
+
+
+def test_hold_asks_again_while_refused_and_never_after_it_was_granted() -> None:
+    # ArduRover armed before its EKF had a position refuses position modes for about a
+    # second after it has one (its EKF failsafe; measured on SITL): ask again, once a second
+    config = dataclasses.replace(compiled(*ANACONDA), loop_hz=10.0)
+    loiter = set_mode(config, "LOITER")
+    run = Run(config, make_primitive(states_of(config, "hold")[0]))
+    assert run.start(at(config, 0, 0, mode="MANUAL")) == [loiter]
+    sent: list[int] = []
+    for _ in range(25):
+        tick = run.tick
+        if run.step(at(config, 0, 0, mode="MANUAL")) == (Status.RUNNING, [loiter]):
+            sent.append(tick)
+    assert sent == [10, 20]  # ticks, at 10 Hz: 1 s and 2 s after the first request
+    assert run.step(at(config, 0, 0, mode="LOITER")) == (Status.RUNNING, [])
+    # granted: the pilot's switch back to MANUAL is theirs, not a refusal
+    for _ in range(30):
+        assert run.step(at(config, 0, 0, mode="MANUAL")) == (Status.RUNNING, [])
+
+
+def test_a_refused_mode_is_not_asked_again_once_someone_chose_another() -> None:
+    config = dataclasses.replace(compiled(*ANACONDA), loop_hz=10.0)
+    run = Run(config, make_primitive(states_of(config, "hold")[0]))
+    assert run.start(at(config, 0, 0, mode="MANUAL")) == [set_mode(config, "LOITER")]
+    assert run.step(at(config, 0, 0, mode="FBWA")) == (Status.RUNNING, [])  # the pilot's switch
+    for _ in range(30):
         assert run.step(at(config, 0, 0, mode="MANUAL")) == (Status.RUNNING, [])
 
 

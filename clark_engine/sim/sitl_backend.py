@@ -13,7 +13,11 @@ vehicle's clock (the ``time_boot_ms`` of what it sends) has passed the run's tim
 so the engine is never ahead of any autopilot. The backend asks SITL for a
 message with a time stamp 40 times a second as its clock, and for SIM_STATE (the
 simulator's true position and attitude) 20 times a second for the tracks, the
-checks and the radio ranges.
+checks and the radio ranges. ArduCopter streams nothing with a time stamp for its
+first seconds (it loses stream requests until about 2.5 s, and its heartbeats
+carry no time), so until the first time stamp the clock is the wall time since
+the connection times the speed-up: what SITL sends in those seconds reaches the
+engine when it was sent, and the adapter hears the heartbeats come.
 
 Set-up. Before the run, each SITL autopilot is given the parameters the simulated
 autopilot flies with (the firmware's defaults the simulation uses, and the
@@ -98,13 +102,18 @@ class SitlBackend(VehicleBackend):
         self._parser.robust_parsing = True
         self._inbox = bytearray()
         self._clock_s: float | None = None
+        self._connected_wall: float | None = None
         self._offset_s = 0.0
         self._streams_wanted = {CLOCK_MESSAGE: CLOCK_INTERVAL_US, "SIM_STATE": TRUTH_INTERVAL_US}
         self._streams_seen: set[str] = set()
         self._next_request_wall = 0.0
         self._last_byte_wall = time.monotonic()
         self._latest: dict[str, Any] = {}
-        self._truth = Truth(0.0, 0.0, 0.0, origin.lat_deg, origin.lon_deg, *(0.0,) * 10)
+        home = process.home  # where SITL stands until its first SIM_STATE
+        self._truth = self._truth_at(
+            home.lat_deg, home.lon_deg, home.alt_m, (0.0, 0.0, 0.0),
+            (0.0, 0.0, math.radians(home.heading_deg)),
+        )  # fmt: skip
         self._rc: tuple[int, ...] = ()
         self._servos: tuple[int, ...] = ()
         self._pilot_us = [0] * 16
@@ -118,19 +127,27 @@ class SitlBackend(VehicleBackend):
 
     @property
     def clock_s(self) -> float | None:
-        """The SITL vehicle's own time (its boot clock), None before its first time stamp."""
-        return self._clock_s
+        """The SITL vehicle's own time (its boot clock), None before the connection.
+
+        Before SITL's first time stamp, the wall time since the connection times the
+        speed-up (SITL's clock starts when it is connected).
+        """
+        if self._clock_s is not None:
+            return self._clock_s
+        if self._connected_wall is None:
+            return None
+        return (time.monotonic() - self._connected_wall) * self.process.speedup
 
     def connect(self, timeout_s: float = 30.0) -> None:
         """Connect to SITL (its clock starts), and ask for the backend's own streams."""
         self._sock = self.process.connect(timeout_s=timeout_s)
         self._sock.setblocking(False)
-        self._last_byte_wall = time.monotonic()
+        self._connected_wall = self._last_byte_wall = time.monotonic()
         self._duties()
 
     def start_run_here(self) -> None:
         """Make the SITL vehicle's current time the run's time 0 (after a pre-flight)."""
-        self._offset_s = self._clock_s or 0.0
+        self._offset_s = self.clock_s or 0.0
 
     def step(self, t_s: float, dt_s: float) -> bytes:
         """Wait until SITL has passed the run's time ``t_s``; what it sent since the last step.
@@ -139,9 +156,10 @@ class SitlBackend(VehicleBackend):
             SitlError: SITL exited, or sent nothing for :data:`STALL_WALL_S`.
         """
         want_s = t_s + self._offset_s
-        while self._clock_s is None or self._clock_s < want_s:
+        while (clock_s := self.clock_s) is None or clock_s < want_s:
             self._duties()
-            self._read(0.05)
+            wait_wall_s = 0.05 if clock_s is None else (want_s - clock_s) / self.process.speedup
+            self._read(min(0.05, max(0.001, wait_wall_s)))
         data, self._inbox = bytes(self._inbox), bytearray()
         return data
 
@@ -273,16 +291,31 @@ class SitlBackend(VehicleBackend):
             self._params_due.pop(str(msg.param_id), None)
 
     def _truth_from(self, msg: Any) -> Truth:
+        return self._truth_at(
+            float(msg.lat_int) / 1e7, float(msg.lon_int) / 1e7, float(msg.alt),
+            (float(msg.vn), float(msg.ve), float(msg.vd)),
+            (float(msg.roll), float(msg.pitch), float(msg.yaw)),
+        )  # fmt: skip
+
+    def _truth_at(
+        self,
+        lat: float,
+        lon: float,
+        alt_m: float,
+        velocity_ned_m_s: tuple[float, float, float],
+        attitude_rad: tuple[float, float, float],
+    ) -> Truth:
+        """A true state in the mission's local frame (flat earth around the origin)."""
         origin = self.origin
-        lat, lon = float(msg.lat_int) / 1e7, float(msg.lon_int) / 1e7
         north = (lat - origin.lat_deg) * _M_PER_DEG_LAT
         east = (lon - origin.lon_deg) * _M_PER_DEG_LAT * math.cos(math.radians(origin.lat_deg))
-        up = float(msg.alt) - origin.alt_m
+        up = alt_m - origin.alt_m
         if self.firmware == "ardurover":
             up = 0.0  # a rover is on the ground; SITL's terrain height is not the origin's
-        vn, ve, vd = float(msg.vn), float(msg.ve), float(msg.vd)
+        vn, ve, vd = velocity_ned_m_s
+        roll, pitch, yaw_rad = attitude_rad
         ground = math.hypot(vn, ve)
-        yaw = math.degrees(float(msg.yaw))
+        yaw = math.degrees(yaw_rad)
         hud = self._latest.get("VFR_HUD")
         return Truth(
             north_m=north,
@@ -293,8 +326,8 @@ class SitlBackend(VehicleBackend):
             velocity_north_m_s=vn,
             velocity_east_m_s=ve,
             climb_rate_m_s=-vd,
-            roll_deg=math.degrees(float(msg.roll)),
-            pitch_deg=math.degrees(float(msg.pitch)),
+            roll_deg=math.degrees(roll),
+            pitch_deg=math.degrees(pitch),
             yaw_deg=yaw,
             ground_speed_m_s=ground,
             heading_deg=yaw % 360.0,

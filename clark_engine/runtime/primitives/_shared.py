@@ -104,6 +104,56 @@ def reported_mode(ctx: PrimitiveContext) -> str | None:
     return ctx.vehicle.mode if ctx.vehicle is not None else None
 
 
+#: Time between two SetMode commands while the autopilot has refused the mode and
+#: nobody has changed it since (as :mod:`.set_mode` re-asks).
+MODE_RETRY_S = 1.0
+
+
+class ModeRequest:
+    """Asks for a flight mode, again while the autopilot has not granted it.
+
+    :meth:`begin` sends SetMode always (a stale report proves nothing, and a change
+    to the current mode is a no-op for ArduPilot). ArduPilot refuses a mode for
+    reasons that pass: ArduRover refuses position modes for about a second after
+    its EKF has a position when it was armed before that (its EKF failsafe), and
+    a mode may need a home or an origin a moment away. So :meth:`update` sends
+    SetMode again every :data:`MODE_RETRY_S` while the vehicle still reports the
+    mode it was in when the request began. Once it reports the requested mode,
+    or any third mode (the pilot or the station chose one), the request is over
+    and never repeated: a pilot who takes over is not fought.
+    """
+
+    def __init__(self) -> None:
+        self.mode: str | None = None
+        self._from: str | None = None
+        self._sent_s = 0.0
+        self._over = True
+
+    def begin(self, ctx: PrimitiveContext, mode: str) -> None:
+        """Ask for ``mode`` now."""
+        self.mode = mode
+        self._from = reported_mode(ctx)
+        self._over = self._from == mode
+        self._send(ctx)
+
+    def update(self, ctx: PrimitiveContext) -> None:
+        """Ask again when due and the mode is neither granted nor changed by someone else."""
+        if self._over or self.mode is None:
+            return
+        now = reported_mode(ctx)
+        if now == self.mode or (now is not None and self._from is not None and now != self._from):
+            self._over = True
+            return
+        self._from = self._from if self._from is not None else now
+        if ctx.now_s - self._sent_s + TIME_EPSILON_S >= MODE_RETRY_S:
+            self._send(ctx)
+
+    def _send(self, ctx: PrimitiveContext) -> None:
+        assert self.mode is not None
+        self._sent_s = ctx.now_s
+        ctx.command(mode_command(ctx, self.mode))
+
+
 #: Time between two Arm commands while the vehicle stays disarmed (ArduPilot explains a
 #: refusal in a STATUSTEXT, logged; its pre-arm checks may pass a moment later).
 ARM_RETRY_S = 5.0
@@ -157,11 +207,13 @@ class GuidedLeg:
       already reports guided, because that report may be a tick old and the
       previous state may just have asked for another mode; ArduPilot treats a
       change to the mode it is already in as a no-op, so the extra command costs
-      nothing and can never leave the vehicle in the wrong mode. When the engine
-      arms the vehicle (``launch.armed_by: engine``) and it is disarmed, Arm
-      follows (:class:`EngineArming`).
-    - :meth:`go` sends a Goto. The leg never sends SetMode again: if the pilot or
-      the station moves the vehicle out of guided mode, the engine does not fight
+      nothing and can never leave the vehicle in the wrong mode. A refused
+      request is repeated as :class:`ModeRequest` says. When the engine arms the
+      vehicle (``launch.armed_by: engine``) and it is disarmed, Arm follows
+      (:class:`EngineArming`).
+    - :meth:`go` sends a Goto. Once the vehicle has been in guided mode, or another
+      mode was chosen, the leg never sends SetMode again: if the pilot or the
+      station moves the vehicle out of guided mode, the engine does not fight
       them, and the autopilot ignores guided targets outside guided mode.
     - :meth:`track` re-sends the current Goto when the vehicle is seen *entering*
       guided mode (reported guided now, another mode or no state at the previous
@@ -184,6 +236,7 @@ class GuidedLeg:
         self._guided_mode: str | None = None
         self._seen: tuple[str | None, bool, bool] = (None, False, False)
         self._arming = EngineArming()
+        self._mode = ModeRequest()
 
     def begin(self, ctx: PrimitiveContext) -> None:
         """Enter guided mode (and arm, when the engine does); failed without a guided mode."""
@@ -197,7 +250,7 @@ class GuidedLeg:
                 ctx.config.agent,
             )
             return
-        ctx.command(mode_command(ctx, self._guided_mode))
+        self._mode.begin(ctx, self._guided_mode)
         self._arming.begin(ctx)
 
     def go(
@@ -215,6 +268,7 @@ class GuidedLeg:
 
     def track(self, ctx: PrimitiveContext) -> None:
         """Re-send the target when the vehicle enters guided, is armed or lifts off."""
+        self._mode.update(ctx)
         self._arming.update(ctx)
         mode, armed, flying = seen = self._look(ctx)
         was_mode, was_armed, was_flying = self._seen

@@ -5,15 +5,19 @@ Runtime semantics (the declaration is :mod:`clark_engine.mission.primitives.hold
 HOLD for rovers), always, even when the vehicle already reports it, because a
 stale report must never leave the vehicle in the mode a previous state asked for
 (a change to the current mode is a no-op for ArduPilot). ``update`` is RUNNING
-until a transition leaves the state; SetMode is not repeated, so a pilot who
-takes over is not fought. FAILED only when the profile names no hold mode
+until a transition leaves the state; SetMode is repeated only while the
+autopilot has refused it and nobody changed the mode since
+(:class:`~._shared.ModeRequest`), so a pilot who takes over is not fought. FAILED only when the profile names no hold mode
 (impossible for a compiled config).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 from clark_engine.runtime.context import PrimitiveContext, Status
-from clark_engine.runtime.primitives._shared import mode_command
+from clark_engine.runtime.primitives._shared import ModeRequest
 from clark_engine.runtime.primitives.base import Primitive
 
 
@@ -24,6 +28,10 @@ class Hold(Primitive):
 
     _failed = False
 
+    def __init__(self, params: Mapping[str, Any]) -> None:
+        super().__init__(params)
+        self._mode = ModeRequest()
+
     def start(self, ctx: PrimitiveContext) -> None:
         """Switch to the hold mode."""
         mode = ctx.config.hold_mode
@@ -31,8 +39,9 @@ class Hold(Primitive):
         if mode is None:
             ctx.log.error("%s: the autopilot profile names no hold_mode", ctx.config.agent)
             return
-        ctx.command(mode_command(ctx, mode))
+        self._mode.begin(ctx, mode)
 
     def update(self, ctx: PrimitiveContext) -> Status:
         """RUNNING until a transition moves on."""
+        self._mode.update(ctx)
         return Status.FAILED if self._failed else Status.RUNNING

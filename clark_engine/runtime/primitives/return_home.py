@@ -2,7 +2,8 @@
 
 Runtime semantics (the declaration is :mod:`clark_engine.mission.primitives.return_home`):
 
-- ``start``: SetMode(the profile's ``rtl_mode``), always, as :mod:`.hold` does.
+- ``start``: SetMode(the profile's ``rtl_mode``), always, and again while refused,
+  as :mod:`.hold` does.
   ArduRover drives home and stops; ArduCopter climbs to RTL_ALT, flies home,
   lands and disarms; ArduPlane flies home and circles it.
 - ``update``: DONE once the vehicle is within ``tolerance_m`` of home, ground
@@ -19,7 +20,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from clark_engine.runtime.context import PrimitiveContext, Status
-from clark_engine.runtime.primitives._shared import mode_command
+from clark_engine.runtime.primitives._shared import ModeRequest
 from clark_engine.runtime.primitives.base import Primitive
 
 
@@ -36,6 +37,7 @@ class ReturnHome(Primitive):
         super().__init__(params)
         self.tolerance_m = float(params.get("tolerance_m", 5.0))
         self._failed = False
+        self._mode = ModeRequest()
 
     def start(self, ctx: PrimitiveContext) -> None:
         """Switch to the RTL mode."""
@@ -44,12 +46,13 @@ class ReturnHome(Primitive):
         if mode is None:
             ctx.log.error("%s: the autopilot profile names no rtl_mode", ctx.config.agent)
             return
-        ctx.command(mode_command(ctx, mode))
+        self._mode.begin(ctx, mode)
 
     def update(self, ctx: PrimitiveContext) -> Status:
         """DONE within tolerance of home."""
         if self._failed:
             return Status.FAILED
+        self._mode.update(ctx)
         home = ctx.autopilot.home if ctx.autopilot is not None else None
         if home is None:
             return Status.RUNNING

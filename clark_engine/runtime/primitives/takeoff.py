@@ -6,7 +6,8 @@ A multirotor: ArduCopter takes off only in its guided mode, armed, on the ground
 on MAV_CMD_NAV_TAKEOFF; it ignores position targets until then, and disarms by
 itself 10 s after arming if it has not taken off. So:
 
-- ``start``: SetMode(guided), always (as for :mod:`.waypoint`), and Arm when the
+- ``start``: SetMode(guided), always and again while refused (as for
+  :mod:`.waypoint`), and Arm when the
   engine arms this vehicle (``launch.armed_by: engine``) and it is disarmed
   (:class:`~._shared.EngineArming`; with ``armed_by: pilot`` the state waits for
   the pilot to arm).
@@ -40,7 +41,7 @@ from clark_engine.runtime.launch import is_airborne
 from clark_engine.runtime.primitives._shared import (
     TIME_EPSILON_S,
     EngineArming,
-    mode_command,
+    ModeRequest,
     reported_mode,
 )
 from clark_engine.runtime.primitives.base import Primitive
@@ -67,6 +68,7 @@ class Takeoff(Primitive):
         self._sent_s: float | None = None
         self._failed = False
         self._plane = False
+        self._mode = ModeRequest()
 
     def start(self, ctx: PrimitiveContext) -> None:
         """Copter: enter guided mode; plane: TAKEOFF. Arm when the engine arms this vehicle."""
@@ -81,7 +83,7 @@ class Takeoff(Primitive):
         if mode is None:
             ctx.log.error("%s: the autopilot profile names no guided_mode", ctx.config.agent)
             return
-        ctx.command(mode_command(ctx, mode))
+        self._mode.begin(ctx, mode)
         self._arming.begin(ctx)
 
     def _take_off(self, ctx: PrimitiveContext) -> None:
@@ -92,6 +94,8 @@ class Takeoff(Primitive):
         """DONE at altitude; Takeoff when armed on the ground in guided."""
         if self._failed:
             return Status.FAILED
+        if not self._plane:
+            self._mode.update(ctx)
         vehicle = ctx.vehicle
         if vehicle is None:
             return Status.RUNNING
