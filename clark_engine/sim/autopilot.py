@@ -24,7 +24,8 @@ What it does, in ArduPilot's order:
 - **Boot** (:class:`~clark_engine.sim.firmware.BootTimes`, counted from ``boot_s``):
   HEARTBEAT from power-on (INITIALISING for a second where the firmware has it),
   its boot STATUSTEXTs, then the streams from "ArduPilot Ready"; a stream request
-  before that is acknowledged and lost, as ArduPilot's is. No position (0, 0) and
+  that arrives before the first HEARTBEAT is acknowledged and lost, as ArduPilot's
+  is (one after it is kept, and starts with the streams). No position (0, 0) and
   GPS fix 0 until the fix; SYSTEM_TIME's Unix time 0 until then; home set when the
   firmware sets it (HOME_POSITION sent then); the EKF's flags step from
   uninitialised to attitude to an absolute position; the pre-arm check bit of
@@ -401,6 +402,7 @@ class SimAutopilot:
         self._attitude_message = self._mav.attitude_encode(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         self._hud_message = self._mav.vfr_hud_encode(0.0, 0.0, 0, 0, 0.0, 0.0)
         self._deferred: list[str] = []  # messages asked for, sent after the acknowledgement
+        self._heartbeat_sent = False  # stream requests before the first one are lost
         self._params: dict[str, _Param] = {"SYSID_THISMAV": _Param(system_id, _INT16)}
         for name, (value, kind) in {**COMMON_PARAMS, **self.fw.params}.items():
             if name.startswith("SR0_") and name != "SR0_PARAMS":
@@ -1210,8 +1212,8 @@ class SimAutopilot:
             self._text(_INFO, f"Requested rate for message ID {msg_id} too fast. Increas")
             self._text(_INFO, "e SCHED_LOOP_RATE")
             return _DENIED
-        if self._age_s(now_s) < self.boot_times.streams_s:
-            return _ACCEPTED  # before "ArduPilot Ready": acknowledged, and lost (measured)
+        if self.fw.early_stream_requests_lost and not self._heartbeat_sent and now_s <= self.boot_s:
+            return _ACCEPTED  # before the first HEARTBEAT: acknowledged, and lost (measured)
         if interval_us == 0:
             self._interval_us.pop(name, None)
             self._schedule = None
@@ -1327,6 +1329,7 @@ class SimAutopilot:
         return _LANDED[state]
 
     def _msg_heartbeat(self, now_s: float) -> Any:
+        self._heartbeat_sent = True
         model = self.model
         armed = model.armed
         booting = self._age_s(now_s) < INITIALISING_S

@@ -38,8 +38,8 @@ class BootTimes:
     """When a freshly powered ArduPilot gets ready, in seconds after power-on.
 
     Attributes:
-        streams_s: "ArduPilot Ready": messages other than HEARTBEAT start, and a
-            stream request is kept from here on (before, it is acknowledged and lost).
+        streams_s: "ArduPilot Ready": messages other than HEARTBEAT start (a stream
+            requested earlier, once the first HEARTBEAT was out, starts here too).
         attitude_s: The EKF has an attitude (EKF_STATUS_REPORT flags 0xA7).
         gps_fix_s: The GPS has a 3-D fix; positions are 0, 0 before it.
         origin_s: The EKF origin is set ("EKF3 IMU0 origin set").
@@ -79,6 +79,13 @@ class Firmware:
         initialising_mode: The mode number reported for the first second, or None.
         default_stream_hz: Rate of every telemetry stream before a ground station
             asks for one (ArduCopter streams nothing; ArduRover and ArduPlane 1 Hz).
+        early_stream_requests_lost: SET_MESSAGE_INTERVAL requests that arrive before
+            the autopilot's first HEARTBEAT are acknowledged (ACCEPTED) and then lost:
+            GCS_MAVLINK sets every interval from the SRn_* rates at its first send,
+            which also sends that HEARTBEAT. Measured on all three SITL builds (a
+            request sent on connecting: ArduCopter never streamed it, ArduRover and
+            ArduPlane at their 1 Hz default); a request sent after the first
+            HEARTBEAT, even long before "ArduPilot Ready", is kept on all three.
         not_armable: Modes arming is refused in.
         arm_needs_position: Modes arming in needs an EKF position.
         set_needs_origin: Modes that cannot be entered before the EKF origin is set
@@ -112,6 +119,7 @@ class Firmware:
     boot_mode: str
     initialising_mode: int | None
     default_stream_hz: float
+    early_stream_requests_lost: bool
     not_armable: frozenset[str]
     arm_needs_position: frozenset[str]
     set_needs_origin: frozenset[str]
@@ -154,7 +162,7 @@ SR0_* stream rates are the firmware's own (Firmware.default_stream_hz) at start.
 ROVER: Final = Firmware(
     name="ardurover",
     boot=BootTimes(
-        streams_s=2.5,
+        streams_s=2.45,
         attitude_s=6.05,
         gps_fix_s=9.05,
         origin_s=19.85,
@@ -165,6 +173,7 @@ ROVER: Final = Firmware(
     boot_mode="MANUAL",
     initialising_mode=16,
     default_stream_hz=1.0,
+    early_stream_requests_lost=True,
     not_armable=frozenset({"RTL", "SMART_RTL"}),
     arm_needs_position=frozenset(
         {"GUIDED", "LOITER", "CIRCLE", "SIMPLE", "STEERING", "ACRO", "AUTO", "RTL", "SMART_RTL"}
@@ -216,6 +225,7 @@ COPTER: Final = Firmware(
     boot_mode="STABILIZE",
     initialising_mode=None,
     default_stream_hz=0.0,
+    early_stream_requests_lost=True,
     not_armable=frozenset({"RTL", "CIRCLE", "LAND", "BRAKE", "SMART_RTL", "AUTO"}),
     arm_needs_position=frozenset(
         {"GUIDED", "LOITER", "POSHOLD", "AUTO", "RTL", "CIRCLE", "BRAKE", "SMART_RTL"}
@@ -263,7 +273,7 @@ COPTER: Final = Firmware(
 PLANE: Final = Firmware(
     name="arduplane",
     boot=BootTimes(
-        streams_s=2.5,
+        streams_s=1.75,
         attitude_s=12.2,
         gps_fix_s=9.3,
         origin_s=19.3,
@@ -274,6 +284,7 @@ PLANE: Final = Firmware(
     boot_mode="MANUAL",
     initialising_mode=16,
     default_stream_hz=1.0,
+    early_stream_requests_lost=True,
     not_armable=frozenset({"RTL"}),
     arm_needs_position=frozenset(),
     set_needs_origin=frozenset(),

@@ -108,3 +108,13 @@ def fresh_peer(request: pytest.FixtureRequest) -> Iterator[Peer]:
         yield fresh
     finally:
         fresh.close()
+
+
+@pytest.fixture(params=backend_params())
+def connecting_peer(request: pytest.FixtureRequest) -> Iterator[Peer]:
+    """A ground station just connected to a vehicle booted for this test: nothing sent yet."""
+    fresh = open_peer(request.param, start=False)
+    try:
+        yield fresh
+    finally:
+        fresh.close()

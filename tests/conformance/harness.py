@@ -409,17 +409,21 @@ class Peer:
         self.link.send(msg.pack(self._mav))
 
     def start(self, within_s: float = 30.0) -> Peer:
-        """Hear the first HEARTBEAT, then ask for the clock and the status messages.
+        """Hear the first HEARTBEAT, ask for the clock, wait for the streams, ask for status.
 
         As a ground station does on connecting: SYSTEM_TIME at 10 Hz is the clock
-        (required), and SYS_STATUS, GPS_RAW_INT and EKF_STATUS_REPORT at 1 Hz tell
-        when the vehicle gets ready (ArduCopter streams none of them by default). The
-        answers to those three are kept in :attr:`subscribed`, not asserted: scenarios
-        judge them.
+        (required). It is asked for after the first HEARTBEAT, since every firmware
+        loses a stream request that arrives before that (test_streams.py), and waited
+        for: it comes once ArduPilot is ready ("ArduPilot Ready", 1.8-2.5 s after
+        power-on), so a scenario gets a vehicle whose streams are alive. Then
+        SYS_STATUS, GPS_RAW_INT and EKF_STATUS_REPORT at 1 Hz tell when the vehicle
+        gets ready to arm (ArduCopter streams none of them by default). The answers to
+        those three are kept in :attr:`subscribed`, not asserted: scenarios judge them.
         """
         self.wait_for("HEARTBEAT", within_s)
         ack = self.message_interval("SYSTEM_TIME", CLOCK_INTERVAL_US, within_s=10)
         assert ack.result == mavlink2.MAV_RESULT_ACCEPTED, f"clock request refused: {ack}"
+        self.wait_for("SYSTEM_TIME", within_s, describe="the clock (SYSTEM_TIME): no streams")
         for name in STATUS_MESSAGES:
             self.subscribed[name] = self.message_interval(name, 1_000_000).result
         return self
@@ -631,12 +635,20 @@ def _param_named(name: str) -> Callable[[Any], bool]:
     return named
 
 
-def open_peer(backend: str) -> Peer:
-    """A started peer on a new vehicle of ``backend`` (``sim-rover`` ... ``sitl-plane``)."""
+def open_peer(backend: str, *, start: bool = True) -> Peer:
+    """A peer on a new vehicle of ``backend`` (``sim-rover`` ... ``sitl-plane``).
+
+    Args:
+        backend: Which autopilot.
+        start: Hear its first HEARTBEAT and wait for its streams (:meth:`Peer.start`);
+            False: connected and nothing sent yet (the autopilot's first instants).
+    """
     source, kind = backend.split("-", 1)
     spec = vehicle_spec(kind)
     link: Link = build_sim_link(spec) if source == "sim" else SitlLink.start(spec)
     peer = Peer(link, backend, spec)
+    if not start:
+        return peer
     try:
         return peer.start()
     except BaseException:

@@ -10,13 +10,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 ARM_AT_S = 5.0
 
 
-@backends(
-    "fresh_peer",
-    gaps={
-        "sim": "sim: starts armed and ready; arming is accepted at once where ArduPilot "
-        "refuses it (FAILED, 'Arm: ...' STATUSTEXT) until its checks pass"
-    },
-)
+@backends("fresh_peer")
 def test_arming_before_ready_is_refused_with_reasons(fresh_peer: Peer) -> None:
     peer = fresh_peer
     peer.run_for(ARM_AT_S - peer.now_s)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from harness import Peer, backends
+from harness import Peer
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 VEHICLE_TYPES = {
@@ -46,12 +46,6 @@ def test_heartbeat_comes_at_1_hz(peer: Peer) -> None:
     assert 4 <= len(beats) <= 6, f"{len(beats)} heartbeats from t={start_s:.1f} s in 5 s"
 
 
-@backends(
-    gaps={
-        "sim": "sim: starts armed (aircraft airborne in their hold mode); "
-        "ArduPilot boots disarmed in its manual mode"
-    }
-)
 def test_boots_disarmed_in_the_manual_mode(peer: Peer) -> None:
     manual = peer.spec.modes[str(peer.spec.autopilot["manual_mode"])]
     initialising = peer.spec.modes.get("INITIALISING")
@@ -77,7 +71,6 @@ def test_autopilot_version_on_request_message(peer: Peer) -> None:
     assert not missing, f"capabilities lack {capability_names(missing)}"
 
 
-@backends(gaps={"sim": "sim: claims PARAM_ENCODE_C_CAST, which ArduPilot does not"})
 def test_autopilot_version_claims_nothing_ardupilot_lacks(peer: Peer) -> None:
     mark = peer.mark()
     peer.command_long(mavlink2.MAV_CMD_REQUEST_MESSAGE, mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import pytest
-from harness import Peer, backends
+from harness import Peer
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 # Modes the profiles name that fly without a position estimate.
@@ -51,12 +51,6 @@ def test_set_mode_message_changes_the_mode(restored: Peer) -> None:
         assert heartbeat_mode(peer) == number, name
 
 
-@backends(
-    gaps={
-        "sim": "sim: acknowledges the SET_MODE message (COMMAND_ACK 11); "
-        "ArduPilot 4.7 sends no acknowledgement"
-    }
-)
 def test_set_mode_message_is_not_acknowledged(restored: Peer) -> None:
     peer = restored
     name = NO_GPS_MODES[peer.kind][1]
@@ -78,7 +72,6 @@ def test_an_unknown_mode_is_refused(peer: Peer) -> None:
     assert heartbeat_mode(peer) == before
 
 
-@backends(gaps={"sim": "sim: refuses an unknown mode without a STATUSTEXT"})
 def test_an_unknown_mode_is_explained(peer: Peer) -> None:
     mark = peer.mark()
     peer.set_mode_number(UNKNOWN_MODE)

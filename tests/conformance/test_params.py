@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from harness import Peer, backends
+from harness import Peer
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 # Present with the same name, type and default in every firmware and in the simulation.
@@ -19,12 +19,6 @@ def test_read_by_name(peer: Peer) -> None:
     assert value.param_count > 0
 
 
-@backends(
-    gaps={
-        "sim": "sim: PARAM_VALUE answering a read by name or a PARAM_SET carries the "
-        "parameter's index; ArduPilot sends 65535 (the -1 it was asked with)"
-    }
-)
 def test_answers_by_name_carry_no_index(peer: Peer) -> None:
     assert peer.param_get(PARAM).param_index == NO_PARAM_INDEX
     try:
@@ -67,12 +61,35 @@ def test_unknown_names_are_not_answered(peer: Peer) -> None:
     assert answers == []
 
 
-@backends(
-    gaps={
-        "sim": "sim: has ArduPilot 4.5's SYSID_THISMAV and SYSID_MYGCS; this SITL "
-        "(4.7) names them MAV_SYSID and MAV_GCS_SYSID"
-    }
-)
-def test_system_ids_by_their_current_names(peer: Peer) -> None:
-    assert peer.param_get("MAV_SYSID").param_value == peer.spec.system_id
-    assert peer.param_get("MAV_GCS_SYSID").param_value == 255
+# ArduPilot 4.7 renamed the system id parameters (and dropped the SRn_* stream rates).
+SYSID_NAMES_BEFORE_4_7 = ("SYSID_THISMAV", "SYSID_MYGCS")
+SYSID_NAMES_FROM_4_7 = ("MAV_SYSID", "MAV_GCS_SYSID")
+
+
+def claimed_version(peer: Peer) -> tuple[int, int]:
+    """(major, minor) of the ArduPilot release AUTOPILOT_VERSION claims."""
+    mark = peer.mark()
+    peer.command_long(mavlink2.MAV_CMD_REQUEST_MESSAGE, mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+    version = peer.wait_for("AUTOPILOT_VERSION", 1.0, since=mark).flight_sw_version
+    return version >> 24 & 0xFF, version >> 16 & 0xFF
+
+
+def test_system_ids_by_the_names_of_the_claimed_version(peer: Peer) -> None:
+    # The simulation claims 4.5.7 and has 4.5's names; the SITL build is 4.7.0-dev. Either
+    # way the names must be those of the version claimed, and the other names absent.
+    if claimed_version(peer) >= (4, 7):
+        (this, gcs), gone = SYSID_NAMES_FROM_4_7, SYSID_NAMES_BEFORE_4_7
+    else:
+        (this, gcs), gone = SYSID_NAMES_BEFORE_4_7, SYSID_NAMES_FROM_4_7
+    assert peer.param_get(this).param_value == peer.spec.system_id
+    assert peer.param_get(gcs).param_value == 255
+    mark = peer.mark()
+    for name in gone:
+        peer.send(
+            mavlink2.MAVLink_param_request_read_message(
+                peer.spec.system_id, 1, name.encode("ascii"), -1
+            )
+        )
+    peer.run_for(1.0)
+    answers = [m.param_id for _, m in peer.history[mark:] if m.get_type() == "PARAM_VALUE"]
+    assert not set(answers) & set(gone), answers

@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from harness import Peer, backends
+from harness import Peer
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 PREARM_CHECK = mavlink2.MAV_SYS_STATUS_PREARM_CHECK  # 0x10000000
@@ -42,7 +42,6 @@ def assert_near(peer: Peer, signal: str, at_s: float) -> None:
     )
 
 
-@backends(gaps={"sim": "sim: GPS has a 3D fix from t=0; ArduPilot's comes 10 s after boot"})
 def test_gps_fix_comes_after_boot(peer: Peer) -> None:
     def fixed(msg: Any) -> bool:
         return bool(msg.fix_type >= mavlink2.GPS_FIX_TYPE_3D_FIX)
@@ -50,7 +49,6 @@ def test_gps_fix_comes_after_boot(peer: Peer) -> None:
     assert_near(peer, "gps", comes_on(peer, "GPS_RAW_INT", fixed, "a 3D GPS fix"))
 
 
-@backends(gaps={"sim": "sim: SYS_STATUS has no PREARM_CHECK bit (0x10000000)"})
 def test_prearm_check_passes_when_ready(peer: Peer) -> None:
     def present(msg: Any) -> bool:
         return bool(msg.onboard_control_sensors_present & PREARM_CHECK)
@@ -62,7 +60,6 @@ def test_prearm_check_passes_when_ready(peer: Peer) -> None:
     assert_near(peer, "prearm", comes_on(peer, "SYS_STATUS", healthy, "pre-arm checks passing"))
 
 
-@backends(gaps={"sim": "sim: sends no EKF_STATUS_REPORT (refuses the request for it)"})
 def test_ekf_gets_an_absolute_horizontal_position(peer: Peer) -> None:
     assert peer.subscribed["EKF_STATUS_REPORT"] == mavlink2.MAV_RESULT_ACCEPTED
 

@@ -66,13 +66,35 @@ def test_interval_zero_restores_the_default(restored: Peer) -> None:
     assert reported_interval_us(peer) == default_us
 
 
-@backends(
-    gaps={
-        "sim": "sim: refuses an interval for a message it cannot stream with FAILED; "
-        "ArduPilot says DENIED"
-    }
-)
 def test_a_message_that_cannot_stream_is_denied(peer: Peer) -> None:
     assert peer.message_interval("COMMAND_ACK", 200_000).result == mavlink2.MAV_RESULT_DENIED
     ack = peer.command_long(mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, 60000, 200_000)
     assert ack.result == mavlink2.MAV_RESULT_DENIED
+
+
+# What each firmware streams ATTITUDE at before anyone asks (ArduCopter: nothing).
+DEFAULT_HZ = {"rover": 1.0, "copter": 0.0, "plane": 1.0}
+
+
+def rate_of(peer: Peer, name: str, window_s: float) -> float:
+    """``name``'s rate over the last ``window_s`` of the history, by the autopilot's time."""
+    end_s = peer.now_s
+    times = [t for t, m in peer.history if m.get_type() == name and t > end_s - window_s]
+    return len(times) / window_s
+
+
+@backends("connecting_peer")
+def test_a_request_before_the_first_heartbeat_is_lost(connecting_peer: Peer) -> None:
+    # ArduPilot sets every interval from its SRn_* rates when it first sends (which is
+    # also when it sends its first HEARTBEAT): a request that arrived before that is
+    # acknowledged and forgotten; one after it is kept, even before "ArduPilot Ready".
+    peer = connecting_peer
+    early = peer.message_interval("ATTITUDE", 100_000, within_s=10)
+    assert early.result == mavlink2.MAV_RESULT_ACCEPTED
+    peer.wait_for("HEARTBEAT", 30, since=0)
+    assert peer.message_interval("SYSTEM_TIME", 100_000).result == mavlink2.MAV_RESULT_ACCEPTED
+    clock = peer.wait_for("SYSTEM_TIME", 30)
+    assert clock.time_boot_ms < 3000, "streams came after 'ArduPilot Ready' (~2.5 s)"
+    peer.run_for(4.0)
+    assert rate_of(peer, "SYSTEM_TIME", 3.0) == pytest.approx(10.0, abs=0.7)
+    assert rate_of(peer, "ATTITUDE", 3.0) == pytest.approx(DEFAULT_HZ[peer.kind], abs=0.4)
