@@ -209,12 +209,37 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 
 
 def cmd_dry_run(args: argparse.Namespace) -> int:
-    """Simulate the mission against a simulated fleet and evaluate its checks."""
-    from clark_engine.sim.dryrun import run_dry_run
+    """Fly the mission on a simulated fleet (or ArduPilot SITL) and evaluate its checks."""
+    from clark_engine.sim.dryrun import DEFAULT_SITL_SPEEDUP, run_dry_run
     from clark_engine.sim.realtime import DEFAULT_HOST
+    from clark_engine.sim.sitl import SitlError, SitlInstall
 
+    on_sitl = args.autopilot == "sitl"
+    if not on_sitl:
+        for given, option in (
+            (args.sitl is not None, "--sitl"),
+            (args.sitl_speedup is not None, "--sitl-speedup"),
+        ):
+            if given:
+                raise UsageError(f"{option} only applies with --autopilot sitl")
+    elif args.speed is not None:
+        raise UsageError(
+            "--speed does not go with --autopilot sitl: SITL sets the pace (--sitl-speedup X)"
+        )
     if args.realtime:
-        if args.mavlink_port is None:
+        if on_sitl:
+            for given, option in (
+                (args.mavlink_port is not None, "--mavlink-port"),
+                (args.mavlink_host is not None, "--mavlink-host"),
+                (args.sitl_speedup is not None, "--sitl-speedup"),
+            ):
+                if given:
+                    raise UsageError(
+                        f"{option} does not go with --realtime --autopilot sitl: SITL runs at "
+                        "real time and a ground station connects to each vehicle's SITL "
+                        "directly (its port is printed at the start)"
+                    )
+        elif args.mavlink_port is None:
             raise UsageError(
                 "--realtime needs --mavlink-port BASE: vehicle k's autopilot listens on "
                 "UDP port BASE+k (e.g. --mavlink-port 14560; see docs/realtime.md)"
@@ -228,6 +253,12 @@ def cmd_dry_run(args: argparse.Namespace) -> int:
         ):
             if given:
                 raise UsageError(f"{option} only applies with --realtime")
+    install = None
+    if on_sitl:
+        try:
+            install = SitlInstall.find(args.sitl)
+        except SitlError as exc:
+            raise UsageError(str(exc)) from None
     outcome = run_dry_run(
         Path(args.mission),
         seed=args.seed,
@@ -235,9 +266,12 @@ def cmd_dry_run(args: argparse.Namespace) -> int:
         report=Path(args.report) if args.report else None,
         speed=args.speed,
         faults=args.fault or (),
-        realtime_base_port=args.mavlink_port if args.realtime else None,
+        realtime_base_port=args.mavlink_port if args.realtime and not on_sitl else None,
         realtime_host=args.mavlink_host or DEFAULT_HOST,
         workers=args.workers,
+        sitl=install,
+        sitl_speedup=args.sitl_speedup or DEFAULT_SITL_SPEEDUP,
+        realtime=args.realtime,
     )
     return outcome.exit_code
 
@@ -360,6 +394,24 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="ADDRESS",
         help="with --realtime: the address to listen on (127.0.0.1 by default; 0.0.0.0 "
         "for stations on other machines)",
+    )
+    p.add_argument(
+        "--autopilot",
+        choices=("sim", "sitl"),
+        default="sim",
+        help="sim: the simulated autopilot (the default); sitl: real ArduPilot SITL for every "
+        "vehicle, the states compared with the simulated autopilot's run",
+    )
+    p.add_argument(
+        "--sitl",
+        metavar="PATH",
+        help="with --autopilot sitl: the folder with the `sitl` launcher ($CLARK_SITL by default)",
+    )
+    p.add_argument(
+        "--sitl-speedup",
+        type=_period_s,
+        metavar="X",
+        help="with --autopilot sitl: run SITL X times faster than real time (10 by default)",
     )
     p.set_defaults(func=cmd_dry_run)
 

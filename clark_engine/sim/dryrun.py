@@ -2,7 +2,12 @@
 
 This is the command's logic, apart from argument parsing: it turns a mission
 file into a verdict. Exit codes: 0 when every check holds, 1 when one fails or
-the mission is invalid, 2 for usage errors.
+the mission is invalid, 2 for usage errors (and a SITL that cannot be started).
+
+With ``--autopilot sitl`` every vehicle's autopilot is real ArduPilot SITL
+(:mod:`clark_engine.sim.sitl_backend`); the mission is then also simulated on the
+simulated autopilot, and the two runs' state timelines are compared
+(:mod:`clark_engine.sim.timeline`): one more row in the checks table.
 """
 
 from __future__ import annotations
@@ -13,7 +18,7 @@ import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any, Final, TextIO
 
 from clark_engine.errors import UsageError
 from clark_engine.mission.model import Mission
@@ -23,6 +28,7 @@ from clark_engine.sim.parallel import choose_workers, run_split
 from clark_engine.sim.realtime import (
     DEFAULT_HOST,
     MavlinkBridge,
+    StopSwitch,
     stop_on_interrupt,
     vehicle_names,
 )
@@ -33,7 +39,14 @@ from clark_engine.sim.report import (
     plot_tracks,
     write_summary,
 )
+from clark_engine.sim.sitl import SitlError, SitlInstall
+from clark_engine.sim.sitl_backend import SitlBackend
+from clark_engine.sim.timeline import DEFAULT_TOLERANCE_S, Comparison, compare
 from clark_engine.validation import validate_file
+
+DEFAULT_SITL_SPEEDUP: Final = 10.0
+"""SITL's speed-up when ``--sitl-speedup`` is not given: a 3-minute mission in about
+20 s, while ArduPilot still keeps its loop rates on a busy 2-core machine."""
 
 _FAULT = re.compile(
     r"^(?P<kind>kill|link_drop|station_silent|autopilot_disconnect|corrupt)"
@@ -84,6 +97,8 @@ class Outcome:
     exit_code: int
     results: list[CheckResult]
     result: DryRunResult | None
+    comparison: Comparison | None = None
+    """With SITL: its states against the simulated autopilot's."""
 
 
 def _progress(stream: TextIO) -> Any:
@@ -107,6 +122,9 @@ def run_dry_run(
     realtime_base_port: int | None = None,
     realtime_host: str = DEFAULT_HOST,
     workers: int | None = None,
+    sitl: SitlInstall | None = None,
+    sitl_speedup: float = DEFAULT_SITL_SPEEDUP,
+    realtime: bool = False,
     out: TextIO | None = None,
     err: TextIO | None = None,
 ) -> Outcome:
@@ -125,14 +143,21 @@ def run_dry_run(
             and the report is still written. Off when None.
         realtime_host: The address those ports are bound to (loopback by default).
         workers: Split the agents across this many processes (:mod:`clark_engine.sim.parallel`:
-            the same results, sooner); automatic when None. Paced and real-time runs
-            stay in one process.
+            the same results, sooner); automatic when None. Paced, real-time and SITL
+            runs stay in one process.
+        sitl: Fly every vehicle's autopilot as ArduPilot SITL from this install, and
+            compare the states with a simulated run's; the simulated autopilot when None.
+        sitl_speedup: SITL's speed-up (``speed`` does not apply: SITL sets the pace).
+        realtime: With ``sitl``: SITL at real time, each vehicle's SERIAL1 free for a
+            ground station; Ctrl-C ends the run early. (Without SITL, real time is
+            ``realtime_base_port``.)
         out: Where the checks table goes; ``sys.stdout`` (as it is at the call) when None.
         err: Where progress and diagnostics go; ``sys.stderr`` when None.
 
     Raises:
         UsageError: Unreadable mission, bad fault, a report folder that cannot be made,
-            or (in real time) no vehicle or a port that cannot be bound.
+            (in real time) no vehicle or a port that cannot be bound, or a SITL that
+            cannot be started or stops answering.
     """
     out = sys.stdout if out is None else out
     err = sys.stderr if err is None else err
@@ -160,18 +185,50 @@ def run_dry_run(
         if realtime_base_port is not None
         else None
     )
+    switch = StopSwitch() if sitl is not None and realtime else None
+    simulated: DryRunResult | None = None
     try:
-        result = _simulate(
-            mission, mission_path, seed, until, report, speed, extra, bridge, workers, err
-        )
+        if sitl is None:
+            result = _simulate(
+                mission, mission_path, seed, until, report, speed, extra, bridge, workers, err
+            )
+        else:
+            if workers is not None and workers > 1:
+                print(f"  note: --workers {workers} ignored: SITL sets the pace", file=err)
+            # The simulated autopilot first (seconds), so a SITL run has something to meet.
+            simulated = DryRun(
+                mission, mission_path, seed=seed, until_s=until, extra_faults=extra
+            ).run()
+            result = _fly_sitl(
+                mission,
+                mission_path,
+                seed,
+                until,
+                report,
+                extra,
+                sitl,
+                1.0 if realtime else sitl_speedup,
+                switch,
+                err,
+            )
+    except SitlError as exc:
+        raise UsageError(str(exc)) from None
     finally:
         if bridge is not None:
             bridge.close()
-    stopped_at_s = bridge.stopped_at_s if bridge is not None else None
+    stopper = bridge if bridge is not None else switch
+    stopped_at_s = stopper.stopped_at_s if stopper is not None else None
     if stopped_at_s is not None:
         print(f"stopped at {stopped_at_s:.1f} s of {until:g} s (Ctrl-C)", file=err)
     until = min(until, result.recording.end_s)  # earlier when Ctrl-C ended a real-time run
     results = evaluate(mission.checks, result.recording, result.configs, mission.origin)
+    comparison = None
+    if simulated is not None:
+        tolerance = float(mission.sim.get("sitl_tolerance_s", DEFAULT_TOLERANCE_S))
+        comparison = compare(
+            simulated.recording, result.recording, vehicle_names(mission), tolerance, end_s=until
+        )
+        results.append(comparison.check())
     rate = until / result.wall_s if result.wall_s > 0 else float("inf")
     print(f"simulated {until:g} s in {result.wall_s:.1f} s ({rate:.0f}x real time)", file=err)
     if results:
@@ -179,12 +236,12 @@ def run_dry_run(
     else:
         print("the mission declares no checks", file=out)
     if report is not None:
-        _write_report(report, mission.name, seed, until, result, results)
+        _write_report(report, mission.name, seed, until, result, results, comparison)
         print(f"report: {report / 'summary.md'}", file=err)
     failed = [r for r in results if not r.passed]
     if failed:
         print(f"{len(failed)} of {len(results)} checks failed", file=err)
-    return Outcome(1 if failed else 0, results, result)
+    return Outcome(1 if failed else 0, results, result, comparison)
 
 
 def _simulate(
@@ -204,20 +261,8 @@ def _simulate(
     Raises:
         UsageError: The report folder cannot be made.
     """
-    log_dir: Path | None = None
-    if report is not None:
-        try:
-            report.mkdir(parents=True, exist_ok=True)
-            log_dir = report / "logs"
-            if log_dir.exists():
-                shutil.rmtree(log_dir)
-            log_dir.mkdir()
-        except OSError as exc:
-            raise UsageError(
-                f"cannot write the report to {report}: {exc.strerror or exc}"
-            ) from None
-    interactive = err.isatty() if hasattr(err, "isatty") else False
-    progress = _progress(err) if interactive or until_s > 60 else None
+    log_dir = _log_dir(report)
+    progress = _progress_for(err, until_s)
     paced = bridge is not None or speed is not None
     processes = 1 if paced else choose_workers(workers, mission)
     if workers is not None and workers > 1 and processes == 1:
@@ -286,6 +331,104 @@ def _simulate(
     return result
 
 
+def _log_dir(report: Path | None) -> Path | None:
+    """The report's ``logs`` folder, made empty; None without a report.
+
+    Raises:
+        UsageError: The report folder cannot be made.
+    """
+    if report is None:
+        return None
+    try:
+        report.mkdir(parents=True, exist_ok=True)
+        log_dir = report / "logs"
+        if log_dir.exists():
+            shutil.rmtree(log_dir)
+        log_dir.mkdir()
+    except OSError as exc:
+        raise UsageError(f"cannot write the report to {report}: {exc.strerror or exc}") from None
+    return log_dir
+
+
+def _progress_for(err: TextIO, until_s: float) -> Any:
+    """A progress bar on ``err`` for a terminal or a long run; None otherwise."""
+    interactive = err.isatty() if hasattr(err, "isatty") else False
+    return _progress(err) if interactive or until_s > 60 else None
+
+
+def _fly_sitl(
+    mission: Mission,
+    mission_path: Path,
+    seed: int,
+    until_s: float,
+    report: Path | None,
+    faults: Sequence[Mapping[str, Any]],
+    install: SitlInstall,
+    speedup: float,
+    switch: StopSwitch | None,
+    err: TextIO,
+) -> DryRunResult:
+    """The run with every vehicle's autopilot on ArduPilot SITL (one process each).
+
+    With a ``switch`` (real time), Ctrl-C ends the run early and each vehicle's
+    SERIAL1 is announced for a ground station.
+
+    Raises:
+        UsageError: The report folder cannot be made.
+        SitlError: A SITL could not be started or stopped answering.
+    """
+    log_dir = _log_dir(report)
+    progress = _progress_for(err, until_s)
+    if mission.sim.get("autopilot_ready_s") is not None:
+        print(
+            f"  note: sim.autopilot_ready_s ({mission.sim['autopilot_ready_s']:g} s) speeds up "
+            "the simulated autopilot only; SITL takes its own time (about 42 s for ArduRover "
+            "and ArduCopter, 23 s for ArduPlane), so the runs' timelines will differ",
+            file=err,
+        )
+    print(
+        f"dry run of {mission.name}: {len(mission.agents)} agents, {until_s:g} s, seed {seed}, "
+        f"on ArduPilot SITL at {speedup:g}x ({install.folder})",
+        file=err,
+    )
+    run = DryRun(
+        mission,
+        mission_path,
+        seed=seed,
+        until_s=until_s,
+        log_dir=log_dir,
+        extra_faults=faults,
+        progress=progress,
+        sitl=install,
+        sitl_speedup=speedup,
+    )
+    try:
+        if switch is None:
+            result = run.run()
+        else:
+            switch.attach(run)
+            for name, agent in run.agents.items():
+                backend = agent.backend
+                if isinstance(backend, SitlBackend):
+                    port = backend.process.ports.serial1_tcp_port
+                    print(
+                        f"  {name}: ArduPilot SITL, system id {backend.system_id}; a ground "
+                        f"station connects to tcp:127.0.0.1:{port} (its SERIAL1), e.g. "
+                        f"mavproxy.py --master=tcp:127.0.0.1:{port}",
+                        file=err,
+                    )
+            with stop_on_interrupt(switch.stop):
+                print(
+                    "real time: Ctrl-C ends the run early (the report is still written)", file=err
+                )
+                result = run.run()
+    finally:
+        run.close()  # SITL stops even when the run never started
+    if progress is not None:
+        err.write("\n")
+    return result
+
+
 def _write_report(
     report: Path,
     mission: str,
@@ -293,6 +436,7 @@ def _write_report(
     until_s: float,
     result: DryRunResult,
     results: list[CheckResult],
+    comparison: Comparison | None = None,
 ) -> None:
     from clark_engine.analyze import analyze_folder, format_text
 
@@ -313,4 +457,5 @@ def _write_report(
         recording=result.recording,
         latency=format_text(analysis),
         plots=plots,
+        comparison=comparison.table() if comparison is not None else None,
     )

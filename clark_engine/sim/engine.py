@@ -145,6 +145,7 @@ class SimAgent:
     ticks: int = 0
     autopilot_down: list[Window] = field(default_factory=list)
     signal_keys: list[tuple[str, str, int]] = field(default_factory=list)  # (label, via, number)
+    signal_due_s: float | None = None  # the tick whose signals are recorded at the next
     failsafe_seen: bool = False
     autopilot_lost_seen: bool = False
 
@@ -925,6 +926,7 @@ class DryRun:
             self._route(station, station.runtime.deliver(command, t_s), t_s)
 
     def _tick(self, sim_agent: SimAgent, t_s: float) -> None:
+        self._record_signals(sim_agent)
         out = sim_agent.runtime.tick(t_s)
         sim_agent.ticks += 1
         self._route(sim_agent, out, t_s)
@@ -939,18 +941,30 @@ class DryRun:
         if runtime.autopilot_lost and not sim_agent.autopilot_lost_seen:
             sim_agent.autopilot_lost_seen = True
             self.recording.safety.setdefault(sim_agent.name, []).append((t_s, "autopilot_lost"))
-        backend = sim_agent.backend
-        if backend is not None and sim_agent.signal_keys:
-            # RC inputs and servo outputs, each read only if a recorded signal is on it.
-            inputs: tuple[int, ...] | None = None
-            outputs: tuple[int, ...] | None = None
-            for label, via, number in sim_agent.signal_keys:
-                if via == "rc_override":
-                    values = inputs = backend.rc_inputs() if inputs is None else inputs
-                else:
-                    values = outputs = backend.servo_outputs() if outputs is None else outputs
-                pwm = values[number - 1] if number - 1 < len(values) else 0
-                self.recording.signals[(sim_agent.name, label)].append((t_s, int(pwm)))
+        if sim_agent.signal_keys:
+            sim_agent.signal_due_s = t_s
+
+    def _record_signals(self, sim_agent: SimAgent) -> None:
+        """What the autopilot received from the previous tick, recorded at that tick's time.
+
+        Read just before the next tick commands anything: a simulated autopilot takes
+        a command at once, but ArduPilot SITL reports it in its next RC_CHANNELS or
+        SERVO_OUTPUT_RAW, so reading right after the tick would see the one before.
+        RC inputs and servo outputs are each read only if a recorded signal is on them.
+        """
+        backend, t_s = sim_agent.backend, sim_agent.signal_due_s
+        if backend is None or t_s is None:
+            return
+        sim_agent.signal_due_s = None
+        inputs: tuple[int, ...] | None = None
+        outputs: tuple[int, ...] | None = None
+        for label, via, number in sim_agent.signal_keys:
+            if via == "rc_override":
+                values = inputs = backend.rc_inputs() if inputs is None else inputs
+            else:
+                values = outputs = backend.servo_outputs() if outputs is None else outputs
+            pwm = values[number - 1] if number - 1 < len(values) else 0
+            self.recording.signals[(sim_agent.name, label)].append((t_s, int(pwm)))
 
     def _route(self, sim_agent: SimAgent, commands: Sequence[Command], t_s: float) -> None:
         for command in commands:

@@ -128,6 +128,41 @@ def vehicle_ports(vehicles: Sequence[str], base_port: int) -> dict[str, int]:
     return {name: base_port + k for k, name in enumerate(vehicles)}
 
 
+class StopSwitch:
+    """Ends a run early, as if ``--until`` were now (Ctrl-C in a real-time run).
+
+    :meth:`stop` is safe from any thread and from a signal handler: it only sets a
+    flag; the run's own thread ends the loop at its next step (:meth:`check`), so
+    the logs close and the report is written as after a normal end.
+    """
+
+    def __init__(self) -> None:
+        self._stop = threading.Event()
+        self.stopped_at_s: float | None = None
+        """The simulated time at which :meth:`stop` took effect; None while running."""
+
+    def stop(self) -> None:
+        """End the run at its next step."""
+        self._stop.set()
+
+    def check(self, run: DryRun, t_s: float) -> None:
+        """Called at every step of ``run``: end it now when :meth:`stop` was called."""
+        if self._stop.is_set() and self.stopped_at_s is None:
+            self.stopped_at_s = t_s
+            run.until_s = min(run.until_s, t_s)
+
+    def attach(self, run: DryRun) -> None:
+        """Check at every step of ``run`` (after any hook it already has)."""
+        previous = run.on_step
+
+        def step(t_s: float) -> None:
+            if previous is not None:
+                previous(t_s)
+            self.check(run, t_s)
+
+        run.on_step = step
+
+
 class MavlinkBridge:
     """Each simulated vehicle's autopilot on a UDP port of its own, during one dry run.
 
@@ -154,9 +189,7 @@ class MavlinkBridge:
     ) -> None:
         self._run: DryRun | None = None
         self._previous_step: Callable[[float], None] | None = None
-        self._stop = threading.Event()
-        self.stopped_at_s: float | None = None
-        """The simulated time at which :meth:`stop` took effect; None while running."""
+        self._switch = StopSwitch()
         self.endpoints: list[Endpoint] = []
         """One per vehicle, in the mission's agent order, once attached."""
         self._transports: dict[str, UdpTransport] = {}
@@ -201,7 +234,12 @@ class MavlinkBridge:
         run's own thread ends the loop, so the logs close and the report is written
         as after a normal end.
         """
-        self._stop.set()
+        self._switch.stop()
+
+    @property
+    def stopped_at_s(self) -> float | None:
+        """The simulated time at which :meth:`stop` took effect; None while running."""
+        return self._switch.stopped_at_s
 
     def peers(self, agent: str) -> tuple[tuple[str, int], ...]:
         """The UDP addresses of the stations a vehicle has heard, oldest first."""
@@ -258,9 +296,7 @@ class MavlinkBridge:
                 continue  # as above: the run goes on; the station retries
             if data:
                 run.inject(name, data, t_s)
-        if self._stop.is_set() and self.stopped_at_s is None:
-            self.stopped_at_s = t_s
-            run.until_s = min(run.until_s, t_s)
+        self._switch.check(run, t_s)
 
     def _close_sockets(self) -> None:
         for transport in self._transports.values():

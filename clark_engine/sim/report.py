@@ -173,8 +173,13 @@ def write_summary(
     recording: Recording,
     latency: str,
     plots: Sequence[str],
+    comparison: str | None = None,
 ) -> None:
-    """``summary.md``: the run, the checks, the timeline, the link tables."""
+    """``summary.md``: the run, the checks, the timeline, the link tables.
+
+    ``comparison``: with ``--autopilot sitl``, the table of each state's first entry on
+    SITL and on the simulated autopilot (:meth:`~clark_engine.sim.timeline.Comparison.table`).
+    """
     passed = sum(r.passed for r in results)
     verdict = "all checks pass" if passed == len(results) else f"{len(results) - passed} failed"
     text = [
@@ -194,6 +199,18 @@ def write_summary(
         "## State timeline",
         "",
         timeline_text(recording),
+        *(
+            [
+                "## ArduPilot SITL against the simulated autopilot",
+                "",
+                "When each state was first entered in this run (SITL) and in the same "
+                "mission on the simulated autopilot.",
+                "",
+                comparison,
+            ]
+            if comparison is not None
+            else []
+        ),
         "## Links (clark analyze)",
         "",
         "```",

@@ -143,6 +143,16 @@ class InstancePorts:
         return MAVLINK_TCP_BASE_PORT + PORT_STEP * self.instance
 
     @property
+    def serial1_tcp_port(self) -> int:
+        """SERIAL1: a second MAVLink server, free for a ground station during a run."""
+        return SERIAL1_TCP_BASE_PORT + PORT_STEP * self.instance
+
+    @property
+    def serial2_tcp_port(self) -> int:
+        """SERIAL2: a third MAVLink server (where a dry run's SITL backend reads its streams)."""
+        return SERIAL2_TCP_BASE_PORT + PORT_STEP * self.instance
+
+    @property
     def rc_input_udp_port(self) -> int:
         """Where SITL reads the pilot's RC inputs from."""
         return RC_INPUT_UDP_BASE_PORT + PORT_STEP * self.instance
@@ -642,7 +652,7 @@ class SitlProcess:
                 )
             time.sleep(_POLL_S)
 
-    def connect(self, timeout_s: float = 30.0) -> socket.socket:
+    def connect(self, timeout_s: float = 30.0, *, port: int | None = None) -> socket.socket:
         """A TCP connection to its MAVLink port (SERIAL0), retried until SITL accepts.
 
         SITL starts its clock when this connection is made, and accepts one client at
@@ -650,6 +660,7 @@ class SitlProcess:
 
         Args:
             timeout_s: Wall-clock seconds to keep trying.
+            port: Another of its TCP ports (SERIAL1, SERIAL2), once SERIAL0 is connected.
 
         Returns:
             A connected, blocking socket with TCP_NODELAY; the caller closes it.
@@ -659,7 +670,7 @@ class SitlProcess:
         """
         if self._process is None:
             raise SitlError("SITL is not running: call start() first")
-        address = ("127.0.0.1", self.ports.mavlink_tcp_port)
+        address = ("127.0.0.1", self.ports.mavlink_tcp_port if port is None else port)
         deadline = time.monotonic() + timeout_s
         while True:
             self.raise_if_exited()

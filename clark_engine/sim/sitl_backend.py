@@ -7,13 +7,19 @@ behind the dry run's :class:`~clark_engine.sim.backend.VehicleBackend`: the
 engine's runtime and MAVLink adapter, the radio mesh, the cameras, the operator
 script and the checks stay exactly as in a simulated run.
 
+Two links. The engine's adapter (and the simulated pilot) speak to SITL on its
+SERIAL0, as they would to a flight controller's telemetry port: that link carries
+only what they ask for. The backend reads its own streams on SERIAL2, so that
+asking for them never changes the rates the adapter set: a message with a time
+stamp 40 times a second as its clock, SIM_STATE (the simulator's true position and
+attitude) 20 times a second for the tracks, the checks and the radio ranges, and
+RC_CHANNELS and SERVO_OUTPUT_RAW 40 times a second for the checks of what the
+autopilot received. SERIAL1 stays free for a ground station.
+
 Time. SITL runs on its own clock (real time times its speed-up) and cannot be
 paused, so it sets the pace: :meth:`SitlBackend.step` returns once the SITL
 vehicle's clock (the ``time_boot_ms`` of what it sends) has passed the run's time,
-so the engine is never ahead of any autopilot. The backend asks SITL for a
-message with a time stamp 40 times a second as its clock, and for SIM_STATE (the
-simulator's true position and attitude) 20 times a second for the tracks, the
-checks and the radio ranges. ArduCopter streams nothing with a time stamp for its
+so the engine is never ahead of any autopilot. ArduCopter streams nothing with a time stamp for its
 first seconds (it loses stream requests until about 2.5 s, and its heartbeats
 carry no time), so until the first time stamp the clock is the wall time since
 the connection times the speed-up: what SITL sends in those seconds reaches the
@@ -49,11 +55,19 @@ from clark_engine.sim.model import Truth
 from clark_engine.sim.sitl import SitlError, SitlProcess
 
 CLOCK_MESSAGE: Final = "SCALED_PRESSURE"
-"""A cheap time-stamped message the engine's adapter never asks for: the backend's clock."""
-CLOCK_INTERVAL_US: Final = 25_000
+"""A cheap time-stamped message: the backend's clock."""
+FAST_INTERVAL_US: Final = 25_000
 """40 Hz, the fastest ArduPilot streams (measured)."""
 TRUTH_INTERVAL_US: Final = 50_000
 """SIM_STATE at 20 Hz: the true position for tracks (sampled at 10 Hz) and radio ranges."""
+OWN_STREAMS: Final[Mapping[str, int]] = {
+    CLOCK_MESSAGE: FAST_INTERVAL_US,
+    "SIM_STATE": TRUTH_INTERVAL_US,
+    "RC_CHANNELS": FAST_INTERVAL_US,
+    "SERVO_OUTPUT_RAW": FAST_INTERVAL_US,
+    "VFR_HUD": TRUTH_INTERVAL_US,
+}
+"""What the backend asks SITL to send on its own link, message -> interval."""
 REQUEST_RETRY_WALL_S: Final = 0.3
 """Stream requests are repeated this often (wall clock) until the stream arrives:
 ArduPilot acknowledges and loses those sent before it is ready (measured)."""
@@ -95,7 +109,8 @@ class SitlBackend(VehicleBackend):
         self._params_due: dict[str, float] = dict(params or {})
         self._param_tries: dict[str, int] = {}
         self._next_param_wall = 0.0
-        self._sock: socket.socket | None = None
+        self._sock: socket.socket | None = None  # SERIAL0: the engine's link
+        self._own: socket.socket | None = None  # SERIAL2: the backend's streams
         self._out = bytearray()
         self._mav = mavlink2.MAVLink(self, srcSystem=_SYSTEM, srcComponent=_COMPONENT)
         self._parser = mavlink2.MAVLink(None, _SYSTEM, _COMPONENT)
@@ -104,7 +119,7 @@ class SitlBackend(VehicleBackend):
         self._clock_s: float | None = None
         self._connected_wall: float | None = None
         self._offset_s = 0.0
-        self._streams_wanted = {CLOCK_MESSAGE: CLOCK_INTERVAL_US, "SIM_STATE": TRUTH_INTERVAL_US}
+        self._streams_wanted = dict(OWN_STREAMS)
         self._streams_seen: set[str] = set()
         self._next_request_wall = 0.0
         self._last_byte_wall = time.monotonic()
@@ -139,10 +154,12 @@ class SitlBackend(VehicleBackend):
         return (time.monotonic() - self._connected_wall) * self.process.speedup
 
     def connect(self, timeout_s: float = 30.0) -> None:
-        """Connect to SITL (its clock starts), and ask for the backend's own streams."""
+        """Connect the engine's link (SITL's clock starts) and the backend's own."""
         self._sock = self.process.connect(timeout_s=timeout_s)
         self._sock.setblocking(False)
         self._connected_wall = self._last_byte_wall = time.monotonic()
+        self._own = self.process.connect(timeout_s, port=self.process.ports.serial2_tcp_port)
+        self._own.setblocking(False)
         self._duties()
 
     def start_run_here(self) -> None:
@@ -194,10 +211,11 @@ class SitlBackend(VehicleBackend):
         self.process.rc_input(self._pilot_us)
 
     def close(self) -> None:
-        """Close the connection and stop SITL."""
-        if self._sock is not None:
-            self._sock.close()
-            self._sock = None
+        """Close the connections and stop SITL."""
+        for sock in (self._sock, self._own):
+            if sock is not None:
+                sock.close()
+        self._sock = self._own = None
         self.process.stop()
 
     # -- what the backend does itself -------------------------------------------------------
@@ -207,9 +225,16 @@ class SitlBackend(VehicleBackend):
         self._out += data
 
     def _flush(self) -> None:
-        if self._out:
+        """Send what the backend's own encoder wrote, on its own link."""
+        if self._out and self._own is not None:
             data, self._out = bytes(self._out), bytearray()
-            self.send(data, 0.0)
+            self._own.setblocking(True)
+            try:
+                self._own.sendall(data)
+            except OSError as exc:
+                raise self.process.failure(f"the MAVLink connection broke ({exc})") from exc
+            finally:
+                self._own.setblocking(False)
 
     def _duties(self) -> None:
         """Ask for the backend's streams until they come; set the parameters until echoed."""
@@ -239,29 +264,34 @@ class SitlBackend(VehicleBackend):
         self._flush()
 
     def _read(self, timeout_s: float) -> bool:
-        """Read what SITL sent (waiting up to ``timeout_s``); False when nothing came."""
-        sock = self._sock
-        if sock is None:
+        """Read what SITL sent on both links (waiting up to ``timeout_s``); False when nothing.
+
+        The engine's link is kept as bytes for :meth:`step`; the backend's own is parsed.
+        """
+        if self._sock is None or self._own is None:
             raise SitlError("the SITL backend is not connected")
-        ready, _, _ = select.select([sock], [], [], timeout_s)
+        ready, _, _ = select.select([self._sock, self._own], [], [], timeout_s)
         if not ready:
             if time.monotonic() - self._last_byte_wall > STALL_WALL_S:
                 self.process.raise_if_exited()
                 raise self.process.failure(f"sent nothing for {STALL_WALL_S:g} s")
             return False
-        try:
-            data = sock.recv(65536)
-        except BlockingIOError:
-            return False
-        except OSError as exc:
-            raise self.process.failure(f"the MAVLink connection broke ({exc})") from exc
-        if not data:
-            self.process.raise_if_exited()
-            raise self.process.failure("closed the MAVLink connection")
-        self._last_byte_wall = time.monotonic()
-        self._inbox += data
-        for msg in self._parser.parse_buffer(data) or []:
-            self._note(msg)
+        for sock in ready:
+            try:
+                data = sock.recv(65536)
+            except BlockingIOError:
+                continue
+            except OSError as exc:
+                raise self.process.failure(f"the MAVLink connection broke ({exc})") from exc
+            if not data:
+                self.process.raise_if_exited()
+                raise self.process.failure("closed the MAVLink connection")
+            self._last_byte_wall = time.monotonic()
+            if sock is self._sock:
+                self._inbox += data
+            else:
+                for msg in self._parser.parse_buffer(data) or []:
+                    self._note(msg)
         return True
 
     def _note(self, msg: Any) -> None:

@@ -15,6 +15,7 @@ once the first lap matched.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Final
@@ -116,10 +117,12 @@ class Comparison:
         return "\n".join(lines) + "\n"
 
 
-def first_entries(recording: Recording, agent: str) -> dict[str, float]:
-    """Each state path the agent entered, with the first time, in entry order."""
+def first_entries(recording: Recording, agent: str, end_s: float = math.inf) -> dict[str, float]:
+    """Each state path the agent entered up to ``end_s``, with the first time, in entry order."""
     out: dict[str, float] = {}
     for entry in recording.states.get(agent, []):
+        if entry.time_s > end_s:
+            break
         for path in entry.entered:
             out.setdefault(path, entry.time_s)
     return out
@@ -130,12 +133,17 @@ def compare(
     sitl: Recording,
     agents: Iterable[str],
     tolerance_s: float = DEFAULT_TOLERANCE_S,
+    *,
+    end_s: float = math.inf,
 ) -> Comparison:
-    """Line up the two runs' state timelines (see the module docstring)."""
+    """Line up the two runs' state timelines (see the module docstring).
+
+    ``end_s``: compare up to this time only (a SITL run ended early by Ctrl-C).
+    """
     rows: list[StateTimes] = []
     out_of_order: list[str] = []
     for agent in agents:
-        ours, theirs = first_entries(simulated, agent), first_entries(sitl, agent)
+        ours, theirs = first_entries(simulated, agent, end_s), first_entries(sitl, agent, end_s)
         if _order(ours, theirs) != _order(theirs, ours):
             out_of_order.append(agent)
         for path in [*ours, *(p for p in theirs if p not in ours)]:

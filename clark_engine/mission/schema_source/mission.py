@@ -349,6 +349,15 @@ def _sim() -> Schema:
                 exclusive_minimum=0,
                 maximum=600,
             ),
+            "sitl_tolerance_s": number(
+                "With clark dry-run --autopilot sitl: how far apart each state's first entry "
+                "may be on ArduPilot SITL and on the simulated autopilot for the comparison "
+                "to pass.",
+                unit="s",
+                exclusive_minimum=0,
+                maximum=3600,
+                default=10.0,
+            ),
         },
     )
 

@@ -7,8 +7,9 @@ stale report must never leave the vehicle in the mode a previous state asked for
 (a change to the current mode is a no-op for ArduPilot). ``update`` is RUNNING
 until a transition leaves the state; SetMode is repeated only while the
 autopilot has refused it and nobody changed the mode since
-(:class:`~._shared.ModeRequest`), so a pilot who takes over is not fought. FAILED only when the profile names no hold mode
-(impossible for a compiled config).
+(:class:`~._shared.ModeRequest`), so a pilot who takes over is not fought.
+FAILED only when the profile names no hold mode (impossible for a compiled
+config).
 """
 
 from __future__ import annotations
