@@ -167,9 +167,10 @@ def test_mode_classification_follows_the_roles_and_documents_the_unsimulated() -
     assert plane.mode_behaviour("FBWA") is ModeBehaviour.MANUAL
     assert plane.mode_behaviour("TAKEOFF") is ModeBehaviour.TAKEOFF
     assert plane.mode_behaviour("AUTO") is ModeBehaviour.AUTO
-    assert {"CIRCLE", "AUTOLAND", "THERMAL"} <= plane.unsimulated_modes
+    assert {"CIRCLE", "AUTOLAND", "THERMAL", "LOITERALTQLAND"} <= plane.unsimulated_modes
     assert not {"TAKEOFF", "AUTO"} & plane.unsimulated_modes
-    # ArduPlane refuses quadplane modes without VTOL motors; nobody selects INITIALISING.
+    # ArduPlane refuses quadplane modes without VTOL motors (but enters LOITERALTQLAND,
+    # whose landing never starts); nobody selects INITIALISING.
     assert plane.mode_behaviour("QLOITER") is None
     assert not plane.set_mode("QHOVER")
     assert not plane.set_mode("INITIALISING")
@@ -186,7 +187,7 @@ def test_mode_classification_follows_the_roles_and_documents_the_unsimulated() -
     }
     assert refused == {
         "multirotor": set(),
-        "fixed_wing": {"INITIALISING", "LOITERALTQLAND", *quadplane},
+        "fixed_wing": {"INITIALISING", *quadplane},
         "rover": {"INITIALISING"},
     }
 

@@ -112,6 +112,11 @@ _M_PER_DEG_LAT: Final = math.radians(1.0) * EARTH_RADIUS_M
 HEARTBEAT_INTERVAL_US: Final = 1_000_000
 INITIALISING_S: Final = 1.0
 """How long a firmware with an INITIALISING mode reports it after power-on."""
+INTERNAL_ERROR_TEXT: Final = "Arm: Internal errors 0x100000 l:{line} flow_of_ctrl"
+"""The arming refusal after an internal error (AP_InternalError's flow_of_control, raised
+at a line of ArduPilot's source: ArduRover's AR_WPNav 239, ArduCopter's SmartRTL 130)."""
+STATUSTEXT_CHUNK: Final = 50
+"""Characters per STATUSTEXT; ArduPilot sends a longer text as several with one id."""
 PREARM_REPORT_PERIOD_S: Final = 30.0
 """ArduPilot prints failing pre-arm checks this often (AP_Arming's PREARM_DISPLAY_PERIOD)."""
 LANDED_REPORT_DELAY_S: Final = 1.6
@@ -403,6 +408,11 @@ class SimAutopilot:
         self._hud_message = self._mav.vfr_hud_encode(0.0, 0.0, 0, 0, 0.0, 0.0)
         self._deferred: list[str] = []  # messages asked for, sent after the acknowledgement
         self._heartbeat_sent = False  # stream requests before the first one are lost
+        # The source line of an internal error that blocks arming until a reboot (None:
+        # none), and whether ArduCopter entered SMART_RTL disarmed since it last armed.
+        self._internal_error: int | None = None
+        self._smart_rtl_entered = False
+        self._text_id = 0  # id of the last STATUSTEXT sent in chunks
         self._params: dict[str, _Param] = {"SYSID_THISMAV": _Param(system_id, _INT16)}
         for name, (value, kind) in {**COMMON_PARAMS, **self.fw.params}.items():
             if name.startswith("SR0_") and name != "SR0_PARAMS":
@@ -650,8 +660,19 @@ class SimAutopilot:
             self._disarm(now_s)
 
     def _text(self, severity: int, text: str) -> None:
-        """A STATUSTEXT, as ArduPilot's gcs().send_text."""
-        self._mav.send(self._mav.statustext_encode(severity, text.encode("ascii")[:50]))
+        """A STATUSTEXT, as ArduPilot's gcs().send_text.
+
+        A text longer than 50 characters goes in 50-character chunks that share an id
+        (1-255, counting up), each with its chunk_seq; a short one has id 0.
+        """
+        data = text.encode("ascii", "replace")
+        if len(data) <= STATUSTEXT_CHUNK:
+            self._mav.send(self._mav.statustext_encode(severity, data))
+            return
+        self._text_id = self._text_id % 255 + 1
+        for seq, start in enumerate(range(0, len(data), STATUSTEXT_CHUNK)):
+            chunk = data[start : start + STATUSTEXT_CHUNK]
+            self._mav.send(self._mav.statustext_encode(severity, chunk, self._text_id, seq))
 
     # -- arming ------------------------------------------------------------------------------
 
@@ -663,6 +684,8 @@ class SimAutopilot:
         """
         age, boot, fw = self._age_s(now_s), self.boot_times, self.fw
         reasons: list[str] = []
+        if self._internal_error is not None:
+            return [INTERNAL_ERROR_TEXT.format(line=self._internal_error)]
         if age < boot.attitude_s:
             reasons.append("Arm: EKF attitude is bad")
         elif age < boot.gps_fix_s:
@@ -706,7 +729,10 @@ class SimAutopilot:
             return _FAILED
         self._armed_s = now_s
         self._ground_since_s = None if model.airborne else now_s
+        self._smart_rtl_entered = False  # arming starts a new SmartRTL path
         self._text(_INFO, self.fw.armed_text)
+        for severity, text in self.fw.arm_texts.get(model.mode, ()):
+            self._text(severity, text)
         if self.fw.home_at == "arming":
             self._home_here(now_s)
         if self.firmware == "arduplane" and model.mode == "TAKEOFF":
@@ -730,11 +756,12 @@ class SimAutopilot:
     # -- modes -------------------------------------------------------------------------------
 
     def _set_mode(self, base_mode: int, custom_mode: int, now_s: float) -> int:
-        # Like ArduPilot: only custom modes; an unknown number is FAILED with a warning.
+        # Like ArduPilot: only custom modes; a number the build lacks is FAILED with a
+        # warning.
         if not base_mode & mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
             return _DENIED
         name = self._mode_names.get(custom_mode)
-        if name is None or name == "INITIALISING":
+        if name is None or name in self.fw.absent_modes:
             self._text(_WARNING, f"No such mode {custom_mode}")
             return _FAILED
         return self._enter_mode(name, now_s)
@@ -751,6 +778,15 @@ class SimAutopilot:
         self._target = None  # ArduPilot forgets the guided target on changing mode
         self._velocity_target = None
         self._last_mode = name
+        for severity, text in fw.enter_texts.get(name, ()):
+            self._text(severity, text)
+        if fw.name == "arducopter" and name == "SMART_RTL" and not model.armed:
+            # Measured: entering it disarmed a second time without arming in between is an
+            # internal error (the mode is entered; arming is refused until a reboot).
+            if self._smart_rtl_entered:
+                self._internal_error = 130
+                self._text(_CRITICAL, "Internal Errors 0x100000")
+            self._smart_rtl_entered = True
         if fw.name == "arducopter" and name == "LAND" and model.armed and not model.airborne:
             self._disarm(now_s)  # LAND on the ground: landed at once
         if fw.name == "arduplane" and name == "AUTO":
@@ -760,18 +796,29 @@ class SimAutopilot:
         return _ACCEPTED
 
     def _mode_refusal(self, name: str, now_s: float) -> list[tuple[int, str]] | None:
-        """ArduPilot's refusal of entering ``name`` now, as (severity, text)s; None: allowed."""
+        """ArduPilot's refusal of entering ``name`` now, as (severity, text)s; None: allowed.
+
+        In ArduPilot's order: a mode that needs a position the EKF lacks while armed
+        (Mode::enter, before the mode's own init), a mode whose init always fails here,
+        then each firmware's own conditions.
+        """
         fw, model = self.fw, self.model
         refused = [(_WARNING, fw.mode_refused_text)]
-        if name in fw.never_settable:
-            return refused
+        if model.armed and name in fw.set_needs_position_armed and not self._position_ok(now_s):
+            return [(_WARNING, fw.position_refused_text)]
+        if name in fw.refused_modes:
+            return list(fw.refused_modes[name])
+        if model.armed and not model.airborne and name in fw.refused_armed_on_ground:
+            return list(fw.refused_armed_on_ground[name])
         if fw.name == "ardurover":
             if name == "AUTO":
                 return [(_NOTICE, "No Mission. Can't set AUTO."), *refused]
-            if model.armed:
-                if name in fw.set_needs_position_armed and not self._position_ok(now_s):
-                    return refused
-            elif name in fw.set_needs_origin and not self._origin_set(now_s):
+            if not model.armed and name in fw.set_needs_origin and not self._origin_set(now_s):
+                if name == "RTL" and self._home is not None:
+                    # Home without an EKF origin: AR_WPNav fails an internal check, and
+                    # ArduRover refuses to arm from then on until it reboots (measured).
+                    self._internal_error = 239
+                    return [*refused, (_CRITICAL, "Internal Errors 0x100000")]
                 return refused
         elif fw.name == "arducopter":
             if name in fw.set_needs_origin and not self._position_ok(now_s):
@@ -1209,8 +1256,9 @@ class SimAutopilot:
             self._text(_INFO, f"No ap_message for mavlink id ({msg_id})")
             return _DENIED  # ArduPilot: no such message to stream
         if 0 < interval_us < MIN_INTERVAL_US:
-            self._text(_INFO, f"Requested rate for message ID {msg_id} too fast. Increas")
-            self._text(_INFO, "e SCHED_LOOP_RATE")
+            self._text(
+                _INFO, f"Requested rate for message ID {msg_id} too fast. Increase SCHED_LOOP_RATE"
+            )
             return _DENIED
         if self.fw.early_stream_requests_lost and not self._heartbeat_sent and now_s <= self.boot_s:
             return _ACCEPTED  # before the first HEARTBEAT: acknowledged, and lost (measured)

@@ -29,6 +29,15 @@ _INT8, _INT16, _INT32, _REAL32 = (
     mavlink2.MAV_PARAM_TYPE_REAL32,
 )
 
+_INFO, _NOTICE, _WARNING = (
+    int(mavlink2.MAV_SEVERITY_INFO),
+    int(mavlink2.MAV_SEVERITY_NOTICE),
+    int(mavlink2.MAV_SEVERITY_WARNING),
+)
+
+Texts = tuple[tuple[int, str], ...]
+"""STATUSTEXTs as (MAV_SEVERITY, text), in the order ArduPilot sends them."""
+
 FORCE_MAGIC: Final = frozenset({2989.0, 21196.0})
 """MAV_CMD_COMPONENT_ARM_DISARM param2 values that skip the checks (ArduPilot's)."""
 
@@ -88,14 +97,23 @@ class Firmware:
             HEARTBEAT, even long before "ArduPilot Ready", is kept on all three.
         not_armable: Modes arming is refused in.
         arm_needs_position: Modes arming in needs an EKF position.
+        absent_modes: Modes of the profile this build does not have: refused with
+            WARNING "No such mode N" (compiled out, or another frame's).
+        refused_modes: Modes always refused here, with the texts ArduPilot gives, in
+            order (a mode whose init fails on these vehicles: no follow target, no
+            optical flow, no landing sequence...). ``{mode}`` is the mode's name as the
+            firmware spells it.
         set_needs_origin: Modes that cannot be entered before the EKF origin is set
-            (disarmed; ArduRover).
+            (disarmed; ArduRover), or before it has a position (ArduCopter).
         set_needs_position_armed: Modes that cannot be entered armed before the EKF
-            has an absolute position (ArduRover).
+            has an absolute position; checked before anything else about the mode.
+        position_refused_text: The WARNING of that refusal.
+        refused_armed_on_ground: Modes refused when armed on the ground (texts).
+        enter_texts: Texts sent on entering a mode.
+        arm_texts: Texts sent after the armed text when arming in a mode.
         home_at: When home moves to where the vehicle is: ``arming`` (ArduCopter),
             ``disarming`` (ArduRover), ``while_disarmed`` (ArduPlane follows its GPS
             until armed).
-        never_settable: Modes always refused (no follow target configured...).
         mode_refused_text: The WARNING on a refused mode change; ``{mode}`` is the
             mode's name as ArduPilot spells it.
         not_armable_text: The CRITICAL text when the mode is not armable.
@@ -122,10 +140,12 @@ class Firmware:
     early_stream_requests_lost: bool
     not_armable: frozenset[str]
     arm_needs_position: frozenset[str]
+    absent_modes: frozenset[str]
+    refused_modes: Mapping[str, Texts]
     set_needs_origin: frozenset[str]
     set_needs_position_armed: frozenset[str]
+    position_refused_text: str
     home_at: str
-    never_settable: frozenset[str]
     mode_refused_text: str
     not_armable_text: str
     no_position_text: str
@@ -135,6 +155,9 @@ class Firmware:
     params: Mapping[str, tuple[float, int]] = field(default_factory=dict)
     flight_params: tuple[str, ...] = ()
     spelled: Mapping[str, str] = field(default_factory=dict)
+    refused_armed_on_ground: Mapping[str, Texts] = field(default_factory=dict)
+    enter_texts: Mapping[str, Texts] = field(default_factory=dict)
+    arm_texts: Mapping[str, Texts] = field(default_factory=dict)
 
     def spell(self, mode: str) -> str:
         """A mode's name as this firmware's texts spell it."""
@@ -178,10 +201,18 @@ ROVER: Final = Firmware(
     arm_needs_position=frozenset(
         {"GUIDED", "LOITER", "CIRCLE", "SIMPLE", "STEERING", "ACRO", "AUTO", "RTL", "SMART_RTL"}
     ),
+    absent_modes=frozenset(),
+    refused_modes={
+        "FOLLOW": ((_WARNING, "Flight mode change failed"),),  # no FOLL_ENABLE
+        "DOCK": ((_NOTICE, "Dock: target not acquired"), (_WARNING, "Flight mode change failed")),
+        "INITIALISING": ((_WARNING, "Flight mode change failed"),),
+    },
     set_needs_origin=frozenset({"RTL", "SMART_RTL", "LOITER", "CIRCLE"}),
-    set_needs_position_armed=frozenset({"GUIDED", "RTL", "SMART_RTL", "AUTO", "LOITER", "CIRCLE"}),
+    set_needs_position_armed=frozenset(
+        {"GUIDED", "RTL", "SMART_RTL", "AUTO", "LOITER", "CIRCLE", "SIMPLE", "DOCK"}
+    ),
+    position_refused_text="Flight mode change failed",
     home_at="disarming",
-    never_settable=frozenset({"FOLLOW", "DOCK"}),
     mode_refused_text="Flight mode change failed",
     not_armable_text="Arm: Mode not armable",
     no_position_text="Arm: AHRS: not using configured AHRS type",
@@ -226,14 +257,68 @@ COPTER: Final = Firmware(
     initialising_mode=None,
     default_stream_hz=0.0,
     early_stream_requests_lost=True,
-    not_armable=frozenset({"RTL", "CIRCLE", "LAND", "BRAKE", "SMART_RTL", "AUTO"}),
+    not_armable=frozenset({"RTL", "CIRCLE", "LAND", "BRAKE", "SMART_RTL", "AUTO", "AVOID_ADSB"}),
     arm_needs_position=frozenset(
-        {"GUIDED", "LOITER", "POSHOLD", "AUTO", "RTL", "CIRCLE", "BRAKE", "SMART_RTL"}
+        {
+            "GUIDED",
+            "LOITER",
+            "POSHOLD",
+            "AUTO",
+            "RTL",
+            "CIRCLE",
+            "BRAKE",
+            "SMART_RTL",
+            "DRIFT",
+            "ZIGZAG",
+            "THROW",
+        }
     ),
+    # Compiled out of the SITL build, as of the 4.5 release (SPORT), only for helicopters
+    # (AUTOROTATE) or newer than 4.5 (RATE_ACRO).
+    absent_modes=frozenset({"SPORT", "AUTOROTATE", "RATE_ACRO"}),
+    refused_modes={
+        "FLIP": ((_WARNING, "Mode change to FLIP failed: init failed"),),  # never on the ground
+        "AUTOTUNE": ((_WARNING, "Mode change to AUTOTUNE failed: init failed"),),
+        "FLOWHOLD": ((_WARNING, "Mode change to FLOWHOLD failed: init failed"),),  # no flow
+        "TURTLE": ((_WARNING, "Mode change to TURTLE failed: init failed"),),
+        "FOLLOW": (
+            (_WARNING, "Set FOLL_ENABLE = 1"),
+            (_WARNING, "Mode change to FOLLOW failed: init failed"),
+        ),
+        "SYSTEMID": (
+            (_WARNING, "No axis selected, SID_AXIS = 0"),
+            (_WARNING, "Mode change to SYSTEMID failed: init failed"),
+        ),
+        "AUTO_RTL": (
+            (_WARNING, "Unable to start landing sequence"),
+            (
+                _WARNING,
+                "Mode change to AUTO RTL failed: No return path or landing sequence found",
+            ),
+        ),
+    },
     set_needs_origin=frozenset({"SMART_RTL"}),
-    set_needs_position_armed=frozenset(),
+    set_needs_position_armed=frozenset(
+        {
+            "RTL",
+            "SMART_RTL",
+            "AUTO",
+            "GUIDED",
+            "LOITER",
+            "CIRCLE",
+            "DRIFT",
+            "POSHOLD",
+            "BRAKE",
+            "THROW",
+            "AVOID_ADSB",
+            "FOLLOW",
+            "ZIGZAG",
+        }
+    ),
+    position_refused_text="Mode change to {mode} failed: requires position",
+    refused_armed_on_ground={"THROW": ((_WARNING, "Mode change to THROW failed: init failed"),)},
+    arm_texts={"THROW": ((_INFO, "waiting for throw"),)},
     home_at="arming",
-    never_settable=frozenset(),
     mode_refused_text="Mode change to {mode} failed: init failed",
     not_armable_text="Arm: {mode} mode not armable",
     no_position_text="Arm: Need Position Estimate",
@@ -267,7 +352,7 @@ COPTER: Final = Firmware(
         "LAND_ALT_LOW",
         "DISARM_DELAY",
     ),
-    spelled={"SMART_RTL": "SMARTRTL"},
+    spelled={"SMART_RTL": "SMARTRTL", "AUTO_RTL": "AUTO RTL"},
 )
 
 PLANE: Final = Firmware(
@@ -287,10 +372,25 @@ PLANE: Final = Firmware(
     early_stream_requests_lost=True,
     not_armable=frozenset({"RTL"}),
     arm_needs_position=frozenset(),
+    absent_modes=frozenset(),
+    refused_modes={
+        "INITIALISING": ((_WARNING, "Flight mode change failed"),),
+        "THERMAL": ((_WARNING, "Flight mode change failed"),),  # no soaring
+        # The quadplane modes, on a plane without VTOL motors (Q_ENABLE 0).
+        **{
+            name: ((_INFO, "Q_ENABLE 0"),)
+            for name in ("QSTABILIZE", "QHOVER", "QLOITER", "QLAND", "QRTL", "QAUTOTUNE", "QACRO")
+        },
+    },
     set_needs_origin=frozenset(),
     set_needs_position_armed=frozenset(),
+    position_refused_text="Flight mode change failed",
+    enter_texts={
+        "AUTOTUNE": ((_INFO, "Started autotune"), (_INFO, "Autotuning roll pitch yaw")),
+        # Entered, and flown as LOITER: its QLAND can never start (and says so, now and then).
+        "LOITERALTQLAND": ((_INFO, "Q_ENABLE 0"),),
+    },
     home_at="while_disarmed",
-    never_settable=frozenset(),
     mode_refused_text="Flight mode change failed",
     not_armable_text="Arm: {mode} mode not armable",
     no_position_text="Arm: Need Position Estimate",

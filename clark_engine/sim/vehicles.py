@@ -49,17 +49,21 @@ rtl         RTL SMART_RTL AUTO_RTL           RTL                     RTL SMART_R
 land        LAND                             (none)                  (none)
 takeoff     (none)                           TAKEOFF                 (none)
 refused     (none)                           INITIALISING, Q modes   INITIALISING
+                                             but LOITERALTQLAND
 =========== ================================ ======================= ==================
 
-Every other mode of the profile (THROW, FLIP, FOLLOW, ZIGZAG, ArduPlane's
-CIRCLE and AUTOLAND, ArduRover's CIRCLE, ...) is accepted and flown as the hold
-mode: the model has no follow target and no landing sequence for them, so it
-does what a careful pilot expects of an unmodelled mode, stay put.
-``unsimulated_modes`` lists them (an ArduCopter one that takes the pilot's
-throttle as a climb rate, ZIGZAG, AUTOTUNE, SYSTEMID, still does, below).
+Every other mode of the profile (THROW, ZIGZAG, GUIDED_NOGPS, ArduPlane's
+CIRCLE, AUTOLAND and LOITERALTQLAND, ArduRover's CIRCLE, ...) is accepted and
+flown as the hold mode: the model has no follow target and no landing sequence
+for them, so it does what a careful pilot expects of an unmodelled mode, stay
+put. ``unsimulated_modes`` lists them (an ArduCopter one that takes the pilot's
+throttle as a climb rate, ZIGZAG, AUTOTUNE, SYSTEMID, still does, below). The
+autopilot layer refuses, as ArduPilot does, the modes whose start fails on these
+vehicles (FLIP, FOLLOW, FLOWHOLD...; :mod:`clark_engine.sim.firmware`).
 ArduPlane refuses its Q (quadplane) modes on an aircraft without VTOL motors
-and nobody can select INITIALISING, so the models refuse them too. SMART_RTL
-flies as RTL (straight home, not back along the path).
+(but enters LOITERALTQLAND, whose landing never comes) and nobody can select
+INITIALISING, so the models refuse them too. SMART_RTL flies as RTL (straight
+home, not back along the path).
 
 Copter throttle (measured on SITL, whose RC throttle rests at its minimum):
 STABILIZE, ACRO, RATE_ACRO and DRIFT pass the stick to the motors, mid stick
@@ -1949,7 +1953,6 @@ class FixedWing(SimulatedVehicle):
             "QRTL",
             "QAUTOTUNE",
             "QACRO",
-            "LOITERALTQLAND",
         }
     )
     _CONTROL_NAMES = ("aileron", "elevator", "rudder", "throttle")

@@ -22,24 +22,27 @@ import pytest
 from harness import BACKENDS, Peer, backend_params, open_peer
 
 HERE = Path(__file__).resolve().parent
+FIXTURES = ("peer", "fresh_peer", "connecting_peer")
+"""The fixtures a scenario's backend is a parameter of."""
 
 
-#: Files whose scenarios run last in their backend's group: they wait for the vehicle to
-#: get ready (about 40 s of its time), and that wait overlaps the other scenarios if they
-#: ran first on the shared vehicle.
-RUN_LAST = ("test_readiness.py",)
+#: Files whose scenarios run last in their backend's group, in this order: they wait for the
+#: vehicle to get ready (about 40 s of its time), and that wait overlaps the other
+#: scenarios if they ran first on the shared vehicle.
+RUN_LAST = ("test_readiness.py", "test_mode_rules.py")
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Run this folder's scenarios grouped by backend, in file order within a group."""
     places = [i for i, item in enumerate(items) if HERE in item.path.parents]
 
-    def order(item: pytest.Item) -> tuple[int, bool]:
+    def order(item: pytest.Item) -> tuple[int, int]:
         callspec = getattr(item, "callspec", None)
         params = callspec.params if callspec is not None else {}
-        backend = params.get("peer", params.get("fresh_peer"))
+        backend = next((params[k] for k in FIXTURES if k in params), None)
         group = BACKENDS.index(backend) if backend in BACKENDS else -1
-        return group, item.path.name in RUN_LAST
+        name = item.path.name
+        return group, RUN_LAST.index(name) + 1 if name in RUN_LAST else 0
 
     grouped = sorted((items[i] for i in places), key=order)
     for place, item in zip(places, grouped, strict=True):

@@ -53,6 +53,8 @@ AGENT = "vehicle"
 """The vehicle's agent name in every mission under missions/."""
 
 GCS_SYSTEM_ID = 255
+FORCE = 21196
+"""MAV_CMD_COMPONENT_ARM_DISARM param2 that skips ArduPilot's checks."""
 GCS_COMPONENT_ID = 190
 CLOCK_INTERVAL_US = 100_000
 """SYSTEM_TIME interval the ground station asks for: its clock's resolution."""
@@ -304,11 +306,23 @@ class SitlLink:
 
 @dataclass(frozen=True)
 class StatusText:
-    """A STATUSTEXT the autopilot sent."""
+    """A STATUSTEXT the autopilot sent (its chunks joined, when it sent several).
+
+    Attributes:
+        time_s: When it (its last chunk) was seen.
+        severity: MAV_SEVERITY.
+        text: The text.
+        place: Its last chunk's place in :attr:`Peer.history` (compare with a mark).
+    """
 
     time_s: float
     severity: int
     text: str
+    place: int = 0
+
+
+STATUSTEXT_CHUNK = 50
+"""Characters in one STATUSTEXT: ArduPilot sends a longer text as several with one id."""
 
 
 Awaited = str | Callable[[Any], bool]
@@ -363,6 +377,7 @@ class Peer:
         """Message type -> the latest message of that type."""
         self.subscribed: dict[str, int] = {}
         """Status message -> MAV_RESULT of the request for it at 1 Hz (see :meth:`start`)."""
+        self._chunks: dict[int, list[str]] = {}  # STATUSTEXT id -> the chunks so far
 
     # -- time --------------------------------------------------------------------------
 
@@ -463,6 +478,51 @@ class Peer:
             within_s=within_s,
         )
 
+    def arm(self, force: bool = False, within_s: float = 5.0) -> Any:
+        """MAV_CMD_COMPONENT_ARM_DISARM to arm (forced: ArduPilot's magic 21196)."""
+        return self.command_long(
+            mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, 1, FORCE if force else 0, within_s=within_s
+        )
+
+    def disarm(self, force: bool = False, within_s: float = 5.0) -> Any:
+        """MAV_CMD_COMPONENT_ARM_DISARM to disarm (forced: even in the air)."""
+        return self.command_long(
+            mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, 0, FORCE if force else 0, within_s=within_s
+        )
+
+    def wait_ready(self, within_s: float = 90.0) -> None:
+        """Wait until the EKF has an absolute position and the pre-arm checks pass.
+
+        Every firmware is then ready to arm in every mode that allows arming (about
+        42 s after boot on SITL; at once on a vehicle that already is).
+        """
+
+        def positioned(msg: Any) -> bool:
+            """the EKF has an absolute horizontal position"""
+            return bool(msg.flags & mavlink2.EKF_POS_HORIZ_ABS)
+
+        def prearm_ok(msg: Any) -> bool:
+            """the pre-arm checks pass"""
+            return bool(msg.onboard_control_sensors_health & mavlink2.MAV_SYS_STATUS_PREARM_CHECK)
+
+        self.wait_for("EKF_STATUS_REPORT", within_s, where=positioned)
+        self.wait_for("SYS_STATUS", within_s, where=prearm_ok)
+
+    def heartbeat(self, within_s: float = 2.0) -> Any:
+        """The next HEARTBEAT (one sent after everything seen so far)."""
+        return self.wait_for("HEARTBEAT", within_s)
+
+    def is_armed(self, within_s: float = 2.0) -> bool:
+        """Whether the next HEARTBEAT says armed."""
+        return bool(self.heartbeat(within_s).base_mode & mavlink2.MAV_MODE_FLAG_SAFETY_ARMED)
+
+    def mode_name(self, custom_mode: int) -> str:
+        """The profile's name of a custom_mode number (the number itself if it has none)."""
+        for name, number in self.spec.modes.items():
+            if number == custom_mode:
+                return name
+        return str(custom_mode)
+
     def param_get(self, name: str, within_s: float = 5.0) -> Any:
         """PARAM_REQUEST_READ by name; returns the PARAM_VALUE."""
         self.send(
@@ -524,7 +584,19 @@ class Peer:
         self._recent.append((self._now_s, msg))
         self.last[kind] = msg
         if kind == "STATUSTEXT":
-            self.statustexts.append(StatusText(self._now_s, msg.severity, str(msg.text)))
+            self._statustext(msg)
+
+    def _statustext(self, msg: Any) -> None:
+        """Record a STATUSTEXT, joining ArduPilot's chunks of a long one (same id != 0)."""
+        text, text_id = str(msg.text), int(getattr(msg, "id", 0) or 0)
+        if text_id:
+            parts = self._chunks.setdefault(text_id, [])
+            parts.append(text)
+            if len(text) >= STATUSTEXT_CHUNK:
+                return  # more to come
+            text = "".join(self._chunks.pop(text_id))
+        place = len(self.history) - 1
+        self.statustexts.append(StatusText(self._now_s, msg.severity, text, place))
 
     def _recent_text(self) -> str:
         return "\n".join(f"  t={t:8.3f} s  {_short(m)}" for t, m in self._recent) or "  (none)"
@@ -615,12 +687,8 @@ class Peer:
         return None
 
     def texts_since(self, mark: int) -> list[StatusText]:
-        """STATUSTEXTs seen since a :meth:`mark`."""
-        return [
-            StatusText(t, msg.severity, str(msg.text))
-            for t, msg in self.history[mark:]
-            if msg.get_type() == "STATUSTEXT"
-        ]
+        """STATUSTEXTs seen since a :meth:`mark` (long ones joined)."""
+        return [s for s in self.statustexts if s.place >= mark]
 
     def close(self) -> None:
         """End the link (stops a SITL process it started)."""
@@ -659,7 +727,9 @@ def open_peer(backend: str, *, start: bool = True) -> Peer:
 # -- parametrisation -------------------------------------------------------------------------
 
 
-def backend_params(gaps: Mapping[str, str] | None = None) -> list[Any]:
+def backend_params(
+    gaps: Mapping[str, str] | None = None, kinds: tuple[str, ...] = KINDS
+) -> list[Any]:
     """pytest params for every backend, SITL ones marked ``sitl`` (and skipped without SITL).
 
     Args:
@@ -667,6 +737,7 @@ def backend_params(gaps: Mapping[str, str] | None = None) -> list[Any]:
             ``sim:``, why that backend does not yet do what real ArduPilot does; those
             parametrisations are strict xfails (an unexpected pass fails, so that the
             mark is removed when the simulation is fixed).
+        kinds: Only the backends of these vehicle kinds (for what one firmware does).
     """
     wanted: dict[str, str] = {}
     for key, reason in (gaps or {}).items():
@@ -676,6 +747,8 @@ def backend_params(gaps: Mapping[str, str] | None = None) -> list[Any]:
             wanted[backend] = reason
     params = []
     for backend in BACKENDS:
+        if backend.split("-", 1)[1] not in kinds:
+            continue
         marks: list[Any] = []
         if backend in SITL_BACKENDS:
             marks.append(pytest.mark.sitl)
@@ -687,6 +760,10 @@ def backend_params(gaps: Mapping[str, str] | None = None) -> list[Any]:
     return params
 
 
-def backends(fixture: str = "peer", gaps: Mapping[str, str] | None = None) -> Any:
-    """Parametrise a scenario's peer fixture over every backend, with its known gaps."""
-    return pytest.mark.parametrize(fixture, backend_params(gaps), indirect=True)
+def backends(
+    fixture: str = "peer",
+    gaps: Mapping[str, str] | None = None,
+    kinds: tuple[str, ...] = KINDS,
+) -> Any:
+    """Parametrise a scenario's peer fixture over every backend (of ``kinds``)."""
+    return pytest.mark.parametrize(fixture, backend_params(gaps, kinds), indirect=True)
