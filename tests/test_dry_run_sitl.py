@@ -79,6 +79,8 @@ def test_only_first_entries_count_and_a_run_ended_early_is_compared_up_to_its_en
     sitl = recording(a=[(1.5, ("x",)), (2.5, ("y",)), (9.0, ("x",))])
     assert not compare(sim, sitl, ["a"]).holds  # z: never entered on SITL
     assert compare(sim, sitl, ["a"], end_s=50.0).holds  # Ctrl-C at 50 s: z was still to come
+    early = compare(sim, sitl, ["a"], end_s=0.5).check()  # Ctrl-C before anything happened
+    assert (early.observed, early.passed) == ("no state entered in either run (yet)", True)
 
 
 # -- the command line ----------------------------------------------------------------------

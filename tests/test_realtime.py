@@ -264,6 +264,9 @@ def test_mavutil_watches_and_commands_a_vehicle_the_engine_flies(
             # Before its GPS fix ArduPilot reports 0, 0; the autopilots are quick here.
             wait_for(lambda: located(a) and located(b), "telemetry with positions", pump)
             assert len(bridge.peers("slash_a")) == 1
+            # In real time SYSTEM_TIME is the wall clock's: the station shows today's time
+            wait_for(lambda: "SYSTEM_TIME" in a.last, "SYSTEM_TIME", pump)
+            assert abs(a.last["SYSTEM_TIME"].time_unix_usec / 1e6 - time.time()) < 60
             # Vehicle 0 is slash_a, at the origin; vehicle 1 is slash_b, 15 m south, 10 m west.
             heartbeat = a.last["HEARTBEAT"]
             assert (heartbeat.get_srcSystem(), heartbeat.type) == (

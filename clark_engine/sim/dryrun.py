@@ -302,6 +302,7 @@ def _simulate(
         extra_faults=faults,
         progress=progress,
         speed=1.0 if bridge is not None else speed,
+        wall_clock=bridge is not None,
     )
     if bridge is None:
         result = run.run()

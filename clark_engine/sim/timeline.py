@@ -84,7 +84,9 @@ class Comparison:
             f"every agent enters the simulated run's states in the same order, each within "
             f"{self.tolerance_s:g} s"
         )
-        if self.holds:
+        if not self.rows:
+            observed = "no state entered in either run (yet)"
+        elif self.holds:
             worst = max((abs(r.difference_s or 0.0) for r in self.rows), default=0.0)
             observed = f"{len(self.rows)} states matched; largest difference {worst:.1f} s"
         else:
