@@ -115,6 +115,9 @@ INITIALISING_S: Final = 1.0
 INTERNAL_ERROR_TEXT: Final = "Arm: Internal errors 0x100000 l:{line} flow_of_ctrl"
 """The arming refusal after an internal error (AP_InternalError's flow_of_control, raised
 at a line of ArduPilot's source: ArduRover's AR_WPNav 239, ArduCopter's SmartRTL 130)."""
+THROTTLE_DEAD_ZONE_US: Final = 30
+"""RC3_DZ: a throttle this close to zero counts as zero for arming (measured: SITL armed
+at its 1000 us minimum and refused 1200 us; the rover armed at its 1500 us trim)."""
 STATUSTEXT_CHUNK: Final = 50
 """Characters per STATUSTEXT; ArduPilot sends a longer text as several with one id."""
 PREARM_REPORT_PERIOD_S: Final = 30.0
@@ -334,6 +337,9 @@ class SimAutopilot:
         boot: Its boot timeline; the firmware's (measured on SITL) by default.
         params: Parameter values to start from instead of the defaults (names must
             exist in its table).
+        throttle: The throttle's RC input channel and its zero (the pulse width of no
+            throttle: the minimum, or the trim of a centred rover throttle), for the
+            arming check that the throttle is at zero; None: no such check.
         unix_clock_us: The wall clock in Unix microseconds, for SYSTEM_TIME in real
             time; None: the simulated clock from ``start_time_unix_us``.
 
@@ -358,6 +364,7 @@ class SimAutopilot:
         boot: BootTimes | None = None,
         params: Mapping[str, float] | None = None,
         unix_clock_us: Callable[[], int] | None = None,
+        throttle: tuple[int, int] | None = None,
     ) -> None:
         if firmware not in FIRMWARE_TYPES:
             raise ValueError(f"unknown firmware {firmware!r}; use one of {sorted(FIRMWARE_TYPES)}")
@@ -376,6 +383,7 @@ class SimAutopilot:
         self.start_time_unix_us = start_time_unix_us
         self.boot_s = boot_s
         self._unix_clock_us = unix_clock_us
+        self._throttle = throttle
 
         self._outbox = _Outbox()
         self._mav = mavlink2.MAVLink(self._outbox, srcSystem=system_id, srcComponent=component_id)
@@ -472,6 +480,11 @@ class SimAutopilot:
         """
         mav = autopilot.get("mavlink") or {}
         firmware = str(autopilot["firmware"])
+        channel = (autopilot.get("channels") or {}).get("throttle") or {}
+        throttle = None
+        if channel.get("rc") is not None:
+            zero = channel.get("pwm_trim_us" if firmware == "ardurover" else "pwm_min_us")
+            throttle = (int(channel["rc"]), int(zero if zero is not None else 1100))
         known = {"SYSID_THISMAV", *COMMON_PARAMS, *FIRMWARES[firmware].params}
         params = {
             str(name): float(value)
@@ -493,6 +506,7 @@ class SimAutopilot:
             boot=boot,
             params=params,
             unix_clock_us=unix_clock_us,
+            throttle=throttle,
         )
 
     # -- public -----------------------------------------------------------------------------
@@ -694,6 +708,12 @@ class SimAutopilot:
             reasons.append("Arm: AHRS: waiting for home")
         elif age < boot.prearm_s:
             reasons.append("Arm: Gyros inconsistent")
+        if not self._throttle_at_zero():
+            reasons.append(
+                "Arm: Throttle too high"
+                if mode in fw.throttle_too_high_modes
+                else "Arm: Throttle (RC3) is not neutral"
+            )
         if mode in fw.arm_needs_position and not self._position_ok(now_s):
             reasons.append(fw.no_position_text)
         if mode == "AUTO" and fw.name == "arducopter":
@@ -701,6 +721,16 @@ class SimAutopilot:
         elif mode in fw.not_armable:
             reasons.append(fw.not_armable_text.format(mode=fw.spell(mode)))
         return reasons
+
+    def _throttle_at_zero(self) -> bool:
+        """The throttle input is within its dead zone of zero (RC3_DZ, 30 us in SITL)."""
+        if self._throttle is None:
+            return True
+        rc, zero_us = self._throttle
+        inputs = self.model.rc_inputs()
+        if not 1 <= rc <= len(inputs):
+            return True
+        return abs(inputs[rc - 1] - zero_us) <= THROTTLE_DEAD_ZONE_US
 
     def _prearm_healthy(self, now_s: float) -> bool:
         return not self._arm_refusals(now_s, self.model.mode)

@@ -111,6 +111,9 @@ class Firmware:
         refused_armed_on_ground: Modes refused when armed on the ground (texts).
         enter_texts: Texts sent on entering a mode.
         arm_texts: Texts sent after the armed text when arming in a mode.
+        throttle_too_high_modes: Modes whose arming with the throttle off zero says
+            "Arm: Throttle too high" (ArduCopter's pilot-throttle modes); elsewhere
+            "Arm: Throttle (RC3) is not neutral" (measured on all three).
         home_at: When home moves to where the vehicle is: ``arming`` (ArduCopter),
             ``disarming`` (ArduRover), ``while_disarmed`` (ArduPlane follows its GPS
             until armed).
@@ -158,6 +161,7 @@ class Firmware:
     refused_armed_on_ground: Mapping[str, Texts] = field(default_factory=dict)
     enter_texts: Mapping[str, Texts] = field(default_factory=dict)
     arm_texts: Mapping[str, Texts] = field(default_factory=dict)
+    throttle_too_high_modes: frozenset[str] = frozenset()
 
     def spell(self, mode: str) -> str:
         """A mode's name as this firmware's texts spell it."""
@@ -318,6 +322,36 @@ COPTER: Final = Firmware(
     position_refused_text="Mode change to {mode} failed: requires position",
     refused_armed_on_ground={"THROW": ((_WARNING, "Mode change to THROW failed: init failed"),)},
     arm_texts={"THROW": ((_INFO, "waiting for throw"),)},
+    # Every mode but those that let a ground station arm with the throttle up
+    # (Mode::allows_GCS_or_SCR_arming_with_throttle_high: GUIDED, GUIDED_NOGPS, AUTO).
+    throttle_too_high_modes=frozenset(
+        {
+            "STABILIZE",
+            "ACRO",
+            "ALT_HOLD",
+            "LOITER",
+            "RTL",
+            "CIRCLE",
+            "LAND",
+            "DRIFT",
+            "SPORT",
+            "FLIP",
+            "AUTOTUNE",
+            "POSHOLD",
+            "BRAKE",
+            "THROW",
+            "AVOID_ADSB",
+            "SMART_RTL",
+            "FLOWHOLD",
+            "FOLLOW",
+            "ZIGZAG",
+            "SYSTEMID",
+            "AUTOROTATE",
+            "AUTO_RTL",
+            "TURTLE",
+            "RATE_ACRO",
+        }
+    ),
     home_at="arming",
     mode_refused_text="Mode change to {mode} failed: init failed",
     not_armable_text="Arm: {mode} mode not armable",

@@ -1,9 +1,11 @@
 """Sweeps of every mode of a profile: what setting it and arming in it do.
 
 The scenarios in test_mode_rules.py compare these observations with the table
-measured on ArduPilot SITL (mode_rules_table.py); ``python modesweep.py KIND
-[sim|sitl]`` prints a backend's observations in that table's form, which is how
-the table was made (and how to remake it for a new SITL build).
+measured on ArduPilot SITL (mode_rules_table.py); ``python modesweep.py
+test_mode_rules KIND [sim|sitl]`` prints a backend's observations in that table's
+form, which is how the table was made (and how to remake it for a new SITL build).
+Other scenario modules with ``observe_*`` functions (test_commands.py) are printed
+the same way.
 
 An observation is what a ground station can tell: the COMMAND_ACK result, the mode
 and armed state in the next HEARTBEAT, and the STATUSTEXTs the command caused
@@ -147,19 +149,26 @@ def render(sweep: Sweep, indent: str = "        ") -> str:
     return "\n".join(lines)
 
 
-def main(kind: str, source: str) -> None:
-    """Print the sweeps of one backend (see the module docstring)."""
-    from harness import open_peer
-    from test_mode_rules import observe_before_ready, observe_ready
+def main(module: str, kind: str, source: str) -> None:
+    """Print what every ``observe_*`` function of a scenario module sees on one backend.
 
-    for observe in (observe_before_ready, observe_ready):
+    Each is given a new vehicle of ``kind`` (``python modesweep.py test_mode_rules rover``).
+    """
+    import importlib
+
+    from harness import open_peer
+
+    scenarios = importlib.import_module(module)
+    for name in sorted(dir(scenarios)):
+        if not name.startswith("observe_"):
+            continue
         peer = open_peer(f"{source}-{kind}")
         try:
-            for phase, sweep in observe(peer).items():
+            for phase, sweep in getattr(scenarios, name)(peer).items():
                 print(f"    {phase!r}: {{\n{render(sweep)}\n    }},")
         finally:
             peer.close()
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], sys.argv[2] if len(sys.argv) > 2 else "sitl")
+    main(sys.argv[1], sys.argv[2], sys.argv[3] if len(sys.argv) > 3 else "sitl")
