@@ -420,6 +420,7 @@ class SimAutopilot:
         # none), and whether ArduCopter entered SMART_RTL disarmed since it last armed.
         self._internal_error: int | None = None
         self._smart_rtl_entered = False
+        self._guided_arrival_due = False  # MISSION_ITEM_REACHED due at the guided target
         self._text_id = 0  # id of the last STATUSTEXT sent in chunks
         self._params: dict[str, _Param] = {"SYSID_THISMAV": _Param(system_id, _INT16)}
         for name, (value, kind) in {**COMMON_PARAMS, **self.fw.params}.items():
@@ -651,6 +652,9 @@ class SimAutopilot:
                     self._text(_CRITICAL, "Pre" + reason)
         if self._velocity_target is not None:
             self._fly_velocity_target(now_s)
+        if self._guided_arrival_due and self.model.target_reached and self._in_guided():
+            self._guided_arrival_due = False
+            self._mav.send(self._mav.mission_item_reached_encode(0))
         self._landing_and_disarm(now_s)
 
     def _landing_and_disarm(self, now_s: float) -> None:
@@ -1086,6 +1090,7 @@ class SimAutopilot:
 
     def _goto(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
         self._target = (lat_deg, lon_deg, alt_m)
+        self._guided_arrival_due = self.fw.guided_reached_text
         return self.model.goto(lat_deg, lon_deg, alt_m, None)
 
     def _relative_alt_m(self, alt: float, frame: int) -> float | None:

@@ -111,6 +111,8 @@ class Firmware:
         refused_armed_on_ground: Modes refused when armed on the ground (texts).
         enter_texts: Texts sent on entering a mode.
         arm_texts: Texts sent after the armed text when arming in a mode.
+        guided_reached_text: Whether arriving at a guided target sends
+            MISSION_ITEM_REACHED (seq 0), as ArduRover does (measured).
         throttle_too_high_modes: Modes whose arming with the throttle off zero says
             "Arm: Throttle too high" (ArduCopter's pilot-throttle modes); elsewhere
             "Arm: Throttle (RC3) is not neutral" (measured on all three).
@@ -162,6 +164,7 @@ class Firmware:
     enter_texts: Mapping[str, Texts] = field(default_factory=dict)
     arm_texts: Mapping[str, Texts] = field(default_factory=dict)
     throttle_too_high_modes: frozenset[str] = frozenset()
+    guided_reached_text: bool = False
 
     def spell(self, mode: str) -> str:
         """A mode's name as this firmware's texts spell it."""
@@ -223,6 +226,7 @@ ROVER: Final = Firmware(
     armed_text="Throttle armed",
     disarmed_text="Throttle disarmed",
     auto_disarm_s=None,
+    guided_reached_text=True,
     params={
         # ArduRover defaults (AR_WPNav, AR_AttitudeControl, Rover/Parameters.cpp).
         "CRUISE_SPEED": (2.0, _REAL32),

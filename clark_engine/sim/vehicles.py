@@ -2616,7 +2616,7 @@ def make_vehicle(
     rng: random.Random,
     *,
     gps_noise_m: float = DEFAULT_GPS_NOISE_M,
-    gps_vertical_noise_m: float = DEFAULT_GPS_VERTICAL_NOISE_M,
+    gps_vertical_noise_m: float | None = None,
     gps_rate_hz: float | None = None,
     heading_deg: float = 0.0,
     armed: bool = True,
@@ -2638,7 +2638,10 @@ def make_vehicle(
             multirotor hovering); rovers are always on the ground.
         rng: The vehicle's seeded generator (GPS errors); nothing else is random.
         gps_noise_m: Standard deviation of the GPS error on each horizontal axis.
-        gps_vertical_noise_m: Standard deviation of the GPS altitude error.
+        gps_vertical_noise_m: Standard deviation of the GPS altitude error; None:
+            twice ``gps_noise_m`` (a receiver's vertical error is about twice its
+            horizontal one: :data:`DEFAULT_GPS_VERTICAL_NOISE_M` by default, none for
+            a noise-free GPS).
         gps_rate_hz: GPS fix rate; the autopilot profile's ``gps_rate_hz`` when None,
             else :data:`DEFAULT_GPS_RATE_HZ`.
         heading_deg: Heading at the start.
@@ -2671,6 +2674,8 @@ def make_vehicle(
         profile_rate = autopilot.get("gps_rate_hz")
         gps_rate_hz = float(profile_rate) if profile_rate else DEFAULT_GPS_RATE_HZ
     where = origin if isinstance(origin, Origin) else Origin(*origin)
+    if gps_vertical_noise_m is None:
+        gps_vertical_noise_m = gps_noise_m * DEFAULT_GPS_VERTICAL_NOISE_M / DEFAULT_GPS_NOISE_M
     if channels is None:
         channels = autopilot.get("channels") or {}
     return model(

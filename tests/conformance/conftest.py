@@ -29,7 +29,13 @@ FIXTURES = ("peer", "fresh_peer", "connecting_peer")
 #: Files whose scenarios run last in their backend's group, in this order: they wait for the
 #: vehicle to get ready (about 40 s of its time), and that wait overlaps the other
 #: scenarios if they ran first on the shared vehicle.
-RUN_LAST = ("test_readiness.py", "test_mode_rules.py", "test_commands.py", "test_rc.py")
+RUN_LAST = (
+    "test_readiness.py",
+    "test_arming.py",
+    "test_mode_rules.py",
+    "test_commands.py",
+    "test_rc.py",
+)
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:

@@ -144,7 +144,7 @@ TABLE: dict[str, dict[str, Sweep]] = {
 }
 """What ArduPilot SITL did (4.7.0-dev, SITL's default parameters). The airspeeds asked of
 the plane are inside (15) or outside (5, 40) both SITL's limits (AIRSPEED_MIN 10,
-AIRSPEED_MAX 30) and ArduPlane's defaults (9, 22), which the simulated plane has."""
+AIRSPEED_MAX 30) and the simulated Super Cub's (13, 30)."""
 
 
 def test_speed_changes_and_servos_on_the_ground(peer: Peer) -> None:

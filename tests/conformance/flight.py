@@ -1,0 +1,136 @@
+"""Helpers of the flight scenarios: positions, targets, tracks and the streams they need.
+
+Positions are GLOBAL_POSITION_INT's (what a ground station sees), stamped with its own
+``time_boot_ms``; distances use a flat earth around the first point (legs of a few
+hundred metres). Heights are GLOBAL_POSITION_INT.relative_alt, above home.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from typing import Any, NamedTuple
+
+from harness import Peer
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+EARTH_M_PER_DEG = 111_194.93
+"""Metres per degree of latitude (the sphere of radius 6 371 km)."""
+
+POSITION_MASK = 0x0DF8
+"""SET_POSITION_TARGET_GLOBAL_INT type_mask: position only (ArduPilot's usual one)."""
+
+FLIGHT_STREAMS: Mapping[str, int] = {
+    "GLOBAL_POSITION_INT": 100_000,
+    "VFR_HUD": 100_000,
+    "EXTENDED_SYS_STATE": 100_000,
+    "HEARTBEAT": 100_000,
+    "MISSION_CURRENT": 500_000,
+    "POSITION_TARGET_GLOBAL_INT": 500_000,
+}
+"""What a flight scenario watches, and how often (us)."""
+
+
+class Fix(NamedTuple):
+    """One GLOBAL_POSITION_INT: time (s), position, height above home, speeds (m/s)."""
+
+    t_s: float
+    lat_deg: float
+    lon_deg: float
+    up_m: float
+    north_m_s: float
+    east_m_s: float
+    climb_m_s: float
+
+    @property
+    def ground_speed_m_s(self) -> float:
+        return math.hypot(self.north_m_s, self.east_m_s)
+
+
+def fix_of(msg: Any) -> Fix:
+    return Fix(
+        msg.time_boot_ms / 1000.0,
+        msg.lat / 1e7,
+        msg.lon / 1e7,
+        msg.relative_alt / 1000.0,
+        msg.vx / 100.0,
+        msg.vy / 100.0,
+        -msg.vz / 100.0,
+    )
+
+
+def offset_m(lat0: float, lon0: float, lat: float, lon: float) -> tuple[float, float]:
+    """(north, east) metres from (lat0, lon0) to (lat, lon)."""
+    north = (lat - lat0) * EARTH_M_PER_DEG
+    east = (lon - lon0) * EARTH_M_PER_DEG * math.cos(math.radians(lat0))
+    return north, east
+
+
+def distance_m(a: tuple[float, float], b: tuple[float, float]) -> float:
+    """Horizontal distance between two (lat, lon)."""
+    return math.hypot(*offset_m(a[0], a[1], b[0], b[1]))
+
+
+def moved(lat0: float, lon0: float, north_m: float, east_m: float) -> tuple[float, float]:
+    """(lat, lon) ``north_m``, ``east_m`` from (lat0, lon0)."""
+    return (
+        lat0 + north_m / EARTH_M_PER_DEG,
+        lon0 + east_m / (EARTH_M_PER_DEG * math.cos(math.radians(lat0))),
+    )
+
+
+def here(peer: Peer) -> Fix:
+    """The next position report."""
+    return fix_of(peer.wait_for("GLOBAL_POSITION_INT", 2.0))
+
+
+def track(peer: Peer, since: int) -> list[Fix]:
+    """Every position report since a mark."""
+    return [fix_of(m) for _, m in peer.history[since:] if m.get_type() == "GLOBAL_POSITION_INT"]
+
+
+def goto(peer: Peer, lat: float, lon: float, up_m: float, mask: int = POSITION_MASK) -> None:
+    """SET_POSITION_TARGET_GLOBAL_INT, relative-altitude frame (no answer comes)."""
+    peer.send(
+        mavlink2.MAVLink_set_position_target_global_int_message(
+            0,
+            peer.spec.system_id,
+            1,
+            mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            mask,
+            round(lat * 1e7),
+            round(lon * 1e7),
+            up_m,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+        )
+    )
+
+
+@contextmanager
+def streaming(peer: Peer, streams: Mapping[str, int] = FLIGHT_STREAMS) -> Iterator[Peer]:
+    """The peer with ``streams`` at their intervals; the defaults again afterwards."""
+    for name, interval_us in streams.items():
+        peer.message_interval(name, interval_us)
+    try:
+        yield peer
+    finally:
+        for name in streams:
+            peer.message_interval(name, 0)
+
+
+def landed_state(peer: Peer) -> int:
+    """EXTENDED_SYS_STATE.landed_state of the next report."""
+    return int(peer.wait_for("EXTENDED_SYS_STATE", 1.0).landed_state)
+
+
+def first(fixes: list[Fix], condition: Any) -> Fix | None:
+    """The first fix that meets ``condition``."""
+    return next((f for f in fixes if condition(f)), None)

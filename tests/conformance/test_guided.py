@@ -1,0 +1,222 @@
+"""GUIDED: a rover driven to a point, a copter taken off, flown to a point, hovered and
+landed, and what DO_CHANGE_SPEED does on the way.
+
+The autopilot's logic is asserted exactly (which targets are taken, what is
+acknowledged, when the vehicle says it is done). The motion is asserted within stated
+tolerances: SITL's vehicles are not ours (its rover is not a Traxxas Slash, its copter
+not an F450), so a scenario sets the parameters that shape the motion to the same
+values on both (and puts them back), and the simulation must never be quicker than
+SITL where a mission could depend on it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+
+import pytest
+from flight import distance_m, first, fix_of, goto, here, moved, offset_m, streaming, track
+from harness import Peer, backends
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+LEG_M = 40.0
+ROVER_SPEED_M_S = 3.0
+"""WP_SPEED for the rover scenarios (SITL's rover.parm has 5; the Slash's profile 3)."""
+ROVER_ARRIVAL_S = 17.9
+"""SITL: 40 m at WP_SPEED 3 from a stop takes this long, to a standstill."""
+
+
+def same_point(msg: object, point: tuple[float, float]) -> bool:
+    """A POSITION_TARGET_GLOBAL_INT's lat_int/lon_int is ``point`` (to 1e-7 degrees)."""
+    lat_int, lon_int = msg.lat_int, msg.lon_int  # type: ignore[attr-defined]
+    return abs(lat_int - point[0] * 1e7) <= 1.0 and abs(lon_int - point[1] * 1e7) <= 1.0
+
+
+@pytest.fixture
+def rover(peer: Peer) -> Iterator[Peer]:
+    """A ready rover in HOLD, disarmed, with WP_SPEED 3, streaming what a flight needs."""
+    peer.wait_ready()
+    before = peer.param_get("WP_SPEED").param_value
+    peer.param_set("WP_SPEED", ROVER_SPEED_M_S)
+    try:
+        with streaming(peer):
+            peer.set_mode("HOLD")
+            yield peer
+            peer.disarm()
+            peer.set_mode(str(peer.spec.autopilot["manual_mode"]))
+    finally:
+        peer.param_set("WP_SPEED", before)
+
+
+@backends(kinds=("rover",))
+def test_rover_drives_to_a_guided_target_and_back(rover: Peer) -> None:
+    peer = rover
+    start = here(peer)
+    north = moved(start.lat_deg, start.lon_deg, LEG_M, 0.0)
+    # A target outside GUIDED is dropped, and entering GUIDED without one holds still.
+    assert peer.arm().result == mavlink2.MAV_RESULT_ACCEPTED
+    goto(peer, *north, 0.0)
+    assert peer.set_mode("GUIDED").result == mavlink2.MAV_RESULT_ACCEPTED
+    mark = peer.mark()
+    peer.run_for(3.0)
+    assert max(f.ground_speed_m_s for f in track(peer, mark)) < 0.2
+    # In GUIDED it drives there at WP_SPEED, says so when there, and stops.
+    drive_to(peer, north)
+    # Back to where it started (turning round first), for the next scenario.
+    home = (start.lat_deg, start.lon_deg)
+    goto(peer, *home, 0.0)
+
+    def back(msg: object) -> bool:
+        """back where it started, stopped"""
+        f = fix_of(msg)
+        return distance_m((f.lat_deg, f.lon_deg), home) < 2.0 and f.ground_speed_m_s < 0.05
+
+    peer.wait_for("GLOBAL_POSITION_INT", 60.0, where=back)
+
+
+def drive_to(peer: Peer, target: tuple[float, float]) -> None:
+    """Send one guided target; assert the drive there, as SITL's (40 m at WP_SPEED 3)."""
+    mark = peer.mark()
+    sent_s = peer.now_s
+    goto(peer, *target, 0.0)
+    peer.run_for(ROVER_ARRIVAL_S + 6.0)
+    fixes = track(peer, mark)
+    moving = first(fixes, lambda f: f.ground_speed_m_s >= 0.1)
+    assert moving is not None, "it never moved"
+    stopped = first(fixes, lambda f: f.t_s > moving.t_s + 2 and f.ground_speed_m_s <= 0.05)
+    assert stopped is not None, "it never stopped"
+    end = fixes[-1]
+    error_m = math.hypot(*offset_m(target[0], target[1], end.lat_deg, end.lon_deg))
+    peak_m_s = max(f.ground_speed_m_s for f in fixes)
+    # SITL: moving after 0.84-0.9 s, peak 3.17 m/s, stopped after 17.9 s, 0.43 m past.
+    assert 0.5 <= moving.t_s - sent_s <= 1.5
+    assert peak_m_s <= ROVER_SPEED_M_S * 1.1
+    assert 0.9 * ROVER_ARRIVAL_S <= stopped.t_s - sent_s <= 1.3 * ROVER_ARRIVAL_S
+    assert error_m <= 1.5
+    targets = [m for _, m in peer.history[mark:] if m.get_type() == "POSITION_TARGET_GLOBAL_INT"]
+    assert targets, "no POSITION_TARGET_GLOBAL_INT while driving"
+    assert same_point(targets[-1], target)
+    reached = [m for _, m in peer.history[mark:] if m.get_type() == "MISSION_ITEM_REACHED"]
+    assert [m.seq for m in reached] == [0]
+
+
+COPTER_SPEED_CM_S = 500.0
+"""WPNAV_SPEED for the copter scenarios (SITL's copter.parm has 1000; the F450's 500)."""
+TAKEOFF_M = 10.0
+COPTER_LEG_M = 50.0
+
+
+@pytest.fixture
+def copter(peer: Peer) -> Iterator[Peer]:
+    """A ready copter in GUIDED, disarmed, with WPNAV_SPEED 500, streaming for a flight."""
+    peer.wait_ready()
+    before = peer.param_get("WPNAV_SPEED").param_value
+    peer.param_set("WPNAV_SPEED", COPTER_SPEED_CM_S)
+    try:
+        with streaming(peer):
+            assert peer.set_mode("GUIDED").result == mavlink2.MAV_RESULT_ACCEPTED
+            yield peer
+            if peer.is_armed():
+                peer.set_mode("LAND")
+                peer.wait_for("HEARTBEAT", 60.0, where=lambda m: not m.base_mode & 128)
+            peer.set_mode("STABILIZE")
+    finally:
+        peer.param_set("WPNAV_SPEED", before)
+
+
+def takeoff(peer: Peer, alt_m: float) -> object:
+    return peer.command_long(mavlink2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, 0, 0, alt_m)
+
+
+# SITL (WPNAV_SPEED 500, NAV_TAKEOFF 0.5 s after arming): the climb starts 3.2 s after the
+# takeoff is acknowledged, 9.5 m at 8.8 s; 50 m in 11.7 s; LAND from 10 m touches down
+# after 20.0 s, landed 22.0 s, disarmed 22.4 s.
+CLIMB_STARTS_S = 3.2
+TAKEOFF_S = 8.8
+LEG_S = 11.7
+TOUCHDOWN_S = 20.0
+LAND_DISARM_S = 22.4
+
+
+def within(value: float, measured: float, faster: float = 0.9, slower: float = 1.3) -> bool:
+    """``value`` is no quicker than ``faster`` x and no slower than ``slower`` x SITL's."""
+    return faster * measured <= value <= slower * measured
+
+
+def landed_states(peer: Peer, since: int) -> list[tuple[float, int]]:
+    """(time, landed_state) at each change since a mark."""
+    states = [
+        (peer.time_of(m), int(m.landed_state))
+        for _, m in peer.history[since:]
+        if m.get_type() == "EXTENDED_SYS_STATE"
+    ]
+    return [s for i, s in enumerate(states) if i == 0 or s[1] != states[i - 1][1]]
+
+
+@backends(kinds=("copter",))
+def test_copter_takes_off_hovers_flies_to_a_point_and_lands(copter: Peer) -> None:
+    peer = copter
+    assert takeoff(peer, TAKEOFF_M).result == mavlink2.MAV_RESULT_FAILED  # disarmed
+    assert peer.arm().result == mavlink2.MAV_RESULT_ACCEPTED
+    peer.run_for(0.5)
+    start = here(peer)
+    # Take off: the motors spool up, it climbs without overshooting, IN_AIR at the height.
+    mark = peer.mark()
+    ack = takeoff(peer, TAKEOFF_M)
+    assert ack.result == mavlink2.MAV_RESULT_ACCEPTED
+    sent_s = peer.time_of(ack)
+    peer.wait_for("EXTENDED_SYS_STATE", 20.0, where=lambda m: m.landed_state == 2)
+    fixes = track(peer, mark)
+    climbing = first(fixes, lambda f: f.up_m > 0.1)
+    high = first(fixes, lambda f: f.up_m > TAKEOFF_M - 0.5)
+    assert climbing is not None and high is not None
+    assert 2.5 <= climbing.t_s - sent_s <= 4.5
+    assert within(high.t_s - sent_s, TAKEOFF_S)
+    assert max(f.up_m for f in fixes) <= TAKEOFF_M + 0.5
+    assert [state for _, state in landed_states(peer, mark)] == [1, 3, 2]
+    assert takeoff(peer, TAKEOFF_M).result == mavlink2.MAV_RESULT_FAILED  # flying
+    # Hover where the takeoff ended.
+    mark = peer.mark()
+    peer.run_for(5.0)
+    hover = track(peer, mark)
+    assert all(abs(f.up_m - TAKEOFF_M) <= 0.3 for f in hover)
+    assert all(f.ground_speed_m_s <= 0.3 for f in hover)
+    # Fly 50 m north at WPNAV_SPEED, holding the height.
+    target = moved(start.lat_deg, start.lon_deg, COPTER_LEG_M, 0.0)
+    mark = peer.mark()
+    sent_s = peer.now_s
+    goto(peer, *target, TAKEOFF_M)
+
+    def there(msg: object) -> bool:
+        """within 1 m of the target"""
+        f = fix_of(msg)
+        return distance_m((f.lat_deg, f.lon_deg), target) < 1.0
+
+    arrived = fix_of(peer.wait_for("GLOBAL_POSITION_INT", 40.0, where=there))
+    fixes = track(peer, mark)
+    assert within(arrived.t_s - sent_s, LEG_S)
+    assert max(f.ground_speed_m_s for f in fixes) <= COPTER_SPEED_CM_S / 100 * 1.1
+    assert all(abs(f.up_m - TAKEOFF_M) <= 0.5 for f in fixes)
+    aimed = [m for _, m in peer.history[mark:] if m.get_type() == "POSITION_TARGET_GLOBAL_INT"]
+    assert aimed, "no POSITION_TARGET_GLOBAL_INT on the way"
+    home_amsl_m = peer.spec.home.alt_m
+    assert same_point(aimed[-1], target)
+    assert aimed[-1].alt == pytest.approx(home_amsl_m + TAKEOFF_M, abs=0.5)
+    peer.run_for(3.0)
+    # Land where it is: LANDING at once, 0.5 m/s below 10 m, landed, disarmed 2 s later.
+    mark = peer.mark()
+    ack = peer.set_mode("LAND")
+    land_s = peer.time_of(ack)
+    peer.wait_for("HEARTBEAT", 40.0, where=lambda m: not m.base_mode & 128)
+    fixes = track(peer, mark)
+    down = first(fixes, lambda f: f.up_m < 0.2)
+    assert down is not None
+    assert within(down.t_s - land_s, TOUCHDOWN_S, slower=1.15)
+    states = landed_states(peer, mark)
+    assert [state for _, state in states] == [4, 1]
+    assert states[0][0] - land_s <= 0.3
+    assert 1.0 <= states[1][0] - down.t_s <= 2.5
+    disarmed = [s for s in peer.texts_since(mark) if s.text == "Disarming motors"]
+    assert len(disarmed) == 1
+    assert within(disarmed[0].time_s - land_s, LAND_DISARM_S, slower=1.15)
+    assert peer.mode_name(peer.heartbeat().custom_mode) == "LAND"
