@@ -101,14 +101,24 @@ class Outcome:
     """With SITL: its states against the simulated autopilot's."""
 
 
-def _progress(stream: TextIO) -> Any:
-    def show(t_s: float, end_s: float) -> None:
+class _Progress:
+    """A one-line progress bar on a stream, redrawn in place (a carriage return)."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self.stream = stream
+        self.shown = False
+
+    def __call__(self, t_s: float, end_s: float) -> None:
         share = t_s / end_s if end_s else 1.0
         bar = "#" * int(share * 30)
-        stream.write(f"\r  simulating [{bar:<30}] {t_s:7.1f} / {end_s:g} s")
-        stream.flush()
+        self.stream.write(f"\r  simulating [{bar:<30}] {t_s:7.1f} / {end_s:g} s")
+        self.stream.flush()
+        self.shown = True
 
-    return show
+    def finish(self) -> None:
+        """End the bar's line, if it was ever drawn (a run under a second never draws it)."""
+        if self.shown:
+            self.stream.write("\n")
 
 
 def run_dry_run(
@@ -291,7 +301,7 @@ def _simulate(
             progress=progress,
         )
         if progress is not None:
-            err.write("\n")
+            progress.finish()
         return result
     run = DryRun(
         mission,
@@ -328,7 +338,7 @@ def _simulate(
             print("real time: Ctrl-C ends the run early (the report is still written)", file=err)
             result = run.run()
     if progress is not None:
-        err.write("\n")
+        progress.finish()
     return result
 
 
@@ -351,10 +361,10 @@ def _log_dir(report: Path | None) -> Path | None:
     return log_dir
 
 
-def _progress_for(err: TextIO, until_s: float) -> Any:
+def _progress_for(err: TextIO, until_s: float) -> _Progress | None:
     """A progress bar on ``err`` for a terminal or a long run; None otherwise."""
     interactive = err.isatty() if hasattr(err, "isatty") else False
-    return _progress(err) if interactive or until_s > 60 else None
+    return _Progress(err) if interactive or until_s > 60 else None
 
 
 def _fly_sitl(
@@ -426,7 +436,7 @@ def _fly_sitl(
     finally:
         run.close()  # SITL stops even when the run never started
     if progress is not None:
-        err.write("\n")
+        progress.finish()
     return result
 
 

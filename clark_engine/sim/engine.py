@@ -573,19 +573,24 @@ class DryRun:
         """Connect every SITL vehicle; fly up those handed over in flight first.
 
         A vehicle flown up before the run has its own clock well past 0 when the run
-        starts; one on the ground is connected (its clock starts) as the run starts.
+        starts; one on the ground is connected (its clock starts) just before it.
         """
         for name, plan in self._preflights.items():
             backend = self.agents[name].backend
             assert isinstance(backend, SitlBackend)
             backend.connect()
             backend.fly_up(**plan)
+        backends: list[SitlBackend] = []
         for sim_agent in self._vehicles:
             backend = sim_agent.backend
             assert isinstance(backend, SitlBackend)
+            backends.append(backend)
             if sim_agent.name not in self._preflights:
                 backend.connect()
-                backend.start_run_here()
+        # Time 0 on every SITL clock at once: a vehicle connected (or flown up) first
+        # would otherwise be ahead of the run, by its share of the connections' wall time.
+        for backend in backends:
+            backend.start_run_here()
         for sim_agent in self._vehicles:
             assert sim_agent.adapter is not None
             self._to_autopilot(sim_agent, sim_agent.adapter.start(0.0), 0.0)

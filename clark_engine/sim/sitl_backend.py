@@ -73,6 +73,13 @@ REQUEST_RETRY_WALL_S: Final = 0.3
 ArduPilot acknowledges and loses those sent before it is ready (measured)."""
 STALL_WALL_S: Final = 60.0
 """Wall seconds without a byte from SITL after which the run gives up on it."""
+REPORT_AFTER_S: Final = 0.25
+"""RC inputs and servo outputs are read from a report SITL made at least this long (its
+clock) after the engine's last bytes were sent: ArduPlane's RC_CHANNELS showed an RC
+override 40 ms after it was sent at the median and 100 ms at worst (60 overrides at
+speed-up 10, measured), so the report shows what those bytes did even when the engine
+sent them in a hurry. The engine waits for it, and no command leaves meanwhile, so
+waiting longer costs only a fixed lag behind SITL."""
 PARAM_RETRY_WALL_S: Final = 1.0
 """A parameter not echoed is set again this often; one SITL lacks is given up after 5."""
 
@@ -131,6 +138,8 @@ class SitlBackend(VehicleBackend):
         )  # fmt: skip
         self._rc: tuple[int, ...] = ()
         self._servos: tuple[int, ...] = ()
+        self._reported_s = {"RC_CHANNELS": -math.inf, "SERVO_OUTPUT_RAW": -math.inf}
+        self._sent_clock_s: float | None = None
         self._pilot_us = [0] * 16
 
     # -- the interface ----------------------------------------------------------------------
@@ -169,6 +178,10 @@ class SitlBackend(VehicleBackend):
     def step(self, t_s: float, dt_s: float) -> bytes:
         """Wait until SITL has passed the run's time ``t_s``; what it sent since the last step.
 
+        Several SITL processes run side by side, each on its own clock; the run waits
+        for the slowest, so another may be ahead of it. What that one sent meanwhile
+        is all taken and returned.
+
         Raises:
             SitlError: SITL exited, or sent nothing for :data:`STALL_WALL_S`.
         """
@@ -177,12 +190,17 @@ class SitlBackend(VehicleBackend):
             self._duties()
             wait_wall_s = 0.05 if clock_s is None else (want_s - clock_s) / self.process.speedup
             self._read(min(0.05, max(0.001, wait_wall_s)))
+        # A SITL ahead of the run (the engine waited for a slower one) has sent more:
+        # take it, so the RC inputs and servo outputs read next are SITL's latest.
+        while self._read(0.0):
+            pass
         data, self._inbox = bytes(self._inbox), bytearray()
         return data
 
     def send(self, data: bytes, t_s: float) -> None:
         """Bytes to SITL (the engine's adapter, or the simulated pilot)."""
         if data and self._sock is not None:
+            self._sent_clock_s = self._clock_s
             self._sock.setblocking(True)
             try:
                 self._sock.sendall(data)
@@ -196,12 +214,28 @@ class SitlBackend(VehicleBackend):
         return self._truth
 
     def rc_inputs(self) -> tuple[int, ...]:
-        """RC_CHANNELS as SITL last reported them."""
+        """RC_CHANNELS as SITL reported them after the engine's last bytes reached it."""
+        self._await_report("RC_CHANNELS")
         return self._rc
 
     def servo_outputs(self) -> tuple[int, ...]:
-        """SERVO_OUTPUT_RAW as SITL last reported them."""
+        """SERVO_OUTPUT_RAW as SITL reported them after the engine's last bytes reached it."""
+        self._await_report("SERVO_OUTPUT_RAW")
         return self._servos
+
+    def _await_report(self, kind: str) -> None:
+        """Read until SITL's latest ``kind`` is from :data:`REPORT_AFTER_S` after the last send.
+
+        SITL runs on while the engine works, and the engine may send two ticks' commands
+        a moment apart (catching up with a SITL ahead of it): the report read then must
+        be one SITL made after the last command, not the one before it.
+        """
+        if self._sent_clock_s is None:
+            return
+        due_s = self._sent_clock_s + REPORT_AFTER_S
+        while self._reported_s[kind] < due_s:
+            self._duties()
+            self._read(0.05)
 
     def set_pilot(self, pwm_us: Mapping[int, int]) -> None:
         """The pilot's sticks and switches, to SITL's RC input (its radio receiver)."""
@@ -308,6 +342,8 @@ class SitlBackend(VehicleBackend):
                 self._clock_s = clock_s
         if kind in self._streams_wanted:
             self._streams_seen.add(kind)
+        if kind in self._reported_s and isinstance(boot_ms, int):
+            self._reported_s[kind] = boot_ms / 1000.0
         if kind == "SIM_STATE":
             self._truth = self._truth_from(msg)
         elif kind == "RC_CHANNELS":
