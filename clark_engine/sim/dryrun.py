@@ -437,6 +437,8 @@ def _fly_sitl(
         run.close()  # SITL stops even when the run never started
     if progress is not None:
         progress.finish()
+    for name, wall_s in run.preflight_wall_s.items():
+        print(f"  {name}: flown up to its start point before the run, in {wall_s:.1f} s", file=err)
     return result
 
 

@@ -446,6 +446,8 @@ class DryRun:
         self.sitl = sitl
         self.sitl_speedup = sitl_speedup
         self._preflights: dict[str, dict[str, Any]] = {}
+        self.preflight_wall_s: dict[str, float] = {}
+        """With SITL: the wall seconds each aircraft handed over in flight took to fly up."""
         self.seed = seed
         self.until_s = until_s
         self.progress = progress
@@ -578,8 +580,10 @@ class DryRun:
         for name, plan in self._preflights.items():
             backend = self.agents[name].backend
             assert isinstance(backend, SitlBackend)
+            started = time.perf_counter()
             backend.connect()
             backend.fly_up(**plan)
+            self.preflight_wall_s[name] = time.perf_counter() - started
         backends: list[SitlBackend] = []
         for sim_agent in self._vehicles:
             backend = sim_agent.backend
