@@ -5,7 +5,10 @@ running its elevator frequency sweep (the costliest primitive: a sinusoid
 sample and an RC override every tick), with its telemetry (heartbeat 1 Hz,
 status 2 Hz, attitude 5 Hz, behaviour state 1 Hz) encoded through ClarkLink.
 N peers are in its fleet table, each heard once a second (heartbeat and status
-in one packet, decoded by the real codec) so none times out.
+in one packet, decoded by the real codec) so none times out. The Cub is launched
+as the mission says (``launch: {airborne: true}``): its autopilot reports itself
+ready and in the air, and the pilot has armed it, before the first tick, so the
+behaviour starts at once.
 
 Printed: per N, CPU microseconds per tick (tick alone) and per tick including
 the peers' packets delivered that tick, and ticks per second of the pure core.
@@ -26,11 +29,26 @@ from clark_engine.link.messages import ActivateController, AgentStatus, AgentTyp
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.validate import validate_path
 from clark_engine.runtime.config import config_from_dict
-from clark_engine.runtime.events import AutopilotHeartbeat, PacketReceived, VehicleState
+from clark_engine.runtime.events import (
+    AutopilotHeartbeat,
+    AutopilotStatus,
+    LandedState,
+    PacketReceived,
+    VehicleState,
+)
 from clark_engine.runtime.runtime import AgentRuntime
 
 ROOT = Path(__file__).resolve().parent.parent
 PEER_BASE_ID = 100
+# What the Cub's autopilot reports once it is ready (3-D fix, EKF position, pre-arm
+# checks passed, home at the origin) and flying: the launch gate's condition.
+READY_IN_AIR = AutopilotStatus(
+    gps_fix_type=3,
+    position_ok=True,
+    prearm_ok=True,
+    home=(30.6372, -96.4787, 90.0),
+    landed=LandedState.IN_AIR,
+)
 
 # The Super Cub sweep, long enough to measure: the supercub_sysid mission with the
 # excitation replaced by a one-hour elevator sweep.
@@ -89,6 +107,7 @@ def measure(peers: int, seconds: float) -> tuple[float, float, float]:
     runtime = cub_runtime()
     loop_hz = runtime.config.loop_hz
     codecs = [Codec(533, PEER_BASE_ID + i) for i in range(peers)]
+    runtime.deliver(READY_IN_AIR, 0.0)
     runtime.deliver(vehicle(0.0), 0.0)
     # The station (id 1) activates the controller over ClarkLink, as in flight.
     station = Codec(533, 1)
