@@ -281,7 +281,7 @@ def check_agent_modes(mission: Mission, agent: Agent) -> Iterator[Finding]:
             f"{agent.terminal_mode!r}; " + _hint(agent.terminal_mode, modes),
         )
     action = agent.failsafe.get("mcs_lost", "hold")
-    needed = {"rtl": autopilot.get("rtl_mode"), "land": "LAND" if "LAND" in modes else None}
+    needed = {"rtl": autopilot.get("rtl_mode"), "land": autopilot.get("land_mode")}
     if action in needed and needed[action] is None:
         yield error(
             "E-FAILSAFE",

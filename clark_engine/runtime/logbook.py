@@ -8,7 +8,7 @@ One :class:`Logbook` per agent, owned by its runtime and never shared:
   and :attr:`Logbook.interface`, at the level the mission sets (2.4.3). Each line
   starts with the time, the module and the function (2.4.4)::
 
-      t=12.300 gps_ms=1700000012345 INFO machine.enter: entered state survey
+      t=65.043 gps_ms=1451260883043 INFO runtime._on_change: activate: idle -> chase (active: chase)
 
   The time is the *runtime's* clock (``now_s``, virtual in a dry run) and the
   GPS time when known, never the wall clock, so a dry run writes the same bytes

@@ -662,7 +662,7 @@ class AgentRuntime:
         mode = {
             "hold": self.config.hold_mode,
             "rtl": self.config.rtl_mode,
-            "land": "LAND" if "LAND" in self.config.modes else None,
+            "land": self.config.land_mode,
         }.get(action)
         self.failsafe = action
         if self.machine is not None:

@@ -86,7 +86,9 @@ TOLERANCE_SCHEMA: Schema = number(
 )
 
 SPEED_SCHEMA: Schema = number(
-    "Ground speed to fly at; the airframe's cruise speed when omitted.",
+    "Speed to fly at (ground speed; airspeed on ArduPlane), asked of the autopilot with "
+    "each target; when omitted none is asked, and the autopilot flies its own "
+    "(WP_SPEED, WPNAV_SPEED, AIRSPEED_CRUISE).",
     unit="m/s",
     exclusive_minimum=0,
     maximum=100,

@@ -332,7 +332,10 @@ def _airframe_properties() -> dict[str, Schema]:
             "Largest payload mass the airframe carries, in kilograms.", unit="kg", minimum=0
         ),
         "cruise_speed_m_s": number(
-            "Normal speed for transit and waypoint legs, in metres per second.", **speed
+            "The speed the vehicle is normally flown or driven at, in metres per second. "
+            "Never asked of the autopilot (guided legs fly the mission's speed_m_s or the "
+            "autopilot's own); the dry run's fixed-wing model cruises at it.",
+            **speed,
         ),
         "max_speed_m_s": number(
             "Highest speed the vehicle may be commanded to, in metres per second.", **speed
@@ -522,8 +525,8 @@ def _autopilot_properties() -> dict[str, Schema]:
             default=50,
         ),
         "wait_ready": boolean(
-            "Wait for the autopilot's first heartbeat, parameters and GPS before the behaviour "
-            "starts.",
+            "Start the behaviour only once the autopilot reports itself ready: a 3-D GPS fix, "
+            "an EKF position, the pre-arm checks passed and a home position.",
             default=True,
         ),
         "heartbeat_timeout_s": number(

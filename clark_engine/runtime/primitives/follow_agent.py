@@ -21,9 +21,11 @@ keeps moving the waypoint as the target moves.
   ``tolerance_m`` of the goal computed from the latest status, 3-D for air
   vehicles and ground distance for rovers, as for waypoint. No vehicle state or
   no status: never done.
-- Mode changes are not fought: SetMode is sent only at start; guided targets sent
-  while the pilot flies another mode are ignored by the autopilot, and the
-  current Goto is re-sent when the vehicle enters guided mode again.
+- Mode changes are not fought: SetMode is sent at start, and again only while
+  the autopilot has refused it and nobody changed the mode since
+  (:class:`~._shared.ModeRequest`); guided targets sent while the pilot flies
+  another mode are ignored by the autopilot, and the current Goto is re-sent
+  when the vehicle enters guided mode again.
 """
 
 from __future__ import annotations

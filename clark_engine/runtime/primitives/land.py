@@ -5,7 +5,7 @@ Runtime semantics (the declaration is :mod:`clark_engine.mission.primitives.land
 - ``start``: SetMode(the profile's ``land_mode``: LAND for ArduCopter), always,
   as :mod:`.hold` does. ArduCopter descends, detects the touchdown and disarms.
 - ``update``: DONE once the vehicle is on the ground (the autopilot's landed
-  state; without one, disarmed or within 2 m of home's altitude while disarmed).
+  state; without one, disarmed, or no more than 2 m up).
   SetMode is repeated only while the autopilot has refused it and nobody changed
   the mode since (:class:`~._shared.ModeRequest`): a pilot who takes over is not
   fought.

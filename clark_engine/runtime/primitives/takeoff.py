@@ -46,8 +46,11 @@ from clark_engine.runtime.primitives._shared import (
 )
 from clark_engine.runtime.primitives.base import Primitive
 
-TAKEOFF_RETRY_S: Final = 2.0
-"""Time between two Takeoff commands while the vehicle stays on the ground."""
+TAKEOFF_RETRY_S: Final = 5.0
+"""Time between two Takeoff commands while the vehicle stays on the ground. ArduCopter
+starts climbing 3.25 s after a takeoff sent just after arming (its motors spool up),
+and its landed state (EXTENDED_SYS_STATE) comes once a second: asked again sooner, a
+copter already climbing refuses the repeat (measured on SITL)."""
 
 
 class Takeoff(Primitive):

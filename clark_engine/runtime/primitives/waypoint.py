@@ -13,10 +13,11 @@ Runtime semantics (the declaration is :mod:`clark_engine.mission.primitives.wayp
   climbing to 60 m has not "reached" the point while it passes underneath at
   20 m; rovers measure ground distance only, since their altitude is the
   terrain's, not a command.
-- Mode changes by the pilot or the station are not fought: no SetMode is ever
-  re-sent. When the vehicle is seen entering guided mode again (from another
-  mode), the Goto is re-sent, because ArduPilot resets its guided target to the
-  current position on entering GUIDED.
+- Mode changes by the pilot or the station are not fought: SetMode is sent again
+  only while the autopilot has refused it and nobody changed the mode since
+  (:class:`~._shared.ModeRequest`). When the vehicle is seen entering guided mode
+  again (from another mode), the Goto is re-sent, because ArduPilot resets its
+  guided target to the current position on entering GUIDED.
 - FAILED only when the autopilot profile names no guided mode (impossible for a
   compiled config; a hand-edited one is logged and fails the state).
 """
