@@ -118,6 +118,9 @@ at a line of ArduPilot's source: ArduRover's AR_WPNav 239, ArduCopter's SmartRTL
 THROTTLE_DEAD_ZONE_US: Final = 30
 """RC3_DZ: a throttle this close to zero counts as zero for arming (measured: SITL armed
 at its 1000 us minimum and refused 1200 us; the rover armed at its 1500 us trim)."""
+ROVER_STOPPED_M_S: Final = 0.1
+"""ArduRover says "Reached destination" in RTL once stopped there (ATC_STOP_SPEED; SITL
+said it 0.4 m from home, at 0.38 m/s after overshooting, 17.5 s into a 25 m return)."""
 STATUSTEXT_CHUNK: Final = 50
 """Characters per STATUSTEXT; ArduPilot sends a longer text as several with one id."""
 PREARM_REPORT_PERIOD_S: Final = 30.0
@@ -421,6 +424,8 @@ class SimAutopilot:
         self._internal_error: int | None = None
         self._smart_rtl_entered = False
         self._guided_arrival_due = False  # MISSION_ITEM_REACHED due at the guided target
+        self._home_locked = False  # set by a ground station: ArduPilot moves it no more
+        self._rtl_arrival_due = False  # ArduRover's "Reached destination" still to say
         self._text_id = 0  # id of the last STATUSTEXT sent in chunks
         self._params: dict[str, _Param] = {"SYSID_THISMAV": _Param(system_id, _INT16)}
         for name, (value, kind) in {**COMMON_PARAMS, **self.fw.params}.items():
@@ -644,7 +649,12 @@ class SimAutopilot:
             and now_s - self._home_sent_s >= PLANE_HOME_PERIOD_S
             and "HOME_POSITION" not in self._deferred
         ):
-            self._home_here(now_s)  # ArduPlane's home follows its GPS until it arms
+            # ArduPlane's home follows its GPS until it arms (and is sent again, unmoved,
+            # once a ground station has set it).
+            if self._home_locked:
+                self.set_home(*self._home, now_s)
+            else:
+                self._home_here(now_s)
         if now_s >= self._next_prearm_report_s:
             self._next_prearm_report_s = now_s + PREARM_REPORT_PERIOD_S
             if not self.model.armed:
@@ -655,6 +665,14 @@ class SimAutopilot:
         if self._guided_arrival_due and self.model.target_reached and self._in_guided():
             self._guided_arrival_due = False
             self._mav.send(self._mav.mission_item_reached_encode(0))
+        if (
+            self._rtl_arrival_due
+            and self.model.armed
+            and self.model.target_reached
+            and self.model.truth().ground_speed_m_s < ROVER_STOPPED_M_S
+        ):
+            self._rtl_arrival_due = False  # ArduRover's RTL and SMART_RTL stop there
+            self._text(_INFO, "Reached destination")
         self._landing_and_disarm(now_s)
 
     def _landing_and_disarm(self, now_s: float) -> None:
@@ -767,7 +785,7 @@ class SimAutopilot:
         self._text(_INFO, self.fw.armed_text)
         for severity, text in self.fw.arm_texts.get(model.mode, ()):
             self._text(severity, text)
-        if self.fw.home_at == "arming":
+        if self.fw.home_at == "arming" and not self._home_locked:
             self._home_here(now_s)
         if self.firmware == "arduplane" and model.mode == "TAKEOFF":
             self._text(_INFO, "Armed AUTO, xaccel = -0.0 m/s/s, waiting 0.2 sec")
@@ -779,13 +797,21 @@ class SimAutopilot:
             self._armed_s = None
             self._ground_since_s = None
             self._text(_INFO, self.fw.disarmed_text)
-            if self.fw.home_at == "disarming":
+            if self.fw.home_at == "disarming" and not self._home_locked:
                 self._home_here(now_s)
 
     def _home_here(self, now_s: float) -> None:
-        """Home where the vehicle is now (ArduPilot's own re-setting of home)."""
+        """Home where the vehicle is now (ArduPilot's own re-setting of home).
+
+        Before the EKF has its origin, ArduRover's position has no altitude above sea
+        level: the home it sets then is at its barometer's height (about 0 m; SITL:
+        0.19 m), so a rover on the ground reads 90 m above such a home (measured).
+        """
         truth = self.model.truth()
-        self.set_home(truth.lat_deg, truth.lon_deg, self.origin_alt_m + truth.up_m, now_s)
+        alt_m = self.origin_alt_m + truth.up_m
+        if self.fw.home_alt_needs_origin and not self._origin_set(now_s):
+            alt_m = truth.up_m
+        self.set_home(truth.lat_deg, truth.lon_deg, alt_m, now_s)
 
     # -- modes -------------------------------------------------------------------------------
 
@@ -814,6 +840,7 @@ class SimAutopilot:
         self._last_mode = name
         for severity, text in fw.enter_texts.get(name, ()):
             self._text(severity, text)
+        self._rtl_arrival_due = fw.name == "ardurover" and name in ("RTL", "SMART_RTL")
         if fw.name == "arducopter" and name == "SMART_RTL" and not model.armed:
             # Measured: entering it disarmed a second time without arming in between is an
             # internal error (the mode is entered; arming is refused until a reboot).
@@ -1038,18 +1065,26 @@ class SimAutopilot:
     def _set_home_command(
         self, params: tuple[float, ...], z: float, frame: int | None, now_s: float
     ) -> int:
+        """MAV_CMD_DO_SET_HOME: here (param1 1), or a point.
+
+        A home set so is locked: ArduPilot's own re-setting at arming or disarming
+        leaves it alone.
+        """
         if params[0] == 1.0:
             if not self._gps_fix(now_s):
                 return _FAILED
             truth = self.model.truth()
-            self.set_home(truth.lat_deg, truth.lon_deg, self.origin_alt_m + truth.up_m, now_s)
-            return _ACCEPTED
-        lat, lon = params[4], params[5]
-        if frame is not None:  # COMMAND_INT: degrees * 1e7
-            lat, lon = lat / 1e7, lon / 1e7
-        if not (abs(lat) <= 90 and abs(lon) <= 180) or (lat == 0 and lon == 0):
-            return _FAILED
-        self.set_home(float(lat), float(lon), float(z), now_s)
+            lat, lon, alt = truth.lat_deg, truth.lon_deg, self.origin_alt_m + truth.up_m
+        else:
+            lat, lon, alt = params[4], params[5], z
+            if frame is not None:  # COMMAND_INT: degrees * 1e7
+                lat, lon = lat / 1e7, lon / 1e7
+            if not (abs(lat) <= 90 and abs(lon) <= 180) or (lat == 0 and lon == 0):
+                return _FAILED
+        self.set_home(float(lat), float(lon), float(alt), now_s)
+        self._home_locked = True
+        if self.fw.set_home_text:
+            self._text(_INFO, f"Set HOME to {lat:.5f} {lon:.5f} at {alt:.2f}m")
         return _ACCEPTED
 
     def _change_speed(self, speed_type: int, speed_m_s: float) -> int:

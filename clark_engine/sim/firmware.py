@@ -111,6 +111,9 @@ class Firmware:
         refused_armed_on_ground: Modes refused when armed on the ground (texts).
         enter_texts: Texts sent on entering a mode.
         arm_texts: Texts sent after the armed text when arming in a mode.
+        set_home_text: Whether DO_SET_HOME says "Set HOME to LAT LON at ALTm" (ArduRover).
+        home_alt_needs_origin: Whether a home set before the EKF origin has the
+            barometer's height (about 0 m) for its altitude (ArduRover, measured).
         guided_reached_text: Whether arriving at a guided target sends
             MISSION_ITEM_REACHED (seq 0), as ArduRover does (measured).
         throttle_too_high_modes: Modes whose arming with the throttle off zero says
@@ -165,6 +168,8 @@ class Firmware:
     arm_texts: Mapping[str, Texts] = field(default_factory=dict)
     throttle_too_high_modes: frozenset[str] = frozenset()
     guided_reached_text: bool = False
+    set_home_text: bool = False
+    home_alt_needs_origin: bool = False
 
     def spell(self, mode: str) -> str:
         """A mode's name as this firmware's texts spell it."""
@@ -227,6 +232,8 @@ ROVER: Final = Firmware(
     disarmed_text="Throttle disarmed",
     auto_disarm_s=None,
     guided_reached_text=True,
+    set_home_text=True,
+    home_alt_needs_origin=True,
     params={
         # ArduRover defaults (AR_WPNav, AR_AttitudeControl, Rover/Parameters.cpp).
         "CRUISE_SPEED": (2.0, _REAL32),

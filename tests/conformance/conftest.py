@@ -19,7 +19,9 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from flight import COPTER_SPEED_CM_S, ROVER_SPEED_M_S, disarmed, flight_params, streaming
 from harness import BACKENDS, Peer, backend_params, open_peer
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 HERE = Path(__file__).resolve().parent
 FIXTURES = ("peer", "fresh_peer", "connecting_peer")
@@ -35,6 +37,11 @@ RUN_LAST = (
     "test_mode_rules.py",
     "test_commands.py",
     "test_rc.py",
+    "test_guided.py",
+    "test_rtl.py",
+    "test_mission.py",
+    "test_home.py",  # locks home (DO_SET_HOME): after the scenarios that move it
+    "test_plane.py",  # the plane stays in the air
 )
 
 
@@ -127,3 +134,28 @@ def connecting_peer(request: pytest.FixtureRequest) -> Iterator[Peer]:
         yield fresh
     finally:
         fresh.close()
+
+
+@pytest.fixture
+def rover(peer: Peer) -> Iterator[Peer]:
+    """A ready rover in HOLD, disarmed, WP_SPEED 3, streaming for a drive; disarmed after."""
+    peer.wait_ready()
+    with flight_params(peer, {"WP_SPEED": ROVER_SPEED_M_S}), streaming(peer):
+        assert peer.set_mode("HOLD").result == mavlink2.MAV_RESULT_ACCEPTED
+        yield peer
+        peer.disarm()
+        peer.set_mode(str(peer.spec.autopilot["manual_mode"]))
+
+
+@pytest.fixture
+def copter(peer: Peer) -> Iterator[Peer]:
+    """A ready copter in GUIDED, disarmed, WPNAV_SPEED 500, streaming for a flight; landed
+    and disarmed after."""
+    peer.wait_ready()
+    with flight_params(peer, {"WPNAV_SPEED": COPTER_SPEED_CM_S}), streaming(peer):
+        assert peer.set_mode("GUIDED").result == mavlink2.MAV_RESULT_ACCEPTED
+        yield peer
+        if peer.is_armed():
+            peer.set_mode("LAND")
+            peer.wait_for("HEARTBEAT", 60.0, where=disarmed)
+        peer.set_mode("STABILIZE")

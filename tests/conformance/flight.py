@@ -134,3 +134,51 @@ def landed_state(peer: Peer) -> int:
 def first(fixes: list[Fix], condition: Any) -> Fix | None:
     """The first fix that meets ``condition``."""
     return next((f for f in fixes if condition(f)), None)
+
+
+def landed_states(peer: Peer, since: int) -> list[tuple[float, int]]:
+    """(time, landed_state) at each change since a mark."""
+    states = [
+        (peer.time_of(m), int(m.landed_state))
+        for _, m in peer.history[since:]
+        if m.get_type() == "EXTENDED_SYS_STATE"
+    ]
+    return [s for i, s in enumerate(states) if i == 0 or s[1] != states[i - 1][1]]
+
+
+def within(value: float, measured: float, faster: float = 0.9, slower: float = 1.3) -> bool:
+    """``value`` is no quicker than ``faster`` x and no slower than ``slower`` x SITL's.
+
+    The simulation may be slower than SITL (its vehicles are not SITL's), never much
+    quicker: a mission that keeps to a timing in a dry run must keep to it in flight.
+    """
+    return faster * measured <= value <= slower * measured
+
+
+def takeoff(peer: Peer, alt_m: float) -> Any:
+    """MAV_CMD_NAV_TAKEOFF to ``alt_m`` above home (COMMAND_LONG); returns the COMMAND_ACK."""
+    return peer.command_long(mavlink2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, 0, 0, alt_m)
+
+
+def disarmed(msg: Any) -> bool:
+    """a HEARTBEAT saying disarmed"""
+    return not msg.base_mode & mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
+
+
+ROVER_SPEED_M_S = 3.0
+"""WP_SPEED of the rover scenarios (SITL's rover.parm has 5; the Slash's profile 3)."""
+COPTER_SPEED_CM_S = 500.0
+"""WPNAV_SPEED of the copter scenarios (SITL's copter.parm has 1000; the F450's 500)."""
+
+
+@contextmanager
+def flight_params(peer: Peer, params: Mapping[str, float]) -> Iterator[Peer]:
+    """The peer with ``params`` set (on both autopilots alike), put back afterwards."""
+    before = {name: peer.param_get(name).param_value for name in params}
+    try:
+        for name, value in params.items():
+            peer.param_set(name, value)
+        yield peer
+    finally:
+        for name, value in before.items():
+            peer.param_set(name, value)

@@ -12,16 +12,28 @@ SITL where a mission could depend on it.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 
 import pytest
-from flight import distance_m, first, fix_of, goto, here, moved, offset_m, streaming, track
+from flight import (
+    COPTER_SPEED_CM_S,
+    ROVER_SPEED_M_S,
+    disarmed,
+    distance_m,
+    first,
+    fix_of,
+    goto,
+    here,
+    landed_states,
+    moved,
+    offset_m,
+    takeoff,
+    track,
+    within,
+)
 from harness import Peer, backends
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 LEG_M = 40.0
-ROVER_SPEED_M_S = 3.0
-"""WP_SPEED for the rover scenarios (SITL's rover.parm has 5; the Slash's profile 3)."""
 ROVER_ARRIVAL_S = 17.9
 """SITL: 40 m at WP_SPEED 3 from a stop takes this long, to a standstill."""
 
@@ -30,22 +42,6 @@ def same_point(msg: object, point: tuple[float, float]) -> bool:
     """A POSITION_TARGET_GLOBAL_INT's lat_int/lon_int is ``point`` (to 1e-7 degrees)."""
     lat_int, lon_int = msg.lat_int, msg.lon_int  # type: ignore[attr-defined]
     return abs(lat_int - point[0] * 1e7) <= 1.0 and abs(lon_int - point[1] * 1e7) <= 1.0
-
-
-@pytest.fixture
-def rover(peer: Peer) -> Iterator[Peer]:
-    """A ready rover in HOLD, disarmed, with WP_SPEED 3, streaming what a flight needs."""
-    peer.wait_ready()
-    before = peer.param_get("WP_SPEED").param_value
-    peer.param_set("WP_SPEED", ROVER_SPEED_M_S)
-    try:
-        with streaming(peer):
-            peer.set_mode("HOLD")
-            yield peer
-            peer.disarm()
-            peer.set_mode(str(peer.spec.autopilot["manual_mode"]))
-    finally:
-        peer.param_set("WP_SPEED", before)
 
 
 @backends(kinds=("rover",))
@@ -100,32 +96,8 @@ def drive_to(peer: Peer, target: tuple[float, float]) -> None:
     assert [m.seq for m in reached] == [0]
 
 
-COPTER_SPEED_CM_S = 500.0
-"""WPNAV_SPEED for the copter scenarios (SITL's copter.parm has 1000; the F450's 500)."""
 TAKEOFF_M = 10.0
 COPTER_LEG_M = 50.0
-
-
-@pytest.fixture
-def copter(peer: Peer) -> Iterator[Peer]:
-    """A ready copter in GUIDED, disarmed, with WPNAV_SPEED 500, streaming for a flight."""
-    peer.wait_ready()
-    before = peer.param_get("WPNAV_SPEED").param_value
-    peer.param_set("WPNAV_SPEED", COPTER_SPEED_CM_S)
-    try:
-        with streaming(peer):
-            assert peer.set_mode("GUIDED").result == mavlink2.MAV_RESULT_ACCEPTED
-            yield peer
-            if peer.is_armed():
-                peer.set_mode("LAND")
-                peer.wait_for("HEARTBEAT", 60.0, where=lambda m: not m.base_mode & 128)
-            peer.set_mode("STABILIZE")
-    finally:
-        peer.param_set("WPNAV_SPEED", before)
-
-
-def takeoff(peer: Peer, alt_m: float) -> object:
-    return peer.command_long(mavlink2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, 0, 0, alt_m)
 
 
 # SITL (WPNAV_SPEED 500, NAV_TAKEOFF 0.5 s after arming): the climb starts 3.2 s after the
@@ -136,21 +108,6 @@ TAKEOFF_S = 8.8
 LEG_S = 11.7
 TOUCHDOWN_S = 20.0
 LAND_DISARM_S = 22.4
-
-
-def within(value: float, measured: float, faster: float = 0.9, slower: float = 1.3) -> bool:
-    """``value`` is no quicker than ``faster`` x and no slower than ``slower`` x SITL's."""
-    return faster * measured <= value <= slower * measured
-
-
-def landed_states(peer: Peer, since: int) -> list[tuple[float, int]]:
-    """(time, landed_state) at each change since a mark."""
-    states = [
-        (peer.time_of(m), int(m.landed_state))
-        for _, m in peer.history[since:]
-        if m.get_type() == "EXTENDED_SYS_STATE"
-    ]
-    return [s for i, s in enumerate(states) if i == 0 or s[1] != states[i - 1][1]]
 
 
 @backends(kinds=("copter",))
@@ -207,7 +164,7 @@ def test_copter_takes_off_hovers_flies_to_a_point_and_lands(copter: Peer) -> Non
     mark = peer.mark()
     ack = peer.set_mode("LAND")
     land_s = peer.time_of(ack)
-    peer.wait_for("HEARTBEAT", 40.0, where=lambda m: not m.base_mode & 128)
+    peer.wait_for("HEARTBEAT", 40.0, where=disarmed)
     fixes = track(peer, mark)
     down = first(fixes, lambda f: f.up_m < 0.2)
     assert down is not None
@@ -216,7 +173,7 @@ def test_copter_takes_off_hovers_flies_to_a_point_and_lands(copter: Peer) -> Non
     assert [state for _, state in states] == [4, 1]
     assert states[0][0] - land_s <= 0.3
     assert 1.0 <= states[1][0] - down.t_s <= 2.5
-    disarmed = [s for s in peer.texts_since(mark) if s.text == "Disarming motors"]
-    assert len(disarmed) == 1
-    assert within(disarmed[0].time_s - land_s, LAND_DISARM_S, slower=1.15)
+    disarms = [s for s in peer.texts_since(mark) if s.text == "Disarming motors"]
+    assert len(disarms) == 1
+    assert within(disarms[0].time_s - land_s, LAND_DISARM_S, slower=1.15)
     assert peer.mode_name(peer.heartbeat().custom_mode) == "LAND"
