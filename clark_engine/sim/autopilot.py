@@ -118,6 +118,11 @@ at a line of ArduPilot's source: ArduRover's AR_WPNav 239, ArduCopter's SmartRTL
 THROTTLE_DEAD_ZONE_US: Final = 30
 """RC3_DZ: a throttle this close to zero counts as zero for arming (measured: SITL armed
 at its 1000 us minimum and refused 1200 us; the rover armed at its 1500 us trim)."""
+PLANE_LAUNCH_S: Final = 0.2
+"""ArduPlane, armed in TAKEOFF: "Triggered AUTO" this long after arming (measured)."""
+PLANE_TAKEOFF_STARTS_S: Final = 1.2
+"""ArduPlane, armed in TAKEOFF: "Takeoff to ..." and landed_state TAKEOFF this long after
+arming (measured 1.2 s; the ground roll has begun)."""
 ROVER_STOPPED_M_S: Final = 0.1
 """ArduRover says "Reached destination" in RTL once stopped there (ATC_STOP_SPEED; SITL
 said it 0.4 m from home, at 0.38 m/s after overshooting, 17.5 s into a 25 m return)."""
@@ -426,6 +431,7 @@ class SimAutopilot:
         self._guided_arrival_due = False  # MISSION_ITEM_REACHED due at the guided target
         self._home_locked = False  # set by a ground station: ArduPilot moves it no more
         self._rtl_arrival_due = False  # ArduRover's "Reached destination" still to say
+        self._takeoff_starts_s = -math.inf  # ArduPlane's takeoff proper starts then
         self._text_id = 0  # id of the last STATUSTEXT sent in chunks
         self._params: dict[str, _Param] = {"SYSID_THISMAV": _Param(system_id, _INT16)}
         for name, (value, kind) in {**COMMON_PARAMS, **self.fw.params}.items():
@@ -788,9 +794,30 @@ class SimAutopilot:
         if self.fw.home_at == "arming" and not self._home_locked:
             self._home_here(now_s)
         if self.firmware == "arduplane" and model.mode == "TAKEOFF":
-            self._text(_INFO, "Armed AUTO, xaccel = -0.0 m/s/s, waiting 0.2 sec")
-            self._text(_INFO, "Triggered AUTO. GPS speed = 0.0")
+            self._plane_launch(now_s)
         return _ACCEPTED
+
+    def _plane_launch(self, now_s: float) -> None:
+        """ArduPlane's texts as an armed TAKEOFF (or AUTO takeoff) launches, at SITL's times.
+
+        The takeoff proper (landed_state TAKEOFF) starts with "Takeoff to ..." 1.2 s
+        after arming; "Autoland direction" is the heading it takes off along.
+        """
+        self._text(_INFO, "Armed AUTO, xaccel = -0.0 m/s/s, waiting 0.2 sec")
+        self._say_at(now_s + PLANE_LAUNCH_S, _INFO, "Triggered AUTO. GPS speed = 0.0")
+        heading = self.model.truth().heading_deg
+        alt, dist = self._params["TKOFF_ALT"].value, self._params["TKOFF_DIST"].value
+        started_s = now_s + PLANE_TAKEOFF_STARTS_S
+        self._say_at(
+            started_s, _INFO, f"Takeoff to {alt:.0f}m for {dist:.1f}m heading {heading:.1f} deg"
+        )
+        self._say_at(started_s, _INFO, f"Autoland direction= {int(heading) % 360}")
+        self._takeoff_starts_s = started_s
+
+    def _say_at(self, at_s: float, severity: int, text: str) -> None:
+        """A STATUSTEXT to send at ``at_s`` (with the boot texts' schedule)."""
+        self._texts_due.append((at_s, severity, text))
+        self._texts_due.sort(key=lambda due: due[0])
 
     def _disarm(self, now_s: float, *, force: bool = False) -> None:
         if self.model.arm(False, force=force):
@@ -1283,7 +1310,7 @@ class SimAutopilot:
                     self._interval_us.pop(stream, None)
                     self._due_us.pop(stream, None)
         elif hasattr(self, "model"):
-            self.model.configure({name: entry.value})
+            self.model.configure(self.param_values())  # the whole table, as configure wants
 
     def _send_param(self, name: str, index: int) -> None:
         entry = self._params[name]
@@ -1437,6 +1464,8 @@ class SimAutopilot:
     def _landed_state(self, now_s: float) -> int:
         """MAV_LANDED_STATE, with ArduCopter's land detector lag after a touchdown."""
         state = self.model.landed_state
+        if state == "taking_off" and now_s < self._takeoff_starts_s:
+            state = "on_ground"  # ArduPlane: rolling, but its takeoff not yet started
         if (
             state == "on_ground"
             and self._touchdown_s is not None

@@ -1,0 +1,141 @@
+"""A plane's flight: TAKEOFF mode and its loiter, LOITER, a speed change in GUIDED, RTL.
+
+One flight, in ArduPlane's order (a plane does not land by itself: it circles home in
+RTL at the end). ArduPlane's NAV_TAKEOFF is for quadplanes only; a plane takes off in
+TAKEOFF mode: armed in it, it launches, climbs to TKOFF_ALT and then circles a point
+TKOFF_DIST ahead, staying in TAKEOFF. The parameters that shape the flight are set to
+the same values on both autopilots (SITL's plane is not a Super Cub).
+"""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+from flight import (
+    distance_m,
+    first,
+    flight_params,
+    here,
+    landed_states,
+    moved,
+    streaming,
+    track,
+    within,
+)
+from harness import Peer, backends
+from modesweep import command_texts
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+PARAMS = {"AIRSPEED_CRUISE": 18.0, "WP_LOITER_RAD": 80.0, "TKOFF_ALT": 50.0, "TKOFF_DIST": 200.0}
+"""The Super Cub's cruise airspeed; SITL's loiter radius, takeoff height and distance."""
+RTL_ALTITUDE_M = 100.0
+"""RTL_ALTITUDE, the same on both (ArduPlane's default)."""
+
+
+def fitted_circle(peer: Peer, since: int) -> tuple[tuple[float, float], float, float]:
+    """The centre (the middle of the track's extent), mean radius and radius spread."""
+    fixes = track(peer, since)
+    lats, lons = [f.lat_deg for f in fixes], [f.lon_deg for f in fixes]
+    centre = ((min(lats) + max(lats)) / 2, (min(lons) + max(lons)) / 2)
+    mean, spread = circle_of(peer, since, centre)
+    return centre, mean, spread
+
+
+def circle_of(peer: Peer, since: int, centre: tuple[float, float]) -> tuple[float, float]:
+    """(mean, spread) of the distance from ``centre`` over the fixes since a mark."""
+    radii = [distance_m((f.lat_deg, f.lon_deg), centre) for f in track(peer, since)]
+    mean = sum(radii) / len(radii)
+    return mean, max(radii) - min(radii)
+
+
+@backends(kinds=("plane",))
+def test_plane_takes_off_loiters_changes_speed_and_returns(peer: Peer) -> None:
+    peer.wait_ready()
+    with flight_params(peer, PARAMS), streaming(peer):
+        fly(peer)
+
+
+LOITER_RADIUS_M = 89.0
+"""The circle SITL flies at 18 m/s for WP_LOITER_RAD 80 (92 m at 22 m/s)."""
+RADIUS_TOLERANCE_M = 10.0
+# SITL, TAKEOFF armed: TAKEOFF landed state 1.2 s later; off the ground (1 m) at 3.8 s; 45 m
+# at 8.6 s climbing at 7-10 m/s (the Super Cub climbs at its 4 m/s limit); IN_AIR at 8.9 s;
+# up to 60 m before settling at TKOFF_ALT 50.
+AIRBORNE_S = 3.8
+CLIMBED_S = 8.6
+
+
+def numbers_blanked(texts: tuple[str, ...]) -> tuple[str, ...]:
+    return tuple(re.sub(r"-?\d+(\.\d+)?", "#", t) for t in texts)
+
+
+def fly(peer: Peer) -> None:
+    start = here(peer)
+    origin = (start.lat_deg, start.lon_deg)
+    # TAKEOFF, then arm: it launches at once, along its heading (north: booted so).
+    assert peer.set_mode("TAKEOFF").result == mavlink2.MAV_RESULT_ACCEPTED
+    mark = peer.mark()
+    ack = peer.arm()
+    assert ack.result == mavlink2.MAV_RESULT_ACCEPTED
+    armed_s = peer.time_of(ack)
+    peer.wait_for("EXTENDED_SYS_STATE", 40.0, where=lambda m: m.landed_state == 2)
+    peer.run_for(10.0)
+    fixes = track(peer, mark)
+    texts = command_texts(peer.texts_since(mark))
+    assert texts[:3] == (
+        "6:Throttle armed",
+        "6:Armed AUTO, xaccel = * m/s/s, waiting 0.2 sec",
+        "6:Triggered AUTO. GPS speed = 0.0",
+    )
+    assert numbers_blanked(texts[3:5]) == (
+        "#:Takeoff to #m for #m heading # deg",
+        "#:Autoland direction= #",
+    )
+    assert texts[3].startswith("6:Takeoff to 50m for 200.0m heading ")
+    states = landed_states(peer, mark)
+    assert [s for _, s in states] == [1, 3, 2]
+    assert 1.0 <= states[1][0] - armed_s <= 1.6
+    airborne = first(fixes, lambda f: f.up_m > 1.0)
+    climbed = first(fixes, lambda f: f.up_m > 45.0)
+    assert airborne is not None and climbed is not None
+    assert within(airborne.t_s - armed_s, AIRBORNE_S, slower=1.5)
+    assert within(climbed.t_s - armed_s, CLIMBED_S, slower=2.5)
+    assert max(f.up_m for f in fixes) <= PARAMS["TKOFF_ALT"] + 12.0
+    # Then it circles a point TKOFF_DIST ahead, at TKOFF_ALT, still in TAKEOFF.
+    ahead = moved(*origin, PARAMS["TKOFF_DIST"], 0.0)
+    mark = peer.mark()
+    peer.run_for(40.0)
+    radius, _spread = circle_of(peer, mark, ahead)
+    assert radius == pytest.approx(LOITER_RADIUS_M, abs=RADIUS_TOLERANCE_M)
+    assert all(abs(f.up_m - PARAMS["TKOFF_ALT"]) <= 3.0 for f in track(peer, mark))
+    assert peer.mode_name(peer.heartbeat().custom_mode) == "TAKEOFF"
+    # LOITER: it circles where it is, at its height.
+    assert peer.set_mode("LOITER").result == mavlink2.MAV_RESULT_ACCEPTED
+    peer.run_for(20.0)
+    mark = peer.mark()
+    peer.run_for(40.0)
+    _centre, radius, _spread = fitted_circle(peer, mark)
+    assert radius == pytest.approx(LOITER_RADIUS_M, abs=RADIUS_TOLERANCE_M)
+    assert all(abs(f.up_m - PARAMS["TKOFF_ALT"]) <= 3.0 for f in track(peer, mark))
+    assert peer.mode_name(peer.heartbeat().custom_mode) == "LOITER"
+    # GUIDED: a new airspeed is said and flown (SITL: 14.8-15.0 m/s within 20 s).
+    assert peer.set_mode("GUIDED").result == mavlink2.MAV_RESULT_ACCEPTED
+    mark = peer.mark()
+    ack = peer.command_long(mavlink2.MAV_CMD_DO_CHANGE_SPEED, 0, 15.0, -1)
+    assert ack.result == mavlink2.MAV_RESULT_ACCEPTED
+    assert command_texts(peer.texts_since(mark)) == ("6:Set airspeed 15 m/s",)
+    peer.run_for(25.0)
+    mark = peer.mark()
+    peer.run_for(5.0)
+    speeds = [m.airspeed for _, m in peer.history[mark:] if m.get_type() == "VFR_HUD"]
+    assert all(abs(v - 15.0) <= 0.7 for v in speeds), speeds
+    # RTL: home, at RTL_ALTITUDE, circling it for as long as it is left there.
+    assert peer.set_mode("RTL").result == mavlink2.MAV_RESULT_ACCEPTED
+    peer.run_for(60.0)
+    mark = peer.mark()
+    peer.run_for(40.0)
+    radius, _spread = circle_of(peer, mark, origin)
+    assert radius == pytest.approx(LOITER_RADIUS_M, abs=RADIUS_TOLERANCE_M)
+    assert all(abs(f.up_m - RTL_ALTITUDE_M) <= 3.0 for f in track(peer, mark))
+    assert peer.mode_name(peer.heartbeat().custom_mode) == "RTL"
