@@ -432,6 +432,7 @@ class SimAutopilot:
         self._home_locked = False  # set by a ground station: ArduPilot moves it no more
         self._rtl_arrival_due = False  # ArduRover's "Reached destination" still to say
         self._takeoff_starts_s = -math.inf  # ArduPlane's takeoff proper starts then
+        self._guided_wp_active = False  # ArduCopter flies guided position targets now
         self._text_id = 0  # id of the last STATUSTEXT sent in chunks
         self._params: dict[str, _Param] = {"SYSID_THISMAV": _Param(system_id, _INT16)}
         for name, (value, kind) in {**COMMON_PARAMS, **self.fw.params}.items():
@@ -864,6 +865,7 @@ class SimAutopilot:
             return _FAILED
         self._target = None  # ArduPilot forgets the guided target on changing mode
         self._velocity_target = None
+        self._guided_wp_active = False
         self._last_mode = name
         for severity, text in fw.enter_texts.get(name, ()):
             self._text(severity, text)
@@ -1086,6 +1088,7 @@ class SimAutopilot:
         )
         if not model.takeoff(float(alt_m), delay_s):
             return _FAILED
+        self._guided_wp_active = False
         self._ground_since_s = None  # taking off: no auto-disarm
         return _ACCEPTED
 
@@ -1122,7 +1125,11 @@ class SimAutopilot:
                 return _DENIED
             if mode not in (self.guided_mode, "AUTO"):
                 return _FAILED
-            if speed_type in (0, 1):  # ArduCopter takes an airspeed as a ground speed
+            # ArduCopter takes an airspeed as a ground speed. In GUIDED the speed goes to
+            # its waypoint controller, which a position target after a takeoff (or on
+            # entering GUIDED) starts afresh at WPNAV_SPEED: until one has been flown, an
+            # accepted change is lost (measured).
+            if speed_type in (0, 1) and (mode == "AUTO" or self._guided_wp_active):
                 model.set_speed(float(speed_m_s))
             return _ACCEPTED
         if self.firmware == "ardurover":
@@ -1153,7 +1160,9 @@ class SimAutopilot:
     def _goto(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
         self._target = (lat_deg, lon_deg, alt_m)
         self._guided_arrival_due = self.fw.guided_reached_text
-        return self.model.goto(lat_deg, lon_deg, alt_m, None)
+        taken = self.model.goto(lat_deg, lon_deg, alt_m, None)
+        self._guided_wp_active = taken and self.model.airborne
+        return taken
 
     def _relative_alt_m(self, alt: float, frame: int) -> float | None:
         """A target's height above the origin (the model's frame) from its frame's altitude."""

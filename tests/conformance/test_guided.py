@@ -177,3 +177,79 @@ def test_copter_takes_off_hovers_flies_to_a_point_and_lands(copter: Peer) -> Non
     assert len(disarms) == 1
     assert within(disarms[0].time_s - land_s, LAND_DISARM_S, slower=1.15)
     assert peer.mode_name(peer.heartbeat().custom_mode) == "LAND"
+
+
+def change_speed(peer: Peer, speed_m_s: float) -> object:
+    """DO_CHANGE_SPEED of the ground speed; returns the COMMAND_ACK."""
+    return peer.command_long(mavlink2.MAV_CMD_DO_CHANGE_SPEED, 1, speed_m_s, -1)
+
+
+def leg_peak_m_s(peer: Peer, target: tuple[float, float], up_m: float, within_s: float) -> float:
+    """Go to ``target`` (guided), wait until there and stopped; the peak ground speed.
+
+    "There" is within 3.5 m: ArduRover stops on reaching WP_RADIUS (3 m in SITL) when it
+    had to turn round toward the target (SITL stopped 2.35 m short).
+    """
+    mark = peer.mark()
+    goto(peer, *target, up_m)
+
+    def there(msg: object) -> bool:
+        """there, stopped"""
+        f = fix_of(msg)
+        return distance_m((f.lat_deg, f.lon_deg), target) < 3.5 and f.ground_speed_m_s < 0.1
+
+    peer.wait_for("GLOBAL_POSITION_INT", within_s, where=there)
+    return max(f.ground_speed_m_s for f in track(peer, mark))
+
+
+@backends(kinds=("rover",))
+def test_rover_speed_change_holds_in_guided_until_it_is_left(rover: Peer) -> None:
+    peer = rover
+    start = here(peer)
+    home = (start.lat_deg, start.lon_deg)
+    assert peer.set_mode("GUIDED").result == mavlink2.MAV_RESULT_ACCEPTED
+    assert peer.arm().result == mavlink2.MAV_RESULT_ACCEPTED
+    north = moved(*home, 30.0, 0.0)
+    goto(peer, *north, 0.0)
+    peer.run_for(6.0)
+    assert here(peer).ground_speed_m_s == pytest.approx(ROVER_SPEED_M_S, abs=0.3)
+    # Driving: accepted, and it slows to the new speed at once (SITL: within 1.3 s).
+    assert change_speed(peer, 2.0).result == mavlink2.MAV_RESULT_ACCEPTED
+    # (SITL dips to 1.72 m/s first, and is back at 2.0 after 3.5 s).
+    peer.run_for(4.0)
+    mark = peer.mark()
+    peer.run_for(1.0)
+    assert all(abs(f.ground_speed_m_s - 2.0) <= 0.2 for f in track(peer, mark))
+    # It holds for the next target in the same GUIDED session...
+    peer.wait_for("GLOBAL_POSITION_INT", 30.0, where=lambda m: fix_of(m).ground_speed_m_s < 0.05)
+    assert leg_peak_m_s(peer, home, 0.0, 60.0) <= 2.0 * 1.1
+    # ... and is forgotten once GUIDED is left: WP_SPEED again.
+    assert peer.set_mode("HOLD").result == mavlink2.MAV_RESULT_ACCEPTED
+    assert peer.set_mode("GUIDED").result == mavlink2.MAV_RESULT_ACCEPTED
+    assert leg_peak_m_s(peer, moved(*home, 20.0, 0.0), 0.0, 60.0) >= 2.5
+    assert leg_peak_m_s(peer, home, 0.0, 60.0) >= 2.5
+
+
+@backends(kinds=("copter",))
+def test_copter_speed_change_holds_in_guided_until_it_is_left(copter: Peer) -> None:
+    peer = copter
+    assert peer.arm().result == mavlink2.MAV_RESULT_ACCEPTED
+    start = here(peer)
+    home = (start.lat_deg, start.lon_deg)
+    peer.run_for(0.5)
+    assert takeoff(peer, TAKEOFF_M).result == mavlink2.MAV_RESULT_ACCEPTED
+    peer.wait_for("EXTENDED_SYS_STATE", 20.0, where=lambda m: m.landed_state == 2)
+    # Hovering after the takeoff: accepted, and lost: the next position target starts
+    # ArduCopter's waypoint controller afresh, at WPNAV_SPEED (measured).
+    assert change_speed(peer, 3.0).result == mavlink2.MAV_RESULT_ACCEPTED
+    north = moved(*home, 30.0, 0.0)
+    assert leg_peak_m_s(peer, north, TAKEOFF_M, 40.0) >= 4.0
+    # Once flying to targets: the next legs are flown at it (SITL: 2.97-3.10 m/s).
+    assert change_speed(peer, 3.0).result == mavlink2.MAV_RESULT_ACCEPTED
+    assert 2.7 <= leg_peak_m_s(peer, home, TAKEOFF_M, 40.0) <= 3.3
+    assert 2.7 <= leg_peak_m_s(peer, north, TAKEOFF_M, 40.0) <= 3.3
+    # Not in LOITER; and back in GUIDED the speed is WPNAV_SPEED's again.
+    assert peer.set_mode("LOITER").result == mavlink2.MAV_RESULT_ACCEPTED
+    assert change_speed(peer, 3.0).result == mavlink2.MAV_RESULT_FAILED
+    assert peer.set_mode("GUIDED").result == mavlink2.MAV_RESULT_ACCEPTED
+    assert leg_peak_m_s(peer, home, TAKEOFF_M, 40.0) >= 4.0
