@@ -373,6 +373,7 @@ def test_position_targets() -> None:
     ask(sim, gcs, gcs.frame(target))
     assert model.gotos == []  # not in GUIDED: dropped, as ArduCopter does
     ask(sim, gcs, gcs.command(176, 1, COPTER_MODES["GUIDED"]))
+    model.up_m = 5.0  # flying: speed changes apply once it flies to targets
     ask(sim, gcs, gcs.frame(target))
     assert model.gotos == [(30.632, -96.482, 20.0, None)]
     amsl = gcs.mav.set_position_target_global_int_encode(
