@@ -83,8 +83,8 @@ def quick_mission(folder: Path) -> Path:
     path = folder / MISSION.name
     text = MISSION.read_text(encoding="utf-8")
     quick = text.replace(
-        "sim: {duration_s: 170, seed: 1}",
-        f"sim: {{duration_s: 170, seed: 1, autopilot_ready_s: {READY_S}}}",
+        "sim: {duration_s: 170, seed: 1,",
+        f"sim: {{duration_s: 170, seed: 1, autopilot_ready_s: {READY_S},",
     )
     assert quick != text
     path.write_text(quick, encoding="utf-8")
