@@ -36,6 +36,7 @@ def modes_of(name: str) -> dict[str, int]:
 
 PLANE_MODES = modes_of("pixhawk_arduplane")
 COPTER_MODES = modes_of("pixhawk_arducopter")
+ROVER_MODES = modes_of("pixhawk_ardurover")
 
 
 class FakeModel(FakeModelHooks, RcServoBook, VehicleModel):
@@ -46,6 +47,7 @@ class FakeModel(FakeModelHooks, RcServoBook, VehicleModel):
         self.mode = mode
         self.armed = False
         self.up_m = 0.0
+        self.lat_deg = HOME[0]
         self.gotos: list[tuple[float, float, float, float | None]] = []
         FakeModelHooks.__init__(self)
         RcServoBook.__init__(self, pilot={1: 1500, 3: 1100}, servo_count=14)
@@ -58,7 +60,7 @@ class FakeModel(FakeModelHooks, RcServoBook, VehicleModel):
             north_m=0.0,
             east_m=0.0,
             up_m=self.up_m,
-            lat_deg=HOME[0],
+            lat_deg=self.lat_deg,
             lon_deg=HOME[1],
             velocity_north_m_s=1.0,
             velocity_east_m_s=-2.0,
@@ -107,7 +109,8 @@ class Gcs:
 
 def make_sim(firmware: str = "arduplane", **kwargs: Any) -> tuple[SimAutopilot, FakeModel]:
     """A simulated autopilot powered on 100 s before time 0 (ready) unless ``boot_s`` says."""
-    model = FakeModel(PLANE_MODES if firmware == "arduplane" else COPTER_MODES)
+    modes = {"arduplane": PLANE_MODES, "ardurover": ROVER_MODES}.get(firmware, COPTER_MODES)
+    model = FakeModel(modes)
     kwargs.setdefault("boot_s", -100.0)
     sim = SimAutopilot(
         model,
@@ -441,7 +444,8 @@ def test_guided_mission_item_as_mavproxy_sends_it() -> None:
     assert answer(item(2, 20.0, integer=False)) == mavlink2.MAV_MISSION_ACCEPTED
     assert model.gotos[-1] == pytest.approx((30.633, -96.483, 20.0, None))
     assert answer(item(0, 20.0)) == mavlink2.MAV_MISSION_ERROR  # no upload in progress
-    assert answer(item(2, 20.0, mission_type=1)) == mavlink2.MAV_MISSION_UNSUPPORTED
+    # A fence item with current 2 is the fence's, outside an upload: an error, no target.
+    assert answer(item(2, 20.0, mission_type=1)) == mavlink2.MAV_MISSION_ERROR
     assert len(model.gotos) == 3
 
 
@@ -501,14 +505,17 @@ def test_parameters() -> None:
         make_sim(params={"NO_SUCH_PARAM": 1})
 
 
-def test_empty_mission() -> None:
+def test_empty_mission_and_an_upload_the_mission_protocol_answers() -> None:
+    # The mission protocol itself is clark_engine.sim.mission_protocol's (and its tests);
+    # here: the autopilot hands it the messages and its home. Home is set (an autopilot
+    # booted before the run), so an empty mission counts 1 item, home, as ArduPilot's.
     sim, _ = make_sim()
     gcs = Gcs(255, 190)
     (answer,) = ask(sim, gcs, gcs.frame(gcs.mav.mission_request_list_encode(1, 1, 0)))
     assert answer.get_type() == "MISSION_COUNT"
-    assert (answer.count, answer.target_system, answer.target_component) == (0, 255, 190)
-    (refusal,) = ask(sim, gcs, gcs.frame(gcs.mav.mission_count_encode(1, 1, 3, 0)))
-    assert (refusal.get_type(), refusal.type) == ("MISSION_ACK", mavlink2.MAV_MISSION_UNSUPPORTED)
+    assert (answer.count, answer.target_system, answer.target_component) == (1, 255, 190)
+    (request,) = ask(sim, gcs, gcs.frame(gcs.mav.mission_count_encode(1, 1, 2, 0)))
+    assert (request.get_type(), request.seq) == ("MISSION_REQUEST", 0)
 
 
 def test_mavftp_is_refused() -> None:
@@ -636,3 +643,21 @@ def test_mavutil_ground_station_flies_the_sim(mavutil: Any, role: str) -> None:
     finally:
         gcs.close()
         vehicle.close()
+
+
+def test_a_disarmed_rover_moved_half_a_metre_moves_its_home() -> None:
+    # ArduRover's one-second loop (Rover::update_home): while disarmed, home follows the
+    # rover once it is DISTANCE_HOME_MINCHANGE (0.5 m) away, and HOME_POSITION says so;
+    # a rover that moved less keeps its home and sends nothing.
+    sim, model = make_sim("ardurover")
+    gcs = Gcs()
+    run(sim, gcs, 0.0, 2.0)  # the first home, sent at the start
+
+    def homes_after_moving_north(metres: float, start_s: float) -> list[Any]:
+        model.lat_deg = HOME[0] + metres / 111_320.0
+        answers = run(sim, gcs, start_s, start_s + 2.0)
+        return [m for _t, m in answers if m.get_type() == "HOME_POSITION"]
+
+    assert homes_after_moving_north(0.3, 2.0) == []
+    (home,) = homes_after_moving_north(0.7, 4.0)
+    assert home.latitude == pytest.approx((HOME[0] + 0.7 / 111_320.0) * 1e7, abs=1)

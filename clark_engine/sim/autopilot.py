@@ -33,17 +33,31 @@ What it does, in ArduPilot's order:
 - **Arming** (MAV_CMD_COMPONENT_ARM_DISARM): refused with CRITICAL ``Arm: ...``
   texts and FAILED while a check fails (the boot phase, a mode that is not armable,
   a mode that needs a position before the EKF has one); while checks fail a
-  ``PreArm: ...`` text every 30 s. Forced arming skips the checks. Home moves to
-  where the vehicle is at every arming. Disarming in the air is refused (FAILED,
-  no text) unless forced. ArduCopter disarms by itself DISARM_DELAY after arming
-  if it has not taken off, and 2 s after touching down in LAND or RTL. Arming a
-  plane in TAKEOFF launches it.
+  ``PreArm: ...`` text every 30 s; the throttle must be at zero. Forced arming
+  skips the checks. Home moves where each firmware moves it (ArduCopter at arming,
+  ArduRover at disarming, ArduPlane with its GPS while disarmed) unless a ground
+  station set it. Disarming in the air is refused (FAILED, no text) unless forced.
+  ArduCopter disarms by itself DISARM_DELAY after arming if it has not taken off,
+  and 2 s after touching down in LAND, RTL or AUTO. Arming a plane in TAKEOFF (or
+  AUTO with a takeoff first) launches it. Two internal errors SITL showed block
+  arming until a reboot: ArduRover's RTL before its EKF origin and ArduCopter's
+  second SMART_RTL entry while disarmed.
 - **Modes** (MAV_CMD_DO_SET_MODE acknowledged; the SET_MODE message is not, as in
-  ArduPilot 4.7): an unknown number is FAILED with "No such mode N"; the
-  firmware's refusals (ArduRover's modes that need the EKF origin, ArduCopter's
-  AUTO when armed on the ground without a takeoff item, ArduPlane's AUTOLAND on
-  the ground) are FAILED with its texts; ArduPlane's AUTO without a mission
-  becomes RTL at once; ArduCopter's LAND on the ground disarms it.
+  ArduPilot 4.7): an unknown number is FAILED with "No such mode N"; every
+  refusal of every mode of the profiles, disarmed and armed, before and after the
+  vehicle is ready, is ArduPilot's, with its texts (the firmware's facts, measured
+  mode by mode); ArduPlane's AUTO without a mission becomes RTL at once;
+  ArduCopter's LAND on the ground disarms it.
+- **Missions** (:class:`~clark_engine.sim.mission_protocol.MissionProtocol`):
+  upload, download, clear, partial update and the current item of the mission,
+  fence and rally lists, as ArduPilot answers them; MISSION_CURRENT; AUTO entered
+  as each firmware allows it (ArduRover and ArduCopter armed on the ground need a
+  mission, ArduCopter one that starts with a takeoff), MAV_CMD_MISSION_START and
+  DO_SET_MISSION_CURRENT. AUTO flies the mission's navigation items one after the
+  other (takeoff, waypoints and loiters as points, land, return to launch; any
+  other item is passed), saying what ArduPilot says at each, and ends as each
+  firmware ends it (ArduRover stops, "Mission Complete"; ArduCopter holds, or
+  lands, disarms and starts the mission over; ArduPlane turns to RTL).
 - **Commands**: DO_CHANGE_SPEED as each firmware accepts it; NAV_TAKEOFF
   (ArduCopter: guided, armed, landed; COMMAND_INT in the relative-altitude frame);
   NAV_LAND; NAV_RETURN_TO_LAUNCH; NAV_LOITER_UNLIM; DO_SET_HOME; GET_HOME_POSITION;
@@ -64,9 +78,11 @@ What it does, in ArduPilot's order:
   MAV_CMD_SET_MESSAGE_INTERVAL (-1 stops, 0 restores the default) or per group by
   REQUEST_DATA_STREAM. STATUSTEXT whenever ArduPilot would speak.
 
-Not simulated: missions (uploads are refused; AUTO is flown as the hold mode when a
-firmware lets it be entered), fences, rally points, signing, terrain, and more than
-one MAVLink channel (all peers share one byte stream, as behind a router).
+Not simulated (docs/autopilot-fidelity.md): flying by fences or rally points (they
+are kept, never used), mission DO items other than DO_CHANGE_SPEED, DO_SET_SERVO and
+DO_SET_HOME, signing, terrain, failsafes (GCS, radio, battery; of the EKF's, only
+ArduRover's refusal of modes that need a position), AUTOLAND, and more than one MAVLink
+channel (all peers share one byte stream, as behind a router).
 """
 
 from __future__ import annotations
@@ -87,6 +103,7 @@ from clark_engine.sim.firmware import (
     BootTimes,
     Firmware,
 )
+from clark_engine.sim.mission_protocol import MissionItem, MissionProtocol, MissionState
 from clark_engine.sim.model import Truth, VehicleModel
 
 FIRMWARE_TYPES: Final[Mapping[str, int]] = {
@@ -118,6 +135,27 @@ at a line of ArduPilot's source: ArduRover's AR_WPNav 239, ArduCopter's SmartRTL
 THROTTLE_DEAD_ZONE_US: Final = 30
 """RC3_DZ: a throttle this close to zero counts as zero for arming (measured: SITL armed
 at its 1000 us minimum and refused 1200 us; the rover armed at its 1500 us trim)."""
+MISSION_POLL_S: Final = 0.1
+"""How often an upload's resends and timeout are looked at (their times are whole seconds)."""
+_AUTO_IDLE, _AUTO_WAITING, _AUTO_FLYING, _AUTO_HOLDING, _AUTO_DONE = range(5)
+_TARGET_COMMANDS: Final = frozenset(
+    {
+        int(mavlink2.MAV_CMD_NAV_WAYPOINT),
+        int(mavlink2.MAV_CMD_NAV_LOITER_UNLIM),
+        int(mavlink2.MAV_CMD_NAV_LOITER_TIME),
+        int(mavlink2.MAV_CMD_NAV_LOITER_TURNS),
+        int(mavlink2.MAV_CMD_NAV_LOITER_TO_ALT),
+        int(mavlink2.MAV_CMD_NAV_SPLINE_WAYPOINT),
+        int(mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH),
+    }
+)
+"""Mission items flown as a point to go to (loiters and splines as a plain waypoint)."""
+_HOLDING_COMMANDS: Final = frozenset(
+    {int(mavlink2.MAV_CMD_NAV_WAYPOINT), int(mavlink2.MAV_CMD_NAV_LOITER_TIME)}
+)
+"""Items whose param1 is a time to stay at their point (seconds)."""
+"""AUTO's executor: no item, item not begun (disarmed, or a copter on the ground before
+MISSION_START), flying it, holding at it (its hold time), done (LOITER_UNLIM)."""
 PLANE_LAUNCH_S: Final = 0.2
 """ArduPlane, armed in TAKEOFF: "Triggered AUTO" this long after arming (measured)."""
 PLANE_TAKEOFF_STARTS_S: Final = 1.2
@@ -134,6 +172,8 @@ LANDED_REPORT_DELAY_S: Final = 1.6
 """ArduCopter's land detector: on the ground this long after touchdown (measured 1.6 s)."""
 LAND_DISARM_DELAY_S: Final = 2.05
 """ArduCopter disarms this long after touching down in LAND or RTL (measured)."""
+COPTER_AUTO_TAKEOFF_DELAY_S: Final = 0.5
+"""From MISSION_START to the climb of a copter armed for several seconds (measured)."""
 SPOOLED_AFTER_S: Final = 4.7
 """A copter armed this long ago has its motors spooled up for a takeoff (measured)."""
 TAKEOFF_DELAY_SPOOLING_S: Final = 3.25
@@ -146,6 +186,15 @@ MIN_INTERVAL_US: Final = 25_000
 """The fastest stream ArduPilot grants (40 Hz; a faster request is DENIED, measured)."""
 PLANE_HOME_PERIOD_S: Final = 6.0
 """ArduPlane re-sends HOME_POSITION this often while disarmed (measured)."""
+ROVER_HOME_CHECK_PERIOD_S: Final = 1.0
+"""ArduRover looks at moving home once a second while disarmed (Rover::one_second_loop)."""
+ROVER_HOME_MIN_CHANGE_M: Final = 0.5
+"""ArduRover's DISTANCE_HOME_MINCHANGE: home moves once the rover is this far from it."""
+EKF_CHECK_PERIOD_S: Final = 0.1
+"""ArduRover checks its EKF at 10 Hz (Rover::ekf_check)."""
+EKF_CHECK_ITERATIONS: Final = 10
+"""EKF_CHECK_ITERATIONS_MAX: a second of failed checks turns ArduRover's EKF failsafe on,
+and as many good ones turn it off."""
 BATTERY_VOLTAGE_MV: Final = 12600
 """The battery's voltage (SITL's SIM_BATT_VOLTAGE; it does not sag in SITL either)."""
 FULL_THROTTLE_CURRENT_A: Final[Mapping[str, float]] = {
@@ -397,6 +446,24 @@ class SimAutopilot:
         self._mav = mavlink2.MAVLink(self._outbox, srcSystem=system_id, srcComponent=component_id)
         self._parser = mavlink2.MAVLink(None, system_id, component_id)
         self._parser.robust_parsing = True
+        self.missions = MissionProtocol(
+            self._mav,
+            lambda: self._home,
+            self._text,
+            firmware=firmware,
+            in_auto=lambda: self.model.mode == "AUTO",
+        )
+        """The mission, fence and rally lists and their protocol; AUTO flies the mission."""
+        self._mission_poll_s = 0.0
+        # AUTO's executor: the mission item it flies (seq), and how far it got with it.
+        self._auto_seq: int | None = None
+        self._auto_phase = _AUTO_IDLE
+        self._auto_until_s = 0.0
+        self._auto_go = False  # ArduCopter on the ground: MISSION_START came
+        self._auto_landing = False  # the item flown is a landing (ArduCopter disarms after)
+        self._auto_land_there = False  # a land item with a place: flying there first
+        self._started_seen: tuple[MissionItem, ...] = ()  # DO items already carried out
+        self._mission_changes = 0  # MissionProtocol.changed when last looked at
 
         self._interval_us: dict[str, int | None] = {}  # per-message overrides; None: stopped
         self._due_us: dict[str, int] = {}
@@ -453,6 +520,10 @@ class SimAutopilot:
         # Readiness and arming.
         self._home: tuple[float, float, float] | None = None  # lat, lon, alt AMSL
         self._home_sent_s = -math.inf
+        self._next_home_check_s = 0.0
+        self._next_ekf_check_s = 0.0
+        self._ekf_fail_count = 0  # ArduRover's EKF check (_rover_ekf_check)
+        self._ekf_failsafe = False
         self._armed_s: float | None = self._boot_armed()
         self._ground_since_s: float | None = None  # armed and on the ground since
         self._was_flying = self.model.airborne
@@ -558,6 +629,7 @@ class SimAutopilot:
             * math.cos(math.radians(self.origin_lat_deg))
         )
         self.model.set_home(north, east, alt_m - self.origin_alt_m)
+        self.missions.write_home()
         if "HOME_POSITION" not in self._deferred:
             self._deferred.append("HOME_POSITION")
         self._next_due_us = 0
@@ -584,6 +656,9 @@ class SimAutopilot:
         """
         if self._overrides:  # (usually there are none: a call saved at every step)
             self._expire_overrides(now_s)
+        if now_s >= self._mission_poll_s:  # resends and timeouts of an upload
+            self._mission_poll_s = now_s + MISSION_POLL_S
+            self.missions.poll(now_s)
         self._supervise(now_s)
         if self._deferred:
             self._send_deferred(now_s)
@@ -662,6 +737,20 @@ class SimAutopilot:
                 self.set_home(*self._home, now_s)
             else:
                 self._home_here(now_s)
+        elif (
+            self.fw.home_at == "disarming"
+            and self._home is not None
+            and not self._home_locked
+            and not self.model.armed
+            and now_s >= self._next_home_check_s
+        ):
+            # ArduRover's one-second loop: while disarmed, home follows the vehicle once
+            # it is DISTANCE_HOME_MINCHANGE away (a rover still rolling after its disarm).
+            self._next_home_check_s = now_s + ROVER_HOME_CHECK_PERIOD_S
+            if self._distance_from_home_m() >= ROVER_HOME_MIN_CHANGE_M:
+                self._home_here(now_s)
+        if self.firmware == "ardurover" and now_s >= self._next_ekf_check_s:
+            self._rover_ekf_check(now_s)
         if now_s >= self._next_prearm_report_s:
             self._next_prearm_report_s = now_s + PREARM_REPORT_PERIOD_S
             if not self.model.armed:
@@ -669,6 +758,8 @@ class SimAutopilot:
                     self._text(_CRITICAL, "Pre" + reason)
         if self._velocity_target is not None:
             self._fly_velocity_target(now_s)
+        if self.model.mode == "AUTO":
+            self._fly_mission(now_s)
         if self._guided_arrival_due and self.model.target_reached and self._in_guided():
             self._guided_arrival_due = False
             self._mav.send(self._mav.mission_item_reached_encode(0))
@@ -695,7 +786,9 @@ class SimAutopilot:
         if delay_s is None or not model.armed or flying or self._ground_since_s is None:
             return
         landed_in = self._touchdown_s is not None and self._touchdown_s >= self._ground_since_s
-        landing_mode = model.mode in ("LAND", "RTL", "SMART_RTL")
+        landing_mode = model.mode in ("LAND", "RTL", "SMART_RTL") or (
+            model.mode == "AUTO" and self._auto_landing
+        )
         wait_s = LAND_DISARM_DELAY_S if landed_in and landing_mode else delay_s
         if "DISARM_DELAY" in self._params and not (landed_in and landing_mode):
             wait_s = self._params["DISARM_DELAY"].value  # 0 turns the idle disarm off
@@ -745,8 +838,8 @@ class SimAutopilot:
             )
         if mode in fw.arm_needs_position and not self._position_ok(now_s):
             reasons.append(fw.no_position_text)
-        if mode == "AUTO" and fw.name == "arducopter":
-            reasons.append("Arm: Mode requires mission")  # no mission in this simulation
+        if mode == "AUTO" and fw.name == "arducopter" and not self._mission_has_items():
+            reasons.append("Arm: Mode requires mission")
         elif mode in fw.not_armable:
             reasons.append(fw.not_armable_text.format(mode=fw.spell(mode)))
         return reasons
@@ -794,7 +887,10 @@ class SimAutopilot:
             self._text(severity, text)
         if self.fw.home_at == "arming" and not self._home_locked:
             self._home_here(now_s)
-        if self.firmware == "arduplane" and model.mode == "TAKEOFF":
+        if self.firmware == "arduplane" and (
+            model.mode == "TAKEOFF"
+            or (model.mode == "AUTO" and self._current_nav_is(mavlink2.MAV_CMD_NAV_TAKEOFF))
+        ):
             self._plane_launch(now_s)
         return _ACCEPTED
 
@@ -825,8 +921,58 @@ class SimAutopilot:
             self._armed_s = None
             self._ground_since_s = None
             self._text(_INFO, self.fw.disarmed_text)
+            if self.firmware == "arducopter" and self.model.mode == "AUTO":
+                # ArduCopter resets its mission at disarming, and AUTO starts it over:
+                # "Mission: 1 Takeoff" again, waiting for the next arming and start.
+                self._auto_go = False
+                self._auto_seq = None
+                if self._mission_has_items():
+                    self.missions.start()
             if self.fw.home_at == "disarming" and not self._home_locked:
                 self._home_here(now_s)
+
+    def _rover_ekf_check(self, now_s: float) -> None:
+        """ArduRover's EKF check (Rover::ekf_check, 10 Hz): its failsafe refuses modes.
+
+        Armed without an EKF position (a rover armed in MANUAL before its EKF uses the
+        GPS), a count rises by one per check; at 10 the EKF failsafe is on. Once the
+        position is good the count falls by one per check, and at 0 the failsafe ends
+        with CRITICAL "EKF failsafe cleared". While it is on, every mode that needs a
+        position is refused ("Flight mode change failed"). Measured on SITL: position
+        good at 41.57 s, GUIDED refused at 42.08 s, "EKF failsafe cleared" at 42.57 s.
+        The rover cannot be in a mode that needs a position when it starts (it was
+        refused them), so the failsafe's own switch to HOLD is not simulated.
+        """
+        self._next_ekf_check_s = max(self._next_ekf_check_s + EKF_CHECK_PERIOD_S, now_s)
+        if not self._origin_set(now_s):
+            return  # no origin yet: ArduRover does not look
+        if not self.model.armed:
+            self._ekf_fail_count = 0
+            self._ekf_failsafe_off()
+            return
+        if not self._position_ok(now_s):
+            self._ekf_fail_count = min(self._ekf_fail_count + 1, EKF_CHECK_ITERATIONS)
+            if self._ekf_fail_count >= EKF_CHECK_ITERATIONS:
+                self._ekf_failsafe = True
+        elif self._ekf_fail_count > 0:
+            self._ekf_fail_count -= 1
+            if self._ekf_fail_count == 0:
+                self._ekf_failsafe_off()
+
+    def _ekf_failsafe_off(self) -> None:
+        if self._ekf_failsafe:
+            self._ekf_failsafe = False
+            self._text(_CRITICAL, "EKF failsafe cleared")
+
+    def _distance_from_home_m(self) -> float:
+        """Horizontal distance from the vehicle to home (m); home must be set."""
+        assert self._home is not None
+        truth = self.model.truth()
+        north_m = (truth.lat_deg - self._home[0]) * _M_PER_DEG_LAT
+        east_m = (
+            (truth.lon_deg - self._home[1]) * _M_PER_DEG_LAT * math.cos(math.radians(self._home[0]))
+        )
+        return math.hypot(north_m, east_m)
 
     def _home_here(self, now_s: float) -> None:
         """Home where the vehicle is now (ArduPilot's own re-setting of home).
@@ -858,6 +1004,7 @@ class SimAutopilot:
         model, fw = self.model, self.fw
         if name == model.mode:
             return _ACCEPTED
+        left = model.mode
         refusal = self._mode_refusal(name, now_s)
         if refusal is not None or not model.set_mode(name):
             for severity, text in refusal or [(_WARNING, fw.mode_refused_text)]:
@@ -879,10 +1026,16 @@ class SimAutopilot:
             self._smart_rtl_entered = True
         if fw.name == "arducopter" and name == "LAND" and model.armed and not model.airborne:
             self._disarm(now_s)  # LAND on the ground: landed at once
-        if fw.name == "arduplane" and name == "AUTO":
-            self._text(_INFO, "Mission complete, changing mode to RTL")
-            model.set_mode("RTL")
-            self._last_mode = "RTL"
+        if left == "AUTO":
+            self._auto_left()
+        if name == "AUTO":
+            if fw.name == "arduplane" and not self._mission_has_items():
+                self.missions.start()  # empty: complete at once
+                self._text(_INFO, "Mission complete, changing mode to RTL")
+                model.set_mode("RTL")
+                self._last_mode = "RTL"
+            else:
+                self._auto_entered()
         return _ACCEPTED
 
     def _mode_refusal(self, name: str, now_s: float) -> list[tuple[int, str]] | None:
@@ -894,14 +1047,18 @@ class SimAutopilot:
         """
         fw, model = self.fw, self.model
         refused = [(_WARNING, fw.mode_refused_text)]
-        if model.armed and name in fw.set_needs_position_armed and not self._position_ok(now_s):
+        if (
+            model.armed
+            and name in fw.set_needs_position_armed
+            and (not self._position_ok(now_s) or self._ekf_failsafe)
+        ):
             return [(_WARNING, fw.position_refused_text)]
         if name in fw.refused_modes:
             return list(fw.refused_modes[name])
         if model.armed and not model.airborne and name in fw.refused_armed_on_ground:
             return list(fw.refused_armed_on_ground[name])
         if fw.name == "ardurover":
-            if name == "AUTO":
+            if name == "AUTO" and not self._mission_has_items():
                 return [(_NOTICE, "No Mission. Can't set AUTO."), *refused]
             if not model.armed and name in fw.set_needs_origin and not self._origin_set(now_s):
                 if name == "RTL" and self._home is not None:
@@ -914,7 +1071,11 @@ class SimAutopilot:
             if name in fw.set_needs_origin and not self._position_ok(now_s):
                 return refused
             if name == "AUTO" and model.armed and not model.airborne:
-                return refused  # no mission here, so nothing to take off with
+                first = self._first_nav()
+                if first is None:
+                    return refused  # nothing to fly
+                if first.command != mavlink2.MAV_CMD_NAV_TAKEOFF:
+                    return [(_CRITICAL, "Auto: Missing Takeoff Cmd"), *refused]
         elif fw.name == "arduplane" and name == "AUTOLAND" and not model.airborne:
             return [(_WARNING, "Must already be flying!"), *refused]
         return None
@@ -965,35 +1126,14 @@ class SimAutopilot:
                 self._send_param(name, _PARAM_INDEX_BY_NAME)
         elif kind == "REQUEST_DATA_STREAM":
             self._request_data_stream(msg)
-        elif kind == "MISSION_REQUEST_LIST":
-            self._mav.send(
-                self._mav.mission_count_encode(
-                    asker.system_id, asker.component_id, 0, msg.mission_type
-                )
-            )
-        elif kind == "MISSION_COUNT":
-            self._mav.send(
-                self._mav.mission_ack_encode(
-                    asker.system_id,
-                    asker.component_id,
-                    mavlink2.MAV_MISSION_UNSUPPORTED,
-                    msg.mission_type,
-                )
-            )
+        elif kind.startswith("MISSION_") and self.missions.handle(msg, now_s):
+            pass  # the mission protocol answered (the executor sees what changed)
         elif kind in ("MISSION_ITEM_INT", "MISSION_ITEM"):
+            # A guided-mode waypoint (current 2) or altitude change (current 3).
             result = self._mission_item(msg, now_s, integer=kind == "MISSION_ITEM_INT")
             self._mav.send(
                 self._mav.mission_ack_encode(
                     asker.system_id, asker.component_id, result, msg.mission_type
-                )
-            )
-        elif kind == "MISSION_CLEAR_ALL":
-            self._mav.send(
-                self._mav.mission_ack_encode(
-                    asker.system_id,
-                    asker.component_id,
-                    mavlink2.MAV_MISSION_ACCEPTED,
-                    msg.mission_type,
                 )
             )
         elif kind == "FILE_TRANSFER_PROTOCOL":
@@ -1024,8 +1164,7 @@ class SimAutopilot:
             return self._arm_command(p1, p2, now_s)
         if command == mavlink2.MAV_CMD_DO_SET_SERVO:
             servo = int(p1)
-            in_use = getattr(self.model, "servo_function", None)
-            if not 1 <= servo <= 16 or (in_use is not None and in_use(servo) is not None):
+            if not self._servo_free(servo):
                 self._text(_INFO, f"ServoRelayEvent: Channel {servo} is already in use")
                 return _FAILED
             self.model.set_servo(servo, int(p2))
@@ -1065,9 +1204,21 @@ class SimAutopilot:
             if self._home is None:
                 return _FAILED
             return self._request_message(_msg_id("HOME_POSITION"))
+        if command == mavlink2.MAV_CMD_DO_SET_MISSION_CURRENT:
+            if not self.missions.set_current(int(p1)):
+                return _DENIED
+            self._deferred.append("MISSION_CURRENT")
+            return _ACCEPTED
+        if command == mavlink2.MAV_CMD_MISSION_START:
+            return self._mission_start(p1, p2, now_s)
         if command == mavlink2.MAV_CMD_DO_REPOSITION and frame is not None:
             return self._reposition(params, z, frame, now_s)
         return _UNSUPPORTED
+
+    def _servo_free(self, servo: int) -> bool:
+        """An output DO_SET_SERVO may drive: 1-16, with no function (ArduPilot's rule)."""
+        in_use = getattr(self.model, "servo_function", None)
+        return 1 <= servo <= 16 and (in_use is None or in_use(servo) is None)
 
     def _takeoff(self, alt_m: float, frame: int | None, now_s: float) -> int:
         """MAV_CMD_NAV_TAKEOFF: ArduCopter's guided takeoff; ArduPlane's is quadplane-only."""
@@ -1200,7 +1351,8 @@ class SimAutopilot:
         As ArduPilot's GCS_MAVLINK::handle_mission_item: ``current`` 2 is a guided-mode
         waypoint (accepted in the guided mode only; MAVProxy's ``guided LAT LON ALT``
         sends one), ``current`` 3 an altitude change (always accepted); any other item
-        arrives outside an upload, which is an error (uploads are refused here).
+        arrives outside an upload, which is an error. (Items of an upload, and of the
+        fence and rally lists, are the mission protocol's, which sees them first.)
         """
         if msg.mission_type != mavlink2.MAV_MISSION_TYPE_MISSION:
             return int(mavlink2.MAV_MISSION_UNSUPPORTED)
@@ -1264,6 +1416,212 @@ class SimAutopilot:
         lon = lon_deg + ve * elapsed_s / (_M_PER_DEG_LAT * math.cos(math.radians(lat_deg)))
         self._target = (lat, lon, alt_m)
         self.model.goto(lat, lon, alt_m, None)
+
+    # -- AUTO: the mission executor ------------------------------------------------------------
+
+    def _mission_has_items(self) -> bool:
+        return self.missions.count > 1  # item 0 is home
+
+    def _first_nav(self) -> MissionItem | None:
+        return next((item for item in self.missions.items[1:] if item.is_nav), None)
+
+    def _current_nav_is(self, command: int) -> bool:
+        item = self.missions.nav_item
+        return item is not None and item.command == command
+
+    def _auto_entered(self) -> None:
+        """AUTO entered: the mission goes on where it stopped (ArduPilot's MIS_RESTART 0)."""
+        self._auto_seq = None
+        self._auto_phase = _AUTO_IDLE
+        self._auto_go = self.model.airborne  # a copter in the air needs no MISSION_START
+        if self._mission_has_items():
+            self.missions.resume()
+        else:
+            # Nothing to fly: the (empty) mission is complete at once, and stays complete
+            # across a later upload until it is started again (measured).
+            self.missions.start()
+
+    def _auto_left(self) -> None:
+        self.missions.stop()
+        self._auto_seq = None
+        self._auto_phase = _AUTO_IDLE
+        self._auto_go = self._auto_landing = self._auto_land_there = False
+
+    def _mission_start(self, first: float, last: float, now_s: float) -> int:
+        """MAV_CMD_MISSION_START: into AUTO if not there; ArduCopter's launch from the ground.
+
+        Measured: param1 other than 0 is DENIED (ArduCopter); from another mode it
+        switches to AUTO (ArduCopter starting the mission again: "Mission: 1 Takeoff"
+        twice), disarmed too; in AUTO, armed on the ground, ArduCopter climbs within a
+        second; a rover's finished mission stays finished.
+        """
+        if first != 0 or last != 0:
+            return _DENIED
+        entered = self.model.mode != "AUTO"
+        if entered:
+            result = self._enter_mode("AUTO", now_s)
+            if result != _ACCEPTED or self.model.mode != "AUTO":
+                return _FAILED if result == _ACCEPTED else result
+        if not self._mission_has_items():
+            return _FAILED
+        if self.firmware == "arducopter":
+            if entered or self.missions.state != MissionState.RUNNING:
+                self.missions.start()
+                self._auto_seq = None
+            self._auto_go = True
+        return _ACCEPTED
+
+    def _item_alt_m(self, item: MissionItem) -> float:
+        """A mission item's altitude above the origin (the model's frame)."""
+        alt = self._relative_alt_m(item.z, item.frame)
+        return self._truth().up_m if alt is None else alt
+
+    def _item_place(self, item: MissionItem) -> tuple[float, float]:
+        """A mission item's (north, east) from the origin; here when it has no place."""
+        if item.x == 0 and item.y == 0:
+            truth = self._truth()
+            return truth.north_m, truth.east_m
+        north = (item.x / 1e7 - self.origin_lat_deg) * _M_PER_DEG_LAT
+        east = (
+            (item.y / 1e7 - self.origin_lon_deg)
+            * _M_PER_DEG_LAT
+            * math.cos(math.radians(self.origin_lat_deg))
+        )
+        return north, east
+
+    def _do_items(self, now_s: float) -> None:
+        """Carry out the DO items the mission just started (those this simulation has)."""
+        for item in self.missions.started:
+            if item.is_nav:
+                continue
+            command = item.command
+            if command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
+                self._change_speed(int(item.param1), item.param2)
+            elif command == mavlink2.MAV_CMD_DO_SET_SERVO:
+                servo = int(item.param1)
+                if self._servo_free(servo):
+                    self.model.set_servo(servo, int(item.param2))
+            elif command == mavlink2.MAV_CMD_DO_SET_HOME:
+                params = (item.param1, 0.0, 0.0, 0.0, float(item.x), float(item.y))
+                self._set_home_command(params, item.z, item.frame, now_s)
+        self._started_seen = self.missions.started
+
+    def _fly_mission(self, now_s: float) -> None:
+        """AUTO: fly the mission's current navigation item; on to the next when it is done."""
+        missions, model = self.missions, self.model
+        if missions.changed != self._mission_changes:
+            self._mission_changes = missions.changed
+            if missions.started != self._started_seen:
+                self._do_items(now_s)
+        if missions.state != MissionState.RUNNING:
+            self._auto_seq = None
+            return
+        item = missions.nav_item
+        if item is None:
+            return
+        if item.seq != self._auto_seq:
+            self._auto_seq = item.seq
+            self._auto_phase = _AUTO_WAITING
+            self._auto_landing = self._auto_land_there = False
+        if self._auto_phase == _AUTO_WAITING:
+            if not model.armed:
+                return
+            if self.firmware == "arducopter" and not model.airborne and not self._auto_go:
+                return  # armed on the ground in AUTO: waits for MISSION_START (measured)
+            self._begin_item(item, now_s)
+        if self._auto_phase == _AUTO_FLYING and model.target_reached:
+            if self._auto_landing and self.firmware == "arducopter":
+                return  # landed: its disarm ends the item, and starts the mission over
+            if self._auto_land_there:  # over the land item's place: now land
+                self._auto_land_there = False
+                self._auto_landing = True
+                model.auto_land()
+                return
+            hold_s = item.param1 if item.command in _HOLDING_COMMANDS else 0.0
+            self._auto_phase = _AUTO_HOLDING
+            self._auto_until_s = now_s + max(hold_s, 0.0)
+            if item.command == mavlink2.MAV_CMD_NAV_LOITER_UNLIM:
+                self._auto_phase = _AUTO_DONE  # loiters until told otherwise
+        if self._auto_phase == _AUTO_HOLDING and now_s >= self._auto_until_s:
+            self._item_done(item, now_s)
+
+    def _begin_item(self, item: MissionItem, now_s: float) -> None:
+        """Command the model to fly ``item``; an item it cannot fly is done at once."""
+        model, command = self.model, item.command
+        self._auto_phase = _AUTO_FLYING
+        if command == mavlink2.MAV_CMD_NAV_TAKEOFF:
+            above_home_m = self._item_alt_m(item) - (self._home_alt_m() - self.origin_alt_m)
+            if self.firmware == "arducopter":
+                armed_for_s = now_s - (self._armed_s if self._armed_s is not None else now_s)
+                delay_s = (
+                    COPTER_AUTO_TAKEOFF_DELAY_S
+                    if armed_for_s >= SPOOLED_AFTER_S
+                    else TAKEOFF_DELAY_SPOOLING_S
+                )
+                taken = model.auto_takeoff(above_home_m, delay_s)  # type: ignore[call-arg]
+                self._ground_since_s = None
+            else:
+                taken = model.auto_takeoff(above_home_m)
+            if not taken:
+                self._auto_phase = _AUTO_HOLDING  # (a rover; or already there)
+                self._auto_until_s = now_s
+        elif command == mavlink2.MAV_CMD_NAV_LAND:
+            north, east = self._item_place(item)
+            truth = self._truth()
+            far = math.hypot(north - truth.north_m, east - truth.east_m) > 1.0
+            if far and (item.x or item.y) and self.firmware == "arducopter":
+                self._auto_land_there = True
+                model.auto_target(north, east, truth.up_m, None)
+            else:
+                self._auto_landing = True
+                model.auto_land()
+        elif command in _TARGET_COMMANDS:
+            if command == mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH and self._home is not None:
+                home = self._home
+                north = (home[0] - self.origin_lat_deg) * _M_PER_DEG_LAT
+                east = (
+                    (home[1] - self.origin_lon_deg)
+                    * _M_PER_DEG_LAT
+                    * math.cos(math.radians(self.origin_lat_deg))
+                )
+                alt = self._truth().up_m
+            else:
+                north, east = self._item_place(item)
+                alt = self._item_alt_m(item)
+            model.auto_target(north, east, alt, None)
+        else:  # not simulated: done at once
+            self._auto_phase = _AUTO_HOLDING
+            self._auto_until_s = now_s
+
+    def _item_done(self, item: MissionItem, now_s: float) -> None:
+        """The current item is done: say so as each firmware does, and go on."""
+        command, seq = item.command, item.seq
+        self._mav.send(self._mav.mission_item_reached_encode(seq))
+        if self.firmware == "ardurover" and command in _TARGET_COMMANDS:
+            self._text(_INFO, f"Reached waypoint #{seq}")
+        elif self.firmware == "arducopter" and command in _TARGET_COMMANDS:
+            self._text(_INFO, f"Reached command #{seq}")
+        elif self.firmware == "arduplane":
+            if command == mavlink2.MAV_CMD_NAV_TAKEOFF:
+                self._text(_INFO, f"Takeoff complete at {self._truth().up_m:.2f}m")
+            elif command in _TARGET_COMMANDS:
+                self._text(_INFO, f"Reached waypoint #{seq} dist 0m")
+        self._auto_phase = _AUTO_IDLE
+        if self.missions.advance() is None and self.missions.state == MissionState.COMPLETE:
+            self._mission_complete(now_s)
+
+    def _mission_complete(self, now_s: float) -> None:
+        """The last item is done.
+
+        ArduRover stops there ("Mission Complete", still in AUTO), ArduCopter holds (or
+        has landed), ArduPlane turns to RTL.
+        """
+        self._auto_seq = None
+        if self.firmware == "ardurover":
+            self._text(_NOTICE, "Mission Complete")
+        elif self.firmware == "arduplane":
+            self._text(_INFO, "Mission complete, changing mode to RTL")
+            self._enter_mode("RTL", now_s)
 
     def _rc_override(self, msg: Any, now_s: float) -> None:
         if msg.get_srcSystem() != round(self._params["SYSID_MYGCS"].value):
@@ -1702,7 +2060,8 @@ class SimAutopilot:
         return self._mav.extended_sys_state_encode(vtol, self._landed_state(now_s))
 
     def _msg_mission_current(self, now_s: float) -> Any:
-        return self._mav.mission_current_encode(0, 0, mavlink2.MISSION_STATE_NO_MISSION, 0)
+        seq, total, state, mode = self.missions.mission_current(self.model.mode == "AUTO")
+        return self._mav.mission_current_encode(seq, total, state, mode)
 
     def _msg_battery_status(self, now_s: float) -> Any:
         current_ca, remaining = self._battery(now_s)

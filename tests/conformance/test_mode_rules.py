@@ -23,13 +23,14 @@ NOT_ARMED_HERE = {"plane": ("TAKEOFF",)}
 """Modes not armed in by the sweep (ArduPlane launches in TAKEOFF)."""
 NOT_SET_ARMED = {"plane": ("TAKEOFF", "AUTO")}
 """Modes not set while armed on the ground (automatic modes may launch a plane)."""
-SWEEP_BY_S = {"rover": 10.0, "copter": 20.0, "plane": 19.0}
-"""When the disarmed sweep before ready must have ended: the next change of the rules.
-ArduRover sets home at its first GPS fix (10.05 s; its RTL between home and the EKF
-origin is a trap of its own, test_rtl.py); ArduCopter sets home with the EKF origin
-(20 s); ArduPlane's rules do not change before the EKF origin (19.3 s)."""
+SWEEP_BY_S = {"rover": 19.0, "copter": 20.0, "plane": 19.0}
+"""When the disarmed sweep before ready must have ended: the next change of the rules,
+the EKF origin (19.3-20 s). ArduRover's RTL and SMART_RTL, whose rules change when home
+is set at the first GPS fix (10.05 s), are tried first, at about 3 s."""
 
 
+HOME_AT_S = 10.0
+"""Every firmware but ArduCopter sets home at its first GPS fix (10.05-10.1 s)."""
 MODE_SWITCH_READ_S = 3.0
 """ArduCopter reads its mode switch when its RC input starts (2.74 s after boot), which
 puts it back in the switch's mode (STABILIZE in SITL): the sweep starts after that."""
@@ -41,7 +42,9 @@ def observe_before_ready(peer: Peer) -> dict[str, Sweep]:
     fast_heartbeats(peer, True)
     # RTL first: ArduRover's RTL must be tried before home is set.
     modes = sorted(peer.spec.modes, key=lambda name: name not in ("RTL", "SMART_RTL"))
-    disarmed = sweep_set(peer, modes, armed=False)
+    disarmed = sweep_set(peer, modes[:2], armed=False)
+    assert peer.now_s < HOME_AT_S, f"RTL and SMART_RTL were tried at t={peer.now_s:.1f} s"
+    disarmed.update(sweep_set(peer, modes[2:], armed=False))
     assert peer.now_s < SWEEP_BY_S[peer.kind], f"the sweep ended at t={peer.now_s:.1f} s"
     not_armed = NOT_SET_ARMED.get(peer.kind, ())
     armed = sweep_set(peer, [m for m in modes if m not in not_armed], armed=True, force=True)
