@@ -1351,36 +1351,35 @@ class MissionProtocol:
         return True
 
     def _on_count(self, msg: Any, now_s: float) -> bool:
-        items = self._lists.get(int(msg.mission_type))
-        if items is None:
-            self._unsupported(msg)
-        else:
+        items = self._supported_list(msg)
+        if items is not None:
             items.handle_count(msg, int(msg.count), now_s)
         return True
 
     def _on_partial(self, msg: Any, now_s: float) -> bool:
-        items = self._lists.get(int(msg.mission_type))
-        if items is None:
-            self._unsupported(msg)
-        else:
+        items = self._supported_list(msg)
+        if items is not None:
             items.handle_partial(msg, int(msg.start_index), int(msg.end_index), now_s)
         return True
 
     def _on_clear_all(self, msg: Any, now_s: float) -> bool:
-        items = self._lists.get(int(msg.mission_type))
-        if items is None:
-            self._unsupported(msg)
-        else:
+        items = self._supported_list(msg)
+        if items is not None:
             items.handle_clear_all(msg)
         return True
 
     def _on_request_list(self, msg: Any, now_s: float) -> bool:
+        items = self._supported_list(msg)
+        if items is not None:
+            items.handle_request_list(msg)
+        return True
+
+    def _supported_list(self, msg: Any) -> _ItemList | None:
+        """The list ``msg``'s mission_type names; None (answered UNSUPPORTED) for another type."""
         items = self._lists.get(int(msg.mission_type))
         if items is None:
             self._unsupported(msg)
-        else:
-            items.handle_request_list(msg)
-        return True
+        return items
 
     def _on_request(self, msg: Any, now_s: float) -> bool:
         items = self._lists.get(int(msg.mission_type))

@@ -10,12 +10,13 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 from clark_engine.runtime.commands import Arm, Command, Goto, RcOverride, SetMode, SetServo
 from clark_engine.runtime.config import ConfigError
 from clark_engine.runtime.context import PrimitiveContext
 from clark_engine.runtime.launch import is_airborne
+from clark_engine.runtime.primitives.base import Primitive
 
 #: Slack when comparing runtime-clock times: ``k / loop_hz`` summed or divided in
 #: floating point may land a hair before a deadline it reaches exactly.
@@ -152,6 +153,43 @@ class ModeRequest:
         assert self.mode is not None
         self._sent_s = ctx.now_s
         ctx.command(mode_command(ctx, self.mode))
+
+
+class ProfileModePrimitive(Primitive):
+    """A primitive flown in a mode its autopilot profile names (hold, land, RTL).
+
+    ``start`` asks for the mode the profile's ``mode_key`` names, through a
+    :class:`ModeRequest` (asked again while refused, a pilot's change never fought);
+    :meth:`keep_mode` keeps that request going from ``update``. A profile that
+    names no such mode makes the primitive FAILED (the mission layer refuses such a
+    mission; this is the runtime's own guard for a hand-made config).
+
+    Attributes:
+        mode_key: The name of the runtime config's field holding the mode.
+    """
+
+    mode_key: ClassVar[str] = ""
+
+    def __init__(self, params: Mapping[str, Any]) -> None:
+        super().__init__(params)
+        self._mode = ModeRequest()
+        self._failed = False
+
+    def start(self, ctx: PrimitiveContext) -> None:
+        """Switch to the profile's mode."""
+        mode: str | None = getattr(ctx.config, self.mode_key)
+        self._failed = mode is None
+        if mode is None:
+            ctx.log.error("%s: the autopilot profile names no %s", ctx.config.agent, self.mode_key)
+            return
+        self._mode.begin(ctx, mode)
+
+    def keep_mode(self, ctx: PrimitiveContext) -> bool:
+        """Ask for the mode again if due; False when the profile names none (FAILED)."""
+        if self._failed:
+            return False
+        self._mode.update(ctx)
+        return True
 
 
 #: Time between two Arm commands while the vehicle stays disarmed (ArduPilot explains a

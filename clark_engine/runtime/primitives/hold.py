@@ -14,35 +14,16 @@ config).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
-
 from clark_engine.runtime.context import PrimitiveContext, Status
-from clark_engine.runtime.primitives._shared import ModeRequest
-from clark_engine.runtime.primitives.base import Primitive
+from clark_engine.runtime.primitives._shared import ProfileModePrimitive
 
 
-class Hold(Primitive):
+class Hold(ProfileModePrimitive):
     """Hold position in the autopilot's hold mode."""
 
     name = "hold"
-
-    _failed = False
-
-    def __init__(self, params: Mapping[str, Any]) -> None:
-        super().__init__(params)
-        self._mode = ModeRequest()
-
-    def start(self, ctx: PrimitiveContext) -> None:
-        """Switch to the hold mode."""
-        mode = ctx.config.hold_mode
-        self._failed = mode is None
-        if mode is None:
-            ctx.log.error("%s: the autopilot profile names no hold_mode", ctx.config.agent)
-            return
-        self._mode.begin(ctx, mode)
+    mode_key = "hold_mode"
 
     def update(self, ctx: PrimitiveContext) -> Status:
         """RUNNING until a transition moves on."""
-        self._mode.update(ctx)
-        return Status.FAILED if self._failed else Status.RUNNING
+        return Status.RUNNING if self.keep_mode(ctx) else Status.FAILED

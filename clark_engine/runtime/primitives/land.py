@@ -14,40 +14,21 @@ Runtime semantics (the declaration is :mod:`clark_engine.mission.primitives.land
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
-
 from clark_engine.runtime.context import PrimitiveContext, Status
 from clark_engine.runtime.launch import is_airborne
-from clark_engine.runtime.primitives._shared import ModeRequest
-from clark_engine.runtime.primitives.base import Primitive
+from clark_engine.runtime.primitives._shared import ProfileModePrimitive
 
 
-class Land(Primitive):
+class Land(ProfileModePrimitive):
     """Land in the autopilot's land mode."""
 
     name = "land"
-
-    _failed = False
-
-    def __init__(self, params: Mapping[str, Any]) -> None:
-        super().__init__(params)
-        self._mode = ModeRequest()
-
-    def start(self, ctx: PrimitiveContext) -> None:
-        """Switch to the land mode."""
-        mode = ctx.config.land_mode
-        self._failed = mode is None
-        if mode is None:
-            ctx.log.error("%s: the autopilot profile names no land_mode", ctx.config.agent)
-            return
-        self._mode.begin(ctx, mode)
+    mode_key = "land_mode"
 
     def update(self, ctx: PrimitiveContext) -> Status:
         """DONE on the ground."""
-        if self._failed:
+        if not self.keep_mode(ctx):
             return Status.FAILED
-        self._mode.update(ctx)
         vehicle = ctx.vehicle
         if vehicle is None or is_airborne(ctx.autopilot, vehicle):
             return Status.RUNNING

@@ -20,11 +20,10 @@ from collections.abc import Mapping
 from typing import Any
 
 from clark_engine.runtime.context import PrimitiveContext, Status
-from clark_engine.runtime.primitives._shared import ModeRequest
-from clark_engine.runtime.primitives.base import Primitive
+from clark_engine.runtime.primitives._shared import ProfileModePrimitive
 
 
-class ReturnHome(Primitive):
+class ReturnHome(ProfileModePrimitive):
     """Return to launch.
 
     Attributes:
@@ -32,27 +31,16 @@ class ReturnHome(Primitive):
     """
 
     name = "return_home"
+    mode_key = "rtl_mode"
 
     def __init__(self, params: Mapping[str, Any]) -> None:
         super().__init__(params)
         self.tolerance_m = float(params.get("tolerance_m", 5.0))
-        self._failed = False
-        self._mode = ModeRequest()
-
-    def start(self, ctx: PrimitiveContext) -> None:
-        """Switch to the RTL mode."""
-        mode = ctx.config.rtl_mode
-        self._failed = mode is None
-        if mode is None:
-            ctx.log.error("%s: the autopilot profile names no rtl_mode", ctx.config.agent)
-            return
-        self._mode.begin(ctx, mode)
 
     def update(self, ctx: PrimitiveContext) -> Status:
         """DONE within tolerance of home."""
-        if self._failed:
+        if not self.keep_mode(ctx):
             return Status.FAILED
-        self._mode.update(ctx)
         home = ctx.autopilot.home if ctx.autopilot is not None else None
         if home is None:
             return Status.RUNNING
