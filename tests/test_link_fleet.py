@@ -492,3 +492,46 @@ def test_csv_rows_as_text_follow_every_change(table: FleetTable) -> None:
     assert "30.2" in written[1] and "30.1" not in written[1]
     assert "-4.0" in written[3]
     assert len(set(written)) == len(written)
+
+
+# ------------------------------------------- unauthenticated counters (issue 10, item 5)
+
+
+def _unkeyed_stats_after(counters: list[int]) -> LinkStats:
+    """Link statistics of peer 3 after unauthenticated packets with these counters."""
+    table = FleetTable(OWN, MISSION, 3.0, {3: "slash_b"})
+    for counter in counters:
+        table.receive(packet(3, counter, hb(3), authenticated=False), 0.0, GPS_MS)
+    stats = table.stats(3)
+    assert stats is not None
+    return stats
+
+
+@pytest.mark.parametrize("garbled", [1 << 40, 10 + 5_000, 10 + COUNTER_WINDOW + 1])
+def test_one_garbled_counter_ahead_does_not_spoil_the_statistics(garbled: int) -> None:
+    # One counter garbled on the way (a flipped bit) between two runs of genuine ones: the
+    # codec's window restarts on the next genuine packet, and so must the loss accounting.
+    stats = _unkeyed_stats_after([*range(1, 11), garbled, *range(11, 301)])
+    assert (stats.lost, stats.out_of_window, stats.resyncs) == (0, 0, 0)
+    assert stats.outliers == 1 and stats.packets == 301
+    assert stats.loss_ratio == 0.0
+
+
+def test_one_garbled_counter_behind_does_not_spoil_the_statistics() -> None:
+    stats = _unkeyed_stats_after([*range(1000, 1011), 3, *range(1011, 1100)])
+    assert (stats.lost, stats.resyncs, stats.outliers) == (0, 0, 0)
+    assert stats.out_of_window == 1  # the garbled counter itself, as a straggler would be
+
+
+def test_unkeyed_sender_restart_is_confirmed_by_the_next_packet() -> None:
+    # A sender without a counter store restarts at 1: a new sequence, not 100 stragglers.
+    stats = _unkeyed_stats_after([*range(500, 600), *range(1, 101)])
+    assert (stats.lost, stats.out_of_window, stats.resyncs, stats.outliers) == (0, 0, 1, 0)
+    jumped = _unkeyed_stats_after([*range(1, 11), *range(5_010, 5_020)])
+    assert (jumped.lost, jumped.out_of_window, jumped.outliers) == (4_999, 0, 0)
+
+
+def test_authenticated_jump_is_trusted_at_once() -> None:
+    # A tag vouches for the counter: no confirmation needed.
+    stats = _stats_after([1, 1 + COUNTER_WINDOW + 5])
+    assert (stats.lost, stats.outliers) == (COUNTER_WINDOW + 4, 0)

@@ -159,6 +159,17 @@ class LinkStats:
     from a duplicate. Counters are 48-bit and never reused by a sender, so they
     never wrap.
 
+    An unauthenticated counter proves nothing: one garbled on the way can land
+    anywhere in the 48 bits. So on an unauthenticated packet a counter more than
+    :data:`COUNTER_WINDOW` away from the sequence (ahead of it, or behind its
+    window) is held as a *candidate* and becomes the new baseline only when the
+    next packet continues from it (a sender that restarted or moved its counter
+    on). Otherwise the candidate was an outlier (``outliers``, or
+    ``out_of_window`` when behind) and the old sequence carries on, so one bad
+    counter costs one count, never the rest of the run. This is the replay
+    window's recovery (the codec restarts its window on the next genuine
+    packet) applied to the accounting. A tagged counter is trusted at once.
+
     Latency is the receiver's GPS time minus a message's GPS stamp, in
     milliseconds, over every message received except Picture Data (whose stamp
     is the capture time, not the send time) and unstamped ones. It is kept
@@ -177,7 +188,12 @@ class LinkStats:
             replays or they reached the table.
         out_of_window: Packets too late to tell from duplicates; their data is
             still applied, in arrival order.
-        resyncs: Counter jumps above :data:`MAX_COUNTED_GAP`, not counted as loss.
+        resyncs: Counter jumps above :data:`MAX_COUNTED_GAP`, and unauthenticated
+            counters far from the sequence that the next packet confirmed (a
+            sender that restarted): loss counting starts again there.
+        outliers: Unauthenticated counters far ahead of the sequence that the next
+            packet did not confirm (garbled on the way, or forged): counted here
+            only, never as loss nor as the new baseline.
         bad_tags: Packets that failed authentication.
         malformed: Packets the codec could not read (truncated, malformed,
             oversize, unknown protocol version).
@@ -198,6 +214,7 @@ class LinkStats:
     duplicates: int = 0
     out_of_window: int = 0
     resyncs: int = 0
+    outliers: int = 0
     bad_tags: int = 0
     malformed: int = 0
     foreign: int = 0
@@ -214,6 +231,8 @@ class LinkStats:
     # counter from which gaps are counted: the first seen, or the last resync
     _floor: int = field(default=0, repr=False)
     _seen: int = field(default=0, repr=False)  # bit i set: counter _highest - i was seen
+    # unauthenticated counter far from the sequence, awaiting confirmation; -1 when none
+    _candidate: int = field(default=-1, repr=False)
 
     @property
     def loss_ratio(self) -> float | None:
@@ -231,8 +250,16 @@ class LinkStats:
             return None
         return math.sqrt(self._latency_m2 / (self.latency_count - 1))
 
-    def _order(self, counter: int) -> _Order:
-        """Place ``counter`` in the sequence and update losses; O(1)."""
+    def _order(self, counter: int, authenticated: bool = True) -> _Order:
+        """Place ``counter`` in the sequence and update losses; O(1).
+
+        Args:
+            counter: The packet's counter.
+            authenticated: True when a tag vouches for it; otherwise a counter far
+                from the sequence waits for the next packet to confirm it.
+        """
+        if self._candidate >= 0:
+            self._settle(counter)
         highest = self._highest
         if counter > highest:
             if highest < 0:
@@ -240,6 +267,9 @@ class LinkStats:
                 self._seen = 1
             else:
                 jump = counter - highest
+                if jump > COUNTER_WINDOW and not authenticated:
+                    self._candidate = counter  # placed (or not) by the next packet
+                    return _NEW
                 if jump > MAX_COUNTED_GAP:
                     self.resyncs += 1
                     self._floor = counter
@@ -252,7 +282,9 @@ class LinkStats:
             return _NEW
         behind = highest - counter
         if behind >= COUNTER_WINDOW:
-            self.out_of_window += 1
+            self.out_of_window += 1  # taken back if the next packet confirms a new sequence
+            if not authenticated:
+                self._candidate = counter
             return _OUT_OF_WINDOW
         bit = 1 << behind
         if self._seen & bit:
@@ -263,6 +295,33 @@ class LinkStats:
             self.lost -= 1
             self._sequenced += 1
         return _LATE
+
+    def _settle(self, counter: int) -> None:
+        """Adopt or drop the candidate baseline, now that ``counter`` follows it.
+
+        ``counter`` confirms the candidate when it continues from it (above it, by
+        no more than the window): the sender's sequence really moved there. Else
+        the candidate was a lone bad counter and the old sequence stands.
+        """
+        candidate = self._candidate
+        self._candidate = -1
+        highest = self._highest
+        if not candidate < counter <= candidate + COUNTER_WINDOW:
+            if candidate > highest:
+                self.outliers += 1
+            return  # one behind stays counted as out_of_window, like a straggler
+        if candidate < highest:
+            self.out_of_window -= 1  # not a straggler: the start of a new sequence
+            self.resyncs += 1
+            self._floor = candidate
+        elif candidate - highest > MAX_COUNTED_GAP:
+            self.resyncs += 1
+            self._floor = candidate
+        else:
+            self.lost += candidate - highest - 1  # more than the window: no bit survives
+        self._seen = 1
+        self._highest = candidate
+        self._sequenced += 1
 
     def _add_latency(self, latency_ms: float) -> None:
         """Welford's update: exact running mean and variance in O(1) memory."""
@@ -539,7 +598,7 @@ class FleetTable:
         stats = self._stats.get(sender)
         order = _NEW
         if stats is not None:
-            order = stats._order(counter)
+            order = stats._order(counter, packet.authenticated)
             if order is _DUPLICATE:
                 return []
         events: list[FleetEvent] = []
@@ -552,7 +611,7 @@ class FleetTable:
                 and stats is None
             ):
                 stats = self._stats[sender]  # created with the record
-                order = stats._order(counter)
+                order = stats._order(counter, packet.authenticated)
         if stats is None:
             stats = self.unattributed
         stats.packets += 1
