@@ -15,6 +15,7 @@ import re
 from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
 
+from clark_engine.mission.faults import fault_problems
 from clark_engine.mission.findings import Finding, Location, error, warning
 from clark_engine.mission.model import Agent, Mission, State, Transition
 from clark_engine.mission.primitives import PRIMITIVES, UseContext
@@ -27,6 +28,9 @@ STATION_EVENTS = frozenset({"activate", "deactivate", "mcs_lost"})
 _RC_EVENT = re.compile(r"^rc:([A-Za-z0-9_]+):(high|low)$")
 #: A rate whose loop divider is off by more than this is reported.
 RATE_DIVIDER_TOLERANCE = 0.01
+#: The lowest telemetry rate: once a day. Below it a message is in effect never sent, and
+#: its loop divider (loop_hz / rate) outgrows every integer a float can hold.
+MIN_RATE_HZ = 1.0 / 86400.0
 
 
 def _hint(word: str, choices: Iterable[str]) -> str:
@@ -121,22 +125,21 @@ def check_operator(mission: Mission) -> Iterator[Finding]:
 
 
 def check_faults(mission: Mission) -> Iterator[Finding]:
-    """Faults name agents that exist and windows that end after they start."""
+    """Faults name agents that exist, and keep the rules every fault keeps.
+
+    The rules (a window that ends after it starts, a share within 0..1, a link between two
+    different agents) are :func:`clark_engine.mission.faults.fault_problems`, the same that
+    ``clark dry-run --fault`` applies.
+    """
     for item, where in zip(mission.faults, mission.fault_locations, strict=True):
         ((kind, body),) = item.items()
         names = [str(n) for n in body.get("between", [])]
         if "agent" in body:
             names.append(str(body["agent"]))
-        for name in names:
+        for name in dict.fromkeys(names):
             yield from _named_agent(mission, name, where)
-        start, end = body.get("from_s"), body.get("to_s")
-        if start is not None and end is not None and float(end) <= float(start):
-            yield error(
-                "E-FAULT-WINDOW",
-                where,
-                f"the {kind} fault ends at {float(end):g} s, not after it starts at "
-                f"{float(start):g} s; make to_s later than from_s",
-            )
+        for problem in fault_problems(item):
+            yield error(problem.code, where, problem.message)
         if kind == "station_silent" and not mission.stations:
             yield error("E-NO-STATION", where, "there is no station to silence; remove the fault")
 
@@ -221,6 +224,13 @@ def check_telemetry(mission: Mission, agent: Agent) -> Iterator[Finding]:
                 item.location,
                 f"{item.rate_hz:g} Hz is above loop_hz {mission.loop_hz:g}; the loop can send "
                 "at most once per tick, so lower the rate or raise mission.loop_hz",
+            )
+        elif item.rate_hz < MIN_RATE_HZ:
+            yield error(
+                "E-RATE",
+                item.location,
+                f"{item.rate_hz:g} Hz is less than once a day ({MIN_RATE_HZ:.3g} Hz), so the "
+                f"message is in effect never sent; send it at least once a day or remove it",
             )
         else:
             ticks = mission.loop_hz / item.rate_hz

@@ -12,7 +12,6 @@ simulated autopilot, and the two runs' state timelines are compared
 
 from __future__ import annotations
 
-import re
 import shutil
 import sys
 from collections.abc import Mapping, Sequence
@@ -21,6 +20,8 @@ from pathlib import Path
 from typing import Any, Final, TextIO
 
 from clark_engine.errors import UsageError
+from clark_engine.mission.faults import FAULT_HELP as FAULT_FORMS
+from clark_engine.mission.faults import MAX_FAULT_TEXT, FaultError, parse_fault_text
 from clark_engine.mission.model import Mission
 from clark_engine.sim.checks import CheckResult, evaluate
 from clark_engine.sim.engine import DryRun, DryRunResult
@@ -48,46 +49,24 @@ DEFAULT_SITL_SPEEDUP: Final = 10.0
 """SITL's speed-up when ``--sitl-speedup`` is not given: a 3-minute mission in about
 20 s, while ArduPilot still keeps its loop rates on a busy 2-core machine."""
 
-_FAULT = re.compile(
-    r"^(?P<kind>kill|link_drop|station_silent|autopilot_disconnect|corrupt)"
-    r"(?::(?P<arg>[^@]+))?@(?P<start>[0-9.]+)(?:-(?P<end>[0-9.]+))?$"
-)
-FAULT_HELP = (
-    "a fault: kill:AGENT@T, link_drop:A,B@T1-T2, station_silent@T1-T2, "
-    "autopilot_disconnect:AGENT@T1-T2, corrupt:SHARE@T1-T2 (seconds)"
-)
+FAULT_HELP = f"a fault: {FAULT_FORMS}"
 
 
 def parse_fault(text: str) -> dict[str, Any]:
     """A command-line fault (``kill:slash_a@30``) in the mission's fault form.
 
+    The grammar and its rules are the mission's own (:mod:`clark_engine.mission.faults`).
+
     Raises:
-        UsageError: Not one of the forms in :data:`FAULT_HELP`.
+        UsageError: Not one of the forms in :data:`FAULT_HELP`, or a rule broken (a
+            reversed window, a share outside 0..1, a link from an agent to itself).
     """
-    match = _FAULT.match(text.strip())
-    if match is None:
-        raise UsageError(f"--fault {text!r} is not {FAULT_HELP}")
-    kind, arg = match["kind"], match["arg"]
-    start = float(match["start"])
-    end = float(match["end"]) if match["end"] else None
     try:
-        if kind == "kill":
-            if not arg or end is not None:
-                raise ValueError
-            return {"kill": {"agent": arg, "at_s": start}}
-        if end is None or end <= start:
-            raise ValueError
-        window = {"from_s": start, "to_s": end}
-        if kind == "link_drop":
-            a, b = arg.split(",")
-            return {"link_drop": {"between": [a, b], **window}}
-        if kind == "station_silent":
-            return {"station_silent": window}
-        if kind == "autopilot_disconnect":
-            return {"autopilot_disconnect": {"agent": arg, **window}}
-        return {"corrupt": {"share": float(arg), **window}}
-    except (ValueError, TypeError, AttributeError):
-        raise UsageError(f"--fault {text!r} is not {FAULT_HELP}") from None
+        return parse_fault_text(text)
+    except FaultError as exc:
+        shown = text if len(text) <= MAX_FAULT_TEXT else text[:MAX_FAULT_TEXT] + "..."
+        verdict = "" if exc.broken_rule else " is not a fault"
+        raise UsageError(f"--fault {shown!r}{verdict}: {exc.message}") from None
 
 
 @dataclass(slots=True)
