@@ -22,6 +22,7 @@ from clark_engine.link.fleet import (
     COUNTER_WINDOW,
     MAX_COUNTED_GAP,
     MAX_FOREIGN_REPORTS,
+    MAX_RECENT_UNKNOWN,
     AgentFound,
     AgentLost,
     CsvValue,
@@ -98,7 +99,8 @@ def test_first_heartbeat_stores_the_rest_of_its_bundle_whatever_the_order(
     assert table.peek(3, AgentStatus) == status(3)
 
 
-def test_unexpected_agent_added_on_heartbeat_with_empty_name(table: FleetTable) -> None:
+def test_without_peer_table_agent_added_on_heartbeat_with_empty_name() -> None:
+    table = FleetTable(OWN, MISSION, heartbeat_timeout_s=3.0)
     table.receive(packet(9, 5, status(9)), 0.0, GPS_MS)
     assert table.stats(9) is None
     assert table.unattributed.packets == 1
@@ -353,14 +355,14 @@ def test_csv_rows_stable(table: FleetTable) -> None:
     ]
     for name in MESSAGE_NAMES.values():
         assert f"rx_{name}" in header
-    table.receive(packet(9, 1, hb(9, kind=AgentType.MCS)), 0.0, GPS_MS)
+    table.receive(packet(1, 1, hb(1, kind=AgentType.MCS)), 0.0, GPS_MS)
     table.receive(packet(3, 1, hb(3, condition=Condition.DEGRADED), status(3)), 1.0, GPS_MS + 10)
     table.receive(packet(3, 2, attitude(3)), 2.0, GPS_MS + 30)
     rows = table.csv_rows(4.0)
     assert rows == table.csv_rows(4.0)
     assert [len(row) for row in rows] == [len(header)] * 2
     by_column = [dict(zip(header, row, strict=True)) for row in rows]
-    cub, station = by_column
+    station, cub = by_column
     assert (cub["agent_id"], cub["name"], cub["agent_type"]) == (3, "slash_b", "vehicle")
     assert (cub["condition"], cub["lost"], cub["since_heartbeat_s"]) == ("degraded", 0, 3.0)
     assert (cub["lat_deg"], cub["heading_deg"], cub["mode"], cub["status_age_s"]) == (
@@ -374,7 +376,7 @@ def test_csv_rows_stable(table: FleetTable) -> None:
     assert (cub["lost_packets"], cub["loss_ratio"], cub["since_packet_s"]) == (0, 0.0, 2.0)
     assert (cub["latency_count"], cub["latency_min_ms"], cub["latency_max_ms"]) == (3, 10, 30)
     assert cub["since_rejected_s"] == ""
-    assert (station["agent_id"], station["name"], station["agent_type"]) == (9, "", "mcs")
+    assert (station["agent_id"], station["name"], station["agent_type"]) == (1, "mcs", "mcs")
     assert station["lat_deg"] == station["roll_deg"] == station["latency_std_ms"] == ""
     table.check_timeouts(10.0)
     assert [row[header.index("lost")] for row in table.csv_rows(10.0)] == [1, 1]
@@ -535,3 +537,41 @@ def test_authenticated_jump_is_trusted_at_once() -> None:
     # A tag vouches for the counter: no confirmation needed.
     stats = _stats_after([1, 1 + COUNTER_WINDOW + 5])
     assert (stats.lost, stats.outliers) == (COUNTER_WINDOW + 4, 0)
+
+
+# ------------------------------------------------ senders not in the mission (item 4)
+
+
+def test_forged_ids_never_get_a_record(table: FleetTable) -> None:
+    # Heartbeats of our mission from 5,000 ids that are not in its peer table.
+    events = []
+    for n, forged in enumerate(range(100, 5_100)):
+        events += table.receive(packet(forged, n + 1, hb(forged), status(forged)), 0.0, GPS_MS)
+    assert events == [] and table.agents() == []
+    assert all(table.stats(forged) is None for forged in range(100, 5_100))
+    assert table.unknown_packets == 5_000 and table.unattributed.packets == 5_000
+    assert list(table.recent_unknown) == list(range(5_100 - MAX_RECENT_UNKNOWN, 5_100))
+    assert table.csv_rows(0.0) == []
+    # The peers of the mission are still admitted as before.
+    assert table.receive(packet(3, 1, hb(3)), 0.0, GPS_MS) == [
+        AgentFound(3, "slash_b", AgentType.VEHICLE, rejoined=False)
+    ]
+
+
+def test_unknown_senders_rejected_packets_are_counted_in_the_same_place(
+    table: FleetTable,
+) -> None:
+    table.note_error(BadTag("forged", sender_id=4000, mission_id=MISSION), 1.0)
+    table.receive(packet(4000, 1, hb(4000)), 2.0, GPS_MS)
+    table.receive(packet(4001, 1, hb(4001)), 2.0, GPS_MS)
+    table.receive(packet(4000, 2, hb(4000)), 3.0, GPS_MS)
+    assert table.unknown_packets == 4 and table.unattributed.bad_tags == 1
+    assert dict(table.recent_unknown) == {4001: 1, 4000: 3}  # least recently heard first
+    assert table.agents() == []
+
+
+def test_a_table_without_a_peer_table_admits_every_sender_of_the_mission() -> None:
+    # (Tools replaying a message log; the runtime always gives the peer table.)
+    table = FleetTable(OWN, MISSION, 3.0)
+    table.receive(packet(40, 1, hb(40)), 0.0, GPS_MS)
+    assert [r.agent_id for r in table.agents()] == [40] and table.unknown_packets == 0

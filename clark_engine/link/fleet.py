@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 import operator
+from collections import OrderedDict
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from enum import Enum
@@ -76,6 +77,11 @@ MAX_COUNTED_GAP = 10_000
 #: Distinct (sender, mission) pairs reported as foreign; further ones are only
 #: counted, so a stream of corrupted headers cannot grow the table without bound.
 MAX_FOREIGN_REPORTS = 256
+
+#: Senders not in the mission remembered by id (the most recently heard, with their
+#: packet counts) for diagnostics; older ones are only counted in
+#: :attr:`FleetTable.unknown_packets`, so forged ids cannot grow the table.
+MAX_RECENT_UNKNOWN = 16
 
 _WINDOW_MASK = (1 << COUNTER_WINDOW) - 1
 
@@ -531,12 +537,23 @@ class FleetTable:
         mission_id: Our mission; a heartbeat claiming another is reported and its
             sender never added.
         heartbeat_timeout_s: Silence after which an agent is reported lost.
-        expected: Peer id -> name from the compiled config's peer table, so that
-            events and CSV rows carry readable names. Peers in it get their own
-            link statistics from the first packet; other senders are added on
-            their heartbeat all the same, and what they send before it is counted
-            in :attr:`unattributed` (one bucket, so that forged or corrupted
-            sender ids cannot grow the table).
+        expected: Peer id -> name from the compiled config's peer table (every
+            other agent of the mission). Only these agents ever get a record and
+            link statistics of their own; a sender not in it, whatever it sends
+            (heartbeats included: its id may be forged or garbled), is only counted,
+            in :attr:`unknown_packets`, :attr:`recent_unknown` and
+            :attr:`unattributed`, so the table's size and the cost of a tick are
+            fixed by the mission, not by the radio. None (no peer table: a tool
+            replaying a message log, a test) admits every sender of the mission on
+            its heartbeat instead; the runtime always gives the peer table.
+
+    Attributes:
+        unattributed: Link statistics of every packet from a sender without a
+            record of its own, and of rejected packets whose header was unreadable.
+        unknown_packets: Packets (accepted or rejected) from senders not in the
+            peer table.
+        recent_unknown: The last :data:`MAX_RECENT_UNKNOWN` such sender ids with
+            their packet counts, least recently heard first (for diagnostics).
 
     Raises:
         ValueError: ``heartbeat_timeout_s`` is not positive.
@@ -556,6 +573,7 @@ class FleetTable:
         self.heartbeat_timeout_s = heartbeat_timeout_s
         self._names: dict[int, str] = dict(expected or {})
         self._names.pop(own_id, None)
+        self._closed = expected is not None  # only the peer table's agents get records
         self._stats: dict[int, LinkStats] = {peer: LinkStats() for peer in self._names}
         self._records: dict[int, AgentRecord] = {}  # kept sorted by id
         self._csv_text: dict[int, _CsvTexts] = {}  # agent id -> its CSV cells kept as text
@@ -568,8 +586,9 @@ class FleetTable:
         # No agent that is not lost heard its last heartbeat before this (a lower bound):
         # check_timeouts skips its scan while even this one is within the timeout.
         self._oldest_heartbeat_s = math.inf
-        #: Statistics of senders that are neither expected nor recorded.
         self.unattributed = LinkStats()
+        self.unknown_packets = 0
+        self.recent_unknown: OrderedDict[int, int] = OrderedDict()
 
     # ------------------------------------------------------------- input
 
@@ -597,12 +616,15 @@ class FleetTable:
         counter = packet.counter
         stats = self._stats.get(sender)
         order = _NEW
+        events: list[FleetEvent] = []
+        messages = packet.messages
         if stats is not None:
             order = stats._order(counter, packet.authenticated)
             if order is _DUPLICATE:
                 return []
-        events: list[FleetEvent] = []
-        messages = packet.messages
+        elif self._closed:  # not in the mission: counted, never recorded
+            self._note_unknown(sender)
+            messages = ()
         for message in messages:  # heartbeats first: a first one admits the whole bundle
             if (
                 type(message) is Heartbeat
@@ -619,6 +641,7 @@ class FleetTable:
         stats.last_packet_s = now_s
         counts = stats.messages
         record = None if sender in self._banned else self._records.get(sender)
+        messages = packet.messages
         samples = None if record is None else record._samples
         late = order is _LATE  # a late packet replaces only values from older ones
         for message in messages:
@@ -672,6 +695,14 @@ class FleetTable:
             events.append(AgentFound(sender, record.name, record.agent_type, rejoined=True))
         return False
 
+    def _note_unknown(self, sender: int) -> None:
+        """Count a packet from a sender not in the mission, in O(1) time and bounded memory."""
+        self.unknown_packets += 1
+        recent = self.recent_unknown
+        recent[sender] = recent.pop(sender, 0) + 1  # to the most recent end
+        if len(recent) > MAX_RECENT_UNKNOWN:
+            recent.popitem(last=False)
+
     def _report_foreign(
         self, sender: int, mission_id: int | None, events: list[FleetEvent]
     ) -> None:
@@ -700,6 +731,8 @@ class FleetTable:
         """
         sender = error.sender_id
         stats = self.unattributed if sender is None else self._stats.get(sender, self.unattributed)
+        if sender is not None and stats is self.unattributed and self._closed:
+            self._note_unknown(sender)
         stats.last_rejected_s = now_s
         events: list[FleetEvent] = []
         if isinstance(error, ReplayedPacket):
