@@ -135,6 +135,7 @@ class BehaviorResolver:
             elif use in self.blocks:
                 self._block(state, use, raw, src, frame)
             else:
+                state.unresolved = True
                 self.findings.append(
                     error(
                         "E-BLOCK-UNKNOWN",
@@ -282,7 +283,7 @@ class BehaviorResolver:
                     "E-STATE-UNKNOWN",
                     frame.locator.location((*src, "initial")),
                     f"initial names {initial!r}, which is not one of its states "
-                    f"({', '.join(children)}); name one of them",
+                    f"({', '.join(children)}); " + _name_hint(str(initial), list(children)),
                     *frame.use_sites,
                 )
             )
@@ -307,6 +308,7 @@ class BehaviorResolver:
             self.findings.append(_with_related(finding, frame.use_sites))
         if any(p.is_error for p in problems):
             self.bad_paths.add(state.path)
+            state.unresolved = True
         state.primitive = name
         state.params = spec.with_defaults(copy.deepcopy(dict(given)))
         use_loc = state.use_location or frame.locator.location(src)
@@ -325,6 +327,7 @@ class BehaviorResolver:
         self, state: State, name: str, raw: Mapping[str, Any], src: DocPath, frame: _Frame
     ) -> None:
         use_loc = state.use_location or frame.locator.location(src)
+        state.unresolved = True  # until the block's machine is expanded below
         if name in frame.chain:
             self.findings.append(
                 error(
@@ -400,6 +403,7 @@ class BehaviorResolver:
         expanded = self._state(state.name, state.path, body, ("machine",), inner)
         if expanded is None:
             return
+        state.unresolved = expanded.unresolved
         state.primitive = expanded.primitive
         state.params = expanded.params
         state.param_locations = expanded.param_locations
@@ -465,12 +469,7 @@ class BehaviorResolver:
             resolved = _lookup(root, state.path, transition.target)
             if resolved is None:
                 visible = _visible_names(root, state.path)
-                close = difflib.get_close_matches(transition.target[0], visible, n=1)
-                hint = (
-                    f"did you mean {close[0]!r}?"
-                    if close
-                    else "name one of: " + ", ".join(sorted(visible))
-                )
+                hint = _name_hint(transition.target[0], visible)
                 self.findings.append(
                     error(
                         "E-STATE-UNKNOWN",
@@ -484,6 +483,15 @@ class BehaviorResolver:
                 transition.target = resolved
         for child in state.children.values():
             self._resolve_targets(root, child)
+
+
+def _name_hint(written: str, names: list[str]) -> str:
+    """``did you mean 'home'?`` for a misspelt (or capitalised) state name, else the choices."""
+    close = [n for n in names if n.lower() == written.lower()]
+    close = close or difflib.get_close_matches(written.lower(), names, n=1)
+    if close:
+        return f"did you mean {close[0]!r}?"
+    return "name one of: " + ", ".join(sorted(names))
 
 
 def _record_condition(

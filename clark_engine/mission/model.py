@@ -167,6 +167,10 @@ class State:
         mission_use: For states expanded from blocks, the ``use:`` in the mission file
             that brought them in (what a user changes when a block does not fit).
         description: The author's note about the state.
+        unresolved: An error (already reported) left the state's body unknown: an
+            unknown ``use:``, a block whose parameters failed, a primitive whose
+            parameters failed. Checks that judge the body (can it finish? does it run a
+            doublet?) skip it rather than guess.
     """
 
     name: str
@@ -187,6 +191,7 @@ class State:
     use_location: Location | None = None
     mission_use: Location | None = None
     description: str | None = None
+    unresolved: bool = False
 
     @property
     def kind(self) -> str:

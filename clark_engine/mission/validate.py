@@ -90,7 +90,9 @@ def read_source(path: Path) -> bytes:
 
 
 #: Findings that already explain a value, after which a schema type error there says nothing new.
-_EXPLAINING = frozenset({"E-YAML-BOOL-WORD", "E-YAML-VALUE", "E-YAML-TAG", "E-BLOCK-PARAM"})
+_EXPLAINING = frozenset(
+    {"E-YAML-BOOL-WORD", "E-YAML-VALUE", "E-YAML-TAG", "E-BLOCK-PARAM", "E-STATE-UNKNOWN"}
+)
 _GENERIC = frozenset({"E-TYPE", "E-VALUE", "E-FORMAT", "E-NAME"})
 
 
@@ -340,14 +342,25 @@ def _build_mission(
     return mission
 
 
+#: Schema errors about one scalar's value (a name's spelling, a number's range): the
+#: behaviour around it still has its shape, and is resolved and checked with the rest.
+_VALUE_ERRORS = frozenset({"E-FORMAT", "E-NAME", "E-RANGE", "E-VALUE"})
+
+
 def _structural(findings: list[Finding], prefix: DocPath) -> bool:
-    """True when the errors under ``prefix`` are about shape, not parameter values."""
+    """True when the errors under ``prefix`` are about shape, not values.
+
+    Errors in parameters (under ``with``) and errors about one scalar's value (a
+    transition to ``Home``) leave the behaviour's shape intact: it is still resolved,
+    so that the errors elsewhere in it are reported too, and the resolver reports the
+    value again with what it knows (``did you mean 'home'?``).
+    """
     n = len(prefix)
     for f in findings:
         if not f.is_error or f.location.path[:n] != prefix:
             continue
         rest = f.location.path[n:]
-        if "with" not in rest:
+        if "with" not in rest and f.code not in _VALUE_ERRORS:
             return True
     return False
 
