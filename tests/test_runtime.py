@@ -400,8 +400,9 @@ def test_a_behaviour_that_handles_mcs_lost_overrides_the_failsafe(tmp_path: Path
 
 
 def test_a_station_never_heard_is_lost_too(slash_b: AgentRuntime) -> None:
+    """Once the behaviour runs (here from the first tick), a station never heard is lost."""
     for k in range(0, 36):
-        run(slash_b, k / 10, AutopilotHeartbeat("HOLD", 4, True))
+        run(slash_b, k / 10, AutopilotHeartbeat("HOLD", 4, True), vehicle(k / 10))
     assert slash_b.failsafe == "hold"
 
 

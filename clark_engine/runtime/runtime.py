@@ -164,8 +164,17 @@ class AgentRuntime:
         # The latest mode change and goto held back while the autopilot was silent,
         # sent when it speaks again so the behaviour's intent is not lost.
         self._withheld: dict[type, Command] = {}
-        self._station_heard = False
         self._mcs_lost_raised = False
+        #: The runtime time of the first tick: every silence is counted from it at the
+        #: earliest, whatever the shell's clock origin (a monotonic clock is not 0 at boot).
+        self._first_tick_s: float | None = None
+        #: When the behaviour started (runtime time); station silence counts from then.
+        self._started_s: float | None = None
+        #: Stations heard and not lost since; mcs_lost is about this set being empty.
+        self._stations_in_contact: set[int] = set()
+        #: Since when no station has been in contact (None while one is); a station never
+        #: heard is silent from the first tick.
+        self._stations_silent_since_s: float | None = None
         # Messages primitives queued (Picture Data) wait here for the telemetry phase.
         self._pending_messages: list[tuple[Message, tuple[str, ...]]] = []
         self._gps_epoch_ms = gps_epoch_ms
@@ -174,7 +183,6 @@ class AgentRuntime:
         self._autopilot_lost = False
         self._stations = {p.id for p in config.peers if p.role == "mcs"}
         self._station_names = sorted(p.name for p in config.peers if p.role == "mcs")
-        self._stations_lost: set[int] = set()
         self._last_mode: str | None = None
         self._rc_levels: dict[int, str] = {}
         self._rc_last: tuple[int, ...] | None = None  # the widths _rc_levels was last set from
@@ -412,17 +420,19 @@ class AgentRuntime:
             if isinstance(event, AgentFound):
                 self._events.append(f"found:{event.name or event.agent_id}")
                 self.logbook.mission.info("found %s", event.name or event.agent_id)
-                self._stations_lost.discard(event.agent_id)
                 if event.agent_id in self._stations:
-                    self._station_heard = True
+                    self._stations_in_contact.add(event.agent_id)
+                    self._stations_silent_since_s = None
                     self._mcs_lost_raised = False  # a later silence raises it again
             elif isinstance(event, AgentLost):
                 self._events.append(f"lost:{event.name or event.agent_id}")
                 self.logbook.mission.warning("lost %s (silent %.1f s)", event.name, event.silent_s)
                 if event.agent_id in self._stations:
-                    self._stations_lost.add(event.agent_id)
-                    if self._stations_lost >= self._stations:
-                        self._mcs_lost()
+                    self._stations_in_contact.discard(event.agent_id)
+                    if not self._stations_in_contact and self._stations_silent_since_s is None:
+                        # Silent since that station was last heard; the timeouts phase
+                        # raises mcs_lost (at once when the behaviour runs).
+                        self._stations_silent_since_s = self.context.now_s - event.silent_s
             elif isinstance(event, ForeignAgent):
                 self.logbook.mission.warning(
                     "agent %d runs mission %d, not ours: ignored", event.agent_id, event.mission_id
@@ -464,12 +474,17 @@ class AgentRuntime:
             return []
         self._set_time(now_s)
         self.context.tick = self._tick
+        if self._first_tick_s is None:
+            self._first_tick_s = now_s
+            if self._stations_silent_since_s is None and not self._stations_in_contact:
+                self._stations_silent_since_s = now_s
         if (
             not self._started
             and self.failsafe is None
             and self.launch.update(self.context.autopilot, self.context.vehicle)
         ):
             self._started = True
+            self._started_s = now_s
             if self.machine is not None:
                 self.machine.start(self.context)
                 self._collect_outbox()
@@ -500,20 +515,26 @@ class AgentRuntime:
             for item in due:
                 self._scheduled.remove(item)
                 self._events.append(item[1])
+        silent_since = self._stations_silent_since_s
         if (
-            self._stations
-            and not self._station_heard
+            silent_since is not None
+            and self._started_s is not None
             and not self._mcs_lost_raised
-            and now_s > self.config.heartbeat_timeout_s
+            and self._stations
         ):
-            # A station never heard is as silent as one that went quiet.
-            self.logbook.mission.error("no station heard for %.1f s", now_s)
-            self._mcs_lost()
+            # No station in contact: silent since it was last heard, or since the first
+            # tick when none ever was; counted from the behaviour's start at the earliest,
+            # because before it the behaviour commands nothing a failsafe would stop.
+            silent_s = now_s - max(silent_since, self._started_s)
+            if silent_s > self.config.heartbeat_timeout_s:
+                self.logbook.mission.error("no station heard for %.1f s", silent_s)
+                self._mcs_lost()
         if not self.config.is_vehicle or self._autopilot_lost:
             return
         seen = self._autopilot_seen_s
         if seen is None:
-            seen = 0.0  # counted from start: an autopilot that never speaks is lost too
+            # Counted from the first tick: an autopilot that never speaks is lost too.
+            seen = self._first_tick_s if self._first_tick_s is not None else now_s
         if now_s - seen > self.config.autopilot_timeout_s:
             self._autopilot_lost = True
             self._events.append("autopilot_lost")

@@ -1,0 +1,133 @@
+"""Safety rules of the runtime that a shell's clock, boot order or link can break.
+
+Each test drives one runtime built from a compiled example on a virtual clock
+(no sleeping), as tests/test_runtime.py does, and pins one rule of
+docs/runtime.md#safety: when the station's silence counts, what the clock's
+origin does, and what an autopilot that comes back is sent.
+"""
+
+from __future__ import annotations
+
+import pytest
+from test_runtime import (
+    GPS0,
+    READY,
+    Peer,
+    config_of,
+    of,
+    vehicle,
+)
+
+from clark_engine.link.messages import ActivateController, AgentType
+from clark_engine.runtime.commands import Goto, SetMode
+from clark_engine.runtime.events import AutopilotHeartbeat, PacketReceived
+from clark_engine.runtime.runtime import AgentRuntime
+
+
+def run(runtime: AgentRuntime, t: float, *events: object) -> list[object]:
+    """Deliver a ready autopilot status and the events at ``t``, then tick."""
+    out: list[object] = list(runtime.deliver(READY, t))
+    for event in events:
+        out += runtime.deliver(event, t)  # type: ignore[arg-type]
+    out += runtime.tick(t)
+    return out
+
+
+def slash_b() -> AgentRuntime:
+    return AgentRuntime(config_of("cooperative_follow.yaml", "slash_b"))
+
+
+def mission_log(runtime: AgentRuntime) -> str:
+    return runtime.logbook.streams.mission.getvalue()  # type: ignore[attr-defined]
+
+
+def interface_log(runtime: AgentRuntime) -> str:
+    return runtime.logbook.streams.interface.getvalue()  # type: ignore[attr-defined]
+
+
+# -- item 3: the station's silence and the clock's origin ---------------------------------
+
+
+@pytest.mark.parametrize("origin_s", [0.0, 86_400.0 + 0.37])
+def test_a_monotonic_clock_raises_nothing_on_the_first_tick(origin_s: float) -> None:
+    """The shell's first tick, before the autopilot or the station said anything."""
+    runtime = slash_b()
+    runtime.tick(origin_s)
+    assert not runtime.autopilot_lost and runtime.failsafe is None
+    assert "mcs_lost" not in mission_log(runtime)
+    assert "autopilot silent" not in interface_log(runtime)
+    station = Peer(521, 1, AgentType.MCS)
+    out = run(
+        runtime,
+        origin_s + 0.1,
+        vehicle(0.1),
+        AutopilotHeartbeat("MANUAL", 0, True),
+        station.heartbeat(0.1),
+    )
+    assert SetMode("HOLD", 4) in of(out, SetMode)  # idle: hold, as at origin 0
+    assert runtime.failsafe is None and not runtime.autopilot_lost
+
+
+def test_a_monotonic_clock_still_loses_a_silent_autopilot() -> None:
+    runtime = slash_b()
+    origin_s = 5_000.0
+    station = Peer(521, 1, AgentType.MCS)
+    run(runtime, origin_s, station.heartbeat(0.0))  # no autopilot message at all
+    for k in range(1, 31):
+        run(runtime, origin_s + k / 10, station.heartbeat(k / 10))
+    assert not runtime.autopilot_lost  # 3.0 s: not yet past the timeout
+    for k in range(31, 36):
+        run(runtime, origin_s + k / 10, station.heartbeat(k / 10))
+    assert runtime.autopilot_lost
+
+
+def test_a_vehicle_booted_before_its_station_is_not_stuck_in_hold() -> None:
+    """Booted 10 s before its station, still waiting for its pilot: it flies normally."""
+    runtime = slash_b()
+    station = Peer(521, 1, AgentType.MCS)
+    slash_a = Peer(521, 2, AgentType.VEHICLE)
+    for k in range(0, 100):  # 10 s without a station; no vehicle state yet: not started
+        run(runtime, k / 10, AutopilotHeartbeat("MANUAL", 0, True))
+    assert runtime.failsafe is None
+    t = 0.0
+    for k in range(100, 110):  # the station comes up; the vehicle is ready and armed
+        t = k / 10
+        run(
+            runtime,
+            t,
+            vehicle(t, mode="HOLD", custom_mode=4),
+            AutopilotHeartbeat("HOLD", 4, True),
+            station.heartbeat(t),
+            slash_a.heartbeat(t, slash_a.status(t, 30.6380, -96.4787)),
+        )
+    (activate,) = station.codec.encode([ActivateController(1, GPS0, 3, True)], 3, 256)
+    out = run(runtime, 11.0, PacketReceived(activate), vehicle(11.0, mode="HOLD", custom_mode=4))
+    assert runtime.failsafe is None
+    assert runtime.machine is not None and runtime.machine.active_paths() == ("chase",)
+    assert SetMode("GUIDED", 15) in of(out, SetMode) and len(of(out, Goto)) == 1
+
+
+def test_a_station_never_heard_once_the_behaviour_runs_raises_mcs_lost() -> None:
+    """Silence is counted from the behaviour's start: a behaviour never runs unwatched."""
+    runtime = slash_b()
+    for k in range(0, 31):
+        run(runtime, k / 10, AutopilotHeartbeat("HOLD", 4, True), vehicle(k / 10))
+    assert runtime.failsafe is None  # 3.0 s since the start: not yet
+    for k in range(31, 36):
+        run(runtime, k / 10, AutopilotHeartbeat("HOLD", 4, True), vehicle(k / 10))
+    assert runtime.failsafe == "hold"
+    assert "no station heard for 3.1 s" in mission_log(runtime)
+
+
+def test_silence_before_the_behaviour_starts_is_counted_from_its_start() -> None:
+    """No station for 20 s while the behaviour waits (no vehicle state): no failsafe then."""
+    runtime = slash_b()
+    for k in range(0, 200):
+        run(runtime, k / 10, AutopilotHeartbeat("MANUAL", 0, True))
+    assert runtime.failsafe is None and "mcs_lost" not in mission_log(runtime)
+    for k in range(200, 231):  # the behaviour starts at 20.0 s
+        run(runtime, k / 10, AutopilotHeartbeat("HOLD", 4, True), vehicle(k / 10))
+    assert runtime.failsafe is None
+    for k in range(231, 236):
+        run(runtime, k / 10, AutopilotHeartbeat("HOLD", 4, True), vehicle(k / 10))
+    assert runtime.failsafe == "hold"
