@@ -21,6 +21,7 @@ from clark_engine.link.errors import (
     MalformedPacket,
     OversizePacket,
     ReplayedPacket,
+    ReplayStoreError,
     TruncatedPacket,
 )
 from clark_engine.link.messages import (
@@ -46,6 +47,7 @@ if TYPE_CHECKING:
         CounterStore,
         CounterStoreError,
         KeyFileError,
+        ReplayStore,
         generate_key_file,
         load_key,
     )
@@ -57,6 +59,7 @@ _LAZY = {
     "CounterStore": "clark_engine.link.auth",
     "CounterStoreError": "clark_engine.link.auth",
     "KeyFileError": "clark_engine.link.auth",
+    "ReplayStore": "clark_engine.link.auth",
     "generate_key_file": "clark_engine.link.auth",
     "load_key": "clark_engine.link.auth",
 }
@@ -86,6 +89,8 @@ __all__ = [
     "OversizePacket",
     "Packet",
     "PictureData",
+    "ReplayStore",
+    "ReplayStoreError",
     "ReplayedPacket",
     "Terminate",
     "TruncatedPacket",

@@ -25,6 +25,7 @@ import tempfile
 from pathlib import Path
 
 from clark_engine.errors import ClarkError
+from clark_engine.link.errors import ReplayStoreError
 from clark_engine.link.packet import MAX_COUNTER, TAG_BYTES
 
 KEY_BYTES = 32
@@ -33,6 +34,13 @@ KEY_BYTES = 32
 #: tick), so it should be rare: at 100 packets per second a block of 65536 lasts
 #: 11 minutes. A restart skips at most one block, out of 2**48 counters.
 DEFAULT_COUNTER_BLOCK = 65_536
+#: Counters of each sender a receiver reserves per write of its replay store. After
+#: a crash the receiver refuses at most this many of each sender's packets that it
+#: had not seen (the reserved, unused rest); a write costs an fsync, made at most
+#: once per this many packets of the busiest sender (one write renews every sender).
+DEFAULT_REPLAY_BLOCK = 64
+_REPLAY_MAGIC = "clarklink-replay 1"
+_MAX_REPLAY_FILE_BYTES = 4 << 20  # 65535 senders at 31 bytes a line, with room
 _MAX_KEY_FILE_BYTES = 256  # a key file is 65 bytes; never read a large file whole
 
 
@@ -79,6 +87,13 @@ class Tagger:
         mac.update(data)
         return mac.digest()[:TAG_BYTES]
 
+    def fingerprint(self) -> str:
+        """A public name of the key (hex), for binding stored state to it.
+
+        The tag of a fixed string: one-way, so it reveals nothing of the key.
+        """
+        return self.tag(b"ClarkLink key fingerprint").hex()
+
     def verify(self, data: bytes, tag: bytes) -> bool:
         """True when ``tag`` is ``data``'s tag; compared in constant time."""
         return hmac.compare_digest(self.tag(data), tag)
@@ -105,6 +120,19 @@ class ReplayWindow:
 
     def __repr__(self) -> str:
         return f"ReplayWindow(highest={self.highest}, seen=0x{self._seen:016x})"
+
+    @classmethod
+    def resumed(cls, mark: int) -> ReplayWindow:
+        """A window that holds every counter up to ``mark`` as seen.
+
+        For a receiver that restarted: ``mark`` is at or above every counter it
+        accepted from the sender before (see :class:`ReplayStore`), so none of
+        them is fresh again, in or below the window.
+        """
+        window = cls()
+        window.highest = mark
+        window._seen = (1 << cls.SIZE) - 1
+        return window
 
     def is_fresh(self, counter: int) -> bool:
         """True when ``counter`` has not been accepted and is not older than the window."""
@@ -217,26 +245,137 @@ class CounterStore:
         return last
 
     def _write(self, mark: int) -> None:
-        folder = self.path.parent
         try:
-            fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{self.path.name}.", suffix=".tmp")
+            _replace_file(self.path, f"{mark}\n".encode("ascii"))
         except OSError as exc:
             raise CounterStoreError(
                 f"cannot write the packet counter store: {exc.strerror}", file=str(self.path)
             ) from None
+
+
+class ReplayStore:
+    """A file holding, per sender, a mark at or above every counter a receiver accepted.
+
+    The receiver's half of :class:`CounterStore`. Before a codec accepts an
+    authenticated packet whose counter is above its sender's mark, it writes new
+    marks here (atomically, as the counter store does): that sender's counter
+    plus a block, and every other sender's highest accepted counter plus a block
+    (so that one write serves every sender, and writes follow the busiest
+    sender's rate, not the sum). After a restart the codec starts each sender's
+    replay window at its mark, so nothing accepted before the restart is
+    accepted again, whatever the crash. The cost: after a crash, up to one
+    block of each sender's packets that it had never seen are refused as well;
+    :meth:`~clark_engine.link.codec.Codec.save_replay_marks` on a clean stop
+    writes the exact marks, and then nothing is refused but what was accepted.
+
+    The file is bound to its mission and key (its first line holds the mission
+    id and a fingerprint of the key, an HMAC of a constant: the key cannot be
+    recovered from it): marks written under another mission or key are ignored,
+    since those counters mean nothing under this one. One store per receiving
+    agent; two codecs must never share a file.
+
+    Format: ``clarklink-replay 1 <mission id> <fingerprint>``, then one
+    ``<sender id> <mark>`` line per sender, decimal.
+    """
+
+    def __init__(
+        self, path: str | os.PathLike[str], *, block_size: int = DEFAULT_REPLAY_BLOCK
+    ) -> None:
+        """Name the file; nothing is read or written until :meth:`load`.
+
+        Args:
+            path: The store's file; its folder must exist.
+            block_size: Counters reserved per sender per write (see DEFAULT_REPLAY_BLOCK).
+        """
+        if block_size < 1:
+            raise ValueError(f"block_size must be at least 1, not {block_size}")
+        self.path = Path(path)
+        self.block_size = block_size
+        self._binding = ""
+
+    def __repr__(self) -> str:
+        return f"ReplayStore({str(self.path)!r}, block_size={self.block_size})"
+
+    def load(self, binding: str) -> dict[int, int]:
+        """The stored marks, sender id -> mark; empty without a file or under another binding.
+
+        Args:
+            binding: The mission id and key fingerprint the codec runs under; kept
+                for :meth:`write`.
+
+        Raises:
+            ReplayStoreError: The file cannot be read or is damaged. Never quotes it.
+        """
+        self._binding = binding
         try:
-            with os.fdopen(fd, "wb") as out:
-                out.write(f"{mark}\n".encode("ascii"))
-                out.flush()
-                os.fsync(out.fileno())
-            os.replace(tmp, self.path)
+            with self.path.open("rb") as source:
+                data = source.read(_MAX_REPLAY_FILE_BYTES + 1)
+        except FileNotFoundError:
+            return {}
         except OSError as exc:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
-            raise CounterStoreError(
-                f"cannot write the packet counter store: {exc.strerror}", file=str(self.path)
+            raise ReplayStoreError(
+                f"{self.path}: cannot read the replay store: {exc.strerror}"
             ) from None
-        _fsync_folder(folder)
+        lines = data.split(b"\n")
+        head = lines[0].split(b" ")
+        damaged = ReplayStoreError(
+            f"{self.path}: the replay store is damaged, so this agent cannot know which "
+            "packets it accepted before; restore it, or delete it only where replayed "
+            "commands are harmless (say, on the ground with the mission key replaced)"
+        )
+        if len(data) > _MAX_REPLAY_FILE_BYTES or len(head) != 4 or lines[-1] != b"":
+            raise damaged
+        if b" ".join(head[:2]).decode("ascii", "replace") != _REPLAY_MAGIC:
+            raise damaged
+        if b" ".join(head[2:]) != binding.encode("ascii"):
+            return {}  # another mission or key: its counters mean nothing here
+        marks: dict[int, int] = {}
+        for line in lines[1:-1]:
+            fields = line.split(b" ")
+            if len(fields) != 2 or not all(f.isdigit() and len(f) <= 15 for f in fields):
+                raise damaged
+            sender, mark = int(fields[0]), int(fields[1])
+            if not 1 <= sender <= 0xFFFF or mark > MAX_COUNTER or sender in marks:
+                raise damaged
+            marks[sender] = mark
+        return marks
+
+    def write(self, marks: dict[int, int]) -> None:
+        """Replace the stored marks; they are on disk when this returns.
+
+        Raises:
+            ReplayStoreError: The file cannot be written.
+        """
+        text = "".join(f"{sender} {mark}\n" for sender, mark in sorted(marks.items()))
+        try:
+            _replace_file(self.path, f"{_REPLAY_MAGIC} {self._binding}\n{text}".encode("ascii"))
+        except OSError as exc:
+            raise ReplayStoreError(
+                f"{self.path}: cannot write the replay store: {exc.strerror}"
+            ) from None
+
+
+def _replace_file(path: Path, data: bytes) -> None:
+    """Replace ``path`` by ``data`` atomically and durably: temporary file, fsync, rename.
+
+    A crash leaves the old content or the new, never a mix.
+
+    Raises:
+        OSError: The file cannot be written (the temporary file is removed).
+    """
+    folder = path.parent
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as out:
+            out.write(data)
+            out.flush()
+            os.fsync(out.fileno())
+        os.replace(tmp, path)
+    except OSError:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    _fsync_folder(folder)
 
 
 def _fsync_folder(folder: Path) -> None:

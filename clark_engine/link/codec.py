@@ -37,7 +37,13 @@ import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from clark_engine.link.auth import CounterStore, CounterStoreError, ReplayWindow, Tagger
+from clark_engine.link.auth import (
+    CounterStore,
+    CounterStoreError,
+    ReplayStore,
+    ReplayWindow,
+    Tagger,
+)
 from clark_engine.link.errors import (
     BadTag,
     BadVersion,
@@ -86,6 +92,7 @@ class Codec:
         key: bytes | None = None,
         *,
         counter_store: CounterStore | None = None,
+        replay_store: ReplayStore | None = None,
         max_packet_bytes: int = 1400,
     ) -> None:
         """Set up a codec; reads the counter store, if any, to resume above its mark.
@@ -99,12 +106,18 @@ class Codec:
             counter_store: Where the packet counter's high-water mark persists. Without
                 one the counter restarts at 1 with the process, and peers that remember
                 the old counter drop this agent's packets as replays until it passes it.
+            replay_store: Where the receiver's replay marks persist (authenticated
+                missions only; ignored without a key, where counters prove nothing).
+                With one, nothing accepted before a restart is accepted after it.
+                Without one, a restarted receiver accepts every recorded packet of a
+                sender until that sender's first newer packet.
             max_packet_bytes: The largest packet decoded, and the default limit of
                 :meth:`encode` (the radio's packet size limit).
 
         Raises:
             ValueError: An id or size is out of range, or the key is too short.
             CounterStoreError: The counter store cannot be read.
+            ReplayStoreError: The replay store cannot be read or is damaged.
         """
         if not 1 <= mission_id <= _MISSION_ID_MAX:
             raise ValueError(f"mission_id {mission_id} is outside 1..{_MISSION_ID_MAX}")
@@ -124,6 +137,14 @@ class Codec:
             self._next_counter = counter_store.load() + 1
             self._reserved_through = self._next_counter - 1  # reserve before the first use
         self._windows: dict[int, ReplayWindow] = {}
+        # sender -> the mark on disk, above every counter of it accepted; None: no store
+        self._reserved: dict[int, int] | None = None
+        self._replay_store = replay_store if self._tagger is not None else None
+        if self._replay_store is not None and self._tagger is not None:
+            marks = self._replay_store.load(f"{mission_id} {self._tagger.fingerprint()}")
+            self._reserved = dict(marks)
+            for sender, mark in marks.items():
+                self._windows[sender] = ReplayWindow.resumed(mark)
 
     def __repr__(self) -> str:
         # Never the key: reprs end up in logs and tracebacks.
@@ -315,6 +336,9 @@ class Codec:
                     **ids,
                 )
             restart = True
+        reserved = self._reserved
+        if reserved is not None and counter > reserved.get(sender_id, 0):
+            self._reserve(sender_id, counter)  # on disk before the packet is accepted
         # Every check passed: only now does anything change.
         if window is None:
             window = self._windows[sender_id] = ReplayWindow()
@@ -323,6 +347,42 @@ class Codec:
         else:
             window.commit(counter)
         return packet
+
+    def _reserve(self, sender_id: int, counter: int) -> None:
+        """Write marks one block above ``counter`` and every other sender's highest.
+
+        Raises:
+            ReplayStoreError: The store cannot be written (nothing changes).
+        """
+        store = self._replay_store
+        reserved = self._reserved
+        assert store is not None and reserved is not None  # only called with a store
+        block = store.block_size
+        marks = {
+            sender: max(mark, min(self._windows[sender].highest + block, MAX_COUNTER))
+            for sender, mark in reserved.items()
+            if sender in self._windows
+        }
+        marks[sender_id] = max(reserved.get(sender_id, 0), min(counter + block - 1, MAX_COUNTER))
+        store.write(marks)
+        self._reserved = marks
+
+    def save_replay_marks(self) -> None:
+        """Write each sender's highest accepted counter as its exact mark (on a clean stop).
+
+        After this, a restart refuses exactly what was accepted, and nothing of what
+        senders send next; without it (a crash), up to a block of each sender's
+        next packets is refused too. Accepting packets afterwards is still safe: it
+        reserves again. A no-op without a replay store.
+
+        Raises:
+            ReplayStoreError: The store cannot be written.
+        """
+        if self._replay_store is None or self._reserved is None:
+            return
+        marks = {sender: window.highest for sender, window in self._windows.items()}
+        self._replay_store.write(marks)
+        self._reserved = marks
 
 
 @functools.lru_cache(maxsize=512)

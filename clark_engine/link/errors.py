@@ -59,3 +59,14 @@ class OversizePacket(ClarkLinkError):
     Larger than the radio's packet limit (on decode), or a single message that cannot fit
     any packet (on encode).
     """
+
+
+class ReplayStoreError(ClarkLinkError):
+    """The receiver's replay marks cannot be read or written.
+
+    Raised by :class:`~clark_engine.link.codec.Codec` when it starts (the store is
+    damaged: it cannot know what it accepted before, so it does not start) and by
+    decode (the mark that must be on disk before a packet is accepted could not be
+    written: the packet is refused, never acted on unrecorded). The message names
+    the file, never its content.
+    """
