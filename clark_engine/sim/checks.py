@@ -205,6 +205,33 @@ def _find_state(spec: StateSpec | None, path: str) -> StateSpec | None:
     return None
 
 
+def _sweep_deviation(params: Mapping[str, Any], t: float) -> float:
+    """The intended sweep at ``t`` seconds into it: pulse width from trim, before clamping.
+
+    The continuous waveform the primitive stands for, not its samples.
+    """
+    amplitude = float(params["amplitude_us"])
+    f0, f1 = float(params["f_start_hz"]), float(params["f_stop_hz"])
+    duration = float(params["duration_s"])
+    fade_in, fade_out = float(params.get("fade_in_s", 0)), float(params.get("fade_out_s", 0))
+    if params.get("law", "linear") == "exponential" and f1 != f0:
+        ratio = f1 / f0
+        phase = 2 * math.pi * f0 * duration * (ratio ** (t / duration) - 1) / math.log(ratio)
+    else:
+        phase = 2 * math.pi * (f0 * t + (f1 - f0) * t * t / (2 * duration))
+    envelope = 1.0
+    if fade_in > 0 and t < fade_in:
+        envelope = t / fade_in
+    if fade_out > 0 and t > duration - fade_out:
+        envelope = min(envelope, (duration - t) / fade_out)
+    return amplitude * envelope * math.sin(phase)
+
+
+def _limits(params: Mapping[str, Any]) -> tuple[float, float, float]:
+    channel = params["channel"]
+    return channel["pwm_trim_us"], channel["pwm_min_us"], channel["pwm_max_us"]
+
+
 def expected_signal(state: StateSpec, loop_hz: float) -> list[int]:
     """The pulse widths a doublet or sweep state must command, one per tick.
 
@@ -212,8 +239,7 @@ def expected_signal(state: StateSpec, loop_hz: float) -> list[int]:
     runtime's implementation), so the check compares the two.
     """
     params = state.params
-    channel = params["channel"]
-    trim, low, high = channel["pwm_trim_us"], channel["pwm_min_us"], channel["pwm_max_us"]
+    trim, low, high = _limits(params)
 
     def clamp(value: float) -> int:
         return int(min(max(round(value), low), high))
@@ -223,28 +249,60 @@ def expected_signal(state: StateSpec, loop_hz: float) -> list[int]:
         n = round(float(params["width_s"]) * loop_hz)
         sign = 1 if params.get("first", "up") == "up" else -1
         return [clamp(trim + sign * amplitude)] * n + [clamp(trim - sign * amplitude)] * n + [trim]
-    f0, f1 = float(params["f_start_hz"]), float(params["f_stop_hz"])
     duration = float(params["duration_s"])
-    fade_in, fade_out = float(params.get("fade_in_s", 0)), float(params.get("fade_out_s", 0))
     out = []
     k = 0
     while True:
         t = k / loop_hz
         if t >= duration - 1e-9:
-            out.append(trim)
+            out.append(int(trim))
             return out
-        if params.get("law", "linear") == "exponential" and f1 != f0:
-            ratio = f1 / f0
-            phase = 2 * math.pi * f0 * duration * (ratio ** (t / duration) - 1) / math.log(ratio)
-        else:
-            phase = 2 * math.pi * (f0 * t + (f1 - f0) * t * t / (2 * duration))
-        envelope = 1.0
-        if fade_in > 0 and t < fade_in:
-            envelope = t / fade_in
-        if fade_out > 0 and t > duration - fade_out:
-            envelope = min(envelope, (duration - t) / fade_out)
-        out.append(clamp(trim + amplitude * envelope * math.sin(phase)))
+        out.append(clamp(trim + _sweep_deviation(params, t)))
         k += 1
+
+
+#: A sweep's commanded output must keep at least this share of the intended waveform's
+#: RMS swing in every second; sampled near the Nyquist limit it loses it (flat at 2 samples
+#: per period), however exactly each sample matches the waveform at its tick.
+MIN_SWEEP_FIDELITY = 0.5
+#: Points per tick at which the intended (continuous) waveform is evaluated.
+_SUBSAMPLES = 8
+
+
+def sweep_fidelity(state: StateSpec, loop_hz: float, got: Sequence[int]) -> tuple[float, float]:
+    """The worst share of the intended sweep's swing that the commanded output carries.
+
+    The sweep is cut into one-second windows; in each, the RMS of the commanded pulse
+    widths about trim is compared with the RMS of the intended continuous waveform
+    (clamped to the channel's limits) over the same time. Windows where the waveform
+    itself is under 1 us (a fade) are skipped.
+
+    Returns:
+        (share, start of the worst window in seconds); (1.0, 0.0) when every window holds.
+    """
+    params = state.params
+    trim, low, high = _limits(params)
+    duration = float(params["duration_s"])
+    ticks = [k for k in range(len(got)) if k / loop_hz < duration - 1e-9]
+    window = max(1, round(loop_hz))
+    worst, worst_at = 1.0, 0.0
+    for first in range(0, len(ticks), window):
+        chunk = ticks[first : first + window]
+        commanded = math.sqrt(sum((got[k] - trim) ** 2 for k in chunk) / len(chunk))
+        points = [(k + j / _SUBSAMPLES) / loop_hz for k in chunk for j in range(_SUBSAMPLES)]
+        intended = math.sqrt(
+            sum(
+                (min(max(trim + _sweep_deviation(params, t), low), high) - trim) ** 2
+                for t in points
+            )
+            / len(points)
+        )
+        if intended < 1.0:
+            continue
+        share = commanded / intended
+        if share < worst:
+            worst, worst_at = share, chunk[0] / loop_hz
+    return worst, worst_at
 
 
 def _signal(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> CheckResult:
@@ -267,10 +325,13 @@ def _signal(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> Chec
     # A state entered by an event is first updated in its entry tick, one entered on
     # the previous state's done a tick later: align on the first tick of the signal.
     worst = math.inf
+    aligned: list[int] = []
     for offset in (0, 1):
         got = received[offset : offset + len(want)]
         if len(got) == len(want):
-            worst = min(worst, max(abs(a - b) for a, b in zip(got, want, strict=True)))
+            error_us = max(abs(a - b) for a, b in zip(got, want, strict=True))
+            if error_us < worst:
+                worst, aligned = error_us, got
     if math.isinf(worst):
         return CheckResult(
             label,
@@ -280,6 +341,17 @@ def _signal(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> Chec
         )
     shape = "doublet" if state.primitive == "doublet" else "sweep"
     observed = f"{len(want)} samples, largest error {worst:g} us ({shape} on {key})"
+    if state.primitive == "sine_sweep":
+        # Each sample can match the waveform at its tick and still not carry it (a 5 Hz
+        # sine at 10 Hz is sampled at its zero crossings): compare with the waveform.
+        share, at_s = sweep_fidelity(state, config.loop_hz, aligned)
+        if share < MIN_SWEEP_FIDELITY:
+            observed += (
+                f", but from {at_s:g} s into the sweep the output keeps only {share:.0%} of "
+                f"the intended waveform's swing (sampled at loop_hz {config.loop_hz:g}, "
+                "too slow for its frequency)"
+            )
+            return CheckResult(label, expected_text + " (within 1 us)", observed, False)
     return CheckResult(label, expected_text + " (within 1 us)", observed, worst <= 1)
 
 

@@ -3,13 +3,14 @@
 The instantaneous frequency goes from ``f_start_hz`` to ``f_stop_hz`` over
 ``duration_s``, linearly or exponentially, with optional amplitude fades at
 either end (thesis figure 5.14). The runtime samples it once per tick, so the
-highest frequency must stay well under the Nyquist limit loop_hz / 2: fewer
-than 2 samples per period cannot represent it (error), fewer than 5 distorts
-it badly (warning).
+highest frequency must stay well under the Nyquist limit loop_hz / 2: 2 samples
+per period or fewer cannot represent it (error: at exactly 2 a sine can come out
+flat), fewer than 5 distorts it badly (warning).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 
 from clark_engine.mission.findings import Finding, error, warning
@@ -31,11 +32,14 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
     f_max = max(f_start, f_stop)
     param = "f_stop_hz" if f_stop >= f_start else "f_start_hz"
     samples = loop_hz / f_max
-    if samples < MIN_SAMPLES_PER_PERIOD:
+    # At exactly 2 samples per period a sine is sampled at the same phases every period
+    # (a 5 Hz sine at 10 Hz: always at its zero crossings) and comes out flat.
+    if samples <= MIN_SAMPLES_PER_PERIOD * (1 + 1e-9):
+        where = "at" if math.isclose(samples, MIN_SAMPLES_PER_PERIOD) else "above"
         yield error(
             "E-SWEEP-NYQUIST",
             ctx.locate(param),
-            f"{f_max:g} Hz is above the Nyquist limit {loop_hz / 2:g} Hz of loop_hz {loop_hz:g} "
+            f"{f_max:g} Hz is {where} the Nyquist limit {loop_hz / 2:g} Hz of loop_hz {loop_hz:g} "
             f"({samples:.2g} samples per period); sweep below "
             f"{loop_hz / GOOD_SAMPLES_PER_PERIOD:g} Hz or raise mission.loop_hz",
             ctx.use_location,
