@@ -248,7 +248,11 @@ def expected_signal(state: StateSpec, loop_hz: float) -> list[int]:
     if state.primitive == "doublet":
         n = round(float(params["width_s"]) * loop_hz)
         sign = 1 if params.get("first", "up") == "up" else -1
-        return [clamp(trim + sign * amplitude)] * n + [clamp(trim - sign * amplitude)] * n + [trim]
+        return (
+            [clamp(trim + sign * amplitude)] * n
+            + [clamp(trim - sign * amplitude)] * n
+            + [int(trim)]
+        )
     duration = float(params["duration_s"])
     out = []
     k = 0
