@@ -121,7 +121,10 @@ def cmd_compile(args: argparse.Namespace) -> int:
     mission = loaded.mission
     assert mission is not None
     files = compile_mission(mission, args.agent or None)
-    target = write_configs(files, Path(args.output), mission.name)
+    # With --agent, the other agents' configs from an earlier compile stay; without it, a
+    # config of an agent no longer in the mission is removed with the rest of the old output.
+    keep = [name for name in mission.agents if name not in files] if args.agent else []
+    target = write_configs(files, Path(args.output), mission.name, keep)
     for name in files:
         print(f"wrote {target / (name + '.json')}")
     return EXIT_OK

@@ -20,7 +20,7 @@ import json
 import os
 import shutil
 import tempfile
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -249,31 +249,144 @@ def compile_mission(mission: Mission, agents: Iterable[str] | None = None) -> di
     return {name: render(agent_config(mission, mission.agents[name])) for name in names}
 
 
-def write_configs(files: Mapping[str, str], out_dir: Path, mission_name: str) -> Path:
+def foreign_files(
+    folder: Path, marker: str | None, recognise: Callable[[Path, str], bool]
+) -> list[str]:
+    """The files in ``folder`` (relative, ``/``-separated) that the engine did not write.
+
+    The engine's own files are those its ``marker`` file lists; without a marker file
+    (no ``marker``, or output from before markers) ``recognise`` tells them file by file.
+
+    Raises:
+        UsageError: ``folder`` is a file, or cannot be read.
+    """
+    if not folder.exists():
+        return []
+    if not folder.is_dir():
+        raise UsageError(f"{folder} is a file, not a folder; choose another output folder")
+    listed: set[str] | None = None
+    try:
+        if marker is not None:
+            data = json.loads((folder / marker).read_text(encoding="utf-8"))
+            if isinstance(data, dict) and isinstance(data.get("files"), list):
+                listed = {str(name) for name in data["files"]}
+    except (OSError, ValueError):
+        listed = None
+    try:
+        present = sorted(
+            path.relative_to(folder).as_posix()
+            for path in folder.rglob("*")
+            if not path.is_dir() or path.is_symlink()
+        )
+    except OSError as exc:
+        raise UsageError(f"cannot read {folder}: {exc.strerror or exc}") from None
+    return [
+        name
+        for name in present
+        if name != marker
+        and not (name in listed if listed is not None else recognise(folder / name, name))
+    ]
+
+
+def write_marker(folder: Path, marker: str, what: str) -> None:
+    """List every file in ``folder`` in its ``marker`` file, saying the engine wrote them."""
+    files = sorted(
+        path.relative_to(folder).as_posix()
+        for path in folder.rglob("*")
+        if not path.is_dir() and path.name != marker
+    )
+    payload = {"written_by": f"clark-engine {__version__}", "what": what, "files": files}
+    (folder / marker).write_text(json.dumps(payload, indent=2) + "\n", encoding="utf-8")
+
+
+def swap_in(staging: Path, target: Path) -> None:
+    """Put the complete folder ``staging`` in the place of ``target`` (a sibling).
+
+    Renames only: the old folder is moved aside, the new one into place, then the
+    old one deleted. Check :func:`foreign_files` first: this replaces the whole folder.
+
+    Raises:
+        OSError: A rename failed (the old folder is back in place when it can be).
+    """
+    if not target.exists():
+        os.rename(staging, target)
+        return
+    old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=target.parent))
+    os.rename(target, old / target.name)
+    try:
+        os.rename(staging, target)
+    except OSError:
+        os.rename(old / target.name, target)
+        raise
+    finally:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def _is_config(path: Path, name: str) -> bool:
+    """A config ``clark compile`` wrote: ``<agent>.json`` holding a ``clark_config`` key.
+
+    Every config says so itself, so the configs folder needs no marker file (and holds
+    nothing but what is copied to the mission computers).
+    """
+    if "/" in name or not name.endswith(".json") or path.is_symlink():
+        return False
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(data, dict) and "clark_config" in data
+
+
+def write_configs(
+    files: Mapping[str, str], out_dir: Path, mission_name: str, keep: Iterable[str] = ()
+) -> Path:
     """Write configs to ``out_dir/<mission>/<agent>.json`` all at once or not at all.
 
-    The files are written to a temporary folder beside the target and moved into
-    place only when every one was written, so a failure never leaves a half
-    mission behind.
+    The folder is written complete beside the target (a hidden sibling) and moved
+    into place only when every file was written, so a failure never leaves a half
+    mission behind. It replaces the configs an earlier compile wrote there, so the
+    config of an agent removed from the mission does not linger; a file the engine
+    did not write (anything but a compiled config, :func:`_is_config`) is never
+    deleted: the compile refuses instead.
+
+    Args:
+        files: Agent name -> config text (:func:`compile_mission`).
+        out_dir: The ``-o`` folder.
+        mission_name: The mission's name, the folder inside ``out_dir``.
+        keep: Agents whose config from an earlier compile stays as it is (``--agent``
+            compiles a few agents of a mission; the others' configs are kept).
 
     Returns:
         The folder the configs are in.
 
     Raises:
-        UsageError: The output folder cannot be created or written.
+        UsageError: The output folder cannot be created or written, or it holds
+            files that ``clark compile`` did not write.
     """
     target = out_dir / mission_name
+    foreign = foreign_files(target, None, _is_config)
+    if foreign:
+        shown = ", ".join(foreign[:5]) + (
+            f" and {len(foreign) - 5} more" if len(foreign) > 5 else ""
+        )
+        raise UsageError(
+            f"{target} holds files clark compile did not write ({shown}); nothing written: "
+            "move them elsewhere or choose another output folder"
+        )
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(prefix=f".{mission_name}-", dir=out_dir))
+        staging = Path(tempfile.mkdtemp(prefix=f".{mission_name}.incomplete-", dir=out_dir))
+        staging.chmod(0o755)  # mkdtemp's 700 would become the configs folder's mode
     except OSError as exc:
         raise UsageError(f"cannot create {out_dir}: {exc.strerror or exc}") from None
     try:
         for name, text in files.items():
             (staging / f"{name}.json").write_text(text, encoding="utf-8")
-        target.mkdir(exist_ok=True)
-        for name in files:
-            os.replace(staging / f"{name}.json", target / f"{name}.json")
+        for name in keep:
+            earlier = target / f"{name}.json"
+            if name not in files and earlier.is_file():
+                shutil.copy2(earlier, staging / earlier.name)
+        swap_in(staging, target)
     except OSError as exc:
         raise UsageError(f"cannot write configs to {target}: {exc.strerror or exc}") from None
     finally:
