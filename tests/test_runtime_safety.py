@@ -131,3 +131,128 @@ def test_silence_before_the_behaviour_starts_is_counted_from_its_start() -> None
     for k in range(231, 236):
         run(runtime, k / 10, AutopilotHeartbeat("HOLD", 4, True), vehicle(k / 10))
     assert runtime.failsafe == "hold"
+
+
+# -- item 2: an autopilot that comes back gets no stale command ---------------------------
+
+
+VEHICLE_COMMAND_TYPES = ("Goto", "SetMode", "Arm", "Takeoff", "SetServo", "RcOverride")
+
+
+def vehicle_commands(out: list[object]) -> list[object]:
+    return [c for c in out if type(c).__name__ in VEHICLE_COMMAND_TYPES]
+
+
+class Scene:
+    """Slash B with its station and Slash A talking, its behaviour running in idle (HOLD)."""
+
+    def __init__(self) -> None:
+        self.runtime = slash_b()
+        self.station = Peer(521, 1, AgentType.MCS)
+        self.slash_a = Peer(521, 2, AgentType.VEHICLE)
+        self.t = 0.0
+        self.tick(vehicle(0.0, mode="HOLD", custom_mode=4), AutopilotHeartbeat("HOLD", 4, True))
+
+    def tick(self, *autopilot: object, station: bool = True) -> list[object]:
+        """One tick 0.1 s on: the peers talk (the station unless told not), the autopilot says
+        what is given."""
+        t = self.t = round(self.t + 0.1, 1)
+        peers: list[object] = [self.slash_a.heartbeat(t, self.slash_a.status(t, 30.6380, -96.4787))]
+        if station:
+            peers.append(self.station.heartbeat(t))
+        return run(self.runtime, t, *peers, *autopilot)
+
+    def activate(self) -> list[object]:
+        (packet,) = self.station.codec.encode([ActivateController(1, GPS0, 3, True)], 3, 256)
+        return run(self.runtime, self.t, PacketReceived(packet))
+
+    def lose_autopilot(self, *, station: bool = True) -> list[object]:
+        out: list[object] = []
+        while not self.runtime.autopilot_lost:
+            out += self.tick(station=station)
+        return out
+
+
+def test_commands_of_the_loss_are_never_replayed_and_a_pilots_mode_is_kept() -> None:
+    """Activated while the autopilot is silent; it comes back with the pilot in MANUAL."""
+    scene = Scene()
+    scene.lose_autopilot()
+    out = scene.activate() + scene.tick() + scene.tick()
+    assert scene.runtime.machine is not None
+    assert scene.runtime.machine.active_paths() == ("chase",)
+    assert vehicle_commands(out) == []  # dropped while lost
+    # It speaks again: a heartbeat alone does not end the loss (the behaviour has not
+    # seen the vehicle yet), its state does; nothing held back is sent.
+    out = list(scene.runtime.deliver(AutopilotHeartbeat("HOLD", 4, True), scene.t))
+    assert scene.runtime.autopilot_lost and vehicle_commands(out) == []
+    back = vehicle(scene.t, mode="HOLD", custom_mode=4)
+    out = list(scene.runtime.deliver(back, scene.t))
+    assert not scene.runtime.autopilot_lost and vehicle_commands(out) == []
+    # The chase's mode request was made while nobody heard it: it is not carried out
+    # later, whatever the mode; the vehicle stays in the pilot's mode (HOLD, then MANUAL).
+    later: list[object] = []
+    for k in range(30):
+        mode, number = ("HOLD", 4) if k < 10 else ("MANUAL", 0)
+        later += scene.tick(vehicle(scene.t, mode=mode, custom_mode=number))
+    assert of(later, SetMode) == []
+    assert "autopilot heard again" in interface_log(scene.runtime)
+
+
+def test_a_state_entered_after_the_return_commands_as_usual() -> None:
+    scene = Scene()
+    scene.lose_autopilot()
+    scene.tick()
+    scene.tick(vehicle(scene.t, mode="HOLD", custom_mode=4))  # back
+    assert not scene.runtime.autopilot_lost
+    out = scene.activate() + scene.tick(vehicle(scene.t, mode="HOLD", custom_mode=4))
+    assert SetMode("GUIDED", 15) in of(out, SetMode) and len(of(out, Goto)) >= 1
+
+
+def test_a_failsafe_during_the_loss_holds_the_vehicle_when_it_returns() -> None:
+    """The station falls silent while the autopilot is lost: hold, sent on its return."""
+    scene = Scene()
+    scene.activate()
+    scene.tick(vehicle(scene.t, mode="GUIDED", custom_mode=15))
+    scene.lose_autopilot()
+    out: list[object] = []
+    while scene.runtime.failsafe is None:
+        out += scene.tick(station=False)
+    assert vehicle_commands(out) == []  # the failsafe's SetMode could not be sent
+    for _ in range(5):
+        scene.tick(station=False)
+    out = list(scene.runtime.deliver(vehicle(scene.t, mode="GUIDED", custom_mode=15), scene.t))
+    out += scene.tick(vehicle(scene.t, mode="GUIDED", custom_mode=15), station=False)
+    assert vehicle_commands(out) == [SetMode("HOLD", 4)]  # no Goto from before the failsafe
+    out = []
+    for _ in range(20):
+        out += scene.tick(vehicle(scene.t, mode="HOLD", custom_mode=4), station=False)
+    assert vehicle_commands(out) == []
+
+
+def test_a_failsafe_before_the_loss_is_not_sent_again_on_the_return() -> None:
+    """Held before the loss; the pilot took MANUAL meanwhile: the return changes nothing."""
+    scene = Scene()
+    scene.activate()
+    scene.tick(vehicle(scene.t, mode="GUIDED", custom_mode=15))
+    out: list[object] = []
+    while scene.runtime.failsafe is None:
+        out += scene.tick(vehicle(scene.t, mode="GUIDED", custom_mode=15), station=False)
+    out += scene.tick(vehicle(scene.t, mode="GUIDED", custom_mode=15), station=False)
+    assert SetMode("HOLD", 4) in of(out, SetMode)
+    scene.lose_autopilot(station=False)
+    out = scene.tick(vehicle(scene.t, mode="MANUAL", custom_mode=0), station=False)
+    for _ in range(20):
+        out += scene.tick(vehicle(scene.t, mode="MANUAL", custom_mode=0), station=False)
+    assert not scene.runtime.autopilot_lost and vehicle_commands(out) == []
+
+
+def test_a_failsafe_after_the_return_is_sent_at_once() -> None:
+    scene = Scene()
+    scene.activate()
+    scene.tick(vehicle(scene.t, mode="GUIDED", custom_mode=15))
+    scene.lose_autopilot()
+    scene.tick(vehicle(scene.t, mode="GUIDED", custom_mode=15))  # back
+    out: list[object] = []
+    while scene.runtime.failsafe is None:
+        out += scene.tick(vehicle(scene.t, mode="GUIDED", custom_mode=15), station=False)
+    assert of(out, SetMode) == [SetMode("HOLD", 4)]

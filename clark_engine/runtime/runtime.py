@@ -85,6 +85,9 @@ VEHICLE_COMMANDS = (Goto, SetMode, Arm, Takeoff, SetServo, RcOverride)
 #: auxiliary-switch thresholds); the events fire on crossing, not while held.
 RC_HIGH_US = 1800
 RC_LOW_US = 1200
+#: The behaviour's one-off requests, not carried out after an autopilot loss by the states
+#: that made them before or during it (AgentRuntime._void_requests).
+_REQUESTS = (SetMode, Arm, Takeoff)
 #: Messages that command an agent (a tuple: isinstance checks it faster than a union).
 _COMMAND_MESSAGES = (ModeChangeRequest, ActivateController, Terminate)
 
@@ -161,9 +164,13 @@ class AgentRuntime:
         self._state_messages: list[BehaviorState] = []
         # Activations the station timed for a GPS time: (gps ms, event).
         self._scheduled: list[tuple[int, str]] = []
-        # The latest mode change and goto held back while the autopilot was silent,
-        # sent when it speaks again so the behaviour's intent is not lost.
-        self._withheld: dict[type, Command] = {}
+        # The failsafe's SetMode when the autopilot was lost as it was applied: it is sent
+        # when the autopilot returns (the failsafe still holds); nothing else of the loss is.
+        self._failsafe_unsent: SetMode | None = None
+        # True from an autopilot loss until the behaviour changes state after the return:
+        # the mode, arm and takeoff requests of the states active across the loss were
+        # made while nobody heard them, so they are not carried out later.
+        self._requests_void = False
         self._mcs_lost_raised = False
         #: The runtime time of the first tick: every silence is counted from it at the
         #: earliest, whatever the shell's clock origin (a monotonic clock is not 0 at boot).
@@ -259,24 +266,33 @@ class AgentRuntime:
         if state.gps_time_ms:
             self._vehicle_gps = (state.gps_time_ms, now_s)
             self.context.gps_time_ms = state.gps_time_ms
-        self._autopilot_heard(now_s)
+        self._autopilot_seen_s = now_s
+        if self._autopilot_lost:
+            self._autopilot_back()
         self._mode_seen(state.mode)
 
     def _autopilot_heartbeat(self, beat: AutopilotHeartbeat, now_s: float) -> None:
-        self._autopilot_heard(now_s)
+        # Heard, but the loss ends only with a VehicleState: the behaviour must see where
+        # the vehicle is and its mode now before anything commands it again.
+        self._autopilot_seen_s = now_s
         self._mode_seen(beat.mode)
 
-    def _autopilot_heard(self, now_s: float) -> None:
-        self._autopilot_seen_s = now_s
-        if self._autopilot_lost:
-            self._autopilot_lost = False
-            resend = [self._withheld[k] for k in (SetMode, Goto) if k in self._withheld]
-            self._withheld.clear()
-            self._commands.extend(resend)
-            self.logbook.interface.warning(
-                "autopilot heard again; commanding it again (%d held-back command(s) sent)",
-                len(resend),
-            )
+    def _autopilot_back(self) -> None:
+        """End an autopilot loss: nothing of the loss is replayed; a failsafe holds again.
+
+        Commands dropped while the autopilot was silent stay dropped: a target, a mode or
+        an arm decided then may be wrong now (the pilot may have taken the vehicle). What
+        goes out from here on is what the behaviour and the failsafe say from now on;
+        the failsafe's mode, when the loss swallowed it, is the failsafe's demand now.
+        """
+        self._autopilot_lost = False
+        unsent, self._failsafe_unsent = self._failsafe_unsent, None
+        if unsent is not None and not self.terminated:
+            self._commands.append(unsent)
+        self.logbook.interface.warning(
+            "autopilot heard again; commanding it again (nothing of the silent time is sent%s)",
+            f"; failsafe {self.failsafe}: {unsent.mode}" if unsent is not None else "",
+        )
 
     def _mode_seen(self, mode: str) -> None:
         if mode != self._last_mode:
@@ -537,6 +553,7 @@ class AgentRuntime:
             seen = self._first_tick_s if self._first_tick_s is not None else now_s
         if now_s - seen > self.config.autopilot_timeout_s:
             self._autopilot_lost = True
+            self._requests_void = True
             self._events.append("autopilot_lost")
             self.logbook.interface.error(
                 "autopilot silent for %.1f s: lost; no more commands to it", now_s - seen
@@ -573,6 +590,8 @@ class AgentRuntime:
 
     def _collect_outbox(self) -> None:
         outbox = self.context.outbox
+        if self._requests_void and outbox.commands:
+            outbox.commands = self._void_requests(outbox.commands)
         self._commands.extend(outbox.commands)
         outbox.commands = []
         if outbox.messages:
@@ -672,6 +691,24 @@ class AgentRuntime:
         self._events.append("mcs_lost")
         self.logbook.mission.error("every station is silent: mcs_lost")
 
+    def _void_requests(self, commands: list[Command]) -> list[Command]:
+        """The behaviour's commands without the requests of states active across a loss.
+
+        A primitive asks for a mode, an arm or a takeoff when its state starts and asks
+        again while the vehicle reports what it reported then; a state entered before or
+        during an autopilot loss asked while nobody heard, from a view of the vehicle
+        that is stale now, so its asking again after the return would carry out a
+        request of the silent time. Targets, servos and overrides still go: the
+        autopilot acts on a target only in its guided mode, whoever chose it.
+        """
+        kept: list[Command] = [c for c in commands if not isinstance(c, _REQUESTS)]
+        if len(kept) != len(commands) and not self._autopilot_lost:
+            self.logbook.mission.info(
+                "not sent, asked for by a state active while the autopilot was lost: %s",
+                ", ".join(type(c).__name__ for c in commands if isinstance(c, _REQUESTS)),
+            )
+        return kept
+
     def _apply_failsafe(self) -> None:
         """The declared mcs_lost failsafe, when the behaviour does not handle the event."""
         action = (
@@ -690,7 +727,10 @@ class AgentRuntime:
             self.machine.stop(self.context)
             self._collect_outbox()
         if mode is not None and mode in self.config.modes:
-            self._commands.append(SetMode(mode, int(self.config.modes[mode])))
+            command = SetMode(mode, int(self.config.modes[mode]))
+            self._commands.append(command)
+            if self._autopilot_lost:
+                self._failsafe_unsent = command  # sent when the autopilot returns
 
     def _terminate(self, now_s: float, mode: str | None) -> None:
         """Thesis 7.3.5: stop commanding, terminal mode, close interfaces, flush logs."""
@@ -763,6 +803,8 @@ class AgentRuntime:
         return self._autopilot_lost
 
     def _on_change(self, change: StateChange) -> None:
+        if not self._autopilot_lost:
+            self._requests_void = False  # a state entered now asks afresh
         self.logbook.mission.info(
             "%s: %s -> %s (active: %s)",
             change.event,
@@ -786,10 +828,6 @@ class AgentRuntime:
 
     def _drain(self) -> list[Command]:
         commands, self._commands = self._commands, []
-        if self._autopilot_lost and not self.terminated:
-            for command in commands:
-                if isinstance(command, SetMode | Goto):
-                    self._withheld[type(command)] = command
         if self._autopilot_lost or (self.terminated and not self._closing(commands)):
             commands = [c for c in commands if not isinstance(c, VEHICLE_COMMANDS)]
         return commands
