@@ -397,6 +397,25 @@ def summarize(
     return tuple(pairs), mean_of_means, sum_of_means, deviation_s
 
 
+def _hint(folder: Path) -> str:
+    """What to give instead of a folder without message logs.
+
+    A folder inside that has them (a dry-run report keeps its logs in ``logs/``), or
+    else where agents write them.
+    """
+    try:
+        inside = sorted(
+            sub
+            for sub in folder.iterdir()
+            if sub.is_dir() and any(p.name.endswith(MESSAGE_LOG_SUFFIX) for p in sub.iterdir())
+        )
+    except OSError:
+        inside = []
+    if inside:
+        return f"did you mean {inside[0]}? (e.g. clark analyze {inside[0]})"
+    return "give the folder the agents wrote their logs to (a dry-run report's logs/)"
+
+
 def analyze_folder(folder: Path, period_s: float | None = None) -> Analysis:
     """Read every ``*.messages.csv`` in ``folder`` and compute the latency and loss report.
 
@@ -420,8 +439,7 @@ def analyze_folder(folder: Path, period_s: float | None = None) -> Analysis:
     paths = sorted(p for p in folder.iterdir() if p.name.endswith(MESSAGE_LOG_SUFFIX))
     if not paths:
         raise AnalyzeError(
-            f"{folder}: no message logs (<agent>{MESSAGE_LOG_SUFFIX}); give the folder "
-            "the agents wrote their logs to"
+            f"{folder}: no message logs (<agent>{MESSAGE_LOG_SUFFIX}); {_hint(folder)}"
         )
     for path in paths:
         agent = path.name.removesuffix(MESSAGE_LOG_SUFFIX)
@@ -435,9 +453,10 @@ def analyze_folder(folder: Path, period_s: float | None = None) -> Analysis:
         if rows is not None:
             logs[agent] = rows
     if not logs:
+        problems.sort(key=lambda p: (p.file, p.line or 0))
         raise AnalyzeError(
-            f"{folder}: none of its {len(paths)} message log(s) could be read "
-            "(see the problems above)",
+            f"{folder}: none of its {len(paths)} message log(s) could be read:\n"
+            + "\n".join(f"  {problem.format_text()}" for problem in problems),
         )
     problems.sort(key=lambda p: (p.file, p.line or 0))
     logged = set(logs)

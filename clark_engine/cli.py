@@ -10,6 +10,8 @@ loads only the mission layer (never pymavlink or digi-xbee) and starts fast.
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import importlib.metadata
 import json
 import sys
 from collections.abc import Sequence
@@ -20,6 +22,7 @@ from clark_engine import __version__
 from clark_engine.errors import ClarkError, UsageError
 
 if TYPE_CHECKING:
+    from clark_engine.mission.findings import Finding
     from clark_engine.mission.validate import Validation
 
 EXIT_OK = 0
@@ -49,9 +52,33 @@ def _summary(result: Validation) -> str:
     return text
 
 
-def _print_findings(result: Validation, stream: TextIO) -> None:
-    for finding in result.findings:
-        print(finding.format_text(), file=stream)
+#: Findings whose message ends in advice that is the same every time: the text from this
+#: marker on is given once per command, later findings of the code say "(see above)".
+_ADVICE_ONCE = {"W-NO-KEY": ": make one with"}
+
+
+class _FindingPrinter:
+    """Prints a command's findings: warnings hidden by ``--quiet``, repeated advice once."""
+
+    def __init__(self, quiet: bool = False) -> None:
+        self.quiet = quiet
+        self.advised: set[str] = set()
+
+    def text(self, finding: Finding) -> str:
+        """The finding's line, its advice cut when an earlier finding already gave it."""
+        marker = _ADVICE_ONCE.get(finding.code)
+        if marker is not None and marker in finding.message:
+            if finding.code in self.advised:
+                short = finding.message.split(marker)[0] + " (see the advice above)"
+                finding = dataclasses.replace(finding, message=short)
+            self.advised.add(finding.code)
+        return finding.format_text()
+
+    def __call__(self, result: Validation, stream: TextIO) -> None:
+        for finding in result.findings:
+            if self.quiet and not finding.is_error:
+                continue
+            print(self.text(finding), file=stream)
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
@@ -60,6 +87,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
     results = []
     usage_failed = False
+    print_findings = _FindingPrinter(args.quiet)
     for name in args.paths:
         try:
             results.append(validate_file(Path(name), name))
@@ -83,14 +111,14 @@ def cmd_validate(args: argparse.Namespace) -> int:
         print(json.dumps(payload, indent=2))
     else:
         for result in results:
-            _print_findings(result, sys.stdout)
+            print_findings(result, sys.stdout)
             print(_summary(result))
     if usage_failed:
         return EXIT_USAGE
     return EXIT_OK if all(r.ok for r in results) else EXIT_INVALID
 
 
-def _load_valid(path_text: str, command: str) -> Validation | int:
+def _load_valid(path_text: str, command: str, quiet: bool = False) -> Validation | int:
     """Validate a mission for compile/explain: findings to stderr, exit code on failure."""
     from clark_engine.validation import validate_file
 
@@ -101,7 +129,7 @@ def _load_valid(path_text: str, command: str) -> Validation | int:
             file=sys.stderr,
         )
         return EXIT_USAGE
-    _print_findings(result, sys.stderr)
+    _FindingPrinter(quiet)(result, sys.stderr)
     if result.mission is None:
         print(
             f"{_summary(result)}; nothing {'written' if command == 'compile' else 'shown'}",
@@ -115,7 +143,7 @@ def cmd_compile(args: argparse.Namespace) -> int:
     """Compile a mission into one JSON config per agent."""
     from clark_engine.mission.compiler import compile_mission, write_configs
 
-    loaded = _load_valid(args.mission, "compile")
+    loaded = _load_valid(args.mission, "compile", args.quiet)
     if isinstance(loaded, int):
         return loaded
     mission = loaded.mission
@@ -134,7 +162,7 @@ def cmd_explain(args: argparse.Namespace) -> int:
     """Print the resolved behaviour of one or every agent."""
     from clark_engine.mission.explain import mermaid, tree
 
-    loaded = _load_valid(args.mission, "explain")
+    loaded = _load_valid(args.mission, "explain", args.quiet)
     if isinstance(loaded, int):
         return loaded
     mission = loaded.mission
@@ -175,7 +203,7 @@ def cmd_schema(args: argparse.Namespace) -> int:
 
 def cmd_keygen(args: argparse.Namespace) -> int:
     """Write a new ClarkLink key file (32 random bytes, readable by its owner only)."""
-    from clark_engine.link.auth import generate_key_file
+    from clark_engine.link.auth import KeyFileError, generate_key_file
 
     path = Path(args.path)
     if path.is_dir():
@@ -187,7 +215,10 @@ def cmd_keygen(args: argparse.Namespace) -> int:
             f"{path} exists; keygen never overwrites a key (delete it first if you mean to)"
         )
     try:
+        path.parent.mkdir(parents=True, exist_ok=True)
         generate_key_file(path)
+    except KeyFileError as exc:  # cannot be written: an I/O error, exit 2
+        raise UsageError(str(exc)) from None
     except OSError as exc:
         raise UsageError(f"cannot write {path}: {exc.strerror or exc}") from None
     print(f"wrote {path} (mode 600); name it in mission.key_file and copy it to every agent")
@@ -275,6 +306,7 @@ def cmd_dry_run(args: argparse.Namespace) -> int:
         sitl=install,
         sitl_speedup=args.sitl_speedup or DEFAULT_SITL_SPEEDUP,
         realtime=args.realtime,
+        quiet=args.quiet,
     )
     return outcome.exit_code
 
@@ -303,17 +335,61 @@ def _period_s(text: str) -> float:
     return value
 
 
+def _speed(text: str) -> float:
+    """A speed-up factor: a finite number above 0; anything else is a usage error (exit 2)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a number > 0, not {text!r}")
+    return value
+
+
+def _seed(text: str) -> int:
+    """A random seed: a whole number >= 0; anything else is a usage error (exit 2)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be a whole number >= 0, not {text!r}")
+    return value
+
+
+def _version() -> str:
+    """The installed package's version (its metadata); the source's when not installed."""
+    try:
+        return importlib.metadata.version("clark-engine")
+    except importlib.metadata.PackageNotFoundError:
+        return __version__
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``clark`` and its subcommands."""
+    from clark_engine.mission.schemas import SCHEMA_NAMES
+
     parser = _Parser(
         prog="clark",
-        description="Clark Engine: validate, compile and explain multi-vehicle missions.",
+        description="Clark Engine: validate, explain, dry-run (on a simulated fleet), "
+        "compile and analyze multi-vehicle missions. `clark COMMAND --help` for each.",
         epilog="Exit codes: 0 good, 1 invalid input or failed check, 2 usage or I/O error.",
     )
-    parser.add_argument("--version", action="version", version=f"clark-engine {__version__}")
+    parser.add_argument("--version", action="version", version=f"clark-engine {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    quiet = _Parser(add_help=False)
+    quiet.add_argument(
+        "-q",
+        "--quiet",
+        action="store_true",
+        help="hide warnings (errors, the verdict and the exit code are unchanged)",
+    )
 
-    p = sub.add_parser("validate", help="report every problem in missions, blocks or profiles")
+    p = sub.add_parser(
+        "validate",
+        parents=[quiet],
+        help="report every problem in missions, blocks or profiles",
+    )
     p.add_argument("paths", nargs="+", metavar="PATH", help="mission, block or profile files")
     p.add_argument(
         "--format",
@@ -323,7 +399,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_validate)
 
-    p = sub.add_parser("compile", help="write one JSON config per agent")
+    p = sub.add_parser("compile", parents=[quiet], help="write one JSON config per agent")
     p.add_argument("mission", metavar="MISSION")
     p.add_argument(
         "-o",
@@ -335,7 +411,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--agent", action="append", metavar="NAME", help="only this agent (repeatable)")
     p.set_defaults(func=cmd_compile)
 
-    p = sub.add_parser("explain", help="show the resolved state machine of agents")
+    p = sub.add_parser("explain", parents=[quiet], help="show the resolved state machine of agents")
     p.add_argument("mission", metavar="MISSION")
     p.add_argument(
         "--agent",
@@ -343,14 +419,27 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="NAME",
         help="only this agent (repeatable; every agent when omitted)",
     )
-    p.add_argument("--format", choices=("tree", "mermaid", "both"), default="both")
+    p.add_argument(
+        "--format",
+        choices=("tree", "mermaid", "both"),
+        default="both",
+        help="tree: the states as an indented tree; mermaid: a Mermaid state diagram "
+        "(for Markdown viewers); both (the default)",
+    )
     p.set_defaults(func=cmd_explain)
 
     p = sub.add_parser(
-        "dry-run", help="run the mission against a simulated fleet and evaluate its checks"
+        "dry-run",
+        parents=[quiet],
+        help="run the mission against a simulated fleet and evaluate its checks",
     )
     p.add_argument("mission", metavar="MISSION")
-    p.add_argument("--seed", type=int, help="random seed (the mission's sim.seed by default)")
+    p.add_argument(
+        "--seed",
+        type=_seed,
+        metavar="N",
+        help="random seed, a whole number >= 0 (the mission's sim.seed by default)",
+    )
     p.add_argument(
         "--until",
         type=_period_s,
@@ -360,9 +449,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--report", metavar="DIR", help="write logs, CSV, plots and summary.md here")
     p.add_argument(
         "--speed",
-        type=_period_s,
+        type=_speed,
         metavar="X",
-        help="pace the run at X simulated seconds per second (as fast as possible by default)",
+        help="pace the run at X times real time, X > 0 (as fast as possible by default)",
     )
     p.add_argument(
         "--workers",
@@ -412,7 +501,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--sitl-speedup",
-        type=_period_s,
+        type=_speed,
         metavar="X",
         help="with --autopilot sitl: run SITL X times faster than real time (10 by default)",
     )
@@ -444,7 +533,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "schema", help="print a JSON Schema (mission, behavior, hardware-profile, agent-config)"
     )
-    p.add_argument("name", metavar="NAME")
+    p.add_argument("name", metavar="NAME", help=f"one of: {', '.join(SCHEMA_NAMES)}")
     p.set_defaults(func=cmd_schema)
     return parser
 

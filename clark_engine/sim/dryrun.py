@@ -12,7 +12,6 @@ simulated autopilot, and the two runs' state timelines are compared
 
 from __future__ import annotations
 
-import shutil
 import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -34,6 +33,7 @@ from clark_engine.sim.realtime import (
     vehicle_names,
 )
 from clark_engine.sim.report import (
+    ReportFolder,
     checks_table,
     plot_inputs,
     plot_timeline,
@@ -81,23 +81,43 @@ class Outcome:
 
 
 class _Progress:
-    """A one-line progress bar on a stream, redrawn in place (a carriage return)."""
+    """Progress on a stream, for a terminal or for a log.
 
-    def __init__(self, stream: TextIO) -> None:
+    On a terminal, a one-line bar redrawn in place (a carriage return); elsewhere (a
+    CI log, a file), a plain line every :attr:`PLAIN_EVERY` calls, never a carriage return.
+
+    The engine calls it about once a wall-clock second.
+    """
+
+    PLAIN_EVERY: Final = 10
+    """Calls between two plain lines: about one line per 10 s of wall-clock time."""
+
+    def __init__(self, stream: TextIO, terminal: bool = True) -> None:
         self.stream = stream
+        self.terminal = terminal
         self.shown = False
+        self.calls = 0
 
     def __call__(self, t_s: float, end_s: float) -> None:
+        self.calls += 1
         share = t_s / end_s if end_s else 1.0
-        bar = "#" * int(share * 30)
-        self.stream.write(f"\r  simulating [{bar:<30}] {t_s:7.1f} / {end_s:g} s")
+        if self.terminal:
+            bar = "#" * int(share * 30)
+            self.stream.write(f"\r  simulating [{bar:<30}] {t_s:7.1f} / {end_s:g} s")
+            self.shown = True
+        elif self.calls % self.PLAIN_EVERY == 0:
+            self.stream.write(f"  simulated {t_s:.1f} of {end_s:g} s ({share:.0%})\n")
         self.stream.flush()
-        self.shown = True
 
     def finish(self) -> None:
-        """End the bar's line, if it was ever drawn (a run under a second never draws it)."""
+        """End the bar's line, if it was ever drawn (a run under a second never draws it).
+
+        Called on every way out, Ctrl-C included, so what follows starts on its own line.
+        """
         if self.shown:
             self.stream.write("\n")
+            self.stream.flush()
+            self.shown = False
 
 
 def run_dry_run(
@@ -116,6 +136,7 @@ def run_dry_run(
     realtime: bool = False,
     out: TextIO | None = None,
     err: TextIO | None = None,
+    quiet: bool = False,
 ) -> Outcome:
     """Validate the mission, simulate it, evaluate its checks and write the report.
 
@@ -124,6 +145,9 @@ def run_dry_run(
         seed: Seeds every random draw; the mission's ``sim.seed`` when None.
         until_s: Simulated seconds to run; the mission's ``sim.duration_s`` when None.
         report: Folder for logs, CSV, plots and ``summary.md``; none written when None.
+            Written whole beside it and moved into place when complete
+            (:class:`~clark_engine.sim.report.ReportFolder`): an interrupted run leaves
+            it as it was; a folder holding files the engine did not write is refused.
         speed: Simulated seconds per wall-clock second; as fast as possible when None.
         faults: Command-line faults (:data:`FAULT_HELP`).
         realtime_base_port: Real time with a ground station: run at wall-clock speed
@@ -142,9 +166,11 @@ def run_dry_run(
             ``realtime_base_port``.)
         out: Where the checks table goes; ``sys.stdout`` (as it is at the call) when None.
         err: Where progress and diagnostics go; ``sys.stderr`` when None.
+        quiet: Hide the mission's warnings (``--quiet``); errors are always shown.
 
     Raises:
-        UsageError: Unreadable mission, bad fault, a report folder that cannot be made,
+        UsageError: Unreadable mission, bad fault, a report folder that cannot be made
+            or holds files the engine did not write,
             (in real time) no vehicle or a port that cannot be bound, or a SITL that
             cannot be started or stops answering.
     """
@@ -153,7 +179,8 @@ def run_dry_run(
     extra = [parse_fault(text) for text in faults]
     validation = validate_file(mission_path, str(mission_path))
     for finding in validation.findings:
-        print(finding.format_text(), file=err)
+        if finding.is_error or not quiet:
+            print(finding.format_text(), file=err)
     mission = validation.mission
     if validation.kind != "mission" and validation.ok:
         raise UsageError(f"{mission_path} is a {validation.kind}, not a mission")
@@ -168,6 +195,41 @@ def run_dry_run(
                 raise UsageError(f"--fault {kind}: there is no agent {name!r} in the mission")
     seed = int(seed if seed is not None else mission.sim.get("seed", 0))
     until = float(until_s if until_s is not None else mission.sim.get("duration_s", 300.0))
+    folder = ReportFolder(report) if report is not None else None
+    if folder is not None:
+        folder.check()  # before the run: a folder it may not replace is refused at once
+    try:
+        return _run_and_report(
+            mission, mission_path, seed, until, folder, speed, extra, realtime_base_port,
+            realtime_host, workers, sitl, sitl_speedup, realtime, out, err,
+        )  # fmt: skip
+    except KeyboardInterrupt:
+        if folder is not None:
+            print(f"interrupted: no report written ({folder.target} is as it was)", file=err)
+        raise
+    finally:
+        if folder is not None:
+            folder.discard()
+
+
+def _run_and_report(
+    mission: Mission,
+    mission_path: Path,
+    seed: int,
+    until: float,
+    folder: ReportFolder | None,
+    speed: float | None,
+    extra: Sequence[Mapping[str, Any]],
+    realtime_base_port: int | None,
+    realtime_host: str,
+    workers: int | None,
+    sitl: SitlInstall | None,
+    sitl_speedup: float,
+    realtime: bool,
+    out: TextIO,
+    err: TextIO,
+) -> Outcome:
+    """:func:`run_dry_run` once the mission is loaded: run, evaluate, write the report."""
     # Real time: bind the ports first, so a port in use is reported before anything is written.
     bridge = (
         MavlinkBridge(vehicle_names(mission), realtime_base_port, host=realtime_host)
@@ -177,9 +239,10 @@ def run_dry_run(
     switch = StopSwitch() if sitl is not None and realtime else None
     simulated: DryRunResult | None = None
     try:
+        log_dir = folder.open() if folder is not None else None
         if sitl is None:
             result = _simulate(
-                mission, mission_path, seed, until, report, speed, extra, bridge, workers, err
+                mission, mission_path, seed, until, log_dir, speed, extra, bridge, workers, err
             )
         else:
             if workers is not None and workers > 1:
@@ -193,7 +256,7 @@ def run_dry_run(
                 mission_path,
                 seed,
                 until,
-                report,
+                log_dir,
                 extra,
                 sitl,
                 1.0 if realtime else sitl_speedup,
@@ -224,9 +287,10 @@ def run_dry_run(
         out.write(checks_table(results))
     else:
         print("the mission declares no checks", file=out)
-    if report is not None:
-        _write_report(report, mission.name, seed, until, result, results, comparison)
-        print(f"report: {report / 'summary.md'}", file=err)
+    if folder is not None:
+        _write_report(folder.folder, mission.name, seed, until, result, results, comparison)
+        folder.commit()
+        print(f"report: {folder.target / 'summary.md'}", file=err)
     failed = [r for r in results if not r.passed]
     if failed:
         print(f"{len(failed)} of {len(results)} checks failed", file=err)
@@ -238,20 +302,38 @@ def _simulate(
     mission_path: Path,
     seed: int,
     until_s: float,
-    report: Path | None,
+    log_dir: Path | None,
     speed: float | None,
     faults: Sequence[Mapping[str, Any]],
     bridge: MavlinkBridge | None,
     workers: int | None,
     err: TextIO,
 ) -> DryRunResult:
-    """Make the report's log folder and run the simulation (in real time with a bridge).
-
-    Raises:
-        UsageError: The report folder cannot be made.
-    """
-    log_dir = _log_dir(report)
+    """Run the simulation (in real time with a bridge), the agents logging to ``log_dir``."""
     progress = _progress_for(err, until_s)
+    try:
+        return _simulate_with(
+            mission, mission_path, seed, until_s, log_dir, speed, faults, bridge, workers, err,
+            progress,
+        )  # fmt: skip
+    finally:
+        if progress is not None:
+            progress.finish()  # also on Ctrl-C: what follows starts on its own line
+
+
+def _simulate_with(
+    mission: Mission,
+    mission_path: Path,
+    seed: int,
+    until_s: float,
+    log_dir: Path | None,
+    speed: float | None,
+    faults: Sequence[Mapping[str, Any]],
+    bridge: MavlinkBridge | None,
+    workers: int | None,
+    err: TextIO,
+    progress: _Progress | None,
+) -> DryRunResult:
     paced = bridge is not None or speed is not None
     processes = 1 if paced else choose_workers(workers, mission)
     if workers is not None and workers > 1 and processes == 1:
@@ -279,8 +361,6 @@ def _simulate(
             extra_faults=faults,
             progress=progress,
         )
-        if progress is not None:
-            progress.finish()
         return result
     run = DryRun(
         mission,
@@ -316,34 +396,18 @@ def _simulate(
         with stop_on_interrupt(bridge.stop):
             print("real time: Ctrl-C ends the run early (the report is still written)", file=err)
             result = run.run()
-    if progress is not None:
-        progress.finish()
     return result
 
 
-def _log_dir(report: Path | None) -> Path | None:
-    """The report's ``logs`` folder, made empty; None without a report.
-
-    Raises:
-        UsageError: The report folder cannot be made.
-    """
-    if report is None:
-        return None
-    try:
-        report.mkdir(parents=True, exist_ok=True)
-        log_dir = report / "logs"
-        if log_dir.exists():
-            shutil.rmtree(log_dir)
-        log_dir.mkdir()
-    except OSError as exc:
-        raise UsageError(f"cannot write the report to {report}: {exc.strerror or exc}") from None
-    return log_dir
-
-
 def _progress_for(err: TextIO, until_s: float) -> _Progress | None:
-    """A progress bar on ``err`` for a terminal or a long run; None otherwise."""
+    """A progress bar on a terminal; plain lines now and then for a long run into a log.
+
+    None (no progress shown) for a short run that is not on a terminal.
+    """
     interactive = err.isatty() if hasattr(err, "isatty") else False
-    return _Progress(err) if interactive or until_s > 60 else None
+    if interactive:
+        return _Progress(err, terminal=True)
+    return _Progress(err, terminal=False) if until_s > 60 else None
 
 
 def _fly_sitl(
@@ -351,7 +415,7 @@ def _fly_sitl(
     mission_path: Path,
     seed: int,
     until_s: float,
-    report: Path | None,
+    log_dir: Path | None,
     faults: Sequence[Mapping[str, Any]],
     install: SitlInstall,
     speedup: float,
@@ -364,10 +428,8 @@ def _fly_sitl(
     SERIAL1 is announced for a ground station.
 
     Raises:
-        UsageError: The report folder cannot be made.
         SitlError: A SITL could not be started or stopped answering.
     """
-    log_dir = _log_dir(report)
     progress = _progress_for(err, until_s)
     if mission.sim.get("autopilot_ready_s") is not None:
         print(
@@ -414,8 +476,8 @@ def _fly_sitl(
                 result = run.run()
     finally:
         run.close()  # SITL stops even when the run never started
-    if progress is not None:
-        progress.finish()
+        if progress is not None:
+            progress.finish()  # also on Ctrl-C: what follows starts on its own line
     for name, wall_s in run.preflight_wall_s.items():
         print(f"  {name}: flown up to its start point before the run, in {wall_s:.1f} s", file=err)
     return result

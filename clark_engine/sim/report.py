@@ -11,20 +11,144 @@ Written into ``--report DIR`` beside every agent's CSV and logs:
 
 Plots use matplotlib's non-interactive Agg backend; files are written with fixed
 metadata so the same run gives the same bytes.
+
+The report is written whole into a fresh hidden folder beside ``DIR``
+(``.DIR.incomplete-*``) and moved into place only when complete
+(:class:`ReportFolder`), with a ``.clark-report.json`` that lists its files. A run
+that is interrupted leaves ``DIR`` as it was. A later run replaces a report it
+recognises (by that list, or as a report from before the list) and refuses a
+``DIR`` holding any other file: it never deletes a file the engine did not write.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import os
+import shutil
+import tempfile
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Final
 
+from clark_engine.errors import UsageError
+from clark_engine.mission.compiler import foreign_files, swap_in, write_marker
 from clark_engine.runtime.config import AgentConfig
 from clark_engine.sim.checks import CheckResult
 from clark_engine.sim.recording import Recording
 
 #: PNG metadata without the matplotlib version or a date, for reproducible files.
 _PNG_METADATA = {"Software": None}
+
+REPORT_MARKER: Final = ".clark-report.json"
+"""Written last into a complete report: the list of its files, all the engine's."""
+
+_REPORT_FILES: Final = frozenset({"summary.md", "tracks.png", "inputs.png", "timeline.png"})
+_LOG_SUFFIXES: Final = (".mission.log", ".interface.log", ".fleet.csv", ".messages.csv")
+
+
+def _older_report(folder: Path) -> Callable[[Path, str], bool]:
+    """Recognises the files of a report from before :data:`REPORT_MARKER` existed.
+
+    Its summary.md, plots and agents' logs, when summary.md is a dry run's.
+    """
+    try:
+        with (folder / "summary.md").open(encoding="utf-8") as summary:
+            is_report = summary.read(20).startswith("# Dry run of ")
+    except (OSError, UnicodeDecodeError):
+        is_report = False
+
+    def recognise(path: Path, name: str) -> bool:
+        if not is_report or path.is_symlink():
+            return False
+        folder_name, _, file_name = name.rpartition("/")
+        if not folder_name:
+            return name in _REPORT_FILES
+        return folder_name == "logs" and file_name.endswith(_LOG_SUFFIXES)
+
+    return recognise
+
+
+class ReportFolder:
+    """Where ``--report DIR`` is written: whole, beside DIR, then moved into place.
+
+    :meth:`check` before the run refuses a DIR with files the engine did not write;
+    :meth:`open` makes the fresh folder the run logs into; :meth:`commit` lists its
+    files in :data:`REPORT_MARKER` and swaps it in for DIR; :meth:`discard` (always
+    called, e.g. in ``finally``) removes it if it was never committed.
+    """
+
+    def __init__(self, target: Path) -> None:
+        self.target = target
+        """DIR as the user gave it (messages name it so)."""
+        self.staging: Path | None = None
+        """The folder being written, until it is committed or discarded."""
+
+    @property
+    def _place(self) -> Path:
+        return self.target.resolve()
+
+    def check(self) -> None:
+        """Refuse a DIR that holds files the engine did not write (nothing is deleted).
+
+        Raises:
+            UsageError: DIR is a file, or holds such files.
+        """
+        foreign = foreign_files(self._place, REPORT_MARKER, _older_report(self._place))
+        if foreign:
+            shown = ", ".join(foreign[:5])
+            if len(foreign) > 5:
+                shown += f" and {len(foreign) - 5} more"
+            raise UsageError(
+                f"--report {self.target} holds files clark dry-run did not write ({shown}); "
+                "a report replaces its folder, so give a new or empty folder, or move them"
+            )
+
+    def open(self) -> Path:
+        """Make the fresh folder (a hidden sibling of DIR) and return its ``logs`` folder.
+
+        Raises:
+            UsageError: It cannot be made.
+        """
+        place = self._place
+        try:
+            place.parent.mkdir(parents=True, exist_ok=True)
+            staging = Path(tempfile.mkdtemp(prefix=f".{place.name}.incomplete-", dir=place.parent))
+            self.staging = staging
+            staging.chmod(0o755)  # mkdtemp's 700 would become the report's mode
+            (staging / "logs").mkdir()
+        except OSError as exc:
+            raise UsageError(
+                f"cannot write the report to {self.target}: {exc.strerror or exc}"
+            ) from None
+        return staging / "logs"
+
+    @property
+    def folder(self) -> Path:
+        """The folder to write the report's files into (before :meth:`commit`)."""
+        assert self.staging is not None, "open() first"
+        return self.staging
+
+    def commit(self) -> None:
+        """List the report's files, then put it in DIR's place.
+
+        Raises:
+            UsageError: DIR gained files the engine did not write during the run, or
+                the folder cannot be moved.
+        """
+        self.check()
+        try:
+            write_marker(self.folder, REPORT_MARKER, "dry-run report (clark dry-run --report)")
+            swap_in(self.folder, self._place)
+        except OSError as exc:
+            raise UsageError(
+                f"cannot write the report to {self.target}: {exc.strerror or exc}"
+            ) from None
+        self.staging = None
+
+    def discard(self) -> None:
+        """Remove the fresh folder if it was not committed (an interrupted or failed run)."""
+        if self.staging is not None and os.path.isdir(self.staging):
+            shutil.rmtree(self.staging, ignore_errors=True)
+        self.staging = None
 
 
 def _pyplot() -> Any:
