@@ -6,6 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -26,3 +28,50 @@ def test_check_codes_page_is_generated_from_the_engine() -> None:
     assert proc.returncode == 0, (
         proc.stdout + proc.stderr + "\nrun `python tools/gen_check_codes.py`"
     )
+
+
+def _ignored_by_git(path: str) -> bool:
+    proc = subprocess.run(
+        ["git", "check-ignore", "-q", path], cwd=ROOT, capture_output=True, check=False
+    )
+    if proc.returncode == 128:  # not a checkout (an unpacked sdist)
+        pytest.skip("not a git checkout")
+    return proc.returncode == 0
+
+
+def test_tutorial_works_apart_from_the_examples() -> None:
+    """The tutorial's files never land in missions/ (make demo and make test read it)."""
+    text = (ROOT / "docs" / "tutorial.md").read_text(encoding="utf-8")
+    assert "missions/first_flight" not in text
+    assert "$ clark validate tutorial/first_flight.yaml" in text
+    assert "mkdir -p tutorial" in text
+    for made in ("tutorial/first_flight.yaml", "tutorial/first_flight.key", "build2/x"):
+        assert _ignored_by_git(made), f"{made} is not ignored by git"
+
+
+def test_readme_outputs_are_ignored_by_git() -> None:
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert "clark keygen keys/mission.key" in readme
+    for made in ("keys/mission.key", "out/summary.md", "build/x/cub.json"):
+        assert _ignored_by_git(made), f"{made} is not ignored by git"
+
+
+def test_readme_says_the_station_loss_fails_on_purpose(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """The README's "what if?" output is the command's real output."""
+    command = "clark dry-run missions/cooperative_follow.yaml --fault station_silent@10-40 -q"
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert f"$ {command}\n" in readme, "the README shows the command and its output"
+    block = readme.split(f"$ {command}\n", 1)[1].split("```", 1)[0]
+    assert "fails on purpose" in readme.split(f"$ {command}")[0].rsplit("```", 2)[-2]
+    from clark_engine.cli import main
+
+    args = command.split()[1:]
+    args[1] = str(ROOT / args[1])
+    code = main(args)
+    out, err = capsys.readouterr()
+    assert code == 1
+    shown = [line for line in block.splitlines() if line.startswith("|") or "checks" in line]
+    real = [line for line in (out + err).splitlines() if line.startswith("|") or "checks" in line]
+    assert shown == real
