@@ -738,6 +738,66 @@ def _checked_state_paths(kind: str, body: Any) -> list[str]:
     return [path] if kind in ("state", "signal") and isinstance(path, str) else []
 
 
+#: The dry run's length when the mission's sim.duration_s does not say.
+DEFAULT_DURATION_S = 300.0
+
+
+def _check_possible(
+    mission: Mission, kind: str, check: Mapping[str, Any], body: Any, where: Location
+) -> Iterator[Finding]:
+    """A check that no dry run of this mission can pass is an error now, not a FAIL later."""
+    duration = float(mission.sim.get("duration_s", DEFAULT_DURATION_S))
+    by_s = check.get("by_s")
+    if isinstance(by_s, int | float) and by_s > duration:
+        yield error(
+            "E-CHECK-IMPOSSIBLE",
+            where,
+            f"by_s {by_s:g} s is after the dry run ends (sim.duration_s {duration:g} s), so "
+            "the check can never be judged; lower by_s or raise sim.duration_s",
+        )
+    if not isinstance(body, Mapping):
+        return
+    low, high = body.get("min"), body.get("max")
+    if isinstance(low, int | float) and isinstance(high, int | float) and low > high:
+        yield error(
+            "E-CHECK-IMPOSSIBLE",
+            where,
+            f"min {low:g} is above max {high:g}, so no run can pass this {kind} check; "
+            "swap them or correct one",
+        )
+    agent = mission.agents.get(str(body.get("agent")))
+    if agent is None:
+        return
+    if kind == "failsafe" and not agent.is_vehicle:
+        yield error(
+            "E-CHECK-IMPOSSIBLE",
+            where,
+            f"{agent.name} is a station: it has no failsafe and no autopilot to lose, so this "
+            "check always fails; check a vehicle",
+        )
+    if kind == "photos" and isinstance(low, int | float) and low > 0:
+        cameras = [
+            n for n, p in agent.hardware.payloads.items() if p.get("payload_kind") == "camera"
+        ]
+        if not cameras:
+            yield error(
+                "E-CHECK-IMPOSSIBLE",
+                where,
+                f"{agent.name} has no camera, so it takes no pictures and this check always "
+                f"fails; add a camera under agents.{agent.name}.hardware.payloads or check "
+                "another agent",
+            )
+        elif agent.behavior is not None and not any(
+            s.primitive == "photo_trigger" or s.unresolved for s in agent.behavior.walk()
+        ):
+            yield error(
+                "E-CHECK-IMPOSSIBLE",
+                where,
+                f"{agent.name} never runs photo_trigger, so it takes no pictures and this "
+                "check always fails; add a photo_trigger state or check another agent",
+            )
+
+
 def check_expectations(mission: Mission) -> Iterator[Finding]:
     """Dry-run expectations name agents and states that exist."""
     for index, check in enumerate(mission.checks):
@@ -753,6 +813,7 @@ def check_expectations(mission: Mission) -> Iterator[Finding]:
             )
             continue
         body = check[kinds[0]]
+        yield from _check_possible(mission, kinds[0], check, body, where)
         names: list[str] = []
         if isinstance(body, Mapping):
             names.extend(str(n) for n in body.get("between", []))

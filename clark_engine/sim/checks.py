@@ -25,6 +25,16 @@ class CheckResult:
     expected: str
     observed: str
     passed: bool
+    evaluated: bool = True
+    """False when the run ended before the check's ``by_s`` and it had not yet held: it
+    was not judged (``passed`` is then False too; it did not pass)."""
+
+    @property
+    def verdict(self) -> str:
+        """``pass``, ``FAIL`` or ``not evaluated``, as the checks table shows it."""
+        if not self.evaluated:
+            return "not evaluated"
+        return "pass" if self.passed else "FAIL"
 
 
 def _label(check: Mapping[str, Any], kind: str, index: int) -> str:
@@ -55,7 +65,21 @@ def evaluate(
         body = check[kind]
         label = _label(check, kind, index)
         evaluator = _EVALUATORS[kind]
-        results.append(evaluator(label, body, by_s, run))
+        result = evaluator(label, body, by_s, run)
+        early = by_s > recording.end_s + 1e-9
+        at_by_s = kind == "distance_m" and isinstance(body, Mapping) and "min" in body
+        if early and (at_by_s or (not result.passed and kind in _BY_S_KINDS)):
+            # It may still hold before by_s (or, for a distance at by_s, not hold
+            # then): the run ended too early to say.
+            result = CheckResult(
+                label,
+                result.expected,
+                f"not evaluated: the run ended at {recording.end_s:g} s, before by_s "
+                f"{by_s:g} s (so far: {result.observed})",
+                passed=False,
+                evaluated=False,
+            )
+        results.append(result)
     return results
 
 
@@ -372,6 +396,9 @@ def _failsafe(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Che
     observed = ", ".join(f"{w} at {t:.1f} s" for t, w in seen) or "none"
     return CheckResult(label, expected, observed, False)
 
+
+#: Kinds whose verdict is "by by_s": a run that ends sooner cannot fail them.
+_BY_S_KINDS = frozenset({"distance_m", "reached", "state", "sequence", "failsafe"})
 
 _EVALUATORS = {
     "distance_m": _distance,

@@ -298,6 +298,9 @@ def off_the_globe(point: LocalPoint, origin: Origin) -> str | None:
 
 def _check_range(ctx: UseContext, point: LocalPoint, where: Any, label: str) -> Iterator[Finding]:
     own_range = ctx.agent.hardware.radio_range_m
+    if not ctx.mission.stations:
+        yield from _check_range_to_peers(ctx, point, where, label)
+        return
     for station in ctx.mission.stations:
         ranges = [r for r in (own_range, station.hardware.radio_range_m) if r is not None]
         if not ranges:
@@ -312,6 +315,42 @@ def _check_range(ctx: UseContext, point: LocalPoint, where: Any, label: str) -> 
                 f"{limit:.0f} m radio range; move it closer or the station nearer",
                 ctx.use_location,
             )
+
+
+def _check_range_to_peers(
+    ctx: UseContext, point: LocalPoint, where: Any, label: str
+) -> Iterator[Finding]:
+    """Without a station, a point must be within radio range of some other agent's start.
+
+    With no station to measure from, the agent's peers (where they start) are what its
+    radio must reach; a lone agent is measured from the mission origin. A point beyond
+    every one of them is out of touch with the whole fleet.
+    """
+    me = ctx.agent
+    peers = [a for a in ctx.mission.agents.values() if a.name != me.name]
+    references = [(f"the start of agent {a.name!r}", a.position, a) for a in peers]
+    if not references:
+        references = [("the mission origin", LocalPoint(0.0, 0.0, 0.0), me)]
+    nearest: tuple[float, str, float] | None = None
+    for what, position, other in references:
+        ranges = [r for r in (me.hardware.radio_range_m, other.hardware.radio_range_m) if r]
+        if not ranges:
+            return  # a radio of unknown range: nothing to measure against
+        limit = min(ranges)
+        distance = point.horizontal_distance_m(position)
+        if distance <= limit:
+            return
+        if nearest is None or distance < nearest[0]:
+            nearest = (distance, what, limit)
+    if nearest is not None:
+        distance, what, limit = nearest
+        yield error(
+            "E-RADIO-RANGE",
+            where,
+            f"{label} is {distance:.0f} m from {what}, the nearest radio it could reach (the "
+            f"mission has no station), beyond the {limit:.0f} m radio range; move it closer",
+            ctx.use_location,
+        )
 
 
 #: A fixed-wing aircraft never orbits tighter than this multiple of its tightest turn

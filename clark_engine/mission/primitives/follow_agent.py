@@ -9,6 +9,7 @@ Done on reaching the target unless ``continuous``.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator, Mapping
 from typing import Any
 
@@ -76,6 +77,7 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
             "retarget_hz",
             status.location,
         )
+    yield from _check_separation(ctx, target_name)
     offset_up = float((ctx.params.get("offset") or {}).get("up_m", 0.0))
     is_air = (me.hardware.part("airframe") or {}).get("class") != "rover"
     if is_air and offset_up > ctx.mission.ceiling_m:
@@ -94,6 +96,32 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
             "lower it or raise mission.loop_hz",
             ctx.use_location,
         )
+
+
+#: A continuous follower's offset must keep it at least this far from its leader: it
+#: keeps driving onto the point the offset names, whatever its tolerance_m.
+MIN_FOLLOW_SEPARATION_M = 3.0
+
+
+def _check_separation(ctx: UseContext, target_name: str) -> Iterator[Finding]:
+    """A continuous follower keeps chasing: its offset is all that keeps it off its leader."""
+    if not ctx.params.get("continuous"):
+        return
+    offset = ctx.params.get("offset") or {}
+    north, east, up = (float(offset.get(k, 0.0)) for k in ("north_m", "east_m", "up_m"))
+    rover = (ctx.agent.hardware.part("airframe") or {}).get("class") == "rover"
+    distance = math.hypot(north, east) if rover else math.sqrt(north**2 + east**2 + up**2)
+    if distance >= MIN_FOLLOW_SEPARATION_M:
+        return
+    need = MIN_FOLLOW_SEPARATION_M
+    yield warning(
+        "W-FOLLOW-SEPARATION",
+        ctx.locate("offset") if "offset" in ctx.params else ctx.use_location,
+        f"{ctx.agent.name!r} follows {target_name!r} without end, aiming {distance:g} m from "
+        f"its reported position, so it drives up to its leader (a dry run closes to under a "
+        f"metre); give an offset of at least {need:g} m, such as offset: {{north_m: -{need:g}}}",
+        ctx.use_location,
+    )
 
 
 SPEC = PrimitiveSpec(
