@@ -159,7 +159,6 @@ def test_fault_forms(text: str, fault: dict[str, object]) -> None:
         "kill:slash_a",
         "kill:slash_a@1-2",
         "station_silent@5",
-        "station_silent@9-3",
         "melt:a@1",
         "link_drop:mcs@1-2",
         "corrupt:lots@1-2",
@@ -168,6 +167,11 @@ def test_fault_forms(text: str, fault: dict[str, object]) -> None:
 def test_bad_fault_is_a_usage_error(text: str) -> None:
     with pytest.raises(UsageError, match="is not a fault"):
         parse_fault(text)
+
+
+def test_reversed_fault_window_says_so() -> None:
+    with pytest.raises(UsageError, match="reversed window"):
+        parse_fault("station_silent@9-3")
 
 
 def cli(*args: str) -> subprocess.CompletedProcess[str]:
