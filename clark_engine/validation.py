@@ -29,6 +29,7 @@ from clark_engine.link.messages import (
 from clark_engine.link.packet import HEADER_BYTES, TAG_BYTES
 from clark_engine.mission.findings import Finding, Location, error, warning
 from clark_engine.mission.model import Agent, Mission, State
+from clark_engine.mission.paths import confine
 from clark_engine.mission.validate import Validation, validate_path
 
 #: Larger than any GPS time in milliseconds this century: the worst case for its varint.
@@ -80,7 +81,19 @@ def check_key_file(mission: Mission, mission_path: Path) -> list[Finding]:
             ]
         return []
     where = _mission_location(mission, "key_file")
-    key_path = mission_path.parent / mission.key_file
+    key_path, why = confine(mission_path.parent, mission.key_file)
+    if key_path is None:
+        # Refused before anything is opened: the answer must not say whether, or with what
+        # mode, a file exists outside the mission's folder.
+        return [
+            error(
+                "E-KEY-PATH",
+                where,
+                f"key_file must name a file in the mission's folder, and this one does not: "
+                f"{why}; put the key beside the mission (clark keygen mission.key) and write "
+                "key_file: mission.key",
+            )
+        ]
     try:
         load_key(key_path)
     except ClarkError as exc:

@@ -30,6 +30,7 @@ from clark_engine.mission.model import (
     Mission,
     Telemetry,
 )
+from clark_engine.mission.paths import confine
 from clark_engine.mission.profiles import HardwareResolver, ProfileLibrary
 from clark_engine.mission.schemas import validate_data
 from clark_engine.mission.yaml_loader import Document, YamlLoadError, decode_text, load_yaml
@@ -207,7 +208,20 @@ def _libraries(
         for i, folder in enumerate(include.get(key) or []):
             if not isinstance(folder, str):
                 continue
-            full = (path.parent / folder).resolve()
+            shipped = [data_dir("hardware_profiles"), data_dir("behaviors")]
+            confined, why = confine(path.parent, folder, shipped)
+            if confined is None:
+                findings.append(
+                    error(
+                        "E-INCLUDE-PATH",
+                        doc.location(("include", key, i)),
+                        f"a mission may include only folders inside its own folder (or the "
+                        f"shipped {key}), and this one is not: {why}; move the folder next to "
+                        "the mission and name it relative to the mission, e.g. my_" + key,
+                    )
+                )
+                continue
+            full = confined
             if not full.is_dir():
                 findings.append(
                     error(

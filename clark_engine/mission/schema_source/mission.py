@@ -462,8 +462,9 @@ def build() -> dict[str, Any]:
                     ),
                     "key_file": string(
                         "File holding the mission's 32-byte ClarkLink key (made by clark "
-                        "keygen), relative to this file. With a key every packet is "
-                        "authenticated; without one, commands from the station are not.",
+                        "keygen), relative to this file and inside its folder (no absolute "
+                        "path, no ..). With a key every packet is authenticated; without one, "
+                        "commands from the station are not.",
                         min_length=1,
                     ),
                     "log_level": string(
@@ -475,8 +476,8 @@ def build() -> dict[str, Any]:
                 required=["id", "name", "loop_hz", "origin"],
             ),
             "include": obj(
-                "Extra folders of your own, relative to this file, searched besides the "
-                "shipped ones.",
+                "Extra folders of your own, relative to this file and inside its folder "
+                "(no absolute path, no ..), searched besides the shipped ones.",
                 {
                     "behaviors": array("Folders of behaviour block files.", string("A folder.")),
                     "hardware_profiles": array(
