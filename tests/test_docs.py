@@ -60,7 +60,7 @@ def test_readme_says_the_station_loss_fails_on_purpose(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     """The README's "what if?" output is the command's real output."""
-    command = "clark dry-run missions/cooperative_follow.yaml --fault station_silent@10-40 -q"
+    command = "clark dry-run missions/cooperative_follow.yaml --fault station_silent@50-80 -q"
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     assert f"$ {command}\n" in readme, "the README shows the command and its output"
     block = readme.split(f"$ {command}\n", 1)[1].split("```", 1)[0]

@@ -203,8 +203,12 @@ def test_cli_exit_codes_and_no_tracebacks(tmp_path: Path) -> None:
 
 
 def test_cli_applies_a_station_loss() -> None:
-    """The station falls silent before it activates Slash B: the failsafe holds Slash B."""
-    result = cli(str(FOLLOW), "--until", "40", "--fault", "station_silent@5-35")
+    """The station falls silent before it activates Slash B: the failsafe holds Slash B.
+
+    Silence counts once a vehicle's behaviour has started (Slash B's autopilot is ready at
+    about 42 s), so the window opens after that.
+    """
+    result = cli(str(FOLLOW), "--until", "90", "--fault", "station_silent@50-80")
     assert result.returncode == 1
     failsafe_row = next(line for line in result.stdout.splitlines() if "| no failsafe" in line)
     assert "slash_b failsafe hold" in failsafe_row and "**FAIL**" in failsafe_row
