@@ -241,7 +241,7 @@ def test_message_rows_have_every_column_and_blanks_for_unknowns() -> None:
             "",
         ],
         ["received", "0.7", "", "#12", "1", "60", "picture_data", str(GPS_MS), "", ""],
-        ["rejected", "0.75", "", "", "", "3", "", "", "", "MalformedPacket: short line"],
+        ["rejected", "0.75", "", "", "", "3", "", "", "", "MalformedPacket: short\\x0aline"],
     ]
     assert text(logbook.streams.messages).count("\n") == 5  # one line per row
 
@@ -256,10 +256,33 @@ def test_message_refuses_what_would_make_a_bad_row() -> None:
 
 
 def test_a_fleet_cell_never_breaks_a_line() -> None:
+    """Line breaks and control characters are escaped; delimiters and quotes are quoted."""
     logbook = Logbook.in_memory(config())
-    logbook.fleet_row(0.5, ["a", "b"], [[1, "two\nlines"], [2, "cr\rhere"], [3, "plain"]])
+    rows: list[list[str | int]] = [
+        [1, "two\nlines"],
+        [2, "cr\rhere"],
+        [3, "plain"],
+        [4, 'a,"b"'],
+        [5, "esc\x1b[2J"],
+    ]
+    logbook.fleet_row(0.5, ["a", "b"], rows)
     written = text(logbook.streams.fleet)
-    assert written == "now_s,a,b\n0.5,1,two lines\n0.5,2,cr here\n0.5,3,plain\n"
+    assert written == (
+        "now_s,a,b\n0.5,1,two\\x0alines\n0.5,2,cr\\x0dhere\n0.5,3,plain\n"
+        '0.5,4,"a,""b"""\n0.5,5,esc\\x1b[2J\n'
+    )
+
+
+def test_text_log_arguments_are_escaped_and_bounded() -> None:
+    """Whatever a caller logs, each record is one line without control characters."""
+    logbook = Logbook.in_memory(config())
+    logbook.mission.warning("terminate from %s: %s", "mcs", "bye\nt=1.000 forged\x1b" + "y" * 900)
+    logbook.mission.warning("formatted by the caller: bye\r\nt=2.000 forged")
+    logged = lines(logbook.streams.mission)[1:]
+    assert len(logged) == 2 and all(line.startswith("t=") for line in logged)
+    assert "\x1b" not in text(logbook.streams.mission)
+    assert "y" * 600 not in logged[0] and logged[0].endswith("...")
+    assert "bye\\x0dt=2.000" not in logged[1] and "\\x0d\\x0at=2.000" in logged[1]
 
 
 def test_fleet_rows_from_the_fleet_table() -> None:

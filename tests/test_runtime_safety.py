@@ -18,7 +18,8 @@ from test_runtime import (
     vehicle,
 )
 
-from clark_engine.link.messages import ActivateController, AgentType
+from clark_engine.link.codec import Codec
+from clark_engine.link.messages import ActivateController, AgentType, Heartbeat, Terminate
 from clark_engine.runtime.commands import Goto, SetMode
 from clark_engine.runtime.events import AutopilotHeartbeat, PacketReceived
 from clark_engine.runtime.runtime import AgentRuntime
@@ -256,3 +257,75 @@ def test_a_failsafe_after_the_return_is_sent_at_once() -> None:
     while scene.runtime.failsafe is None:
         out += scene.tick(vehicle(scene.t, mode="GUIDED", custom_mode=15), station=False)
     assert of(out, SetMode) == [SetMode("HOLD", 4)]
+
+
+# -- item 6: what arrives over the air cannot write the logs -------------------------------
+
+
+def message_rows(runtime: AgentRuntime) -> list[str]:
+    text: str = runtime.logbook.streams.messages.getvalue()  # type: ignore[attr-defined]
+    return text.splitlines()[1:]
+
+
+def test_a_terminate_reason_cannot_forge_a_log_line() -> None:
+    runtime = slash_b()
+    station = Peer(521, 1, AgentType.MCS)
+    run(runtime, 0.0, vehicle(0.0), AutopilotHeartbeat("MANUAL", 0, True), station.heartbeat(0.0))
+    forged = "bye\nt=9.999 gps_ms=1 ERROR runtime._timeouts: forged\x1b[2J" + "x" * 120
+    run(runtime, 0.1, station.heartbeat(0.1, Terminate(1, GPS0, 0, forged)))
+    assert runtime.terminated
+    lines = mission_log(runtime).splitlines()
+    assert all(line.startswith("t=") for line in lines)
+    (line,) = [line for line in lines if "terminate from mcs" in line]
+    assert "\\x0a" in line or "\\n" in line
+    assert "\x1b" not in mission_log(runtime)
+    assert len(line) < 800  # bounded (the packet bounds it too)
+
+
+def test_rejected_packets_are_counted_and_summarised_not_logged_one_by_one() -> None:
+    runtime = slash_b()
+    station = Peer(521, 1, AgentType.MCS)
+    run(runtime, 0.0, vehicle(0.0), AutopilotHeartbeat("MANUAL", 0, True), station.heartbeat(0.0))
+    before_interface = len(interface_log(runtime))
+    before_rows = len(message_rows(runtime))
+    junk = bytes(range(40))
+    t = 0.0
+    for k in range(1, 301):  # 30 s: ten floods of 100 packets a second
+        t = k / 10
+        for _ in range(10):
+            runtime.deliver(PacketReceived(junk), t)
+        run(runtime, t, AutopilotHeartbeat("MANUAL", 0, True), station.heartbeat(t))
+    written = len(interface_log(runtime)) - before_interface
+    rejected_rows = [r for r in message_rows(runtime)[before_rows:] if r.startswith("rejected")]
+    assert written < 3000 * 177 / 50  # far below a line per packet
+    assert 0 < len(rejected_rows) <= 100
+    summaries = [
+        line
+        for line in interface_log(runtime).splitlines()
+        if "rejected" in line and "packets" in line
+    ]
+    assert summaries, interface_log(runtime)[-2000:]
+    assert any("rejected 1000 packets" in line for line in summaries)
+
+
+def test_a_packet_with_more_messages_than_its_agent_sends_is_rejected() -> None:
+    runtime = slash_b()
+    station = Peer(521, 1, AgentType.MCS)
+    slash_a = Peer(521, 2, AgentType.VEHICLE)
+    run(runtime, 0.0, vehicle(0.0), AutopilotHeartbeat("MANUAL", 0, True), station.heartbeat(0.0))
+    rows_before = len(message_rows(runtime))
+    tiny = [Heartbeat(2, GPS0, 521, AgentType.VEHICLE) for _ in range(200)]
+    packets = slash_a.codec.encode(tiny, 0, 256)  # type: ignore[arg-type]
+    stuffed = packets[0]
+    assert len(Codec(521, 99).decode(stuffed).messages) > 2 + 8  # Slash A sends 2 kinds
+    run(runtime, 0.1, PacketReceived(stuffed))
+    new_rows = message_rows(runtime)[rows_before:]
+    assert not [r for r in new_rows if r.startswith("received")]
+    assert [r for r in new_rows if r.startswith("rejected") and "TooManyMessages" in r]
+    assert runtime.fleet.record(2) is None  # nothing of it was taken
+    # an honest bundle from the same agent is taken
+    (honest,) = slash_a.codec.encode(
+        [Heartbeat(2, GPS0, 521, AgentType.VEHICLE), slash_a.status(0.2, 30.6, -96.4)], 0, 256
+    )
+    run(runtime, 0.2, PacketReceived(honest))
+    assert runtime.fleet.record(2) is not None

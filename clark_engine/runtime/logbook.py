@@ -42,6 +42,16 @@ Decisions:
   which ``clark analyze`` takes the sample period.
 - **The key never reaches the logbook**: it is built from the config, which
   holds only the key file's name, and nothing here reads key material.
+- **Nothing from outside can write a line**: strings that arrive over the air (a
+  Terminate's reason, a claimed sender) reach the logs as arguments, and the logbook
+  escapes every string argument, every CSV text cell and any message that is not
+  printable (:func:`line_safe`): no newline, no control character, bounded length.
+  The CSV files are written by the csv module, which quotes delimiters and quotes.
+- **Rejected packets are counted, not written one by one** (:meth:`Logbook.rejected`):
+  anyone in range can send garbage at the radio's full rate, and a line per packet
+  would fill the disk. The first :data:`REJECTIONS_LOGGED_PER_INTERVAL` of each
+  :data:`REJECTION_SUMMARY_S` are written whole; the interval ends with one summary
+  line of counts per reason and per claimed sender.
 """
 
 from __future__ import annotations
@@ -60,6 +70,20 @@ from typing import Literal, TextIO
 from clark_engine import __version__
 from clark_engine.errors import ClarkError
 from clark_engine.runtime.config import AgentConfig
+from clark_engine.untrusted import printable
+
+#: Longest text argument or CSV cell written as it is; a longer one is cut (``...``).
+MAX_LOGGED_TEXT_CHARS = 500
+#: Longest log message written whole when it had to be escaped.
+MAX_LOGGED_LINE_CHARS = 2000
+#: Rejected packets are summarised once per this many seconds (runtime clock).
+REJECTION_SUMMARY_S = 10.0
+#: Rejected packets written one by one (a message-log row and an interface line) in each
+#: summary interval; the rest are only counted.
+REJECTIONS_LOGGED_PER_INTERVAL = 10
+#: Distinct claimed senders counted apart in one summary; the rest are counted together
+#: (a sender id is whatever the packet claims, so their number is the sender's choice).
+MAX_SUMMARY_SENDERS = 8
 
 #: Columns of the message log, in order (see docs/logs.md).
 MESSAGE_LOG_COLUMNS: tuple[str, ...] = (
@@ -117,11 +141,34 @@ class LogStreams:
         return (self.mission, self.interface, self.fleet, self.messages)
 
 
+def line_safe(text: str, limit: int = MAX_LOGGED_TEXT_CHARS) -> str:
+    """``text`` when it is printable and at most ``limit`` long, else :func:`printable`'s escape.
+
+    Printable text (an agent's name, an already escaped STATUSTEXT) is written as it is,
+    so nothing is escaped twice; text with a newline, a control character or a terminal
+    escape, or a long one, is escaped whole (backslashes too, so it reads back) and cut.
+    """
+    if len(text) <= limit and text.isprintable():
+        return text
+    return printable(text, limit)
+
+
+def _safe_arg(arg: object) -> object:
+    """A log record argument that cannot break its line: numbers pass, the rest is escaped."""
+    if isinstance(arg, str):
+        return line_safe(arg)
+    if arg is None or isinstance(arg, int | float):
+        return arg
+    return line_safe(str(arg))
+
+
 class _Stamp(logging.Filter):
-    """Adds the logbook's current runtime time to every record its loggers handle.
+    """Adds the logbook's current runtime time to every record its loggers handle, escaped.
 
     A logger filter, not a handler one, so that a handler a shell adds to the
-    logger sees the same fields.
+    logger sees the same fields. It also makes the record one safe line: every
+    string argument through :func:`line_safe`, and the message itself when it is
+    not printable (a caller that formatted received text into it).
     """
 
     def __init__(self, logbook: Logbook) -> None:
@@ -133,6 +180,15 @@ class _Stamp(logging.Filter):
         record.clark_now_s = logbook.now_s
         gps_ms = logbook.gps_time_ms
         record.clark_gps_ms = "-" if gps_ms is None else gps_ms
+        args = record.args
+        if args:
+            if isinstance(args, tuple):
+                record.args = tuple(_safe_arg(a) for a in args)
+            else:  # a mapping, for %(name)s formats
+                record.args = {k: _safe_arg(v) for k, v in args.items()}
+        msg = record.msg
+        if isinstance(msg, str) and not msg.isprintable():
+            record.msg = line_safe(msg, MAX_LOGGED_LINE_CHARS)
         return True
 
 
@@ -170,10 +226,30 @@ class _Handler(logging.StreamHandler[TextIO]):
 
 
 def _plain(text: str) -> str:
-    """One CSV cell on one line: a row must never span lines, so grep and a crash cut cleanly."""
-    if "\n" in text or "\r" in text:
-        return text.replace("\r\n", " ").replace("\n", " ").replace("\r", " ")
-    return text
+    """One CSV cell on one line, inert and bounded (:func:`line_safe`).
+
+    A row must never span lines, so grep and a crash cut cleanly, and a cell must
+    never carry a control character or a terminal escape to whoever reads the file.
+    """
+    return line_safe(text)
+
+
+#: ASCII control characters but the newline, deleted by bytes.translate to find any.
+_CONTROL_BYTES = bytes(range(32)).replace(b"\n", b"") + b"\x7f"
+
+
+def _plain_lines(text: str, lines: int) -> bool:
+    """True when ``text`` is ``lines`` lines of plain ASCII without a control character.
+
+    The fleet CSV's every-tick check, in C and a few microseconds for 100 rows
+    (``str.isprintable`` takes seven times as long); anything else, rare, is written
+    again cell by cell through :func:`line_safe`.
+    """
+    return (
+        text.count("\n") == lines
+        and text.isascii()
+        and len(text.encode("ascii").translate(None, _CONTROL_BYTES)) == len(text)
+    )
 
 
 def _csv_text(
@@ -252,6 +328,14 @@ class Logbook:
         self._fleet_header: list[str] | None = None
         self.write_errors = 0
         self.last_write_error: str | None = None
+        #: True while rejected packets are counted for a summary not yet written.
+        self.rejections_pending = False
+        self._rejections_since_s = 0.0
+        self._rejections_logged = 0
+        self._rejection_counts: dict[str, int] = {}
+        self._rejection_senders: dict[str, int] = {}
+        self._rejection_total = 0
+        self._rejection_bytes = 0
         #: False when fleet CSV and message log rows are dropped unformatted.
         self.tables = True
         level = levels[config.log_level]
@@ -441,7 +525,7 @@ class Logbook:
             # agent), so the rows are written as they are and only re-written cell by cell
             # in the rare case that a cell would have broken a line.
             text = _csv_text(now_s, header if first else None, rows, plain=False)
-            if text.count("\n") != lines or "\r" in text:
+            if not _plain_lines(text, lines):
                 text = _csv_text(now_s, header if first else None, rows, plain=True)
             self._write(self.streams.fleet, text)
 
@@ -510,6 +594,89 @@ class Logbook:
             )
             self._write(self.streams.messages, buffer.getvalue())
 
+    # ------------------------------------------------------------ rejections
+
+    def rejected(
+        self,
+        now_s: float,
+        gps_time_ms: int | None,
+        peer: str,
+        size_bytes: int,
+        reason: str,
+        detail: str,
+    ) -> None:
+        """Count a rejected packet; write it only while this interval's allowance lasts.
+
+        The first :data:`REJECTIONS_LOGGED_PER_INTERVAL` rejections of each
+        :data:`REJECTION_SUMMARY_S` interval get an interface-log line and a
+        message-log row (``rejected``), as before; every one is counted, per reason
+        and per claimed sender, and :meth:`summarise_rejections` writes one line of
+        the counts when the interval is over. So a flood of garbage costs a bounded
+        number of bytes of log per interval, whatever its rate.
+
+        Args:
+            now_s: The runtime clock when it arrived.
+            gps_time_ms: This agent's GPS time then, None while unknown.
+            peer: The sender its header claims (a name, ``#id``), empty when unreadable.
+            size_bytes: The packet's size on the wire.
+            reason: Why, the error's class name (``BadTag``).
+            detail: The error's text.
+        """
+        if self.rejections_pending and now_s - self._rejections_since_s >= REJECTION_SUMMARY_S:
+            self.summarise_rejections(now_s)
+        if not self.rejections_pending:
+            self.rejections_pending = True
+            self._rejections_since_s = now_s
+        self._rejection_total += 1
+        self._rejection_bytes += size_bytes
+        counts = self._rejection_counts
+        counts[reason] = counts.get(reason, 0) + 1
+        senders = self._rejection_senders
+        sender = peer or "(unreadable)"
+        if sender not in senders and len(senders) >= MAX_SUMMARY_SENDERS:
+            sender = "(others)"
+        senders[sender] = senders.get(sender, 0) + 1
+        if self._rejections_logged >= REJECTIONS_LOGGED_PER_INTERVAL:
+            return
+        self._rejections_logged += 1
+        self.interface.info("rejected %d bytes from %s: %s", size_bytes, sender, reason)
+        self.message(
+            "rejected", now_s, gps_time_ms, peer, None, size_bytes, reason, None, None, detail
+        )
+
+    def summarise_rejections(self, now_s: float, *, force: bool = False) -> None:
+        """Write the summary line of the rejections counted, once their interval is over.
+
+        Args:
+            now_s: The runtime clock now.
+            force: Write it now, interval over or not (closing the logbook).
+        """
+        if not self.rejections_pending:
+            return
+        elapsed_s = now_s - self._rejections_since_s
+        if elapsed_s < REJECTION_SUMMARY_S and not force:
+            return
+        reasons = ", ".join(f"{r} {n}" for r, n in sorted(self._rejection_counts.items()))
+        senders = ", ".join(
+            f"{s} {n}" for s, n in sorted(self._rejection_senders.items(), key=lambda i: -i[1])
+        )
+        self.interface.warning(
+            "rejected %d packets (%d bytes) in %.1f s, %d of them not logged one by one; "
+            "by reason: %s; by claimed sender: %s",
+            self._rejection_total,
+            self._rejection_bytes,
+            elapsed_s,
+            self._rejection_total - self._rejections_logged,
+            reasons,
+            senders,
+        )
+        self.rejections_pending = False
+        self._rejections_logged = 0
+        self._rejection_counts = {}
+        self._rejection_senders = {}
+        self._rejection_total = 0
+        self._rejection_bytes = 0
+
     # ---------------------------------------------------------------- close
 
     @property
@@ -525,6 +692,7 @@ class Logbook:
         """
         if self._closed:
             return
+        self.summarise_rejections(self.now_s, force=True)
         with self._csv_lock:
             self._closed = True
         for logger, handler in zip((self.mission, self.interface), self._handlers, strict=True):

@@ -33,7 +33,7 @@ from typing import Any
 
 from clark_engine.link.auth import CounterStore
 from clark_engine.link.codec import Codec
-from clark_engine.link.errors import ClarkLinkError
+from clark_engine.link.errors import ClarkLinkError, MalformedPacket
 from clark_engine.link.fleet import AgentFound, AgentLost, FleetTable, ForeignAgent
 from clark_engine.link.messages import (
     MESSAGE_NAMES,
@@ -88,6 +88,18 @@ RC_LOW_US = 1200
 #: The behaviour's one-off requests, not carried out after an autopilot loss by the states
 #: that made them before or during it (AgentRuntime._void_requests).
 _REQUESTS = (SetMode, Arm, Takeoff)
+#: Most messages one packet may hold from an agent not in the mission: one of each kind.
+_MAX_MESSAGES_UNKNOWN = len(MESSAGE_NAMES)
+
+
+class TooManyMessages(MalformedPacket):
+    """A packet holding more messages than its sender may send in one (a stuffed packet).
+
+    Rejected whole and counted as malformed against its sender: one packet must not
+    write hundreds of message-log rows or feed hundreds of messages to the fleet table.
+    """
+
+
 #: Messages that command an agent (a tuple: isinstance checks it faster than a union).
 _COMMAND_MESSAGES = (ModeChangeRequest, ActivateController, Terminate)
 
@@ -198,6 +210,10 @@ class AgentRuntime:
             if channel.rc is not None:
                 self._rc_names.setdefault(channel.rc, []).append(name)
         self._peer_by_name = {p.name: p for p in config.peers}
+        #: Most messages one packet of each peer may hold: what it is configured to send
+        #: (each telemetry message once) and one of every ClarkLink message besides
+        #: (Behavior State, Picture Data, a station's command); more is a stuffed packet.
+        self._message_caps = {p.id: len(p.sends) + len(MESSAGE_NAMES) for p in config.peers}
         self._peer_by_id = {p.id: p for p in config.peers}
         self.logbook.mission.info(
             "agent %s (id %d) of mission %s (id %d) at %g Hz, %d peers",
@@ -323,24 +339,25 @@ class AgentRuntime:
         try:
             packet = self.codec.decode(data)
         except ClarkLinkError as exc:
-            self._fleet_events(self.fleet.note_error(exc, now_s))
-            self.logbook.interface.info("rejected %d bytes: %s", len(data), type(exc).__name__)
-            self.logbook.message(
-                "rejected",
-                now_s,
-                gps_now,
-                self._peer_name(exc.sender_id),
-                None,
-                len(data),
-                type(exc).__name__,
-                None,
-                None,
-                str(exc),
-            )
+            self._rejected(exc, len(data), now_s, gps_now)
             return
         if packet.sender_id == self.config.agent_id:
             return
         if packet.destination_id not in (BROADCAST, self.config.agent_id):
+            return
+        cap = self._message_caps.get(packet.sender_id, _MAX_MESSAGES_UNKNOWN)
+        if len(packet.messages) > cap:
+            self._rejected(
+                TooManyMessages(
+                    f"{len(packet.messages)} messages in one packet; "
+                    f"{self._peer_name(packet.sender_id)} sends at most {cap}",
+                    sender_id=packet.sender_id,
+                    mission_id=packet.mission_id,
+                ),
+                len(data),
+                now_s,
+                gps_now,
+            )
             return
         found = self.fleet.receive(packet, now_s, gps_now)
         if found:  # rarely: a first heartbeat, a return, another mission
@@ -348,6 +365,15 @@ class AgentRuntime:
         if self.logbook.tables:  # a dry run without a report drops these rows: skip their work
             self._log_received(packet, now_s, gps_now)
         self._commands_in(packet, now_s)
+
+    def _rejected(
+        self, exc: ClarkLinkError, size_bytes: int, now_s: float, gps_now: int | None
+    ) -> None:
+        """A packet not acted on: counted against its claimed sender, logged within bounds."""
+        self._fleet_events(self.fleet.note_error(exc, now_s))
+        self.logbook.rejected(
+            now_s, gps_now, self._peer_name(exc.sender_id), size_bytes, type(exc).__name__, str(exc)
+        )
 
     def _log_received(self, packet: Packet, now_s: float, gps_now: int | None) -> None:
         """One message-log row per message of an accepted packet."""
@@ -509,6 +535,8 @@ class AgentRuntime:
                 break
             if phase == "timeouts":
                 self._timeouts(now_s)
+                if self.logbook.rejections_pending:
+                    self.logbook.summarise_rejections(now_s)
             elif phase == "machine":
                 self._machine_phase()
             elif phase == "commands":
