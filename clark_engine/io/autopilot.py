@@ -598,7 +598,14 @@ class AutopilotAdapter:
             return self.start(now_s)
         if now_s >= self._next_heartbeat_s:
             self._heartbeat_out(now_s)
-        if self._overrides and now_s - self._override_sent_s >= OVERRIDE_REFRESH_S:
+        if (
+            self._overrides
+            and now_s - self._override_sent_s >= OVERRIDE_REFRESH_S
+            and not self.lost(now_s)
+        ):
+            # Not while lost: ArduPilot hands the channels back to the pilot
+            # RC_OVERRIDE_TIME after the last override, and an override kept alive
+            # through a silence would act again, stale, the moment the link returns.
             self._override_out(dict(self._overrides), now_s)
         heard = self._heartbeat_s is not None and not self.lost(now_s)
         if heard:
@@ -985,7 +992,33 @@ class AutopilotAdapter:
         self._last_boot_ms = time_boot_ms
 
     def _reconnected(self, why: str) -> None:
+        """Heard again after a loss, or rebooted: set it up again, and forget every command.
+
+        Nothing decided before the return is sent after it (docs/runtime.md#safety):
+        commands still waiting for an answer are dropped, the speed of the last target
+        is not sent again, and RC overrides are released at once, so the channels are
+        the pilot's until the behaviour overrides them anew.
+        """
         self._log.warning("autopilot %d %s; setting it up again", self.settings.system_id, why)
+        stale = [r for r in self._requests if not r.setup]
+        if stale:
+            self._requests = [r for r in self._requests if r.setup]
+            self._log.info(
+                "autopilot %d: not sent again after the silence: %s",
+                self.settings.system_id,
+                ", ".join(r.request for r in stale),
+            )
+        self._speed_wanted = None
+        self._targeted = False
+        if self._overrides:
+            self._log.info(
+                "autopilot %d: RC override of channel(s) %s released to the pilot",
+                self.settings.system_id,
+                ", ".join(str(c) for c in sorted(self._overrides)),
+            )
+            released = dict.fromkeys(self._overrides, 0)
+            self._overrides.clear()
+            self._override_out(released, self._override_sent_s)
         self._version = None
         self._verify_attempts = 0
         self._next_verify_s = -math.inf
