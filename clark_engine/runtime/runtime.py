@@ -16,11 +16,14 @@ silence), ``machine`` (events, then the state machine and its primitives),
 ``log`` (a fleet-table row).
 
 Safety (thesis 7.3.5 and the issue): a peer silent past the heartbeat timeout
-raises ``lost:<peer>``; silence from every station raises ``mcs_lost`` and runs
-the declared failsafe (hold by default) with no automatic resume; an autopilot
-silent for its timeout raises ``autopilot_lost`` and the agent stops commanding
-it until it speaks again; Terminate from a station stops all commanding, puts
-the vehicle in its terminal mode, closes the interfaces and flushes the logs.
+raises ``lost:<peer>``; once the behaviour runs, no station in contact for that
+timeout (counted from the behaviour's start at the earliest) raises ``mcs_lost``
+and runs the declared failsafe (hold by default) with no automatic resume; an
+autopilot silent for its timeout (counted from the first tick, whatever the
+clock's origin) raises ``autopilot_lost`` and every vehicle command is dropped
+until its next VehicleState, never replayed; Terminate from a station stops all
+commanding, puts the vehicle in its terminal mode, closes the interfaces and
+flushes the logs.
 Commands (mode change, activate, terminate) are acted on only when they come
 from a station of this mission and, when the mission has a key, authenticated:
 the codec rejects every other packet before anything is looked at.
@@ -827,7 +830,7 @@ class AgentRuntime:
 
     @property
     def autopilot_lost(self) -> bool:
-        """True while the autopilot is silent past its timeout (commands are held back)."""
+        """True from the autopilot's timeout to its next VehicleState: vehicle commands dropped."""
         return self._autopilot_lost
 
     def _on_change(self, change: StateChange) -> None:
