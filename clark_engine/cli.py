@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, TextIO
 
 from clark_engine import __version__
 from clark_engine.errors import ClarkError, UsageError
+from clark_engine.mission.faults import FAULT_HELP
 
 if TYPE_CHECKING:
     from clark_engine.mission.findings import Finding
@@ -465,8 +466,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--fault",
         action="append",
         metavar="FAULT",
-        help="inject a fault (repeatable): kill:AGENT@T, link_drop:A,B@T1-T2, "
-        "station_silent@T1-T2, autopilot_disconnect:AGENT@T1-T2, corrupt:SHARE@T1-T2",
+        help=f"inject a fault (repeatable): {FAULT_HELP}",
     )
     p.add_argument(
         "--realtime",

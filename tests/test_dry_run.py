@@ -101,6 +101,19 @@ def test_failed_check_exits_1(tmp_path: Path) -> None:
     assert "**FAIL**" in table and "1 of 3 checks failed" in err
 
 
+def test_checks_past_until_are_not_evaluated_and_do_not_fail_the_run(tmp_path: Path) -> None:
+    # --until 40 ends the run before the checks' by_s (120 s): they were not judged, so
+    # the table says so, the run does not exit 1 for them, and the summary agrees.
+    code, table, err = dry_run(FOLLOW, until_s=40.0, report=tmp_path / "out")
+    rows = [line for line in table.splitlines() if line.startswith("| Slash B")]
+    assert len(rows) == 2 and all(row.endswith("| not evaluated |") for row in rows), rows
+    assert "**FAIL**" not in table
+    assert code == 0
+    assert "2 of 3 checks not evaluated" in err
+    summary = (tmp_path / "out" / "summary.md").read_text()
+    assert "1 of 3 checks pass (no check failed, 2 not evaluated" in summary
+
+
 def test_a_sequence_out_of_order_fails(tmp_path: Path) -> None:
     mission = tmp_path / "m.yaml"
     sysid = ROOT / "missions" / "supercub_sysid.yaml"

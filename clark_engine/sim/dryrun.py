@@ -291,7 +291,14 @@ def _run_and_report(
         _write_report(folder.folder, mission.name, seed, until, result, results, comparison)
         folder.commit()
         print(f"report: {folder.target / 'summary.md'}", file=err)
-    failed = [r for r in results if not r.passed]
+    failed = [r for r in results if r.evaluated and not r.passed]
+    skipped = [r for r in results if not r.evaluated]
+    if skipped:
+        print(
+            f"{len(skipped)} of {len(results)} checks not evaluated: the run ended before "
+            "their by_s (run longer, or without --until, to judge them)",
+            file=err,
+        )
     if failed:
         print(f"{len(failed)} of {len(results)} checks failed", file=err)
     return Outcome(1 if failed else 0, results, result, comparison)

@@ -267,9 +267,8 @@ def checks_table(results: Sequence[CheckResult]) -> str:
     """The checks as a Markdown table."""
     lines = ["| check | expected | observed | result |", "|---|---|---|---|"]
     for r in results:
-        lines.append(
-            f"| {r.name} | {r.expected} | {r.observed} | {'pass' if r.passed else '**FAIL**'} |"
-        )
+        verdict = "**FAIL**" if r.verdict == "FAIL" else r.verdict
+        lines.append(f"| {r.name} | {r.expected} | {r.observed} | {verdict} |")
     return "\n".join(lines) + "\n"
 
 
@@ -305,7 +304,13 @@ def write_summary(
     SITL and on the simulated autopilot (:meth:`~clark_engine.sim.timeline.Comparison.table`).
     """
     passed = sum(r.passed for r in results)
-    verdict = "all checks pass" if passed == len(results) else f"{len(results) - passed} failed"
+    failed = sum(r.evaluated and not r.passed for r in results)
+    skipped = sum(not r.evaluated for r in results)
+    verdict = f"{failed} failed" if failed else "no check failed"
+    if skipped:
+        verdict += f", {skipped} not evaluated: the run ended before their by_s"
+    elif not failed:
+        verdict = "all checks pass"
     text = [
         f"# Dry run of {mission}",
         "",
