@@ -65,15 +65,35 @@ MISSION = (
 )
 
 
-def cub_runtime() -> AgentRuntime:
+def cub_runtime(peers: int) -> AgentRuntime:
+    """The Super Cub's runtime, with ``peers`` more vehicles in its mission's peer table.
+
+    The peers are added to the compiled config (vehicles sending a heartbeat and a
+    status a second), as a mission naming them would: the fleet table keeps records
+    only for the mission's agents, so peers outside it would cost nothing here.
+    """
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "sweep.yaml"
         path.write_text(MISSION, encoding="utf-8")
         result = validate_path(path, "sweep.yaml")
     assert result.mission is not None, [f.format_text() for f in result.findings]
     mission = result.mission
-    config = config_from_dict(agent_config(mission, mission.agents["cub"]))
-    return AgentRuntime(config)
+    compiled = agent_config(mission, mission.agents["cub"])
+    compiled["peers"] = [
+        *compiled["peers"],
+        *(
+            {
+                "name": f"peer{i}",
+                "id": PEER_BASE_ID + i,
+                "role": "vehicle",
+                "radio_address": f"0013A2004100{i:04X}",
+                "sends": {"heartbeat": 1.0, "agent_status": 1.0},
+                "modes": {},
+            }
+            for i in range(peers)
+        ),
+    ]
+    return AgentRuntime(config_from_dict(compiled))
 
 
 def vehicle(t: float) -> VehicleState:
@@ -104,7 +124,7 @@ def peer_packet(codec: Codec, peer_id: int, t: float) -> bytes:
 
 def measure(peers: int, seconds: float) -> tuple[float, float, float]:
     """(us per tick alone, us per tick with peers' packets, ticks per second)."""
-    runtime = cub_runtime()
+    runtime = cub_runtime(peers)
     loop_hz = runtime.config.loop_hz
     codecs = [Codec(533, PEER_BASE_ID + i) for i in range(peers)]
     runtime.deliver(READY_IN_AIR, 0.0)

@@ -8,16 +8,20 @@ origin does, and what an autopilot that comes back is sent.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 from test_runtime import (
     GPS0,
     READY,
+    ROOT,
     Peer,
     config_of,
     of,
     vehicle,
 )
 
+from clark_engine.link.auth import ReplayStore, generate_key_file, load_key
 from clark_engine.link.codec import Codec
 from clark_engine.link.messages import ActivateController, AgentType, Heartbeat, Terminate
 from clark_engine.runtime.commands import Goto, SetMode
@@ -329,3 +333,46 @@ def test_a_packet_with_more_messages_than_its_agent_sends_is_rejected() -> None:
     )
     run(runtime, 0.2, PacketReceived(honest))
     assert runtime.fleet.record(2) is not None
+
+
+# -- issue 10 item 1, end to end: a restarted agent and a recorded Terminate --------------
+
+
+def test_a_restarted_agent_is_not_terminated_by_a_recorded_terminate(tmp_path: Path) -> None:
+    """An agent built with a replay store refuses, after a crash and restart, the station's
+    Terminate it already acted on, played back from a recording; a new one still acts."""
+    text = (
+        (ROOT / "missions" / "cooperative_follow.yaml")
+        .read_text(encoding="utf-8")
+        .replace("  loop_hz: 10\n", "  loop_hz: 10\n  key_file: coop.key\n", 1)
+    )
+    generate_key_file(tmp_path / "coop.key")
+    key = load_key(tmp_path / "coop.key")
+    config = config_of("cooperative_follow.yaml", "slash_b", text, tmp_path)
+    station = Codec(521, 1, key)
+    (recorded,) = station.encode(
+        [Heartbeat(1, GPS0, 521, AgentType.MCS), Terminate(1, GPS0, 0, "end")], 0, 256
+    )
+
+    def boot() -> AgentRuntime:
+        return AgentRuntime(config, key=key, replay_store=ReplayStore(tmp_path / "b.replay"))
+
+    first = boot()
+    run(first, 0.0, vehicle(0.0), AutopilotHeartbeat("MANUAL", 0, True), PacketReceived(recorded))
+    assert first.terminated
+    again = boot()  # a crash: nothing saved on the way out
+    run(again, 0.0, vehicle(0.0), AutopilotHeartbeat("MANUAL", 0, True), PacketReceived(recorded))
+    assert not again.terminated
+    (fresh,) = station.encode(
+        [Heartbeat(1, GPS0, 521, AgentType.MCS), Terminate(1, GPS0, 0, "again")], 0, 256
+    )
+    run(again, 0.1, PacketReceived(fresh))
+    assert not again.terminated  # within the block reserved before the crash: refused too
+    for k in range(70):  # past the block: the station's genuine packets act again
+        (fresh,) = station.encode([Heartbeat(1, GPS0, 521, AgentType.MCS)], 0, 256)
+        run(again, 0.2 + k / 10, PacketReceived(fresh))
+    (fresh,) = station.encode(
+        [Heartbeat(1, GPS0, 521, AgentType.MCS), Terminate(1, GPS0, 0, "now")], 0, 256
+    )
+    run(again, 7.5, PacketReceived(fresh))
+    assert again.terminated

@@ -34,7 +34,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from clark_engine.link.auth import CounterStore
+from clark_engine.link.auth import CounterStore, ReplayStore
 from clark_engine.link.codec import Codec
 from clark_engine.link.errors import ClarkLinkError, MalformedPacket
 from clark_engine.link.fleet import AgentFound, AgentLost, FleetTable, ForeignAgent
@@ -127,6 +127,7 @@ class AgentRuntime:
         *,
         key: bytes | None = None,
         counter_store: CounterStore | None = None,
+        replay_store: ReplayStore | None = None,
         logbook: Logbook | None = None,
         gps_epoch_ms: int | None = None,
     ) -> None:
@@ -136,6 +137,9 @@ class AgentRuntime:
             config: The agent's compiled config.
             key: The mission key, when the mission has one (``config.authenticated``).
             counter_store: Where the packet counter's high-water mark persists.
+            replay_store: Where the marks of the packets accepted persist, so that a
+                restarted agent accepts none of them again (authenticated missions;
+                the shell calls ``codec.save_replay_marks()`` on a clean stop).
             logbook: Where the logs go; an in-memory logbook when None.
             gps_epoch_ms: GPS time at runtime time 0, for agents without an autopilot
                 (stations); vehicles take GPS time from their autopilot.
@@ -150,6 +154,7 @@ class AgentRuntime:
             config.agent_id,
             key if config.authenticated else None,
             counter_store=counter_store,
+            replay_store=replay_store,
             max_packet_bytes=max(self.max_packet_bytes, 64),
         )
         self.fleet = FleetTable(
