@@ -308,6 +308,7 @@ def cmd_dry_run(args: argparse.Namespace) -> int:
         sitl_speedup=args.sitl_speedup or DEFAULT_SITL_SPEEDUP,
         realtime=args.realtime,
         quiet=args.quiet,
+        command_line=["clark", *args.argv],
     )
     return outcome.exit_code
 
@@ -542,6 +543,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run ``clark``; returns the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # as typed, for reports
     if getattr(args, "func", None) is None:
         parser.print_help(sys.stderr)
         return EXIT_USAGE

@@ -12,6 +12,7 @@ simulated autopilot, and the two runs' state timelines are compared
 
 from __future__ import annotations
 
+import shlex
 import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -33,8 +34,11 @@ from clark_engine.sim.realtime import (
     vehicle_names,
 )
 from clark_engine.sim.report import (
+    InjectedFault,
     ReportFolder,
+    RunOrigin,
     checks_table,
+    equivalent_command,
     plot_inputs,
     plot_timeline,
     plot_tracks,
@@ -137,6 +141,7 @@ def run_dry_run(
     out: TextIO | None = None,
     err: TextIO | None = None,
     quiet: bool = False,
+    command_line: Sequence[str] | None = None,
 ) -> Outcome:
     """Validate the mission, simulate it, evaluate its checks and write the report.
 
@@ -167,6 +172,8 @@ def run_dry_run(
         out: Where the checks table goes; ``sys.stdout`` (as it is at the call) when None.
         err: Where progress and diagnostics go; ``sys.stderr`` when None.
         quiet: Hide the mission's warnings (``--quiet``); errors are always shown.
+        command_line: The command as typed (``clark dry-run ...``), for the report's
+            summary; when None the summary gives the equivalent command instead.
 
     Raises:
         UsageError: Unreadable mission, bad fault, a report folder that cannot be made
@@ -195,13 +202,21 @@ def run_dry_run(
                 raise UsageError(f"--fault {kind}: there is no agent {name!r} in the mission")
     seed = int(seed if seed is not None else mission.sim.get("seed", 0))
     until = float(until_s if until_s is not None else mission.sim.get("duration_s", 300.0))
+    origin = RunOrigin(
+        shlex.join(command_line)
+        if command_line is not None
+        else equivalent_command(mission_path, seed, until, faults, report),
+        command_line is not None,
+        tuple(InjectedFault(f, "mission") for f in mission.faults)
+        + tuple(InjectedFault(f, f"--fault {t}") for f, t in zip(extra, faults, strict=True)),
+    )
     folder = ReportFolder(report) if report is not None else None
     if folder is not None:
         folder.check()  # before the run: a folder it may not replace is refused at once
     try:
         return _run_and_report(
             mission, mission_path, seed, until, folder, speed, extra, realtime_base_port,
-            realtime_host, workers, sitl, sitl_speedup, realtime, out, err,
+            realtime_host, workers, sitl, sitl_speedup, realtime, out, err, origin,
         )  # fmt: skip
     except KeyboardInterrupt:
         if folder is not None:
@@ -228,6 +243,7 @@ def _run_and_report(
     realtime: bool,
     out: TextIO,
     err: TextIO,
+    origin: RunOrigin,
 ) -> Outcome:
     """:func:`run_dry_run` once the mission is loaded: run, evaluate, write the report."""
     # Real time: bind the ports first, so a port in use is reported before anything is written.
@@ -288,7 +304,7 @@ def _run_and_report(
     else:
         print("the mission declares no checks", file=out)
     if folder is not None:
-        _write_report(folder.folder, mission.name, seed, until, result, results, comparison)
+        _write_report(folder.folder, mission.name, seed, until, result, results, comparison, origin)
         folder.commit()
         print(f"report: {folder.target / 'summary.md'}", file=err)
     failed = [r for r in results if r.evaluated and not r.passed]
@@ -498,6 +514,7 @@ def _write_report(
     result: DryRunResult,
     results: list[CheckResult],
     comparison: Comparison | None = None,
+    origin: RunOrigin | None = None,
 ) -> None:
     from clark_engine.analyze import analyze_folder, format_text
 
@@ -519,4 +536,5 @@ def _write_report(
         latency=format_text(analysis),
         plots=plots,
         comparison=comparison.table() if comparison is not None else None,
+        origin=origin,
     )

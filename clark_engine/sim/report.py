@@ -6,8 +6,8 @@ Written into ``--report DIR`` beside every agent's CSV and logs:
   waypoints and the positions of its pictures;
 * ``inputs.png``: the pulse widths the autopilots received for doublets and sweeps;
 * ``timeline.png``: which state each agent was in, over time;
-* ``summary.md``: the checks table, the state timeline as text, and the latency
-  and loss tables of ``clark analyze``.
+* ``summary.md``: the command line, seed and injected faults, the checks table, the
+  state timeline as text, and the latency and loss tables of ``clark analyze``.
 
 Plots use matplotlib's non-interactive Agg backend; files are written with fixed
 metadata so the same run gives the same bytes.
@@ -22,10 +22,13 @@ recognises (by that list, or as a report from before the list) and refuses a
 
 from __future__ import annotations
 
+import math
 import os
+import shlex
 import shutil
 import tempfile
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
@@ -149,6 +152,108 @@ class ReportFolder:
         if self.staging is not None and os.path.isdir(self.staging):
             shutil.rmtree(self.staging, ignore_errors=True)
         self.staging = None
+
+
+@dataclass(frozen=True, slots=True)
+class InjectedFault:
+    """A fault the run injected, with where it was given.
+
+    Attributes:
+        fault: The fault in the mission's form (``{"kill": {"agent": "a", "at_s": 5}}``).
+        given_by: ``mission`` for the mission's ``faults:``, or ``--fault TEXT``.
+    """
+
+    fault: Mapping[str, Any]
+    given_by: str
+
+    @property
+    def kind(self) -> str:
+        """The fault's kind (``kill``, ``link_drop``, ...)."""
+        return next(iter(self.fault))
+
+    @property
+    def body(self) -> Mapping[str, Any]:
+        """The fault's parameters."""
+        body: Mapping[str, Any] = self.fault[self.kind]
+        return body
+
+    @property
+    def agents(self) -> tuple[str, ...]:
+        """The agents it strikes; empty for a fault on the whole fleet or its stations."""
+        body = self.body
+        return (*(str(n) for n in body.get("between", [])),) + (
+            (str(body["agent"]),) if "agent" in body else ()
+        )
+
+    def window(self, end_s: float) -> tuple[float, float]:
+        """(start, end) in simulated seconds, clipped to ``end_s``; a kill lasts to the end."""
+        body = self.body
+        start = float(body.get("at_s", body.get("from_s", 0.0)))
+        end = float(body.get("to_s", math.inf)) if "at_s" not in body else math.inf
+        return start, min(end, end_s)
+
+    def describe(self) -> str:
+        """What the fault does, in words (``kill slash_a``, ``stations silent``)."""
+        body = self.body
+        if self.kind == "kill":
+            return f"kill {body['agent']}"
+        if self.kind == "link_drop":
+            a, b = body["between"]
+            return f"link {a} - {b} dropped"
+        if self.kind == "station_silent":
+            return "stations silent"
+        if self.kind == "autopilot_disconnect":
+            return f"autopilot of {body['agent']} disconnected"
+        if self.kind == "corrupt":
+            return f"{100 * float(body['share']):g}% of packets corrupted"
+        return self.kind
+
+    def when(self) -> str:
+        """When it strikes, in simulated seconds (``at 75``, ``65 to 80``, ``the whole run``)."""
+        body = self.body
+        if "at_s" in body:
+            return f"at {float(body['at_s']):g}"
+        start, end = float(body.get("from_s", 0.0)), float(body.get("to_s", math.inf))
+        if start == 0 and math.isinf(end):
+            return "the whole run"
+        return f"{start:g} to end" if math.isinf(end) else f"{start:g} to {end:g}"
+
+
+@dataclass(frozen=True, slots=True)
+class RunOrigin:
+    """How a run was made, for the report: its command line and the faults it injected.
+
+    Attributes:
+        command: The command line as typed, or the equivalent one for a run made in
+            process (:func:`equivalent_command`).
+        command_given: True when ``command`` is the one typed.
+        faults: Every fault the run injected, the mission's then the command line's.
+    """
+
+    command: str
+    command_given: bool
+    faults: tuple[InjectedFault, ...] = ()
+
+
+def faults_table(faults: Sequence[InjectedFault]) -> str:
+    """The injected faults as a Markdown table, in the order they were given."""
+    if not faults:
+        return "No faults injected.\n"
+    lines = ["| fault | when (s) | given by |", "|---|---|---|"]
+    lines += [f"| {f.describe()} | {f.when()} | {f.given_by} |" for f in faults]
+    return "\n".join(lines) + "\n"
+
+
+def equivalent_command(
+    mission_path: Path, seed: int, until_s: float, fault_texts: Sequence[str], report: Path | None
+) -> str:
+    """The ``clark dry-run`` command line that repeats a run made in process."""
+    words = ["clark", "dry-run", str(mission_path), "--seed", str(seed), "--until", f"{until_s:g}"]
+    for text in fault_texts:
+        words += ["--fault", text]
+    if report is not None:
+        words += ["--report", str(report)]
+    return shlex.join(words)
 
 
 def _pyplot() -> Any:
@@ -297,9 +402,11 @@ def write_summary(
     latency: str,
     plots: Sequence[str],
     comparison: str | None = None,
+    origin: RunOrigin | None = None,
 ) -> None:
-    """``summary.md``: the run, the checks, the timeline, the link tables.
+    """``summary.md``: how the run was made, the checks, the timeline, the link tables.
 
+    ``origin``: the command line and the injected faults (none shown when None).
     ``comparison``: with ``--autopilot sitl``, the table of each state's first entry on
     SITL and on the simulated autopilot (:meth:`~clark_engine.sim.timeline.Comparison.table`).
     """
@@ -311,13 +418,18 @@ def write_summary(
         verdict += f", {skipped} not evaluated: the run ended before their by_s"
     elif not failed:
         verdict = "all checks pass"
+    how = "Command line" if origin is None or origin.command_given else "Equivalent command"
     text = [
         f"# Dry run of {mission}",
         "",
+        *([f"{how}: `{origin.command}`", ""] if origin is not None else []),
         f"Seed {seed}; {end_s:g} simulated seconds in {wall_s:.1f} s of wall time "
         f"({end_s / wall_s if wall_s > 0 else float('inf'):.0f}x real time); "
         f"{passed} of {len(results)} checks pass ({verdict}).",
         "",
+        "## Injected faults",
+        "",
+        faults_table(origin.faults if origin is not None else ()),
         "## Checks",
         "",
         checks_table(results) if results else "The mission declares no checks.\n",
