@@ -520,7 +520,7 @@ def _write_report(
 
     plots = ["tracks.png"]
     plot_tracks(report / "tracks.png", result.recording, result.configs)
-    if plot_inputs(report / "inputs.png", result.recording):
+    if plot_inputs(report / "inputs.png", result.recording, result.configs):
         plots.append("inputs.png")
     plot_timeline(report / "timeline.png", result.recording)
     plots.append("timeline.png")

@@ -3,8 +3,9 @@
 Written into ``--report DIR`` beside every agent's CSV and logs:
 
 * ``tracks.png``: every vehicle's path in metres from the origin, with its
-  waypoints and the positions of its pictures;
-* ``inputs.png``: the pulse widths the autopilots received for doublets and sweeps;
+  waypoints and the positions of its pictures, and the altitude of air vehicles;
+* ``inputs.png``: the pulse widths the autopilots received for doublets and sweeps,
+  each channel named by its function in the vehicle's profile;
 * ``timeline.png``: which state each agent was in, over time;
 * ``summary.md``: the command line, seed and injected faults, the checks table, the
   state timeline as text, and the latency and loss tables of ``clark analyze``.
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import shlex
 import shutil
 import tempfile
@@ -40,6 +42,9 @@ from clark_engine.sim.recording import Recording
 
 #: PNG metadata without the matplotlib version or a date, for reproducible files.
 _PNG_METADATA = {"Software": None}
+
+#: A recorded signal's key: an RC input (``rc1``) or a servo output (``servo3``).
+_SIGNAL_LABEL: Final = re.compile(r"(rc|servo)([0-9]+)")
 
 REPORT_MARKER: Final = ".clark-report.json"
 """Written last into a complete report: the list of its files, all the engine's."""
@@ -278,12 +283,21 @@ def _waypoints(config: AgentConfig) -> list[tuple[float, float]]:
     return points
 
 
-def plot_tracks(path: Path, recording: Recording, configs: Mapping[str, AgentConfig]) -> None:
-    """Every vehicle's path (east right, north up), waypoints and picture positions."""
+def tracks_figure(recording: Recording, configs: Mapping[str, AgentConfig]) -> Any:
+    """The figure of :func:`plot_tracks`, unsaved (its axes: paths, then altitudes if any)."""
     plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(8, 7), dpi=100)
-    for index, (name, track) in enumerate(sorted(recording.tracks.items())):
-        color = f"C{index % 10}"
+    names = sorted(recording.tracks)
+    flying = [n for n in names if n in configs and configs[n].is_aircraft]
+    if flying:
+        fig, (ax, alt) = plt.subplots(
+            2, 1, figsize=(8, 9.5), dpi=100, gridspec_kw={"height_ratios": [3, 1]}
+        )
+    else:
+        fig, ax = plt.subplots(figsize=(8, 7), dpi=100)
+        alt = None
+    colors = {name: f"C{index % 10}" for index, name in enumerate(names)}
+    for name in names:
+        track, color = recording.tracks[name], colors[name]
         ax.plot(track.east_m, track.north_m, color=color, linewidth=1.2, label=name)
         if track.east_m:
             ax.plot(track.east_m[0], track.north_m[0], "o", color=color, markersize=5)
@@ -307,27 +321,84 @@ def plot_tracks(path: Path, recording: Recording, configs: Mapping[str, AgentCon
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(True, linewidth=0.3)
     ax.legend(loc="best", fontsize=8)
+    if alt is not None:
+        # Air vehicles only: a rover's altitude is the ground's, and says nothing.
+        for name in flying:
+            track = recording.tracks[name]
+            alt.plot(track.times_s, track.up_m, color=colors[name], linewidth=1.2, label=name)
+        alt.set_xlabel("simulated time (s)")
+        alt.set_ylabel("altitude above origin (m)")
+        alt.set_title("Altitude of the air vehicles")
+        alt.grid(True, linewidth=0.3)
+        alt.legend(loc="best", fontsize=8)
     fig.tight_layout()
+    return fig
+
+
+def plot_tracks(path: Path, recording: Recording, configs: Mapping[str, AgentConfig]) -> None:
+    """Every vehicle's path (east right, north up), waypoints and picture positions.
+
+    Below it, when the fleet has air vehicles (planes, multirotors: any airframe but a
+    rover), their altitude above the origin over time.
+    """
+    _save(tracks_figure(recording, configs), path)
+
+
+def _save(fig: Any, path: Path) -> None:
+    """Write a figure with fixed metadata (the same run gives the same bytes), then close it."""
     fig.savefig(path, metadata=_PNG_METADATA)
-    plt.close(fig)
+    _pyplot().close(fig)
 
 
-def plot_inputs(path: Path, recording: Recording) -> bool:
-    """The control signals the autopilots received; False (no file) when there were none."""
+def channel_function(config: AgentConfig | None, label: str) -> str | None:
+    """What a recorded signal's channel does (``aileron`` for ``rc1`` on a plane).
+
+    Read from the agent's compiled channel map (its autopilot profile's ``channels:``,
+    overlaid by the platform's and the mission's); None when no channel has that number.
+
+    Args:
+        config: The agent's compiled config; None gives None.
+        label: The recorded signal's key: ``rcN`` (an RC input) or ``servoN`` (an output).
+    """
+    found = _SIGNAL_LABEL.fullmatch(label)
+    if config is None or found is None:
+        return None
+    via, number = found.group(1), int(found.group(2))
+    for name, spec in config.channels.items():
+        if (spec.servo if via == "servo" else spec.rc) == number:
+            return name
+    return None
+
+
+def inputs_figure(recording: Recording, configs: Mapping[str, AgentConfig]) -> Any | None:
+    """The figure of :func:`plot_inputs`, unsaved; None when no signal was recorded."""
     series = {key: values for key, values in sorted(recording.signals.items()) if values}
     if not series:
-        return False
+        return None
     plt = _pyplot()
     fig, axes = plt.subplots(len(series), 1, figsize=(9, 2.4 * len(series)), dpi=100, squeeze=False)
     for ax, ((agent, channel), values) in zip(axes[:, 0], series.items(), strict=True):
         ax.step([t for t, _ in values], [v for _, v in values], where="post", linewidth=1)
-        ax.set_ylabel(f"{agent} {channel} (us)")
+        function = channel_function(configs.get(agent), channel)
+        name = f"{agent} {function}\n({channel}, us)" if function else f"{agent} {channel} (us)"
+        ax.set_ylabel(name)
         ax.grid(True, linewidth=0.3)
     axes[-1, 0].set_xlabel("simulated time (s)")
     fig.suptitle("Control inputs received by the autopilots")
     fig.tight_layout()
-    fig.savefig(path, metadata=_PNG_METADATA)
-    plt.close(fig)
+    return fig
+
+
+def plot_inputs(path: Path, recording: Recording, configs: Mapping[str, AgentConfig]) -> bool:
+    """The control signals the autopilots received; False (no file) when there were none.
+
+    Each is named by its channel's function in the vehicle's profile (``cub aileron
+    (rc1, us)``), with the channel number it was read on.
+    """
+    fig = inputs_figure(recording, configs)
+    if fig is None:
+        return False
+    _save(fig, path)
     return True
 
 
