@@ -590,3 +590,37 @@ def format_text(analysis: Analysis) -> str:
             ],
         )
     return "\n".join(out) + "\n"
+
+
+def explain_deviation(analysis: Analysis) -> str:
+    """What "deviation from ideal" means, with this analysis's figures, in Markdown.
+
+    For the dry run's report, under ``clark analyze``'s tables (docs/logs.md says the same
+    at length): how the figure is made, why the thesis's ideal is zero, and why Clark
+    Engine's runs read near minus one period.
+    """
+    if analysis.deviation_s is not None and analysis.sum_of_means_s is not None:
+        figures = (
+            f"Here: sum of means ({_seconds(analysis.sum_of_means_s)} s) minus the sample "
+            f"period ({analysis.period_s!r} s, from {analysis.period_source}) "
+            f"= {_seconds(analysis.deviation_s)} s."
+        )
+    elif analysis.sum_of_means_s is None:
+        figures = "Here it is not computed: no pair of agents heard each other both ways."
+    else:
+        figures = (
+            f"Here it is not computed: the sample period is unknown ({analysis.period_note}); "
+            "`clark analyze --period-s SECONDS` gives it."
+        )
+    return (
+        "**Deviation from ideal** is the sum of means (for a pair of agents, the mean "
+        "latency A -> B plus the mean latency B -> A) minus the sample period (1 / loop_hz). "
+        "In the thesis (section 5.1.2) a message waited in the receiver's buffer until the "
+        "receiver's next loop read it, so the two directions' waits added up to one loop "
+        "period: the ideal sum of means was one period, and the deviation measured the delay "
+        "beyond it. Clark Engine takes a message the moment it arrives, so its latencies are "
+        "transport alone (packing, radio, decoding): with a fast link the sum of means is near "
+        "zero and the deviation near minus one period; how far it lies above minus one period "
+        "is transport delay (the per-link means say which way it comes from). "
+        f"{figures} (docs/logs.md, clark analyze.)\n"
+    )

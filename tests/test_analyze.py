@@ -11,6 +11,7 @@ from clark_engine.analyze import (
     AnalyzeError,
     LinkReport,
     analyze_folder,
+    explain_deviation,
     format_text,
     summarize,
 )
@@ -438,3 +439,25 @@ def test_the_example_in_the_docs_is_real_output(
     report = format_text(analyze_folder(Path("logs")))
     docs = (ROOT / "docs" / "logs.md").read_text(encoding="utf-8")
     assert f"$ clark analyze logs\n{report}```" in docs
+
+
+# ------------------------------------------------------------- the report's explanation
+
+
+def test_explain_deviation_says_what_it_is_and_how_to_read_it(tmp_path: Path) -> None:
+    """The dry run's Links section explains "deviation from ideal" with the run's figures."""
+    text = explain_deviation(analyze_folder(three_agents(tmp_path)))
+    assert "**Deviation from ideal**" in text
+    assert "sum of means (1.000 s) minus the sample period (1.0 s, from mission logs)" in text
+    assert "= 0.000 s" in text
+    # Why the ideal is one period in the thesis, and near minus one period here.
+    assert "one loop period" in text and "near minus one period" in text
+    assert "docs/logs.md" in text
+
+
+def test_explain_deviation_without_a_period_says_how_to_get_one(tmp_path: Path) -> None:
+    three_agents(tmp_path)
+    for agent in "abc":
+        (tmp_path / f"{agent}.mission.log").unlink()
+    text = explain_deviation(analyze_folder(tmp_path))
+    assert "not computed" in text and "--period-s" in text

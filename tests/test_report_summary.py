@@ -62,3 +62,17 @@ def test_summary_without_a_command_line_gives_the_equivalent_one(tmp_path: Path)
     expected = shlex.join([*words, "--report", str(folder)])
     assert f"Equivalent command: `{expected}`" in summary
     assert "No faults injected." in section(summary, "Injected faults")
+
+
+def test_links_section_explains_deviation_from_ideal(tmp_path: Path) -> None:
+    folder = tmp_path / "report"
+    outcome = run_dry_run(
+        FOLLOW, seed=None, until_s=20.0, report=folder, speed=None,
+        out=io.StringIO(), err=io.StringIO(),
+    )  # fmt: skip
+    assert outcome.exit_code == 0
+    links = section((folder / "summary.md").read_text(encoding="utf-8"), "Links (clark analyze)")
+    assert "deviation from ideal" in links  # the figure, in analyze's table
+    after_table = links[links.rindex("```") :]
+    assert "**Deviation from ideal** is the sum of means" in after_table
+    assert "minus the sample period (0.1 s, from mission logs)" in after_table

@@ -516,7 +516,7 @@ def _write_report(
     comparison: Comparison | None = None,
     origin: RunOrigin | None = None,
 ) -> None:
-    from clark_engine.analyze import analyze_folder, format_text
+    from clark_engine.analyze import analyze_folder, explain_deviation, format_text
 
     plots = ["tracks.png"]
     plot_tracks(report / "tracks.png", result.recording, result.configs)
@@ -537,4 +537,5 @@ def _write_report(
         plots=plots,
         comparison=comparison.table() if comparison is not None else None,
         origin=origin,
+        links_note=explain_deviation(analysis),
     )

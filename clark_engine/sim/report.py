@@ -474,10 +474,13 @@ def write_summary(
     plots: Sequence[str],
     comparison: str | None = None,
     origin: RunOrigin | None = None,
+    links_note: str = "",
 ) -> None:
     """``summary.md``: how the run was made, the checks, the timeline, the link tables.
 
     ``origin``: the command line and the injected faults (none shown when None).
+    ``links_note``: Markdown under the link tables: what "deviation from ideal" means
+    (:func:`clark_engine.analyze.explain_deviation`).
     ``comparison``: with ``--autopilot sitl``, the table of each state's first entry on
     SITL and on the simulated autopilot (:meth:`~clark_engine.sim.timeline.Comparison.table`).
     """
@@ -529,5 +532,6 @@ def write_summary(
         latency.rstrip(),
         "```",
         "",
+        *([links_note] if links_note else []),
     ]
     path.write_text("\n".join(text), encoding="utf-8")
