@@ -522,7 +522,9 @@ def _write_report(
     plot_tracks(report / "tracks.png", result.recording, result.configs)
     if plot_inputs(report / "inputs.png", result.recording, result.configs):
         plots.append("inputs.png")
-    plot_timeline(report / "timeline.png", result.recording)
+    plot_timeline(
+        report / "timeline.png", result.recording, origin.faults if origin is not None else ()
+    )
     plots.append("timeline.png")
     analysis = analyze_folder(report / "logs")
     write_summary(

@@ -413,13 +413,44 @@ def states_label(active: Sequence[str]) -> str:
     return ", ".join(path or "(the whole behaviour)" for path in active)
 
 
-def plot_timeline(path: Path, recording: Recording) -> None:
-    """One row per agent, a bar per state it was in."""
+#: Hatches that tell fault windows apart on the timeline, and markers for safety events.
+_HATCHES: Final = ("//", "\\\\", "xx", "..", "--", "++", "oo", "||")
+_MARKERS: Final = ("v", "D", "s", "P", "X", "*", "^", "o")
+#: Where a state's label may go in its row (offsets from the row's centre, in rows).
+_LANES: Final = (0.0, -0.27, 0.27)
+
+
+def _fault_label(fault: InjectedFault) -> str:
+    when = fault.when()
+    return (
+        f"{fault.describe()} ({when})"
+        if when == "the whole run"
+        else f"{fault.describe()} ({when} s)"
+    )
+
+
+def timeline_figure(recording: Recording, faults: Sequence[InjectedFault] = ()) -> Any:
+    """The figure of :func:`plot_timeline`, unsaved.
+
+    Fault windows are hatched (on the rows of the agents they strike, or across every
+    row for the fleet's), safety events (failsafes, autopilot lost) are markers on their
+    agent's row; both are named in a legend beside the plot, so their labels never
+    overlap. States are named inside their bars where a label fits without touching
+    another (:func:`_place_labels`); ``summary.md``'s timeline lists them all.
+    """
     plt = _pyplot()
+    from matplotlib.patches import Rectangle
+
     agents = sorted(a for a, entries in recording.states.items() if entries)
-    fig, ax = plt.subplots(figsize=(10, 0.8 + 0.6 * max(1, len(agents))), dpi=100)
+    rows = {agent: row for row, agent in enumerate(agents)}
+    end_s = max(recording.end_s, 1e-3)
+    events = [(t, agent, what) for agent, seen in recording.safety.items() for t, what in seen]
+    entries_in_legend = len(faults) + len(events)
+    height = max(1.0 + 0.8 * max(1, len(agents)), 0.8 + 0.17 * entries_in_legend)
+    fig, ax = plt.subplots(figsize=(12 if entries_in_legend else 10, height), dpi=100)
     palette: dict[str, str] = {}
-    for row, agent in enumerate(agents):
+    labels: list[tuple[float, int, str]] = []
+    for agent, row in rows.items():
         entries = recording.states[agent]
         for i, entry in enumerate(entries):
             end = entries[i + 1].time_s if i + 1 < len(entries) else recording.end_s
@@ -428,15 +459,72 @@ def plot_timeline(path: Path, recording: Recording) -> None:
             ax.broken_barh(
                 [(entry.time_s, max(end - entry.time_s, 1e-3))], (row - 0.4, 0.8), facecolors=color
             )
-            if end - entry.time_s > recording.end_s / 40:
-                ax.text(entry.time_s + 0.5, row, label, va="center", fontsize=7)
+            if end - entry.time_s > end_s / 80:
+                labels.append((entry.time_s, row, label))
+    for index, fault in enumerate(faults):
+        start, stop = fault.window(end_s)
+        hatch = _HATCHES[index % len(_HATCHES)]
+        struck = [rows[a] for a in fault.agents if a in rows]
+        if stop <= start:
+            stop = start  # after the run's end, or a kill at it: named, not drawn
+        if struck:
+            for k, row in enumerate(struck):
+                ax.add_patch(
+                    Rectangle(
+                        (start, row - 0.45), stop - start, 0.9, fill=False, hatch=hatch,
+                        edgecolor="0.15", linewidth=0.8,
+                        label=_fault_label(fault) if k == 0 else "_nolegend_",
+                    )
+                )  # fmt: skip
+        else:
+            ax.axvspan(
+                start, stop, fill=False, hatch=hatch, edgecolor="0.45", linewidth=0.0,
+                label=_fault_label(fault),
+            )  # fmt: skip
+    for index, (t, agent, what) in enumerate(sorted(events)):
+        ax.plot(
+            [t], [rows.get(agent, -0.5)], _MARKERS[index % len(_MARKERS)], color="black",
+            markerfacecolor="white", markersize=7, linestyle="none",
+            label=f"{agent}: {what} at {t:.1f} s",
+        )  # fmt: skip
     ax.set_yticks(range(len(agents)), agents)
+    ax.set_ylim(-0.6, max(len(agents), 1) - 0.4)
     ax.set_xlabel("simulated time (s)")
-    ax.set_title("Behaviour states")
-    ax.set_xlim(0, max(recording.end_s, 1e-3))
+    ax.set_title("Behaviour states, fault windows and safety events")
+    ax.set_xlim(0, end_s)
+    if entries_in_legend:
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, borderaxespad=0.0)
     fig.tight_layout()
-    fig.savefig(path, metadata=_PNG_METADATA)
-    plt.close(fig)
+    _place_labels(fig, ax, labels, end_s)
+    return fig
+
+
+def _place_labels(
+    fig: Any, ax: Any, labels: Sequence[tuple[float, int, str]], end_s: float
+) -> None:
+    """Name states inside the plot where a label touches no other: else it is left out.
+
+    Each label starts at its state's entry, on the first of its row's lanes
+    (:data:`_LANES`) where it stays within the axes and clear of every label placed
+    before it. Runs once the layout is final, since it measures text on the canvas.
+    """
+    renderer = fig.canvas.get_renderer()
+    frame = ax.get_window_extent(renderer)
+    placed: list[Any] = []
+    for start, row, label in sorted(labels, key=lambda item: (item[1], item[0])):
+        for lane in _LANES:
+            text = ax.text(start + end_s * 0.004, row + lane, label, va="center", fontsize=7)
+            box = text.get_window_extent(renderer)
+            inside = box.x1 <= frame.x1 and box.y0 >= frame.y0 and box.y1 <= frame.y1
+            if inside and not any(box.overlaps(other) for other in placed):
+                placed.append(box)
+                break
+            text.remove()
+
+
+def plot_timeline(path: Path, recording: Recording, faults: Sequence[InjectedFault] = ()) -> None:
+    """One row per agent, a bar per state it was in; fault windows and safety events."""
+    _save(timeline_figure(recording, faults), path)
 
 
 def checks_table(results: Sequence[CheckResult]) -> str:
