@@ -478,7 +478,7 @@ def timeline_figure(recording: Recording, faults: Sequence[InjectedFault] = ()) 
                 )  # fmt: skip
         else:
             ax.axvspan(
-                start, stop, fill=False, hatch=hatch, edgecolor="0.45", linewidth=0.0,
+                start, stop, fill=False, hatch=hatch, edgecolor="0.75", linewidth=0.0, zorder=0,
                 label=_fault_label(fault),
             )  # fmt: skip
     for index, (t, agent, what) in enumerate(sorted(events)):
