@@ -109,7 +109,7 @@ def clark(*args: str, env: dict[str, str] | None = None) -> subprocess.Completed
             "--mavlink-port does not go with --realtime --autopilot sitl",
         ),
         (["--autopilot", "sitl", "--sitl", "/nowhere/at/all"], "--sitl /nowhere/at/all: not found"),
-        (["--autopilot", "sitl", "--sitl-speedup", "0"], "is not a positive number"),
+        (["--autopilot", "sitl", "--sitl-speedup", "0"], "must be a number > 0"),
     ],
 )
 def test_usage_errors_exit_2_with_a_message(args: list[str], message: str) -> None:
