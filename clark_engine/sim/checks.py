@@ -7,6 +7,7 @@ dry run prints and writes into its report.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -99,12 +100,13 @@ def _distance(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Che
     observed = []
     if "max" in body:
         closest, when = math.inf, 0.0
-        for k in range(min(len(ta.times_s), len(tb.times_s))):
-            if ta.times_s[k] > by_s + 1e-9:
+        # Every sample, read back from disk (the tracks' lists are decimated for plots).
+        for (t, na, ea, _), (_, nb, eb, _) in zip(ta.samples(), tb.samples(), strict=False):
+            if t > by_s + 1e-9:
                 break
-            d = math.hypot(ta.north_m[k] - tb.north_m[k], ta.east_m[k] - tb.east_m[k])
+            d = math.hypot(na - nb, ea - eb)
             if d < closest:
-                closest, when = d, ta.times_s[k]
+                closest, when = d, t
         passed = passed and closest <= float(body["max"])
         observed.append(f"closest {closest:.1f} m at {when:.1f} s")
     if "min" in body:
@@ -128,10 +130,10 @@ def _reached(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Chec
         return CheckResult(label, expected, "no position recorded", False)
     best = math.inf
     when: float | None = None
-    for i, t in enumerate(track.times_s):
+    for t, north, east, _ in track.samples():
         if t > by_s + 1e-9:
             break
-        d = math.hypot(track.north_m[i] - point[0], track.east_m[i] - point[1])
+        d = math.hypot(north - point[0], east - point[1])
         if d < best:
             best = d
         if d <= tolerance and when is None:
@@ -151,14 +153,20 @@ def _separation(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> 
     pair = ("", "")
     when = 0.0
     tracks = [(n, run.rec.tracks[n]) for n in names if n in run.rec.tracks]
-    for i, (name_a, a) in enumerate(tracks):
-        for name_b, b in tracks[i + 1 :]:
-            for k in range(min(len(a.times_s), len(b.times_s))):
-                d = math.dist(
-                    (a.north_m[k], a.east_m[k], a.up_m[k]), (b.north_m[k], b.east_m[k], b.up_m[k])
-                )
-                if d < closest:
-                    closest, pair, when = d, (name_a, name_b), a.times_s[k]
+    pairs = [(i, j) for i in range(len(tracks)) for j in range(i + 1, len(tracks))]
+    # One pass over every track's samples (read back from disk), each pair's closest kept.
+    best = [(math.inf, 0.0)] * len(pairs)
+    for row in itertools.zip_longest(*(track.samples() for _, track in tracks)):
+        for k, (i, j) in enumerate(pairs):
+            a, b = row[i], row[j]
+            if a is None or b is None:
+                continue
+            d = math.dist(a[1:], b[1:])
+            if d < best[k][0]:
+                best[k] = (d, a[0])
+    for (i, j), (d, t) in zip(pairs, best, strict=True):
+        if d < closest:
+            closest, pair, when = d, (tracks[i][0], tracks[j][0]), t
     if math.isinf(closest):
         return CheckResult(label, expected, "fewer than two vehicles", True)
     observed = f"closest {closest:.1f} m ({pair[0]}-{pair[1]} at {when:.1f} s)"

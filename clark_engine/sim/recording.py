@@ -7,13 +7,41 @@ frame (metres north, east and up of the origin).
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
+import tempfile
+import weakref
+from array import array
+from collections.abc import Iterator
 from dataclasses import dataclass, field
+from typing import Any
+
+#: Most samples a track keeps in memory for the plots: past it, every other one is dropped
+#: and the sampling interval kept doubles, so memory stays constant in the run's length.
+#: Every example mission fits whole (its longest, 417 s at 10 Hz, is 4,200 samples).
+MAX_TRACK_POINTS = 8192
+#: Samples a track holds before it appends them to its file on disk.
+SPOOL_CHUNK = 4096
+#: Values per sample in a track's file: time, north, east, up.
+_FIELDS = 4
 
 
-@dataclass(slots=True)
+def _unlink(path: str) -> None:
+    with contextlib.suppress(OSError):
+        os.unlink(path)
+
+
+@dataclass(slots=True, eq=False, weakref_slot=True)
 class Track:
-    """One vehicle's true path, sampled at the recorder's rate."""
+    """One vehicle's true path, sampled at the recorder's rate.
+
+    Every sample's time and position go to a temporary file as the run goes (the checks
+    read them back in order with :meth:`samples`), so a long run's memory does not grow
+    with its length. The lists are what the plots draw: every sample while there are at
+    most :data:`MAX_TRACK_POINTS`, then a decimated path (every 2nd, 4th, ... sample from
+    the first, and the latest), still in time order.
+    """
 
     times_s: list[float] = field(default_factory=list)
     north_m: list[float] = field(default_factory=list)
@@ -22,6 +50,15 @@ class Track:
     roll_deg: list[float] = field(default_factory=list)
     pitch_deg: list[float] = field(default_factory=list)
     yaw_deg: list[float] = field(default_factory=list)
+    capacity: int = MAX_TRACK_POINTS
+    """Most samples the lists keep (at least 2)."""
+    count: int = 0
+    """Samples added (all of them are in :meth:`samples`)."""
+    _stride: int = 1
+    _tail: bool = False  # the lists' last sample is the latest, off the stride
+    _pending: array[float] = field(default_factory=lambda: array("d"))
+    _path: str | None = None
+    _finalizer: weakref.finalize[[str], Track] | None = None
 
     def add(
         self,
@@ -33,23 +70,128 @@ class Track:
         pitch_deg: float,
         yaw_deg: float,
     ) -> None:
-        """Append one sample."""
-        self.times_s.append(t_s)
-        self.north_m.append(north_m)
-        self.east_m.append(east_m)
-        self.up_m.append(up_m)
-        self.roll_deg.append(roll_deg)
-        self.pitch_deg.append(pitch_deg)
-        self.yaw_deg.append(yaw_deg)
+        """Append one sample (to the file, and to the lists if it is on their stride)."""
+        pending = self._pending
+        pending.extend((t_s, north_m, east_m, up_m))
+        if len(pending) >= SPOOL_CHUNK * _FIELDS:
+            self._spill()
+        index = self.count
+        self.count += 1
+        if self._tail:
+            self._pop()
+            self._tail = False
+        self._push(t_s, north_m, east_m, up_m, roll_deg, pitch_deg, yaw_deg)
+        if index % self._stride:
+            self._tail = True
+        elif len(self.times_s) >= self.capacity:  # room for a latest sample off the stride
+            # Keep the samples at multiples of twice the stride (the first among them).
+            self._stride *= 2
+            for values in self._lists():
+                del values[1::2]
+            if index % self._stride:
+                self._push(t_s, north_m, east_m, up_m, roll_deg, pitch_deg, yaw_deg)
+                self._tail = True
+
+    def _lists(self) -> tuple[list[float], ...]:
+        return (
+            self.times_s,
+            self.north_m,
+            self.east_m,
+            self.up_m,
+            self.roll_deg,
+            self.pitch_deg,
+            self.yaw_deg,
+        )
+
+    def _push(self, *values: float) -> None:
+        for target, value in zip(self._lists(), values, strict=True):
+            target.append(value)
+
+    def _pop(self) -> None:
+        for values in self._lists():
+            values.pop()
+
+    def _spill(self) -> None:
+        """Append the pending samples to the track's file (made on first use)."""
+        if not self._pending:
+            return
+        if self._path is None:
+            handle, self._path = tempfile.mkstemp(prefix="clark-track-", suffix=".f64")
+            os.close(handle)
+            self._finalizer = weakref.finalize(self, _unlink, self._path)
+        with open(self._path, "ab") as file:
+            self._pending.tofile(file)
+        self._pending = array("d")
+
+    def samples(self) -> Iterator[tuple[float, float, float, float]]:
+        """Every sample added, in order: (time, north, east, up), read back from disk."""
+        if self._path is not None:
+            with open(self._path, "rb") as file:
+                while True:
+                    chunk = array("d")
+                    with contextlib.suppress(EOFError):  # the last, shorter chunk is read
+                        chunk.fromfile(file, SPOOL_CHUNK * _FIELDS)
+                    if not chunk:
+                        break
+                    yield from _rows(chunk)
+        yield from _rows(self._pending)
 
     def at(self, t_s: float) -> tuple[float, float, float] | None:
         """The last sample at or before ``t_s`` (north, east, up), None before the first."""
         best: tuple[float, float, float] | None = None
-        for i, time in enumerate(self.times_s):
+        for time, north, east, up in self.samples():
             if time > t_s + 1e-9:
                 break
-            best = (self.north_m[i], self.east_m[i], self.up_m[i])
+            best = (north, east, up)
         return best
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Track):
+            return NotImplemented
+        return (
+            self.count == other.count
+            and self._lists() == other._lists()
+            and all(a == b for a, b in zip(self.samples(), other.samples(), strict=True))
+        )
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __getstate__(self) -> dict[str, Any]:
+        """For a split run's share: the file goes with it (the receiver deletes it)."""
+        self._spill()
+        if self._finalizer is not None:
+            self._finalizer.detach()  # this process no longer owns the file
+            self._finalizer = None
+        return {name: getattr(self, name) for name in (*_TRACK_STATE,)}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        for name in _TRACK_STATE:
+            object.__setattr__(self, name, state[name])
+        self._pending = array("d")
+        self._finalizer = (
+            weakref.finalize(self, _unlink, self._path) if self._path is not None else None
+        )
+
+
+_TRACK_STATE = (
+    "times_s",
+    "north_m",
+    "east_m",
+    "up_m",
+    "roll_deg",
+    "pitch_deg",
+    "yaw_deg",
+    "capacity",
+    "count",
+    "_stride",
+    "_tail",
+    "_path",
+)
+
+
+def _rows(values: array[float]) -> Iterator[tuple[float, float, float, float]]:
+    it = iter(values)
+    return zip(it, it, it, it, strict=True)
 
 
 @dataclass(frozen=True, slots=True)
