@@ -367,6 +367,15 @@ def _version() -> str:
         return __version__
 
 
+def cmd_payload_sim(args: argparse.Namespace) -> int:
+    """Play a simulated payload (the thesis's camera) against a payload adapter."""
+    from clark_engine.sim.payload_sim import run_camera
+
+    return run_camera(
+        args.connect, udp=args.udp, capture_delay_s=args.capture_delay_s, retry_s=args.retry_s
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``clark`` and its subcommands."""
     from clark_engine.mission.schemas import SCHEMA_NAMES
@@ -536,6 +545,33 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("name", metavar="NAME", help=f"one of: {', '.join(SCHEMA_NAMES)}")
     p.set_defaults(func=cmd_schema)
+
+    p = sub.add_parser(
+        "payload-sim", help="play a payload (the thesis's camera) against a payload adapter"
+    )
+    p.add_argument("kind", choices=("camera",), help="the payload to play")
+    p.add_argument(
+        "--connect",
+        required=True,
+        metavar="HOST:PORT",
+        help="the mission computer's payload adapter (its TCP server, or UDP with --udp)",
+    )
+    p.add_argument("--udp", action="store_true", help="send datagrams instead of connecting")
+    p.add_argument(
+        "--capture-delay-s",
+        type=float,
+        default=0.8,
+        metavar="SECONDS",
+        help="time from CAPTURE to PHOTO (0.8 by default, as raspberry_pi_camera.yaml)",
+    )
+    p.add_argument(
+        "--retry-s",
+        type=float,
+        default=1.0,
+        metavar="SECONDS",
+        help="time between connection attempts while the server is away (1 by default)",
+    )
+    p.set_defaults(func=cmd_payload_sim)
     return parser
 
 
