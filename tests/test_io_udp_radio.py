@@ -165,3 +165,13 @@ def test_own_address_among_peers_is_skipped() -> None:
     with UdpRadio(address, peers=[address, "127.0.0.1:9"]) as radio:
         radio.open()
         assert radio.peers == ("127.0.0.1:9",)
+
+
+def test_host_names_resolve_at_open_never_in_the_loop(fleet: list[UdpRadio]) -> None:
+    a, b, _ = fleet
+    by_name = "localhost:" + b.address.rpartition(":")[2]
+    a.set_peers([by_name])
+    a.send(b"named", by_name)
+    assert [f.data for f in _wait_frames(b, 1)] == [b"named"]
+    a.send(b"x", "some-host.invalid:14600")  # not a peer: no DNS lookup in the loop
+    assert a.stats.send_failures == {"bad address": 1}

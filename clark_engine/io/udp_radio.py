@@ -60,8 +60,16 @@ READ_BUDGET_FACTOR: Final = 4
 """Datagrams read per :meth:`UdpRadio.receive`, as a multiple of the queue bound."""
 
 
-def _resolve(address: str) -> tuple[str, int]:
+MAX_RESOLVED: Final = 256
+"""Destination addresses remembered once resolved (peers' are resolved at open)."""
+
+
+def _resolve(address: str, *, numeric_only: bool = False) -> tuple[str, int]:
     """``host:port`` as an IPv4 socket address, the host name resolved.
+
+    Args:
+        address: ``host:port``.
+        numeric_only: Accept only an IP address, never asking DNS (which may block).
 
     Raises:
         RadioError: Not ``host:port``, or the host name does not resolve.
@@ -70,8 +78,9 @@ def _resolve(address: str) -> tuple[str, int]:
         host, port = parse_address(address)
     except TransportError as exc:
         raise RadioError(f"udp radio: {exc}") from None
+    flags = socket.AI_NUMERICHOST if numeric_only else 0
     try:
-        infos = socket.getaddrinfo(host, port, socket.AF_INET, socket.SOCK_DGRAM)
+        infos = socket.getaddrinfo(host, port, socket.AF_INET, socket.SOCK_DGRAM, 0, flags)
     except OSError as exc:
         raise RadioError(f"udp radio: cannot resolve {address!r} ({exc})") from None
     ip, resolved_port = infos[0][4][:2]
@@ -127,6 +136,7 @@ class UdpRadio(Radio):
         self._peers: list[tuple[str, int]] = []
         self._known: set[tuple[str, int]] = set()
         self._broadcast: tuple[str, int] | None = None
+        self._resolved: dict[str, tuple[str, int]] = {}
         self._queue: collections.deque[RadioFrame] = collections.deque()
 
     @classmethod
@@ -192,6 +202,7 @@ class UdpRadio(Radio):
         self.name = f"udp {self._address}"
         self._peers = [peer for peer in dict.fromkeys(peers) if not self._is_self(peer)]
         self._known = set(self._peers)
+        self._resolved = dict(zip(self._peer_texts, peers, strict=True))
         self._broadcast = broadcast
         self._sock = sock
 
@@ -223,6 +234,7 @@ class UdpRadio(Radio):
         texts = tuple(peers)
         resolved = [_resolve(text) for text in texts]
         self._peer_texts = texts
+        self._resolved = dict(zip(texts, resolved, strict=True))
         if self._sock is not None:
             self._peers = [peer for peer in dict.fromkeys(resolved) if not self._is_self(peer)]
             self._known = set(self._peers)
@@ -237,7 +249,8 @@ class UdpRadio(Radio):
 
         Never raises for the medium's failures and never blocks; they are counted in
         :attr:`stats` (see the module docstring). A destination that is not
-        ``host:port`` or does not resolve is counted ``bad address``.
+        ``host:port`` is counted ``bad address``; so is a host name that is not a
+        known peer's (names resolve when the radio opens, never in the loop).
         """
         sock = self._sock
         if sock is None:
@@ -254,11 +267,16 @@ class UdpRadio(Radio):
                 self.stats.fail("no peers")
                 return
         else:
-            try:
-                targets = [_resolve(destination)]
-            except RadioError:
-                self.stats.fail("bad address")
-                return
+            target = self._resolved.get(destination)
+            if target is None:
+                try:
+                    target = _resolve(destination, numeric_only=True)  # never DNS in the loop
+                except RadioError:
+                    self.stats.fail("bad address")
+                    return
+                if len(self._resolved) < MAX_RESOLVED:
+                    self._resolved[destination] = target
+            targets = [target]
         self.stats.sent += 1
         for target in targets:
             try:
