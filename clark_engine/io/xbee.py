@@ -1,0 +1,487 @@
+"""The XBee DigiMesh radio: ClarkLink packets over XBee-PRO 900HP modules, through digi-xbee.
+
+:class:`XBeeRadio` implements :class:`~clark_engine.io.radio.Radio` on a
+``DigiMeshDevice`` in API mode 1 (thesis 3.2.1-3.2.7, 4.1.2). The loop never
+waits on the radio:
+
+- **Sending** builds a transmit request (``0x10``) with a frame id of its own
+  and hands it to the library without waiting (``send_packet(sync=False)``).
+  The transmit status (``0x8B``) that answers it arrives later on the library's
+  thread and is matched by frame id: SUCCESS counts ``delivered``; anything else
+  (``route not found``, ``no ack``...) counts under that reason in
+  ``stats.send_failures`` and is logged. A frame id reused before its status
+  came back counts as ``no status``.
+- **Receiving** goes through the library's data-received callback. digi-xbee
+  runs its callbacks on a pool of up to 50 threads, so two callbacks can run
+  in any order; the callback therefore only signals, and the frames are taken,
+  in order and under one lock, from the library's own receive queue into a
+  bounded queue of ours, which :meth:`XBeeRadio.receive` drains. A byte on a
+  pipe (:meth:`XBeeRadio.fileno`) wakes the shell's selector; the flag that
+  guards it is set and cleared under the same lock as the queue, so no frame
+  is ever left waiting without the pipe readable.
+- **The library's traps.** Its receive queue (40 frames) silently drops the
+  oldest when full: every callback corresponds to one frame the library
+  queued, so frames called back minus frames taken is the count it dropped,
+  kept in ``stats.dropped["xbee queue"]``. Our own queue, when the loop falls
+  behind, drops the oldest too, counted as ``receive queue``. An exception in
+  our handling never reaches the library (caught, logged, counted as
+  ``receive handler``). A serial error (the dongle pulled out) either kills the
+  library's reader thread or leaves it spinning on "device reports readiness to
+  read but returned no data"; a supervisor thread notices (the reader stopped,
+  the port closed, or the port's path no longer leads to the device we hold),
+  closes the device and opens it again every ``health_interval_s`` until the
+  radio answers, counting ``stats.reconnects``. Meanwhile sends count as
+  ``link down``; the loop never blocks.
+
+Changing parameters (:meth:`XBeeRadio.set_parameter`, :meth:`apply_changes`,
+:meth:`write_changes`), reading them and :meth:`verify` are synchronous AT
+exchanges: for start-up and ``clark check radio``, not for inside the loop.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import threading
+from collections import deque
+from collections.abc import Callable
+from typing import Any, Final
+
+from digi.xbee.devices import DigiMeshDevice  # type: ignore[import-untyped]
+from digi.xbee.exception import XBeeException  # type: ignore[import-untyped]
+from digi.xbee.models.address import (  # type: ignore[import-untyped]
+    XBee16BitAddress,
+    XBee64BitAddress,
+)
+from digi.xbee.models.mode import OperatingMode  # type: ignore[import-untyped]
+from digi.xbee.models.protocol import XBeeProtocol  # type: ignore[import-untyped]
+from digi.xbee.models.status import TransmitStatus  # type: ignore[import-untyped]
+from digi.xbee.packets.aft import ApiFrameType  # type: ignore[import-untyped]
+from digi.xbee.packets.common import TransmitPacket  # type: ignore[import-untyped]
+from serial import SerialException  # type: ignore[import-untyped]
+
+from clark_engine.io.radio import MAX_PENDING_FRAMES, Radio, RadioError, RadioFrame, RadioStats
+
+log = logging.getLogger(__name__)
+
+BROADCAST: Final = "000000000000FFFF"
+"""The 64-bit broadcast address."""
+
+FAILURE_REASONS: Final[dict[int, str]] = {
+    0x01: "no ack",
+    0x02: "cca failure",
+    0x03: "purged",
+    0x21: "network ack failure",
+    0x22: "not joined",
+    0x25: "route not found",
+    0x74: "payload too large",
+}
+"""Transmit status codes as :attr:`RadioStats.send_failures` names them."""
+
+_DEVICE_ERRORS: Final = (XBeeException, SerialException, OSError, ValueError)
+
+
+def _hex(value: bytes | bytearray) -> str:
+    return bytes(value).hex().upper()
+
+
+class XBeeRadio(Radio):
+    """An XBee DigiMesh radio on a serial port, in API mode.
+
+    Args:
+        port: The serial device (``/dev/ttyUSB0``, ``/dev/serial/by-id/...``).
+        baud_bps: The module's serial rate (BD; 115200 is BD=7).
+        network_id: The DigiMesh network id the profile expects (ID, hex), or None.
+        api_mode: The API mode the profile expects (AP): 1, without escapes.
+        max_pending_frames: Frames held for the loop before dropping the oldest.
+        health_interval_s: How often the supervisor checks the link and retries.
+        sync_timeout_s: Time limit of the library's synchronous AT exchanges.
+    """
+
+    def __init__(
+        self,
+        port: str,
+        *,
+        baud_bps: int = 115200,
+        network_id: str | None = None,
+        api_mode: int = 1,
+        max_pending_frames: int = MAX_PENDING_FRAMES,
+        health_interval_s: float = 0.5,
+        sync_timeout_s: float = 2.0,
+    ) -> None:
+        self.name = f"xbee {port}"
+        self.stats = RadioStats()
+        self.port = port
+        self.baud_bps = baud_bps
+        self.network_id = network_id
+        self.api_mode = api_mode
+        self.max_pending_frames = max_pending_frames
+        self.health_interval_s = health_interval_s
+        self.sync_timeout_s = sync_timeout_s
+        self.info: dict[str, str] = {}
+        """What :meth:`verify` read: hardware, firmware, node id, network id, API mode."""
+        self._address: str | None = None
+        self._device: Any = None
+        self._generation = 0
+        self._link_up = False
+        self._closed = True
+        self._frames: deque[RadioFrame] = deque()
+        self._rx_lock = threading.Lock()
+        self._signalled = False
+        self._called_back = 0
+        self._taken = 0
+        self._library_dropped = 0
+        self._arrived = 0
+        self._tx_lock = threading.Lock()
+        self._pending: dict[int, str | None] = {}
+        self._device_lock = threading.Lock()
+        self._wake_r = -1
+        self._wake_w = -1
+        self._stop = threading.Event()
+        self._supervisor: threading.Thread | None = None
+
+    # --- the Radio interface ------------------------------------------------------
+
+    @property
+    def address(self) -> str:
+        """The transceiver's 64-bit address (SH and SL), 16 hex digits, read on open."""
+        if self._address is None:
+            raise RadioError(f"{self.name}: not open; its address is read when it opens")
+        return self._address
+
+    @property
+    def link_up(self) -> bool:
+        """Whether the device is open and answering (False while it reconnects)."""
+        return self._link_up
+
+    @property
+    def frames_arrived(self) -> int:
+        """Frames the library called back with since open, across reconnects."""
+        return self._arrived
+
+    def open(self) -> None:
+        """Open the port, read the transceiver's address and start the supervisor."""
+        if not self._closed:
+            raise RadioError(f"{self.name}: already open")
+        self._wake_r, self._wake_w = os.pipe()
+        os.set_blocking(self._wake_r, False)
+        os.set_blocking(self._wake_w, False)
+        self._closed = False
+        self._stop.clear()
+        try:
+            self._connect()
+        except RadioError:
+            self.close()
+            raise
+        self._supervisor = threading.Thread(
+            target=self._supervise, name=f"xbee-supervisor {self.port}", daemon=True
+        )
+        self._supervisor.start()
+
+    def verify(self) -> None:
+        """Read HV, VR, AP, ID and NI and check them against the profile (3.2.6).
+
+        Raises:
+            RadioError: The radio does not answer, or answers other settings than
+                the profile's, naming what to change.
+        """
+        device = self._require_device()
+        try:
+            hardware = _hex(device.get_parameter("HV"))
+            firmware = _hex(device.get_parameter("VR"))
+            api_mode = int.from_bytes(device.get_parameter("AP"), "big")
+            network = _hex(device.get_parameter("ID"))
+            node_id = bytes(device.get_parameter("NI")).decode("ascii", "replace")
+        except _DEVICE_ERRORS as exc:
+            raise RadioError(f"{self.name}: does not answer AT commands ({exc})") from exc
+        self.info = {
+            "hardware": hardware,
+            "firmware": firmware,
+            "api_mode": str(api_mode),
+            "network_id": network,
+            "node_id": node_id,
+            "address": self.address,
+        }
+        problems = []
+        if device.get_protocol() != XBeeProtocol.DIGI_MESH:
+            problems.append(f"firmware {firmware} is not DigiMesh; load the DigiMesh firmware")
+        if api_mode != self.api_mode:
+            problems.append(
+                f"API mode is AP={api_mode}, the profile expects AP={self.api_mode};"
+                f" set AP={self.api_mode} and write (WR)"
+            )
+        if self.network_id is not None and network.lstrip("0") != self.network_id.upper().lstrip(
+            "0"
+        ):
+            problems.append(
+                f"network id is ID={network}, the profile expects ID={self.network_id};"
+                f" set ID={self.network_id} and write (WR)"
+            )
+        if problems:
+            raise RadioError(f"{self.name}: " + "; ".join(problems))
+
+    def send(self, data: bytes, destination: str | None) -> None:
+        """Queue ``data`` to a 64-bit address (16 hex digits) or to all (None); never blocks.
+
+        Raises:
+            RadioError: ``destination`` is not a 64-bit address (a configuration error).
+        """
+        target = BROADCAST if destination is None else destination
+        try:
+            address = XBee64BitAddress.from_hex_string(target)
+        except ValueError as exc:
+            raise RadioError(f"{self.name}: {target!r} is not a 64-bit XBee address") from exc
+        self.stats.sent += 1
+        device = self._device
+        if device is None or not self._link_up:
+            self.stats.fail("link down")
+            return
+        try:
+            frame_id = device.get_next_frame_id()
+            packet = TransmitPacket(
+                frame_id, address, XBee16BitAddress.UNKNOWN_ADDRESS, 0, 0, rf_data=bytes(data)
+            )
+            with self._tx_lock:
+                if frame_id in self._pending:
+                    self.stats.fail("no status")
+                self._pending[frame_id] = destination
+            device.send_packet(packet, sync=False)
+        except _DEVICE_ERRORS as exc:
+            with self._tx_lock:
+                self._pending.pop(frame_id, None)
+            self.stats.fail("serial error")
+            log.warning("%s: send failed: %s", self.name, exc)
+
+    def receive(self) -> list[RadioFrame]:
+        """The frames that arrived since the last call, oldest first; never blocks."""
+        if self._wake_r >= 0:
+            with contextlib.suppress(BlockingIOError):
+                os.read(self._wake_r, 4096)
+        with self._rx_lock:
+            frames = list(self._frames)
+            self._frames.clear()
+            self._signalled = False
+        self.stats.received += len(frames)
+        return frames
+
+    def fileno(self) -> int | None:
+        """The read end of the wake-up pipe: readable while frames wait."""
+        return self._wake_r if self._wake_r >= 0 else None
+
+    def close(self) -> None:
+        """Stop the supervisor, close the device and the pipe; idempotent (3.2.7)."""
+        if self._closed:
+            return
+        self._closed = True
+        self._stop.set()
+        if self._supervisor is not None:
+            self._supervisor.join()
+            self._supervisor = None
+        self._disconnect()
+        for fd in (self._wake_r, self._wake_w):
+            if fd >= 0:
+                os.close(fd)
+        self._wake_r = self._wake_w = -1
+
+    # --- parameters (3.2.5) ---------------------------------------------------------
+
+    def get_parameter(self, command: str) -> bytes:
+        """Read one AT setting (``"ID"``, ``"NI"``...) as the module returns it."""
+        device = self._require_device()
+        try:
+            return bytes(device.get_parameter(command))
+        except _DEVICE_ERRORS as exc:
+            raise RadioError(f"{self.name}: cannot read {command}: {exc}") from exc
+
+    def set_parameter(self, command: str, value: bytes, *, apply: bool = True) -> None:
+        """Set one AT setting; with ``apply`` False it waits for :meth:`apply_changes`."""
+        device = self._require_device()
+        try:
+            device.set_parameter(command, bytearray(value), apply=apply)
+        except _DEVICE_ERRORS as exc:
+            raise RadioError(f"{self.name}: cannot set {command}: {exc}") from exc
+
+    def apply_changes(self) -> None:
+        """Apply the settings queued with ``apply=False`` (AC)."""
+        device = self._require_device()
+        try:
+            device.apply_changes()
+        except _DEVICE_ERRORS as exc:
+            raise RadioError(f"{self.name}: cannot apply changes: {exc}") from exc
+
+    def write_changes(self) -> None:
+        """Write the settings in force to the module's flash (WR), to survive a power cycle."""
+        device = self._require_device()
+        try:
+            device.write_changes()
+        except _DEVICE_ERRORS as exc:
+            raise RadioError(f"{self.name}: cannot write changes: {exc}") from exc
+
+    # --- the device and its callbacks --------------------------------------------
+
+    def _require_device(self) -> Any:
+        device = self._device
+        if device is None or not self._link_up:
+            raise RadioError(f"{self.name}: not connected")
+        return device
+
+    def _connect(self) -> None:
+        """Open a fresh device and hook our callbacks to it; raises RadioError."""
+        device = DigiMeshDevice(self.port, self.baud_bps)
+        device.set_sync_ops_timeout(self.sync_timeout_s)
+        try:
+            device.open()
+        except _DEVICE_ERRORS as exc:
+            with contextlib.suppress(*_DEVICE_ERRORS):
+                device.close()
+            raise RadioError(
+                f"{self.name}: cannot open the radio at {self.baud_bps} baud ({exc});"
+                " check the port, the baud rate (BD) and that the module is in API mode (AP=1)"
+            ) from exc
+        if device.operating_mode != OperatingMode.API_MODE:
+            device.close()
+            raise RadioError(
+                f"{self.name}: the module is in {device.operating_mode}, set AP={self.api_mode}"
+            )
+        address = str(device.get_64bit_addr()).upper()
+        if self._address is not None and address != self._address:
+            device.close()
+            raise RadioError(
+                f"{self.name}: another radio ({address}) answers where {self._address} was"
+            )
+        with self._rx_lock:
+            self._generation += 1
+            generation = self._generation
+            self._called_back = 0
+            self._taken = 0
+            self._library_dropped = 0
+        device.add_data_received_callback(self._make_data_callback(device, generation))
+        device.add_packet_received_callback(self._make_packet_callback(generation))
+        with self._device_lock:
+            self._device = device
+            self._address = address
+            self._link_up = True
+
+    def _disconnect(self) -> None:
+        with self._device_lock:
+            device, self._device = self._device, None
+            self._link_up = False
+        if device is not None:
+            with contextlib.suppress(*_DEVICE_ERRORS):
+                device.close()
+        with self._tx_lock:
+            lost = len(self._pending)
+            self._pending.clear()
+        for _ in range(lost):
+            self.stats.fail("no status")
+
+    def _make_data_callback(self, device: Any, generation: int) -> Callable[[Any], None]:
+        def on_data(_message: Any) -> None:
+            # Runs on the library's callback pool: nothing may escape from here.
+            try:
+                self._take_frames(device, generation)
+            except Exception:
+                log.exception("%s: error while taking a received frame", self.name)
+                self.stats.drop("receive handler")
+
+        return on_data
+
+    def _make_packet_callback(self, generation: int) -> Callable[[Any], None]:
+        def on_packet(packet: Any) -> None:
+            try:
+                if packet.get_frame_type() == ApiFrameType.TRANSMIT_STATUS:
+                    self._transmit_status(packet.frame_id, packet.transmit_status)
+            except Exception:
+                log.exception("%s: error while reading a transmit status", self.name)
+                self.stats.fail("status handler")
+
+        return on_packet
+
+    def _take_frames(self, device: Any, generation: int) -> None:
+        with self._rx_lock:
+            if generation != self._generation:
+                return
+            self._called_back += 1
+            self._arrived += 1
+            while (message := device.read_data()) is not None:
+                self._taken += 1
+                frame = self._frame_from_message(message)
+                if len(self._frames) >= self.max_pending_frames:
+                    self._frames.popleft()
+                    self.stats.drop("receive queue")
+                self._frames.append(frame)
+            # Each callback stands for one frame the library queued; those neither
+            # taken now nor before were dropped by its full queue.
+            missing = self._called_back - self._taken
+            if missing > self._library_dropped:
+                self.stats.drop("xbee queue", missing - self._library_dropped)
+                self._library_dropped = missing
+            if self._frames and not self._signalled:
+                self._signalled = True
+                with contextlib.suppress(BlockingIOError):
+                    os.write(self._wake_w, b"\x01")
+
+    @staticmethod
+    def _frame_from_message(message: Any) -> RadioFrame:
+        remote = message.remote_device
+        source = str(remote.get_64bit_addr()).upper() if remote is not None else ""
+        return RadioFrame(
+            source=source, data=bytes(message.data), broadcast=bool(message.is_broadcast)
+        )
+
+    def _transmit_status(self, frame_id: int, status: Any) -> None:
+        with self._tx_lock:
+            if frame_id not in self._pending:
+                return
+            destination = self._pending.pop(frame_id)
+        if status == TransmitStatus.SUCCESS:
+            if destination is not None:
+                self.stats.delivered += 1
+            return
+        reason = FAILURE_REASONS.get(status.code, str(status.description).lower())
+        log.warning(
+            "%s: packet to %s not delivered: %s",
+            self.name,
+            destination or "every radio",
+            reason,
+        )
+        self.stats.fail(reason)
+
+    # --- supervision ------------------------------------------------------------------
+
+    def _healthy(self) -> bool:
+        device = self._device
+        if device is None:
+            return False
+        try:
+            if not device.is_open() or not device.serial_port.is_interface_open:
+                return False
+            listener = device._packet_listener  # the library exposes no accessor
+            if listener is None or not listener.is_running():
+                return False
+            # A pulled dongle takes its device node with it (and pty emulation its
+            # link); the library's reader may keep spinning on the dead descriptor.
+            return bool(os.stat(self.port).st_rdev == os.fstat(device.serial_port.fileno()).st_rdev)
+        except (OSError, ValueError, AttributeError, SerialException):
+            return False
+
+    def _supervise(self) -> None:
+        while not self._stop.wait(self.health_interval_s):
+            try:
+                if self._link_up:
+                    if self._healthy():
+                        continue
+                    log.warning("%s: serial link lost; reconnecting", self.name)
+                    self._disconnect()
+                if self._stop.is_set():
+                    return
+                try:
+                    self._connect()
+                except RadioError as exc:
+                    log.debug("%s: not back yet: %s", self.name, exc)
+                    continue
+                self.stats.reconnects += 1
+                log.warning("%s: reconnected", self.name)
+            except Exception:
+                log.exception("%s: supervisor error", self.name)
