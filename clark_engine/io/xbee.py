@@ -48,18 +48,18 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any, Final
 
-from digi.xbee.devices import DigiMeshDevice  # type: ignore[import-untyped]
-from digi.xbee.exception import XBeeException  # type: ignore[import-untyped]
-from digi.xbee.models.address import (  # type: ignore[import-untyped]
+from digi.xbee.devices import DigiMeshDevice
+from digi.xbee.exception import XBeeException
+from digi.xbee.models.address import (
     XBee16BitAddress,
     XBee64BitAddress,
 )
-from digi.xbee.models.mode import OperatingMode  # type: ignore[import-untyped]
-from digi.xbee.models.protocol import XBeeProtocol  # type: ignore[import-untyped]
-from digi.xbee.models.status import TransmitStatus  # type: ignore[import-untyped]
-from digi.xbee.packets.aft import ApiFrameType  # type: ignore[import-untyped]
-from digi.xbee.packets.common import TransmitPacket  # type: ignore[import-untyped]
-from serial import SerialException  # type: ignore[import-untyped]
+from digi.xbee.models.mode import OperatingMode
+from digi.xbee.models.protocol import XBeeProtocol
+from digi.xbee.models.status import TransmitStatus
+from digi.xbee.packets.aft import ApiFrameType
+from digi.xbee.packets.common import TransmitPacket
+from serial import SerialException
 
 from clark_engine.io.radio import MAX_PENDING_FRAMES, Radio, RadioError, RadioFrame, RadioStats
 
