@@ -1,0 +1,735 @@
+"""The real-time shell: one agent's runtime on a real clock and real links.
+
+The runtime core (:class:`~clark_engine.runtime.runtime.AgentRuntime`) is pure; this
+shell owns time and I/O around it, one process per agent, single-threaded around one
+:mod:`selectors` loop (DESIGN.md, "Layers"):
+
+- It waits on the autopilot transport, the radio's descriptor, the payloads'
+  descriptors (and any reader a caller adds, such as the station's terminal) until
+  the next tick deadline, and hands what arrives to the runtime at once: autopilot
+  bytes through the :class:`~clark_engine.io.autopilot.AutopilotAdapter` into typed
+  events, radio frames as :class:`~clark_engine.runtime.events.PacketReceived`,
+  payload lines as :class:`~clark_engine.runtime.events.PayloadEvent`.
+- It ticks the runtime at ``loop_hz`` on a drift-free schedule: tick ``k`` is due at
+  ``start + k * period`` on :func:`time.monotonic`, never at "the last tick plus a
+  sleep", so waiting and work never accumulate into drift. A tick that starts one
+  whole period or more late is an *overrun*: the deadlines it missed are skipped (the
+  runtime counts rates in ticks, so it is not made to catch up with a burst of ticks),
+  counted in :attr:`ShellStats.overruns` and :attr:`ShellStats.skipped_ticks`, and
+  logged in the interface log with its size.
+- It carries out the commands the runtime returns: vehicle commands through the
+  adapter to the transport, :class:`~clark_engine.runtime.commands.SendPacket` to the
+  radio (unicast to the peer's radio address, broadcast when the destination is every
+  agent), :class:`~clark_engine.runtime.commands.PayloadCommand` to the payload, and
+  :class:`~clark_engine.runtime.commands.CloseInterfaces` by ending the loop.
+- An autopilot transport or a radio that fails is closed and opened again from the
+  loop, with a growing back-off (:data:`REOPEN_BACKOFF_S`), counted and logged; the
+  loop never stops for it (the runtime's ``autopilot_lost`` takes care of safety).
+- Testing mode (thesis 7.2.9): any interface may be left out (``None``): its commands
+  are dropped and counted, and a payload command is answered with an ``error`` event
+  at once so the runtime never waits for an answer that cannot come.
+- SIGINT and SIGTERM stop it cleanly (:meth:`RealtimeShell.signals`): the runtime's
+  terminate sequence (the vehicle to its terminal mode, a last heartbeat, the logs
+  flushed and closed), the replay marks saved, the autopilot's overrides released,
+  and every link closed. A second signal aborts at once (links closed, logs flushed,
+  no terminate sequence); :meth:`RealtimeShell.run` then returns 130.
+
+GPS time (thesis 7.2.11): a vehicle's log lines are stamped with the GPS time its
+autopilot reports (the runtime does this from ``VehicleState.gps_time_ms``); an agent
+without an autopilot (a station, or a vehicle whose autopilot is disabled) gets the
+system clock's GPS time through the runtime's ``gps_epoch_ms`` (:func:`gps_epoch_ms`).
+
+Time: the runtime's clock is the shell's monotonic clock minus its origin (so log
+lines read ``t=0.100``, ``t=0.200``...). Tests inject a clock and a selector
+(:class:`RealtimeShell` arguments) to run the loop deterministically.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import selectors
+import signal
+import socket
+import threading
+import time
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from types import FrameType
+from typing import Final
+
+from clark_engine.io.autopilot import AutopilotAdapter, gps_time_ms_from_unix_us
+from clark_engine.io.payload import PayloadAdapter
+from clark_engine.io.radio import Radio, RadioError
+from clark_engine.io.transports import Transport, TransportError
+from clark_engine.runtime.commands import (
+    CloseInterfaces,
+    Command,
+    PayloadCommand,
+    SendPacket,
+)
+from clark_engine.runtime.events import (
+    AutopilotHeartbeat,
+    AutopilotStatus,
+    AutopilotText,
+    CommandRefused,
+    Event,
+    PacketReceived,
+    PayloadEvent,
+    RcChannels,
+    VehicleState,
+)
+from clark_engine.runtime.runtime import AgentRuntime
+
+REOPEN_BACKOFF_S: Final = (0.5, 1.0, 2.0, 4.0, 8.0)
+"""Waits before each successive attempt to reopen a failed link; the last one repeats."""
+
+EXIT_ABORTED: Final = 130
+"""What :meth:`RealtimeShell.run` returns after a second signal (as a shell's Ctrl-C)."""
+
+_RUNTIME_EVENTS = (
+    VehicleState,
+    AutopilotHeartbeat,
+    AutopilotStatus,
+    AutopilotText,
+    CommandRefused,
+    RcChannels,
+)
+
+_DUE_TOLERANCE_S: Final = 1e-6
+"""A deadline this close is due: a wait never ends on the exact float of its deadline."""
+
+Clock = Callable[[], float]
+
+
+class ShellAborted(Exception):
+    """A second stop signal arrived: leave the loop now, without the terminate sequence."""
+
+
+def gps_epoch_ms(unix_time_s: float) -> int:
+    """GPS time in ms at the runtime's time 0, from the system clock read at that moment."""
+    return gps_time_ms_from_unix_us(round(unix_time_s * 1e6))
+
+
+def terminate_runtime(runtime: AgentRuntime, now_s: float) -> list[Command]:
+    """Run the runtime's own terminate sequence (thesis 7.3.5) and return its commands.
+
+    The runtime has no public way for its shell to terminate it (a station's operator
+    command terminates the whole fleet, and a vehicle ignores it), so this calls its
+    terminate step and drains its commands: stopping the primitives, the terminal
+    mode, a last heartbeat, CloseInterfaces; the logbook is closed by it. A public
+    ``AgentRuntime.terminate(now_s)`` returning those commands would replace this.
+    """
+    if runtime.terminated:
+        return []
+    runtime._set_time(now_s)
+    runtime._terminate(now_s, None)
+    return runtime._drain()
+
+
+@dataclass(slots=True)
+class ShellStats:
+    """What the loop counted since it started.
+
+    Attributes:
+        ticks: Ticks run.
+        overruns: Ticks that started one period or more after their deadline.
+        skipped_ticks: Deadlines skipped by those overruns.
+        worst_overrun_s: The largest lateness of an overrun.
+        max_late_s: The largest lateness of any tick (jitter included).
+        wakeups: Selector waits that returned.
+        autopilot_failures: Times the autopilot link failed or could not be opened.
+        autopilot_reopens: Times it was opened again after a failure.
+        radio_failures: Times the radio failed or could not be opened.
+        radio_reopens: Times it was opened again after a failure.
+        dropped_commands: Commands for an interface that is disabled or down, per kind.
+    """
+
+    ticks: int = 0
+    overruns: int = 0
+    skipped_ticks: int = 0
+    worst_overrun_s: float = 0.0
+    max_late_s: float = 0.0
+    wakeups: int = 0
+    autopilot_failures: int = 0
+    autopilot_reopens: int = 0
+    radio_failures: int = 0
+    radio_reopens: int = 0
+    dropped_commands: dict[str, int] = field(default_factory=dict)
+
+    def drop(self, kind: str) -> None:
+        """Count one command that could not be carried out."""
+        self.dropped_commands[kind] = self.dropped_commands.get(kind, 0) + 1
+
+
+class _Reopen:
+    """When a failed link may be tried again, with a growing back-off."""
+
+    def __init__(self) -> None:
+        self.failures = 0
+        self.next_s = -math.inf
+        self.last_error: str | None = None
+
+    def failed(self, now_s: float, error: str) -> float:
+        wait = REOPEN_BACKOFF_S[min(self.failures, len(REOPEN_BACKOFF_S) - 1)]
+        self.failures += 1
+        self.next_s = now_s + wait
+        self.last_error = error
+        return wait
+
+    def succeeded(self) -> None:
+        self.failures = 0
+        self.last_error = None
+
+
+class AutopilotLink:
+    """The autopilot: a transport opened (and reopened) from a factory, and its adapter.
+
+    Args:
+        adapter: The MAVLink adapter (pure).
+        open_transport: Opens the transport; raises TransportError when it cannot.
+        describe: The link in words (``serial /dev/ttyACM0``, ``tcp 127.0.0.1:5760``).
+    """
+
+    def __init__(
+        self,
+        adapter: AutopilotAdapter,
+        open_transport: Callable[[], Transport],
+        describe: str,
+    ) -> None:
+        self.adapter = adapter
+        self.open_transport = open_transport
+        self.describe = describe
+        self.transport: Transport | None = None
+        self.started = False
+        self.reopen = _Reopen()
+
+
+class RadioLink:
+    """The radio, opened (and reopened) from a factory.
+
+    Args:
+        open_radio: Builds, opens and verifies the radio; raises RadioError.
+        describe: The radio in words.
+    """
+
+    def __init__(self, open_radio: Callable[[], Radio], describe: str) -> None:
+        self.open_radio = open_radio
+        self.describe = describe
+        self.radio: Radio | None = None
+        self.reopen = _Reopen()
+
+
+class RealtimeShell:
+    """One agent's runtime in a selectors loop on a monotonic clock.
+
+    Args:
+        runtime: The agent's runtime, built with the shell's clock origin in mind
+            (its ``gps_epoch_ms`` for time 0 at ``origin_s``).
+        autopilot: The autopilot link; None when disabled (testing mode) or a station.
+        radio: The radio link; None when disabled.
+        payloads: Payload adapters by payload name, already open; a payload of the
+            agent missing here is disabled.
+        peer_addresses: Radio address per peer name, overriding the mission's
+            (loopback rehearsals: every agent on 127.0.0.1 with its own port).
+        loop_hz: Ticks per second (the mission's ``loop_hz`` by default).
+        clock: Monotonic seconds (:func:`time.monotonic` by default; tests inject one).
+        selector: The selector to wait with (a new default selector by default).
+        origin_s: The clock reading that is the runtime's time 0.
+        logger: Where the shell's own lines go (the agent's interface log by default).
+    """
+
+    def __init__(
+        self,
+        runtime: AgentRuntime,
+        *,
+        autopilot: AutopilotLink | None = None,
+        radio: RadioLink | None = None,
+        payloads: Mapping[str, PayloadAdapter] | None = None,
+        peer_addresses: Mapping[str, str] | None = None,
+        loop_hz: float | None = None,
+        clock: Clock = time.monotonic,
+        selector: selectors.BaseSelector | None = None,
+        origin_s: float | None = None,
+        logger: logging.Logger | None = None,
+    ) -> None:
+        self.runtime = runtime
+        self.autopilot = autopilot
+        self.radio = radio
+        self.payloads: dict[str, PayloadAdapter] = dict(payloads or {})
+        self.peer_addresses = dict(peer_addresses or {})
+        self.loop_hz = float(loop_hz if loop_hz is not None else runtime.config.loop_hz)
+        if not self.loop_hz > 0:
+            raise ValueError(f"loop_hz must be above 0, not {self.loop_hz}")
+        self.period_s = 1.0 / self.loop_hz
+        self.clock = clock
+        self.origin_s = clock() if origin_s is None else origin_s
+        self.selector = selector if selector is not None else selectors.DefaultSelector()
+        self.log = logger if logger is not None else runtime.logbook.interface
+        self.stats = ShellStats()
+        self.start_s: float | None = None
+        """Runtime time of the loop's start (deadline 0)."""
+        self.stopped_by: str | None = None
+        """Why the loop ended (``SIGTERM``, ``terminate``, ``until``...)."""
+        #: Called after every tick with the shell and the runtime time (status, scripts).
+        self.on_tick: list[Callable[[RealtimeShell, float], None]] = []
+        self._readers: dict[int, Callable[[float], None]] = {}
+        self._registered: dict[str, int] = {}
+        self._stop_reason: str | None = None
+        self._signals = 0
+        self._closing = False
+        self._closed = False
+        self._wake_r, self._wake_w = socket.socketpair()
+        self._wake_r.setblocking(False)
+        self._wake_w.setblocking(False)
+        self.selector.register(self._wake_r, selectors.EVENT_READ, "wake")
+
+    # -- clock ----------------------------------------------------------------------------
+
+    def now(self) -> float:
+        """The runtime's time: the clock minus its origin."""
+        return self.clock() - self.origin_s
+
+    # -- control ---------------------------------------------------------------------------
+
+    def stop(self, reason: str = "stop") -> None:
+        """End the loop cleanly at its next wake-up; safe from signal handlers and threads."""
+        if self._stop_reason is None:
+            self._stop_reason = reason
+        with contextlib.suppress(OSError):
+            self._wake_w.send(b"\0")
+
+    def add_reader(self, fd: int, callback: Callable[[float], None]) -> None:
+        """Call ``callback(now_s)`` whenever ``fd`` is readable (the station's terminal)."""
+        self._readers[fd] = callback
+        self.selector.register(fd, selectors.EVENT_READ, ("reader", fd))
+
+    def remove_reader(self, fd: int) -> None:
+        """Stop watching ``fd``."""
+        if self._readers.pop(fd, None) is not None:
+            with contextlib.suppress(KeyError, ValueError):
+                self.selector.unregister(fd)
+
+    def deliver(self, event: Event, now_s: float | None = None) -> None:
+        """Hand one event to the runtime now and carry out what it returns."""
+        t = self.now() if now_s is None else now_s
+        self._carry_out(self.runtime.deliver(event, t), t)
+
+    @contextlib.contextmanager
+    def signals(self) -> Iterator[None]:
+        """Within the block, SIGINT and SIGTERM stop the loop; a second signal aborts it.
+
+        Does nothing outside the main thread (signal handlers belong to it).
+        """
+        if threading.current_thread() is not threading.main_thread():
+            yield
+            return
+        previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+        def handler(signum: int, frame: FrameType | None) -> None:
+            self._signals += 1
+            if self._signals > 1:
+                raise ShellAborted(signal.Signals(signum).name)
+            self.stop(signal.Signals(signum).name)
+
+        for sig in previous:
+            signal.signal(sig, handler)
+        try:
+            yield
+        finally:
+            for sig, old in previous.items():
+                signal.signal(sig, old if old is not None else signal.SIG_DFL)
+
+    # -- the loop ---------------------------------------------------------------------------
+
+    def run(self, *, max_ticks: int | None = None, until_s: float | None = None) -> int:
+        """Run until stopped, terminated, ``max_ticks`` ticks or ``until_s`` seconds.
+
+        Returns:
+            0 after a clean stop, :data:`EXIT_ABORTED` after a second signal.
+        """
+        start = self.now()
+        self.start_s = start
+        period = self.period_s
+        self.log.info(
+            "real-time shell: loop at %g Hz; autopilot %s; radio %s; payloads %s",
+            self.loop_hz,
+            self.autopilot.describe if self.autopilot else "disabled",
+            self.radio.describe if self.radio else "disabled",
+            ", ".join(self.payloads) or "none",
+        )
+        self._open_links(start)
+        k = 0
+        try:
+            while True:
+                if self._stop_reason is not None:
+                    self.stopped_by = self._stop_reason
+                    break
+                if self._closing:
+                    self.stopped_by = "terminate"
+                    break
+                deadline = start + k * period
+                now = self.now()
+                if now < deadline - _DUE_TOLERANCE_S:
+                    self._wait(deadline - now)
+                    continue
+                late = max(0.0, now - deadline)
+                self.stats.max_late_s = max(self.stats.max_late_s, late)
+                missed = math.floor(late / period)
+                if missed >= 1:
+                    self.stats.overruns += 1
+                    self.stats.skipped_ticks += missed
+                    self.stats.worst_overrun_s = max(self.stats.worst_overrun_s, late)
+                    self.log.warning(
+                        "overrun: tick %d started %.1f ms late (period %.1f ms); "
+                        "skipped %d deadline(s)",
+                        k,
+                        late * 1000,
+                        period * 1000,
+                        missed,
+                    )
+                    k += missed
+                self._tick(now)
+                k += 1
+                if max_ticks is not None and self.stats.ticks >= max_ticks:
+                    self.stopped_by = "max_ticks"
+                    break
+                if until_s is not None and now - start >= until_s:
+                    self.stopped_by = "until"
+                    break
+        except ShellAborted as exc:
+            self.stopped_by = f"{exc} (aborted)"
+            self._abort()
+            return EXIT_ABORTED
+        self.shutdown()
+        return 0
+
+    def _tick(self, now: float) -> None:
+        self._retry_links(now)
+        self._carry_out(self.runtime.tick(now), now)
+        self.stats.ticks += 1
+        link = self.autopilot
+        if link is not None and link.transport is not None and not self._closing:
+            self._to_autopilot(link.adapter.poll(now), now)
+        for hook in self.on_tick:
+            hook(self, now)
+
+    def _wait(self, timeout_s: float) -> None:
+        """Wait for input until ``timeout_s`` from now (or a link's retry), handling it."""
+        retry = self._next_retry_s()
+        if retry is not None:
+            timeout_s = max(0.0, min(timeout_s, retry - self.now()))
+        ready = self.selector.select(timeout_s)
+        self.stats.wakeups += 1
+        now = self.now()
+        for key, _mask in ready:
+            what = key.data
+            if what == "wake":
+                with contextlib.suppress(OSError):
+                    self._wake_r.recv(4096)
+            elif what == "autopilot":
+                self._from_autopilot(now)
+            elif what == "radio":
+                self._from_radio(now)
+            elif isinstance(what, tuple) and what[0] == "payload":
+                self._from_payload(what[1], now)
+            elif isinstance(what, tuple) and what[0] == "reader":
+                callback = self._readers.get(what[1])
+                if callback is not None:
+                    callback(now)
+            if self._closing:
+                return
+        # Links without a descriptor (in-memory pipes) are polled at every wake-up.
+        if self.autopilot is not None and "autopilot" not in self._registered:
+            self._from_autopilot(now)
+        if self.radio is not None and "radio" not in self._registered:
+            self._from_radio(now)
+        for name in self.payloads:
+            if f"payload:{name}" not in self._registered:
+                self._from_payload(name, now)
+        if retry is not None:
+            self._retry_links(now)
+
+    # -- inputs -----------------------------------------------------------------------------
+
+    def _from_autopilot(self, now: float) -> None:
+        link = self.autopilot
+        if link is None or link.transport is None:
+            return
+        try:
+            data = link.transport.receive()
+        except TransportError as exc:
+            self._autopilot_failed(now, str(exc))
+            return
+        if not data:
+            return
+        for event in link.adapter.receive(data, now):
+            if isinstance(event, _RUNTIME_EVENTS):
+                self._carry_out(self.runtime.deliver(event, now), now)
+
+    def _from_radio(self, now: float) -> None:
+        link = self.radio
+        if link is None or link.radio is None:
+            return
+        try:
+            frames = link.radio.receive()
+        except (RadioError, OSError) as exc:
+            self._radio_failed(now, str(exc))
+            return
+        for frame in frames:
+            self._carry_out(self.runtime.deliver(PacketReceived(frame.data), now), now)
+        if link.radio is not None and link.radio.fileno() is None and "radio" in self._registered:
+            self._radio_failed(now, "its descriptor closed")
+
+    def _from_payload(self, name: str, now: float) -> None:
+        adapter = self.payloads.get(name)
+        if adapter is None:
+            return
+        for event in adapter.receive():
+            self._carry_out(self.runtime.deliver(event, now), now)
+
+    # -- outputs ----------------------------------------------------------------------------
+
+    def _carry_out(self, commands: list[Command], now: float) -> None:
+        for command in commands:
+            if isinstance(command, SendPacket):
+                self._send_packet(command, now)
+            elif isinstance(command, PayloadCommand):
+                self._payload_command(command, now)
+            elif isinstance(command, CloseInterfaces):
+                self._closing = True
+            else:
+                link = self.autopilot
+                if link is None or link.transport is None:
+                    self.stats.drop(type(command).__name__)
+                    continue
+                self._to_autopilot(link.adapter.command(command, now), now)
+
+    def _send_packet(self, command: SendPacket, now: float) -> None:
+        link = self.radio
+        if link is None or link.radio is None:
+            self.stats.drop("SendPacket")
+            return
+        address: str | None = None
+        if command.destination:
+            address = self.peer_addresses.get(command.destination, command.radio_address)
+        try:
+            link.radio.send(command.data, address)
+        except RadioError as exc:
+            # An address the radio cannot use is a configuration error: counted and logged,
+            # never raised into the loop; the packet is lost as on a bad link.
+            self.stats.drop("SendPacket")
+            self.log.error("radio: cannot send to %s: %s", command.destination, exc)
+
+    def _payload_command(self, command: PayloadCommand, now: float) -> None:
+        adapter = self.payloads.get(command.payload)
+        if adapter is None:
+            self.stats.drop("PayloadCommand")
+            answer = PayloadEvent(
+                command.payload, "error", command.request_id, "payload disabled (testing mode)"
+            )
+            self._carry_out(self.runtime.deliver(answer, now), now)
+            return
+        adapter.send(command)  # never raises; an undeliverable command is answered with an error
+
+    def _to_autopilot(self, data: bytes, now: float) -> None:
+        link = self.autopilot
+        if not data or link is None or link.transport is None:
+            return
+        try:
+            link.transport.send(data)
+        except TransportError as exc:
+            self._autopilot_failed(now, str(exc))
+
+    # -- links ------------------------------------------------------------------------------
+
+    def _register(self, what: str, fd: int | None, data: object) -> None:
+        self._unregister(what)
+        if fd is None:
+            return
+        self.selector.register(fd, selectors.EVENT_READ, data)
+        self._registered[what] = fd
+
+    def _unregister(self, what: str) -> None:
+        fd = self._registered.pop(what, None)
+        if fd is not None:
+            with contextlib.suppress(KeyError, ValueError, OSError):
+                self.selector.unregister(fd)
+
+    def _open_links(self, now: float) -> None:
+        for name, adapter in self.payloads.items():
+            self._register(f"payload:{name}", adapter.fileno(), ("payload", name))
+        radio = self.radio
+        if radio is not None:
+            if radio.radio is not None:  # opened by the caller, to report its failure at once
+                self._register("radio", radio.radio.fileno(), "radio")
+            else:
+                self._open_radio(now, first=True)
+        if self.autopilot is not None:
+            self._open_autopilot(now, first=True)
+
+    def _next_retry_s(self) -> float | None:
+        due = [
+            link.reopen.next_s
+            for link in (self.autopilot, self.radio)
+            if link is not None and link.reopen.failures and not self._is_open(link)
+        ]
+        return min(due) if due else None
+
+    @staticmethod
+    def _is_open(link: AutopilotLink | RadioLink) -> bool:
+        if isinstance(link, AutopilotLink):
+            return link.transport is not None
+        return link.radio is not None
+
+    def _retry_links(self, now: float) -> None:
+        if self._closing:
+            return
+        link = self.autopilot
+        if link is not None and link.transport is None and now >= link.reopen.next_s:
+            self._open_autopilot(now, first=False)
+        radio = self.radio
+        if radio is not None and radio.radio is None and now >= radio.reopen.next_s:
+            self._open_radio(now, first=False)
+
+    def _open_autopilot(self, now: float, *, first: bool) -> None:
+        link = self.autopilot
+        assert link is not None
+        try:
+            transport = link.open_transport()
+        except (TransportError, OSError) as exc:
+            self._autopilot_failed(now, str(exc))
+            return
+        link.transport = transport
+        self._register("autopilot", transport.fileno(), "autopilot")
+        if link.reopen.failures:
+            self.stats.autopilot_reopens += 1
+            self.log.warning(
+                "autopilot: %s open again after %d failed attempt(s)",
+                link.describe,
+                link.reopen.failures,
+            )
+        link.reopen.succeeded()
+        if not link.started:
+            link.started = True
+            self._to_autopilot(link.adapter.start(now), now)
+        else:
+            self._to_autopilot(link.adapter.poll(now), now)
+
+    def _autopilot_failed(self, now: float, error: str) -> None:
+        link = self.autopilot
+        assert link is not None
+        self._unregister("autopilot")
+        if link.transport is not None:
+            with contextlib.suppress(TransportError, OSError):
+                link.transport.close()
+            link.transport = None
+        self.stats.autopilot_failures += 1
+        wait = link.reopen.failed(now, error)
+        self.log.error(
+            "autopilot: %s failed: %s; trying again in %.1f s", link.describe, error, wait
+        )
+
+    def _open_radio(self, now: float, *, first: bool) -> None:
+        link = self.radio
+        assert link is not None
+        try:
+            radio = link.open_radio()
+        except (RadioError, OSError) as exc:
+            self._radio_failed(now, str(exc))
+            return
+        link.radio = radio
+        self._register("radio", radio.fileno(), "radio")
+        if link.reopen.failures:
+            self.stats.radio_reopens += 1
+            self.log.warning(
+                "radio: %s open again after %d failed attempt(s)",
+                link.describe,
+                link.reopen.failures,
+            )
+        link.reopen.succeeded()
+        self.log.info("radio: %s open, address %s", radio.name, radio.address)
+
+    def _radio_failed(self, now: float, error: str) -> None:
+        link = self.radio
+        assert link is not None
+        self._unregister("radio")
+        if link.radio is not None:
+            with contextlib.suppress(RadioError, OSError):
+                link.radio.close()
+            link.radio = None
+        self.stats.radio_failures += 1
+        wait = link.reopen.failed(now, error)
+        self.log.error("radio: %s failed: %s; trying again in %.1f s", link.describe, error, wait)
+
+    # -- the end ----------------------------------------------------------------------------
+
+    def shutdown(self) -> None:
+        """The clean stop: terminate sequence, replay marks, links closed. Idempotent."""
+        if self._closed:
+            return
+        now = self.now()
+        runtime = self.runtime
+        if not runtime.terminated:
+            if not runtime.logbook.closed:
+                runtime.logbook.mission.warning(
+                    "real-time shell stopping (%s): terminating", self.stopped_by or "stop"
+                )
+                runtime.logbook.interface.info("real-time shell: %s", self.summary())
+            self._carry_out(terminate_runtime(runtime, now), now)
+        link = self.autopilot
+        if link is not None and link.transport is not None:
+            self._to_autopilot(link.adapter.close(now), now)
+        self._save_replay_marks()
+        self._close_all()
+
+    def _abort(self) -> None:
+        """A second signal: no terminate sequence; flush the logs, close everything."""
+        self._save_replay_marks()
+        self._close_all()
+
+    def _save_replay_marks(self) -> None:
+        try:
+            self.runtime.codec.save_replay_marks()
+        except Exception as exc:  # the store's failure must not keep the links open
+            with contextlib.suppress(Exception):
+                self.log.error("cannot save the replay marks: %s", exc)
+
+    def _close_all(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        self.runtime.logbook.close()
+        link = self.autopilot
+        if link is not None and link.transport is not None:
+            with contextlib.suppress(TransportError, OSError):
+                link.transport.close()
+            link.transport = None
+        radio = self.radio
+        if radio is not None and radio.radio is not None:
+            with contextlib.suppress(RadioError, OSError):
+                radio.radio.close()
+            radio.radio = None
+        for adapter in self.payloads.values():
+            with contextlib.suppress(OSError):
+                adapter.close()
+        for what in list(self._registered):
+            self._unregister(what)
+        for fd in list(self._readers):
+            self.remove_reader(fd)
+        with contextlib.suppress(KeyError, ValueError):
+            self.selector.unregister(self._wake_r)
+        self.selector.close()
+        self._wake_r.close()
+        self._wake_w.close()
+
+    def summary(self) -> str:
+        """The loop's figures in one line (for the logs and the end of ``clark run``)."""
+        s = self.stats
+        return (
+            f"{s.ticks} ticks at {self.loop_hz:g} Hz, {s.overruns} overrun(s) "
+            f"({s.skipped_ticks} deadline(s) skipped, worst {s.worst_overrun_s * 1000:.1f} ms), "
+            f"max lateness {s.max_late_s * 1000:.1f} ms, autopilot reopened {s.autopilot_reopens}, "
+            f"radio reopened {s.radio_reopens}"
+        )
