@@ -376,6 +376,45 @@ def cmd_payload_sim(args: argparse.Namespace) -> int:
     )
 
 
+def cmd_run(args: argparse.Namespace) -> int:
+    """Run one agent on its real interfaces (the real-time shell) until stopped."""
+    from clark_engine.shells.commands import run
+
+    return run(args)
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    """Check one interface of an agent: connect, verify, print what is seen."""
+    from clark_engine.shells.commands import check
+
+    return check(args)
+
+
+def _interface_options(p: argparse.ArgumentParser) -> None:
+    """The options `clark run` and `clark check` share: where the agent and its links are."""
+    p.add_argument("mission", metavar="MISSION", help="mission file, or an agent's compiled .json")
+    p.add_argument("--agent", metavar="NAME", help="the agent to run (required with a mission)")
+    p.add_argument(
+        "--autopilot-connection",
+        metavar="KIND:WHERE",
+        help="instead of the profile's: tcp:HOST:PORT (SITL: tcp:127.0.0.1:5760), "
+        "udp:HOST:PORT (listen), udpout:HOST:PORT, serial:DEVICE[:BAUD]",
+    )
+    p.add_argument(
+        "--radio", choices=("udp", "xbee"), help="radio kind, instead of the profile's link"
+    )
+    p.add_argument(
+        "--radio-address", metavar="ADDRESS", help="this agent's radio address (udp: HOST:PORT)"
+    )
+    p.add_argument(
+        "--peer",
+        action="append",
+        metavar="NAME=ADDRESS",
+        help="a peer's radio address, instead of the mission's (repeatable)",
+    )
+    p.add_argument("--key", metavar="FILE", help="the mission key (mission.key_file by default)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``clark`` and its subcommands."""
     from clark_engine.mission.schemas import SCHEMA_NAMES
@@ -572,6 +611,41 @@ def build_parser() -> argparse.ArgumentParser:
         help="time between connection attempts while the server is away (1 by default)",
     )
     p.set_defaults(func=cmd_payload_sim)
+
+    p = sub.add_parser("run", help="run one agent on its real interfaces (Ctrl-C stops)")
+    _interface_options(p)
+    p.add_argument("--logs", metavar="DIR", help="log folder (logs/<mission>-<time> by default)")
+    p.add_argument(
+        "--state",
+        metavar="DIR",
+        help="folder of the packet counter and replay stores (DIR/../state beside --logs)",
+    )
+    p.add_argument("--overwrite", action="store_true", help="replace this agent's logs in DIR")
+    p.add_argument("--no-autopilot", action="store_true", help="testing mode: no autopilot")
+    p.add_argument("--no-radio", action="store_true", help="testing mode: no radio")
+    p.add_argument("--no-payload", action="store_true", help="testing mode: no payloads")
+    p.add_argument(
+        "--script", action="store_true", help="station: play the mission's operator script"
+    )
+    p.add_argument("--no-console", action="store_true", help="station: ignore the terminal")
+    p.add_argument("--plain", action="store_true", help="status lines, not a screen")
+    p.add_argument("--until", type=_period_s, metavar="SECONDS", help="stop after this long")
+    p.add_argument("--loop-hz", type=_period_s, metavar="HZ", help="instead of mission.loop_hz")
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser(
+        "check", help="check an agent's autopilot, radio or payload (thesis 2.3.1-2.3.3)"
+    )
+    p.add_argument("what", choices=("autopilot", "radio", "payload"), help="the interface")
+    _interface_options(p)
+    p.add_argument(
+        "--seconds",
+        type=_period_s,
+        default=5.0,
+        metavar="SECONDS",
+        help="how long to watch (5 by default)",
+    )
+    p.set_defaults(func=cmd_check)
     return parser
 
 

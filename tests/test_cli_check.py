@@ -1,0 +1,95 @@
+"""clark check: the module test tools, against real peers on loopback."""
+
+from __future__ import annotations
+
+import socket
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+from clark_engine.cli import main
+
+ROOT = Path(__file__).resolve().parent.parent
+MISSION = ROOT / "missions" / "cooperative_follow.yaml"
+
+
+def test_check_radio_hears_a_udp_peer(capsys: object) -> None:
+    peer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    own = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    own.bind(("127.0.0.1", 0))
+    port = own.getsockname()[1]
+    own.close()
+    stop = threading.Event()
+
+    def chatter() -> None:
+        while not stop.wait(0.1):
+            peer.sendto(b"not clarklink", ("127.0.0.1", port))
+
+    thread = threading.Thread(target=chatter)
+    thread.start()
+    try:
+        code = main(
+            [
+                "check",
+                "radio",
+                str(MISSION),
+                "--agent",
+                "mcs",
+                "--radio",
+                "udp",
+                "--radio-address",
+                f"127.0.0.1:{port}",
+                "--seconds",
+                "1",
+            ]
+        )
+    finally:
+        stop.set()
+        thread.join()
+        peer.close()
+    out = capsys.readouterr().out  # type: ignore[attr-defined]
+    assert code == 0, out
+    assert f"own address 127.0.0.1:{port}" in out
+    assert "not a ClarkLink packet" in out
+
+
+def test_usage_errors_exit_2() -> None:
+    for argv in (
+        ["check", "radio", str(MISSION)],  # no --agent
+        ["check", "radio", str(MISSION), "--agent", "nobody"],
+        ["run", str(MISSION), "--agent", "slash_b", "--autopilot-connection", "bogus"],
+        ["run", "no-such-mission.yaml", "--agent", "mcs"],
+        ["check", "autopilot", str(MISSION), "--agent", "mcs"],  # a station has none
+    ):
+        result = subprocess.run(
+            [sys.executable, "-m", "clark_engine", *argv],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert result.returncode == 2, (argv, result.stderr)
+        assert "Traceback" not in result.stderr
+
+
+def test_check_autopilot_fails_with_1_when_nobody_answers() -> None:
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", 0))
+    port = sock.getsockname()[1]
+    try:
+        code = main(
+            [
+                "check",
+                "autopilot",
+                str(MISSION),
+                "--agent",
+                "slash_b",
+                "--autopilot-connection",
+                f"udpout:127.0.0.1:{port}",
+                "--seconds",
+                "1",
+            ]
+        )
+    finally:
+        sock.close()
+    assert code == 1
