@@ -833,6 +833,40 @@ class AgentRuntime:
             return vehicle.ground_speed_m_s if vehicle is not None else None
         return None
 
+    def terminate(self, now_s: float, reason: str) -> list[Command]:
+        """Run this agent's own terminate sequence now and return the commands it produced.
+
+        What a shell calls when it stops (SIGINT, SIGTERM, the end of a timed run): the
+        same sequence a station's terminate command runs (thesis 7.3.5), for this agent
+        only, with nothing sent to any other agent's behaviour: the primitives stopped
+        (what they emit to hand control back is kept), the vehicle to its terminal mode,
+        a last heartbeat, :class:`CloseInterfaces`; the logbook is closed. Commands
+        queued before and not yet drained are dropped, except packets.
+
+        Args:
+            now_s: The runtime's time.
+            reason: Why, for the mission log (``SIGTERM``, ``--until``).
+
+        Returns:
+            The commands to carry out; empty when the runtime already terminated.
+        """
+        if self.terminated:
+            return []
+        self._set_time(now_s)
+        if not self.logbook.closed:
+            self.logbook.mission.warning("terminating: %s", reason)
+        self._terminate(now_s, None)
+        return self._drain()
+
+    @property
+    def behaviour_started(self) -> bool:
+        """True once the launch gate opened and the behaviour (state machine) started.
+
+        Before then the agent waits for readiness, arming or take-off as its mission
+        says; a status display shows that rather than an empty state.
+        """
+        return self._started
+
     @property
     def autopilot_lost(self) -> bool:
         """True from the autopilot's timeout to its next VehicleState: vehicle commands dropped."""

@@ -112,22 +112,6 @@ def gps_epoch_ms(unix_time_s: float) -> int:
     return gps_time_ms_from_unix_us(round(unix_time_s * 1e6))
 
 
-def terminate_runtime(runtime: AgentRuntime, now_s: float) -> list[Command]:
-    """Run the runtime's own terminate sequence (thesis 7.3.5) and return its commands.
-
-    The runtime has no public way for its shell to terminate it (a station's operator
-    command terminates the whole fleet, and a vehicle ignores it), so this calls its
-    terminate step and drains its commands: stopping the primitives, the terminal
-    mode, a last heartbeat, CloseInterfaces; the logbook is closed by it. A public
-    ``AgentRuntime.terminate(now_s)`` returning those commands would replace this.
-    """
-    if runtime.terminated:
-        return []
-    runtime._set_time(now_s)
-    runtime._terminate(now_s, None)
-    return runtime._drain()
-
-
 @dataclass(slots=True)
 class ShellStats:
     """What the loop counted since it started.
@@ -673,11 +657,9 @@ class RealtimeShell:
         runtime = self.runtime
         if not runtime.terminated:
             if not runtime.logbook.closed:
-                runtime.logbook.mission.warning(
-                    "real-time shell stopping (%s): terminating", self.stopped_by or "stop"
-                )
                 runtime.logbook.interface.info("real-time shell: %s", self.summary())
-            self._carry_out(terminate_runtime(runtime, now), now)
+            reason = f"real-time shell stopping ({self.stopped_by or 'stop'})"
+            self._carry_out(runtime.terminate(now, reason), now)
         link = self.autopilot
         if link is not None and link.transport is not None:
             self._to_autopilot(link.adapter.close(now), now)
