@@ -93,3 +93,94 @@ def test_check_autopilot_fails_with_1_when_nobody_answers() -> None:
     finally:
         sock.close()
     assert code == 1
+
+
+def _free_port() -> int:
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", 0))
+    port = int(sock.getsockname()[1])
+    sock.close()
+    return port
+
+
+def test_check_radio_fails_when_an_expected_peer_is_silent(capsys: object) -> None:
+    own, silent = _free_port(), _free_port()
+    code = main(
+        [
+            "check",
+            "radio",
+            str(MISSION),
+            "--agent",
+            "mcs",
+            "--radio",
+            "udp",
+            "--radio-address",
+            f"127.0.0.1:{own}",
+            "--peer",
+            f"slash_b=127.0.0.1:{silent}",
+            "--seconds",
+            "0.5",
+        ]
+    )
+    out = capsys.readouterr().out  # type: ignore[attr-defined]
+    assert code == 1, out
+    assert "radio: FAILED: nothing heard in 0.5 s from slash_b" in out
+
+
+def test_check_radio_says_plainly_when_it_heard_nothing_and_expected_nobody(
+    capsys: object,
+) -> None:
+    code = main(
+        [
+            "check",
+            "radio",
+            str(MISSION),
+            "--agent",
+            "mcs",
+            "--radio",
+            "udp",
+            "--radio-address",
+            f"127.0.0.1:{_free_port()}",
+            "--seconds",
+            "0.5",
+        ]
+    )
+    out = capsys.readouterr().out  # type: ignore[attr-defined]
+    assert code == 0, out
+    assert "NOTHING was heard" in out and "--peer" in out
+
+
+def test_a_radio_that_cannot_open_at_start_exits_2() -> None:
+    taken = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    taken.bind(("127.0.0.1", 0))
+    port = taken.getsockname()[1]
+    try:
+        result = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "clark_engine",
+                "run",
+                str(MISSION),
+                "--agent",
+                "mcs",
+                "--radio",
+                "udp",
+                "--radio-address",
+                f"127.0.0.1:{port}",
+                "--no-console",
+                "--until",
+                "1",
+                "--logs",
+                "/nonexistent-never-created",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+    finally:
+        taken.close()
+    assert result.returncode == 2, result.stderr
+    assert "cannot open mcs's radio" in result.stderr
+    assert "--no-radio" in result.stderr
+    assert "Traceback" not in result.stderr

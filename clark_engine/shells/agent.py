@@ -165,8 +165,8 @@ def radio_factory(
         own = options.radio_address
         if own is None and options.radio_link is None:
             own = profile.get("address")
-        addresses = [a for a in peers.values() if _is_host_port(a)]
-        if own is not None and not _is_host_port(own):
+        addresses = [a for a in peers.values() if is_host_port(a)]
+        if own is not None and not is_host_port(own):
             raise UsageError(
                 f"radio address {own!r} is not host:port; give --radio-address for a UDP radio"
             )
@@ -205,7 +205,8 @@ def radio_factory(
     raise UsageError(f"radio link {kind!r} is not one this engine drives; use udp or xbee")
 
 
-def _is_host_port(text: str) -> bool:
+def is_host_port(text: str) -> bool:
+    """True when ``text`` is a ``host:port`` address (a UDP radio's kind of address)."""
     try:
         parse_address(text)
     except TransportError:

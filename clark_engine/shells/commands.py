@@ -22,8 +22,10 @@ from clark_engine.shells.agent import (
     RunOptions,
     autopilot_link,
     connection_from_text,
+    is_host_port,
     open_agent,
     radio_factory,
+    radio_kind,
 )
 
 EXIT_OK = 0
@@ -132,7 +134,15 @@ def run(args: Any, out: TextIO | None = None) -> int:
     if args.script and config.role != "mcs":
         raise UsageError("--script plays the station's operator script: run it on the station")
     options = run_options(args, config, key_folder)
-    shell = open_agent(config, options)
+    from clark_engine.io.radio import RadioError
+
+    try:
+        shell = open_agent(config, options)
+    except RadioError as exc:  # an I/O error at the start: exit 2, never a silent retry
+        raise UsageError(
+            f"cannot open {config.agent}'s radio: {exc}; check its connection and address "
+            "(`clark check radio`), or run without it (--no-radio, testing mode)"
+        ) from None
     screen = out.isatty() and not args.plain
     view = StatusView(out, screen=screen)
     shell.on_tick.append(view)
@@ -253,6 +263,7 @@ def _check_radio(config: AgentConfig, options: RunOptions, seconds: float, out: 
     if made is None:
         raise UsageError(f"{config.agent} has no radio in its profile")
     factory, describe = made
+    expected = expected_peers(config, options)
     _say(out, f"radio: opening {describe}")
     try:
         radio = factory()
@@ -292,8 +303,38 @@ def _check_radio(config: AgentConfig, options: RunOptions, seconds: float, out: 
         )
     finally:
         radio.close()
+    if heard == 0 and expected:
+        _say(
+            out,
+            f"radio: FAILED: nothing heard in {seconds:g} s from {', '.join(expected)} "
+            "(are they running, on this network, with these addresses?)",
+        )
+        return EXIT_FAILED
+    if heard == 0:
+        _say(
+            out,
+            "radio: OK (opened and verified), but NOTHING was heard: no peer address this "
+            "radio can reach is known (give --peer NAME=ADDRESS to expect one)",
+        )
+        return EXIT_OK
     _say(out, "radio: OK")
     return EXIT_OK
+
+
+def expected_peers(config: AgentConfig, options: RunOptions) -> list[str]:
+    """The peers ``clark check radio`` expects to hear: those with an address its radio can use.
+
+    A UDP radio reaches ``host:port`` addresses only (the mission's XBee addresses are
+    not), an XBee radio the mission's (or ``--peer``'s) addresses; a peer is expected
+    when it has one, since it is then meant to be on the air.
+    """
+    profile = config.raw["agent"]["hardware"].get("radio") or {}
+    kind = radio_kind(profile, options.radio_link)
+    addresses = {p.name: p.radio_address for p in config.peers if p.radio_address}
+    addresses.update(options.peers)
+    if kind == "udp":
+        return sorted(name for name, address in addresses.items() if is_host_port(address))
+    return sorted(addresses)
 
 
 def _check_payload(config: AgentConfig, seconds: float, out: TextIO) -> int:
