@@ -137,7 +137,7 @@ def text(path: Path) -> str:
 
 
 def clark_run(
-    agent: str, logs: Path, own: int, peer: str, port: int, *extra: str
+    agent: str, logs: Path, own: int, peer: str, port: int, *extra: str, mission: Path = MISSION
 ) -> subprocess.Popen[str]:
     return subprocess.Popen(
         [
@@ -145,7 +145,7 @@ def clark_run(
             "-m",
             "clark_engine",
             "run",
-            str(MISSION),
+            str(mission),
             "--agent",
             agent,
             "--radio",
@@ -273,3 +273,36 @@ def test_check_autopilot_against_the_served_simulated_autopilot(
     assert "heartbeat: " in out and "state: mode " in out
     assert "autopilot: heartbeat yes; verified yes" in out
     assert out.rstrip().endswith("autopilot: OK")
+
+
+def test_the_station_plays_the_missions_operator_script(tmp_path: Path) -> None:
+    """--script: the station sends the mission's operator entries at their times."""
+    mission = tmp_path / "follow.yaml"
+    text_in = MISSION.read_text(encoding="utf-8")
+    assert "{at_s: 65, activate: slash_b}" in text_in
+    mission.write_text(
+        text_in.replace("{at_s: 65, activate: slash_b}", "{at_s: 1, activate: slash_b}")
+    )
+    logs = tmp_path / "logs"
+    station_port, vehicle_port = free_ports(2)
+    processes: list[subprocess.Popen[str]] = []
+    try:
+        station = clark_run(
+            "mcs", logs, station_port, "slash_b", vehicle_port, "--script", mission=mission
+        )
+        processes.append(station)
+        started(station)
+        assert station.stdout is not None
+        said = ""
+        deadline = time.monotonic() + TIMEOUT_S
+        while "script at 1 s: activate slash_b" not in said and time.monotonic() < deadline:
+            ready, _, _ = select.select([station.stdout], [], [], 0.5)
+            if ready:
+                said += station.stdout.readline()
+        assert "script at 1 s: activate slash_b" in said, said
+        code, _out, err = stop(station)
+    finally:
+        kill(processes)
+    assert code == 0, err
+    assert "Traceback" not in err
+    assert "operator: activate slash_b" in text(logs / "mcs.mission.log")  # the runtime sent it
