@@ -53,6 +53,7 @@ from __future__ import annotations
 import argparse
 import csv
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -74,13 +75,19 @@ START_TIMEOUT_S = 30.0
 LATENCY_RATES_HZ = (1.0, 5.0, 10.0, 50.0)
 HOLD_RATES_HZ = (100.0, 200.0, 500.0, 1000.0)
 CLK_TCK = os.sysconf("SC_CLK_TCK")
+_STOPPED = re.compile(r"(\d+) ticks at .*?(\d+) overrun\(s\) \((\d+) deadline")
 
 
 # -- missions --------------------------------------------------------------------------------
 
 
 def mission_text(
-    agents: int, loop_hz: float, telemetry_hz: float, radios: Sequence[str] | None = None
+    agents: int,
+    loop_hz: float,
+    telemetry_hz: float,
+    radios: Sequence[str] | None = None,
+    *,
+    xbee_air: bool = False,
 ) -> str:
     """A mission: station ``mcs`` and vehicles ``r2``...; each broadcasts heartbeats.
 
@@ -89,6 +96,8 @@ def mission_text(
         loop_hz: ``mission.loop_hz``; every computer is declared to hold it.
         telemetry_hz: Each agent's heartbeat rate.
         radios: Emulated XBee ports, one per agent (None: UDP radios).
+        xbee_air: Keep the 900HP's 33 kbit/s; else the radio is declared as fast as the
+            emulator's instantaneous air (clark validate's link budget would refuse 50 Hz).
     """
     computer = f"computer: {{max_loop_hz: {max(loop_hz, 1000.0):g}}}"
     lines = [
@@ -108,7 +117,8 @@ def mission_text(
         else:
             radio = (
                 f'{{profile: xbee_pro_900hp, address: "{xbee_address(i)}", '
-                f'connection: {{kind: serial, device: "{radios[i - 1]}", baud_bps: 115200}}}}'
+                f'connection: {{kind: serial, device: "{radios[i - 1]}", baud_bps: 115200}}'
+                + ("}" if xbee_air else ", throughput_bps: 10000000}")
             )
         lines += [
             f"  {name}:",
@@ -350,7 +360,9 @@ def measure_latency(
 
             emulator = (XBeeEmulator() if xbee_air else XBeeEmulator(throughput_bps=None)).start()
             ports = [emulator.add_radio(xbee_address(i)).port for i in (1, 2)]
-        mission.write_text(mission_text(2, rate_hz, rate_hz, ports), encoding="utf-8")
+        mission.write_text(
+            mission_text(2, rate_hz, rate_hz, ports, xbee_air=xbee_air), encoding="utf-8"
+        )
         warm_s = 1.0
         run = start_agents(mission, logs, 2, seconds + warm_s + 1.0, udp=not xbee, loop_hz=rate_hz)
         time.sleep(warm_s)
@@ -390,11 +402,10 @@ class Hold:
 
 def parse_stopped(line: str) -> tuple[int, int, int]:
     """(ticks, overruns, skipped) from ``clark run: stopped (...): N ticks at ...``."""
-    words = line.split(": ", 2)[2].replace("(", " ").split()
-    ticks = int(words[0])
-    overruns = int(words[words.index("overrun(s)") - 1])
-    skipped = int(words[words.index("deadline(s)") - 1])
-    return ticks, overruns, skipped
+    found = _STOPPED.search(line)
+    if found is None:
+        raise RuntimeError(f"not a clark run summary: {line!r}")
+    return int(found[1]), int(found[2]), int(found[3])
 
 
 def measure_hold(rate_hz: float, seconds: float, telemetry_hz: float, work: Path) -> Hold:
