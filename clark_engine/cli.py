@@ -326,26 +326,25 @@ def _workers(text: str) -> int | None:
     return value
 
 
-def _period_s(text: str) -> float:
-    """A positive, finite number of seconds; anything else is a usage error (exit 2)."""
+def _positive(text: str, refusal: str) -> float:
+    """``text`` as a finite number above 0; otherwise a usage error (exit 2) saying ``refusal``."""
     try:
         value = float(text)
     except ValueError:
         value = float("nan")
     if not 0 < value < float("inf"):
-        raise argparse.ArgumentTypeError(f"{text!r} is not a positive number of seconds")
+        raise argparse.ArgumentTypeError(refusal.format(text=text))
     return value
+
+
+def _period_s(text: str) -> float:
+    """A positive, finite number of seconds (or hertz)."""
+    return _positive(text, "{text!r} is not a positive number of seconds")
 
 
 def _speed(text: str) -> float:
-    """A speed-up factor: a finite number above 0; anything else is a usage error (exit 2)."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not 0 < value < float("inf"):
-        raise argparse.ArgumentTypeError(f"must be a number > 0, not {text!r}")
-    return value
+    """A speed-up factor: a finite number above 0."""
+    return _positive(text, "must be a number > 0, not {text!r}")
 
 
 def _seed(text: str) -> int:
