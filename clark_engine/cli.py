@@ -375,6 +375,20 @@ def cmd_payload_sim(args: argparse.Namespace) -> int:
     )
 
 
+def cmd_autopilot_sim(args: argparse.Namespace) -> int:
+    """Serve one vehicle's autopilot (simulated, or ArduPilot SITL) for `clark run`."""
+    from clark_engine.sim.served import serve_vehicle
+
+    return serve_vehicle(args)
+
+
+def cmd_radio_sim(args: argparse.Namespace) -> int:
+    """Emulate the mission's XBee radios on pseudo-terminals for `clark run`."""
+    from clark_engine.sim.xbee_network import serve_network
+
+    return serve_network(args)
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     """Run one agent on its real interfaces (the real-time shell) until stopped."""
     from clark_engine.shells.commands import run
@@ -404,6 +418,12 @@ def _interface_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--radio-address", metavar="ADDRESS", help="this agent's radio address (udp: HOST:PORT)"
+    )
+    p.add_argument(
+        "--radio-device",
+        metavar="DEVICE",
+        help="an XBee's serial device, instead of the profile's (/dev/ttyUSB0; an emulated "
+        "radio's path from `clark radio-sim xbee`)",
     )
     p.add_argument(
         "--peer",
@@ -610,6 +630,57 @@ def build_parser() -> argparse.ArgumentParser:
         help="time between connection attempts while the server is away (1 by default)",
     )
     p.set_defaults(func=cmd_payload_sim)
+
+    p = sub.add_parser(
+        "autopilot-sim",
+        help="serve one vehicle's autopilot (simulated or ArduPilot SITL) for `clark run`",
+    )
+    p.add_argument("mission", metavar="MISSION", help="the mission file")
+    p.add_argument("--agent", required=True, metavar="NAME", help="the vehicle")
+    p.add_argument(
+        "--autopilot",
+        choices=("sim", "sitl"),
+        default="sim",
+        help="sim: the simulated autopilot on UDP (default); sitl: real ArduPilot SITL",
+    )
+    p.add_argument("--sitl", metavar="PATH", help="SITL folder or launcher ($CLARK_SITL)")
+    p.add_argument(
+        "--listen",
+        metavar="HOST:PORT",
+        help="sim: the UDP address it answers on (127.0.0.1:14550 by default)",
+    )
+    p.add_argument(
+        "--ready-s",
+        type=_period_s,
+        metavar="SECONDS",
+        help="sim: ready this long after power-on instead of the firmware's boot time",
+    )
+    p.add_argument("--until", type=_period_s, metavar="SECONDS", help="stop after this long")
+    p.set_defaults(func=cmd_autopilot_sim)
+
+    p = sub.add_parser(
+        "radio-sim", help="emulate the mission's XBee 900HP radios on pseudo-terminals"
+    )
+    p.add_argument("kind", choices=("xbee",), help="the radios to emulate")
+    p.add_argument("mission", metavar="MISSION", help="the mission file (its agents' addresses)")
+    p.add_argument(
+        "--dir", required=True, metavar="DIR", help="where each agent's radio appears as DIR/NAME"
+    )
+    p.add_argument(
+        "--loss", type=float, default=0.0, metavar="SHARE", help="share of frames lost (0..1)"
+    )
+    p.add_argument(
+        "--latency-s", type=float, default=0.0, metavar="SECONDS", help="added to every frame"
+    )
+    p.add_argument(
+        "--throughput-bps",
+        type=_period_s,
+        metavar="BPS",
+        help="the shared channel's throughput (the radio profile's, 33000, by default)",
+    )
+    p.add_argument("--seed", type=_seed, default=0, metavar="N", help="seeds the loss draws")
+    p.add_argument("--until", type=_period_s, metavar="SECONDS", help="stop after this long")
+    p.set_defaults(func=cmd_radio_sim)
 
     p = sub.add_parser("run", help="run one agent on its real interfaces (Ctrl-C stops)")
     _interface_options(p)

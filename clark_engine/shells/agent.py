@@ -69,6 +69,8 @@ class RunOptions:
             ``serial:DEVICE[:BAUD]``).
         radio_link: Overrides the profile's radio kind: ``udp`` or ``xbee``.
         radio_address: This agent's radio address (``127.0.0.1:15001`` for UDP).
+        radio_device: An XBee's serial device, over the profile's ``connection.device``
+            (``/dev/ttyUSB0``, or an emulated radio's pty from ``clark radio-sim xbee``).
         peers: Peer name -> radio address, over the mission's.
         key: The mission key, for an authenticated mission.
         loop_hz: Overrides the mission's loop rate (benchmarks).
@@ -83,6 +85,7 @@ class RunOptions:
     autopilot_connection: str | None = None
     radio_link: str | None = None
     radio_address: str | None = None
+    radio_device: str | None = None
     peers: dict[str, str] = field(default_factory=dict)
     key: bytes | None = None
     loop_hz: float | None = None
@@ -182,9 +185,12 @@ def radio_factory(
         from clark_engine.io.xbee import XBeeRadio
 
         connection = profile.get("connection") or {}
-        port = connection.get("device")
+        port = options.radio_device or connection.get("device")
         if not port:
-            raise UsageError("the radio profile's connection has no serial device")
+            raise UsageError(
+                "the radio profile's connection has no serial device; give --radio-device "
+                "(e.g. /dev/ttyUSB0)"
+            )
 
         def open_xbee() -> Radio:
             radio = XBeeRadio(

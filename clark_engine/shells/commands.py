@@ -58,7 +58,7 @@ def load_agent(path_text: str, agent: str | None) -> tuple[AgentConfig, list[dic
     if mission is None:
         for finding in result.errors:
             print(finding.format_text(), file=sys.stderr)
-        raise UsageError(f"{path_text} is not a valid mission; `clark validate {path_text}`")
+        raise ClarkError(f"{path_text} is not a valid mission; `clark validate {path_text}`")
     if agent is None:
         raise UsageError(
             f"--agent NAME is required with a mission; agents: {', '.join(mission.agents)}"
@@ -96,6 +96,15 @@ def run_options(args: Any, config: AgentConfig, key_folder: Path) -> RunOptions:
         )
     if args.autopilot_connection is not None:
         connection_from_text(args.autopilot_connection)  # a usage error before anything opens
+    radio_device = getattr(args, "radio_device", None)
+    if radio_device is not None:
+        profile = config.raw["agent"]["hardware"].get("radio")
+        if not profile:
+            raise UsageError(f"--radio-device: {config.agent} has no radio")
+        if radio_kind(profile, args.radio) != "xbee":
+            raise UsageError(
+                "--radio-device names an XBee's serial device: use it with --radio xbee"
+            )
     key = None
     if config.authenticated:
         from clark_engine.link.auth import KeyFileError, load_key
@@ -116,6 +125,7 @@ def run_options(args: Any, config: AgentConfig, key_folder: Path) -> RunOptions:
         autopilot_connection=args.autopilot_connection,
         radio_link=args.radio,
         radio_address=args.radio_address,
+        radio_device=getattr(args, "radio_device", None),
         peers=_peers(args.peer),
         key=key,
         loop_hz=getattr(args, "loop_hz", None),

@@ -96,6 +96,11 @@ class SimPilot:
             self._throttle is None or self._throttle_centred
         )
 
+    @property
+    def sees_ready(self) -> bool:
+        """The autopilot reports its pre-arm checks passed and a position: a pilot would arm."""
+        return self._prearm_ok and self._position_ok
+
     def write(self, data: bytes) -> None:
         """Where pymavlink puts the pilot's encoded frames."""
         self._out += data

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import signal
 import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -329,3 +330,53 @@ def stop_on_interrupt(stop: Callable[[], None]) -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+class StopFlag:
+    """A foreground tool's stop: true once SIGINT or SIGTERM came, or ``until_s`` passed.
+
+    ``clark autopilot-sim`` and ``clark radio-sim`` serve until a person (Ctrl-C) or a
+    service manager (SIGTERM) stops them, and then clean up (SITL stopped, links
+    removed); calling the flag polls it, :meth:`wait` sleeps on it.
+
+    Args:
+        until_s: Wall seconds after which it is true by itself; None: never.
+    """
+
+    def __init__(self, until_s: float | None = None) -> None:
+        self._deadline = None if until_s is None else time.monotonic() + until_s
+        self._event = threading.Event()
+
+    def __call__(self) -> bool:
+        """True once stopped (a signal, :meth:`set`, or the time is up)."""
+        if self._deadline is not None and time.monotonic() >= self._deadline:
+            self._event.set()
+        return self._event.is_set()
+
+    def set(self) -> None:
+        """Stop now."""
+        self._event.set()
+
+    def wait(self) -> None:
+        """Sleep until it is true."""
+        while not self():
+            left = None if self._deadline is None else self._deadline - time.monotonic()
+            self._event.wait(1.0 if left is None else max(0.0, min(1.0, left)))
+
+    def _on_signal(self, signum: int, frame: FrameType | None) -> None:
+        self._event.set()
+
+    @contextmanager
+    def on_signals(self) -> Iterator[None]:
+        """Within the block, SIGINT and SIGTERM set the flag (from the main thread only)."""
+        if threading.current_thread() is not threading.main_thread():
+            yield
+            return
+        previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+        for sig in previous:
+            signal.signal(sig, self._on_signal)
+        try:
+            yield
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
