@@ -227,14 +227,26 @@ def cmd_keygen(args: argparse.Namespace) -> int:
 
 
 def cmd_analyze(args: argparse.Namespace) -> int:
-    """Print the message latency and loss per link from a folder of agents' logs."""
+    """Print the message latency and loss per link from a folder of agents' logs.
+
+    With ``--checks MISSION``, instead: the mission's checks judged on the logs
+    (:mod:`clark_engine.log_checks`), exit 1 when one fails.
+    """
     from clark_engine.analyze import analyze_folder, format_text
 
     folder = Path(args.logdir)
     if not folder.exists():
         raise UsageError(f"{folder}: no such folder")
+    if args.checks is not None:
+        from clark_engine.log_checks import run_log_checks
+
+        if args.period_s is not None:
+            raise UsageError("--period-s is for the latency report; it does not go with --checks")
+        return run_log_checks(
+            folder, Path(args.checks), json_format=args.format == "json", quiet=args.quiet
+        )
     analysis = analyze_folder(folder, args.period_s)
-    for problem in analysis.problems:
+    for problem in () if args.quiet else analysis.problems:
         print(f"clark analyze: warning: {problem.format_text()}", file=sys.stderr)
     if args.format == "json":
         print(json.dumps(analysis.to_json(), indent=2))
@@ -580,9 +592,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_keygen)
 
     p = sub.add_parser(
-        "analyze", help="message latency and loss per link from a folder of agents' logs"
+        "analyze",
+        parents=[quiet],
+        help="message latency and loss per link from a folder of agents' logs, or (with "
+        "--checks) a mission's checks judged on them",
     )
     p.add_argument("logdir", metavar="LOGDIR", help="folder with the agents' <agent>.messages.csv")
+    p.add_argument(
+        "--checks",
+        metavar="MISSION",
+        help="instead of the link tables: evaluate MISSION's checks on the logs (exit 1 when "
+        "one fails; a check the logs cannot support is 'not evaluated')",
+    )
     p.add_argument(
         "--format",
         choices=("text", "json"),
