@@ -59,9 +59,10 @@ from clark_engine.sim.sitl_backend import SitlBackend
 SITL_STEP_S: Final = 0.05
 """How far SITL's clock is let run between two looks at what its SERIAL0 sent."""
 
-PILOT_STREAMS: Final = ("SYS_STATUS", "EKF_STATUS_REPORT", "GLOBAL_POSITION_INT")
+PILOT_STREAMS: Final = ("SYS_STATUS", "EKF_STATUS_REPORT", "GLOBAL_POSITION_INT", "SYSTEM_TIME")
 """What the pilot reads on SERIAL0 (EXTENDED_SYS_STATE too, for a copter): asked for at
-1 Hz, since on SERIAL0 nobody else asks (in a dry run the engine's adapter does)."""
+1 Hz, since on SERIAL0 nobody else asks (in a dry run the engine's adapter does).
+SYSTEM_TIME tells how far SITL's GPS clock is from this machine's."""
 
 PILOT_STREAM_INTERVAL_US: Final = 1_000_000
 STREAM_RETRY_S: Final = 1.0
@@ -243,15 +244,30 @@ class ServedSitl:
         self.backend.start_run_here()
         announce = _Announcer(self.name, self.pilot, say)
         t_s = 0.0
+        clock_said = False
         while not stopped():
             t_s += SITL_STEP_S
             data = self.backend.step(t_s, SITL_STEP_S)
             for msg in self._parser.parse_buffer(data) or []:
                 self._streams.discard(msg.get_type())
+                if not clock_said and msg.get_type() == "SYSTEM_TIME" and msg.time_unix_usec:
+                    clock_said = True
+                    say(self._clock_note(msg.time_unix_usec / 1e6 - time.time()))
             self._ask_streams(t_s)
             if not self.pilot.done:
                 self.pilot.hear(data, t_s)
             announce(t_s)
+
+    def _clock_note(self, ahead_s: float) -> str:
+        """Says how far SITL's GPS clock is from this machine's (``ahead_s`` > 0: ahead).
+
+        SITL's GPS time is the wall clock when it started plus its simulated time, which
+        starts only when SERIAL0 is connected: it lags by SITL's start-up (0.2-1 s seen).
+        The agents' logs are tied together by GPS time, so their latencies and
+        ``clark analyze --checks``'s clocks carry this offset; real GPS receivers agree.
+        """
+        way = "ahead of" if ahead_s > 0 else "behind"
+        return f"{self.name}: SITL's GPS clock is {abs(ahead_s):.2f} s {way} this machine's"
 
     def close(self) -> None:
         """Stop SITL."""
