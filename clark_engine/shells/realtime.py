@@ -22,6 +22,13 @@ shell owns time and I/O around it, one process per agent, single-threaded around
   radio (unicast to the peer's radio address, broadcast when the destination is every
   agent), :class:`~clark_engine.runtime.commands.PayloadCommand` to the payload, and
   :class:`~clark_engine.runtime.commands.CloseInterfaces` by ending the loop.
+- It waits to the microsecond: Linux's default selector (epoll) counts its timeout in
+  whole milliseconds, which Python rounds up, so a wait for 1.3 ms lasts 2 ms and more.
+  At 500 Hz that made a tick start 0.6 ms late at the median, a third of the period
+  gone before any scheduling delay (``docs/performance.md``). With an epoll selector,
+  the shell waits on the epoll descriptor itself with :func:`select.select`, whose
+  timeout is in microseconds, then collects the events without waiting
+  (:func:`_precise_wait`).
 - An autopilot transport or a radio that fails is closed and opened again from the
   loop, with a growing back-off (:data:`REOPEN_BACKOFF_S`), counted and logged; the
   loop never stops for it (the runtime's ``autopilot_lost`` takes care of safety).
@@ -49,6 +56,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
+import select
 import selectors
 import signal
 import socket
@@ -57,7 +65,7 @@ import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from types import FrameType
-from typing import Final
+from typing import Final, cast
 
 from clark_engine.io.autopilot import AutopilotAdapter, gps_time_ms_from_unix_us
 from clark_engine.io.payload import PayloadAdapter
@@ -101,6 +109,21 @@ _DUE_TOLERANCE_S: Final = 1e-6
 """A deadline this close is due: a wait never ends on the exact float of its deadline."""
 
 Clock = Callable[[], float]
+
+_SelectorEvents = list[tuple[selectors.SelectorKey, int]]
+
+
+def _precise_wait(selector: selectors.EpollSelector, timeout_s: float) -> _SelectorEvents:
+    """``selector.select(timeout_s)`` to the microsecond rather than the millisecond.
+
+    epoll counts its timeout in whole milliseconds (rounded up), :func:`select.select`
+    in microseconds; the epoll descriptor is readable when any descriptor it watches
+    is ready, so the wait is done by ``select`` on it and the events are collected by
+    epoll without waiting. Raises ValueError when the descriptor is too high for
+    ``select`` (FD_SETSIZE); the caller then waits on epoll alone.
+    """
+    readable, _, _ = select.select([selector.fileno()], [], [], timeout_s)
+    return selector.select(0) if readable else []
 
 
 class ShellAborted(Exception):
@@ -250,6 +273,8 @@ class RealtimeShell:
         self.clock = clock
         self.origin_s = clock() if origin_s is None else origin_s
         self.selector = selector if selector is not None else selectors.DefaultSelector()
+        #: Waits to the microsecond on an epoll selector (:func:`_precise_wait`).
+        self._precise = isinstance(self.selector, selectors.EpollSelector)
         self.log = logger if logger is not None else runtime.logbook.interface
         self.stats = ShellStats()
         self.start_s: float | None = None
@@ -404,7 +429,7 @@ class RealtimeShell:
         retry = self._next_retry_s()
         if retry is not None:
             timeout_s = max(0.0, min(timeout_s, retry - self.now()))
-        ready = self.selector.select(timeout_s)
+        ready = self._select(timeout_s)
         self.stats.wakeups += 1
         now = self.now()
         for key, _mask in ready:
@@ -434,6 +459,14 @@ class RealtimeShell:
                 self._from_payload(name, now)
         if retry is not None:
             self._retry_links(now)
+
+    def _select(self, timeout_s: float) -> _SelectorEvents:
+        if self._precise and timeout_s > 0:
+            try:
+                return _precise_wait(cast(selectors.EpollSelector, self.selector), timeout_s)
+            except ValueError:  # a descriptor above select()'s FD_SETSIZE: epoll alone
+                self._precise = False
+        return self.selector.select(timeout_s)
 
     # -- inputs -----------------------------------------------------------------------------
 
