@@ -45,3 +45,18 @@ def _no_network(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
 def root() -> Path:
     """The repository root."""
     return ROOT
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Run the slow tests (real ArduPilot SITL, real-time rehearsals, wheels) first.
+
+    `make test` spreads the suite over the machine's cores (pytest-xdist, `-n auto`); a
+    long test dealt out last would keep one core busy while the others idle, so they are
+    dealt out first. The order of the rest is unchanged (the sort is stable), and every
+    test is independent of order.
+    """
+    items.sort(
+        key=lambda item: (
+            0 if item.get_closest_marker("sitl") or item.get_closest_marker("slow") else 1
+        )
+    )
