@@ -1,8 +1,9 @@
-"""The real-time shell's timing aids: microsecond waits on epoll. No assertion here is
-about wall-clock time."""
+"""The real-time shell's timing aids: microsecond waits on epoll, the frozen start-up heap.
+No assertion here is about wall-clock time."""
 
 from __future__ import annotations
 
+import gc
 import select
 import selectors
 import socket
@@ -118,3 +119,25 @@ def test_other_selectors_are_used_as_they_are() -> None:
     shell, _clock = _fake_shell()
     assert shell.run(max_ticks=5) == 0
     assert shell.stats.ticks == 5
+
+
+# -- the start-up heap, frozen while the loop runs ---------------------------------------------
+
+
+def test_the_start_up_heap_is_frozen_while_the_loop_runs_and_released_after() -> None:
+    before = gc.get_freeze_count()
+    shell, _clock = _fake_shell()
+    seen: list[int] = []
+    shell.on_tick.append(lambda _shell, _now: seen.append(gc.get_freeze_count()))
+    shell.run(max_ticks=3)
+    assert seen and min(seen) > before
+    assert gc.get_freeze_count() == before
+
+
+def test_gc_freeze_false_leaves_the_collector_alone() -> None:
+    before = gc.get_freeze_count()
+    shell, _clock = _fake_shell(gc_freeze=False)
+    seen: list[int] = []
+    shell.on_tick.append(lambda _shell, _now: seen.append(gc.get_freeze_count()))
+    shell.run(max_ticks=3)
+    assert seen == [before] * 3
