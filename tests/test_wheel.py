@@ -1,4 +1,5 @@
-"""The wheel ships the data folders: an install outside the repo validates the examples."""
+"""The wheel ships the data folders and the station view's page: an install outside the
+repo validates the examples and serves the page with its vendored map library."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import subprocess
 import sys
 import sysconfig
 import venv
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -40,6 +42,17 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> Path:
     )
     assert built.returncode == 0, built.stderr
     (wheel,) = dist.glob("clark_engine-*.whl")
+    shipped = set(zipfile.ZipFile(wheel).namelist())
+    for page_file in (
+        "clark_engine/gcs/static/index.html",
+        "clark_engine/gcs/static/app.js",
+        "clark_engine/gcs/static/style.css",
+        "clark_engine/gcs/static/vendor/leaflet/leaflet.js",
+        "clark_engine/gcs/static/vendor/leaflet/leaflet.css",
+        "clark_engine/gcs/static/vendor/leaflet/LICENSE",
+        "clark_engine/gcs/static/vendor/leaflet/images/marker-icon.png",
+    ):
+        assert page_file in shipped, f"{page_file} is not in the wheel"
     env_dir = work / "venv"
     venv.EnvBuilder(with_pip=True).create(env_dir)
     python = env_dir / "bin" / "python"
@@ -95,3 +108,20 @@ def test_clark_validate_runs_from_outside_the_repo(installed: Path, tmp_path: Pa
     )
     assert compiled.returncode == 0, compiled.stderr
     assert (tmp_path / "out" / "cooperative-follow" / "slash_b.json").is_file()
+
+
+def test_installed_engine_serves_the_station_view_page(installed: Path, tmp_path: Path) -> None:
+    """The installed package finds its own page and Leaflet (no checkout, no internet)."""
+    probe = _run(
+        installed / "bin" / "python",
+        "-c",
+        "from clark_engine.gcs.server import STATIC_DIR; "
+        "print(STATIC_DIR); "
+        "print((STATIC_DIR / 'vendor/leaflet/leaflet.js').stat().st_size); "
+        "print('data-testid=\"agents\"' in (STATIC_DIR / 'index.html').read_text())",
+        cwd=tmp_path,
+    )
+    assert probe.returncode == 0, probe.stderr
+    folder, size, has_table = probe.stdout.split()
+    assert folder.startswith(str(installed)), folder
+    assert int(size) > 100_000 and has_table == "True"

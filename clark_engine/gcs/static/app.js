@@ -1,0 +1,373 @@
+/* Clark station view: the page's script. Plain JavaScript, no build step.
+ *
+ * It opens the WebSocket /ws of the page's own server (the token travels in the cookie
+ * the server set), draws `hello` (the mission, its agents, its plan) and each `state`
+ * (the agents, new track points, photos and mission-log lines, the commands and their
+ * lifecycle), and sends the operator's commands. Everything received is written as
+ * text (textContent), never as HTML. Protocol: docs/station-view.md.
+ */
+(function () {
+  "use strict";
+
+  var MAX_TRACK_POINTS = 5000; // per agent, on the map
+  var MAX_LOG_ITEMS = 500;
+  var RECONNECT_MS = 2000;
+  var PALETTE = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf",
+    "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22"];
+
+  var hello = null;
+  var stationStopped = false; // the server said so as it closed (code 1001)
+  var socket = null;
+  var nextRef = 1;
+  var map = null;
+  var layers = null;
+  var agentLayers = {}; // id -> {marker, heading, track, points}
+  var rows = {}; // name -> {row, cells, select}
+
+  function $(id) { return document.getElementById(id); }
+
+  function el(tag, attrs, text) {
+    var node = document.createElement(tag);
+    if (attrs) {
+      Object.keys(attrs).forEach(function (key) { node.setAttribute(key, attrs[key]); });
+    }
+    if (text !== undefined && text !== null) { node.textContent = String(text); }
+    return node;
+  }
+
+  // Leaflet writes a string tooltip as HTML: every tooltip is given a text node instead.
+  function text(value) { return el("span", null, value); }
+
+  function fixed(value, digits) {
+    return (value === null || value === undefined) ? "–" : Number(value).toFixed(digits);
+  }
+
+  function colourOf(agentId) {
+    var index = 0;
+    if (hello) {
+      hello.agents.forEach(function (a, i) { if (a.id === agentId) { index = i; } });
+    }
+    return PALETTE[index % PALETTE.length];
+  }
+
+  // -- connection ------------------------------------------------------------------------
+
+  function setConnection(kind, text) {
+    var node = $("connection");
+    node.className = "conn conn-" + kind;
+    node.textContent = text;
+  }
+
+  function connect() {
+    var scheme = location.protocol === "https:" ? "wss://" : "ws://";
+    setConnection("connecting", "connecting");
+    socket = new WebSocket(scheme + location.host + "/ws");
+    socket.onopen = function () { setConnection("open", "live"); };
+    socket.onmessage = function (event) {
+      var message;
+      try { message = JSON.parse(event.data); } catch (e) { return; }
+      if (message.type === "hello") { onHello(message); }
+      else if (message.type === "state") { onState(message); }
+      else if (message.type === "accepted") { showCommandError(""); }
+      else if (message.type === "error") { showCommandError("refused by the view: " + message.error); }
+    };
+    socket.onclose = function (event) {
+      if (event.code === 1001) { stationStopped = true; }
+      var why = stationStopped ? "the station stopped" : "disconnected";
+      setConnection("closed", why + "; retrying");
+      setControlsEnabled(false);
+      setTimeout(connect, RECONNECT_MS);
+    };
+  }
+
+  function send(command) {
+    if (!socket || socket.readyState !== WebSocket.OPEN) {
+      showCommandError("not connected");
+      return;
+    }
+    command.type = "command";
+    command.ref = nextRef++;
+    command.operator = $("operator").value.slice(0, 40);
+    socket.send(JSON.stringify(command));
+  }
+
+  function showCommandError(text) { $("command-error").textContent = text; }
+
+  function setControlsEnabled(enabled) {
+    var buttons = document.querySelectorAll("#fleet-pane button, #fleet-pane select");
+    Array.prototype.forEach.call(buttons, function (b) { b.disabled = !enabled; });
+  }
+
+  // -- hello -----------------------------------------------------------------------------
+
+  function onHello(message) {
+    hello = message;
+    stationStopped = false;
+    var mission = message.mission;
+    $("mission-name").textContent = mission.name + " (mission " + mission.id + ")";
+    $("mission-detail").textContent = "station " + message.station.name +
+      (mission.authenticated ? " · authenticated" : " · NOT authenticated") +
+      (message.plan_source ? " · plan from " + message.plan_source : " · no plan known");
+    buildTable(message.agents);
+    buildTerminateTargets(message.agents);
+    buildMap(message);
+    $("mission-log").textContent = "";
+    setControlsEnabled(true);
+  }
+
+  function buildTable(agents) {
+    var body = $("agents-body");
+    body.textContent = "";
+    rows = {};
+    agents.forEach(function (agent) {
+      var row = el("tr", { "data-testid": "agent-row-" + agent.name, "data-agent": agent.name });
+      var cells = {};
+      var controls = el("td", { "data-field": "controls", "class": "controls" });
+      ["name", "controls", "airframe", "liveness", "heard", "mode", "armed", "behaviour", "condition",
+        "local", "latlon", "alt", "speed", "heading", "link"].forEach(function (field) {
+        var cell = field === "controls" ? controls : el("td", { "data-field": field });
+        cells[field] = cell;
+        row.appendChild(cell);
+      });
+      cells.name.textContent = agent.name + " #" + agent.id;
+      cells.name.style.borderLeftColor = colourOf(agent.id);
+      cells.name.className = "agent-name";
+      cells.airframe.textContent = agent.airframe || (agent.role === "mcs" ? "station" : "–");
+      var select = null;
+      if (agent.role !== "mcs") {
+        var activate = el("button", { type: "button", "data-testid": "activate-" + agent.name }, "Activate");
+        activate.onclick = function () { send({ action: "activate", target: agent.name }); };
+        var deactivate = el("button", { type: "button", "data-testid": "deactivate-" + agent.name }, "Deactivate");
+        deactivate.onclick = function () { send({ action: "deactivate", target: agent.name }); };
+        controls.appendChild(activate);
+        controls.appendChild(deactivate);
+        if (agent.modes.length) {
+          select = el("select", { "data-testid": "mode-select-" + agent.name, "aria-label": "mode for " + agent.name });
+          agent.modes.forEach(function (mode) { select.appendChild(el("option", { value: mode.name }, mode.name)); });
+          var setMode = el("button", { type: "button", "data-testid": "mode-set-" + agent.name }, "Set mode");
+          setMode.onclick = function () { send({ action: "mode", target: agent.name, mode: select.value }); };
+          controls.appendChild(select);
+          controls.appendChild(setMode);
+        }
+      }
+      body.appendChild(row);
+      rows[agent.name] = { row: row, cells: cells, select: select };
+    });
+  }
+
+  function buildTerminateTargets(agents) {
+    var select = $("terminate-target");
+    select.textContent = "";
+    select.appendChild(el("option", { value: "all" }, "all (ends the mission)"));
+    agents.forEach(function (agent) {
+      if (agent.role !== "mcs") { select.appendChild(el("option", { value: agent.name }, agent.name)); }
+    });
+  }
+
+  // -- the map ---------------------------------------------------------------------------
+
+  function ll(point) { return [point.north_m, point.east_m]; }
+
+  function buildMap(message) {
+    if (map) { map.remove(); }
+    agentLayers = {};
+    map = L.map("map", { crs: L.CRS.Simple, minZoom: -6, maxZoom: 6, zoomSnap: 0.25, attributionControl: false });
+    L.control.scale({ metric: true, imperial: false, maxWidth: 150 }).addTo(map);
+    layers = { plan: L.layerGroup().addTo(map), tracks: L.layerGroup().addTo(map),
+      photos: L.layerGroup().addTo(map), agents: L.layerGroup().addTo(map) };
+    var bounds = L.latLngBounds([[0, 0], [0, 0]]);
+    L.circleMarker([0, 0], { radius: 3, color: "#444", weight: 1, fillOpacity: 1 })
+      .bindTooltip(text("origin")).addTo(layers.plan);
+    if (message.station.home) {
+      L.circleMarker(ll(message.station.home), { radius: 6, color: "#000", weight: 2, fillColor: "#fff", fillOpacity: 1 })
+        .bindTooltip(text("station " + message.station.name)).addTo(layers.plan);
+      bounds.extend(ll(message.station.home));
+    }
+    message.agents.forEach(function (agent) {
+      var colour = colourOf(agent.id);
+      if (agent.home) {
+        L.circleMarker(ll(agent.home), { radius: 4, color: colour, weight: 1, fillOpacity: 0.2 })
+          .bindTooltip(text(agent.name + " start")).addTo(layers.plan);
+        bounds.extend(ll(agent.home));
+      }
+      (message.plan[agent.name] || []).forEach(function (item) {
+        var points = item.points.map(ll);
+        points.forEach(function (p) { bounds.extend(p); });
+        if (item.kind === "tour") {
+          var path = item.loop ? points.concat([points[0]]) : points;
+          L.polyline(path, { color: colour, weight: item.survey ? 4 : 2, opacity: 0.6,
+            dashArray: item.survey ? null : "6 6" })
+            .bindTooltip(text(agent.name + ": " + (item.survey ? "survey line" : "tour") + " (" + item.state + ")"))
+            .addTo(layers.plan);
+        }
+        points.forEach(function (p, i) {
+          L.circleMarker(p, { radius: 3, color: colour, weight: 1, fillColor: colour, fillOpacity: 0.5 })
+            .bindTooltip(text(agent.name + " " + item.primitive + " " + (i + 1) + " (" + item.state + ")"))
+            .addTo(layers.plan);
+        });
+      });
+      var marker = L.circleMarker([0, 0], { radius: 8, color: "#000", weight: 2, fillColor: colour, fillOpacity: 0.9 });
+      marker.bindTooltip(text(agent.name), { permanent: true, direction: "right", offset: [10, 0], className: "agent-label" });
+      var heading = L.polyline([[0, 0], [0, 0]], { color: "#000", weight: 2 });
+      var track = L.polyline([], { color: colour, weight: 2, opacity: 0.8 }).addTo(layers.tracks);
+      agentLayers[agent.id] = { marker: marker, heading: heading, track: track, points: [], shown: false };
+    });
+    var padded = bounds.pad(0.2);
+    if (padded.getNorth() - padded.getSouth() < 20) { padded = L.latLngBounds([[-30, -30], [30, 30]]).extend(padded); }
+    map.fitBounds(padded);
+  }
+
+  function updateMap(message) {
+    message.track.forEach(function (point) {
+      var layer = agentLayers[point.agent];
+      if (!layer) { return; }
+      layer.points.push([point.north_m, point.east_m]);
+      if (layer.points.length > MAX_TRACK_POINTS) { layer.points.shift(); }
+    });
+    Object.keys(agentLayers).forEach(function (id) {
+      var layer = agentLayers[id];
+      layer.track.setLatLngs(layer.points);
+    });
+    message.photos.forEach(function (photo) {
+      L.circleMarker([photo.north_m, photo.east_m], { radius: 3, color: "#333", weight: 1, fillColor: "#ffd700", fillOpacity: 1 })
+        .bindTooltip(text("photo " + photo.image_index + " by #" + photo.agent + " at " + fixed(photo.alt_m, 1) + " m"))
+        .addTo(layers.photos);
+    });
+    message.agents.forEach(function (agent) {
+      var layer = agentLayers[agent.id];
+      if (!layer) { return; }
+      if (!agent.position) {
+        if (layer.shown) { layers.agents.removeLayer(layer.marker); layers.agents.removeLayer(layer.heading); layer.shown = false; }
+        return;
+      }
+      var p = [agent.position.north_m, agent.position.east_m];
+      var rad = (agent.position.heading_deg || 0) * Math.PI / 180;
+      var length = 6;
+      layer.marker.setLatLng(p);
+      layer.heading.setLatLngs([p, [p[0] + length * Math.cos(rad), p[1] + length * Math.sin(rad)]]);
+      var faded = agent.lost || agent.stale || agent.condition === "terminated";
+      layer.marker.setStyle({ fillOpacity: faded ? 0.3 : 0.9, dashArray: faded ? "3 3" : null });
+      layer.marker.setTooltipContent(text(agent.name + (agent.lost ? " (LOST)" : agent.stale ? " (STALE)" : "")));
+      if (!layer.shown) { layer.marker.addTo(layers.agents); layer.heading.addTo(layers.agents); layer.shown = true; }
+    });
+  }
+
+  // -- state -----------------------------------------------------------------------------
+
+  function liveness(agent) {
+    if (!agent.heard) { return ["not-heard", "not heard"]; }
+    // A terminated agent sends no more heartbeats: it turns stale, then lost, by design.
+    if (agent.condition === "terminated") { return ["terminated", agent.lost ? "TERMINATED (lost)" : "TERMINATED"]; }
+    if (agent.lost) { return ["lost", "LOST"]; }
+    if (agent.stale) { return ["stale", "STALE"]; }
+    return ["ok", "live"];
+  }
+
+  function onState(message) {
+    if (!hello) { return; }
+    var station = message.station;
+    $("station-clock").textContent = "t = " + fixed(message.t, 1) + " s" +
+      (station.terminated ? " · station TERMINATED" : "");
+    if (station.terminated) { setControlsEnabled(false); }
+    message.agents.forEach(updateRow);
+    updateMap(message);
+    updateLog(message.log);
+    updateCommands(message.commands);
+    updateChecks(message.checks);
+  }
+
+  function updateRow(agent) {
+    var entry = rows[agent.name];
+    if (!entry) { return; }
+    var c = entry.cells;
+    var live = liveness(agent);
+    entry.row.className = "agent agent-" + live[0];
+    entry.row.setAttribute("data-liveness", live[0]);
+    c.liveness.textContent = live[1];
+    c.heard.textContent = agent.since_heartbeat_s === null ? "never" : fixed(agent.since_heartbeat_s, 1) + " s ago";
+    c.mode.textContent = agent.mode ? (agent.mode.name || "?") + " (" + agent.mode.number + ")" : "–";
+    c.armed.textContent = agent.armed === null ? "unknown" : (agent.armed ? "ARMED" : "disarmed");
+    c.behaviour.textContent = agent.behaviour
+      ? (agent.behaviour.active.map(function (path) { return path || "(behaviour)"; }).join(", ") || "(none)") + (agent.behaviour.last_event ? " ← " + agent.behaviour.last_event : "")
+      : "–";
+    c.condition.textContent = agent.condition || "–";
+    c.condition.className = agent.condition && agent.condition !== "ok" ? "condition-bad" : "";
+    var pos = agent.position;
+    c.local.textContent = pos ? fixed(pos.north_m, 1) + ", " + fixed(pos.east_m, 1) : "–";
+    c.latlon.textContent = pos ? fixed(pos.lat, 7) + ", " + fixed(pos.lon, 7) : "–";
+    c.alt.textContent = pos ? fixed(pos.alt_m, 1) : "–";
+    c.speed.textContent = pos ? fixed(pos.ground_speed_m_s, 1) : "–";
+    c.heading.textContent = pos ? fixed(pos.heading_deg, 0) : "–";
+    var link = agent.link;
+    c.link.textContent = link
+      ? link.packets + " pkts, loss " + (link.loss_ratio === null ? "–" : (100 * link.loss_ratio).toFixed(1) + " %") +
+        ", " + (link.latency_mean_ms === null ? "–" : fixed(link.latency_mean_ms, 0) + " ms")
+      : "–";
+  }
+
+  function updateLog(lines) {
+    if (!lines.length) { return; }
+    var list = $("mission-log");
+    var atBottom = list.scrollTop + list.clientHeight >= list.scrollHeight - 4;
+    lines.forEach(function (line) {
+      var item = el("li", { "class": "log-" + String(line.level).toLowerCase(), "data-seq": line.seq });
+      item.appendChild(el("span", { "class": "log-time" }, fixed(line.t, 1)));
+      item.appendChild(el("span", { "class": "log-level" }, line.level));
+      item.appendChild(el("span", { "class": "log-text" }, line.text));
+      list.appendChild(item);
+    });
+    while (list.children.length > MAX_LOG_ITEMS) { list.removeChild(list.firstChild); }
+    $("log-count").textContent = "(last " + list.children.length + ")";
+    if (atBottom) { list.scrollTop = list.scrollHeight; }
+  }
+
+  function updateCommands(commands) {
+    var list = $("commands");
+    list.textContent = "";
+    commands.slice().reverse().forEach(function (command) {
+      var item = el("li", { "data-testid": "command-" + command.id, "data-status": command.status,
+        "class": "command command-" + command.status });
+      var what = command.action + " " + command.target + (command.mode ? " " + command.mode : "");
+      item.appendChild(el("span", { "class": "command-status" }, command.status));
+      item.appendChild(el("span", { "class": "command-what" }, "#" + command.id + " " + what));
+      item.appendChild(el("span", { "class": "command-by" },
+        "by " + (command.by.name || "(no name)") + " at " + command.by.address + ", t = " + fixed(command.sent_s, 1) + " s"));
+      if (command.detail) { item.appendChild(el("span", { "class": "command-detail" }, command.detail)); }
+      list.appendChild(item);
+    });
+  }
+
+  function updateChecks(checks) {
+    var list = $("checks");
+    $("checks-none").hidden = checks !== null && checks !== undefined;
+    list.textContent = "";
+    (checks || []).forEach(function (check) {
+      var item = el("li", { "data-status": check.status, "class": "check check-" + check.status });
+      item.textContent = check.status + ": " + check.name + (check.detail ? " (" + check.detail + ")" : "");
+      list.appendChild(item);
+    });
+  }
+
+  // -- controls --------------------------------------------------------------------------
+
+  function wireControls() {
+    var operator = $("operator");
+    try { operator.value = localStorage.getItem("clark-operator") || ""; } catch (e) { /* private mode */ }
+    operator.onchange = function () {
+      try { localStorage.setItem("clark-operator", operator.value.slice(0, 40)); } catch (e) { /* ignore */ }
+    };
+    $("activate-all").onclick = function () { send({ action: "activate", target: "all" }); };
+    $("deactivate-all").onclick = function () { send({ action: "deactivate", target: "all" }); };
+    var dialog = $("terminate-dialog");
+    $("terminate-open").onclick = function () { dialog.showModal(); };
+    $("terminate-cancel").onclick = function () { dialog.close(); };
+    $("terminate-confirm").onclick = function () {
+      send({ action: "terminate", target: $("terminate-target").value, confirm: true });
+      dialog.close();
+    };
+    setControlsEnabled(false);
+  }
+
+  wireControls();
+  connect();
+}());
