@@ -1,0 +1,728 @@
+"""The station view's web server: aiohttp on its own thread and event loop.
+
+The station's real-time loop is single-threaded and must never wait for the web
+(DESIGN.md, "The runtime loop"), so the server runs apart, on a thread of its own with
+its own :mod:`asyncio` loop, and the two meet at two points only:
+
+- **snapshots in** (:meth:`ViewServer.publish`, called on the loop's thread): the newest
+  snapshot replaces the previous one in a slot under a lock, its new track points,
+  photos and log lines are added to bounded lists, and the server's loop is woken with
+  :meth:`asyncio.AbstractEventLoop.call_soon_threadsafe` (once per batch, never once
+  per snapshot while a wake-up is pending). Nothing waits.
+- **commands out** (the ``on_command`` callback, called on the server's thread): every
+  command the page sends is checked here (every string from a browser is hostile:
+  bounded, known agents and modes only) and handed on as a
+  :class:`~clark_engine.gcs.model.CommandRequest`; :mod:`clark_engine.gcs.station`
+  queues it for the loop and wakes the loop through a pipe.
+
+Each WebSocket client has one sender task that sends ``hello``, then the newest state
+whenever there is a newer one: a slow client skips the states it had no time for
+rather than queueing them (newest wins), and is sent the track points, photos and log
+lines it has not had yet (each has a sequence number) from bounded histories
+(:data:`MAX_TRACK_POINTS`, :data:`MAX_PHOTOS`, :data:`MAX_LOG_LINES`).
+
+Security (docs/station-view.md, "Security"):
+
+- It binds 127.0.0.1 by default. A token is required whenever the bind address is not
+  loopback: :class:`ViewServer` refuses to start without one (a usage error, exit 2).
+- With a token, every request (the page, the static files, the WebSocket) must carry it:
+  ``?token=`` once (the page's URL; the server answers with a cookie for this port and
+  redirects to the URL without the token), then the cookie, or an ``X-Clark-Token``
+  header or ``Authorization: Bearer``. Anything else gets 403. Tokens are compared in
+  constant time.
+- On a loopback bind the ``Host`` header must name the loopback address and port
+  served (``127.0.0.1:P``, ``localhost:P``, ``[::1]:P``): a page of another site whose
+  name was made to resolve to 127.0.0.1 (DNS rebinding) is refused.
+- The WebSocket's ``Origin``, when a browser sends one, must be this server's own
+  (``http://`` + the request's ``Host``), so a page of another site cannot open the
+  WebSocket with the operator's cookie (cross-site WebSocket hijacking). Clients that
+  are not browsers send no Origin and pass this check (they still need the token).
+- The page is served with a strict Content-Security-Policy (its own scripts and styles
+  only), ``X-Frame-Options: DENY``, ``nosniff`` and ``Referrer-Policy: no-referrer``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import hmac
+import ipaddress
+import itertools
+import json
+import logging
+import math
+import socket
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Final
+from urllib.parse import quote
+
+from aiohttp import WSMsgType, web
+from aiohttp.typedefs import Handler
+
+from clark_engine.errors import UsageError
+from clark_engine.gcs.model import (
+    ACTIONS,
+    MAX_LOG_LINES,
+    CommandRequest,
+    Json,
+    Snapshot,
+    agent_names,
+    modes_of,
+)
+from clark_engine.untrusted import printable
+
+STATIC_DIR: Final = Path(__file__).resolve().parent / "static"
+"""The page, its script and style, and the vendored Leaflet."""
+
+DEFAULT_PORT: Final = 8080
+"""The port a :class:`ViewServer` serves when none is given."""
+
+MAX_TRACK_POINTS: Final = 20_000
+"""Track points kept for clients that connect later (all agents together)."""
+
+MAX_PHOTOS: Final = 2_000
+"""Photo positions kept for clients that connect later."""
+
+MAX_MESSAGE_BYTES: Final = 16 * 1024
+"""Largest WebSocket message accepted from a page; a larger one closes its connection."""
+
+MAX_NAME_CHARS: Final = 64
+"""Longest agent or mode name accepted in a command."""
+
+MAX_OPERATOR_CHARS: Final = 40
+"""Longest operator name kept (escaped, then cut)."""
+
+MAX_REF_CHARS: Final = 32
+"""Longest ``ref`` a page may attach to a command (echoed in the answer)."""
+
+MAX_CLIENTS: Final = 32
+"""WebSocket clients served at once; more are closed at once (code 1013)."""
+
+COMMANDS_PER_S: Final = 5.0
+"""Sustained commands a client may send; a burst of :data:`COMMAND_BURST` is allowed."""
+
+COMMAND_BURST: Final = 10
+
+MIN_TOKEN_CHARS: Final = 16
+"""Shortest token accepted: a token is a secret, not a password to remember."""
+
+MAX_TOKEN_CHARS: Final = 256
+
+TOKEN_HEADER: Final = "X-Clark-Token"
+
+STOP_FLUSH_S: Final = 1.0
+"""How long the server, when it stops, gives its clients to receive the last state."""
+
+_LOG = logging.getLogger(__name__)
+
+
+def is_loopback_host(host: str) -> bool:
+    """True for ``localhost`` and the loopback addresses (127.0.0.0/8, ::1)."""
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+def parse_view_address(text: str) -> tuple[str, int]:
+    """``[HOST:]PORT`` (``8080``, ``127.0.0.1:8080``, ``0.0.0.0:8080``, ``[::1]:8080``).
+
+    Raises:
+        UsageError: Not of that form, or a port outside 0-65535 (0 picks a free one).
+    """
+    host, sep, port_text = text.rpartition(":")
+    if not sep:
+        host, port_text = "127.0.0.1", text
+    host = host.strip()
+    if host.startswith("[") and host.endswith("]"):
+        host = host[1:-1]
+    if not host:
+        raise UsageError(f"--view {text!r}: give [HOST:]PORT, e.g. 8080 or 127.0.0.1:8080")
+    try:
+        port = int(port_text)
+    except ValueError:
+        raise UsageError(
+            f"--view {text!r}: the port must be a number (e.g. 8080; 0 picks a free one)"
+        ) from None
+    if not 0 <= port <= 65535:
+        raise UsageError(f"--view {text!r}: the port must be within 0-65535")
+    return host, port
+
+
+def check_token(token: str) -> str:
+    """The token, when it is usable: printable ASCII without spaces, 16-256 characters.
+
+    Raises:
+        UsageError: It is not.
+    """
+    if not MIN_TOKEN_CHARS <= len(token) <= MAX_TOKEN_CHARS:
+        raise UsageError(
+            f"the view token must be {MIN_TOKEN_CHARS}-{MAX_TOKEN_CHARS} characters long "
+            "(e.g. from `python -c 'import secrets; print(secrets.token_urlsafe(24))'`)"
+        )
+    if not all(33 <= ord(c) <= 126 for c in token):
+        raise UsageError("the view token must be printable ASCII without spaces")
+    return token
+
+
+@dataclass(eq=False)
+class _Client:
+    """One WebSocket client: what it has been sent, and its sender's wake-up."""
+
+    ws: web.WebSocketResponse
+    address: str
+    wake: asyncio.Event = field(default_factory=asyncio.Event)
+    replies: deque[str] = field(default_factory=lambda: deque(maxlen=64))
+    version: int = 0
+    track_seq: int = 0
+    photo_seq: int = 0
+    log_seq: int = 0
+    tokens: float = float(COMMAND_BURST)
+    refilled_s: float = field(default_factory=time.monotonic)
+
+    def allow_command(self) -> bool:
+        now = time.monotonic()
+        self.tokens = min(
+            float(COMMAND_BURST), self.tokens + (now - self.refilled_s) * COMMANDS_PER_S
+        )
+        self.refilled_s = now
+        if self.tokens < 1.0:
+            return False
+        self.tokens -= 1.0
+        return True
+
+
+@dataclass
+class _Pending:
+    """What the loop published since the server's loop last took it."""
+
+    state: Json | None = None
+    track: deque[Json] = field(default_factory=lambda: deque(maxlen=MAX_TRACK_POINTS))
+    photos: deque[Json] = field(default_factory=lambda: deque(maxlen=MAX_PHOTOS))
+    log: deque[Json] = field(default_factory=lambda: deque(maxlen=MAX_LOG_LINES))
+
+
+class CommandRejected(ValueError):
+    """A message from a page that is not a command the station may send.
+
+    Args:
+        reason: Why, in words safe to send back (it quotes nothing the page sent).
+        ref: The page's ``ref`` of the message, when it could be read.
+    """
+
+    def __init__(self, reason: str, ref: str | int | None = None) -> None:
+        super().__init__(reason)
+        self.ref = ref
+
+
+def parse_command(
+    text: str, hello: Mapping[str, Any], *, command_id: int, address: str
+) -> tuple[CommandRequest, str | int | None]:
+    """Check one message from a page; returns the command and the page's ``ref``.
+
+    Everything in it is hostile until checked: it must be a JSON object of at most
+    :data:`MAX_MESSAGE_BYTES`, of ``"type": "command"``, with a known action, a target
+    that is an agent of the mission or ``"all"``, for ``mode`` a mode of that agent's
+    profile, for ``terminate`` ``"confirm": true``; the operator's name is escaped and
+    cut to :data:`MAX_OPERATOR_CHARS`.
+
+    Raises:
+        CommandRejected: Why it is not accepted (safe to show: it quotes nothing
+            longer than the bounds).
+    """
+    if len(text) > MAX_MESSAGE_BYTES:
+        raise CommandRejected("message too long")
+    try:
+        data = json.loads(text)
+    except (ValueError, RecursionError):
+        raise CommandRejected("not JSON") from None
+    if not isinstance(data, dict):
+        raise CommandRejected("not a JSON object")
+    ref = data.get("ref")
+    if not (
+        ref is None
+        or (isinstance(ref, int) and not isinstance(ref, bool) and abs(ref) < 2**53)
+        or (isinstance(ref, str) and len(ref) <= MAX_REF_CHARS and ref.isprintable())
+    ):
+        raise CommandRejected("ref must be a number or a short string")
+
+    def rejected(reason: str) -> CommandRejected:
+        return CommandRejected(reason, ref)
+
+    if data.get("type") != "command":
+        raise rejected("unknown message type (expected 'command')")
+    action = data.get("action")
+    if not isinstance(action, str) or action not in ACTIONS:
+        raise rejected(f"unknown action; expected one of {', '.join(ACTIONS)}")
+    target = data.get("target")
+    names = agent_names(hello)
+    if not isinstance(target, str) or len(target) > MAX_NAME_CHARS:
+        raise rejected("target must be an agent's name or 'all'")
+    if target != "all" and target not in names:
+        raise rejected(f"no such agent; agents: {', '.join(names)}, all")
+    mode = data.get("mode", "")
+    if action == "mode":
+        if target == "all":
+            raise rejected("a mode change names one agent")
+        if not isinstance(mode, str) or not mode or len(mode) > MAX_NAME_CHARS:
+            raise rejected("mode must be one of the agent's modes")
+        if mode not in modes_of(hello).get(target, frozenset()):
+            raise rejected(f"{target} has no such mode")
+    elif mode not in ("", None):
+        raise rejected("mode is only for action 'mode'")
+    if action == "terminate" and data.get("confirm") is not True:
+        raise rejected('terminate needs "confirm": true')
+    operator = data.get("operator", "")
+    if operator is None:
+        operator = ""
+    if not isinstance(operator, str) or len(operator) > 4 * MAX_OPERATOR_CHARS:
+        raise rejected("operator must be a short name")
+    request = CommandRequest(
+        id=command_id,
+        action=action,
+        target="" if target == "all" else target,
+        mode=mode if action == "mode" else "",
+        operator=printable(operator.strip(), MAX_OPERATOR_CHARS),
+        address=printable(address, 64),
+    )
+    return request, ref
+
+
+class ViewServer:
+    """The station view's HTTP and WebSocket server, on a thread of its own.
+
+    Args:
+        hello: The ``hello`` message (:func:`~clark_engine.gcs.model.build_hello`); the
+            agents and modes a command may name come from it.
+        on_command: Called on the server's thread with each checked command; it must
+            not block (:class:`~clark_engine.gcs.station.StationViewLink.submit` queues
+            it for the loop).
+        host: The address to bind (127.0.0.1 by default).
+        port: The port (0 picks a free one; :attr:`port` then says which).
+        token: The token every request must carry; required when ``host`` is not
+            loopback.
+        static_dir: The page's folder (the package's by default).
+
+    Raises:
+        UsageError: A non-loopback ``host`` without a token, or a token that is too
+            short, too long or not printable ASCII.
+    """
+
+    def __init__(
+        self,
+        hello: Json,
+        on_command: Callable[[CommandRequest], None],
+        *,
+        host: str = "127.0.0.1",
+        port: int = DEFAULT_PORT,
+        token: str | None = None,
+        static_dir: Path = STATIC_DIR,
+    ) -> None:
+        loopback = is_loopback_host(host)
+        if token is None and not loopback:
+            raise UsageError(
+                f"the view would be served on {host}, beyond this machine: give a token "
+                "(--view-token-file FILE or --view-token TOKEN), or bind 127.0.0.1"
+            )
+        self.token = check_token(token) if token is not None else None
+        self.hello = hello
+        self.on_command = on_command
+        self.host = host
+        self.requested_port = port
+        self.port = port
+        self.loopback = loopback
+        self.static_dir = static_dir
+        self._hello_text = json.dumps(hello, separators=(",", ":"))
+        self._lock = threading.Lock()
+        self._pending = _Pending()
+        self._scheduled = False
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._thread: threading.Thread | None = None
+        self._ready = threading.Event()
+        self._error: BaseException | None = None
+        self._stopping: asyncio.Event | None = None
+        self._sock: socket.socket | None = None
+        self._clients: set[_Client] = set()
+        self._ids = itertools.count(1)
+        # What clients are sent (touched on the server's loop only).
+        self._state: Json | None = None
+        self._version = 0
+        self._track: deque[Json] = deque(maxlen=MAX_TRACK_POINTS)
+        self._photos: deque[Json] = deque(maxlen=MAX_PHOTOS)
+        self._log: deque[Json] = deque(maxlen=MAX_LOG_LINES)
+        self.stats = {"connections": 0, "refused": 0, "commands": 0, "rejected": 0}
+        """Counts since the start: WebSocket connections, requests refused (403),
+        commands handed on, messages rejected."""
+
+    # -- addresses -----------------------------------------------------------------------
+
+    @property
+    def cookie_name(self) -> str:
+        """The token's cookie, one per port: a browser sends a host's cookies to all ports."""
+        return f"clark_view_{self.port}"
+
+    def _netloc(self, host: str) -> str:
+        return f"[{host}]:{self.port}" if ":" in host else f"{host}:{self.port}"
+
+    @property
+    def url(self) -> str:
+        """The page's address, with the token when there is one (print it for the operator)."""
+        host = self.host
+        if host in ("0.0.0.0", "::"):
+            host = socket.gethostname()
+        base = f"http://{self._netloc(host)}/"
+        return base + (f"?token={quote(self.token, safe='')}" if self.token else "")
+
+    def _allowed_hosts(self) -> set[str] | None:
+        """Host headers accepted; None for any (a token guards a non-loopback bind)."""
+        if not self.loopback:
+            return None
+        names = {self.host, "127.0.0.1", "localhost", "::1"}
+        return {self._netloc(name).lower() for name in names}
+
+    # -- life ----------------------------------------------------------------------------
+
+    def start(self, timeout_s: float = 10.0) -> None:
+        """Bind, start the server's thread and wait until it serves.
+
+        Raises:
+            UsageError: The address cannot be bound (in use, not this machine's).
+        """
+        try:
+            infos = socket.getaddrinfo(
+                self.host, self.requested_port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE
+            )
+            family, kind, proto, _, address = infos[0]
+            sock = socket.socket(family, kind, proto)
+        except OSError as exc:
+            raise UsageError(f"--view: cannot use {self.host}: {exc.strerror or exc}") from None
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            sock.bind(address)
+            sock.listen(64)
+            sock.setblocking(False)
+        except OSError as exc:
+            sock.close()
+            raise UsageError(
+                f"--view: cannot serve on {self._netloc(self.host)}: {exc.strerror or exc}"
+            ) from None
+        self._sock = sock
+        self.port = int(sock.getsockname()[1])
+        self._thread = threading.Thread(target=self._main, name="clark-view", daemon=True)
+        self._thread.start()
+        if not self._ready.wait(timeout_s) or self._error is not None:
+            self.stop()
+            raise UsageError(f"--view: the server did not start: {self._error}")
+
+    def stop(self, timeout_s: float = 5.0) -> None:
+        """Send every client the last state, close them and the server; wait for the thread."""
+        loop, stopping = self._loop, self._stopping
+        if loop is not None and stopping is not None:
+            with contextlib.suppress(RuntimeError):  # its loop already ended
+                loop.call_soon_threadsafe(stopping.set)
+        if self._thread is not None:
+            self._thread.join(timeout_s)
+            self._thread = None
+        if self._sock is not None:
+            self._sock.close()
+            self._sock = None
+
+    def _main(self) -> None:
+        loop = asyncio.new_event_loop()
+        self._loop = loop
+        try:
+            loop.run_until_complete(self._serve())
+        except BaseException as exc:  # reported to start(); the station flies on without it
+            self._error = exc
+            self._ready.set()
+            _LOG.error("station view server stopped: %s", exc)
+        finally:
+            with contextlib.suppress(Exception):
+                loop.run_until_complete(loop.shutdown_asyncgens())
+            loop.close()
+
+    async def _serve(self) -> None:
+        self._stopping = asyncio.Event()
+        app = web.Application(middlewares=[self._guard], client_max_size=64 * 1024)
+        app.router.add_get("/", self._page)
+        app.router.add_get("/ws", self._websocket)
+        app.router.add_static("/static/", self.static_dir, follow_symlinks=False)
+        runner = web.AppRunner(
+            app, handle_signals=False, access_log=None, shutdown_timeout=STOP_FLUSH_S
+        )
+        await runner.setup()
+        assert self._sock is not None
+        site = web.SockSite(runner, self._sock)
+        await site.start()
+        self._ready.set()
+        try:
+            await self._stopping.wait()
+            self._take()
+            await self._close_clients()
+        finally:
+            await runner.cleanup()
+
+    async def _close_clients(self) -> None:
+        clients = list(self._clients)
+        for client in clients:
+            client.wake.set()
+        await asyncio.sleep(0)
+        deadline = time.monotonic() + STOP_FLUSH_S
+        while any(c.version < self._version for c in clients if not c.ws.closed):
+            if time.monotonic() > deadline:
+                break
+            await asyncio.sleep(0.02)
+        for client in clients:
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(
+                    client.ws.close(code=1001, message=b"the station stopped"), STOP_FLUSH_S
+                )
+
+    # -- snapshots in (any thread) -------------------------------------------------------
+
+    def publish(self, snapshot: Snapshot) -> None:
+        """Hand the server the newest snapshot; never blocks (called from the station loop)."""
+        with self._lock:
+            pending = self._pending
+            pending.state = snapshot.state
+            pending.track.extend(snapshot.track)
+            pending.photos.extend(snapshot.photos)
+            pending.log.extend(snapshot.log)
+            schedule = not self._scheduled
+            self._scheduled = True
+        loop = self._loop
+        if schedule and loop is not None:
+            try:
+                loop.call_soon_threadsafe(self._take)
+            except RuntimeError:  # the server's loop has ended: nobody to tell
+                with self._lock:
+                    self._scheduled = False
+
+    def _take(self) -> None:
+        """On the server's loop: move what was published to the clients' histories."""
+        with self._lock:
+            pending, self._pending = self._pending, _Pending()
+            self._scheduled = False
+        if pending.state is None:
+            return
+        self._state = pending.state
+        self._track.extend(pending.track)
+        self._photos.extend(pending.photos)
+        self._log.extend(pending.log)
+        self._version += 1
+        for client in self._clients:
+            client.wake.set()
+
+    # -- HTTP ----------------------------------------------------------------------------
+
+    def _supplied_token(self, request: web.Request) -> tuple[str | None, bool]:
+        """The token the request carries, and whether it came in the query string."""
+        query = request.query.get("token")
+        if query is not None:
+            return query, True
+        header = request.headers.get(TOKEN_HEADER)
+        if header is not None:
+            return header, False
+        authorization = request.headers.get("Authorization", "")
+        if authorization.startswith("Bearer "):
+            return authorization[len("Bearer ") :], False
+        return request.cookies.get(self.cookie_name), False
+
+    def _token_ok(self, supplied: str | None) -> bool:
+        if self.token is None:
+            return True
+        if supplied is None or len(supplied) > MAX_TOKEN_CHARS:
+            return False
+        return hmac.compare_digest(supplied.encode(), self.token.encode())
+
+    def _forbidden(self, why: str) -> web.Response:
+        self.stats["refused"] += 1
+        return web.Response(
+            status=403,
+            text=f"403 Forbidden: {why}\n",
+            headers={"Cache-Control": "no-store", "X-Content-Type-Options": "nosniff"},
+        )
+
+    @web.middleware
+    async def _guard(
+        self,
+        request: web.Request,
+        handler: Handler,
+    ) -> web.StreamResponse:
+        allowed = self._allowed_hosts()
+        if allowed is not None and request.host.lower() not in allowed:
+            return self._forbidden("this view answers to its own address only")
+        supplied, in_query = self._supplied_token(request)
+        if not self._token_ok(supplied):
+            return self._forbidden("a valid token is required (the URL clark run printed)")
+        upgrade = request.headers.get("Upgrade", "").lower() == "websocket"
+        if self.token is not None and in_query and request.method == "GET" and not upgrade:
+            # The token moves from the URL to a cookie, and the URL is shown without it.
+            query = {k: v for k, v in request.query.items() if k != "token"}
+            target = request.rel_url.with_query(query)
+            moved = web.Response(
+                status=303, headers={"Location": str(target), "Cache-Control": "no-store"}
+            )
+            moved.set_cookie(
+                self.cookie_name, self.token, httponly=True, samesite="Strict", path="/"
+            )
+            return moved
+        response = await handler(request)
+        if not response.prepared:
+            headers = response.headers
+            headers.setdefault("X-Content-Type-Options", "nosniff")
+            headers.setdefault("Referrer-Policy", "no-referrer")
+            headers.setdefault("X-Frame-Options", "DENY")
+            headers.setdefault("Cache-Control", "no-store")
+        return response
+
+    async def _page(self, request: web.Request) -> web.StreamResponse:
+        host = request.host
+        csp = (
+            "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' data:; "
+            f"connect-src 'self' ws://{host} wss://{host}; base-uri 'none'; "
+            "form-action 'none'; frame-ancestors 'none'"
+        )
+        return web.FileResponse(
+            self.static_dir / "index.html", headers={"Content-Security-Policy": csp}
+        )
+
+    # -- the WebSocket -------------------------------------------------------------------
+
+    def _origin_ok(self, request: web.Request) -> bool:
+        origin = request.headers.get("Origin")
+        if origin is None:
+            return True  # not a browser: the token (when set) is its guard
+        return origin.lower() in (
+            f"http://{request.host}".lower(),
+            f"https://{request.host}".lower(),
+        )
+
+    async def _websocket(self, request: web.Request) -> web.StreamResponse:
+        if not self._origin_ok(request):
+            return self._forbidden("the WebSocket must be opened by this view's own page")
+        ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=MAX_MESSAGE_BYTES, compress=False)
+        await ws.prepare(request)
+        if len(self._clients) >= MAX_CLIENTS:
+            await ws.close(code=1013, message=b"too many clients")
+            return ws
+        client = _Client(ws, request.remote or "")
+        self._clients.add(client)
+        self.stats["connections"] += 1
+        sender = asyncio.create_task(self._send(client))
+        try:
+            async for message in ws:
+                if message.type == WSMsgType.TEXT:
+                    self._received(client, message.data)
+                elif message.type == WSMsgType.BINARY:
+                    self._reply(client, {"type": "error", "ref": None, "error": "text only"})
+                else:
+                    break
+        finally:
+            self._clients.discard(client)
+            sender.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await sender
+        return ws
+
+    def _reply(self, client: _Client, message: Json) -> None:
+        client.replies.append(json.dumps(message, separators=(",", ":")))
+        client.wake.set()
+
+    def _received(self, client: _Client, text: str) -> None:
+        """One message from a page: a checked command handed on, or an error sent back."""
+        if not client.allow_command():
+            self.stats["rejected"] += 1
+            self._reply(client, {"type": "error", "ref": None, "error": "too many commands"})
+            return
+        try:
+            request, ref = parse_command(
+                text, self.hello, command_id=next(self._ids), address=client.address
+            )
+        except CommandRejected as exc:
+            self.stats["rejected"] += 1
+            self._reply(client, {"type": "error", "ref": exc.ref, "error": str(exc)})
+            return
+        self.stats["commands"] += 1
+        try:
+            self.on_command(request)
+        except Exception as exc:  # the station could not take it (it has stopped)
+            self._reply(client, {"type": "error", "ref": ref, "error": f"not sent: {exc}"})
+            return
+        self._reply(client, {"type": "accepted", "ref": ref, "id": request.id})
+
+    async def _send(self, client: _Client) -> None:
+        """The client's one sender: hello, then replies and the newest state as they come."""
+        ws = client.ws
+        try:
+            await ws.send_str(self._hello_text)
+            client.wake.set()
+            while not ws.closed:
+                await client.wake.wait()
+                client.wake.clear()
+                while client.replies and not ws.closed:
+                    await ws.send_str(client.replies.popleft())
+                if self._state is not None and client.version < self._version and not ws.closed:
+                    client.version = self._version
+                    await ws.send_str(self._state_for(client))
+        except (ConnectionError, RuntimeError):
+            return  # the client went away; its handler cleans up
+
+    def _state_for(self, client: _Client) -> str:
+        """The newest state with the track points, photos and log lines the client lacks."""
+        assert self._state is not None
+        message = dict(self._state)
+        message["track"] = _after(self._track, client.track_seq)
+        message["photos"] = _after(self._photos, client.photo_seq)
+        message["log"] = _after(self._log, client.log_seq)
+        if self._track:
+            client.track_seq = int(self._track[-1]["seq"])
+        if self._photos:
+            client.photo_seq = int(self._photos[-1]["seq"])
+        if self._log:
+            client.log_seq = int(self._log[-1]["seq"])
+        try:
+            return json.dumps(message, separators=(",", ":"), allow_nan=False)
+        except ValueError:  # a NaN or infinity slipped in: JSON has none; null instead
+            return json.dumps(_finite(message), separators=(",", ":"), allow_nan=False)
+
+
+def _after(items: deque[Json], seq: int) -> list[Json]:
+    """The items with a sequence number above ``seq`` (they are in order), oldest first."""
+    out: list[Json] = []
+    for item in reversed(items):
+        if int(item["seq"]) <= seq:
+            break
+        out.append(item)
+    out.reverse()
+    return out
+
+
+def _finite(value: Any) -> Any:
+    """``value`` with every NaN and infinity, however deep, replaced by None."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    return value
+
+
+__all__ = [
+    "DEFAULT_PORT",
+    "STATIC_DIR",
+    "CommandRejected",
+    "ViewServer",
+    "check_token",
+    "is_loopback_host",
+    "parse_command",
+    "parse_view_address",
+]
