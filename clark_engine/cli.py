@@ -722,6 +722,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plain", action="store_true", help="status lines, not a screen")
     p.add_argument("--until", type=_period_s, metavar="SECONDS", help="stop after this long")
     p.add_argument("--loop-hz", type=_period_s, metavar="HZ", help="instead of mission.loop_hz")
+    p.add_argument(
+        "--view",
+        metavar="[HOST:]PORT",
+        help="station: serve the live web view (127.0.0.1 unless HOST says; port 0 picks one)",
+    )
+    p.add_argument(
+        "--view-token",
+        metavar="TOKEN",
+        help="station: the token the view requires (required off loopback; a file is safer)",
+    )
+    p.add_argument(
+        "--view-token-file",
+        metavar="FILE",
+        help="station: read the view's token from the first line of FILE",
+    )
+    p.add_argument(
+        "--view-hz",
+        type=_period_s,
+        metavar="HZ",
+        help="station: view updates per second (5 by default, at most the loop's rate)",
+    )
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser(

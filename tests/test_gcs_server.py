@@ -14,8 +14,11 @@ import asyncio
 import json
 import select
 import socket
+import subprocess
+import sys
 import threading
 import time
+import urllib.request
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,6 +27,7 @@ from typing import Any
 import aiohttp
 import pytest
 
+from clark_engine.cli import main
 from clark_engine.errors import UsageError
 from clark_engine.gcs.model import Snapshot, build_hello
 from clark_engine.gcs.server import (
@@ -200,6 +204,17 @@ def test_a_token_is_required_off_loopback(tmp_path: Path) -> None:
     token_file.write_text(TOKEN + "\n", encoding="utf-8")
     settings = view_settings("0.0.0.0:0", None, str(token_file), None, CONFIGS["mcs"])
     assert settings is not None and settings.token == TOKEN and settings.update_hz == 5.0
+
+
+def test_clark_run_refuses_the_view_off_loopback_without_a_token(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    base = ["run", str(MISSION), "--no-radio", "--plain", "--logs", str(tmp_path / "logs")]
+    assert main([*base, "--agent", "mcs", "--view", "0.0.0.0:0"]) == 2
+    assert "needs a token" in capsys.readouterr().err
+    assert main([*base, "--agent", "slash_b", "--view", "0"]) == 2
+    assert "is a vehicle" in capsys.readouterr().err
+    assert not (tmp_path / "logs").exists()  # refused before anything opened
 
 
 # -- HTTP -----------------------------------------------------------------------------------
@@ -467,3 +482,53 @@ def test_a_slow_client_skips_states_but_gets_every_track_point() -> None:
         server.stop()
     assert seqs == list(range(1, published + 1))  # none lost, none twice
     assert states < published  # the newest state won; the rest were skipped
+
+
+# -- clark run --view -----------------------------------------------------------------------
+
+
+def test_clark_run_serves_the_view(tmp_path: Path) -> None:
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "clark_engine",
+            "run",
+            str(MISSION),
+            "--agent",
+            "mcs",
+            "--view",
+            "127.0.0.1:0",
+            "--no-radio",
+            "--plain",
+            "--until",
+            "5",
+            "--logs",
+            str(tmp_path / "logs"),
+        ],
+        cwd=tmp_path,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert proc.stdout is not None
+        url = None
+        deadline = time.monotonic() + TIMEOUT_S
+        while url is None and time.monotonic() < deadline:
+            line = proc.stdout.readline()
+            assert line, proc.stderr.read() if proc.stderr else "no output"
+            if "station view at " in line:
+                url = line.split("station view at ", 1)[1].strip()
+        assert url is not None and url.startswith("http://127.0.0.1:")
+        with urllib.request.urlopen(url, timeout=TIMEOUT_S) as page:
+            assert page.status == 200
+            assert "Clark station view" in page.read().decode("utf-8")
+        out, err = proc.communicate(timeout=TIMEOUT_S)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, err
+    assert "stopped (until)" in out

@@ -9,6 +9,7 @@ verify, print what is seen for a few seconds; exit 0 when it works, 1 when it do
 
 from __future__ import annotations
 
+import contextlib
 import selectors
 import sys
 import time
@@ -134,7 +135,12 @@ def run_options(args: Any, config: AgentConfig, key_folder: Path) -> RunOptions:
 
 
 def run(args: Any, out: TextIO | None = None) -> int:
-    """``clark run``: the agent on its interfaces until stopped."""
+    """``clark run``: the agent on its interfaces until stopped.
+
+    With ``--view`` (a station only), the station's live web view is served alongside
+    (:mod:`clark_engine.gcs`, docs/station-view.md): its server starts before any link
+    opens and stops after the loop, its clients sent the last state.
+    """
     out = out if out is not None else sys.stdout
     from clark_engine.shells.console import OperatorConsole, OperatorScript, StatusView
 
@@ -144,17 +150,32 @@ def run(args: Any, out: TextIO | None = None) -> int:
     if args.script and config.role != "mcs":
         raise UsageError("--script plays the station's operator script: run it on the station")
     options = run_options(args, config, key_folder)
+    from clark_engine.gcs.station import fleet_configs, open_view, view_settings
     from clark_engine.io.radio import RadioError
 
+    settings = view_settings(
+        getattr(args, "view", None),
+        getattr(args, "view_token", None),
+        getattr(args, "view_token_file", None),
+        getattr(args, "view_hz", None),
+        config,
+    )
+    # The view's server starts first: a port in use ends the run before any link opens.
+    served = open_view(settings, config, *fleet_configs(args.mission, config)) if settings else None
     try:
         shell = open_agent(config, options)
-    except RadioError as exc:  # an I/O error at the start: exit 2, never a silent retry
-        raise UsageError(
-            f"cannot open {config.agent}'s radio: {exc}; check its connection and address "
-            "(`clark check radio`), or run without it (--no-radio, testing mode)"
-        ) from None
+    except BaseException as exc:
+        if served is not None:
+            served.stop()
+        if isinstance(exc, RadioError):  # an I/O error at the start: exit 2, no silent retry
+            raise UsageError(
+                f"cannot open {config.agent}'s radio: {exc}; check its connection and address "
+                "(`clark check radio`), or run without it (--no-radio, testing mode)"
+            ) from None
+        raise
     screen = out.isatty() and not args.plain
     view = StatusView(out, screen=screen)
+    link = served.attach(shell) if served is not None else None
     shell.on_tick.append(view)
     if args.script:
         shell.on_tick.append(OperatorScript(script, view))
@@ -164,15 +185,27 @@ def run(args: Any, out: TextIO | None = None) -> int:
         except (OSError, ValueError):
             fd = -1
         if fd >= 0:
-            OperatorConsole(shell, fd, view)
+            # stdin that a selector cannot watch (/dev/null, a file): no console, no crash
+            with contextlib.suppress(OSError):
+                OperatorConsole(shell, fd, view)
     print(
         f"clark run: {config.agent} of {config.mission_name} at {shell.loop_hz:g} Hz; "
         f"logs in {options.logs}; Ctrl-C stops",
         file=out,
         flush=True,
     )
-    with shell.signals():
-        code = shell.run(until_s=args.until)
+    if served is not None:
+        where = f"clark run: station view at {served.server.url}"  # with the token, if any
+        print(where, file=out, flush=True)
+        if screen:
+            view.messages.append(where)  # kept on the redrawn screen
+    try:
+        with shell.signals():
+            code = shell.run(until_s=args.until)
+    finally:
+        if served is not None and link is not None:
+            link.close(shell.now())  # the last state (terminated, stopped) to the page
+            served.stop()
     print(f"clark run: stopped ({shell.stopped_by}): {shell.summary()}", file=out, flush=True)
     return code
 
