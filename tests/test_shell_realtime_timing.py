@@ -1,5 +1,5 @@
-"""The real-time shell's timing aids: microsecond waits on epoll, the frozen start-up heap.
-No assertion here is about wall-clock time."""
+"""The real-time shell's timing aids: microsecond waits on epoll, the frozen start-up heap,
+the longest tick. No assertion here is about wall-clock time."""
 
 from __future__ import annotations
 
@@ -141,3 +141,20 @@ def test_gc_freeze_false_leaves_the_collector_alone() -> None:
     shell.on_tick.append(lambda _shell, _now: seen.append(gc.get_freeze_count()))
     shell.run(max_ticks=3)
     assert seen == [before] * 3
+
+
+# -- the longest tick ----------------------------------------------------------------------------
+
+
+def test_the_longest_tick_is_counted_and_summarised() -> None:
+    shell, clock = _fake_shell()
+
+    def slow_third_tick(shell: RealtimeShell, _now: float) -> None:
+        if shell.stats.ticks == 3:
+            clock.t += 0.03  # this tick's work takes 30 ms of the fake clock
+
+    shell.on_tick.append(slow_third_tick)
+    shell.run(max_ticks=5)
+    assert shell.stats.max_tick_s == pytest.approx(0.03)
+    assert shell.stats.tick_s == pytest.approx(0.03)  # the others took no fake time
+    assert "ticks 6.00 ms on average, longest 30.0 ms" in shell.summary()

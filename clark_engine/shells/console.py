@@ -88,7 +88,8 @@ def status_lines(shell: RealtimeShell, now_s: float) -> list[str]:
     s2 = shell.stats
     lines.append(
         f"loop {shell.loop_hz:g} Hz: {s2.ticks} ticks, {s2.overruns} overruns "
-        f"({s2.skipped_ticks} skipped), max late {s2.max_late_s * 1000:.1f} ms"
+        f"({s2.skipped_ticks} skipped), max late {s2.max_late_s * 1000:.1f} ms, "
+        f"longest tick {s2.max_tick_s * 1000:.1f} ms"
     )
     return lines
 

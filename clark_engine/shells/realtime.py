@@ -155,6 +155,10 @@ class ShellStats:
         skipped_ticks: Deadlines skipped by those overruns.
         worst_overrun_s: The largest lateness of an overrun.
         max_late_s: The largest lateness of any tick (jitter included).
+        max_tick_s: The longest a tick took from its start to its end (the runtime, the
+            commands carried out, the hooks): an overrun much longer than this came from
+            the wait before the tick (the process waiting for a CPU), not from its work.
+        tick_s: Every tick's time from start to end, summed (the loop's busy time).
         wakeups: Selector waits that returned.
         autopilot_failures: Times the autopilot link failed or could not be opened.
         autopilot_reopens: Times it was opened again after a failure.
@@ -168,6 +172,8 @@ class ShellStats:
     skipped_ticks: int = 0
     worst_overrun_s: float = 0.0
     max_late_s: float = 0.0
+    max_tick_s: float = 0.0
+    tick_s: float = 0.0
     wakeups: int = 0
     autopilot_failures: int = 0
     autopilot_reopens: int = 0
@@ -418,6 +424,10 @@ class RealtimeShell:
                         )
                         k += missed
                     self._tick(now)
+                    work = self.now() - now
+                    self.stats.tick_s += work
+                    if work > self.stats.max_tick_s:
+                        self.stats.max_tick_s = work
                     k += 1
                     if max_ticks is not None and self.stats.ticks >= max_ticks:
                         self.stopped_by = "max_ticks"
@@ -776,6 +786,8 @@ class RealtimeShell:
         return (
             f"{s.ticks} ticks at {self.loop_hz:g} Hz, {s.overruns} overrun(s) "
             f"({s.skipped_ticks} deadline(s) skipped, worst {s.worst_overrun_s * 1000:.1f} ms), "
-            f"max lateness {s.max_late_s * 1000:.1f} ms, autopilot reopened {s.autopilot_reopens}, "
-            f"radio reopened {s.radio_reopens}"
+            f"max lateness {s.max_late_s * 1000:.1f} ms, "
+            f"ticks {s.tick_s / max(s.ticks, 1) * 1000:.2f} ms on average, "
+            f"longest {s.max_tick_s * 1000:.1f} ms, "
+            f"autopilot reopened {s.autopilot_reopens}, radio reopened {s.radio_reopens}"
         )
