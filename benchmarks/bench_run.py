@@ -43,7 +43,31 @@ the telemetry rate.
    over a window after its loop started, divided by the window's wall seconds; shown
    for every run, 10 Hz being the issue's figure.
 
-Run: ``python benchmarks/bench_run.py`` (about 5 minutes); ``--hold-s 60`` for the
+5. **The machine's share** (``--baseline``): after each engine run, the same run
+   without the engine: *bare loops*, small Python processes (this file with
+   ``--bare-agent``) that tick on the same drift-free schedule, wait the same way
+   (:func:`select.select`, microseconds), spin a fixed CPU time per tick (the
+   engine's average tick, ``--bare-work-ms``; none in the latency runs) and send each
+   other a datagram stamped with :func:`time.monotonic_ns` at the telemetry rate.
+   What they show (overruns, latency from the stamp to the receiver's wake-up) is
+   what the machine does to any loop; the rest is the engine's. Every run also
+   reports how busy the machine was (all CPUs, ``/proc/stat``) and the *steal* time
+   (a virtual machine's CPUs held back by its host) over the run.
+
+Sample sizes: a latency run lasts long enough for ``--latency-samples`` messages
+(both directions pooled; 600 by default: 300 s at 1 Hz, 60 s at 5 Hz) so that the p99
+is the 6th largest of 600, not the largest of 63.
+
+Scheduling (``--sched fifo`` or ``both``): once every agent's loop runs, each process
+is put under ``SCHED_FIFO`` priority 10 (real time, as ``chrt --fifo -p 10 PID`` does,
+where the system permits it) and back under the normal policy half a second before
+its run ends; the bare loops do the same to themselves. Only the loops, not start-up
+and exit: a whole process under FIFO (``chrt --fifo 10 clark run ...``) holds a CPU
+through its start-up (a second of CPU) and its exit, and stalls every other FIFO
+agent on that CPU for that long (hundreds of milliseconds). ``normal`` (the default)
+is how ``clark run`` runs; it never raises its own priority.
+
+Run: ``python benchmarks/bench_run.py`` (about 15 minutes); ``--hold-s 60`` for the
 issue's 60 s holds; ``--only latency|xbee|hold`` for one part. The machine's load
 changes every figure: run it on a quiet machine and say how busy it was.
 """
@@ -51,16 +75,19 @@ changes every figure: run it on a quiet machine and say how busy it was.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
+import json
 import os
 import re
+import select
 import signal
 import socket
 import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -76,6 +103,55 @@ LATENCY_RATES_HZ = (1.0, 5.0, 10.0, 50.0)
 HOLD_RATES_HZ = (100.0, 200.0, 500.0, 1000.0)
 CLK_TCK = os.sysconf("SC_CLK_TCK")
 _STOPPED = re.compile(r"(\d+) ticks at .*?(\d+) overrun\(s\) \((\d+) deadline")
+_TICK_MS = re.compile(r"ticks ([\d.]+) ms on average")
+SCHED_FIFO_PRIORITY = 10
+"""``SCHED_FIFO`` priority for ``--sched fifo``: low among real-time tasks, above normal ones."""
+FIFO_UNTIL_END_S = 0.5
+"""Back to the normal policy this long before a run ends (its exit is not the loop's)."""
+
+
+def set_sched(pid: int, sched: str) -> None:
+    """Put process ``pid`` (0: this one) under ``fifo`` or ``normal`` scheduling."""
+    fifo = sched == "fifo"
+    policy = os.SCHED_FIFO if fifo else os.SCHED_OTHER
+    with contextlib.suppress(ProcessLookupError):
+        os.sched_setscheduler(pid, policy, os.sched_param(SCHED_FIFO_PRIORITY if fifo else 0))
+
+
+def fifo_for_the_loop(run: Run, sched: str, seconds: float) -> Callable[[], None]:
+    """Every agent of ``run`` under ``sched`` now; returns what puts them back near the end.
+
+    The returned function sleeps until :data:`FIFO_UNTIL_END_S` before the first agent's
+    ``--until`` runs out, then puts every agent back under the normal policy.
+    """
+    if sched != "fifo":
+        return lambda: None
+    for agent in run.agents:
+        set_sched(agent.process.pid, sched)
+
+    def back() -> None:
+        time.sleep(max(0.0, run.first_loop_s + seconds - FIFO_UNTIL_END_S - time.monotonic()))
+        for agent in run.agents:
+            set_sched(agent.process.pid, "normal")
+
+    return back
+
+
+# -- the machine -----------------------------------------------------------------------------
+
+
+def cpu_times() -> list[int]:
+    """The machine's CPU time counters (user nice system idle iowait irq softirq steal)."""
+    return [int(x) for x in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:9]]
+
+
+def machine_text(before: list[int], after: list[int]) -> str:
+    """How busy every CPU was between two :func:`cpu_times`, and the steal time."""
+    delta = [b - a for a, b in zip(before, after, strict=True)]
+    total = sum(delta) or 1
+    busy = (delta[0] + delta[1] + delta[2] + delta[5] + delta[6]) / total * 100
+    steal_ms = delta[7] * 1000 / CLK_TCK
+    return f"machine {busy:.0f}% busy, steal {steal_ms:.0f} ms"
 
 
 # -- missions --------------------------------------------------------------------------------
@@ -174,6 +250,8 @@ class Run:
 
     logs: Path
     agents: list[Agent] = field(default_factory=list)
+    first_loop_s: float = 0.0
+    """When the first agent's loop started (at the latest), :func:`time.monotonic`."""
 
 
 def cpu_seconds(pid: int) -> float:
@@ -183,7 +261,13 @@ def cpu_seconds(pid: int) -> float:
 
 
 def start_agents(
-    mission: Path, logs: Path, agents: int, seconds: float, *, udp: bool, loop_hz: float
+    mission: Path,
+    logs: Path,
+    agents: int,
+    seconds: float,
+    *,
+    udp: bool,
+    loop_hz: float,
 ) -> Run:
     """Start ``agents`` processes running for ``seconds`` each; wait until each loop runs."""
     run = Run(logs)
@@ -223,9 +307,11 @@ def start_agents(
             text=True,
         )
         run.agents.append(Agent(name, process))
-    for agent in run.agents:
+    for index, agent in enumerate(run.agents):
         assert agent.process.stdout is not None
         first = agent.process.stdout.readline()  # blocks until the loop is about to start
+        if index == 0:
+            run.first_loop_s = time.monotonic()
         if not first.startswith("clark run: "):
             _out, err = agent.process.communicate(timeout=START_TIMEOUT_S)
             raise RuntimeError(f"{agent.name} did not start: {first}{err}")
@@ -283,8 +369,10 @@ class Latency:
     aligned_p50_ms: float
     aligned_p99_ms: float
     aligned_p99_max_ms: float
+    aligned_max_ms: float
     uncertainty_ms: float
     cpu: str
+    machine: str
 
 
 def read_rows(path: Path) -> list[dict[str, str]]:
@@ -345,7 +433,7 @@ def latencies(logs: Path, a: str, b: str, skip_s: float) -> tuple[list[float], .
 
 
 def measure_latency(
-    rate_hz: float, seconds: float, work: Path, *, xbee: bool, xbee_air: bool
+    rate_hz: float, seconds: float, work: Path, *, xbee: bool, xbee_air: bool, sched: str = "normal"
 ) -> Latency:
     """Two agents at ``rate_hz`` for ``seconds``; their message logs' latencies."""
     folder = Path(tempfile.mkdtemp(prefix=f"lat-{rate_hz:g}-", dir=work))
@@ -365,8 +453,12 @@ def measure_latency(
         )
         warm_s = 1.0
         run = start_agents(mission, logs, 2, seconds + warm_s + 1.0, udp=not xbee, loop_hz=rate_hz)
+        back = fifo_for_the_loop(run, sched, seconds + warm_s + 1.0)
         time.sleep(warm_s)
+        before = cpu_times()
         measure_cpu(run, seconds)
+        machine = machine_text(before, cpu_times())
+        back()
         finish(run, START_TIMEOUT_S + seconds)
     finally:
         kill(run)
@@ -382,8 +474,10 @@ def measure_latency(
         aligned_p50_ms=percentile(aligned, 0.5),
         aligned_p99_ms=percentile(aligned, 0.99),
         aligned_p99_max_ms=percentile(upper, 0.99),
+        aligned_max_ms=max(aligned),
         uncertainty_ms=width[0],
         cpu=cpu_text(run),
+        machine=machine,
     )
 
 
@@ -398,6 +492,9 @@ class Hold:
     held: bool
     lines: list[str]
     cpu: str
+    machine: str
+    tick_ms: float
+    """The agents' average tick, from start to end (their summaries' mean)."""
 
 
 def parse_stopped(line: str) -> tuple[int, int, int]:
@@ -408,25 +505,165 @@ def parse_stopped(line: str) -> tuple[int, int, int]:
     return int(found[1]), int(found[2]), int(found[3])
 
 
-def measure_hold(rate_hz: float, seconds: float, telemetry_hz: float, work: Path) -> Hold:
+def measure_hold(
+    rate_hz: float, seconds: float, telemetry_hz: float, work: Path, *, sched: str = "normal"
+) -> Hold:
     folder = Path(tempfile.mkdtemp(prefix=f"hold-{rate_hz:g}-", dir=work))
     mission = folder / "mission.yaml"
     mission.write_text(mission_text(4, rate_hz, telemetry_hz), encoding="utf-8")
     run: Run | None = None
     try:
+        before = cpu_times()
         run = start_agents(mission, folder / "logs", 4, seconds, udp=True, loop_hz=rate_hz)
+        back = fifo_for_the_loop(run, sched, seconds)
         measure_cpu(run, min(seconds - 1.0, 10.0))
+        back()
         finish(run, START_TIMEOUT_S + seconds)
+        machine = machine_text(before, cpu_times())
     finally:
         kill(run)
     held = True
     lines = []
+    tick_ms: list[float] = []
     for agent in run.agents:
         ticks, overruns, _skipped = parse_stopped(agent.last_line)
         if overruns or ticks < 0.99 * rate_hz * seconds:
             held = False
         lines.append(f"{agent.name}: {agent.last_line.split(': ', 2)[2]}")
-    return Hold(rate_hz, held, lines, cpu_text(run))
+        found = _TICK_MS.search(agent.last_line)
+        if found:
+            tick_ms.append(float(found[1]))
+    mean_tick_ms = sum(tick_ms) / len(tick_ms) if tick_ms else float("nan")
+    return Hold(rate_hz, held, lines, cpu_text(run), machine, mean_tick_ms)
+
+
+# -- bare loops: the same schedule without the engine ----------------------------------------
+
+
+@dataclass
+class Bare:
+    """One run of bare loops: per loop, its ticks, overruns and worst lateness; latencies."""
+
+    ticks: list[int]
+    overruns: list[int]
+    max_late_ms: list[float]
+    latencies_ms: list[float]
+    machine: str
+
+
+def bare_agent(spec: dict[str, object]) -> dict[str, object]:
+    """One bare loop (a child process): the shell's schedule, wait and overrun rule, no engine.
+
+    ``spec``: ``index``, ``ports`` (every loop's UDP port), ``rate_hz``, ``seconds``,
+    ``work_s`` (CPU spun per tick), ``telemetry_hz`` (a stamped datagram to every other
+    loop), ``start_ns`` (a common :func:`time.monotonic_ns` to start at), ``sched``
+    (the loop's scheduling, as :func:`fifo_for_the_loop` gives the engine's).
+    """
+    index = int(str(spec["index"]))
+    ports = [int(p) for p in str(spec["ports"]).split(",")]
+    rate_hz = float(str(spec["rate_hz"]))
+    seconds = float(str(spec["seconds"]))
+    work_s = float(str(spec["work_s"]))
+    every = max(1, round(rate_hz / float(str(spec["telemetry_hz"]))))
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", ports[index]))
+    sock.setblocking(False)
+    peers = [("127.0.0.1", p) for i, p in enumerate(ports) if i != index]
+    period = 1.0 / rate_hz
+    # Each loop on its own phase of the period, as processes started one after another.
+    start = int(str(spec["start_ns"])) / 1e9 + index * period / len(ports)
+    k = ticks = overruns = 0
+    max_late = 0.0
+    latencies: list[float] = []
+    set_sched(0, str(spec["sched"]))
+    while True:
+        deadline = start + k * period
+        now = time.monotonic()
+        if now - start >= seconds:
+            break
+        if now < deadline - 1e-6:
+            readable, _, _ = select.select([sock], [], [], deadline - now)
+            arrived_ns = time.monotonic_ns()
+            while readable:
+                try:
+                    data = sock.recv(256)
+                except BlockingIOError:
+                    break
+                if now - start >= 1.0:  # after a second's warm-up, as the engine's runs
+                    latencies.append((arrived_ns - int.from_bytes(data[:8], "little")) / 1e6)
+            continue
+        late = now - deadline
+        max_late = max(max_late, late)
+        missed = int(late // period)
+        if missed >= 1:
+            overruns += 1
+            k += missed
+        spin_until = time.perf_counter() + work_s
+        while time.perf_counter() < spin_until:
+            pass
+        if k % every == 0:
+            stamp = time.monotonic_ns().to_bytes(8, "little") + bytes(40)
+            for peer in peers:
+                sock.sendto(stamp, peer)
+        k += 1
+        ticks += 1
+    set_sched(0, "normal")
+    sock.close()
+    return {
+        "ticks": ticks,
+        "overruns": overruns,
+        "max_late_ms": max_late * 1000,
+        "latencies_ms": latencies,
+    }
+
+
+def measure_bare(
+    loops: int,
+    rate_hz: float,
+    seconds: float,
+    *,
+    work_s: float,
+    telemetry_hz: float,
+    sched: str = "normal",
+) -> Bare:
+    """``loops`` bare loops (processes) at ``rate_hz`` for ``seconds``."""
+    ports = free_ports(loops)
+    start_ns = time.monotonic_ns() + 500_000_000  # every loop started by then
+    processes = []
+    before = cpu_times()
+    for index in range(loops):
+        spec = {
+            "index": index,
+            "ports": ",".join(map(str, ports)),
+            "rate_hz": rate_hz,
+            "seconds": seconds,
+            "work_s": work_s,
+            "telemetry_hz": telemetry_hz,
+            "start_ns": start_ns,
+            "sched": sched,
+        }
+        processes.append(
+            subprocess.Popen(
+                [sys.executable, __file__, "--bare-agent", json.dumps(spec)],
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+        )
+    results = []
+    for process in processes:
+        out, err = process.communicate(timeout=START_TIMEOUT_S + seconds)
+        if process.returncode != 0:
+            raise RuntimeError(f"bare loop ended {process.returncode}: {err}")
+        results.append(json.loads(out))
+    machine = machine_text(before, cpu_times())
+    return Bare(
+        ticks=[r["ticks"] for r in results],
+        overruns=[r["overruns"] for r in results],
+        max_late_ms=[r["max_late_ms"] for r in results],
+        latencies_ms=[x for r in results for x in r["latencies_ms"]],
+        machine=machine,
+    )
 
 
 # -- main ------------------------------------------------------------------------------------
@@ -435,14 +672,44 @@ def measure_hold(rate_hz: float, seconds: float, telemetry_hz: float, work: Path
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--only", choices=("latency", "xbee", "hold"), help="one part only")
-    parser.add_argument("--latency-s", type=float, default=20.0, help="per rate (default 20)")
+    parser.add_argument("--latency-s", type=float, default=20.0, help="least per rate (20)")
+    parser.add_argument(
+        "--latency-samples",
+        type=int,
+        default=600,
+        help="messages per latency run, both ways (600: 300 s at 1 Hz)",
+    )
+    parser.add_argument("--latency-rates", default=",".join(f"{r:g}" for r in LATENCY_RATES_HZ))
     parser.add_argument("--hold-s", type=float, default=20.0, help="per rate (issue: 60)")
     parser.add_argument("--hold-rates", default=",".join(f"{r:g}" for r in HOLD_RATES_HZ))
     parser.add_argument("--hold-telemetry-hz", type=float, default=10.0)
     parser.add_argument("--xbee-air", action="store_true", help="model the 33 kbit/s channel")
+    parser.add_argument(
+        "--sched",
+        choices=("normal", "fifo", "both"),
+        default="normal",
+        help="run the agents as clark run does (normal) or under chrt --fifo, or both",
+    )
+    parser.add_argument(
+        "--baseline", action="store_true", help="after each run, bare loops the same way"
+    )
+    parser.add_argument(
+        "--bare-work-ms",
+        type=float,
+        default=None,
+        help="CPU per bare-loop tick in the holds (default: the engine's average tick)",
+    )
+    parser.add_argument("--bare-agent", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.bare_agent:
+        print(json.dumps(bare_agent(json.loads(args.bare_agent))))
+        return 0
+    scheds = ("normal", "fifo") if args.sched == "both" else (args.sched,)
     load = os.getloadavg()
-    print(f"machine: {os.cpu_count()} cores, load average {load[0]:.2f} {load[1]:.2f}")
+    print(
+        f"machine: {os.cpu_count()} cores ({len(os.sched_getaffinity(0))} usable here), "
+        f"load average {load[0]:.2f} {load[1]:.2f}"
+    )
     with tempfile.TemporaryDirectory(prefix="clark-bench-run-") as tmp:
         work = Path(tmp)
         for radio in ("latency", "xbee"):
@@ -456,31 +723,68 @@ def main(argv: Sequence[str] | None = None) -> int:
                 f"\n1{'b' if xbee else ''}. latency, pack -> receiver's fleet table, over {title}"
             )
             print(
-                f"{'rate':>6} {'n':>6} {'analyze p50/p99 ms':>19} {'mean of means s':>16} "
-                f"{'aligned p50 ms':>15} {'p99 ms':>8} {'p99 max':>8} {'+-ms':>6}  CPU (user+sys)"
+                f"{'rate':>6} {'sched':>6} {'s':>4} {'n':>5} {'analyze p50/p99 ms':>19} "
+                f"{'mean of means s':>16} {'aligned p50 ms':>15} {'p99 ms':>7} {'p99 max':>8} "
+                f"{'max':>7} {'+-ms':>6}  CPU (user+sys); machine"
             )
-            for rate in LATENCY_RATES_HZ:
-                seconds = max(args.latency_s, 30.0) if rate < 5 else args.latency_s
-                r = measure_latency(rate, seconds, work, xbee=xbee, xbee_air=args.xbee_air)
-                mom = f"{r.analyze_mean_of_means_s:.4f}" if r.analyze_mean_of_means_s else "-"
-                print(
-                    f"{rate:>4g}Hz {r.samples:>6} "
-                    f"{r.analyze_p50_ms:>9.0f}/{r.analyze_p99_ms:<9.0f} "
-                    f"{mom:>16} {r.aligned_p50_ms:>15.3f} {r.aligned_p99_ms:>8.3f} "
-                    f"{r.aligned_p99_max_ms:>8.3f} {r.uncertainty_ms:>6.3f}  {r.cpu}",
-                    flush=True,
-                )
+            for rate in (float(x) for x in args.latency_rates.split(",")):
+                seconds = max(args.latency_s, args.latency_samples / (2 * rate))
+                for sched in scheds:
+                    r = measure_latency(
+                        rate, seconds, work, xbee=xbee, xbee_air=args.xbee_air, sched=sched
+                    )
+                    mom = f"{r.analyze_mean_of_means_s:.4f}" if r.analyze_mean_of_means_s else "-"
+                    print(
+                        f"{rate:>4g}Hz {sched:>6} {seconds:>4.0f} {r.samples:>5} "
+                        f"{r.analyze_p50_ms:>9.0f}/{r.analyze_p99_ms:<9.0f} "
+                        f"{mom:>16} {r.aligned_p50_ms:>15.3f} {r.aligned_p99_ms:>7.3f} "
+                        f"{r.aligned_p99_max_ms:>8.3f} {r.aligned_max_ms:>7.2f} "
+                        f"{r.uncertainty_ms:>6.3f}  {r.cpu}; {r.machine}",
+                        flush=True,
+                    )
+                    if args.baseline and not xbee:
+                        b = measure_bare(
+                            2, rate, seconds + 1.0, work_s=0.0, telemetry_hz=rate, sched=sched
+                        )
+                        lat = b.latencies_ms
+                        print(
+                            f"{'':>6} {sched:>6} bare loops: n {len(lat)}, stamp -> receiver "
+                            f"awake p50 {percentile(lat, 0.5):.3f} p99 "
+                            f"{percentile(lat, 0.99):.3f} max {max(lat, default=0):.2f} ms; "
+                            f"{b.machine}",
+                            flush=True,
+                        )
         if args.only in (None, "hold"):
             print(
                 f"\n3. loop rate held for {args.hold_s:g} s, four agents, UDP loopback, "
                 f"heartbeat {args.hold_telemetry_hz:g} Hz each"
             )
             for rate in (float(x) for x in args.hold_rates.split(",")):
-                h = measure_hold(rate, args.hold_s, args.hold_telemetry_hz, work)
-                print(f"{rate:>6g} Hz: {'held' if h.held else 'NOT held'}; CPU {h.cpu}")
-                for line in h.lines:
-                    print(f"          {line}")
-                sys.stdout.flush()
+                for sched in scheds:
+                    h = measure_hold(rate, args.hold_s, args.hold_telemetry_hz, work, sched=sched)
+                    print(
+                        f"{rate:>6g} Hz {sched}: {'held' if h.held else 'NOT held'}; "
+                        f"CPU {h.cpu}; {h.machine}"
+                    )
+                    for line in h.lines:
+                        print(f"          {line}")
+                    if args.baseline:
+                        work_ms = args.bare_work_ms if args.bare_work_ms is not None else h.tick_ms
+                        b = measure_bare(
+                            4,
+                            rate,
+                            args.hold_s,
+                            work_s=work_ms / 1000,
+                            telemetry_hz=args.hold_telemetry_hz,
+                            sched=sched,
+                        )
+                        print(
+                            f"          bare loops ({work_ms:.2f} ms of CPU per tick): "
+                            f"overruns {', '.join(map(str, b.overruns))} in "
+                            f"{', '.join(map(str, b.ticks))} ticks, worst lateness "
+                            f"{max(b.max_late_ms):.1f} ms; {b.machine}"
+                        )
+                    sys.stdout.flush()
     return 0
 
 
