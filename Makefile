@@ -25,7 +25,7 @@ demo: $(STAMP)
 
 ## test: the whole suite, spread over the machine's cores (pytest-xdist)
 test: $(STAMP)
-	$(BIN)/python -m pytest -n $(TEST_WORKERS)
+	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadgroup
 
 ## lint / format / typecheck: the same commands CI runs
 lint: $(STAMP)

@@ -47,16 +47,38 @@ def root() -> Path:
     return ROOT
 
 
-def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Run the slow tests (real ArduPilot SITL, real-time rehearsals, wheels) first.
+LONGEST_MODULES = ("test_run_end_to_end.py",)
+"""Modules whose tests each take over a minute (real-time rehearsals): dealt out first."""
 
-    `make test` spreads the suite over the machine's cores (pytest-xdist, `-n auto`); a
-    long test dealt out last would keep one core busy while the others idle, so they are
-    dealt out first. The order of the rest is unchanged (the sort is stable), and every
-    test is independent of order.
+SPED_UP_SITL_MODULES = ("test_dry_run_sitl.py", "test_sitl.py")
+"""Modules that run ArduPilot SITL at a speed-up (as do the conformance suite's sitl-*)."""
+
+
+def _sped_up_sitl(item: pytest.Item) -> bool:
+    return "[sitl-" in item.nodeid or item.path.name in SPED_UP_SITL_MODULES
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Deal the slow tests out first, and run SITL at a speed-up on one worker at a time.
+
+    `make test` spreads the suite over the machine's cores (pytest-xdist, `-n auto
+    --dist loadgroup`). A long test dealt out last would keep one core busy while the
+    others idle, so the longest go first, then the other slow ones. SITL at ten times
+    real time needs a core of its own to keep ArduPilot's loops on time: two at once
+    beside the rest of the suite made a rover stop short and a stream request race
+    (seen on this 2-core machine), so those tests share one group, which xdist runs on
+    one worker, one after the other. The order of the rest is unchanged (the sort is
+    stable), and every test is independent of order.
     """
-    items.sort(
-        key=lambda item: (
-            0 if item.get_closest_marker("sitl") or item.get_closest_marker("slow") else 1
-        )
-    )
+
+    def rank(item: pytest.Item) -> int:
+        if item.path.name in LONGEST_MODULES:
+            return 0
+        if item.get_closest_marker("sitl") or item.get_closest_marker("slow"):
+            return 1
+        return 2
+
+    items.sort(key=rank)
+    for item in items:
+        if _sped_up_sitl(item):
+            item.add_marker(pytest.mark.xdist_group("sitl-speedup"))

@@ -83,19 +83,11 @@ def rate_of(peer: Peer, name: str, window_s: float) -> float:
     return len(times) / window_s
 
 
-def acknowledged_before_first_heartbeat(peer: Peer, ack: object) -> bool:
-    """True when ``ack`` came before the autopilot's first HEARTBEAT (the request was early)."""
-    for _t, msg in peer.history:
-        if msg is ack:
-            return True
-        if msg.get_type() == "HEARTBEAT":
-            return False
-    return False
-
-
 EARLY_ATTEMPTS = 3
-"""Fresh vehicles tried until the early request really is early: on a loaded machine the
-test's request can reach SITL after its first send, and then ArduPilot keeps it."""
+"""Fresh vehicles tried until one shows the early request lost: on a loaded machine the
+test's request can reach SITL after it set its streams, and then ArduPilot keeps it (an
+attempt that shows it kept proves nothing either way; one that shows it lost is the
+behaviour). The simulated autopilot loses it on the first attempt, every time."""
 
 
 @backends("connecting_peer")
@@ -103,26 +95,29 @@ def test_a_request_before_the_first_heartbeat_is_lost(connecting_peer: Peer) -> 
     # ArduPilot sets every interval from its SRn_* rates when it first sends (which is
     # also when it sends its first HEARTBEAT): a request that arrived before that is
     # acknowledged and forgotten; one after it is kept, even before "ArduPilot Ready".
-    # Its acknowledgement, sent before that first HEARTBEAT, shows the request was early.
     peer = connecting_peer
     fresh: list[Peer] = []
+    rates = []
     try:
-        for _ in range(EARLY_ATTEMPTS):
+        for attempt in range(EARLY_ATTEMPTS):
+            if attempt:
+                peer = open_peer(peer.backend, start=False)
+                fresh.append(peer)
             early = peer.message_interval("ATTITUDE", 100_000, within_s=10)
             assert early.result == mavlink2.MAV_RESULT_ACCEPTED
             peer.wait_for("HEARTBEAT", 30, since=0)
-            if acknowledged_before_first_heartbeat(peer, early):
+            result = peer.message_interval("SYSTEM_TIME", 100_000).result
+            assert result == mavlink2.MAV_RESULT_ACCEPTED
+            clock = peer.wait_for("SYSTEM_TIME", 30)
+            assert clock.time_boot_ms < 3000, "streams came after 'ArduPilot Ready' (~2.5 s)"
+            peer.run_for(4.0)
+            assert rate_of(peer, "SYSTEM_TIME", 3.0) == pytest.approx(10.0, abs=0.7)
+            rates.append(rate_of(peer, "ATTITUDE", 3.0))
+            if rates[-1] == pytest.approx(DEFAULT_HZ[peer.kind], abs=0.4):
                 break
-            peer = open_peer(peer.backend, start=False)
-            fresh.append(peer)
+            assert peer.backend.startswith("sitl-"), "the simulation kept an early request"
         else:
-            pytest.fail("the request never reached the autopilot before its first send")
-        assert peer.message_interval("SYSTEM_TIME", 100_000).result == mavlink2.MAV_RESULT_ACCEPTED
-        clock = peer.wait_for("SYSTEM_TIME", 30)
-        assert clock.time_boot_ms < 3000, "streams came after 'ArduPilot Ready' (~2.5 s)"
-        peer.run_for(4.0)
-        assert rate_of(peer, "SYSTEM_TIME", 3.0) == pytest.approx(10.0, abs=0.7)
-        assert rate_of(peer, "ATTITUDE", 3.0) == pytest.approx(DEFAULT_HZ[peer.kind], abs=0.4)
+            pytest.fail(f"the early ATTITUDE request was kept on every attempt: {rates} Hz")
     finally:
         for extra in fresh:
             extra.close()
