@@ -124,6 +124,8 @@ def fly(peer: Peer) -> None:
     mark = peer.mark()
     ack = peer.command_long(mavlink2.MAV_CMD_DO_CHANGE_SPEED, 0, 15.0, -1)
     assert ack.result == mavlink2.MAV_RESULT_ACCEPTED
+    # Said with the answer; on a loaded machine the text can come a moment after the ACK.
+    peer.wait_for("STATUSTEXT", 2.0, where=lambda m: "airspeed" in m.text, since=mark)
     assert command_texts(peer.texts_since(mark)) == ("6:Set airspeed 15 m/s",)
     peer.run_for(25.0)
     mark = peer.mark()
