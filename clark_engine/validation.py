@@ -9,10 +9,12 @@ the demo call them.
 from __future__ import annotations
 
 import stat
+import sys
 from collections import defaultdict
 from pathlib import Path
+from typing import TextIO
 
-from clark_engine.errors import ClarkError
+from clark_engine.errors import ClarkError, UsageError
 from clark_engine.link import wire
 from clark_engine.link.auth import load_key
 from clark_engine.link.budget import Flow, MeshBudget, PacketCosts, mesh_budget
@@ -59,6 +61,28 @@ def validate_file(path: Path, shown: str | None = None) -> Validation:
     if not result.ok:
         result.mission = None
     return result
+
+
+def load_mission(path_text: str, errors: TextIO | None = None) -> Mission:
+    """The resolved mission of a file a command was given, for the commands that run it.
+
+    ``clark run``, ``clark autopilot-sim`` and ``clark radio-sim`` need a valid mission
+    and nothing else; its errors are printed (to ``errors``, stderr by default) before
+    the command fails.
+
+    Raises:
+        UsageError: No such file, or it cannot be read (exit 2).
+        ClarkError: The mission is invalid (exit 1).
+    """
+    path = Path(path_text)
+    if not path.is_file():
+        raise UsageError(f"{path_text}: no such file")
+    result = validate_file(path, path_text)
+    if result.mission is None:
+        for finding in result.errors:
+            print(finding.format_text(), file=errors or sys.stderr)
+        raise ClarkError(f"{path_text} is not a valid mission; `clark validate {path_text}`")
+    return result.mission
 
 
 def _mission_location(mission: Mission, key: str) -> Location:

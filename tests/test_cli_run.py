@@ -2,18 +2,15 @@
 
 The two-process rehearsal of docs/run.md: cooperative_follow's station (``mcs``) and
 ``slash_b`` each run as ``python -m clark_engine run ...`` with a UDP radio on
-127.0.0.1; slash_b's autopilot is the dry run's own simulated ArduRover, built by
-:func:`~clark_engine.sim.engine.build_vehicle` (as tests/conformance/harness.py's
-``build_sim_link`` does) and served on a UDP port from this process at wall-clock
-pace, as ``clark dry-run --realtime`` serves it (it listens and answers whoever sent
+127.0.0.1; slash_b's autopilot is the dry run's own simulated ArduRover, served on a
+UDP port from a thread of this process at wall-clock pace by ``clark autopilot-sim``'s
+:class:`~clark_engine.sim.served.ServedSimulated` (it listens and answers whoever sent
 it a datagram; ``clark run`` connects with ``udpout:``). Nothing here sleeps to wait
 for a moment: each step waits for a line in a log file or on stdout, with a timeout.
 """
 
 from __future__ import annotations
 
-import contextlib
-import dataclasses
 import select
 import signal
 import socket
@@ -27,11 +24,7 @@ from pathlib import Path
 import pytest
 
 from clark_engine.cli import main
-from clark_engine.io.transports import TransportError, UdpTransport
-from clark_engine.mission.compiler import agent_config
-from clark_engine.runtime.config import config_from_dict
-from clark_engine.sim.engine import PHYSICS_STEP_S, build_vehicle
-from clark_engine.sim.realtime import datagrams
+from clark_engine.sim.served import ServedSimulated
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -41,61 +34,24 @@ TIMEOUT_S = 30.0
 
 
 class ServedAutopilot:
-    """A simulated vehicle's autopilot on a UDP port, stepped at wall-clock pace by a thread.
-
-    The physics steps every PHYSICS_STEP_S of wall time, as in ``clark dry-run
-    --realtime``; what the autopilot emits goes to every address that sent it a
-    datagram; the simulated safety pilot arms the vehicle once it is ready (the
-    mission's ``armed_by: pilot``). Its boot is shortened to ``ready_s``.
-    """
+    """``clark autopilot-sim``'s simulated autopilot (its boot shortened to ``ready_s``),
+    served from a thread of this process at wall-clock pace; its pilot arms it when ready."""
 
     def __init__(self, agent: str, ready_s: float = 1.0) -> None:
         mission = validate_file(MISSION).mission
         assert mission is not None
-        mission = dataclasses.replace(mission, sim={**mission.sim, "autopilot_ready_s": ready_s})
-        config = config_from_dict(agent_config(mission, mission.agents[agent]))
-        self.backend, self.pilot = build_vehicle(
-            mission, mission.agents[agent], config, int(mission.sim.get("seed", 0)), wall_clock=True
-        )
-        self.transport = UdpTransport(bind=("127.0.0.1", 0))
-        self.port = self.transport.address[1]
+        self.server = ServedSimulated(mission, agent, ready_s=ready_s)
+        self.port = self.server.transport.address[1]
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._serve, name="served-autopilot")
+        self._thread = threading.Thread(
+            target=self.server.serve, args=(self._stop.is_set, lambda _line: None)
+        )
         self._thread.start()
-
-    def _emit(self, data: bytes, t_s: float) -> None:
-        if not data:
-            return
-        if not self.pilot.done:
-            self.pilot.hear(data, t_s)
-        if self.transport.peers:
-            for datagram in datagrams(data):
-                with contextlib.suppress(TransportError):  # UDP may drop; the engine asks again
-                    self.transport.send(datagram)
-
-    def _serve(self) -> None:
-        start = time.monotonic()
-        steps = 0
-        self._emit(self.backend.step(0.0, 0.0), 0.0)
-        fd = self.transport.fileno()
-        while not self._stop.is_set():
-            if fd is not None:
-                select.select([fd], [], [], PHYSICS_STEP_S / 4)
-            t_s = time.monotonic() - start
-            try:
-                data = self.transport.receive()
-            except TransportError:
-                data = b""
-            if data:
-                self.backend.send(data, t_s)
-            while (steps + 1) * PHYSICS_STEP_S <= t_s:
-                steps += 1
-                self._emit(self.backend.step(steps * PHYSICS_STEP_S, PHYSICS_STEP_S), t_s)
 
     def close(self) -> None:
         self._stop.set()
         self._thread.join(timeout=10)
-        self.transport.close()
+        self.server.close()
 
 
 @pytest.fixture

@@ -38,8 +38,9 @@ def load_agent(path_text: str, agent: str | None) -> tuple[AgentConfig, list[dic
     """The agent's compiled config, the mission's operator script, and the key's folder.
 
     Raises:
-        UsageError: The file cannot be read, the mission is invalid, or the agent is
-            missing or not named when a mission is given.
+        UsageError: The file cannot be read, or the agent is missing or not named when
+            a mission is given.
+        ClarkError: The mission is invalid.
     """
     path = Path(path_text)
     if not path.exists():
@@ -52,14 +53,9 @@ def load_agent(path_text: str, agent: str | None) -> tuple[AgentConfig, list[dic
         folder = Path(source).parent if source and Path(source).parent.exists() else path.parent
         return config, [], folder
     from clark_engine.mission.compiler import agent_config
-    from clark_engine.validation import validate_file
+    from clark_engine.validation import load_mission
 
-    result = validate_file(path, path_text)
-    mission = result.mission
-    if mission is None:
-        for finding in result.errors:
-            print(finding.format_text(), file=sys.stderr)
-        raise ClarkError(f"{path_text} is not a valid mission; `clark validate {path_text}`")
+    mission = load_mission(path_text)
     if agent is None:
         raise UsageError(
             f"--agent NAME is required with a mission; agents: {', '.join(mission.agents)}"

@@ -35,16 +35,14 @@ from __future__ import annotations
 
 import contextlib
 import select
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import replace
-from pathlib import Path
 from typing import Any, Final
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from clark_engine.errors import ClarkError, UsageError
+from clark_engine.errors import UsageError
 from clark_engine.io.transports import TransportError, UdpTransport
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.model import Mission
@@ -281,17 +279,9 @@ def _load(path_text: str, agent: str) -> Mission:
         UsageError: No such file, agent, or the agent is the station.
         ClarkError: The mission is invalid (its findings are printed first).
     """
-    from clark_engine.validation import validate_file
+    from clark_engine.validation import load_mission
 
-    path = Path(path_text)
-    if not path.is_file():
-        raise UsageError(f"{path_text}: no such file")
-    result = validate_file(path, path_text)
-    mission = result.mission
-    if mission is None:
-        for finding in result.errors:
-            print(finding.format_text(), file=sys.stderr)
-        raise ClarkError(f"{path_text} is not a valid mission; `clark validate {path_text}`")
+    mission = load_mission(path_text)
     vehicles = [name for name, a in mission.agents.items() if a.role != "mcs"]
     if agent not in mission.agents:
         raise UsageError(

@@ -19,7 +19,6 @@ others are listed as left out.
 from __future__ import annotations
 
 import re
-import sys
 from pathlib import Path
 from typing import Any, Final
 
@@ -27,22 +26,9 @@ from clark_engine.errors import ClarkError, UsageError
 from clark_engine.mission.model import Mission
 from clark_engine.sim.realtime import StopFlag
 from clark_engine.sim.xbee_emulator import THROUGHPUT_BPS, XBeeEmulator
+from clark_engine.validation import load_mission
 
 XBEE_ADDRESS: Final = re.compile(r"^[0-9A-Fa-f]{16}$")
-
-
-def _load(path_text: str) -> Mission:
-    from clark_engine.validation import validate_file
-
-    path = Path(path_text)
-    if not path.is_file():
-        raise UsageError(f"{path_text}: no such file")
-    result = validate_file(path, path_text)
-    if result.mission is None:
-        for finding in result.errors:
-            print(finding.format_text(), file=sys.stderr)
-        raise ClarkError(f"{path_text} is not a valid mission; `clark validate {path_text}`")
-    return result.mission
 
 
 def xbee_agents(mission: Mission) -> tuple[dict[str, str], list[str]]:
@@ -83,7 +69,7 @@ def serve_network(args: Any) -> int:
         raise UsageError(f"--loss {args.loss:g}: give a share from 0 to 1")
     if args.latency_s < 0:
         raise UsageError(f"--latency-s {args.latency_s:g}: give 0 or more")
-    mission = _load(args.mission)
+    mission = load_mission(args.mission)
     radios, others = xbee_agents(mission)
     if not radios:
         raise ClarkError(
