@@ -14,12 +14,37 @@ ROOT = Path(__file__).resolve().parent.parent
 MISSION = ROOT / "missions" / "cooperative_follow.yaml"
 
 
+def _free_port() -> int:
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", 0))
+    port = int(sock.getsockname()[1])
+    sock.close()
+    return port
+
+
+def _check_station_radio(port: int, seconds: str, *extra: str) -> int:
+    """``clark check radio`` for the station on UDP 127.0.0.1:``port``, in this process."""
+    return main(
+        [
+            "check",
+            "radio",
+            str(MISSION),
+            "--agent",
+            "mcs",
+            "--radio",
+            "udp",
+            "--radio-address",
+            f"127.0.0.1:{port}",
+            *extra,
+            "--seconds",
+            seconds,
+        ]
+    )
+
+
 def test_check_radio_hears_a_udp_peer(capsys: object) -> None:
     peer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    own = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    own.bind(("127.0.0.1", 0))
-    port = own.getsockname()[1]
-    own.close()
+    port = _free_port()
     stop = threading.Event()
 
     def chatter() -> None:
@@ -29,21 +54,7 @@ def test_check_radio_hears_a_udp_peer(capsys: object) -> None:
     thread = threading.Thread(target=chatter)
     thread.start()
     try:
-        code = main(
-            [
-                "check",
-                "radio",
-                str(MISSION),
-                "--agent",
-                "mcs",
-                "--radio",
-                "udp",
-                "--radio-address",
-                f"127.0.0.1:{port}",
-                "--seconds",
-                "1",
-            ]
-        )
+        code = _check_station_radio(port, "1")
     finally:
         stop.set()
         thread.join()
@@ -95,33 +106,9 @@ def test_check_autopilot_fails_with_1_when_nobody_answers() -> None:
     assert code == 1
 
 
-def _free_port() -> int:
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sock.bind(("127.0.0.1", 0))
-    port = int(sock.getsockname()[1])
-    sock.close()
-    return port
-
-
 def test_check_radio_fails_when_an_expected_peer_is_silent(capsys: object) -> None:
     own, silent = _free_port(), _free_port()
-    code = main(
-        [
-            "check",
-            "radio",
-            str(MISSION),
-            "--agent",
-            "mcs",
-            "--radio",
-            "udp",
-            "--radio-address",
-            f"127.0.0.1:{own}",
-            "--peer",
-            f"slash_b=127.0.0.1:{silent}",
-            "--seconds",
-            "0.5",
-        ]
-    )
+    code = _check_station_radio(own, "0.5", "--peer", f"slash_b=127.0.0.1:{silent}")
     out = capsys.readouterr().out  # type: ignore[attr-defined]
     assert code == 1, out
     assert "radio: FAILED: nothing heard in 0.5 s from slash_b" in out
@@ -130,21 +117,7 @@ def test_check_radio_fails_when_an_expected_peer_is_silent(capsys: object) -> No
 def test_check_radio_says_plainly_when_it_heard_nothing_and_expected_nobody(
     capsys: object,
 ) -> None:
-    code = main(
-        [
-            "check",
-            "radio",
-            str(MISSION),
-            "--agent",
-            "mcs",
-            "--radio",
-            "udp",
-            "--radio-address",
-            f"127.0.0.1:{_free_port()}",
-            "--seconds",
-            "0.5",
-        ]
-    )
+    code = _check_station_radio(_free_port(), "0.5")
     out = capsys.readouterr().out  # type: ignore[attr-defined]
     assert code == 0, out
     assert "NOTHING was heard" in out and "--peer" in out
