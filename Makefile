@@ -23,8 +23,10 @@ $(STAMP): pyproject.toml | $(BIN)/python
 demo: $(STAMP)
 	$(BIN)/python tools/demo.py
 
-## test: the whole suite, spread over the machine's cores (pytest-xdist)
+## test: the whole suite, spread over the machine's cores (pytest-xdist); first makes sure
+## the browser tests have Debian's chromium (installed when absent and we may; else they skip)
 test: $(STAMP)
+	bash tools/ensure_browser.sh
 	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadgroup
 
 ## lint / format / typecheck: the same commands CI runs

@@ -1,0 +1,88 @@
+"""Fixtures of the browser tests: one headless Chromium per test session, a page per test.
+
+Every test here is marked ``browser`` and put in the xdist group ``browser`` (each
+module's ``pytestmark``), so one worker runs them all with one browser. Without
+Playwright or without Chromium they skip and say why (``make test`` installs both:
+Playwright with the test extra, Debian's chromium through tools/ensure_browser.sh); a
+Chromium that is there but does not start fails them.
+
+Each test's page records what it asked of which host, and the uncaught errors of its
+script: a test fails if the page reached beyond this machine or its script threw.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from typing import Any
+from urllib.parse import urlsplit
+
+import pytest
+from station_page import (
+    CHROMIUM_ENV,
+    DEBIAN_CHROMIUM,
+    OTHER_SITE_SUFFIX,
+    VIEWPORT,
+    chromium_path,
+    launched_browser,
+    machine_names,
+)
+
+
+@pytest.fixture(scope="session")
+def browser() -> Iterator[Any]:
+    """Debian's chromium, headless, driven by Playwright (skips without either)."""
+    sync_api = pytest.importorskip(
+        "playwright.sync_api",
+        reason="Playwright is not installed (pip install -e '.[test]'; make test does it)",
+    )
+    if chromium_path() is None:
+        wanted = os.environ.get(CHROMIUM_ENV)
+        pytest.skip(
+            f"no Chromium at {CHROMIUM_ENV}={wanted}"
+            if wanted
+            else f"no Chromium at {DEBIAN_CHROMIUM}: Debian's chromium package is not "
+            "installed (tools/ensure_browser.sh, run by make test, installs it as root)"
+        )
+    with sync_api.sync_playwright() as playwright, launched_browser(playwright) as chromium:
+        yield chromium
+
+
+def _allowed_host(host: str) -> bool:
+    return (
+        host in ("127.0.0.1", "localhost", "[::1]", "::1")
+        or host.endswith(OTHER_SITE_SUFFIX)
+        or host in machine_names()
+    )
+
+
+@pytest.fixture
+def context(browser: Any) -> Iterator[Any]:
+    """A fresh browser context (no cookies, no storage) of 1280x800."""
+    ctx = browser.new_context(viewport=VIEWPORT)
+    try:
+        yield ctx
+    finally:
+        ctx.close()
+
+
+@pytest.fixture
+def page(context: Any) -> Iterator[Any]:
+    """A page that must stay on loopback and whose script must throw nothing."""
+    tab = context.new_page()
+    outside: list[str] = []
+    errors: list[str] = []
+
+    def record(url: str) -> None:
+        parts = urlsplit(url)
+        if parts.scheme in ("http", "https", "ws", "wss") and not _allowed_host(
+            parts.hostname or ""
+        ):
+            outside.append(url)
+
+    tab.on("request", lambda request: record(request.url))
+    tab.on("websocket", lambda socket: record(socket.url))
+    tab.on("pageerror", lambda error: errors.append(str(error)))
+    yield tab
+    assert not outside, f"the page reached beyond this machine: {outside}"
+    assert not errors, f"the page's script threw: {errors}"
