@@ -24,7 +24,9 @@ from clark_engine.mission.faults import FAULT_HELP
 
 if TYPE_CHECKING:
     from clark_engine.mission.findings import Finding
+    from clark_engine.mission.model import Mission
     from clark_engine.mission.validate import Validation
+    from clark_engine.sim.dryrun import LiveView, LiveViewOpener
 
 EXIT_OK = 0
 EXIT_INVALID = 1
@@ -262,6 +264,7 @@ def cmd_dry_run(args: argparse.Namespace) -> int:
     from clark_engine.sim.sitl import SitlError, SitlInstall
 
     on_sitl = args.autopilot == "sitl"
+    station_view = _station_view(args)
     if not on_sitl:
         for given, option in (
             (args.sitl is not None, "--sitl"),
@@ -286,10 +289,11 @@ def cmd_dry_run(args: argparse.Namespace) -> int:
                         "real time and a ground station connects to each vehicle's SITL "
                         "directly (its port is printed at the start)"
                     )
-        elif args.mavlink_port is None:
+        elif args.mavlink_port is None and station_view is None:
             raise UsageError(
-                "--realtime needs --mavlink-port BASE: vehicle k's autopilot listens on "
-                "UDP port BASE+k (e.g. --mavlink-port 14560; see docs/realtime.md)"
+                "--realtime needs --mavlink-port BASE (vehicle k's autopilot listens on "
+                "UDP port BASE+k, e.g. --mavlink-port 14560; see docs/realtime.md) or "
+                "--station (the station's web view)"
             )
         if args.speed is not None:
             raise UsageError("--speed does not go with --realtime, which runs at speed 1")
@@ -321,8 +325,43 @@ def cmd_dry_run(args: argparse.Namespace) -> int:
         realtime=args.realtime,
         quiet=args.quiet,
         command_line=["clark", *args.argv],
+        station_view=station_view,
+        operator_script=not args.no_operator_script,
     )
     return outcome.exit_code
+
+
+def _station_view(args: argparse.Namespace) -> LiveViewOpener | None:
+    """``--station`` and its view options checked (usage errors, exit 2); None without it.
+
+    The opener it returns starts the server once the mission is validated, before
+    anything is simulated or written.
+    """
+    from clark_engine.gcs.rehearsal import open_rehearsal, rehearsal_settings
+
+    view_options = (
+        (args.view is not None, "--view"),
+        (args.view_token is not None, "--view-token"),
+        (args.view_token_file is not None, "--view-token-file"),
+        (args.view_hz is not None, "--view-hz"),
+        (args.no_operator_script, "--no-operator-script"),
+    )
+    if not args.station:
+        for given, option in view_options:
+            if given:
+                raise UsageError(f"{option} goes with --station (the station's web view)")
+        return None
+    if not args.realtime:
+        raise UsageError(
+            "--station needs --realtime: the station's view follows the rehearsal at "
+            "wall-clock speed (clark dry-run MISSION --realtime --station)"
+        )
+    settings = rehearsal_settings(args.view, args.view_token, args.view_token_file, args.view_hz)
+
+    def opener(mission: Mission, path: Path) -> LiveView:
+        return open_rehearsal(settings, mission, path)
+
+    return opener
 
 
 def _workers(text: str) -> int | None:
@@ -584,6 +623,41 @@ def build_parser() -> argparse.ArgumentParser:
         type=_speed,
         metavar="X",
         help="with --autopilot sitl: run SITL X times faster than real time (10 by default)",
+    )
+    p.add_argument(
+        "--station",
+        action="store_true",
+        help="with --realtime: serve the station agent's live web view of the rehearsal "
+        "(the page of clark run --view; docs/realtime.md)",
+    )
+    p.add_argument(
+        "--view",
+        metavar="[HOST:]PORT",
+        help="with --station: where to serve it (127.0.0.1:8080 by default; port 0 picks one)",
+    )
+    p.add_argument(
+        "--view-token",
+        metavar="TOKEN",
+        help="with --station: the token the view requires (required off loopback; a file is safer)",
+    )
+    p.add_argument(
+        "--view-token-file",
+        metavar="FILE",
+        help="with --station: read the view's token from the first line of FILE",
+    )
+    p.add_argument(
+        "--view-hz",
+        type=_period_s,
+        metavar="HZ",
+        help="with --station: view updates per second (5 by default, at most the station's "
+        "loop rate)",
+    )
+    p.add_argument(
+        "--no-operator-script",
+        action="store_true",
+        help="with --station: do not play the mission's operator actions for the station "
+        "(activate, deactivate, mode, terminate): the person at the page commands; the "
+        "pilots' rc actions still play",
     )
     p.set_defaults(func=cmd_dry_run)
 

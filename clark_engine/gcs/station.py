@@ -1,23 +1,27 @@
-"""The station view wired to the station's real-time shell (``clark run --view``).
+"""The station view wired to the loop that runs the station (``clark run --view``, a rehearsal).
 
-The shell's loop is single-threaded and never waits for the web; the server
+The loop is single-threaded and never waits for the web; the server
 (:class:`~clark_engine.gcs.server.ViewServer`) runs on its own thread. They meet here,
-through the shell's public API only (``add_reader``, ``remove_reader``, ``on_tick``,
-``deliver``, ``runtime``):
+through a small host interface (:class:`ViewHost`: ``runtime``, ``period_s``,
+``on_tick``, ``add_reader``, ``remove_reader``, ``deliver``). ``clark run``'s
+:class:`~clark_engine.shells.realtime.RealtimeShell` is such a host as it is; a
+rehearsal's is the dry run's station agent (:mod:`clark_engine.gcs.rehearsal`).
 
 - :class:`CommandInbox`: the server's thread puts each checked command in a bounded
-  queue and writes one byte to a pipe; the shell watches the pipe's read end
-  (``add_reader``), so the loop wakes at once, drains the queue and carries each
-  command out with ``deliver`` on its own thread.
+  queue and writes one byte to a pipe; the host watches the pipe's read end
+  (``add_reader``: a real-time shell wakes at once, a rehearsal looks at every tick of
+  the station), drains the queue and carries each command out with ``deliver`` on its
+  own thread.
 - :class:`StationViewLink`: after every tick (``on_tick``) the view takes what arrived
   (track points, photos, answers to commands); at the view's update rate (and at once
   after a command) it builds a snapshot and publishes it to the server, which never
   blocks the loop (newest wins).
 
 :func:`view_settings` reads ``clark run``'s ``--view`` options (usage errors before
-anything opens), :func:`fleet_configs` finds every agent's config for the plan, and
-:func:`open_view` starts the server before the agent's links open, so a port in use
-ends the run before the radio is touched.
+anything opens; :func:`settings_from_options` is the part a rehearsal shares),
+:func:`fleet_configs` finds every agent's config for the plan, and :func:`open_view`
+starts the server before the agent's links open, so a port in use ends the run before
+the radio is touched.
 """
 
 from __future__ import annotations
@@ -26,10 +30,10 @@ import contextlib
 import math
 import os
 import queue
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Final
+from typing import Any, Final, Protocol
 
 from clark_engine.errors import ClarkError, UsageError
 from clark_engine.gcs.model import (
@@ -46,7 +50,8 @@ from clark_engine.gcs.server import (
     parse_view_address,
 )
 from clark_engine.runtime.config import AgentConfig, load_config
-from clark_engine.shells.realtime import RealtimeShell
+from clark_engine.runtime.events import StationCommand
+from clark_engine.runtime.runtime import AgentRuntime
 
 DEFAULT_UPDATE_HZ: Final = 5.0
 """How often the page is sent the state, unless ``--view-hz`` says otherwise."""
@@ -113,6 +118,22 @@ def view_settings(
             f"--view serves the station's view; {config.agent} is a vehicle: "
             "give --view to the station's clark run (role mcs)"
         )
+    return settings_from_options(view, token, token_file, update_hz)
+
+
+def settings_from_options(
+    view: str, token: str | None, token_file: str | None, update_hz: float | None
+) -> ViewSettings:
+    """The view's address, token and rate checked, wherever the station runs.
+
+    The rules every command that serves the view shares (``clark run --view``,
+    ``clark dry-run --station``): one token option at most, a valid address, and a
+    token whenever the address is not loopback (the view commands vehicles).
+
+    Raises:
+        UsageError: Both token options; a bad address or token; a non-loopback address
+            without a token.
+    """
     if token is not None and token_file is not None:
         raise UsageError("give --view-token or --view-token-file, not both")
     host, port = parse_view_address(view)
@@ -227,12 +248,52 @@ class CommandInbox:
                 os.close(fd)
 
 
+class ViewHost(Protocol):
+    """What the view needs of the loop that runs the station, whichever loop it is.
+
+    ``clark run``'s :class:`~clark_engine.shells.realtime.RealtimeShell` is one as it
+    is; a rehearsal's is :class:`~clark_engine.gcs.rehearsal.RehearsalHost`, over the
+    dry run's station agent. Everything is called on the loop's own thread.
+    """
+
+    @property
+    def runtime(self) -> AgentRuntime:
+        """The station's runtime: its fleet table, its clock, its logbook."""
+        ...
+
+    @property
+    def period_s(self) -> float:
+        """The station's loop period: the view updates at most once per tick."""
+        ...
+
+    @property
+    def on_tick(self) -> list[Callable[[Any, float], None]]:
+        """Hooks called after every tick of the station with (the host, the time)."""
+        ...
+
+    def add_reader(self, fd: int, callback: Callable[[float], None]) -> None:
+        """Call ``callback(now_s)`` on the loop's thread when ``fd`` may be readable.
+
+        A host may wake on it (a real-time shell's selector) or call ``callback`` at
+        every tick (a rehearsal): the callback reads without blocking either way.
+        """
+        ...
+
+    def remove_reader(self, fd: int) -> None:
+        """Stop watching ``fd``."""
+        ...
+
+    def deliver(self, event: StationCommand, now_s: float) -> None:
+        """Hand an operator's command to the station's runtime and carry out its answer."""
+        ...
+
+
 class StationViewLink:
-    """The station's view fed from its shell and handed to the server.
+    """The station's view fed from its loop and handed to the server.
 
     Args:
-        shell: The station's real-time shell.
-        view: The view's model over ``shell.runtime``.
+        host: The loop that runs the station (:class:`ViewHost`).
+        view: The view's model over ``host.runtime``.
         server: The server (started or not); snapshots go to it.
         inbox: Where the server puts the page's commands.
         update_hz: Snapshots per second (one per tick at most).
@@ -240,7 +301,7 @@ class StationViewLink:
 
     def __init__(
         self,
-        shell: RealtimeShell,
+        host: ViewHost,
         view: StationView,
         server: ViewServer,
         inbox: CommandInbox,
@@ -249,7 +310,7 @@ class StationViewLink:
     ) -> None:
         if not update_hz > 0:
             raise ValueError(f"update_hz must be above 0, not {update_hz}")
-        self.shell = shell
+        self.host = host
         self.view = view
         self.server = server
         self.inbox = inbox
@@ -259,24 +320,24 @@ class StationViewLink:
         self._next_s = -math.inf
         self._reported: set[str] = set()
         self._closed = False
-        shell.add_reader(inbox.fileno(), self._commands)
-        shell.on_tick.append(self._on_tick)
+        host.add_reader(inbox.fileno(), self._commands)
+        host.on_tick.append(self._on_tick)
 
     def _failed(self, where: str, exc: Exception) -> None:
         """A fault of the view must never stop the station: count it, log it once."""
         self.errors += 1
         kind = f"{where}:{type(exc).__name__}"
-        logbook = self.shell.runtime.logbook
+        logbook = self.host.runtime.logbook
         if kind not in self._reported and not logbook.closed:
             self._reported.add(kind)
             logbook.interface.error("station view: %s failed: %r", where, exc)
 
-    def _on_tick(self, shell: RealtimeShell, now_s: float) -> None:
+    def _on_tick(self, host: object, now_s: float) -> None:
         try:
             self.view.observe(now_s)
             # Due within half a tick: ticks and updates keep step despite the loop's jitter
             # (5 Hz on a 10 Hz loop is every other tick, not every third).
-            if now_s >= self._next_s - 0.5 * shell.period_s:
+            if now_s >= self._next_s - 0.5 * self.host.period_s:
                 behind = now_s - self._next_s >= self.period_s
                 self._next_s = (now_s if behind else self._next_s) + self.period_s
                 self.server.publish(self.view.snapshot(now_s))
@@ -284,13 +345,13 @@ class StationViewLink:
             self._failed("update", exc)
 
     def _commands(self, now_s: float) -> None:
-        """The pipe is readable: carry out every command waiting, then publish at once."""
+        """The pipe may be readable: carry out every command waiting, then publish at once."""
         requests = self.inbox.drain()
         if not requests:
             return
         for request in requests:
             try:
-                self.view.execute(request, lambda c: self.shell.deliver(c, now_s), now_s)
+                self.view.execute(request, lambda c: self.host.deliver(c, now_s), now_s)
             except Exception as exc:
                 self._failed("command", exc)
         self.publish(now_s)
@@ -309,9 +370,9 @@ class StationViewLink:
         self._closed = True
         self.publish(now_s)
         with contextlib.suppress(Exception):
-            self.shell.remove_reader(self.inbox.fileno())
+            self.host.remove_reader(self.inbox.fileno())
         with contextlib.suppress(ValueError):
-            self.shell.on_tick.remove(self._on_tick)
+            self.host.on_tick.remove(self._on_tick)
         self.inbox.close()
         if self.view.log is not None:
             self.view.log.detach()
@@ -319,20 +380,20 @@ class StationViewLink:
 
 @dataclass
 class OpenView:
-    """A started server and what the link needs once the station's shell exists."""
+    """A started server and what the link needs once the station's loop exists."""
 
     server: ViewServer
     inbox: CommandInbox
     hello: Json
     settings: ViewSettings
 
-    def attach(self, shell: RealtimeShell) -> StationViewLink:
-        """Feed the server from ``shell``: its mission log, its ticks, its commands."""
+    def attach(self, host: ViewHost) -> StationViewLink:
+        """Feed the server from ``host``: its mission log, its ticks, its commands."""
         log = MissionLogBuffer()
-        log.attach(shell.runtime.logbook.mission)
-        view = StationView(shell.runtime, self.hello, log=log)
+        log.attach(host.runtime.logbook.mission)
+        view = StationView(host.runtime, self.hello, log=log)
         return StationViewLink(
-            shell, view, self.server, self.inbox, update_hz=self.settings.update_hz
+            host, view, self.server, self.inbox, update_hz=self.settings.update_hz
         )
 
     def stop(self) -> None:
@@ -370,9 +431,11 @@ __all__ = [
     "CommandInbox",
     "OpenView",
     "StationViewLink",
+    "ViewHost",
     "ViewSettings",
     "fleet_configs",
     "load_token",
     "open_view",
+    "settings_from_options",
     "view_settings",
 ]

@@ -8,16 +8,21 @@ With ``--autopilot sitl`` every vehicle's autopilot is real ArduPilot SITL
 (:mod:`clark_engine.sim.sitl_backend`); the mission is then also simulated on the
 simulated autopilot, and the two runs' state timelines are compared
 (:mod:`clark_engine.sim.timeline`): one more row in the checks table.
+
+With ``--realtime --station`` the station agent's live web view is served over the run
+(a :class:`LiveView`, :mod:`clark_engine.gcs.rehearsal`, handed in by the command line so
+that the simulator does not import the web server): opened before anything is
+simulated or written, fed by the run, given the verdicts at the end, stopped last.
 """
 
 from __future__ import annotations
 
 import shlex
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Final, TextIO
+from typing import Any, Final, Protocol, TextIO
 
 from clark_engine.errors import UsageError
 from clark_engine.mission.faults import FAULT_HELP as FAULT_FORMS
@@ -71,6 +76,42 @@ def parse_fault(text: str) -> dict[str, Any]:
         shown = text if len(text) <= MAX_FAULT_TEXT else text[:MAX_FAULT_TEXT] + "..."
         verdict = "" if exc.broken_rule else " is not a fault"
         raise UsageError(f"--fault {shown!r}{verdict}: {exc.message}") from None
+
+
+class LiveView(Protocol):
+    """A view served over a real-time dry run: the station's page of a rehearsal.
+
+    :mod:`clark_engine.gcs.rehearsal`'s :class:`~clark_engine.gcs.rehearsal.Rehearsal`
+    is one; it is opened (its server started) before anything is simulated or written.
+    """
+
+    @property
+    def url(self) -> str:
+        """The page's address, to print."""
+        ...
+
+    @property
+    def station(self) -> str:
+        """The station agent whose view it is."""
+        ...
+
+    def attach(self, run: DryRun) -> None:
+        """Feed the view from ``run`` (not started yet)."""
+        ...
+
+    def finish(self, results: Sequence[CheckResult], end_s: float) -> None:
+        """The run is over: show its verdicts and send the last state."""
+        ...
+
+    def stop(self) -> None:
+        """Stop serving (after :meth:`finish`, or on an error or interrupt)."""
+        ...
+
+
+#: Opens a :class:`LiveView` over a validated mission (mission, mission file); raises
+#: UsageError when it cannot be served (a port in use), ClarkError when the mission
+#: cannot have one (no station).
+LiveViewOpener = Callable[[Mission, Path], LiveView]
 
 
 @dataclass(slots=True)
@@ -142,6 +183,8 @@ def run_dry_run(
     err: TextIO | None = None,
     quiet: bool = False,
     command_line: Sequence[str] | None = None,
+    station_view: LiveViewOpener | None = None,
+    operator_script: bool = True,
 ) -> Outcome:
     """Validate the mission, simulate it, evaluate its checks and write the report.
 
@@ -166,20 +209,28 @@ def run_dry_run(
         sitl: Fly every vehicle's autopilot as ArduPilot SITL from this install, and
             compare the states with a simulated run's; the simulated autopilot when None.
         sitl_speedup: SITL's speed-up (``speed`` does not apply: SITL sets the pace).
-        realtime: With ``sitl``: SITL at real time, each vehicle's SERIAL1 free for a
-            ground station; Ctrl-C ends the run early. (Without SITL, real time is
-            ``realtime_base_port``.)
+        realtime: Real time. With ``sitl``: SITL at real time, each vehicle's SERIAL1
+            free for a ground station. Without SITL: wall-clock speed, with
+            ``realtime_base_port`` or ``station_view`` (or both). Ctrl-C ends the run
+            early and the report is still written.
         out: Where the checks table goes; ``sys.stdout`` (as it is at the call) when None.
         err: Where progress and diagnostics go; ``sys.stderr`` when None.
         quiet: Hide the mission's warnings (``--quiet``); errors are always shown.
         command_line: The command as typed (``clark dry-run ...``), for the report's
             summary; when None the summary gives the equivalent command instead.
+        station_view: Serve the station agent's live view over the run (``--station``,
+            with ``realtime``): opened once the mission is validated, before anything
+            is simulated or written. The verdicts and the exit code are the same.
+        operator_script: Play the mission's operator actions for the station; False
+            leaves them to the person at the station's view (the pilots' ``rc``
+            actions still play).
 
     Raises:
         UsageError: Unreadable mission, bad fault, a report folder that cannot be made
             or holds files the engine did not write,
             (in real time) no vehicle or a port that cannot be bound, or a SITL that
             cannot be started or stops answering.
+        ClarkError: ``station_view`` for a mission without a station agent.
     """
     out = sys.stdout if out is None else out
     err = sys.stderr if err is None else err
@@ -217,6 +268,7 @@ def run_dry_run(
         return _run_and_report(
             mission, mission_path, seed, until, folder, speed, extra, realtime_base_port,
             realtime_host, workers, sitl, sitl_speedup, realtime, out, err, origin,
+            station_view, operator_script,
         )  # fmt: skip
     except KeyboardInterrupt:
         if folder is not None:
@@ -244,28 +296,75 @@ def _run_and_report(
     out: TextIO,
     err: TextIO,
     origin: RunOrigin,
+    station_view: LiveViewOpener | None = None,
+    operator_script: bool = True,
 ) -> Outcome:
     """:func:`run_dry_run` once the mission is loaded: run, evaluate, write the report."""
-    # Real time: bind the ports first, so a port in use is reported before anything is written.
+    # Real time: bind the ports and start the view first, so a port in use is reported
+    # before anything is written.
     bridge = (
         MavlinkBridge(vehicle_names(mission), realtime_base_port, host=realtime_host)
         if realtime_base_port is not None
         else None
     )
-    switch = StopSwitch() if sitl is not None and realtime else None
+    try:
+        view = station_view(mission, mission_path) if station_view is not None else None
+    except BaseException:
+        if bridge is not None:
+            bridge.close()
+        raise
+    try:
+        return _run_live(
+            mission, mission_path, seed, until, folder, speed, extra, bridge, view, workers,
+            sitl, sitl_speedup, realtime, out, err, origin, operator_script,
+        )  # fmt: skip
+    finally:
+        if view is not None:
+            view.stop()  # the page gets the last state; after finish() it already has
+
+
+def _run_live(
+    mission: Mission,
+    mission_path: Path,
+    seed: int,
+    until: float,
+    folder: ReportFolder | None,
+    speed: float | None,
+    extra: Sequence[Mapping[str, Any]],
+    bridge: MavlinkBridge | None,
+    view: LiveView | None,
+    workers: int | None,
+    sitl: SitlInstall | None,
+    sitl_speedup: float,
+    realtime: bool,
+    out: TextIO,
+    err: TextIO,
+    origin: RunOrigin,
+    operator_script: bool,
+) -> Outcome:
+    """Run with the real-time pieces open (ports, view), evaluate, write the report."""
+    # A real-time run without MAVLink ports (SITL's, or a rehearsal's view alone) still
+    # ends at Ctrl-C; the bridge has a switch of its own.
+    switch = StopSwitch() if realtime and bridge is None else None
     simulated: DryRunResult | None = None
     try:
         log_dir = folder.open() if folder is not None else None
         if sitl is None:
             result = _simulate(
-                mission, mission_path, seed, until, log_dir, speed, extra, bridge, workers, err
-            )
+                mission, mission_path, seed, until, log_dir, speed, extra, bridge, workers, err,
+                view=view, switch=switch, operator_script=operator_script,
+            )  # fmt: skip
         else:
             if workers is not None and workers > 1:
                 print(f"  note: --workers {workers} ignored: SITL sets the pace", file=err)
             # The simulated autopilot first (seconds), so a SITL run has something to meet.
             simulated = DryRun(
-                mission, mission_path, seed=seed, until_s=until, extra_faults=extra
+                mission,
+                mission_path,
+                seed=seed,
+                until_s=until,
+                extra_faults=extra,
+                operator_script=operator_script,
             ).run()
             result = _fly_sitl(
                 mission,
@@ -278,6 +377,8 @@ def _run_and_report(
                 1.0 if realtime else sitl_speedup,
                 switch,
                 err,
+                view=view,
+                operator_script=operator_script,
             )
     except SitlError as exc:
         raise UsageError(str(exc)) from None
@@ -297,6 +398,8 @@ def _run_and_report(
             simulated.recording, result.recording, vehicle_names(mission), tolerance, end_s=until
         )
         results.append(comparison.check())
+    if view is not None:
+        view.finish(results, until)  # the page shows the report's verdicts, then stops updating
     rate = until / result.wall_s if result.wall_s > 0 else float("inf")
     print(f"simulated {until:g} s in {result.wall_s:.1f} s ({rate:.0f}x real time)", file=err)
     if results:
@@ -331,13 +434,21 @@ def _simulate(
     bridge: MavlinkBridge | None,
     workers: int | None,
     err: TextIO,
+    *,
+    view: LiveView | None = None,
+    switch: StopSwitch | None = None,
+    operator_script: bool = True,
 ) -> DryRunResult:
-    """Run the simulation (in real time with a bridge), the agents logging to ``log_dir``."""
+    """Run the simulation, the agents logging to ``log_dir``.
+
+    In real time with a bridge (MAVLink ports), a view (the station's page), or both;
+    ``switch`` ends a real-time run without a bridge at Ctrl-C.
+    """
     progress = _progress_for(err, until_s)
     try:
         return _simulate_with(
             mission, mission_path, seed, until_s, log_dir, speed, faults, bridge, workers, err,
-            progress,
+            progress, view, switch, operator_script,
         )  # fmt: skip
     finally:
         if progress is not None:
@@ -356,8 +467,12 @@ def _simulate_with(
     workers: int | None,
     err: TextIO,
     progress: _Progress | None,
+    view: LiveView | None,
+    switch: StopSwitch | None,
+    operator_script: bool,
 ) -> DryRunResult:
-    paced = bridge is not None or speed is not None
+    realtime = bridge is not None or view is not None
+    paced = realtime or speed is not None
     processes = 1 if paced else choose_workers(workers, mission)
     if workers is not None and workers > 1 and processes == 1:
         why = (
@@ -393,22 +508,32 @@ def _simulate_with(
         log_dir=log_dir,
         extra_faults=faults,
         progress=progress,
-        speed=1.0 if bridge is not None else speed,
+        speed=1.0 if realtime else speed,
         wall_clock=bridge is not None,
+        operator_script=operator_script,
     )
-    if bridge is None:
+    if not realtime:
         result = run.run()
     else:
-        # Wall-clock speed, each vehicle on its port; the ports were opened before the
-        # clock starts, so a station may connect first. Ctrl-C ends the run early.
-        bridge.attach(run)
-        for endpoint in bridge.endpoints:
+        # Wall-clock speed, each vehicle on its port; the ports (and the view) were opened
+        # before the clock starts, so a station may connect first. Ctrl-C ends the run early.
+        stop = bridge.stop if bridge is not None else None
+        if bridge is not None:
+            bridge.attach(run)
+        elif switch is not None:
+            switch.attach(run)
+            stop = switch.stop
+        if view is not None:
+            view.attach(run)
+            _announce_view(view, err)
+        for endpoint in bridge.endpoints if bridge is not None else ():
             print(
                 f"  {endpoint.agent}: MAVLink on udp {endpoint.address} (system id "
                 f"{endpoint.system_id}); e.g. mavproxy.py --master=udpout:{endpoint.address}",
                 file=err,
             )
-        shared = len({e.system_id for e in bridge.endpoints}) < len(bridge.endpoints)
+        endpoints = bridge.endpoints if bridge is not None else []
+        shared = len({e.system_id for e in endpoints}) < len(endpoints)
         if shared:
             print(
                 "  note: vehicles share a system id, so a station connected to several of them "
@@ -416,10 +541,17 @@ def _simulate_with(
                 "{system_id: N}}}) to watch them together",
                 file=err,
             )
-        with stop_on_interrupt(bridge.stop):
+        if stop is None:  # not expected: the caller gives a switch when there is no bridge
+            raise ValueError("a real-time run needs a bridge or a stop switch")
+        with stop_on_interrupt(stop):
             print("real time: Ctrl-C ends the run early (the report is still written)", file=err)
             result = run.run()
     return result
+
+
+def _announce_view(view: LiveView, err: TextIO) -> None:
+    """Where the station's page is (with its token, as ``clark run`` prints it)."""
+    print(f"  {view.station}: station view at {view.url}", file=err, flush=True)
 
 
 def _progress_for(err: TextIO, until_s: float) -> _Progress | None:
@@ -444,11 +576,15 @@ def _fly_sitl(
     speedup: float,
     switch: StopSwitch | None,
     err: TextIO,
+    *,
+    view: LiveView | None = None,
+    operator_script: bool = True,
 ) -> DryRunResult:
     """The run with every vehicle's autopilot on ArduPilot SITL (one process each).
 
     With a ``switch`` (real time), Ctrl-C ends the run early and each vehicle's
-    SERIAL1 is announced for a ground station.
+    SERIAL1 is announced for a ground station; a ``view`` (real time too) serves the
+    station's page over it.
 
     Raises:
         SitlError: A SITL could not be started or stopped answering.
@@ -476,12 +612,16 @@ def _fly_sitl(
         progress=progress,
         sitl=install,
         sitl_speedup=speedup,
+        operator_script=operator_script,
     )
     try:
         if switch is None:
             result = run.run()
         else:
             switch.attach(run)
+            if view is not None:
+                view.attach(run)
+                _announce_view(view, err)
             for name, agent in run.agents.items():
                 backend = agent.backend
                 if isinstance(backend, SitlBackend):

@@ -91,8 +91,9 @@ _AUTOPILOT_COMMANDS = (Goto, SetMode, Arm, Takeoff, SetServo, RcOverride)
 #: How much shorter than the mesh's lookahead a split run's window is.
 WINDOW_MARGIN_S = 1e-7
 
-#: Phases of one visit of a time, in the order they run (the third element of a key).
-_PHYSICS, _RADIO, _CAMERAS, _SCENARIO, _TICKS = range(5)
+#: Phases of one visit of a time, in the order they run (the third element of a key);
+#: the last, commands from outside the run (a rehearsal's station view), comes after the ticks.
+_PHYSICS, _RADIO, _CAMERAS, _SCENARIO, _TICKS, _OUTSIDE = range(6)
 
 #: Where a send or silence happened in the run's order: (time, visit of that time, phase,
 #: then three phase-specific parts naming the agent and the event, then a count within).
@@ -419,6 +420,10 @@ class DryRun:
             install instead of the simulated one (:mod:`clark_engine.sim.sitl_backend`);
             SITL's clock then sets the pace. None: the simulated autopilot.
         sitl_speedup: SITL's speed-up (1: real time).
+        operator_script: Play the mission's operator actions for the station (activate,
+            deactivate, mode, terminate); False leaves them to a person at the station's
+            view (``--station --no-operator-script``). The pilots' ``rc`` actions play
+            either way.
 
     Raises:
         ValueError: A split run on a mesh whose lookahead is too short to split on.
@@ -440,6 +445,7 @@ class DryRun:
         wall_clock: bool = False,
         sitl: SitlInstall | None = None,
         sitl_speedup: float = 10.0,
+        operator_script: bool = True,
     ) -> None:
         self.mission = mission
         self.wall_clock = wall_clock
@@ -501,6 +507,7 @@ class DryRun:
             entry
             for entry in operator
             if (str(entry[2]["rc"]["agent"]) if "rc" in entry[2] else station) in self.agents
+            and (operator_script or "rc" in entry[2])
         ]
         self._station = self.agents.get(station) if station is not None else None
         self._signal_channels()
@@ -512,8 +519,11 @@ class DryRun:
         #: mode forwards them to a ground station over UDP).
         self.autopilot_taps: dict[str, Callable[[bytes], None]] = {}
         #: Called once per loop iteration with the simulated time (real-time mode reads
-        #: its ground-station sockets here and passes what arrived to inject()).
+        #: its ground-station sockets here and passes what arrived to inject(); a
+        #: rehearsal's station view updates and takes its commands here). Whoever sets it
+        #: calls the hook that was there before (hooks chain, none replaces another).
         self.on_step: Callable[[float], None] | None = None
+        self._outside_n = 0
         # (next tick time, agent order, name): one heap instead of a scan per event
         self._ticks = [(a.next_tick_s(), self._order[a.name], a.name) for a in self.agents.values()]
         heapq.heapify(self._ticks)
@@ -548,6 +558,44 @@ class DryRun:
                 )
             self._outbox = []
             self.radio.keep_receivers(self.agents)
+
+    @property
+    def station(self) -> SimAgent | None:
+        """The station agent the operator acts through: the mission's first non-vehicle.
+
+        None when the mission has none, or another process of a split run simulates it.
+        """
+        return self._station
+
+    def command_station(self, command: StationCommand, t_s: float) -> bool:
+        """An operator's command to the fleet through the station, as the script's go.
+
+        For a person at a rehearsal's station view: the command is delivered to the
+        station's runtime at ``t_s`` (the time of the loop's current step, from
+        :attr:`on_step`) and what the runtime answers is carried out, exactly as the
+        mission's operator actions are (ClarkLink messages on the simulated radio,
+        authenticated when the mission has a key).
+
+        Returns:
+            False when nothing was delivered: the station was killed by a fault or has
+            terminated (its interfaces are closed).
+
+        Raises:
+            RuntimeError: The mission has no station here, or the run is split across
+                processes (an outside command would break its order).
+        """
+        station = self._station
+        if station is None:
+            raise RuntimeError("the mission has no station agent in this run")
+        if self._outbox is not None:
+            raise RuntimeError("a run split across processes takes no outside command")
+        if not station.alive or station.closed:
+            return False
+        self._key = (t_s, self._visit, _OUTSIDE, 0, self._outside_n, 0)
+        self._key_n = 0
+        self._outside_n += 1
+        self._route(station, station.runtime.deliver(command, t_s), t_s)
+        return True
 
     # -- setup ---------------------------------------------------------------------------
 
