@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, TextIO
 
 from clark_engine import __version__
 from clark_engine.errors import ClarkError, UsageError
+from clark_engine.gcs.replay_cli import add_replay_parser
 from clark_engine.mission.faults import FAULT_HELP
 
 if TYPE_CHECKING:
@@ -692,6 +693,8 @@ def build_parser() -> argparse.ArgumentParser:
         "mission logs' header lines)",
     )
     p.set_defaults(func=cmd_analyze)
+
+    add_replay_parser(sub)
 
     p = sub.add_parser(
         "schema", help="print a JSON Schema (mission, behavior, hardware-profile, agent-config)"

@@ -126,7 +126,7 @@ class LogChecksError(ClarkError):
 
 
 @dataclass(frozen=True, slots=True)
-class _Line:
+class TextLine:
     """One readable text log line."""
 
     number: int
@@ -284,7 +284,7 @@ def _open(path: Path) -> TextIO:
         raise UsageError(f"{path}: cannot read it ({exc.strerror or exc})") from None
 
 
-def _text_lines(path: Path, problems: list[Problem]) -> Iterator[_Line]:
+def text_lines(path: Path, problems: list[Problem]) -> Iterator[TextLine]:
     """Every readable line of a mission or interface log; the others are problems.
 
     Raises:
@@ -317,7 +317,7 @@ def _text_lines(path: Path, problems: list[Problem]) -> Iterator[_Line]:
                 if level not in _LEVELS:
                     problems.append(Problem(name, number, f"level {level!r} is not a log level"))
                     continue
-                yield _Line(number, t_s, gps_ms, level, match["where"], match["message"])
+                yield TextLine(number, t_s, gps_ms, level, match["where"], match["message"])
         except OSError as exc:
             raise UsageError(f"{path}: cannot read it ({exc.strerror or exc})") from None
 
@@ -327,8 +327,13 @@ def _header(message: str) -> dict[str, str]:
     return dict(item.split("=", 1) for item in fields if "=" in item)
 
 
-def _read_mission_log(path: Path, logs: AgentLogs, problems: list[Problem]) -> None:
-    for line in _text_lines(path, problems):
+def read_mission_log(path: Path, logs: AgentLogs, problems: list[Problem]) -> None:
+    """Its header, GPS offsets, state changes, first failsafe and pictures, into ``logs``.
+
+    Raises:
+        UsageError: The file cannot be read.
+    """
+    for line in text_lines(path, problems):
         logs.seen(line.t_s)
         if line.gps_ms is not None:
             logs.offsets_ms.append(line.gps_ms - 1000 * line.t_s)
@@ -356,8 +361,13 @@ def _read_mission_log(path: Path, logs: AgentLogs, problems: list[Problem]) -> N
             logs.pictures_s.append(line.t_s)
 
 
-def _read_interface_log(path: Path, logs: AgentLogs, problems: list[Problem]) -> None:
-    for line in _text_lines(path, problems):
+def read_interface_log(path: Path, logs: AgentLogs, problems: list[Problem]) -> None:
+    """Its GPS offsets, its first autopilot loss and (without a mission log) its header.
+
+    Raises:
+        UsageError: The file cannot be read.
+    """
+    for line in text_lines(path, problems):
         logs.seen(line.t_s)
         if line.gps_ms is not None:
             logs.offsets_ms.append(line.gps_ms - 1000 * line.t_s)
@@ -371,7 +381,7 @@ def _read_interface_log(path: Path, logs: AgentLogs, problems: list[Problem]) ->
             logs.header = _header(line.message)
 
 
-def _csv_rows(path: Path, problems: list[Problem]) -> Iterator[tuple[int, list[str]]]:
+def csv_rows(path: Path, problems: list[Problem]) -> Iterator[tuple[int, list[str]]]:
     """(line, cells) of every CSV row, the header first; unreadable rows are problems.
 
     Raises:
@@ -398,10 +408,10 @@ def _csv_rows(path: Path, problems: list[Problem]) -> Iterator[tuple[int, list[s
                 yield start, row
 
 
-def _read_message_log(path: Path, logs: AgentLogs, problems: list[Problem]) -> None:
+def read_message_log(path: Path, logs: AgentLogs, problems: list[Problem]) -> None:
     """Clock pairs and the Picture Data sent, from one message log."""
     name = str(path)
-    rows = _csv_rows(path, problems)
+    rows = csv_rows(path, problems)
     first = next(rows, None)
     if first is None or first[1] != list(MESSAGE_LOG_COLUMNS):
         problems.append(Problem(name, None, "not a message log (its header is not the logbook's)"))
@@ -457,7 +467,7 @@ def _read_fleet_csv(
 ) -> dict[str, list[_Sample]]:
     """Observed agent -> the Agent Status arrivals this agent's fleet table logged."""
     name = str(path)
-    rows = _csv_rows(path, problems)
+    rows = csv_rows(path, problems)
     first = next(rows, None)
     header = first[1] if first is not None else []
     if first is None or header[:1] != ["now_s"] or not set(_FLEET_COLUMNS) <= set(header):
@@ -508,7 +518,7 @@ def _read_fleet_csv(
 # ------------------------------------------------------------------ rebuilding
 
 
-def _file_names(config: AgentConfig) -> dict[str, str]:
+def file_names(config: AgentConfig) -> dict[str, str]:
     """Config key -> the file the agent writes (its config's name, else ``<agent>.<suffix>``)."""
     names = {}
     for key, suffix in LOG_FILES.items():
@@ -517,10 +527,16 @@ def _file_names(config: AgentConfig) -> dict[str, str]:
     return names
 
 
-def _align(
-    agents: Mapping[str, AgentLogs], configs: Mapping[str, AgentConfig], notes: list[str]
+def align_clocks(
+    agents: Mapping[str, AgentLogs], roles: Mapping[str, str], notes: list[str]
 ) -> str:
-    """Set every agent's :attr:`AgentLogs.shift_s`; returns what t = 0 is, in words."""
+    """Set every agent's :attr:`AgentLogs.shift_s`; returns what t = 0 is, in words.
+
+    Args:
+        agents: The agents' logs, read (their GPS offsets collected).
+        roles: Agent -> its role (``mcs`` for a station: t = 0 is a station's start).
+        notes: Where the warnings about clocks go.
+    """
     offsets: dict[str, float] = {}
     for name, logs in agents.items():
         samples = logs.offsets_ms or logs.message_offsets_ms
@@ -535,14 +551,14 @@ def _align(
                     f"{name}: its GPS time and runtime clock disagree by up to {spread_s:.1f} s "
                     "over the run (a GPS fix taken late, or a clock step); the median is used"
                 )
-    stations = sorted(n for n in agents if configs[n].role == "mcs" and n in offsets)
+    stations = sorted(n for n in agents if roles.get(n) == "mcs" and n in offsets)
     if stations:
         reference = offsets[stations[0]]
         origin = f"t=0 is the start of station {stations[0]}'s clock"
     elif offsets:
         first = min(offsets, key=lambda n: (offsets[n], n))
         reference = offsets[first]
-        has_station = any(configs[n].role == "mcs" for n in agents)
+        has_station = any(roles.get(n) == "mcs" for n in agents)
         why = "its log has no GPS time" if has_station else "no station log in the folder"
         origin = f"t=0 is the start of {first}, the first agent to start by GPS time ({why})"
         notes.append(f"{why}: mission time counts from {first}'s start, not the station's")
@@ -698,7 +714,7 @@ def _find_logs(
     known_files: set[str] = set()
     for name, config in configs.items():
         logs = AgentLogs(name)
-        for key, file_name in _file_names(config).items():
+        for key, file_name in file_names(config).items():
             known_files.add(file_name)
             path = folder / file_name
             if path.is_file():
@@ -750,11 +766,11 @@ def _read_logs(
     for name, logs in agents.items():
         files = logs.files
         if "mission_log" in files:
-            _read_mission_log(files["mission_log"], logs, problems)
+            read_mission_log(files["mission_log"], logs, problems)
         if "interface_log" in files:
-            _read_interface_log(files["interface_log"], logs, problems)
+            read_interface_log(files["interface_log"], logs, problems)
         if "message_log" in files:
-            _read_message_log(files["message_log"], logs, problems)
+            read_message_log(files["message_log"], logs, problems)
         if "fleet_csv" in files:
             fleet[name] = _read_fleet_csv(files["fleet_csv"], logs, problems)
         logged_mission = logs.header.get("mission")
@@ -808,13 +824,23 @@ def _positions(
     return samples
 
 
-def rebuild(folder: Path, mission: Mission, configs: Mapping[str, AgentConfig]) -> LogRun:
+def rebuild(
+    folder: Path,
+    mission: Mission,
+    configs: Mapping[str, AgentConfig],
+    *,
+    files: Mapping[str, Mapping[str, Path]] | None = None,
+) -> LogRun:
     """Read a folder of a run's logs and rebuild what the run did (see the module's doc).
 
     Args:
         folder: Where the agents wrote their logs.
         mission: The mission that was run.
         configs: Agent -> its compiled config.
+        files: Agent -> config key (``mission_log``...) -> its file, when the caller
+            found them already (``clark replay`` also looks in the agents' own
+            sub-folders); agents that are not the mission's are left out. None: the
+            files named by the configs in ``folder``.
 
     Raises:
         UsageError: The folder does not exist, is not a folder, or a file cannot be read.
@@ -823,12 +849,21 @@ def rebuild(folder: Path, mission: Mission, configs: Mapping[str, AgentConfig]) 
     """
     problems: list[Problem] = []
     notes: list[str] = []
-    agents = _find_logs(folder, mission, configs, notes)
+    if files is None:
+        agents = _find_logs(folder, mission, configs, notes)
+    else:
+        agents = {
+            name: AgentLogs(name, files=dict(found))
+            for name, found in files.items()
+            if name in configs and found
+        }
+        if not agents:
+            raise LogChecksError(f"{folder}: no log of any agent of mission {mission.name}")
     try:
         fleet = _read_logs(agents, mission, problems, notes)
     except LogChecksError as exc:
         raise LogChecksError(f"{folder}: {exc}") from None
-    time_origin = _align(agents, configs, notes)
+    time_origin = align_clocks(agents, {n: c.role for n, c in configs.items()}, notes)
     recording = Recording()
     recording.tracks = _tracks(_positions(fleet, agents, configs, notes), mission.origin)
     for name, logs in agents.items():
@@ -858,7 +893,7 @@ def rebuild(folder: Path, mission: Mission, configs: Mapping[str, AgentConfig]) 
 def _needs_file(run: LogRun, agent: str, key: str, what: str) -> str | None:
     logs = run.agents.get(agent)
     if logs is None or key not in logs.files:
-        file_name = _file_names(run.configs[agent])[key] if agent in run.configs else agent
+        file_name = file_names(run.configs[agent])[key] if agent in run.configs else agent
         return f"no {file_name} in the folder ({what})"
     return None
 

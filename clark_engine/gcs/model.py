@@ -428,6 +428,170 @@ class _Command:
         }
 
 
+# -- rows, track points and photos: shared by the live view and the replay --------------------
+
+
+def mode_name(modes: Mapping[str, int], number: int) -> str | None:
+    """The name of a custom mode number in an agent's profile (None when it has none)."""
+    return next((name for name, n in modes.items() if n == number), None)
+
+
+def link_json(
+    *,
+    packets: int,
+    lost_packets: int,
+    loss_ratio: float | None,
+    latency_mean_ms: float | None,
+    bad_tags: int,
+    malformed: int,
+    duplicates: int,
+) -> Json:
+    """An agent row's ``link``: packets received from it, their loss and latency."""
+    return {
+        "packets": packets,
+        "lost_packets": lost_packets,
+        "loss_ratio": _round(loss_ratio, 4),
+        "latency_mean_ms": _round(latency_mean_ms, 1),
+        "bad_tags": bad_tags,
+        "malformed": malformed,
+        "duplicates": duplicates,
+    }
+
+
+def agent_row(
+    info: Mapping[str, Any],
+    origin: Origin,
+    *,
+    heard: bool,
+    link: Json | None = None,
+    lost: bool = False,
+    since_heartbeat_s: float | None = None,
+    condition: str | None = None,
+    status: AgentStatus | None = None,
+    status_age_s: float | None = None,
+    mode: str | None = None,
+    behaviour: BehaviorState | None = None,
+    behaviour_age_s: float | None = None,
+    attitude: AgentAttitude | None = None,
+) -> Json:
+    """One agent's row of a ``state`` message (docs/station-view.md, "The protocol").
+
+    The live view (:class:`StationView`, from the station's fleet table) and the replay
+    (:mod:`clark_engine.gcs.replay`, from a run's logs) both build their rows here, so
+    the page gets the same shape from either.
+
+    Args:
+        info: The agent's entry in ``hello`` (name, id, role, airframe, stale_after_s;
+            a null ``stale_after_s`` is never stale).
+        origin: The mission's origin, for metres north and east.
+        heard: Whether anything was heard from it; when False, the rest is left null.
+        link: Its :func:`link_json`, or None when unknown.
+        lost: Whether the fleet table counts it lost.
+        since_heartbeat_s: Seconds since its latest heartbeat.
+        condition: Its heartbeat's condition, lower case (``ok``, ``failsafe``...).
+        status: Its latest Agent Status, if any.
+        status_age_s: Seconds since that Agent Status arrived.
+        mode: The name of ``status.mode`` in its profile, if known.
+        behaviour: Its latest Behavior State, if any.
+        behaviour_age_s: Seconds since it arrived (the replay: since the change).
+        attitude: Its latest Agent Attitude, if any.
+    """
+    out: Json = {
+        "id": int(info["id"]),
+        "name": info["name"],
+        "role": info["role"],
+        "airframe": info.get("airframe"),
+        "heard": heard,
+        "lost": False,
+        "stale": False,
+        "since_heartbeat_s": None,
+        "condition": None,
+        "position": None,
+        "mode": None,
+        "armed": None,  # ClarkLink's Agent Status does not carry it (docs/station-view.md)
+        "behaviour": None,
+        "attitude": None,
+        "link": link,
+    }
+    if not heard:
+        return out
+    stale_after = info.get("stale_after_s")
+    out["since_heartbeat_s"] = _round(since_heartbeat_s, 2)
+    out["lost"] = lost
+    out["stale"] = (
+        not lost
+        and since_heartbeat_s is not None
+        and stale_after is not None
+        and since_heartbeat_s > float(stale_after)
+    )
+    out["condition"] = condition
+    if status is not None:
+        local = to_local(status.lat_deg, status.lon_deg, status.alt_m, origin)
+        out["position"] = {
+            "lat": round(status.lat_deg, 7),
+            "lon": round(status.lon_deg, 7),
+            "north_m": _round(local.north_m),
+            "east_m": _round(local.east_m),
+            "alt_m": _round(status.alt_m),
+            "ground_speed_m_s": _round(status.ground_speed_m_s),
+            "climb_rate_m_s": _round(status.climb_rate_m_s),
+            "heading_deg": _round(status.heading_deg, 1),
+            "age_s": _round(status_age_s, 2),
+        }
+        out["mode"] = {"number": status.mode, "name": mode}
+    if behaviour is not None:
+        out["behaviour"] = {
+            "active": list(behaviour.active_states),
+            "last_event": behaviour.last_event,
+            "age_s": _round(behaviour_age_s, 2),
+        }
+    if attitude is not None:
+        out["attitude"] = {
+            "roll_deg": _round(attitude.roll_deg, 1),
+            "pitch_deg": _round(attitude.pitch_deg, 1),
+            "yaw_deg": _round(attitude.yaw_deg, 1),
+        }
+    return out
+
+
+def track_point_json(
+    seq: int,
+    agent_id: int,
+    t_s: float,
+    lat_deg: float,
+    lon_deg: float,
+    alt_m: float,
+    origin: Origin,
+) -> Json:
+    """One track point (an Agent Status received) as the page receives it."""
+    local = to_local(lat_deg, lon_deg, alt_m, origin)
+    return {
+        "seq": seq,
+        "agent": agent_id,
+        "t": _round(t_s, 3),
+        "north_m": _round(local.north_m),
+        "east_m": _round(local.east_m),
+        "alt_m": _round(alt_m),
+    }
+
+
+def photo_json(seq: int, agent_id: int, t_s: float, picture: PictureData, origin: Origin) -> Json:
+    """One photo (a Picture Data received) as the page receives it."""
+    local = to_local(picture.lat_deg, picture.lon_deg, picture.alt_m, origin)
+    return {
+        "seq": seq,
+        "agent": agent_id,
+        "t": _round(t_s, 3),
+        "image_index": picture.image_index,
+        "gps_time_ms": picture.gps_time_ms,
+        "lat": round(picture.lat_deg, 7),
+        "lon": round(picture.lon_deg, 7),
+        "north_m": _round(local.north_m),
+        "east_m": _round(local.east_m),
+        "alt_m": _round(picture.alt_m),
+    }
+
+
 # -- the live view ---------------------------------------------------------------------------
 
 
@@ -518,38 +682,27 @@ class StationView:
 
     def _track_point(self, record: AgentRecord, sample: Sample[AgentStatus]) -> None:
         value = sample.value
-        local = to_local(value.lat_deg, value.lon_deg, value.alt_m, self.origin)
         self._track_seq += 1
         if len(self._new_track) < self._track_cap:
             self._new_track.append(
-                {
-                    "seq": self._track_seq,
-                    "agent": record.agent_id,
-                    "t": _round(sample.received_s, 3),
-                    "north_m": _round(local.north_m),
-                    "east_m": _round(local.east_m),
-                    "alt_m": _round(value.alt_m),
-                }
+                track_point_json(
+                    self._track_seq,
+                    record.agent_id,
+                    sample.received_s,
+                    value.lat_deg,
+                    value.lon_deg,
+                    value.alt_m,
+                    self.origin,
+                )
             )
 
     def _photo(self, record: AgentRecord, sample: Sample[PictureData]) -> None:
-        value = sample.value
-        local = to_local(value.lat_deg, value.lon_deg, value.alt_m, self.origin)
         self._photo_seq += 1
         if len(self._new_photos) < self._track_cap:
             self._new_photos.append(
-                {
-                    "seq": self._photo_seq,
-                    "agent": record.agent_id,
-                    "t": _round(sample.received_s, 3),
-                    "image_index": value.image_index,
-                    "gps_time_ms": value.gps_time_ms,
-                    "lat": round(value.lat_deg, 7),
-                    "lon": round(value.lon_deg, 7),
-                    "north_m": _round(local.north_m),
-                    "east_m": _round(local.east_m),
-                    "alt_m": _round(value.alt_m),
-                }
+                photo_json(
+                    self._photo_seq, record.agent_id, sample.received_s, sample.value, self.origin
+                )
             )
 
     # -- the snapshot --------------------------------------------------------------------
@@ -593,76 +746,41 @@ class StationView:
         stats = self.runtime.fleet.stats(agent_id)
         link: Json | None = None
         if stats is not None:
-            link = {
-                "packets": stats.packets,
-                "lost_packets": stats.lost,
-                "loss_ratio": _round(stats.loss_ratio, 4),
-                "latency_mean_ms": _round(stats.latency_mean_ms, 1),
-                "bad_tags": stats.bad_tags,
-                "malformed": stats.malformed,
-                "duplicates": stats.duplicates,
-            }
-        out: Json = {
-            "id": agent_id,
-            "name": info["name"],
-            "role": info["role"],
-            "airframe": info.get("airframe"),
-            "heard": record is not None,
-            "lost": False,
-            "stale": False,
-            "since_heartbeat_s": None,
-            "condition": None,
-            "position": None,
-            "mode": None,
-            "armed": None,  # ClarkLink's Agent Status does not carry it (docs/station-view.md)
-            "behaviour": None,
-            "attitude": None,
-            "link": link,
-        }
+            link = link_json(
+                packets=stats.packets,
+                lost_packets=stats.lost,
+                loss_ratio=stats.loss_ratio,
+                latency_mean_ms=stats.latency_mean_ms,
+                bad_tags=stats.bad_tags,
+                malformed=stats.malformed,
+                duplicates=stats.duplicates,
+            )
         if record is None:
-            return out
-        since = record.since_heartbeat_s(now_s)
-        out["since_heartbeat_s"] = _round(since, 2)
-        out["lost"] = record.lost
-        out["stale"] = not record.lost and since > float(info["stale_after_s"])
-        out["condition"] = record.condition.name.lower()
+            return agent_row(info, self.origin, heard=False, link=link)
         status = record.sample(AgentStatus)
-        if status is not None:
-            value = status.value
-            local = to_local(value.lat_deg, value.lon_deg, value.alt_m, self.origin)
-            out["position"] = {
-                "lat": round(value.lat_deg, 7),
-                "lon": round(value.lon_deg, 7),
-                "north_m": _round(local.north_m),
-                "east_m": _round(local.east_m),
-                "alt_m": _round(value.alt_m),
-                "ground_speed_m_s": _round(value.ground_speed_m_s),
-                "climb_rate_m_s": _round(value.climb_rate_m_s),
-                "heading_deg": _round(value.heading_deg, 1),
-                "age_s": _round(now_s - status.received_s, 2),
-            }
-            out["mode"] = {"number": value.mode, "name": self._mode_name(info, value.mode)}
         behaviour = record.sample(BehaviorState)
-        if behaviour is not None:
-            out["behaviour"] = {
-                "active": list(behaviour.value.active_states),
-                "last_event": behaviour.value.last_event,
-                "age_s": _round(now_s - behaviour.received_s, 2),
-            }
         attitude = record.sample(AgentAttitude)
-        if attitude is not None:
-            out["attitude"] = {
-                "roll_deg": _round(attitude.value.roll_deg, 1),
-                "pitch_deg": _round(attitude.value.pitch_deg, 1),
-                "yaw_deg": _round(attitude.value.yaw_deg, 1),
-            }
-        return out
+        return agent_row(
+            info,
+            self.origin,
+            heard=True,
+            link=link,
+            lost=record.lost,
+            since_heartbeat_s=record.since_heartbeat_s(now_s),
+            condition=record.condition.name.lower(),
+            status=status.value if status is not None else None,
+            status_age_s=now_s - status.received_s if status is not None else None,
+            mode=self._mode_name(info, status.value.mode) if status is not None else None,
+            behaviour=behaviour.value if behaviour is not None else None,
+            behaviour_age_s=now_s - behaviour.received_s if behaviour is not None else None,
+            attitude=attitude.value if attitude is not None else None,
+        )
 
     def _mode_name(self, info: Mapping[str, Any], number: int) -> str | None:
         peer = self.config.peer(str(info["name"]))
         if peer is None:
             return None
-        return next((name for name, n in peer.modes.items() if n == number), None)
+        return mode_name(peer.modes, number)
 
     # -- commands ------------------------------------------------------------------------
 
@@ -860,9 +978,14 @@ __all__ = [
     "Snapshot",
     "StationView",
     "agent_names",
+    "agent_row",
     "answer_timeout_s",
     "build_hello",
+    "link_json",
+    "mode_name",
     "modes_of",
+    "photo_json",
     "plan_of",
     "stale_after_s",
+    "track_point_json",
 ]

@@ -21,6 +21,12 @@ rather than queueing them (newest wins), and is sent the track points, photos an
 lines it has not had yet (each has a sequence number) from bounded histories
 (:data:`MAX_TRACK_POINTS`, :data:`MAX_PHOTOS`, :data:`MAX_LOG_LINES`).
 
+In replay mode (``clark replay``, :mod:`clark_engine.gcs.replay`) the server is given a
+:class:`ReplaySource` instead of snapshots: each client has its own time, which its page
+moves with ``seek``, ``play``, ``pause`` and ``speed`` messages (:func:`parse_replay_control`);
+its sender sends what the source builds for that time (a ``reset`` when the page jumps,
+then ``state`` messages, at the update rate while it plays). Commands are refused.
+
 Security (docs/station-view.md, "Security"):
 
 - It binds 127.0.0.1 by default. A token is required whenever the bind address is not
@@ -58,7 +64,7 @@ from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Final
+from typing import Any, Final, Protocol
 from urllib.parse import quote
 
 from aiohttp import WSMsgType, web
@@ -114,6 +120,15 @@ MIN_TOKEN_CHARS: Final = 16
 MAX_TOKEN_CHARS: Final = 256
 
 TOKEN_HEADER: Final = "X-Clark-Token"
+
+CONTROLS_PER_S: Final = 20.0
+"""Sustained replay controls (seek, play, pause, speed) a client may send; bursts of
+:data:`CONTROLS_BURST` (a dragged slider sends a few a second)."""
+
+CONTROLS_BURST: Final = 40
+
+REPLAY_ACTIONS: Final = ("seek", "play", "pause", "speed")
+"""What a replay's page may send."""
 
 STOP_FLUSH_S: Final = 1.0
 """How long the server, when it stops, gives its clients to receive the last state."""
@@ -172,9 +187,35 @@ def check_token(token: str) -> str:
     return token
 
 
+@dataclass
+class _Bucket:
+    """A token bucket: ``rate_per_s`` messages a second, bursts of ``burst``."""
+
+    rate_per_s: float
+    burst: float
+    tokens: float = -1.0
+    refilled_s: float = field(default_factory=time.monotonic)
+
+    def allow(self) -> bool:
+        now = time.monotonic()
+        if self.tokens < 0:
+            self.tokens = self.burst
+        self.tokens = min(self.burst, self.tokens + (now - self.refilled_s) * self.rate_per_s)
+        self.refilled_s = now
+        if self.tokens < 1.0:
+            return False
+        self.tokens -= 1.0
+        return True
+
+
 @dataclass(eq=False)
 class _Client:
-    """One WebSocket client: what it has been sent, and its sender's wake-up."""
+    """One WebSocket client: what it has been sent, and its sender's wake-up.
+
+    In replay mode, also its own time (``replay_t``), whether it plays and how fast, and
+    the time up to which it has every track point, photo and log line (``sent_t``, None
+    before its first reset).
+    """
 
     ws: web.WebSocketResponse
     address: str
@@ -184,19 +225,37 @@ class _Client:
     track_seq: int = 0
     photo_seq: int = 0
     log_seq: int = 0
-    tokens: float = float(COMMAND_BURST)
-    refilled_s: float = field(default_factory=time.monotonic)
+    commands: _Bucket = field(default_factory=lambda: _Bucket(COMMANDS_PER_S, COMMAND_BURST))
+    controls: _Bucket = field(default_factory=lambda: _Bucket(CONTROLS_PER_S, CONTROLS_BURST))
+    replay_t: float = 0.0
+    sent_t: float | None = None
+    playing: bool = False
+    speed: float = 1.0
+    moved: bool = True
 
     def allow_command(self) -> bool:
-        now = time.monotonic()
-        self.tokens = min(
-            float(COMMAND_BURST), self.tokens + (now - self.refilled_s) * COMMANDS_PER_S
-        )
-        self.refilled_s = now
-        if self.tokens < 1.0:
-            return False
-        self.tokens -= 1.0
-        return True
+        """Whether one more command fits this client's rate (:data:`COMMANDS_PER_S`)."""
+        return self.commands.allow()
+
+
+class ReplaySource(Protocol):
+    """What the server needs of a replay (:class:`clark_engine.gcs.replay.Replay`).
+
+    Attributes:
+        start_s: The earliest mission time of the run.
+        end_s: The latest.
+    """
+
+    start_s: float
+    end_s: float
+
+    def clamp(self, t_s: float) -> float:
+        """``t_s`` within the run's span."""
+        ...
+
+    def frame(self, t_s: float, after_s: float | None) -> list[Json]:
+        """The messages that bring a page that has everything up to ``after_s`` to ``t_s``."""
+        ...
 
 
 @dataclass
@@ -295,6 +354,59 @@ def parse_command(
     return request, ref
 
 
+def parse_replay_control(
+    text: str, speeds: tuple[float, ...]
+) -> tuple[str, float | None, str | int | None]:
+    """Check one message from a replay's page: ``(action, value, ref)``.
+
+    ``{"type": "seek", "t": SECONDS}``, ``{"type": "play"}``, ``{"type": "pause"}``,
+    ``{"type": "speed", "speed": X}`` with X one of ``speeds``. A command is refused: a
+    replay sends nothing to any vehicle.
+
+    Raises:
+        CommandRejected: Why it is not accepted (it quotes nothing the page sent).
+    """
+    if len(text) > MAX_MESSAGE_BYTES:
+        raise CommandRejected("message too long")
+    try:
+        data = json.loads(text)
+    except (ValueError, RecursionError):
+        raise CommandRejected("not JSON") from None
+    if not isinstance(data, dict):
+        raise CommandRejected("not a JSON object")
+    ref = data.get("ref")
+    if not (
+        ref is None
+        or (isinstance(ref, int) and not isinstance(ref, bool) and abs(ref) < 2**53)
+        or (isinstance(ref, str) and len(ref) <= MAX_REF_CHARS and ref.isprintable())
+    ):
+        ref = None
+    kind = data.get("type")
+    if kind == "command":
+        raise CommandRejected("this is a replay of a finished run: it sends no commands", ref)
+    if kind not in REPLAY_ACTIONS:
+        raise CommandRejected(
+            f"unknown message type; expected one of {', '.join(REPLAY_ACTIONS)}", ref
+        )
+    if kind in ("play", "pause"):
+        return kind, None, ref
+    key = "t" if kind == "seek" else "speed"
+    value = data.get(key)
+    if not isinstance(value, int | float) or isinstance(value, bool) or not math.isfinite(value):
+        raise CommandRejected(f"{kind} needs a number {key!r}", ref)
+    if kind == "speed" and float(value) not in speeds:
+        raise CommandRejected(f"speed must be one of {', '.join(f'{x:g}' for x in speeds)}", ref)
+    return kind, float(value), ref
+
+
+def _dumps(message: Json) -> str:
+    """A message as compact JSON; a NaN or infinity (JSON has none) becomes null."""
+    try:
+        return json.dumps(message, separators=(",", ":"), allow_nan=False)
+    except ValueError:
+        return json.dumps(_finite(message), separators=(",", ":"), allow_nan=False)
+
+
 class ViewServer:
     """The station view's HTTP and WebSocket server, on a thread of its own.
 
@@ -309,6 +421,8 @@ class ViewServer:
         token: The token every request must carry; required when ``host`` is not
             loopback.
         static_dir: The page's folder (the package's by default).
+        replay: Serve this finished run instead of snapshots (``clark replay``): each
+            client moves through it at its own time, and commands are refused.
 
     Raises:
         UsageError: A non-loopback ``host`` without a token, or a token that is too
@@ -324,6 +438,7 @@ class ViewServer:
         port: int = DEFAULT_PORT,
         token: str | None = None,
         static_dir: Path = STATIC_DIR,
+        replay: ReplaySource | None = None,
     ) -> None:
         loopback = is_loopback_host(host)
         if token is None and not loopback:
@@ -339,6 +454,10 @@ class ViewServer:
         self.port = port
         self.loopback = loopback
         self.static_dir = static_dir
+        self.replay = replay
+        replay_info = hello.get("replay") or {}
+        self._speeds = tuple(float(x) for x in replay_info.get("speeds", (1,)))
+        self._replay_period_s = 1.0 / float(hello.get("update_hz") or 5.0)
         self._hello_text = json.dumps(hello, separators=(",", ":"))
         self._lock = threading.Lock()
         self._pending = _Pending()
@@ -638,6 +757,9 @@ class ViewServer:
 
     def _received(self, client: _Client, text: str) -> None:
         """One message from a page: a checked command handed on, or an error sent back."""
+        if self.replay is not None:
+            self._replay_control(client, self.replay, text)
+            return
         if not client.allow_command():
             self.stats["rejected"] += 1
             self._reply(client, {"type": "error", "ref": None, "error": "too many commands"})
@@ -658,9 +780,79 @@ class ViewServer:
             return
         self._reply(client, {"type": "accepted", "ref": ref, "id": request.id})
 
+    def _replay_control(self, client: _Client, source: ReplaySource, text: str) -> None:
+        """A replay page's seek, play, pause or speed, applied to its own time."""
+        if not client.controls.allow():
+            self.stats["rejected"] += 1
+            self._reply(client, {"type": "error", "ref": None, "error": "too many messages"})
+            return
+        try:
+            action, value, _ref = parse_replay_control(text, self._speeds)
+        except CommandRejected as exc:
+            self.stats["rejected"] += 1
+            self._reply(client, {"type": "error", "ref": exc.ref, "error": str(exc)})
+            return
+        if action == "seek" and value is not None:
+            client.replay_t = source.clamp(value)
+        elif action == "play":
+            if client.replay_t >= source.end_s:
+                client.replay_t = source.start_s  # at the end: play from the start
+            client.playing = True
+        elif action == "pause":
+            client.playing = False
+        elif action == "speed" and value is not None:
+            client.speed = value
+        client.moved = True
+        client.wake.set()
+
+    async def _send_replay(self, client: _Client, source: ReplaySource) -> None:
+        """A replay client's sender: hello, then its time's state whenever it moves.
+
+        While the page plays, its time advances by its speed times the wall-clock time
+        elapsed, and a state goes out at the update rate; at the end of the run it stops.
+        """
+        ws = client.ws
+        client.replay_t = source.start_s
+        await ws.send_str(self._hello_text)
+        last_s = time.monotonic()
+        while not ws.closed:
+            if not client.moved and not client.replies:
+                timeout = self._replay_period_s if client.playing else None
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(client.wake.wait(), timeout)
+            client.wake.clear()
+            while client.replies and not ws.closed:
+                await ws.send_str(client.replies.popleft())
+            now_s = time.monotonic()
+            if client.playing:
+                client.replay_t = min(
+                    source.end_s, client.replay_t + client.speed * (now_s - last_s)
+                )
+                if client.replay_t >= source.end_s:
+                    client.playing = False
+                client.moved = True
+            last_s = now_s
+            if not client.moved or ws.closed:
+                continue
+            client.moved = False
+            for message in source.frame(client.replay_t, client.sent_t):
+                if message.get("type") == "state":
+                    message["replay"] = {
+                        **message.get("replay", {}),
+                        "playing": client.playing,
+                        "speed": client.speed,
+                    }
+                await ws.send_str(_dumps(message))
+            client.sent_t = client.replay_t
+
     async def _send(self, client: _Client) -> None:
         """The client's one sender: hello, then replies and the newest state as they come."""
         ws = client.ws
+        if self.replay is not None:
+            # ConnectionError, RuntimeError: the client went away; its handler cleans up.
+            with contextlib.suppress(ConnectionError, RuntimeError):
+                await self._send_replay(client, self.replay)
+            return
         try:
             await ws.send_str(self._hello_text)
             client.wake.set()
@@ -688,10 +880,7 @@ class ViewServer:
             client.photo_seq = int(self._photos[-1]["seq"])
         if self._log:
             client.log_seq = int(self._log[-1]["seq"])
-        try:
-            return json.dumps(message, separators=(",", ":"), allow_nan=False)
-        except ValueError:  # a NaN or infinity slipped in: JSON has none; null instead
-            return json.dumps(_finite(message), separators=(",", ":"), allow_nan=False)
+        return _dumps(message)
 
 
 def _after(items: deque[Json], seq: int) -> list[Json]:
@@ -718,11 +907,14 @@ def _finite(value: Any) -> Any:
 
 __all__ = [
     "DEFAULT_PORT",
+    "REPLAY_ACTIONS",
     "STATIC_DIR",
     "CommandRejected",
+    "ReplaySource",
     "ViewServer",
     "check_token",
     "is_loopback_host",
     "parse_command",
+    "parse_replay_control",
     "parse_view_address",
 ]
