@@ -337,7 +337,7 @@ def read_fleet_csv(
         if len(row) != width:
             problems.append(Problem(shown, number, f"expected {width} fields, found {len(row)}"))
             continue
-        name = row[name_at]
+        name = row[name_at] if names is not None else _name(row[name_at])
         if names is not None and name not in names:
             strangers.add(name)
             continue
@@ -1005,7 +1005,11 @@ def load_replay(
     start_s = min(starts) if starts and min(starts) < math.inf else 0.0
     end_s = max(ends, default=start_s)
     if not (len(track[0]) or log or any(a.rows is not None for a in shown) or ends):
-        raise ReplayError(f"{folder}: its logs hold nothing to replay (no readable row or line)")
+        why = "; ".join(p.format_text() for p in problems[:3])
+        raise ReplayError(
+            f"{folder}: its logs hold nothing to replay (no readable row or line)"
+            + (f": {why}" if why else "")
+        )
 
     station_logs = agents.get(station) if station else None
     gps_ms: float | None = None

@@ -5,6 +5,11 @@
  * (the agents, new track points, photos and mission-log lines, the commands and their
  * lifecycle), and sends the operator's commands. Everything received is written as
  * text (textContent), never as HTML. Protocol: docs/station-view.md.
+ *
+ * In a replay (`clark replay LOGS`, hello.mode "replay") there are no controls: a time
+ * slider, play/pause and a speed choice send `seek`, `play`, `pause` and `speed`; the
+ * server answers with a `reset` (tracks, photos and log up to the time, drawn afresh)
+ * when the time jumps, and a `state` for each time shown.
  */
 (function () {
   "use strict";
@@ -23,6 +28,12 @@
   var layers = null;
   var agentLayers = {}; // id -> {marker, heading, track, points}
   var rows = {}; // name -> {row, cells, select}
+  var replay = false; // hello.mode === "replay"
+  var replayTime = null; // the time shown, kept across reconnections
+  var dragging = false; // the slider is being moved: states do not move it back
+  var SEEK_EVERY_MS = 200; // a dragged slider sends at most 5 seeks a second
+  var lastSeekMs = 0;
+  var seekTimer = null;
 
   function $(id) { return document.getElementById(id); }
 
@@ -62,18 +73,19 @@
     var scheme = location.protocol === "https:" ? "wss://" : "ws://";
     setConnection("connecting", "connecting");
     socket = new WebSocket(scheme + location.host + "/ws");
-    socket.onopen = function () { setConnection("open", "live"); };
+    socket.onopen = function () { setConnection("open", replay ? "replay" : "live"); };
     socket.onmessage = function (event) {
       var message;
       try { message = JSON.parse(event.data); } catch (e) { return; }
       if (message.type === "hello") { onHello(message); }
       else if (message.type === "state") { onState(message); }
+      else if (message.type === "reset") { onReset(message); }
       else if (message.type === "accepted") { showCommandError(""); }
       else if (message.type === "error") { showCommandError("refused by the view: " + message.error); }
     };
     socket.onclose = function (event) {
       if (event.code === 1001) { stationStopped = true; }
-      var why = stationStopped ? "the station stopped" : "disconnected";
+      var why = stationStopped ? (replay ? "the replay stopped" : "the station stopped") : "disconnected";
       setConnection("closed", why + "; retrying");
       setControlsEnabled(false);
       setTimeout(connect, RECONNECT_MS);
@@ -91,7 +103,14 @@
     socket.send(JSON.stringify(command));
   }
 
-  function showCommandError(text) { $("command-error").textContent = text; }
+  function showCommandError(text) {
+    $("command-error").textContent = text;
+    if (replay && text) { $("replay-time").textContent = text; }
+  }
+
+  function sendControl(message) {
+    if (socket && socket.readyState === WebSocket.OPEN) { socket.send(JSON.stringify(message)); }
+  }
 
   function setControlsEnabled(enabled) {
     var buttons = document.querySelectorAll("#fleet-pane button, #fleet-pane select");
@@ -103,16 +122,83 @@
   function onHello(message) {
     hello = message;
     stationStopped = false;
+    replay = message.mode === "replay";
+    document.body.classList.toggle("replay", replay);
+    $("replay-bar").hidden = !replay;
     var mission = message.mission;
     $("mission-name").textContent = mission.name + " (mission " + mission.id + ")";
-    $("mission-detail").textContent = "station " + message.station.name +
-      (mission.authenticated ? " · authenticated" : " · NOT authenticated") +
-      (message.plan_source ? " · plan from " + message.plan_source : " · no plan known");
+    $("mission-detail").textContent = replay
+      ? "replay of " + message.replay.folder + " · station " + (message.station.name || "none logged") +
+        (message.plan_source ? " · plan from " + message.plan_source : " · no plan known")
+      : "station " + message.station.name +
+        (mission.authenticated ? " · authenticated" : " · NOT authenticated") +
+        (message.plan_source ? " · plan from " + message.plan_source : " · no plan known");
     buildTable(message.agents);
     buildTerminateTargets(message.agents);
     buildMap(message);
     $("mission-log").textContent = "";
-    setControlsEnabled(true);
+    if (replay) {
+      setConnection("open", "replay");
+      buildReplayBar(message.replay);
+      if (replayTime !== null) { sendControl({ type: "seek", t: replayTime }); } // after a reconnection
+    } else {
+      setControlsEnabled(true);
+    }
+  }
+
+  // -- the replay's time slider ------------------------------------------------------------
+
+  function showTime(t) {
+    var info = hello.replay;
+    $("replay-time").textContent = "t = " + fixed(t, 1) + " s (" + fixed(info.start_s, 1) + " to " +
+      fixed(info.end_s, 1) + " s)";
+  }
+
+  function seek(t, now) {
+    var send = function () { lastSeekMs = Date.now(); seekTimer = null; sendControl({ type: "seek", t: t }); };
+    if (seekTimer) { clearTimeout(seekTimer); seekTimer = null; }
+    if (now || Date.now() - lastSeekMs >= SEEK_EVERY_MS) { send(); }
+    else { seekTimer = setTimeout(send, SEEK_EVERY_MS); }
+  }
+
+  function buildReplayBar(info) {
+    var slider = $("replay-slider");
+    slider.min = String(info.start_s);
+    slider.max = String(info.end_s);
+    slider.value = String(info.start_s);
+    var speed = $("replay-speed");
+    speed.textContent = "";
+    info.speeds.forEach(function (x) { speed.appendChild(el("option", { value: String(x) }, x + "x")); });
+    showTime(info.start_s);
+    slider.oninput = function () { dragging = true; showTime(Number(slider.value)); seek(Number(slider.value), false); };
+    slider.onchange = function () { dragging = false; seek(Number(slider.value), true); };
+    $("replay-play").onclick = function () {
+      sendControl({ type: $("replay-play").getAttribute("data-playing") === "true" ? "pause" : "play" });
+    };
+    speed.onchange = function () { sendControl({ type: "speed", speed: Number(speed.value) }); };
+    var note = $("checks-note");
+    note.textContent = info.checks_note || "";
+    note.hidden = !info.checks_note;
+  }
+
+  function updateReplayBar(info) {
+    replayTime = info.t;
+    if (!dragging) { $("replay-slider").value = String(info.t); showTime(info.t); }
+    var play = $("replay-play");
+    play.textContent = info.playing ? "Pause" : "Play";
+    play.setAttribute("data-playing", info.playing ? "true" : "false");
+    $("replay-speed").value = String(info.speed);
+  }
+
+  // A jump in time: what was drawn up to the old time goes; what is up to the new one comes.
+  function onReset(message) {
+    if (!hello) { return; }
+    Object.keys(agentLayers).forEach(function (id) { agentLayers[id].points = []; });
+    layers.photos.clearLayers();
+    $("mission-log").textContent = "";
+    $("log-count").textContent = "";
+    updateMap({ track: message.track, photos: message.photos, agents: [] });
+    updateLog(message.log);
   }
 
   function buildTable(agents) {
@@ -134,7 +220,7 @@
       cells.name.className = "agent-name";
       cells.airframe.textContent = agent.airframe || (agent.role === "mcs" ? "station" : "–");
       var select = null;
-      if (agent.role !== "mcs") {
+      if (agent.role !== "mcs" && !replay) {
         var activate = el("button", { type: "button", "data-testid": "activate-" + agent.name }, "Activate");
         activate.onclick = function () { send({ action: "activate", target: agent.name }); };
         var deactivate = el("button", { type: "button", "data-testid": "deactivate-" + agent.name }, "Deactivate");
@@ -229,6 +315,7 @@
       layer.track.setLatLngs(layer.points);
     });
     message.photos.forEach(function (photo) {
+      if (photo.north_m === null || photo.east_m === null) { return; }
       L.circleMarker([photo.north_m, photo.east_m], { radius: 3, color: "#333", weight: 1, fillColor: "#ffd700", fillOpacity: 1 })
         .bindTooltip(text("photo " + photo.image_index + " by #" + photo.agent + " at " + fixed(photo.alt_m, 1) + " m"))
         .addTo(layers.photos);
@@ -268,7 +355,8 @@
     var station = message.station;
     $("station-clock").textContent = "t = " + fixed(message.t, 1) + " s" +
       (station.terminated ? " · station TERMINATED" : "");
-    if (station.terminated) { setControlsEnabled(false); }
+    if (station.terminated && !replay) { setControlsEnabled(false); }
+    if (replay && message.replay) { updateReplayBar(message.replay); }
     message.agents.forEach(updateRow);
     updateMap(message);
     updateLog(message.log);
@@ -339,7 +427,9 @@
 
   function updateChecks(checks) {
     var list = $("checks");
-    $("checks-none").hidden = checks !== null && checks !== undefined;
+    var none = $("checks-none");
+    none.hidden = checks !== null && checks !== undefined;
+    if (replay) { none.textContent = "No checks are judged in this replay."; }
     list.textContent = "";
     (checks || []).forEach(function (check) {
       var item = el("li", { "data-status": check.status, "class": "check check-" + check.status });
