@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import bisect
 import math
+import operator
 import re
 import shlex
 import statistics
@@ -275,14 +276,21 @@ class _Rows:
 
     agent_id: int
     now_s: array[float] = field(default_factory=lambda: array("d"))
-    numbers: list[array[float]] = field(
-        default_factory=lambda: [array("d") for _ in range(len(_NUMBERS))]
-    )
+    numbers: list[array[float]] = field(default_factory=list)
+    """One array per column of :data:`_NUMBERS` (NaN for an empty cell), once read."""
     condition: array[int] = field(default_factory=lambda: array("b"))
     lost: array[int] = field(default_factory=lambda: array("b"))
+    flat: array[float] = field(default_factory=lambda: array("d"))
+    """While reading: every row's numbers one after the other (one append per row)."""
 
     def __len__(self) -> int:
         return len(self.now_s)
+
+    def columns(self) -> None:
+        """Turn the rows read (:attr:`flat`) into :attr:`numbers`' columns."""
+        width = len(_NUMBERS)
+        self.numbers = [self.flat[c::width] for c in range(width)]
+        self.flat = array("d")
 
 
 def _bad_cell(row: list[str], columns: Sequence[tuple[str, int | None]]) -> str:
@@ -325,7 +333,10 @@ def read_fleet_csv(
     condition_at, lost_at = at["condition"], at["lost"]
     indexes = [at.get(column) for column in _NUMBERS]
     labelled = list(zip(_NUMBERS, indexes, strict=True))
+    missing = None in indexes  # an older logbook's header: those columns are empty
+    cells = operator.itemgetter(*(width if i is None else i for i in indexes))
     out: dict[str, _Rows] = {}
+    escaped: dict[str, str] = {}  # a name as written -> as shown (bounded, escaped)
     strangers: set[str] = set()
     nan = math.nan
     count = 0
@@ -337,13 +348,17 @@ def read_fleet_csv(
         if len(row) != width:
             problems.append(Problem(shown, number, f"expected {width} fields, found {len(row)}"))
             continue
-        name = row[name_at] if names is not None else _name(row[name_at])
-        if names is not None and name not in names:
+        name = row[name_at]
+        if names is None:
+            name = escaped.get(name) or escaped.setdefault(name, _name(name))
+        elif name not in names:
             strangers.add(name)
             continue
+        if missing:
+            row.append("")
         try:
             now_s = float(row[now_at])
-            values = [nan if i is None or row[i] == "" else float(row[i]) for i in indexes]
+            values = [float(cell) if cell else nan for cell in cells(row)]
         except ValueError:
             bad = _bad_cell(row, [("now_s", now_at), *labelled])
             problems.append(Problem(shown, number, bad))
@@ -372,10 +387,11 @@ def read_fleet_csv(
             problems.append(Problem(shown, number, "now_s goes back in time"))
             continue
         agent.now_s.append(now_s)
-        for column, value in zip(agent.numbers, values, strict=True):
-            column.append(value)
+        agent.flat.extend(values)
         agent.condition.append(_CONDITIONS.index(condition) if condition else -1)
         agent.lost.append(1 if row[lost_at] == "1" else 0)
+    for agent in out.values():
+        agent.columns()
     if strangers:
         problems.append(
             Problem(
@@ -914,9 +930,9 @@ def load_replay(
         key=lambda n: (n != station, n),
     )
     fleet: dict[str, dict[str, _Rows]] = {}
-    wanted = set(configs) - {station} if configs else None
+    wanted = (set(configs) if configs else set(agents)) - {station}
     for observer in observers:
-        if wanted is not None and fleet and not (wanted - _covered(fleet)):
+        if fleet and not (wanted - _covered(fleet)):
             break  # every agent has rows already: no need to read further tables
         fleet[observer] = read_fleet_csv(agents[observer].files["fleet_csv"], ids, problems)
     chosen: dict[str, tuple[_Rows, float]] = {}
