@@ -432,7 +432,9 @@
     if (replay) { none.textContent = "No checks are judged in this replay."; }
     list.textContent = "";
     (checks || []).forEach(function (check) {
-      var item = el("li", { "data-status": check.status, "class": "check check-" + check.status });
+      // "not evaluated" holds a space: the class takes the status with dashes for spaces.
+      var kind = String(check.status).replace(/[^a-z]+/gi, "-");
+      var item = el("li", { "data-status": check.status, "class": "check check-" + kind });
       item.textContent = check.status + ": " + check.name + (check.detail ? " (" + check.detail + ")" : "");
       list.appendChild(item);
     });
