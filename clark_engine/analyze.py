@@ -41,10 +41,10 @@ import math
 import re
 import statistics
 from collections import defaultdict
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 from clark_engine.errors import ClarkError, UsageError
 from clark_engine.link.messages import MESSAGE_NAMES, PictureData
@@ -253,6 +253,51 @@ def _parse_row(row: list[str]) -> _Row:
     return _Row(direction, peer, number, kind, latency_ms)
 
 
+def open_log(path: Path) -> TextIO:
+    """A log file for reading; a bad byte spoils its line only (found with its number).
+
+    Raises:
+        UsageError: It cannot be read.
+    """
+    try:
+        # errors="replace": a bad byte spoils its row, found with its line number,
+        # instead of a decode error somewhere in an 8 KiB chunk.
+        return path.open(encoding="utf-8", errors="replace", newline="")
+    except OSError as exc:
+        raise UsageError(f"{path}: cannot read it ({exc.strerror or exc})") from None
+
+
+def csv_rows(path: Path, problems: list[Problem]) -> Iterator[tuple[int, list[str]]]:
+    """(line, cells) of every non-blank CSV row, the header first; bad rows are problems.
+
+    The one reader of the logs' CSV files (message logs, fleet CSVs), for ``clark
+    analyze``, ``clark analyze --checks`` and ``clark replay``: a row the csv module
+    cannot parse is a problem with its line number, never an exception.
+
+    Raises:
+        UsageError: The file cannot be read.
+    """
+    name = str(path)
+    with open_log(path) as stream:
+        reader = csv.reader(stream)
+        line = 0
+        while True:
+            start = line + 1
+            try:
+                row = next(reader)
+            except StopIteration:
+                return
+            except csv.Error as exc:
+                line = reader.line_num
+                problems.append(Problem(name, start, f"not a CSV row ({exc})"))
+                continue
+            except OSError as exc:
+                raise UsageError(f"{path}: cannot read it ({exc.strerror or exc})") from None
+            line = reader.line_num
+            if row:
+                yield start, row
+
+
 def _read_log(path: Path, problems: list[Problem]) -> list[_Row] | None:
     """Every valid row of one message log; None when it is not a message log.
 
@@ -261,45 +306,25 @@ def _read_log(path: Path, problems: list[Problem]) -> list[_Row] | None:
     """
     name = str(path)
     rows: list[_Row] = []
-    try:
-        # errors="replace": a bad byte spoils its row, found below with its line
-        # number, instead of a decode error somewhere in an 8 KiB chunk.
-        with path.open(encoding="utf-8", errors="replace", newline="") as stream:
-            reader = csv.reader(stream)
-            try:
-                header = next(reader, None)
-            except csv.Error as exc:
-                problems.append(Problem(name, None, f"not a message log ({exc})"))
-                return None
-            if header != list(MESSAGE_LOG_COLUMNS):
-                shown = "empty file" if header is None else f"header is {','.join(header)[:80]!r}"
-                problems.append(
-                    Problem(name, None, f"not a message log ({shown}; expected the logbook's)")
-                )
-                return None
-            line = reader.line_num
-            while True:
-                start = line + 1
-                try:
-                    row = next(reader)
-                except StopIteration:
-                    break
-                except csv.Error as exc:
-                    line = reader.line_num
-                    problems.append(Problem(name, start, f"not a CSV row ({exc})"))
-                    continue
-                line = reader.line_num
-                if not row:
-                    continue  # a blank line says nothing
-                if any("\ufffd" in cell for cell in row[:-1]):  # detail is free text
-                    problems.append(Problem(name, start, "not UTF-8 text"))
-                    continue
-                try:
-                    rows.append(_parse_row(row))
-                except ValueError as exc:
-                    problems.append(Problem(name, start, str(exc)))
-    except OSError as exc:
-        raise UsageError(f"{name}: cannot read it ({exc.strerror or exc})") from None
+    lines = csv_rows(path, problems)
+    first = next(lines, None)
+    if first is None or first[0] != 1 or first[1] != list(MESSAGE_LOG_COLUMNS):
+        if first is None:
+            shown = "empty file"
+        elif first[0] != 1:
+            shown = "its first line is not a CSV row"
+        else:
+            shown = f"header is {','.join(first[1])[:80]!r}"
+        problems.append(Problem(name, None, f"not a message log ({shown}; expected the logbook's)"))
+        return None
+    for line, row in lines:
+        if any("\ufffd" in cell for cell in row[:-1]):  # detail is free text
+            problems.append(Problem(name, line, "not UTF-8 text"))
+            continue
+        try:
+            rows.append(_parse_row(row))
+        except ValueError as exc:
+            problems.append(Problem(name, line, str(exc)))
     return rows
 
 

@@ -61,7 +61,6 @@ skipped; the rest is still evaluated.
 from __future__ import annotations
 
 import bisect
-import csv
 import json
 import math
 import re
@@ -72,7 +71,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final, TextIO
 
-from clark_engine.analyze import Problem
+from clark_engine.analyze import Problem, csv_rows, open_log
 from clark_engine.errors import ClarkError, UsageError
 from clark_engine.mission.geo import Origin, to_local
 from clark_engine.mission.model import Mission
@@ -272,18 +271,6 @@ def _finite(text: str, column: str) -> float:
     return value
 
 
-def _open(path: Path) -> TextIO:
-    """A log file for reading; a bad byte spoils its line only (found with its number).
-
-    Raises:
-        UsageError: It cannot be read.
-    """
-    try:
-        return path.open(encoding="utf-8", errors="replace", newline="")
-    except OSError as exc:
-        raise UsageError(f"{path}: cannot read it ({exc.strerror or exc})") from None
-
-
 def text_lines(path: Path, problems: list[Problem]) -> Iterator[TextLine]:
     """Every readable line of a mission or interface log; the others are problems.
 
@@ -291,7 +278,7 @@ def text_lines(path: Path, problems: list[Problem]) -> Iterator[TextLine]:
         UsageError: The file cannot be read.
     """
     name = str(path)
-    with _open(path) as stream:
+    with open_log(path) as stream:
         try:
             for number, raw in enumerate(stream, start=1):
                 text = raw.rstrip("\r\n")
@@ -379,33 +366,6 @@ def read_interface_log(path: Path, logs: AgentLogs, problems: list[Problem]) -> 
             logs.autopilot_lost_s = line.t_s
         if not logs.header and line.message.startswith(_HEADER):
             logs.header = _header(line.message)
-
-
-def csv_rows(path: Path, problems: list[Problem]) -> Iterator[tuple[int, list[str]]]:
-    """(line, cells) of every CSV row, the header first; unreadable rows are problems.
-
-    Raises:
-        UsageError: The file cannot be read.
-    """
-    name = str(path)
-    with _open(path) as stream:
-        reader = csv.reader(stream)
-        line = 0
-        while True:
-            start = line + 1
-            try:
-                row = next(reader)
-            except StopIteration:
-                return
-            except csv.Error as exc:
-                line = reader.line_num
-                problems.append(Problem(name, start, f"not a CSV row ({exc})"))
-                continue
-            except OSError as exc:
-                raise UsageError(f"{path}: cannot read it ({exc.strerror or exc})") from None
-            line = reader.line_num
-            if row:
-                yield start, row
 
 
 def read_message_log(path: Path, logs: AgentLogs, problems: list[Problem]) -> None:

@@ -52,7 +52,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
 
-from clark_engine.analyze import Problem
+from clark_engine.analyze import Problem, csv_rows
 from clark_engine.errors import ClarkError, UsageError
 from clark_engine.gcs.model import (
     MAX_LOG_LINES,
@@ -71,7 +71,6 @@ from clark_engine.log_checks import (
     AgentLogs,
     LogChecksError,
     align_clocks,
-    csv_rows,
     judge,
     read_interface_log,
     read_message_log,
