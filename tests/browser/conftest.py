@@ -15,17 +15,15 @@ from __future__ import annotations
 import os
 from collections.abc import Iterator
 from typing import Any
-from urllib.parse import urlsplit
 
 import pytest
 from station_page import (
     CHROMIUM_ENV,
     DEBIAN_CHROMIUM,
-    OTHER_SITE_SUFFIX,
     VIEWPORT,
+    PageWatch,
     chromium_path,
     launched_browser,
-    machine_names,
 )
 
 
@@ -48,14 +46,6 @@ def browser() -> Iterator[Any]:
         yield chromium
 
 
-def _allowed_host(host: str) -> bool:
-    return (
-        host in ("127.0.0.1", "localhost", "[::1]", "::1")
-        or host.endswith(OTHER_SITE_SUFFIX)
-        or host in machine_names()
-    )
-
-
 @pytest.fixture
 def context(browser: Any) -> Iterator[Any]:
     """A fresh browser context (no cookies, no storage) of 1280x800."""
@@ -70,19 +60,6 @@ def context(browser: Any) -> Iterator[Any]:
 def page(context: Any) -> Iterator[Any]:
     """A page that must stay on loopback and whose script must throw nothing."""
     tab = context.new_page()
-    outside: list[str] = []
-    errors: list[str] = []
-
-    def record(url: str) -> None:
-        parts = urlsplit(url)
-        if parts.scheme in ("http", "https", "ws", "wss") and not _allowed_host(
-            parts.hostname or ""
-        ):
-            outside.append(url)
-
-    tab.on("request", lambda request: record(request.url))
-    tab.on("websocket", lambda socket: record(socket.url))
-    tab.on("pageerror", lambda error: errors.append(str(error)))
+    watch = PageWatch(tab)
     yield tab
-    assert not outside, f"the page reached beyond this machine: {outside}"
-    assert not errors, f"the page's script threw: {errors}"
+    watch.check()

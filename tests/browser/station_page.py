@@ -22,6 +22,7 @@ from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit
 
 ROOT = Path(__file__).resolve().parents[2]
 MISSION = ROOT / "missions" / "cooperative_follow.yaml"
@@ -115,6 +116,37 @@ def launched_browser(playwright: Any) -> Iterator[Any]:
             yield browser
         finally:
             browser.close()
+
+
+def _allowed_host(host: str) -> bool:
+    return (
+        host in ("127.0.0.1", "localhost", "[::1]", "::1")
+        or host.endswith(OTHER_SITE_SUFFIX)
+        or host in machine_names()
+    )
+
+
+class PageWatch:
+    """What a page asked beyond this machine, and what its script threw."""
+
+    def __init__(self, page: Any) -> None:
+        self.outside: list[str] = []
+        self.errors: list[str] = []
+        page.on("request", lambda request: self._record(request.url))
+        page.on("websocket", lambda socket: self._record(socket.url))
+        page.on("pageerror", lambda error: self.errors.append(str(error)))
+
+    def _record(self, url: str) -> None:
+        parts = urlsplit(url)
+        if parts.scheme in ("http", "https", "ws", "wss") and not _allowed_host(
+            parts.hostname or ""
+        ):
+            self.outside.append(url)
+
+    def check(self) -> None:
+        """Fail if the page reached beyond this machine or its script threw."""
+        assert not self.outside, f"the page reached beyond this machine: {self.outside}"
+        assert not self.errors, f"the page's script threw: {self.errors}"
 
 
 @dataclass
