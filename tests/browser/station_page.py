@@ -2,10 +2,12 @@
 
 Shared by tests/browser and tools/screenshot_station.py. The browser is Debian's chromium
 (tools/ensure_browser.sh installs it) driven by Playwright, never a browser of
-Playwright's own. It reaches this machine's loopback only: every name it resolves is
-mapped to 127.0.0.1 or fails, and everything not bypassed goes to a proxy that refuses
-(a loopback port bound and never listened on), so a page that tried to load anything
-from outside would fail, not leak.
+Playwright's own, with a fresh profile per launch (Playwright's own temporary user data
+dir, removed when the browser closes). It reaches this machine's loopback only: the
+names that stand for other machines and sites are mapped to 127.0.0.1, and every other
+request that is not to loopback goes to a proxy that refuses (a loopback port bound and
+never listened on), so a page that tried to load anything from outside would fail, not
+leak.
 """
 
 from __future__ import annotations
