@@ -73,6 +73,7 @@ class Fleet:
         self.mode = {"slash_a": "HOLD", "slash_b": "HOLD"}
         self.position = {"slash_a": LocalPoint(0, 0), "slash_b": LocalPoint(-15, -10)}
         self.silent: set[str] = set()
+        self.deaf: set[str] = set()  # agents that hear nothing (their radio's receive fails)
         self.log = MissionLogBuffer()
         self.log.attach(self.station.logbook.mission)
         self.hello = build_hello(self.configs["mcs"], self.configs, plan_source="the mission")
@@ -86,7 +87,7 @@ class Fleet:
             if not isinstance(command, SendPacket) or sender in self.silent:
                 continue
             for name, runtime in self.runtimes.items():
-                if name != sender and command.destination in ("", name):
+                if name != sender and name not in self.deaf and command.destination in ("", name):
                     self.route(name, runtime.deliver(PacketReceived(command.data), t), t)
 
     def step(self, seconds: float = 0.1) -> None:
@@ -348,15 +349,56 @@ def test_terminate_one_agent_is_done_on_its_last_heartbeat(fleet: Fleet) -> None
     assert fleet.command("activate", "slash_b", id=2)["status"] == "refused"
 
 
-def test_terminate_all_terminates_the_station_too(fleet: Fleet) -> None:
+def test_terminate_all_terminates_the_fleet_then_the_station(fleet: Fleet) -> None:
     fleet.step(1.0)
-    entry = fleet.command("terminate", "")
-    assert entry["status"] == "sent" and "station terminated" in str(entry["detail"])
-    assert fleet.station.terminated
+    fleet.command("terminate", "")
+    # Both vehicles terminated at once and their last heartbeats confirmed it; the
+    # station itself terminates in its next tick, after taking those confirmations.
     assert all(runtime.terminated for runtime in fleet.vehicles.values())
+    assert not fleet.station.terminated
+    fleet.step(0.1)
+    entry = fleet.command_status(1)
+    assert entry["status"] == "done", entry
+    assert entry["targets"] == {"slash_a": "done", "slash_b": "done"}
+    assert fleet.station.terminated
     assert fleet.view.snapshot(fleet.t).state["station"]["terminated"] is True  # type: ignore[index]
+    log = fleet.station.logbook.streams.mission.getvalue()  # type: ignore[attr-defined]
+    assert "terminate: slash_a confirmed" in log and "terminate: slash_b confirmed" in log
     later = fleet.command("activate", "slash_b", id=2)
     assert later["status"] == "refused" and later["detail"] == "the station has terminated"
+
+
+def test_terminate_all_is_sent_again_to_an_agent_that_missed_it(fleet: Fleet) -> None:
+    fleet.step(1.0)
+    fleet.deaf.add("slash_a")  # the broadcast never reaches it
+    fleet.command("terminate", "")
+    fleet.step(0.5)
+    assert fleet.vehicles["slash_b"].terminated and not fleet.vehicles["slash_a"].terminated
+    assert not fleet.station.terminated  # still waiting for slash_a
+    assert fleet.command_status(1)["status"] == "pending"
+    # meanwhile nothing else is sent
+    busy = fleet.command("activate", "slash_a", id=2)
+    assert busy["status"] == "refused" and "terminating" in str(busy["detail"])
+    fleet.deaf.clear()
+    fleet.step(1.0)  # the next resend (every second) reaches it
+    assert fleet.vehicles["slash_a"].terminated and fleet.station.terminated
+    assert fleet.command_status(1)["status"] == "done"
+
+
+def test_terminate_all_gives_up_on_an_agent_that_never_confirms(fleet: Fleet) -> None:
+    fleet.step(1.0)
+    fleet.deaf.add("slash_a")  # hears nothing, still sends heartbeats: never confirms
+    fleet.command("terminate", "")
+    fleet.step(4.8)  # the wait is heartbeat_timeout_s (3 s) + 2 s
+    assert not fleet.station.terminated
+    fleet.step(0.3)
+    assert fleet.station.terminated and not fleet.vehicles["slash_a"].terminated
+    entry = fleet.command_status(1)
+    assert entry["status"] == "unanswered"
+    assert entry["targets"] == {"slash_a": "unanswered", "slash_b": "done"}
+    assert "slash_a before the station terminated" in str(entry["detail"])
+    log = fleet.station.logbook.streams.mission.getvalue()  # type: ignore[attr-defined]
+    assert "terminate: no confirmation from slash_a" in log
 
 
 def test_operator_names_reach_the_log_escaped(fleet: Fleet) -> None:

@@ -819,16 +819,8 @@ class StationView:
             for line in self.log.since(mark):
                 if line.func == "_station_command" and line.levelno >= logging.WARNING:
                     return self._refuse(command, f"the station's runtime: {line.text}", now_s)
-        if request.action == "terminate" and not request.target:
-            # The station terminates with the fleet (the runtime's terminate sequence):
-            # it stops listening at once, so no answer can be heard.
-            command.status = "sent"
-            command.detail = "sent; the station terminated with the fleet and hears no answer"
-            command.done_s = now_s
-            for target in command.targets:
-                if target.status == "pending":
-                    target.status = "sent"
-            return command.to_json()
+        # A terminate of the whole fleet: the station's runtime keeps listening until every
+        # agent confirms (or falls silent), then terminates itself; followed like the rest.
         self._follow(command, now_s)
         return command.to_json()
 
@@ -899,16 +891,21 @@ class StationView:
             command.status = "done"
             command.done_s = now_s
             command.detail = _evidence(action, command.request.mode)
-        elif now_s - command.sent_s >= self.answer_timeout_s:
+        elif self.runtime.terminated or now_s - command.sent_s >= self.answer_timeout_s:
+            # A terminated station hears nothing more: what has not answered never will.
             command.status = "unanswered"
             command.done_s = now_s
             for target in command.targets:
                 if target.status == "pending":
                     target.status = "unanswered"
             answered = [t.name for t in command.targets if t.status == "done"]
-            command.detail = (
-                f"no sign of effect from {', '.join(waiting)} in {self.answer_timeout_s:g} s"
-                + (f" (done: {', '.join(answered)})" if answered else "")
+            waited = (
+                "before the station terminated"
+                if self.runtime.terminated
+                else f"in {self.answer_timeout_s:g} s"
+            )
+            command.detail = f"no sign of effect from {', '.join(waiting)} {waited}" + (
+                f" (done: {', '.join(answered)})" if answered else ""
             )
             if not self.runtime.logbook.closed:
                 self.runtime.logbook.mission.warning(

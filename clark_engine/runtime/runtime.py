@@ -91,6 +91,10 @@ RC_LOW_US = 1200
 #: The behaviour's one-off requests, not carried out after an autopilot loss by the states
 #: that made them before or during it (AgentRuntime._void_requests).
 _REQUESTS = (SetMode, Arm, Takeoff)
+#: A station terminating the fleet sends Terminate again to each agent that has not yet
+#: confirmed it (a heartbeat with the terminated condition) this often: one broadcast on
+#: a lossy radio is not enough to stop every vehicle.
+TERMINATE_RESEND_S = 1.0
 #: Most messages one packet may hold from an agent not in the mission: one of each kind.
 _MAX_MESSAGES_UNKNOWN = len(MESSAGE_NAMES)
 
@@ -218,6 +222,10 @@ class AgentRuntime:
             if channel.rc is not None:
                 self._rc_names.setdefault(channel.rc, []).append(name)
         self._peer_by_name = {p.name: p for p in config.peers}
+        #: A station's terminate of the whole fleet under way: each agent that has not yet
+        #: confirmed -> when Terminate last went to it. None when none is under way.
+        self._terminating: dict[int, float] | None = None
+        self._terminate_sent_s = 0.0
         #: Most messages one packet of each peer may hold: what it is configured to send
         #: (each telemetry message once) and one of every ClarkLink message besides
         #: (Behavior State, Picture Data, a station's command); more is a stuffed packet.
@@ -510,11 +518,90 @@ class AgentRuntime:
         else:
             self.logbook.mission.warning("station command %s not understood", command)
             return
+        if self._terminating is not None:
+            self.logbook.mission.warning(
+                "station command %s %s ignored: the fleet is terminating",
+                command.action,
+                command.target or "all",
+            )
+            return
         self.logbook.mission.info("operator: %s %s", command.action, command.target or "all")
         destination = command.target if target is not None else ""
         self._send([message], destination, now_s)
         if command.action == "terminate" and target is None:
+            self._begin_terminate_all(now_s)
+
+    def _begin_terminate_all(self, now_s: float) -> None:
+        """Terminate the fleet, then this station: the station waits for confirmations.
+
+        The broadcast just sent may not reach every agent, and once the station has
+        terminated it hears nothing: so it keeps running (commanding nothing else) until
+        every other agent it can reach confirms with a terminated heartbeat, sending
+        Terminate again to those that have not every :data:`TERMINATE_RESEND_S`; an agent
+        lost, or still silent after :meth:`_terminate_all_wait_s`, is logged unconfirmed.
+        Then the station runs its own terminate sequence (thesis 7.3.5).
+        """
+        waiting: dict[int, float] = {}
+        for peer in self.config.peers:
+            if peer.id in self._stations:
+                continue
+            record = self.fleet.record(peer.id)
+            if record is not None and record.condition == Condition.TERMINATED:
+                continue  # terminated already (lost since, as it stopped sending)
+            if record is None or record.lost:
+                self.logbook.mission.warning(
+                    "terminate: %s %s: it cannot confirm",
+                    peer.name,
+                    "never heard" if record is None else "is lost",
+                )
+            else:
+                waiting[peer.id] = now_s
+        self._terminating = waiting
+        self._terminate_sent_s = now_s
+        if waiting:
+            self.logbook.mission.info(
+                "terminate: waiting for %s to confirm (at most %.1f s)",
+                ", ".join(sorted(self._peer_by_id[i].name for i in waiting)),
+                self._terminate_all_wait_s(),
+            )
+        self._terminate_all_progress(now_s)
+
+    def _terminate_all_wait_s(self) -> float:
+        """How long a fleet terminate waits for confirmations.
+
+        An agent that terminated but whose last heartbeat was lost is declared lost within
+        the heartbeat timeout of its previous one; two resend periods more cover a first
+        Terminate lost on the way.
+        """
+        return self.config.heartbeat_timeout_s + 2 * TERMINATE_RESEND_S
+
+    def _terminate_all_progress(self, now_s: float) -> None:
+        """Confirmations taken, Terminate sent again where due, the station's own at the end."""
+        waiting = self._terminating
+        assert waiting is not None
+        for agent_id in list(waiting):
+            name = self._peer_by_id[agent_id].name
+            record = self.fleet.record(agent_id)
+            if record is not None and record.condition == Condition.TERMINATED:
+                del waiting[agent_id]
+                self.logbook.mission.info("terminate: %s confirmed", name)
+            elif record is not None and record.lost:
+                del waiting[agent_id]
+                self.logbook.mission.warning("terminate: %s fell silent unconfirmed", name)
+        late = now_s - self._terminate_sent_s >= self._terminate_all_wait_s()
+        if waiting and late:
+            names = ", ".join(sorted(self._peer_by_id[i].name for i in waiting))
+            self.logbook.mission.error("terminate: no confirmation from %s", names)
+        if not waiting or late:
+            self._terminating = None
             self._terminate(now_s, None)
+            return
+        gps = self._gps_now_ms(now_s) or 0
+        for agent_id, sent_s in list(waiting.items()):
+            if now_s - sent_s >= TERMINATE_RESEND_S - 1e-9:
+                waiting[agent_id] = now_s
+                message = Terminate(self.config.agent_id, gps, agent_id, "operator")
+                self._send([message], self._peer_by_id[agent_id].name, now_s)
 
     # -- the tick ------------------------------------------------------------------------
 
@@ -561,6 +648,10 @@ class AgentRuntime:
         lost = self.fleet.check_timeouts(now_s)
         if lost:
             self._fleet_events(lost)
+        if self._terminating is not None:
+            self._terminate_all_progress(now_s)
+            if self.terminated:
+                return
         if self._scheduled:
             gps_now = self._gps_now_ms(now_s)
             due = [e for e in self._scheduled if gps_now is not None and e[0] <= gps_now]

@@ -13,8 +13,8 @@ that however the suite is spread over processes, the steps stay together and in 
    command shows pending, then done, it chases slash_a on the map (its label moves, its
    track grows) and parks, and the checks pane shows the checks passing;
 4. a mode change from the page (slash_b to MANUAL) shows in its row;
-5. Terminate from the dialog, for each vehicle: every vehicle shows TERMINATED and stops
-   moving.
+5. Terminate from the dialog: slash_a alone stops where it is; then all: the station
+   terminates slash_b, takes its confirmation and terminates itself.
 
 Every step waits on the page's own content (its clock, rows, commands, labels), never
 on a fixed sleep; a failure names its step. The rehearsal is the slow part: about 80 s
@@ -248,7 +248,7 @@ def test_the_cooperative_follow_rehearsal_through_the_page(view: Any) -> None:
         activating_the_follower_makes_it_chase_on_the_map(view)
     with step("a mode change from the page shows in the row"):
         a_mode_change_from_the_page_shows_in_its_row(view)
-    with step("Terminate from the dialog stops every vehicle"):
+    with step("Terminate from the dialog stops one vehicle, then every agent"):
         terminate_stops_every_agent(view)
 
 
@@ -363,28 +363,32 @@ def terminate_stops_every_agent(page: Any) -> None:
     page.get_by_test_id("terminate-cancel").click()
     expect(page.get_by_test_id("terminate-dialog")).to_be_hidden()
 
-    for name in ("slash_a", "slash_b"):
-        _terminate(page, name)
-        command = _command(page, f"terminate {name}")
-        expect(command).to_have_attribute("data-status", "done")
-        expect(command.locator(".command-detail")).to_have_text(
-            "its heartbeat reports it terminated"
-        )
-    for name in ("slash_a", "slash_b"):
-        expect(_row(page, name)).to_have_attribute("data-liveness", "terminated")
-        expect(_cell(page, name, "liveness")).to_contain_text("TERMINATED")
-        expect(_cell(page, name, "condition")).to_have_text("terminated")
-    sent = ["terminate slash_b", "terminate slash_a", "mode slash_b MANUAL", "activate slash_b"]
+    # slash_a alone: it stops where it is, while the station's clock runs on
+    _terminate(page, "slash_a")
+    command = _command(page, "terminate slash_a")
+    expect(command).to_have_attribute("data-status", "done")
+    expect(command.locator(".command-detail")).to_have_text("its heartbeat reports it terminated")
+    expect(_row(page, "slash_a")).to_have_attribute("data-liveness", "terminated")
+    expect(_cell(page, "slash_a", "condition")).to_have_text("terminated")
+    stopped = _label(page, "slash_a")
+    position = _cell(page, "slash_a", "local").text_content()
+    _wait_clock(page, _clock_s(page) + 3.0)
+    now = _label(page, "slash_a")
+    assert abs(now["x"] - stopped["x"]) < 1 and abs(now["y"] - stopped["y"]) < 1
+    expect(_cell(page, "slash_a", "local")).to_have_text(position or "")
+    expect(_cell(page, "slash_a", "liveness")).to_have_text("TERMINATED (lost)")
+
+    # then all: the station terminates the rest of the fleet, waits for each
+    # confirmation, then terminates itself; the page's controls go off
+    _terminate(page, "all")
+    command = _command(page, "terminate all")
+    expect(command).to_have_attribute("data-status", "done")
+    expect(command.locator(".command-detail")).to_have_text("its heartbeat reports it terminated")
+    expect(_row(page, "slash_b")).to_have_attribute("data-liveness", "terminated")
+    expect(_cell(page, "slash_b", "condition")).to_have_text("terminated")
+    expect(page.get_by_test_id("station-clock")).to_contain_text("station TERMINATED")
+    expect(page.get_by_test_id("activate-slash_b")).to_be_disabled()
+    sent = ["terminate all", "terminate slash_a", "mode slash_b MANUAL", "activate slash_b"]
     expect(page.get_by_test_id("commands").locator(".command-what")).to_have_text(
         [re.compile(rf"^#\d+ {what}$") for what in sent]  # newest first; none on cancel
     )
-
-    # and they stay where they stopped, while the station's clock runs on
-    stopped = {name: _label(page, name) for name in ("slash_a", "slash_b")}
-    positions = {name: _cell(page, name, "local").text_content() for name in stopped}
-    _wait_clock(page, _clock_s(page) + 3.0)
-    for name, box in stopped.items():
-        now = _label(page, name)
-        assert abs(now["x"] - box["x"]) < 1 and abs(now["y"] - box["y"]) < 1, name
-        expect(_cell(page, name, "local")).to_have_text(positions[name] or "")
-    expect(_cell(page, "slash_a", "liveness")).to_have_text("TERMINATED (lost)")
