@@ -25,7 +25,6 @@ sys.path.insert(0, str(ROOT / "tests" / "browser"))
 
 from station_page import (  # noqa: E402 (the helpers live beside the browser tests)
     MISSION,
-    VIEWPORT,
     launched_browser,
     served_station,
 )
@@ -33,6 +32,8 @@ from station_page import (  # noqa: E402 (the helpers live beside the browser te
 DEFAULT_OUTPUT = ROOT / "docs" / "img" / "station-view.png"
 TIMEOUT_MS = 90_000
 MAX_BYTES = 300_000
+#: Wide enough for every column of the agents table, tall enough for the mission log.
+VIEWPORT = {"width": 1500, "height": 940}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -231,7 +231,12 @@
           select = el("select", { "data-testid": "mode-select-" + agent.name, "aria-label": "mode for " + agent.name });
           agent.modes.forEach(function (mode) { select.appendChild(el("option", { value: mode.name }, mode.name)); });
           var setMode = el("button", { type: "button", "data-testid": "mode-set-" + agent.name }, "Set mode");
-          setMode.onclick = function () { send({ action: "mode", target: agent.name, mode: select.value }); };
+          // The drop-down follows the agent's mode until the operator picks one.
+          select.onchange = function () { select.setAttribute("data-chosen", "1"); };
+          setMode.onclick = function () {
+            send({ action: "mode", target: agent.name, mode: select.value });
+            select.removeAttribute("data-chosen");
+          };
           controls.appendChild(select);
           controls.appendChild(setMode);
         }
@@ -244,6 +249,7 @@
   function buildTerminateTargets(agents) {
     var select = $("terminate-target");
     select.textContent = "";
+    select.appendChild(el("option", { value: "" }, "choose…"));
     select.appendChild(el("option", { value: "all" }, "all (ends the mission)"));
     agents.forEach(function (agent) {
       if (agent.role !== "mcs") { select.appendChild(el("option", { value: agent.name }, agent.name)); }
@@ -374,6 +380,12 @@
     c.liveness.textContent = live[1];
     c.heard.textContent = agent.since_heartbeat_s === null ? "never" : fixed(agent.since_heartbeat_s, 1) + " s ago";
     c.mode.textContent = agent.mode ? (agent.mode.name || "?") + " (" + agent.mode.number + ")" : "–";
+    var chooser = entry.select;
+    if (chooser && agent.mode && agent.mode.name && !chooser.hasAttribute("data-chosen") &&
+        document.activeElement !== chooser &&
+        Array.prototype.some.call(chooser.options, function (o) { return o.value === agent.mode.name; })) {
+      chooser.value = agent.mode.name;
+    }
     c.armed.textContent = agent.armed === null ? "unknown" : (agent.armed ? "ARMED" : "disarmed");
     c.behaviour.textContent = agent.behaviour
       ? (agent.behaviour.active.map(function (path) { return path || "(behaviour)"; }).join(", ") || "(none)") + (agent.behaviour.last_event ? " ← " + agent.behaviour.last_event : "")
@@ -451,10 +463,19 @@
     $("activate-all").onclick = function () { send({ action: "activate", target: "all" }); };
     $("deactivate-all").onclick = function () { send({ action: "deactivate", target: "all" }); };
     var dialog = $("terminate-dialog");
-    $("terminate-open").onclick = function () { dialog.showModal(); };
+    var target = $("terminate-target");
+    var confirm = $("terminate-confirm");
+    // No target is chosen in advance: the operator picks one each time (never a leftover "all").
+    target.onchange = function () { confirm.disabled = !target.value; };
+    $("terminate-open").onclick = function () {
+      target.value = "";
+      confirm.disabled = true;
+      dialog.showModal();
+    };
     $("terminate-cancel").onclick = function () { dialog.close(); };
-    $("terminate-confirm").onclick = function () {
-      send({ action: "terminate", target: $("terminate-target").value, confirm: true });
+    confirm.onclick = function () {
+      if (!target.value) { return; }
+      send({ action: "terminate", target: target.value, confirm: true });
       dialog.close();
     };
     setControlsEnabled(false);
