@@ -1,7 +1,7 @@
-"""Fixtures of the browser tests: one headless Chromium per test session, a page per test.
+"""Fixtures of the browser tests: one headless Chromium per test module, a page per test.
 
 Every test here is marked ``browser`` and put in the xdist group ``browser`` (each
-module's ``pytestmark``), so one worker runs them all with one browser. Without
+module's ``pytestmark``), so one worker runs them all, one browser per module. Without
 Playwright or without Chromium they skip and say why (``make test`` installs both:
 Playwright with the test extra, Debian's chromium through tools/ensure_browser.sh); a
 Chromium that is there but does not start fails them.
@@ -27,9 +27,15 @@ from station_page import (
 )
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def browser() -> Iterator[Any]:
-    """Debian's chromium, headless, driven by Playwright (skips without either)."""
+    """Debian's chromium, headless, driven by Playwright (skips without either).
+
+    One per module, not per session: Playwright's synchronous API keeps its asyncio loop
+    running while it is started, so every later test of the same worker process that
+    calls ``asyncio.run`` (the WebSocket tests) would fail with "cannot be called from a
+    running event loop". Stopped at the module's end, it leaves the process as it found it.
+    """
     sync_api = pytest.importorskip(
         "playwright.sync_api",
         reason="Playwright is not installed (pip install -e '.[test]'; make test does it)",
