@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import os
 import re
 import signal
 import socket
@@ -385,3 +386,83 @@ def test_checks_are_evaluated_about_once_a_second() -> None:
     now[0] = 1.0
     assert checks.due()
     assert checks.evaluations == 1
+
+
+# -- over ArduPilot SITL ---------------------------------------------------------------------
+
+
+def _sitl_folder() -> Path | None:
+    from clark_engine.sim.sitl import ENV_SITL, SitlInstall, SitlNotFound
+
+    default = ROOT.parent / "shared" / "ardupilot-sitl"
+    given = os.environ.get(ENV_SITL) or (str(default) if default.is_dir() else None)
+    try:
+        return SitlInstall.find(given).folder if given else None
+    except SitlNotFound:
+        return None
+
+
+SITL_FOLDER = _sitl_folder()
+SITL_TIMEOUT_S = 120.0
+"""ArduRover SITL at real time: booted, its GPS fixed and its position reported."""
+
+
+@pytest.mark.slow
+@pytest.mark.sitl
+@pytest.mark.skipif(
+    SITL_FOLDER is None,
+    reason="no ArduPilot SITL: set CLARK_SITL to the folder with the `sitl` launcher",
+)
+def test_the_page_watches_a_rehearsal_on_ardupilot_sitl(tmp_path: Path) -> None:
+    """``--autopilot sitl --realtime --station``: the same page, the vehicles real ArduRover."""
+    assert SITL_FOLDER is not None
+    running = Rehearsal(
+        [
+            str(MISSION),
+            "--realtime",
+            "--station",
+            "--autopilot",
+            "sitl",
+            "--sitl",
+            str(SITL_FOLDER),
+            "--view",
+            "127.0.0.1:0",
+            "--no-operator-script",
+            "--until",
+            "150",
+            "--report",
+            str(tmp_path / "report"),
+            "--quiet",
+        ],
+        tmp_path,
+    )
+    try:
+
+        async def go() -> dict[str, Any]:
+            async with (
+                aiohttp.ClientSession() as session,
+                session.ws_connect(running.ws_url) as ws,
+            ):
+                hello = await receive(ws)
+                assert [a["name"] for a in hello["agents"]] == ["slash_a", "slash_b"]
+                deadline = time.monotonic() + SITL_TIMEOUT_S
+                while time.monotonic() < deadline:
+                    message = await receive(ws)
+                    if message["type"] == "state" and all(
+                        agent(message, n)["position"] and agent(message, n)["mode"]
+                        for n in ("slash_a", "slash_b")
+                    ):
+                        return message
+                raise AssertionError("no state with both SITL rovers' positions and modes")
+
+        state = asyncio.run(go())
+        # The positions are ArduRover's, near the mission's start positions (metres).
+        home_b = agent(state, "slash_b")["position"]
+        assert abs(home_b["north_m"] - (-15.0)) < 10 and abs(home_b["east_m"] - (-10.0)) < 10
+        assert agent(state, "slash_a")["mode"]["name"] in ("HOLD", "MANUAL", "GUIDED")
+        code, _, err = running.interrupt()
+    finally:
+        running.kill()
+    assert "Traceback" not in err
+    assert code in (0, 1), err  # the checks' verdict, Ctrl-C before their time
+    assert (tmp_path / "report" / "summary.md").is_file()
