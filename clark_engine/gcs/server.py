@@ -281,6 +281,32 @@ class CommandRejected(ValueError):
         self.ref = ref
 
 
+def _json_object(text: str) -> dict[str, Any]:
+    """A message from the page as a JSON object, within :data:`MAX_MESSAGE_BYTES`.
+
+    Raises:
+        CommandRejected: Too long, not JSON, or not an object.
+    """
+    if len(text) > MAX_MESSAGE_BYTES:
+        raise CommandRejected("message too long")
+    try:
+        data = json.loads(text)
+    except (ValueError, RecursionError):
+        raise CommandRejected("not JSON") from None
+    if not isinstance(data, dict):
+        raise CommandRejected("not a JSON object")
+    return data
+
+
+def _valid_ref(ref: object) -> bool:
+    """Whether a message's ``ref`` (echoed to the page) is absent, an int or a short text."""
+    return (
+        ref is None
+        or (isinstance(ref, int) and not isinstance(ref, bool) and abs(ref) < 2**53)
+        or (isinstance(ref, str) and len(ref) <= MAX_REF_CHARS and ref.isprintable())
+    )
+
+
 def parse_command(
     text: str, hello: Mapping[str, Any], *, command_id: int, address: str
 ) -> tuple[CommandRequest, str | int | None]:
@@ -296,20 +322,9 @@ def parse_command(
         CommandRejected: Why it is not accepted (safe to show: it quotes nothing
             longer than the bounds).
     """
-    if len(text) > MAX_MESSAGE_BYTES:
-        raise CommandRejected("message too long")
-    try:
-        data = json.loads(text)
-    except (ValueError, RecursionError):
-        raise CommandRejected("not JSON") from None
-    if not isinstance(data, dict):
-        raise CommandRejected("not a JSON object")
+    data = _json_object(text)
     ref = data.get("ref")
-    if not (
-        ref is None
-        or (isinstance(ref, int) and not isinstance(ref, bool) and abs(ref) < 2**53)
-        or (isinstance(ref, str) and len(ref) <= MAX_REF_CHARS and ref.isprintable())
-    ):
+    if not _valid_ref(ref):
         raise CommandRejected("ref must be a number or a short string")
 
     def rejected(reason: str) -> CommandRejected:
@@ -366,20 +381,9 @@ def parse_replay_control(
     Raises:
         CommandRejected: Why it is not accepted (it quotes nothing the page sent).
     """
-    if len(text) > MAX_MESSAGE_BYTES:
-        raise CommandRejected("message too long")
-    try:
-        data = json.loads(text)
-    except (ValueError, RecursionError):
-        raise CommandRejected("not JSON") from None
-    if not isinstance(data, dict):
-        raise CommandRejected("not a JSON object")
+    data = _json_object(text)
     ref = data.get("ref")
-    if not (
-        ref is None
-        or (isinstance(ref, int) and not isinstance(ref, bool) and abs(ref) < 2**53)
-        or (isinstance(ref, str) and len(ref) <= MAX_REF_CHARS and ref.isprintable())
-    ):
+    if not _valid_ref(ref):
         ref = None
     kind = data.get("type")
     if kind == "command":
