@@ -15,6 +15,8 @@
   "use strict";
 
   var MAX_TRACK_POINTS = 5000; // per agent, on the map
+  var MAX_PHOTOS = 2000; // photo markers on the map, the newest (as many as the server keeps)
+  var photoMarkers = []; // oldest first
   var MAX_LOG_ITEMS = 500;
   var RECONNECT_MS = 2000;
   var PALETTE = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf",
@@ -193,8 +195,9 @@
   // A jump in time: what was drawn up to the old time goes; what is up to the new one comes.
   function onReset(message) {
     if (!hello) { return; }
-    Object.keys(agentLayers).forEach(function (id) { agentLayers[id].points = []; });
+    Object.keys(agentLayers).forEach(function (id) { agentLayers[id].points = []; agentLayers[id].track.setLatLngs([]); });
     layers.photos.clearLayers();
+    photoMarkers = [];
     $("mission-log").textContent = "";
     $("log-count").textContent = "";
     updateMap({ track: message.track, photos: message.photos, agents: [] });
@@ -263,6 +266,7 @@
   function buildMap(message) {
     if (map) { map.remove(); }
     agentLayers = {};
+    photoMarkers = [];
     map = L.map("map", { crs: L.CRS.Simple, minZoom: -6, maxZoom: 6, zoomSnap: 0.25, attributionControl: false });
     L.control.scale({ metric: true, imperial: false, maxWidth: 150 }).addTo(map);
     layers = { plan: L.layerGroup().addTo(map), tracks: L.layerGroup().addTo(map),
@@ -310,22 +314,32 @@
   }
 
   function updateMap(message) {
+    // Only the tracks that grew are handed to Leaflet again (it projects every point of a
+    // track it is given), and a full track drops its oldest points in one splice, not one
+    // shift (a 5,000-slot move) per point.
+    var grown = {};
     message.track.forEach(function (point) {
       var layer = agentLayers[point.agent];
       if (!layer) { return; }
       layer.points.push([point.north_m, point.east_m]);
-      if (layer.points.length > MAX_TRACK_POINTS) { layer.points.shift(); }
+      grown[point.agent] = layer;
     });
-    Object.keys(agentLayers).forEach(function (id) {
-      var layer = agentLayers[id];
+    Object.keys(grown).forEach(function (id) {
+      var layer = grown[id];
+      var excess = layer.points.length - MAX_TRACK_POINTS;
+      if (excess > 0) { layer.points.splice(0, excess); }
       layer.track.setLatLngs(layer.points);
     });
     message.photos.forEach(function (photo) {
       if (photo.north_m === null || photo.east_m === null) { return; }
-      L.circleMarker([photo.north_m, photo.east_m], { radius: 3, color: "#333", weight: 1, fillColor: "#ffd700", fillOpacity: 1 })
+      var marker = L.circleMarker([photo.north_m, photo.east_m], { radius: 3, color: "#333", weight: 1, fillColor: "#ffd700", fillOpacity: 1 })
         .bindTooltip(text("photo " + photo.image_index + " by #" + photo.agent + " at " + fixed(photo.alt_m, 1) + " m"))
         .addTo(layers.photos);
+      photoMarkers.push(marker);
     });
+    if (photoMarkers.length > MAX_PHOTOS) {  // bounded like the tracks: the oldest go
+      photoMarkers.splice(0, photoMarkers.length - MAX_PHOTOS).forEach(function (old) { layers.photos.removeLayer(old); });
+    }
     message.agents.forEach(function (agent) {
       var layer = agentLayers[agent.id];
       if (!layer) { return; }
@@ -338,9 +352,19 @@
       var length = 6;
       layer.marker.setLatLng(p);
       layer.heading.setLatLngs([p, [p[0] + length * Math.cos(rad), p[1] + length * Math.sin(rad)]]);
-      var faded = agent.lost || agent.stale || agent.condition === "terminated";
-      layer.marker.setStyle({ fillOpacity: faded ? 0.3 : 0.9, dashArray: faded ? "3 3" : null });
-      layer.marker.setTooltipContent(text(agent.name + (agent.lost ? " (LOST)" : agent.stale ? " (STALE)" : "")));
+      // Style and label only when they change: a permanent tooltip's new content makes
+      // Leaflet measure it at once, a forced layout per agent per update (98 ms an update
+      // with 100 agents, measured: docs/performance.md).
+      var faded = Boolean(agent.lost || agent.stale || agent.condition === "terminated");
+      if (layer.faded !== faded) {
+        layer.faded = faded;
+        layer.marker.setStyle({ fillOpacity: faded ? 0.3 : 0.9, dashArray: faded ? "3 3" : null });
+      }
+      var label = agent.name + (agent.lost ? " (LOST)" : agent.stale ? " (STALE)" : "");
+      if (layer.label !== label) {
+        layer.label = label;
+        layer.marker.setTooltipContent(text(label));
+      }
       if (!layer.shown) { layer.marker.addTo(layers.agents); layer.heading.addTo(layers.agents); layer.shown = true; }
     });
   }
