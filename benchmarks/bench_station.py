@@ -94,11 +94,12 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
-for _path in (ROOT, Path(__file__).resolve().parent):
+for _path in (ROOT, Path(__file__).resolve().parent, ROOT / "tests" / "browser"):
     if str(_path) not in sys.path:
         sys.path.insert(0, str(_path))
 
 from bench_run import CLK_TCK, cpu_times, free_ports, machine_text  # noqa: E402
+from station_page import CHROMIUM_FLAGS, DEBIAN_CHROMIUM  # noqa: E402 (the browser tests' launch)
 
 MISSION_ID = 4245
 LOOP_HZ = 10.0
@@ -115,17 +116,7 @@ PAGE_SETTLE_S = 5.0
 VARIANTS = ("noview", "view-idle", "view-ws", "view")
 """The station without the view; with it and nobody connected; with the WebSocket client
 only; with the WebSocket client and the browser's page."""
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_FLAGS = (
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-)
+CHROMIUM = str(DEBIAN_CHROMIUM)
 _TYPE = re.compile(r"--type=(\S+)")
 _URL = re.compile(r"station view at (http://\S+)")
 _OVERRUN = re.compile(r"^t=([\d.]+) .*overrun: tick \d+ started ([\d.]+) ms late", re.MULTILINE)
