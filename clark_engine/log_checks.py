@@ -79,6 +79,7 @@ from clark_engine.runtime.config import AgentConfig
 from clark_engine.runtime.logbook import MESSAGE_LOG_COLUMNS
 from clark_engine.sim.checks import CheckResult, evaluate
 from clark_engine.sim.recording import Photo, Recording, StateEntry, Track
+from clark_engine.untrusted import printable
 
 #: The four files of an agent: config key -> the default suffix after the agent's name.
 LOG_FILES: Final = {
@@ -422,18 +423,38 @@ def _optional(row: list[str], index: int | None, column: str) -> float:
     return _finite(row[index], column)
 
 
+def fleet_csv(
+    path: Path, required: Sequence[str], problems: list[Problem]
+) -> tuple[list[str], Iterator[tuple[int, list[str]]]] | None:
+    """A fleet CSV's header and its remaining (line, cells) rows; None when it is not one.
+
+    It is one when its header starts with ``now_s`` and holds every ``required`` column;
+    otherwise that is a problem (the header shown escaped and cut), and None.
+
+    Raises:
+        UsageError: The file cannot be read.
+    """
+    rows = csv_rows(path, problems)
+    first = next(rows, None)
+    header = first[1] if first is not None else []
+    if first is None or header[:1] != ["now_s"] or not set(required) <= set(header):
+        shown = "empty file" if first is None else f"header is {printable(','.join(header), 80)!r}"
+        problems.append(
+            Problem(str(path), None, f"not a fleet CSV ({shown}; expected the logbook's)")
+        )
+        return None
+    return header, rows
+
+
 def _read_fleet_csv(
     path: Path, logs: AgentLogs, problems: list[Problem]
 ) -> dict[str, list[_Sample]]:
     """Observed agent -> the Agent Status arrivals this agent's fleet table logged."""
     name = str(path)
-    rows = csv_rows(path, problems)
-    first = next(rows, None)
-    header = first[1] if first is not None else []
-    if first is None or header[:1] != ["now_s"] or not set(_FLEET_COLUMNS) <= set(header):
-        shown = "empty file" if first is None else f"header is {','.join(header)[:80]!r}"
-        problems.append(Problem(name, None, f"not a fleet CSV ({shown}; expected the logbook's)"))
+    opened = fleet_csv(path, _FLEET_COLUMNS, problems)
+    if opened is None:
         return {}
+    header, rows = opened
     at = {column: header.index(column) for column in _FLEET_COLUMNS}
     attitude = {
         c: header.index(c) if c in header else None for c in ("roll_deg", "pitch_deg", "yaw_deg")

@@ -52,7 +52,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
 
-from clark_engine.analyze import Problem, csv_rows
+from clark_engine.analyze import Problem
 from clark_engine.errors import ClarkError, UsageError
 from clark_engine.gcs.model import (
     MAX_LOG_LINES,
@@ -71,6 +71,7 @@ from clark_engine.log_checks import (
     AgentLogs,
     LogChecksError,
     align_clocks,
+    fleet_csv,
     judge,
     read_interface_log,
     read_message_log,
@@ -319,13 +320,10 @@ def read_fleet_csv(
         UsageError: The file cannot be read.
     """
     shown = str(path)
-    rows = csv_rows(path, problems)
-    first = next(rows, None)
-    header = first[1] if first is not None else []
-    if first is None or header[:1] != ["now_s"] or not set(_REQUIRED) <= set(header):
-        what = "empty file" if first is None else f"header is {printable(','.join(header), 80)!r}"
-        problems.append(Problem(shown, None, f"not a fleet CSV ({what}; expected the logbook's)"))
+    opened = fleet_csv(path, _REQUIRED, problems)
+    if opened is None:
         return {}
+    header, rows = opened
     width = len(header)
     at = {column: header.index(column) for column in header}
     now_at, name_at, id_at = at["now_s"], at["name"], at.get("agent_id")
