@@ -192,7 +192,7 @@ def mission_text(
         "  name: bench-run",
         f"  loop_hz: {loop_hz:g}",
         "  heartbeat_timeout_s: 3",
-        "  origin: {lat: 30.6372, lon: -96.4787, alt_m: 90}",
+        "  origin: {lat: 30.6372, lon: -96.4787, alt_amsl_m: 90}",
         "agents:",
     ]
     for i in range(1, agents + 1):

@@ -225,7 +225,7 @@ def mission_text(
         f"  description: the station view's benchmark, {agents} agents.",
         f"  loop_hz: {LOOP_HZ:g}",
         "  heartbeat_timeout_s: 3",
-        "  origin: {lat: 30.6372, lon: -96.4787, alt_m: 90}",
+        "  origin: {lat: 30.6372, lon: -96.4787, alt_amsl_m: 90}",
     ]
     if key_file:
         lines.append(f"  key_file: {key_file}")

@@ -107,7 +107,7 @@ def mission_text(duration_s: float) -> str:
         "  description: The station view's hour-long rehearsal, 10 agents.",
         "  loop_hz: 10",
         "  heartbeat_timeout_s: 3",
-        "  origin: {lat: 30.6372, lon: -96.4787, alt_m: 90}",
+        "  origin: {lat: 30.6372, lon: -96.4787, alt_amsl_m: 90}",
         "agents:",
         "  mcs:",
         "    id: 1",

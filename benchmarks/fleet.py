@@ -41,7 +41,7 @@ def fleet_mission(
         "  id: 4242",
         f"  name: fleet-{agents}",
         f"  loop_hz: {loop_hz}",
-        "  origin: {lat: 30.6372, lon: -96.4787, alt_m: 90}",
+        "  origin: {lat: 30.6372, lon: -96.4787, alt_amsl_m: 90}",
         "agents:",
         "  mcs:",
         "    id: 1",

@@ -165,9 +165,8 @@ def worst_messages(mission: Mission, agent: Agent) -> dict[str, Message]:
         WIRE_MAX_SPEED_M_S,
     )
     highest_mode = max(agent.hardware.modes.values(), default=0)
-    altitude = -min(
-        max(mission.ceiling_m, float(airframe.get("max_altitude_m", 0.0))), WIRE_MAX_ALTITUDE_M
-    )
+    ceiling_m = agent.envelope.legal_ceiling_m if agent.envelope is not None else 0.0
+    altitude = -min(max(ceiling_m, float(airframe.get("max_altitude_m", 0.0))), WIRE_MAX_ALTITUDE_M)
     messages: dict[str, Message] = {
         "heartbeat": Heartbeat(
             agent_id=agent.id,

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import ipaddress
+import os
 import socket
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
+
+from clark_engine.sim.sitl import ENV_SITL, SitlInstall, SitlNotFound
 
 ROOT = Path(__file__).resolve().parent.parent
 MISSIONS = sorted((ROOT / "missions").glob("*.yaml"))
@@ -45,6 +48,22 @@ def _no_network(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
 def root() -> Path:
     """The repository root."""
     return ROOT
+
+
+@pytest.fixture(scope="session")
+def sitl_install() -> SitlInstall:
+    """ArduPilot SITL's launcher: ``$CLARK_SITL``, else ``../shared/ardupilot-sitl``.
+
+    Skips the test, saying why, where neither is here (CI has it).
+    """
+    default = ROOT.parent / "shared" / "ardupilot-sitl"
+    given = os.environ.get(ENV_SITL) or (str(default) if default.is_dir() else None)
+    try:
+        if given:
+            return SitlInstall.find(given)
+    except SitlNotFound:
+        pass
+    pytest.skip(f"no ArduPilot SITL: set {ENV_SITL} to the folder with the `sitl` launcher")
 
 
 LONGEST_MODULES = ("test_run_end_to_end.py",)

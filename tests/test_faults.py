@@ -38,7 +38,7 @@ FAULT_SCHEMA = {
 
 MISSION = """\
 clark: 1
-mission: {{id: 1, name: demo, loop_hz: 10, origin: {{lat: 30.6372, lon: -96.4787}}}}
+mission: {{id: 1, name: demo, loop_hz: 10, origin: {{lat: 30.6372, lon: -96.4787, alt_amsl_m: 0}}}}
 agents:
   mcs: {{id: 1, profile: mcs_laptop, telemetry: {{heartbeat: 1}}}}
   slash: {{id: 2, profile: traxxas_slash, telemetry: {{heartbeat: 1, agent_status: {rate}}}}}

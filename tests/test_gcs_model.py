@@ -144,7 +144,7 @@ def test_hello_lists_every_agent_with_its_airframe_modes_and_plan(fleet: Fleet) 
     hello = fleet.hello
     json.dumps(hello)  # JSON-able
     assert hello["mission"]["name"] == "cooperative-follow" and hello["mission"]["id"] == 521
-    assert hello["mission"]["origin"] == {"lat": 30.6372, "lon": -96.4787, "alt_m": 90.0}
+    assert hello["mission"]["origin"] == {"lat": 30.6372, "lon": -96.4787, "alt_amsl_m": 90.0}
     assert hello["station"] == {
         "name": "mcs",
         "id": 1,

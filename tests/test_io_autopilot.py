@@ -216,12 +216,14 @@ class Bench:
             system_id=system_id,
             origin_lat_deg=HOME[0],
             origin_lon_deg=HOME[1],
-            origin_alt_m=HOME[2],
+            origin_alt_amsl_m=HOME[2],
             start_time_unix_us=start_time_unix_us,
             boot_s=-BOOTED_S,  # powered on long ago: ready, as the contract tests assume
         )
         self.adapter = AutopilotAdapter(
-            AutopilotSettings(modes=modes, firmware=firmware, system_id=system_id)
+            AutopilotSettings(
+                modes=modes, firmware=firmware, system_id=system_id, origin_alt_amsl_m=HOME[2]
+            )
         )
         self.now_s = 0.0
         self.events: list[tuple[float, AutopilotEvent]] = []
@@ -514,7 +516,7 @@ def test_reboot_is_noticed_and_streams_asked_for_again(
         firmware="arduplane",
         origin_lat_deg=HOME[0],
         origin_lon_deg=HOME[1],
-        origin_alt_m=HOME[2],
+        origin_alt_amsl_m=HOME[2],
         start_time_unix_us=START_UNIX_US,
         boot_s=bench.now_s,
     )
@@ -709,7 +711,8 @@ def test_goto_frames() -> None:
     copter.start(0.0)
     (target,) = decode(copter.command(Goto(30.1234567, -96.7654321, 42.5), 1.0))
     assert target.get_type() == "SET_POSITION_TARGET_GLOBAL_INT"
-    assert target.coordinate_frame == mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+    # Above sea level: the origin's alt_amsl_m (0 here) plus the height above the origin.
+    assert target.coordinate_frame == mavlink2.MAV_FRAME_GLOBAL_INT
     assert target.type_mask == POSITION_ONLY_TYPE_MASK == 0x0DF8
     assert (target.lat_int, target.lon_int, target.alt) == (301234567, -967654321, 42.5)
     assert (target.target_system, target.target_component, target.time_boot_ms) == (1, 1, 1000)
@@ -721,14 +724,17 @@ def test_goto_frames() -> None:
     (moving,) = decode(copter.command(Goto(30.0, -96.0, 10.0, 7.5, 1.5, -2.0), 1.0))
     assert moving.type_mask == POSITION_VELOCITY_TYPE_MASK == 0x0DC0
     assert (moving.vx, moving.vy, moving.vz) == (1.5, -2.0, 0.0)
-    plane = fresh_adapter()
+    plane = AutopilotAdapter(
+        AutopilotSettings(modes=PLANE_MODES, firmware="arduplane", origin_alt_amsl_m=90.0)
+    )
+    plane.start(0.0)
     (reposition,) = decode(plane.command(Goto(30.1234567, -96.7654321, 42.5), 1.0))
     assert (reposition.get_type(), reposition.command) == ("COMMAND_INT", 192)
     assert (reposition.frame, reposition.x, reposition.y, reposition.z) == (
-        mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+        mavlink2.MAV_FRAME_GLOBAL_INT,
         301234567,
         -967654321,
-        42.5,
+        132.5,
     )
     assert reposition.param2 == 0  # no mode change: the runtime owns the mode
 

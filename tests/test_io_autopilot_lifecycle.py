@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.io.autopilot import (
@@ -86,8 +87,12 @@ class Autopilot:
         return self.mav.command_ack_encode(command, result, 0, 0, 255, 191)
 
 
-def bench(firmware: str = "ardurover") -> tuple[AutopilotAdapter, Autopilot]:
-    adapter = AutopilotAdapter(AutopilotSettings(modes=MODES, firmware=firmware))
+def bench(
+    firmware: str = "ardurover", origin_alt_amsl_m: float = 0.0
+) -> tuple[AutopilotAdapter, Autopilot]:
+    adapter = AutopilotAdapter(
+        AutopilotSettings(modes=MODES, firmware=firmware, origin_alt_amsl_m=origin_alt_amsl_m)
+    )
     autopilot = Autopilot(adapter)
     adapter.start(0.0)
     return adapter, autopilot
@@ -240,6 +245,45 @@ def test_copter_takeoff_is_nav_takeoff() -> None:
     adapter, ap = bench("arducopter")
     (sent,) = ap.heard(adapter.command(Takeoff(10.0), 1.0))
     assert (sent.command, sent.param7) == (mavlink2.MAV_CMD_NAV_TAKEOFF, 10.0)
+
+
+def test_takeoff_heights_above_the_origin_go_out_above_home() -> None:
+    """NAV_TAKEOFF and TKOFF_ALT are above home: home 5 m above a 90 m origin takes 5 off."""
+    for firmware in ("arducopter", "arduplane"):
+        adapter, ap = bench(firmware, origin_alt_amsl_m=90.0)
+        home = ap.mav.home_position_encode(
+            306372000, -964787000, 95000, 0, 0, 0, [math.nan] * 4, 0, 0, 0
+        )
+        ap.say(ap.heartbeat(), home)
+        sent = ap.heard(adapter.command(Takeoff(30.0), 1.0))[0]
+        if firmware == "arducopter":
+            assert (sent.command, sent.param7) == (mavlink2.MAV_CMD_NAV_TAKEOFF, 25.0)
+        else:
+            assert (sent.param_id, sent.param_value) == ("TKOFF_ALT", 25)
+
+
+def test_altitudes_are_above_the_origin_from_the_amsl_altitude() -> None:
+    """relative_alt is not used: ArduRover's reads +90 m on a 90 m field (home at 0 m)."""
+    _adapter, ap = bench("ardurover", origin_alt_amsl_m=90.0)
+    attitude = ap.mav.attitude_encode(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    position = ap.mav.global_position_int_encode(
+        1000, 306372000, -964787000, 90_400, 90_210, 0, 0, 0, 0
+    )
+    (state,) = of(ap.say(ap.heartbeat(), attitude, position), VehicleState)
+    assert state.alt_m == pytest.approx(0.4)
+
+
+def test_a_barometer_height_before_the_ekf_takes_over_gives_way_to_the_gps() -> None:
+    """ArduRover reads about 0 m in alt for some 30 s after its fix (measured on SITL)."""
+    _adapter, ap = bench("ardurover", origin_alt_amsl_m=90.0)
+    attitude = ap.mav.attitude_encode(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    fix = ap.mav.gps_raw_int_encode(0, 6, 306372000, -964787000, 90_000, 121, 200, 0, 0, 10)
+    baro = ap.mav.global_position_int_encode(1000, 306372000, -964787000, 160, 0, 0, 0, 0, 0)
+    (state,) = of(ap.say(ap.heartbeat(), attitude, fix, baro), VehicleState)
+    assert state.alt_m == pytest.approx(0.0)  # the GPS's 90 m, not the barometer's 0.16 m
+    ekf = ap.mav.global_position_int_encode(2000, 306372000, -964787000, 91_500, 0, 0, 0, 0, 0)
+    (state,) = of(ap.say(ekf), VehicleState)
+    assert state.alt_m == pytest.approx(1.5)  # the fused height once it agrees
 
 
 def test_plane_takeoff_is_tkoff_alt_then_the_takeoff_mode() -> None:

@@ -24,7 +24,8 @@ from clark_engine.mission.validate import Validation, validate_path
 ROOT = Path(__file__).resolve().parent.parent
 HEAD = (
     "clark: 1\n"
-    "mission: {id: 1, name: demo, loop_hz: 10, origin: {lat: 30.6372, lon: -96.4787}}\n"
+    "mission: {id: 1, name: demo, loop_hz: 10, origin: {lat: 30.6372, lon: -96.4787, "
+    "alt_amsl_m: 0}}\n"
     "agents:\n"
     "  mcs: {id: 1, profile: mcs_laptop, telemetry: {heartbeat: 1}}\n"
 )

@@ -129,6 +129,16 @@ def test_an_airborne_handover_waits_for_the_pilot_to_take_off() -> None:
     assert gate.update(flying, state(alt_m=40, armed=True))
 
 
+def test_a_vehicle_whose_height_disagrees_with_the_origin_does_not_start() -> None:
+    """A wrong origin.alt_amsl_m would put every commanded height off by as much."""
+    gate = LaunchGate(config("copter_takeoff_land.yaml", "f450"), _log())
+    assert not gate.update(READY, state(alt_m=23.4, mode="STABILIZE"))
+    (why,) = gate.waiting_for
+    assert "on the ground it reads +23 m from the origin" in why
+    assert "113 m above sea level against mission.origin.alt_amsl_m 90" in why
+    assert gate.update(READY, state(alt_m=3.0, mode="STABILIZE"))  # GPS wander is fine
+
+
 def test_without_wait_ready_only_the_pilot_is_waited_for() -> None:
     cfg = replace(config("cooperative_follow.yaml", "slash_b"), wait_ready=False)
     gate = LaunchGate(cfg, _log())
@@ -310,7 +320,7 @@ def test_copter_takeoff_fails_when_disarmed_before_it_flies() -> None:
 
 PLANE_TAKEOFF = """
 clark: 1
-mission: {id: 9, name: plane-takeoff, loop_hz: 10, origin: {lat: 30.6372, lon: -96.4787}}
+mission: {id: 9, name: plane-takeoff, loop_hz: 10, origin: {lat: 30.64, lon: -96.48, alt_amsl_m: 0}}
 agents:
   mcs: {id: 1, profile: mcs_laptop}
   cub:

@@ -117,7 +117,7 @@ def make_sim(firmware: str = "arduplane", **kwargs: Any) -> tuple[SimAutopilot, 
         firmware=firmware,
         origin_lat_deg=HOME[0],
         origin_lon_deg=HOME[1],
-        origin_alt_m=HOME[2],
+        origin_alt_amsl_m=HOME[2],
         start_time_unix_us=START_UNIX_US,
         **kwargs,
     )

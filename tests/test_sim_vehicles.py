@@ -704,7 +704,7 @@ def test_compiled_config_channels_drive_the_model() -> None:
             hardware["airframe"],
             hardware["autopilot"],
             config.channels,
-            (config.origin_lat_deg, config.origin_lon_deg, config.origin_alt_m),
+            (config.origin_lat_deg, config.origin_lon_deg, config.origin_alt_amsl_m),
             (position["north_m"], position["east_m"], position["up_m"]),
             random.Random(config.agent_id),
         )

@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 HOME = """\
 clark: 1
-mission: {id: 1, name: demo, loop_hz: 10, origin: {lat: 30.6372, lon: -96.4787}}
+mission: {id: 1, name: demo, loop_hz: 10, origin: {lat: 30.6372, lon: -96.4787, alt_amsl_m: 0}}
 agents:
   mcs: {id: 1, profile: mcs_laptop, telemetry: {heartbeat: 1}}
   slash:

@@ -20,7 +20,7 @@ from clark_engine.validation import validate_file
 
 HEAD = """\
 clark: 1
-mission: {id: 1, name: demo, loop_hz: 10, origin: {lat: 30.6372, lon: -96.4787}}
+mission: {id: 1, name: demo, loop_hz: 10, origin: {lat: 30.6372, lon: -96.4787, alt_amsl_m: 0}}
 """
 
 ROVERS = """\

@@ -18,7 +18,7 @@ from clark_engine.validation import validate_file
 
 MISSION = """\
 clark: 1
-mission: {{id: 1, name: demo, loop_hz: 10, origin: {{lat: 30.6372, lon: -96.4787}}{key}}}
+mission: {{id: 1, name: demo, loop_hz: 10, origin: {{lat: 30.64, lon: -96.48, alt_amsl_m: 0}}{key}}}
 {include}agents:
   slash: {{id: 2, profile: traxxas_slash, telemetry: {{heartbeat: 1}}}}
 """

@@ -378,6 +378,7 @@ def intro(sources: Sequence[str]) -> list[str]:
         "- [Telemetry](#telemetry)",
         "- [Failsafe](#failsafe)",
         "- [Launch](#launch)",
+        "- [Envelope](#envelope)",
         "- [Points](#points)",
         "- [Dry-run checks](#dry-run-checks)",
         "- [Dry-run operator, faults and settings](#dry-run-operator-faults-and-settings)",
@@ -404,7 +405,8 @@ def file_structure(schema: Schema) -> list[str]:
         "```yaml",
         "# yaml-language-server: $schema=../schemas/mission.schema.json",
         "clark: 1",
-        "mission: {id: 1, name: my-mission, loop_hz: 10, origin: {lat: 30.6372, lon: -96.4787}}",
+        "mission: {id: 1, name: my-mission, loop_hz: 10,",
+        "          origin: {lat: 30.6372, lon: -96.4787, alt_amsl_m: 90}}",
         "agents:",
         "  mcs: {id: 1, profile: mcs_laptop, telemetry: {heartbeat: 1}}",
         "```",
@@ -620,6 +622,54 @@ def launch_section(schema: Schema) -> list[str]:
         "`launch` replaces the agent's `sim.armed` of earlier versions, which is gone: an agent "
         "that still writes it is reported ([[E-KEY-UNKNOWN]]). Compiled configs carry `launch` "
         "for every vehicle, its defaults filled in (`null` for stations), for the runtime.",
+        "",
+    ]
+
+
+def envelope_section(schema: Schema) -> list[str]:
+    """The ``envelope:`` section (the mission's) and a vehicle's ``envelope:``."""
+    section = schema["properties"]["envelope"]
+    agent = schema["$defs"]["agent"]["properties"]["envelope"]
+    zone = schema["$defs"]["zone"]
+    return [
+        "## Envelope",
+        "",
+        md(str(section["description"])) + " [safety.md](safety.md) says what is held where.",
+        "",
+        *property_table(section),
+        "",
+        "A geofence zone is one of:",
+        "",
+        *property_table(zone),
+        "",
+        "A vehicle's own `envelope:`, under its agent: " + md(str(agent["description"])),
+        "",
+        *property_table(agent),
+        "",
+        "```yaml",
+        "envelope:",
+        "  ceiling_m: 60                  # above the origin; 120 m when omitted",
+        "  geofence:",
+        "    include: [{polygon: [[-50, -50], [200, -50], [200, 200], [-50, 200]]}]",
+        "    exclude: [{circle: {center: [80, 80], radius_m: 15}}]   # the car park",
+        "  separation: [{between: [slash_a, slash_b], min_m: 2}]",
+        "agents:",
+        "  cub:",
+        "    id: 2",
+        "    profile: super_cub",
+        "    envelope: {floor_m: 30, on_breach: rtl}",
+        "```",
+        "",
+        "Every altitude is metres above the mission origin, whose own height above mean sea "
+        "level is `mission.origin.alt_amsl_m`. A vehicle's envelope may only narrow the "
+        "mission's ([[E-ENVELOPE-WIDEN]]); the ceiling stays under `legal_ceiling_m` "
+        "([[E-CEILING-LEGAL]]), which is 120 m unless the mission raises it "
+        "([[W-CEILING-WAIVER]]); a floor lies below its ceiling ([[E-ENVELOPE-FLOOR]]); a "
+        "polygon's edges do not cross ([[E-GEOFENCE-POLYGON]]); a separation names two "
+        "vehicles ([[E-SEPARATION-AGENT]]); a station has no envelope "
+        "([[E-ENVELOPE-STATION]]). `mission.ceiling_m` of earlier versions is now "
+        "`envelope.ceiling_m` ([[E-KEY-RENAMED]]). Compiled configs carry each vehicle's "
+        "resolved envelope, every default filled in.",
         "",
     ]
 
@@ -1257,6 +1307,7 @@ def generate() -> str:
         telemetry_section(mission),
         failsafe_section(mission),
         launch_section(mission),
+        envelope_section(mission),
         points_section(mission),
         checks_section(mission),
         dry_run_inputs_section(mission),

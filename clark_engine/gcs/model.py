@@ -112,7 +112,7 @@ def _round(value: float | None, digits: int = 2) -> float | None:
 
 
 def _origin(config: AgentConfig) -> Origin:
-    return Origin(config.origin_lat_deg, config.origin_lon_deg, config.origin_alt_m)
+    return Origin(config.origin_lat_deg, config.origin_lon_deg, config.origin_alt_amsl_m)
 
 
 # -- hello: the mission, its agents and its plan ---------------------------------------------
@@ -264,7 +264,7 @@ def build_hello(
             "origin": {
                 "lat": station.origin_lat_deg,
                 "lon": station.origin_lon_deg,
-                "alt_m": station.origin_alt_m,
+                "alt_amsl_m": station.origin_alt_amsl_m,
             },
             "loop_hz": station.loop_hz,
             "heartbeat_timeout_s": station.heartbeat_timeout_s,

@@ -713,7 +713,11 @@ def _hello_from_logs(
             "name": _name(header.get("mission", "(unknown mission)")),
             "id": _header_int(next(iter(agents.values()), None), "mission_id"),
             "description": None,
-            "origin": {"lat": origin.lat_deg, "lon": origin.lon_deg, "alt_m": origin.alt_m},
+            "origin": {
+                "lat": origin.lat_deg,
+                "lon": origin.lon_deg,
+                "alt_amsl_m": origin.alt_amsl_m,
+            },
             "loop_hz": float(loop_hz) if loop_hz and re.fullmatch(r"[0-9.]+", loop_hz) else None,
             "heartbeat_timeout_s": None,
             "authenticated": None,

@@ -31,10 +31,19 @@ Decisions a reader would otherwise have to reverse-engineer:
 - Only messages from the autopilot's own system and component id are used;
   everything else on the link (a gimbal, a second vehicle behind a router, a
   ground station's heartbeat) is counted and ignored.
-- Altitudes are relative to home, both ways: ``VehicleState.alt_m`` is
-  GLOBAL_POSITION_INT's ``relative_alt`` and a Goto is sent in the
-  ``GLOBAL_RELATIVE_ALT_INT`` frame. The engine's convention is that home is the
-  mission origin, so no origin altitude is needed and no AMSL datum can disagree.
+- One datum for every altitude the engine sees: metres above the mission origin.
+  ``VehicleState.alt_m`` is GLOBAL_POSITION_INT's ``alt`` (above mean sea level)
+  less the origin's ``alt_amsl_m``, and a Goto goes out in ``MAV_FRAME_GLOBAL_INT``
+  at the origin's height plus its own. ``relative_alt`` (above home) is never used:
+  ArduRover sets its home before its EKF has an origin, at its barometer's height
+  (about 0 m above sea level), so a rover on the ground reads some 90 m above home
+  at a 90 m field (measured on SITL), and a copter or plane re-homes where it arms.
+  Only the commands whose height ArduPilot takes above home (NAV_TAKEOFF, ArduPlane's
+  TKOFF_ALT) are converted, with HOME_POSITION's altitude. Until their EKF takes
+  over, ArduRover and ArduPlane report their barometer's height in ``alt`` (about 0 m
+  on any field: ArduRover for some 30 s after its GPS fix); while a 3-D fix's
+  GPS_RAW_INT ``alt`` disagrees with it by more than :data:`FALLBACK_ALT_GAP_M`, the
+  GPS's is used instead.
 - Everything the autopilot must acknowledge (COMMAND_LONG / COMMAND_INT,
   PARAM_SET, PARAM_REQUEST_READ) is tracked: resent by :meth:`poll` after
   :data:`ACK_TIMEOUT_S` (COMMAND_LONG with the ``confirmation`` field counting
@@ -99,6 +108,12 @@ COMMAND_ATTEMPTS: Final = 3
 STREAM_SILENCE_S: Final = 3.0
 """No GLOBAL_POSITION_INT for this long while heartbeats arrive: ask for the streams again
 (the autopilot rebooted, or another ground station turned them off)."""
+
+FALLBACK_ALT_GAP_M: Final = 20.0
+"""GLOBAL_POSITION_INT's ``alt`` this far from a 3-D fix's GPS_RAW_INT ``alt`` is the
+barometer's height of an autopilot whose EKF has not taken over yet (ArduRover, ArduPlane;
+measured on SITL): the GPS's height above sea level is used instead. GPS and EKF heights
+of a working vehicle differ by a few metres."""
 
 MOVING_SPEED_M_S: Final = 0.5
 """Below this ground speed the course over ground is noise, and the heading is the yaw."""
@@ -292,6 +307,8 @@ class AutopilotSettings:
         source_component_id: Ours (191, MAV_COMP_ID_ONBOARD_COMPUTER).
         stream_rate_hz: Rate asked for each of :data:`STREAMED_MESSAGES`.
         heartbeat_timeout_s: Autopilot silence after which :meth:`AutopilotAdapter.lost`.
+        origin_alt_amsl_m: The mission origin's height above mean sea level: altitudes
+            above the origin are the autopilot's AMSL altitudes less this.
     """
 
     modes: Mapping[str, int]
@@ -302,6 +319,7 @@ class AutopilotSettings:
     source_component_id: int = 191
     stream_rate_hz: float = 10.0
     heartbeat_timeout_s: float = 3.0
+    origin_alt_amsl_m: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("system_id", "source_system_id"):
@@ -320,8 +338,15 @@ class AutopilotSettings:
             raise ValueError(f"unknown firmware {self.firmware!r}")
 
     @classmethod
-    def from_profile(cls, autopilot: Mapping[str, Any]) -> AutopilotSettings:
-        """Settings from a resolved autopilot profile (``agent.hardware.autopilot``)."""
+    def from_profile(
+        cls, autopilot: Mapping[str, Any], origin_alt_amsl_m: float = 0.0
+    ) -> AutopilotSettings:
+        """Settings from a resolved autopilot profile (``agent.hardware.autopilot``).
+
+        Args:
+            autopilot: The resolved autopilot profile.
+            origin_alt_amsl_m: The mission origin's height above mean sea level.
+        """
         mav = autopilot.get("mavlink") or {}
         return cls(
             modes=dict(autopilot.get("modes") or {}),
@@ -332,6 +357,7 @@ class AutopilotSettings:
             source_component_id=int(mav.get("source_component_id", 191)),
             stream_rate_hz=float(autopilot.get("stream_rate_hz", 10.0)),
             heartbeat_timeout_s=float(autopilot.get("heartbeat_timeout_s", 3.0)),
+            origin_alt_amsl_m=float(origin_alt_amsl_m),
         )
 
     @classmethod
@@ -347,7 +373,7 @@ class AutopilotSettings:
                 f"agent {config.agent} has no autopilot in its hardware profile; "
                 "only vehicles connect to one"
             )
-        return cls.from_profile(autopilot)
+        return cls.from_profile(autopilot, config.origin_alt_amsl_m)
 
 
 # -- internals ---------------------------------------------------------------------------
@@ -491,6 +517,8 @@ class AutopilotAdapter:
         self._state: VehicleState | None = None
         # Readiness (AutopilotStatus), and when HOME_POSITION is next asked for.
         self._status = AutopilotStatus()
+        #: A 3-D fix's GPS_RAW_INT altitude above sea level (None without one).
+        self._gps_alt_amsl_m: float | None = None
         self._next_home_request_s = -math.inf
         # Recent STATUSTEXT warnings (time, escaped text), the reasons of refusals; and
         # refusals waiting REASON_WAIT_S for theirs: (due time, refusal, refused at).
@@ -917,6 +945,8 @@ class AutopilotAdapter:
         """Fold one readiness message into :attr:`status`; the new status when it changed."""
         old = self._status
         if kind == "GPS_RAW_INT":
+            fixed = int(msg.fix_type) >= mavlink2.GPS_FIX_TYPE_3D_FIX
+            self._gps_alt_amsl_m = msg.alt / 1000.0 if fixed else None
             new = replace(old, gps_fix_type=int(msg.fix_type))
         elif kind == "EKF_STATUS_REPORT":
             flags = int(msg.flags)
@@ -1028,7 +1058,20 @@ class AutopilotAdapter:
         self._speed_accepted = None
         self._speed_retry_s = -math.inf
         self._status = AutopilotStatus()  # a rebooted autopilot gets ready again
+        self._gps_alt_amsl_m = None
         self._next_home_request_s = -math.inf
+
+    def _alt_amsl_m(self, msg: Any) -> float:
+        """The vehicle's height above sea level, GLOBAL_POSITION_INT's or the GPS's.
+
+        The GPS's while GLOBAL_POSITION_INT's is a fallback estimator's barometer height
+        (see :data:`FALLBACK_ALT_GAP_M`).
+        """
+        fused = msg.alt / 1000.0
+        gps = self._gps_alt_amsl_m
+        if gps is not None and abs(fused - gps) > FALLBACK_ALT_GAP_M:
+            return gps
+        return fused
 
     def _on_position(self, msg: Any, now_s: float) -> VehicleState | None:
         self._position_s = now_s
@@ -1052,7 +1095,7 @@ class AutopilotAdapter:
             gps_time_ms=gps_ms,
             lat_deg=msg.lat / 1e7,
             lon_deg=msg.lon / 1e7,
-            alt_m=msg.relative_alt / 1000.0,
+            alt_m=self._alt_amsl_m(msg) - self.settings.origin_alt_amsl_m,
             ground_speed_m_s=float(hud.groundspeed) if hud is not None else speed_m_s,
             climb_rate_m_s=float(hud.climb) if hud is not None else -msg.vz / 100.0,
             heading_deg=heading_deg,
@@ -1284,9 +1327,10 @@ class AutopilotAdapter:
         plane = s.firmware == "arduplane"
         self._speed_wanted = cmd.speed_m_s
         self._targeted = True
-        where = f"Goto {cmd.lat_deg:.7f} {cmd.lon_deg:.7f} {cmd.alt_m:g} m"
+        where = f"Goto {cmd.lat_deg:.7f} {cmd.lon_deg:.7f} {cmd.alt_m:g} m above the origin"
+        alt_amsl_m = float(cmd.alt_m) + s.origin_alt_amsl_m
+        frame = mavlink2.MAV_FRAME_GLOBAL_INT
         if plane:
-            frame = mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
             self._track(
                 _Request(
                     "MAV_CMD_DO_REPOSITION",
@@ -1305,7 +1349,7 @@ class AutopilotAdapter:
                         math.nan,  # yaw / loiter direction: default
                         lat_e7,
                         lon_e7,
-                        float(cmd.alt_m),
+                        alt_amsl_m,
                     ),
                 ),
                 now_s,
@@ -1324,11 +1368,11 @@ class AutopilotAdapter:
                 time_boot_ms,
                 s.system_id,
                 s.component_id,
-                mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                frame,
                 POSITION_VELOCITY_TYPE_MASK if moving else POSITION_ONLY_TYPE_MASK,
                 lat_e7,
                 lon_e7,
-                float(cmd.alt_m),
+                alt_amsl_m,
                 vn_m_s,
                 ve_m_s,
                 0,
@@ -1346,17 +1390,20 @@ class AutopilotAdapter:
         ArduPlane's NAV_TAKEOFF is for quadplanes only (FAILED on a fixed wing); a
         fixed wing takes off in its TAKEOFF mode, armed, to TKOFF_ALT, so that
         parameter is set to the altitude asked for first (it is written to the
-        autopilot's storage, as any PARAM_SET is).
+        autopilot's storage, as any PARAM_SET is). Both take their height above home,
+        so the Takeoff's height above the origin is converted with home's altitude.
         """
+        above_home_m = self.above_home_m(cmd.alt_m)
         if self.settings.firmware == "arduplane":
             number = self.settings.modes.get("TAKEOFF")
             if number is None:
                 self._log.error("Takeoff: the autopilot profile has no TAKEOFF mode")
                 return
-            self._param_set("TKOFF_ALT", round(cmd.alt_m), now_s)
+            self._param_set("TKOFF_ALT", round(above_home_m), now_s)
             self._command_long(
                 mavlink2.MAV_CMD_DO_SET_MODE,
-                f"SetMode TAKEOFF ({number}) to take off to {cmd.alt_m:g} m",
+                f"SetMode TAKEOFF ({number}) to take off to {cmd.alt_m:g} m above the origin "
+                f"({above_home_m:g} m above home)",
                 now_s,
                 mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
                 int(number),
@@ -1364,7 +1411,7 @@ class AutopilotAdapter:
             return
         self._command_long(
             mavlink2.MAV_CMD_NAV_TAKEOFF,
-            f"takeoff to {cmd.alt_m:g} m",
+            f"takeoff to {cmd.alt_m:g} m above the origin ({above_home_m:g} m above home)",
             now_s,
             0,
             0,
@@ -1372,8 +1419,19 @@ class AutopilotAdapter:
             math.nan,  # yaw: unchanged
             0,
             0,
-            float(cmd.alt_m),
+            above_home_m,
         )
+
+    def above_home_m(self, alt_m: float) -> float:
+        """A height above the origin as a height above home (HOME_POSITION's altitude).
+
+        Before the autopilot reports home, home is taken to be at the origin's height
+        (the engine's flat field).
+        """
+        home = self._status.home
+        if home is None:
+            return float(alt_m)
+        return float(alt_m) - (home[2] - self.settings.origin_alt_amsl_m)
 
     def _speed(self, now_s: float) -> None:
         """Send the speed the runtime wants, until the autopilot accepts it.

@@ -26,6 +26,7 @@ from typing import Any
 
 from clark_engine import __version__
 from clark_engine.errors import UsageError
+from clark_engine.mission.envelope import DeclaredZone
 from clark_engine.mission.geo import LocalPoint, parse_point, round_coordinate, to_global
 from clark_engine.mission.model import TELEMETRY_MESSAGES, Agent, Mission, State
 
@@ -128,6 +129,43 @@ def _telemetry(agent: Agent, mission: Mission) -> list[dict[str, Any]]:
     return out
 
 
+def _zone(zone: DeclaredZone, mission: Mission) -> dict[str, Any]:
+    if zone.zone.kind == "circle":
+        return {
+            "kind": "circle",
+            "center": _point(zone.points[0], mission),
+            "radius_m": zone.zone.radius_m,
+        }
+    return {"kind": "polygon", "points": [_point(p, mission) for p in zone.points]}
+
+
+def _envelope(agent: Agent, mission: Mission) -> dict[str, Any] | None:
+    """A vehicle's resolved safety envelope (altitudes above the origin); None for a station."""
+    envelope = agent.envelope
+    if envelope is None:
+        return None
+    return {
+        "ceiling_m": float(envelope.ceiling_m),
+        "floor_m": float(envelope.floor_m),
+        "legal_ceiling_m": float(envelope.legal_ceiling_m),
+        "margin_m": float(envelope.margin_m),
+        "geofence": {
+            "default_radius_m": (
+                float(envelope.default_radius_m) if envelope.default_radius_m is not None else None
+            ),
+            "home": _point(envelope.home, mission),
+            "include": [_zone(z, mission) for z in envelope.include],
+            "exclude": [_zone(z, mission) for z in envelope.exclude],
+        },
+        "min_separation_m": float(envelope.min_separation_m),
+        "separation": {name: float(m) for name, m in sorted(envelope.separation.items())},
+        "on_breach": envelope.on_breach,
+        "on_near_miss": envelope.on_near_miss,
+        "outside": envelope.outside,
+        "endurance_s": float(envelope.endurance_s) if envelope.endurance_s is not None else None,
+    }
+
+
 def _peers(agent: Agent, mission: Mission) -> list[dict[str, Any]]:
     peers = []
     for other in mission.agents.values():
@@ -143,6 +181,8 @@ def _peers(agent: Agent, mission: Mission) -> list[dict[str, Any]]:
                 "sends": dict(sorted(sends.items())),
                 # A station's Mode Change Request carries the target firmware's number.
                 "modes": dict(sorted(other.hardware.modes.items())),
+                # Where it may fly: the station draws it, a follower knows its leader's.
+                "envelope": _envelope(other, mission),
             }
         )
     return peers
@@ -174,9 +214,8 @@ def agent_config(mission: Mission, agent: Agent) -> dict[str, Any]:
             "origin": {
                 "lat": mission.origin.lat_deg,
                 "lon": mission.origin.lon_deg,
-                "alt_m": mission.origin.alt_m,
+                "alt_amsl_m": mission.origin.alt_amsl_m,
             },
-            "ceiling_m": mission.ceiling_m,
             "authenticated": mission.key_file is not None,
             "key_file": mission.key_file,
             "tick_phases": list(DEFAULT_TICK_PHASES),
@@ -221,6 +260,7 @@ def agent_config(mission: Mission, agent: Agent) -> dict[str, Any]:
         },
         "telemetry": _telemetry(agent, mission),
         "peers": _peers(agent, mission),
+        "envelope": _envelope(agent, mission),
         "machine": _state(agent.behavior, agent, mission) if agent.behavior is not None else None,
     }
 

@@ -18,11 +18,18 @@ EARTH_RADIUS_M = 6_371_008.8
 
 @dataclass(frozen=True, slots=True)
 class Origin:
-    """The mission's reference point; altitudes are metres above it."""
+    """The mission's reference point, on the ground; every other altitude is metres above it.
+
+    Attributes:
+        lat_deg: Latitude.
+        lon_deg: Longitude.
+        alt_amsl_m: Height of the ground there above mean sea level: the one AMSL figure
+            of a mission, from which the engine works out altitudes above the origin.
+    """
 
     lat_deg: float
     lon_deg: float
-    alt_m: float = 0.0
+    alt_amsl_m: float = 0.0
 
 
 @dataclass(frozen=True, slots=True)

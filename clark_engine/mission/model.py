@@ -8,10 +8,13 @@ it can point at the exact place to change.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from clark_engine.mission.findings import Location
 from clark_engine.mission.geo import LocalPoint, Origin
+
+if TYPE_CHECKING:
+    from clark_engine.mission.envelope import Envelope, EnvelopeDecl
 
 #: Messages an agent may send periodically (its telemetry schedule).
 TELEMETRY_MESSAGES = ("heartbeat", "agent_status", "agent_attitude", "behavior_state")
@@ -284,6 +287,9 @@ class Agent:
         raw: The agent's mapping as written (for the compiler's pass-through fields).
         locations: Where some of its settings were written (id, telemetry, failsafe,
             terminal_mode, radio_address), for findings about them.
+        envelope: A vehicle's resolved safety envelope (the mission's, narrowed by its
+            own); None for stations, and for a vehicle whose envelope the schema rejected.
+        envelope_decl: The vehicle's own ``envelope:`` as written, when it wrote one.
     """
 
     name: str
@@ -301,6 +307,8 @@ class Agent:
     launch: Launch | None = None
     raw: dict[str, Any] = field(default_factory=dict)
     locations: dict[str, Location] = field(default_factory=dict)
+    envelope: Envelope | None = None
+    envelope_decl: EnvelopeDecl | None = None
 
     @property
     def is_vehicle(self) -> bool:
@@ -325,8 +333,8 @@ class Mission:
         name: Short name, used for output folders.
         loop_hz: Rate of every agent's loop.
         heartbeat_timeout_s: Silence after which a peer counts as lost.
-        origin: Reference point of the local frame.
-        ceiling_m: Highest altitude above the origin any vehicle may be sent to.
+        origin: Reference point of the local frame (its altitude above mean sea level is
+            the mission's one AMSL figure).
         log_level: Level of the mission and interface logs.
         agents: Agent name -> agent, in the order written.
         checks: The dry-run expectations as written (evaluated by ``clark dry-run``).
@@ -342,6 +350,8 @@ class Mission:
         check_locations: Where each dry-run check was written, in order.
         unresolved: Agents declared but too broken to resolve; references to them are
             not reported again.
+        envelope: The mission's ``envelope:`` as written (every vehicle's resolved
+            envelope is on the vehicle); None when the schema rejected it.
     """
 
     file: str
@@ -350,7 +360,6 @@ class Mission:
     loop_hz: float
     heartbeat_timeout_s: float
     origin: Origin
-    ceiling_m: float
     log_level: str
     agents: dict[str, Agent]
     checks: list[dict[str, Any]] = field(default_factory=list)
@@ -365,6 +374,7 @@ class Mission:
     locations: dict[str, Location] = field(default_factory=dict)
     check_locations: list[Location] = field(default_factory=list)
     unresolved: set[str] = field(default_factory=set)
+    envelope: EnvelopeDecl | None = None
 
     @property
     def stations(self) -> list[Agent]:

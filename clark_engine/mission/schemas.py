@@ -104,6 +104,27 @@ def _suggest(word: str, choices: Iterable[str]) -> str:
     return f"; did you mean {close[0]!r}?" if close else ""
 
 
+#: Keys the language renamed or moved: (path of the mapping, old key) -> (new key, what to
+#: write instead). Old missions get E-KEY-RENAMED saying so, not a bare unknown key.
+RENAMED_KEYS: dict[tuple[DocPath, str], tuple[str, str]] = {
+    (("mission", "origin"), "alt_m"): (
+        "alt_amsl_m",
+        "origin.alt_m is now origin.alt_amsl_m, the ground's height at the origin above mean "
+        "sea level (every other altitude is above the origin); rename the key",
+    ),
+    (("mission",), "ceiling_m"): (
+        "envelope.ceiling_m",
+        "mission.ceiling_m moved to the safety envelope: write it as ceiling_m under a "
+        "top-level envelope: section (envelope: {ceiling_m: ...}), beside mission:",
+    ),
+}
+
+
+def _renamed(path: DocPath, key: str) -> tuple[str, str] | None:
+    """The new name of ``key`` in the mapping at ``path`` and what to write; None if not renamed."""
+    return RENAMED_KEYS.get((tuple(path), key))
+
+
 def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Finding]:
     path: DocPath = (*base, *err.absolute_path)
     schema: Mapping[str, Any] = err.schema if isinstance(err.schema, Mapping) else {}
@@ -134,6 +155,10 @@ def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Fin
         else:
             extras = _QUOTED.findall(err.message.split("(")[-1]) or list(instance)
         for key in extras:
+            renamed = _renamed(path, str(key))
+            if renamed is not None:
+                yield error("E-KEY-RENAMED", doc.location((*path, key), key=True), renamed[1])
+                continue
             others = known - {key}
             if not others:
                 hint = "; nothing may be given here, remove it"
@@ -147,9 +172,12 @@ def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Fin
         return
     if kind == "required":
         present = set(instance) if isinstance(instance, Mapping) else set()
+        renamed_to = {
+            new: old for (where, old), (new, _) in RENAMED_KEYS.items() if where == tuple(path)
+        }
         for key in err.validator_value:
-            if key in present:
-                continue
+            if key in present or renamed_to.get(key) in present:
+                continue  # present, or present under its old name (E-KEY-RENAMED says so)
             prop = schema.get("properties", {}).get(key, {})
             what = prop.get("description", "")
             yield error(

@@ -17,6 +17,7 @@ from typing import Any
 
 from clark_engine.data import data_dir
 from clark_engine.errors import UsageError
+from clark_engine.mission import envelope
 from clark_engine.mission.blocks import BlockLibrary
 from clark_engine.mission.checks import run_all
 from clark_engine.mission.findings import DocPath, Finding, Location, error, warning
@@ -246,7 +247,7 @@ def _dirty(findings: list[Finding], prefix: DocPath, *, own: bool = False) -> bo
 
 
 #: Mission settings every later check depends on; with one of them broken, checks stop there.
-_NEEDED_SETTINGS = ("id", "name", "loop_hz", "origin", "heartbeat_timeout_s", "ceiling_m")
+_NEEDED_SETTINGS = ("id", "name", "loop_hz", "origin", "heartbeat_timeout_s")
 
 
 def _validate_mission(path: Path, doc: Document, raw: bytes) -> Validation:
@@ -297,7 +298,7 @@ def _build_mission(
     )
     origin_raw = section["origin"]
     origin = Origin(
-        float(origin_raw["lat"]), float(origin_raw["lon"]), float(origin_raw.get("alt_m", 0.0))
+        float(origin_raw["lat"]), float(origin_raw["lon"]), float(origin_raw["alt_amsl_m"])
     )
     mission = Mission(
         file=doc.file,
@@ -306,7 +307,6 @@ def _build_mission(
         loop_hz=float(section["loop_hz"]),
         heartbeat_timeout_s=float(section.get("heartbeat_timeout_s", 3.0)),
         origin=origin,
-        ceiling_m=float(section.get("ceiling_m", 120.0)),
         log_level=str(section.get("log_level", "INFO")),
         agents={},
         description=section.get("description"),
@@ -341,6 +341,7 @@ def _build_mission(
             mission.unresolved.add(name)
             continue
         mission.agents[name] = agent
+    findings.extend(_envelopes(doc, data, mission, schema_findings))
     # Behaviours last: checks inside them look at every agent's telemetry and hardware.
     for name, agent in mission.agents.items():
         raw_behavior = agent.raw.get("behavior")
@@ -354,6 +355,44 @@ def _build_mission(
     findings.extend(resolver.findings)
     findings.extend(run_all(mission, bad_states))
     return mission
+
+
+def _envelopes(
+    doc: Document, data: dict[str, Any], mission: Mission, schema_findings: list[Finding]
+) -> list[Finding]:
+    """Read the mission's envelope and each vehicle's, check them, resolve each vehicle's.
+
+    A vehicle whose own envelope the schema rejected gets none (its error says why, and
+    the checks that need it wait); a broken mission envelope leaves every vehicle without.
+    """
+    if _dirty(schema_findings, ("envelope",)):
+        return []
+    mission.envelope = envelope.read_decl(
+        doc, ("envelope",), data.get("envelope"), mission.origin, "mission", doc.location(())
+    )
+    written: dict[str, envelope.EnvelopeDecl] = {}
+    for name, agent in mission.agents.items():
+        path: DocPath = ("agents", name, "envelope")
+        if _dirty(schema_findings, path):
+            continue
+        decl = envelope.read_decl(
+            doc, path, agent.raw.get("envelope"), mission.origin, name, agent.location
+        )
+        agent.envelope_decl = decl
+        if "envelope" in agent.raw:
+            written[name] = decl
+        if agent.is_vehicle:
+            agent.envelope = envelope.resolve(
+                mission.envelope,
+                decl,
+                airframe=agent.hardware.part("airframe"),
+                radio_range_m=agent.hardware.radio_range_m,
+                home=agent.position,
+                name=name,
+            )
+    vehicles = [a.name for a in mission.agents.values() if a.is_vehicle]
+    stations = [a.name for a in mission.stations]
+    return list(envelope.check_decl(mission.envelope, written, vehicles, stations))
 
 
 #: Schema errors about one scalar's value (a name's spelling, a number's range): the

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from clark_engine.errors import ClarkError, UsageError
+from clark_engine.mission.fence import Fence, Zone
 
 
 class ConfigError(ClarkError):
@@ -81,8 +82,92 @@ class TelemetrySpec:
 
 
 @dataclass(frozen=True, slots=True)
+class EnvelopeSpec:
+    """A vehicle's safety envelope, as the compiled config holds it (docs/safety.md).
+
+    Altitudes are metres above the mission origin; the fence is on the local plane,
+    metres north and east of the origin (:mod:`clark_engine.mission.fence`).
+
+    Attributes:
+        ceiling_m: Highest altitude above the origin.
+        floor_m: Lowest altitude above the origin in guided flight (aircraft).
+        legal_ceiling_m: The legal limit the mission flies under.
+        margin_m: How far inside the envelope targets are kept.
+        fence: The geofence (the default circle around home included).
+        default_radius_m: The default circle's radius when no zone was declared, else None.
+        home_north_m: The vehicle's start, north of the origin.
+        home_east_m: The vehicle's start, east of the origin.
+        min_separation_m: Smallest 3-D distance from any other vehicle.
+        separation: Other vehicle -> the distance kept from it, where a pair says.
+        on_breach: hold, rtl or land on a fence, altitude or endurance breach.
+        on_near_miss: hold, rtl or land when another vehicle comes too close.
+        outside: clamp or refuse a target outside the envelope.
+        endurance_s: Time armed allowed; None when none is declared.
+        raw: The envelope as the config holds it.
+    """
+
+    ceiling_m: float
+    floor_m: float
+    legal_ceiling_m: float
+    margin_m: float
+    fence: Fence
+    default_radius_m: float | None
+    home_north_m: float
+    home_east_m: float
+    min_separation_m: float
+    separation: Mapping[str, float]
+    on_breach: str
+    on_near_miss: str
+    outside: str
+    endurance_s: float | None
+    raw: Mapping[str, Any]
+
+    def separation_from_m(self, peer: str) -> float:
+        """The smallest distance this vehicle keeps from ``peer``."""
+        return float(self.separation.get(peer, self.min_separation_m))
+
+
+def _zone(data: Mapping[str, Any]) -> Zone:
+    if data["kind"] == "circle":
+        center = data["center"]
+        return Zone.circle((float(center["north_m"]), float(center["east_m"])), data["radius_m"])
+    return Zone.polygon((float(p["north_m"]), float(p["east_m"])) for p in data["points"])
+
+
+def envelope_from_dict(data: Mapping[str, Any]) -> EnvelopeSpec:
+    """The typed envelope from its compiled form (valid against the agent-config schema)."""
+    fence = data["geofence"]
+    home = fence["home"]
+    include = tuple(_zone(z) for z in fence["include"])
+    radius = fence["default_radius_m"]
+    if radius is not None:
+        include = (Zone.circle((float(home["north_m"]), float(home["east_m"])), float(radius)),)
+    return EnvelopeSpec(
+        ceiling_m=float(data["ceiling_m"]),
+        floor_m=float(data["floor_m"]),
+        legal_ceiling_m=float(data["legal_ceiling_m"]),
+        margin_m=float(data["margin_m"]),
+        fence=Fence(include, tuple(_zone(z) for z in fence["exclude"])),
+        default_radius_m=float(radius) if radius is not None else None,
+        home_north_m=float(home["north_m"]),
+        home_east_m=float(home["east_m"]),
+        min_separation_m=float(data["min_separation_m"]),
+        separation={str(k): float(v) for k, v in data["separation"].items()},
+        on_breach=str(data["on_breach"]),
+        on_near_miss=str(data["on_near_miss"]),
+        outside=str(data["outside"]),
+        endurance_s=float(data["endurance_s"]) if data["endurance_s"] is not None else None,
+        raw=data,
+    )
+
+
+@dataclass(frozen=True, slots=True)
 class PeerSpec:
-    """Another agent of the mission."""
+    """Another agent of the mission.
+
+    Attributes:
+        envelope: Where the peer may fly (a vehicle's envelope); None for a station.
+    """
 
     name: str
     id: int
@@ -90,6 +175,7 @@ class PeerSpec:
     radio_address: str | None
     sends: Mapping[str, float]
     modes: Mapping[str, int]
+    envelope: EnvelopeSpec | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -116,6 +202,10 @@ class AgentConfig:
     """Everything one agent runs from.
 
     Attributes:
+        origin_alt_amsl_m: The height of the ground at the mission origin above mean sea
+            level: the one AMSL figure, from which every altitude above the origin is
+            worked out.
+        envelope: The vehicle's safety envelope; None for a station.
         raw: The config as loaded (for the parts the runtime passes through, such as
             connection settings the shells read).
     """
@@ -129,8 +219,7 @@ class AgentConfig:
     heartbeat_timeout_s: float
     origin_lat_deg: float
     origin_lon_deg: float
-    origin_alt_m: float
-    ceiling_m: float
+    origin_alt_amsl_m: float
     authenticated: bool
     key_file: str | None
     tick_phases: tuple[str, ...]
@@ -153,6 +242,7 @@ class AgentConfig:
     peers: tuple[PeerSpec, ...]
     machine: StateSpec | None
     raw: Mapping[str, Any]
+    envelope: EnvelopeSpec | None = None
 
     @property
     def is_vehicle(self) -> bool:
@@ -233,8 +323,7 @@ def config_from_dict(data: Mapping[str, Any]) -> AgentConfig:
         heartbeat_timeout_s=float(mission["heartbeat_timeout_s"]),
         origin_lat_deg=float(mission["origin"]["lat"]),
         origin_lon_deg=float(mission["origin"]["lon"]),
-        origin_alt_m=float(mission["origin"]["alt_m"]),
-        ceiling_m=float(mission["ceiling_m"]),
+        origin_alt_amsl_m=float(mission["origin"]["alt_amsl_m"]),
         authenticated=bool(mission["authenticated"]),
         key_file=mission["key_file"],
         tick_phases=tuple(mission["tick_phases"]),
@@ -268,11 +357,13 @@ def config_from_dict(data: Mapping[str, Any]) -> AgentConfig:
                 p["radio_address"],
                 dict(p["sends"]),
                 dict(p["modes"]),
+                envelope_from_dict(p["envelope"]) if p["envelope"] is not None else None,
             )
             for p in data["peers"]
         ),
         machine=_state(data["machine"]) if data["machine"] is not None else None,
         raw=data,
+        envelope=envelope_from_dict(data["envelope"]) if data["envelope"] is not None else None,
     )
 
 

@@ -24,14 +24,20 @@ from clark_engine.runtime.config import AgentConfig
 from clark_engine.runtime.events import AutopilotStatus, LandedState, VehicleState
 
 AIRBORNE_ALT_M: Final = 2.0
-"""Height above home that counts as flying when the autopilot gives no landed state."""
+"""Height above the origin that counts as flying when the autopilot gives no landed state."""
+
+DATUM_TOLERANCE_M: Final = 10.0
+"""How far from the origin's height a vehicle on the ground may read before its behaviour
+is held back: every altitude the engine commands is above the origin, worked out from the
+mission's ``origin.alt_amsl_m``, so a wrong one would put every height off by as much.
+GPS heights wander by a few metres; ten is well beyond that and well short of a floor."""
 
 
 def is_airborne(status: AutopilotStatus | None, vehicle: VehicleState | None) -> bool:
     """True when the vehicle flies: by its autopilot's landed state, else armed and up.
 
     ArduCopter and ArduPlane report a landed state (EXTENDED_SYS_STATE); without
-    one, an armed vehicle more than :data:`AIRBORNE_ALT_M` above home is flying.
+    one, an armed vehicle more than :data:`AIRBORNE_ALT_M` above the origin is flying.
     """
     landed = status.landed if status is not None else LandedState.UNKNOWN
     if landed is not LandedState.UNKNOWN:
@@ -101,6 +107,15 @@ class LaunchGate:
                 missing.extend(status.waiting_for)
         if not config.launch.engine_arms and (vehicle is None or not vehicle.armed):
             missing.append("the pilot to arm it")
-        if config.launch.airborne and not is_airborne(status, vehicle):
+        airborne = is_airborne(status, vehicle)
+        if config.launch.airborne and not airborne:
             missing.append("the pilot to take off")
+        if vehicle is not None and not airborne and abs(vehicle.alt_m) > DATUM_TOLERANCE_M:
+            missing.append(
+                f"its height to agree with the origin's: on the ground it reads "
+                f"{vehicle.alt_m:+.0f} m from the origin "
+                f"({config.origin_alt_amsl_m + vehicle.alt_m:.0f} m above sea level against "
+                f"mission.origin.alt_amsl_m {config.origin_alt_amsl_m:g}); correct "
+                "alt_amsl_m, or the vehicle's GPS"
+            )
         return tuple(missing)

@@ -384,7 +384,7 @@ class SimAutopilot:
         guided_mode: The mode in which position targets are flown.
         origin_lat_deg: Latitude of the mission origin (the model's local frame).
         origin_lon_deg: Longitude of the mission origin.
-        origin_alt_m: Altitude of the origin above mean sea level; the model's
+        origin_alt_amsl_m: Altitude of the origin above mean sea level; the model's
             heights are above it.
         start_time_unix_us: Unix time at the simulator's time 0, as its GPS would know
             it; None for a GPS without time (SYSTEM_TIME then carries 0).
@@ -415,7 +415,7 @@ class SimAutopilot:
         guided_mode: str = "GUIDED",
         origin_lat_deg: float,
         origin_lon_deg: float,
-        origin_alt_m: float = 0.0,
+        origin_alt_amsl_m: float = 0.0,
         start_time_unix_us: int | None = None,
         boot_s: float = 0.0,
         boot: BootTimes | None = None,
@@ -436,7 +436,7 @@ class SimAutopilot:
         self.guided_mode = guided_mode
         self.origin_lat_deg = origin_lat_deg
         self.origin_lon_deg = origin_lon_deg
-        self.origin_alt_m = origin_alt_m
+        self.origin_alt_amsl_m = origin_alt_amsl_m
         self.start_time_unix_us = start_time_unix_us
         self.boot_s = boot_s
         self._unix_clock_us = unix_clock_us
@@ -549,7 +549,7 @@ class SimAutopilot:
         *,
         origin_lat_deg: float,
         origin_lon_deg: float,
-        origin_alt_m: float = 0.0,
+        origin_alt_amsl_m: float = 0.0,
         start_time_unix_us: int | None = None,
         boot_s: float = 0.0,
         boot: BootTimes | None = None,
@@ -584,7 +584,7 @@ class SimAutopilot:
             guided_mode=str(autopilot.get("guided_mode", "GUIDED")),
             origin_lat_deg=origin_lat_deg,
             origin_lon_deg=origin_lon_deg,
-            origin_alt_m=origin_alt_m,
+            origin_alt_amsl_m=origin_alt_amsl_m,
             start_time_unix_us=start_time_unix_us,
             boot_s=boot_s,
             boot=boot,
@@ -628,7 +628,7 @@ class SimAutopilot:
             * _M_PER_DEG_LAT
             * math.cos(math.radians(self.origin_lat_deg))
         )
-        self.model.set_home(north, east, alt_m - self.origin_alt_m)
+        self.model.set_home(north, east, alt_m - self.origin_alt_amsl_m)
         self.missions.write_home()
         if "HOME_POSITION" not in self._deferred:
             self._deferred.append("HOME_POSITION")
@@ -982,7 +982,7 @@ class SimAutopilot:
         0.19 m), so a rover on the ground reads 90 m above such a home (measured).
         """
         truth = self.model.truth()
-        alt_m = self.origin_alt_m + truth.up_m
+        alt_m = self.origin_alt_amsl_m + truth.up_m
         if self.fw.home_alt_needs_origin and not self._origin_set(now_s):
             alt_m = truth.up_m
         self.set_home(truth.lat_deg, truth.lon_deg, alt_m, now_s)
@@ -1255,7 +1255,7 @@ class SimAutopilot:
             if not self._gps_fix(now_s):
                 return _FAILED
             truth = self.model.truth()
-            lat, lon, alt = truth.lat_deg, truth.lon_deg, self.origin_alt_m + truth.up_m
+            lat, lon, alt = truth.lat_deg, truth.lon_deg, self.origin_alt_amsl_m + truth.up_m
         else:
             lat, lon, alt = params[4], params[5], z
             if frame is not None:  # COMMAND_INT: degrees * 1e7
@@ -1317,16 +1317,16 @@ class SimAutopilot:
 
     def _relative_alt_m(self, alt: float, frame: int) -> float | None:
         """A target's height above the origin (the model's frame) from its frame's altitude."""
-        home_alt = self._home[2] if self._home is not None else self.origin_alt_m
+        home_alt = self._home[2] if self._home is not None else self.origin_alt_amsl_m
         if frame in (
             mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
             mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT,
             mavlink2.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT,  # flat terrain at home's altitude
             mavlink2.MAV_FRAME_GLOBAL_TERRAIN_ALT,
         ):
-            return float(alt) + home_alt - self.origin_alt_m
+            return float(alt) + home_alt - self.origin_alt_amsl_m
         if frame in (mavlink2.MAV_FRAME_GLOBAL_INT, mavlink2.MAV_FRAME_GLOBAL):
-            return float(alt) - self.origin_alt_m
+            return float(alt) - self.origin_alt_amsl_m
         return None
 
     def _reposition(self, params: tuple[float, ...], z: float, frame: int, now_s: float) -> int:
@@ -1550,7 +1550,7 @@ class SimAutopilot:
         model, command = self.model, item.command
         self._auto_phase = _AUTO_FLYING
         if command == mavlink2.MAV_CMD_NAV_TAKEOFF:
-            above_home_m = self._item_alt_m(item) - (self._home_alt_m() - self.origin_alt_m)
+            above_home_m = self._item_alt_m(item) - (self._home_alt_m() - self.origin_alt_amsl_m)
             if self.firmware == "arducopter":
                 armed_for_s = now_s - (self._armed_s if self._armed_s is not None else now_s)
                 delay_s = (
@@ -1941,7 +1941,7 @@ class SimAutopilot:
         return t.lat_deg, t.lon_deg, t.up_m
 
     def _home_alt_m(self) -> float:
-        return self._home[2] if self._home is not None else self.origin_alt_m
+        return self._home[2] if self._home is not None else self.origin_alt_amsl_m
 
     def _msg_gps_raw_int(self, now_s: float) -> Any:
         t = self._truth()
@@ -1953,7 +1953,7 @@ class SimAutopilot:
             mavlink2.GPS_FIX_TYPE_3D_FIX if fixed else mavlink2.GPS_FIX_TYPE_NO_FIX,
             round(lat * 1e7),
             round(lon * 1e7),
-            round((self.origin_alt_m + up) * 1000) if fixed else 0,
+            round((self.origin_alt_amsl_m + up) * 1000) if fixed else 0,
             121 if fixed else UINT16_MAX,  # HDOP 1.21
             200 if fixed else UINT16_MAX,  # VDOP 2.00
             _clamp(t.ground_speed_m_s * 100, 0, UINT16_MAX - 1) if fixed else 0,
@@ -1972,8 +1972,8 @@ class SimAutopilot:
         msg.time_boot_ms = self._boot_ms(now_s)
         msg.lat = round(lat * 1e7)
         msg.lon = round(lon * 1e7)
-        msg.alt = round((self.origin_alt_m + up) * 1000)
-        msg.relative_alt = round((self.origin_alt_m + up - self._home_alt_m()) * 1000)
+        msg.alt = round((self.origin_alt_amsl_m + up) * 1000)
+        msg.relative_alt = round((self.origin_alt_amsl_m + up - self._home_alt_m()) * 1000)
         msg.vx = _clamp(t.velocity_north_m_s * 100, -32768, 32767)
         msg.vy = _clamp(t.velocity_east_m_s * 100, -32768, 32767)
         msg.vz = _clamp(-t.climb_rate_m_s * 100, -32768, 32767)
@@ -2009,7 +2009,7 @@ class SimAutopilot:
         msg.groundspeed = t.ground_speed_m_s
         msg.heading = int(t.yaw_deg % 360.0)
         msg.throttle = _clamp(t.throttle_pct, 0, 100)
-        msg.alt = self.origin_alt_m + t.up_m
+        msg.alt = self.origin_alt_amsl_m + t.up_m
         msg.climb = t.climb_rate_m_s
         return msg
 
@@ -2083,7 +2083,7 @@ class SimAutopilot:
         if mode == self.guided_mode:
             return self._target
         if mode in ("RTL", "SMART_RTL") and self._home is not None:
-            return self._home[0], self._home[1], self._home[2] - self.origin_alt_m
+            return self._home[0], self._home[1], self._home[2] - self.origin_alt_amsl_m
         return None
 
     def _msg_nav_controller_output(self, now_s: float) -> Any:
@@ -2117,7 +2117,7 @@ class SimAutopilot:
             0xFDF8,
             round(target[0] * 1e7),
             round(target[1] * 1e7),
-            self.origin_alt_m + target[2],
+            self.origin_alt_amsl_m + target[2],
             0.0,
             0.0,
             0.0,

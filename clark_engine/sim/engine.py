@@ -296,7 +296,7 @@ def build_vehicle(
         autopilot,
         origin_lat_deg=mission.origin.lat_deg,
         origin_lon_deg=mission.origin.lon_deg,
-        origin_alt_m=mission.origin.alt_m,
+        origin_alt_amsl_m=mission.origin.alt_amsl_m,
         start_time_unix_us=START_UNIX_US,
         boot_s=boot_s,
         boot=boot,
@@ -304,7 +304,7 @@ def build_vehicle(
     )
     if airborne:
         takeoff_point = offset_position(mission.origin.lat_deg, mission.origin.lon_deg, north, east)
-        simulated.set_home(*takeoff_point, mission.origin.alt_m, 0.0)
+        simulated.set_home(*takeoff_point, mission.origin.alt_amsl_m, 0.0)
     backend = SimulatedBackend(model, simulated)
     throttle = config.channels.get("throttle")
     copter_throttle = throttle if airframe.get("class") == "multirotor" else None
@@ -346,7 +346,7 @@ def build_sitl_vehicle(
     process = SitlProcess(
         install,
         vehicle_for_firmware(firmware.name),
-        Home(lat, lon, mission.origin.alt_m, heading),
+        Home(lat, lon, mission.origin.alt_amsl_m, heading),
         speedup=speedup,
     )
     params = {name: firmware.params[name][0] for name in firmware.flight_params}

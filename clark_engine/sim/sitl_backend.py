@@ -375,7 +375,7 @@ class SitlBackend(VehicleBackend):
         origin = self.origin
         north = (lat - origin.lat_deg) * _M_PER_DEG_LAT
         east = (lon - origin.lon_deg) * _M_PER_DEG_LAT * math.cos(math.radians(origin.lat_deg))
-        up = alt_m - origin.alt_m
+        up = alt_m - origin.alt_amsl_m
         if self.firmware == "ardurover":
             up = 0.0  # a rover is on the ground; SITL's terrain height is not the origin's
         vn, ve, vd = velocity_ned_m_s

@@ -129,7 +129,7 @@ class VehicleSpec:
     def home(self) -> Home:
         """The mission origin, where SITL boots too."""
         origin = self.mission.origin
-        return Home(origin.lat_deg, origin.lon_deg, origin.alt_m, 0.0)
+        return Home(origin.lat_deg, origin.lon_deg, origin.alt_amsl_m, 0.0)
 
 
 @functools.cache

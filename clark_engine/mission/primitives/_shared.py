@@ -189,38 +189,35 @@ def check_points(
             yield error("E-POSITION", where, f"{label} {problem}", ctx.use_location)
 
 
-def check_ceiling(
-    ctx: UseContext, up_m: float, where: Location, label: str, above: str = "the origin"
-) -> Iterator[Finding]:
-    """An aircraft's height must lie between the ground and the mission ceiling.
+def check_ceiling(ctx: UseContext, up_m: float, where: Location, label: str) -> Iterator[Finding]:
+    """An aircraft's height must lie between the ground and its envelope's ceiling.
 
     Rovers are not checked: they drive on the ground whatever height a point gives.
+    A vehicle without a resolved envelope (its envelope's own error is reported) is not
+    checked either.
 
     Args:
         ctx: The use being checked.
-        up_m: The height, above ``above``.
+        up_m: The height above the origin.
         where: Where the height was written.
         label: What the height belongs to, as the message names it ("waypoint 2").
-        above: What the height is measured from: the origin, or home for a takeoff
-            (a vehicle starts on the ground, no higher than the origin, so a height above
-            home over the ceiling is over it above the origin too).
     """
-    if ctx.agent.airframe_class == "rover":
+    envelope = ctx.agent.envelope
+    if ctx.agent.airframe_class == "rover" or envelope is None:
         return
-    ceiling_m = ctx.mission.ceiling_m
-    if up_m > ceiling_m:
+    if up_m > envelope.ceiling_m:
         yield error(
             "E-ALTITUDE-CEILING",
             where,
-            f"{label} is {up_m:g} m above {above}, over the mission ceiling of "
-            f"{ceiling_m:g} m; fly lower or raise mission.ceiling_m",
+            f"{label} is {up_m:g} m above the origin, over {ctx.agent.name}'s ceiling of "
+            f"{envelope.describe_ceiling()}; fly lower or raise the ceiling",
             ctx.use_location,
         )
     if up_m < 0:
         yield error(
             "E-ALTITUDE-CEILING",
             where,
-            f"{label} is {-up_m:g} m below {above}; give a height above {above}",
+            f"{label} is {-up_m:g} m below the origin; give a height above the origin",
             ctx.use_location,
         )
 

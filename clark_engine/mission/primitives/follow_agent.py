@@ -80,12 +80,13 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
     yield from _check_separation(ctx, target_name)
     offset_up = float((ctx.params.get("offset") or {}).get("up_m", 0.0))
     is_air = (me.hardware.part("airframe") or {}).get("class") != "rover"
-    if is_air and offset_up > ctx.mission.ceiling_m:
+    envelope = me.envelope
+    if is_air and envelope is not None and offset_up > envelope.ceiling_m:
         yield error(
             "E-ALTITUDE-CEILING",
             ctx.locate("offset"),
-            f"an offset {offset_up:g} m above the target is over the mission ceiling of "
-            f"{ctx.mission.ceiling_m:g} m wherever the target is; lower offset.up_m",
+            f"an offset {offset_up:g} m above the target is over {me.name}'s ceiling of "
+            f"{envelope.describe_ceiling()} wherever the target is; lower offset.up_m",
             ctx.use_location,
         )
     if retarget_hz > ctx.mission.loop_hz:

@@ -1,12 +1,13 @@
-"""takeoff: leave the ground and climb to ``alt_m`` above home.
+"""takeoff: leave the ground and climb to ``alt_m`` above the mission origin.
 
 A real aircraft starts on the ground, and ArduPilot flies it nowhere until it has
 taken off: ArduCopter ignores guided targets until then. ArduCopter takes off in
 its guided mode, armed, on MAV_CMD_NAV_TAKEOFF; ArduPlane takes off in its own
 TAKEOFF mode. The state waits for the vehicle to be armed (by the pilot, or by
 the engine with ``launch.armed_by: engine``) and raises ``done`` once it flies
-within ``tolerance_m`` below ``alt_m``. ``alt_m`` is above home, the place the
-vehicle took off from, and must stay under the mission ceiling. Aircraft only;
+within ``tolerance_m`` below ``alt_m``. ``alt_m`` is above the mission origin, like
+every altitude of a mission (the engine tells ArduPilot the height above home it
+wants), and must stay under the vehicle's ceiling. Aircraft only;
 a vehicle the pilot hands over in flight (``launch.airborne``) needs none.
 """
 
@@ -27,20 +28,21 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
         {"rover": "a rover never leaves the ground; drive it with waypoint or waypoint_tour"},
     )
     alt_m = float(ctx.params["alt_m"])
-    yield from check_ceiling(ctx, alt_m, ctx.locate("alt_m"), "the takeoff altitude", "home")
+    yield from check_ceiling(ctx, alt_m, ctx.locate("alt_m"), "the takeoff altitude")
 
 
 SPEC = PrimitiveSpec(
     name="takeoff",
     summary=(
-        "Take off and climb to alt_m above home (ArduCopter: guided takeoff; ArduPlane: its "
-        "TAKEOFF mode); done within tolerance_m of it."
+        "Take off and climb to alt_m above the origin (ArduCopter: guided takeoff; ArduPlane: "
+        "its TAKEOFF mode); done within tolerance_m of it."
     ),
     params=obj(
         "Parameters of takeoff.",
         {
             "alt_m": number(
-                "Altitude above home to climb to; at most mission.ceiling_m.",
+                "Altitude above the mission origin to climb to; at most the vehicle's "
+                "envelope ceiling.",
                 unit="m",
                 exclusive_minimum=0,
             ),

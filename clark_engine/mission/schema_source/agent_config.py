@@ -45,6 +45,100 @@ def _point() -> Schema:
     )
 
 
+def _zone() -> Schema:
+    return {
+        "description": "A geofence zone: a polygon of points, or a circle.",
+        "oneOf": [
+            obj(
+                "A polygon.",
+                {
+                    "kind": {"const": "polygon"},
+                    "points": array("Its corners in order.", _point(), min_items=3),
+                },
+                required=["kind", "points"],
+            ),
+            obj(
+                "A circle.",
+                {
+                    "kind": {"const": "circle"},
+                    "center": _point(),
+                    "radius_m": number("Its radius.", unit="m", exclusive_minimum=0),
+                },
+                required=["kind", "center", "radius_m"],
+            ),
+        ],
+    }
+
+
+def _envelope() -> Schema:
+    """A vehicle's resolved safety envelope (docs/safety.md)."""
+    actions = ["hold", "rtl", "land"]
+    return obj(
+        "Where the vehicle may fly, every default filled in; altitudes above the origin.",
+        {
+            "ceiling_m": number("Highest altitude above the origin.", unit="m", minimum=0),
+            "floor_m": number(
+                "Lowest altitude above the origin in guided flight.", unit="m", minimum=0
+            ),
+            "legal_ceiling_m": number(
+                "The legal limit above the origin.", unit="m", exclusive_minimum=0
+            ),
+            "margin_m": number(
+                "How far inside the envelope targets are kept.", unit="m", minimum=0
+            ),
+            "geofence": obj(
+                "Where on the ground: inside every inclusion zone, outside every exclusion zone.",
+                {
+                    "default_radius_m": {
+                        "type": ["number", "null"],
+                        "exclusiveMinimum": 0,
+                        "x-unit": "m",
+                        "description": "With no inclusion zone: the radius of the circle "
+                        "around home the vehicle stays in; null when zones are declared.",
+                    },
+                    "home": _point(),
+                    "include": array("Inclusion zones.", _zone()),
+                    "exclude": array("Exclusion zones.", _zone()),
+                },
+                required=["default_radius_m", "home", "include", "exclude"],
+            ),
+            "min_separation_m": number(
+                "Smallest 3-D distance from any other vehicle.", unit="m", minimum=0
+            ),
+            "separation": {
+                "type": "object",
+                "description": "Other vehicle -> the smallest distance kept from it, where "
+                "the mission sets one for the pair.",
+                "additionalProperties": {"type": "number", "minimum": 0},
+            },
+            "on_breach": string("On a fence, altitude or endurance breach.", enum=actions),
+            "on_near_miss": string("On another vehicle inside the separation.", enum=actions),
+            "outside": string(
+                "A target outside the envelope is clamped or refused.", enum=["clamp", "refuse"]
+            ),
+            "endurance_s": {
+                "type": ["number", "null"],
+                "exclusiveMinimum": 0,
+                "x-unit": "s",
+                "description": "Time armed allowed; null when none is declared.",
+            },
+        },
+        required=[
+            "ceiling_m",
+            "floor_m",
+            "legal_ceiling_m",
+            "margin_m",
+            "geofence",
+            "min_separation_m",
+            "separation",
+            "on_breach",
+            "on_near_miss",
+            "outside",
+            "endurance_s",
+        ],
+    )
+
+
 def _state() -> Schema:
     transition = obj(
         "A resolved transition.",
@@ -129,6 +223,7 @@ def build() -> dict[str, Any]:
             "agent",
             "telemetry",
             "peers",
+            "envelope",
             "machine",
         ],
         "properties": {
@@ -157,15 +252,17 @@ def build() -> dict[str, Any]:
                         "Silence after which a peer is lost.", unit="s", exclusive_minimum=0
                     ),
                     "origin": obj(
-                        "Reference point of the local frame.",
+                        "Reference point of the local frame, on the ground; every alt_m is "
+                        "above it.",
                         {
                             "lat": number("Latitude.", unit="deg", minimum=-90, maximum=90),
                             "lon": number("Longitude.", unit="deg", minimum=-180, maximum=180),
-                            "alt_m": number("Altitude above mean sea level.", unit="m"),
+                            "alt_amsl_m": number(
+                                "Height of the ground there above mean sea level.", unit="m"
+                            ),
                         },
-                        required=["lat", "lon", "alt_m"],
+                        required=["lat", "lon", "alt_amsl_m"],
                     ),
-                    "ceiling_m": number("Highest altitude above the origin.", unit="m"),
                     "authenticated": boolean("Every packet carries a tag made with the key."),
                     "key_file": _NULLABLE_STRING
                     | {
@@ -207,7 +304,6 @@ def build() -> dict[str, Any]:
                     "loop_hz",
                     "heartbeat_timeout_s",
                     "origin",
-                    "ceiling_m",
                     "authenticated",
                     "key_file",
                     "tick_phases",
@@ -340,11 +436,15 @@ def build() -> dict[str, Any]:
                             "Mode Change Requests; empty for stations.",
                             "additionalProperties": {"type": "integer"},
                         },
+                        "envelope": _nullable({"$ref": "#/$defs/envelope"})
+                        | {"description": "The peer's safety envelope; null for a station."},
                     },
-                    required=["name", "id", "role", "radio_address", "sends", "modes"],
+                    required=["name", "id", "role", "radio_address", "sends", "modes", "envelope"],
                 ),
             ),
+            "envelope": _nullable({"$ref": "#/$defs/envelope"})
+            | {"description": "This vehicle's safety envelope; null for a station."},
             "machine": _nullable({"$ref": "#/$defs/state"}),
         },
-        "$defs": {"state": _state()},
+        "$defs": {"state": _state(), "envelope": _envelope()},
     }

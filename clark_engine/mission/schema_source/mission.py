@@ -18,6 +18,11 @@ from clark_engine.mission.schema_source.common import (
     schema_id,
     string,
 )
+from clark_engine.mission.schema_source.envelope import (
+    agent_envelope_schema,
+    mission_envelope_schema,
+    zone_def,
+)
 from clark_engine.mission.schema_source.hardware_profile import (
     PART_KINDS,
     agent_hardware_schema,
@@ -120,6 +125,7 @@ def _agent() -> Schema:
                 "profile's terminal_mode when omitted."
             ),
             "launch": _launch(),
+            "envelope": agent_envelope_schema(),
             "sim": _agent_sim(),
             "position": POINT_SCHEMA
             | {
@@ -444,21 +450,25 @@ def build() -> dict[str, Any]:
                         default=3,
                     ),
                     "origin": obj(
-                        "Reference point of the local north/east/up frame; altitudes are above it.",
+                        "Reference point of the local north/east/up frame, on the ground. "
+                        "Every altitude in the mission, and every alt_m the engine reports, "
+                        "is metres above it (the field is taken as flat at its height); "
+                        "only alt_amsl_m is above mean sea level.",
                         {
                             "lat": number("Latitude.", unit="deg", minimum=-90, maximum=90),
                             "lon": number("Longitude.", unit="deg", minimum=-180, maximum=180),
-                            "alt_m": number("Altitude above mean sea level.", unit="m", default=0),
+                            "alt_amsl_m": number(
+                                "Height of the ground at the origin above mean sea level "
+                                "(a survey, a map, or the autopilot's home on the field). "
+                                "Altitudes above the origin are worked out from it, so a "
+                                "vehicle on the ground that reads more than 10 m above or "
+                                "below the origin does not start its behaviour.",
+                                unit="m",
+                                minimum=-500,
+                                maximum=9000,
+                            ),
                         },
-                        required=["lat", "lon"],
-                    ),
-                    "ceiling_m": number(
-                        "Highest altitude above the origin any vehicle may be sent to "
-                        "(120 m is the 400 ft of FAA Part 107).",
-                        unit="m",
-                        exclusive_minimum=0,
-                        maximum=10000,
-                        default=120,
+                        required=["lat", "lon", "alt_amsl_m"],
                     ),
                     "key_file": string(
                         "File holding the mission's 32-byte ClarkLink key (made by clark "
@@ -485,6 +495,7 @@ def build() -> dict[str, Any]:
                     ),
                 },
             ),
+            "envelope": mission_envelope_schema(),
             "agents": {
                 "type": "object",
                 "description": "Agents by name.",
@@ -505,6 +516,7 @@ def build() -> dict[str, Any]:
             "check": _check(),
             "operator": _operator(),
             "fault": _fault(),
+            "zone": zone_def(),
             **state_defs(),
         },
     }
