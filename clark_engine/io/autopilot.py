@@ -1067,7 +1067,7 @@ class AutopilotAdapter:
         The GPS's while GLOBAL_POSITION_INT's is a fallback estimator's barometer height
         (see :data:`FALLBACK_ALT_GAP_M`).
         """
-        fused = msg.alt / 1000.0
+        fused = float(msg.alt) / 1000.0
         gps = self._gps_alt_amsl_m
         if gps is not None and abs(fused - gps) > FALLBACK_ALT_GAP_M:
             return gps
