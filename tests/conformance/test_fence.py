@@ -20,7 +20,7 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any
 
-from flight import disarmed, distance_m, fix_of, goto, here, moved, takeoff, track
+from flight import disarmed, distance_m, fix_of, goto, here, moved, streaming, takeoff, track
 from harness import Peer, backends
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
@@ -498,3 +498,53 @@ def test_rover_polygon_fence_breach_holds_and_blocks_arming(rover: Peer) -> None
             assert peer.param_get("FENCE_ENABLE").param_value == 1
     finally:
         clear_fence(peer)
+
+
+PLANE_RADIUS_M = 150.0
+PLANE_PARAMS = {"AIRSPEED_CRUISE": 18.0, "WP_LOITER_RAD": 80.0, "TKOFF_ALT": 50.0}
+"""The flight's shape, the same on both (see test_plane.py); TAKEOFF flies 200 m north."""
+
+
+@backends("fresh_peer", kinds=("plane",))
+def test_plane_circle_fence_breach_returns_and_refuses_mode_changes(fresh_peer: Peer) -> None:
+    peer = fresh_peer
+    peer.wait_ready()
+    lat, lon, _ = home_of(peer)
+    fence = {"FENCE_TYPE": 2, "FENCE_RADIUS": PLANE_RADIUS_M, "FENCE_ACTION": 1}
+    with params(peer, {**PLANE_PARAMS, **fence, "FENCE_ENABLE": 1}), streaming(peer):
+        peer.message_interval("FENCE_STATUS", FENCE_STATUS_US)
+        # TAKEOFF flies north past the circle while it climbs: "Circle fence breached",
+        # RTL, and the fence's mode change starts a manual recovery.
+        assert peer.set_mode("TAKEOFF").result == mavlink2.MAV_RESULT_ACCEPTED
+        mark = peer.mark()
+        assert peer.arm().result == mavlink2.MAV_RESULT_ACCEPTED
+        breached = peer.wait_for(
+            "STATUSTEXT", 60.0, where=lambda m: m.text == "Circle fence breached", since=mark
+        )
+        assert breached.severity == NOTICE
+        out = next(
+            (
+                t
+                for t, m in peer.history[mark:]
+                if m.get_type() == "GLOBAL_POSITION_INT"
+                and distance_m((m.lat / 1e7, m.lon / 1e7), (lat, lon)) >= PLANE_RADIUS_M
+            ),
+            peer.time_of(breached),
+        )
+        assert peer.time_of(breached) - out <= 0.8  # checked at 3 Hz (SITL: 0.2 s)
+        rtl = peer.wait_for(
+            "HEARTBEAT", 2.0, where=lambda m: peer.mode_name(m.custom_mode) == "RTL", since=mark
+        )
+        assert peer.time_of(rtl) - peer.time_of(breached) <= 1.1
+        assert (INFO, "Manual recovery started") in texts(peer, mark)
+        status = peer.wait_for("FENCE_STATUS", 2.0, where=lambda m: m.breach_status == 1)
+        assert status.breach_type == mavlink2.FENCE_BREACH_BOUNDARY
+        # While breached, in the fence's RTL, no mode change (ArduPlane's FENCE_OPTIONS 1).
+        mark = peer.mark()
+        assert peer.set_mode("GUIDED").result == mavlink2.MAV_RESULT_FAILED
+        assert (NOTICE, "Mode change to GUIDED denied, in fence recovery") in texts(peer, mark)
+        # Back inside, the breach clears without a word (ArduPlane says nothing while in
+        # the fence's RTL), and modes may change again.
+        peer.wait_for("FENCE_STATUS", 60.0, where=lambda m: m.breach_status == 0)
+        assert not [t for _, t in texts(peer, mark) if "cleared" in t]
+        assert peer.set_mode("LOITER").result == mavlink2.MAV_RESULT_ACCEPTED
