@@ -9,8 +9,15 @@ FS_LONG_ACTN by mode and its failsafe deferred during a takeoff climb.
 
 from __future__ import annotations
 
+import io
+import math
+from pathlib import Path
+
+import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from sim_station import Station
+
+from clark_engine.sim.dryrun import run_dry_run
 
 ACCEPTED, FAILED = mavlink2.MAV_RESULT_ACCEPTED, mavlink2.MAV_RESULT_FAILED
 WARNING, CRITICAL = 4, 2
@@ -143,3 +150,56 @@ def test_plane_failsafe_waits_for_the_end_of_a_takeoff_climb() -> None:
         "RC Long Failsafe Cleared",
         "GCS Failsafe On: RTL",
     ]
+
+
+KILLED_ROVER = """\
+clark: 1
+mission:
+  id: 902
+  name: killed-rover
+  loop_hz: 10
+  origin: {{lat: 30.6372, lon: -96.4787, alt_amsl_m: 90}}
+agents:
+  mcs: {{id: 1, profile: mcs_laptop, telemetry: {{heartbeat: 1}}}}
+  rover:
+    id: 2
+    profile: traxxas_slash
+    hardware: {{autopilot: {{parameters: {{{failsafe}}}}}}}
+    telemetry: {{heartbeat: 1, agent_status: 2}}
+    behavior:
+      use: waypoint_tour
+      with: {{loop: true, speed_m_s: 2, waypoints: [[0, 0], [80, 0], [80, 80], [0, 80]]}}
+faults:
+  - {{kill: {{agent: rover, at_s: 70}}}}
+sim: {{duration_s: 80, seed: 1}}
+"""
+
+
+@pytest.mark.parametrize(
+    ("failsafe", "mode"),
+    [("FS_GCS_ENABLE: 1, FS_GCS_TIMEOUT: 2", "HOLD"), ("FS_GCS_ENABLE: 0", "GUIDED")],
+    ids=["failsafe-set", "failsafe-off"],
+)
+def test_a_killed_mission_computer_leaves_its_rover_to_the_autopilot(
+    tmp_path: Path, failsafe: str, mode: str
+) -> None:
+    """The engine's adapter heartbeats as the ground station; killed, it falls silent.
+
+    With ArduRover's GCS failsafe set, the rover holds FS_GCS_TIMEOUT + FS_TIMEOUT (3.5 s)
+    after the last heartbeat; without it, it drives on to its last target in GUIDED.
+    """
+    path = tmp_path / "killed_rover.yaml"
+    path.write_text(KILLED_ROVER.format(failsafe=failsafe), encoding="utf-8")
+    out, err = io.StringIO(), io.StringIO()
+    outcome = run_dry_run(path, seed=None, until_s=None, report=None, speed=None, out=out, err=err)
+    assert outcome.result is not None, err.getvalue()
+    autopilot = outcome.result.agents["rover"].autopilot
+    assert autopilot is not None
+    assert autopilot.model.mode == mode
+    assert autopilot.gcs_failsafe.active is (mode == "HOLD")
+    track = outcome.result.recording.tracks["rover"].samples()
+    moving = [(t, n, e) for t, n, e, _ in track if 60.0 <= t <= 70.0]
+    assert math.dist(moving[0][1:], moving[-1][1:]) > 10.0, "the rover drove before the kill"
+    # (The track ends with the mission computer; the vehicle is there still.)
+    speed_m_s = autopilot.model.truth().ground_speed_m_s
+    assert speed_m_s < 0.1 if mode == "HOLD" else speed_m_s > 1.0
