@@ -81,11 +81,25 @@ What it does, in ArduPilot's order:
   MAV_CMD_SET_MESSAGE_INTERVAL (-1 stops, 0 restores the default) or per group by
   REQUEST_DATA_STREAM. STATUSTEXT whenever ArduPilot would speak.
 
-Not simulated (docs/autopilot-fidelity.md): flying by fences or rally points (they
-are kept, never used), mission DO items other than DO_CHANGE_SPEED, DO_SET_SERVO and
-DO_SET_HOME, signing, terrain, failsafes (GCS, radio, battery; of the EKF's, only
-ArduRover's refusal of modes that need a position), AUTOLAND, and more than one MAVLink
-channel (all peers share one byte stream, as behind a router).
+- **The fence** (:mod:`clark_engine.sim.ap_fence`): FENCE_* and the uploaded fence list,
+  checked at each firmware's rate against the position the autopilot believes (its
+  altitude above home as it reports it), breach texts and FENCE_ACTION, manual
+  recovery, pre-arm refusals, guided destinations refused (ArduCopter, ArduPlane),
+  ArduRover's avoidance stopping short, SYS_STATUS's geofence bit, FENCE_STATUS,
+  MAV_CMD_DO_FENCE_ENABLE.
+- **The ground-station failsafe** (:mod:`clark_engine.sim.gcs_failsafe`): the silence of
+  MAV_GCS_SYSID's heartbeats (and RC overrides, MANUAL_CONTROL), each firmware's
+  timeouts, actions and texts.
+- **Altitudes** as each firmware fills GLOBAL_POSITION_INT while it boots: ArduCopter
+  all zero before its fix; ArduRover and ArduPlane their barometer's height until their
+  estimate has one above sea level (ArduRover's home set at that height).
+
+Not simulated (docs/autopilot-fidelity.md): flying by rally points (they are kept,
+never used), mission DO items other than DO_CHANGE_SPEED, DO_SET_SERVO and
+DO_SET_HOME, signing, terrain, failsafes other than the ground station's and the fence
+(radio, battery; of the EKF's, only ArduRover's refusal of modes that need a position),
+AUTOLAND, and more than one MAVLink channel (all peers share one byte stream, as behind
+a router).
 """
 
 from __future__ import annotations
