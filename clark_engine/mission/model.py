@@ -346,6 +346,7 @@ class Mission:
         faults: Faults a dry run injects, as written.
         fault_locations: Where each fault was written.
         sim: Dry-run settings (duration, seed, radio loss and latency, GPS noise).
+        sim_locations: Where each dry-run setting was written (``duration_s`` -> location).
         locations: Where each mission setting was written (``loop_hz`` -> location).
         check_locations: Where each dry-run check was written, in order.
         unresolved: Agents declared but too broken to resolve; references to them are
@@ -371,6 +372,7 @@ class Mission:
     faults: list[dict[str, Any]] = field(default_factory=list)
     fault_locations: list[Location] = field(default_factory=list)
     sim: dict[str, Any] = field(default_factory=dict)
+    sim_locations: dict[str, Location] = field(default_factory=dict)
     locations: dict[str, Location] = field(default_factory=dict)
     check_locations: list[Location] = field(default_factory=list)
     unresolved: set[str] = field(default_factory=set)

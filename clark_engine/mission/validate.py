@@ -317,6 +317,7 @@ def _build_mission(
         faults=faults,
         fault_locations=[doc.location(("faults", i)) for i in range(len(faults))],
         sim=dict(sim) if not _dirty(schema_findings, ("sim",)) else {},
+        sim_locations={key: doc.location(("sim", key)) for key in sim},
         locations={key: doc.location(("mission", key)) for key in section},
         checks=checks,
         check_locations=[doc.location(("checks", i)) for i in range(len(checks))],

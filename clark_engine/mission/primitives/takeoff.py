@@ -16,7 +16,8 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 from clark_engine.mission.findings import Finding
-from clark_engine.mission.primitives._shared import check_airframe, check_ceiling
+from clark_engine.mission.geo import LocalPoint
+from clark_engine.mission.primitives._shared import check_airframe, check_ceiling, check_point
 from clark_engine.mission.primitives.base import PrimitiveSpec, UseContext, raises_done
 from clark_engine.mission.schema_source.common import number, obj
 
@@ -28,7 +29,15 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
         {"rover": "a rover never leaves the ground; drive it with waypoint or waypoint_tour"},
     )
     alt_m = float(ctx.params["alt_m"])
-    yield from check_ceiling(ctx, alt_m, ctx.locate("alt_m"), "the takeoff altitude")
+    where = ctx.locate("alt_m")
+    yield from check_ceiling(ctx, alt_m, where, "the takeoff altitude")
+    # A climb passes through the floor, so only the ceiling's margin applies; the
+    # takeoff is over the vehicle's start, whose place in the fence is checked there.
+    takeoff = LocalPoint(0.0, 0.0, alt_m)
+    label = "the takeoff altitude"
+    yield from check_point(
+        ctx.agent, takeoff, where, label, ctx.use_location, guided=False, horizontal=False
+    )
 
 
 SPEC = PrimitiveSpec(
