@@ -97,8 +97,8 @@ def fence_zones(envelope: Envelope) -> list[FenceZone]:
             FenceZone(
                 Zone.circle((home.north_m, home.east_m), envelope.default_radius_m),
                 True,
-                f"its default geofence, a circle of {envelope.default_radius_m:.0f} m around "
-                "its start (its radio's range; declare envelope.geofence to set your own)",
+                f"its default geofence, the circle of {envelope.default_radius_m:.0f} m (its "
+                "radio's range) around its start",
                 None,
             )
         )
@@ -215,8 +215,12 @@ def check_point(
         yield error(
             "E-GEOFENCE-POINT",
             where,
-            f"{label} is {_side(zone, by_m)}, outside {agent.name}'s geofence, where the "
-            "runtime never sends it; move it inside the fence, or change the fence",
+            f"{label} is {_side(zone, by_m)}, where the runtime never sends {agent.name}; "
+            + (
+                "move it inside the fence, or change the fence"
+                if zone.location is not None
+                else "move it closer, or declare a geofence of your own in envelope.geofence"
+            ),
             use_location,
             *(loc for z, _ in beyond for loc in z.notes),
         )
@@ -446,8 +450,8 @@ def _check_start_fence(agent: Agent) -> Iterator[Finding]:
     yield error(
         "E-GEOFENCE-POINT",
         _position_location(agent),
-        f"{agent.name} starts {_side(zone, by_m)}, outside its geofence, so it breaches the "
-        "fence before it moves; start it inside, or change the fence",
+        f"{agent.name} starts {_side(zone, by_m)}, so it breaches its geofence before it "
+        "moves; start it inside, or change the fence",
         *zone.notes,
     )
 

@@ -63,6 +63,7 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
         return
     status = target.telemetry.get("agent_status")
     retarget_hz = float(ctx.params["retarget_hz"])
+    reported = status is not None and status.reaches(me.name)
     if status is None or not status.reaches(me.name):
         why = (
             "sends no agent_status"
@@ -85,7 +86,7 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
             "retarget_hz",
             status.location,
         )
-    yield from _check_envelope(ctx, target)
+    yield from _check_envelope(ctx, target, reported=reported)
     if retarget_hz > ctx.mission.loop_hz:
         yield error(
             "E-RATE",
@@ -102,14 +103,16 @@ def _offset(ctx: UseContext) -> tuple[float, float, float]:
     return north, east, up
 
 
-def _check_envelope(ctx: UseContext, target: Agent) -> Iterator[Finding]:
+def _check_envelope(ctx: UseContext, target: Agent, *, reported: bool) -> Iterator[Finding]:
     """The follower's goal against its envelope and its target's separation.
 
     The goal is the target's height above the origin plus ``offset.up_m``: a rover
     target is at 0 m, an aircraft anywhere between the ground (while it takes off or
     lands) and its ceiling. A goal always over the follower's ceiling or always under
     its floor is an error, and so is an offset that aims inside the pair's separation;
-    what depends on where the target goes is said once, as a warning the dry run judges.
+    what depends on where the target goes is said once, as a warning the dry run judges
+    (not while the target reports no position to the follower, which then goes nowhere:
+    E-FOLLOW-STATUS says so).
     """
     me = ctx.agent
     mine = me.envelope
@@ -203,7 +206,7 @@ def _check_envelope(ctx: UseContext, target: Agent) -> Iterator[Finding]:
                 f"nothing before flight proves it keeps {need:g} m from {target.name} on its "
                 f"way to its goal and while {target.name} moves (it may turn back toward it)"
             )
-    if reasons:
+    if reasons and reported:
         yield warning(
             "W-ENVELOPE-REACTIVE",
             ctx.use_location,
