@@ -490,7 +490,11 @@ def _keeps_flying(state: State, aircraft: bool) -> bool:
 
 
 def _endurance_source(envelope: Envelope) -> str:
-    return "envelope.endurance_s" if "endurance_s" in envelope.sources else "its airframe's"
+    return (
+        "envelope.endurance_s"
+        if "endurance_s" in envelope.sources
+        else "its airframe's endurance_s"
+    )
 
 
 def _check_endurance(agent: Agent) -> Iterator[tuple[Finding, State]]:
@@ -512,7 +516,7 @@ def _check_endurance(agent: Agent) -> Iterator[tuple[Finding, State]]:
                 state.timeout_location or state.location,
                 f"state {state.dotted} may keep {agent.name} going for {state.timeout_s:g} s "
                 f"({state.timeout_s / 60:.0f} min), longer than its endurance of "
-                f"{endurance:g} s ({_endurance_source(envelope)} endurance_s), so its "
+                f"{endurance:g} s ({_endurance_source(envelope)}), so its "
                 f"battery runs out first; shorten timeout_s to under {endurance:g} s and "
                 "land or return home after it",
                 *((source,) if source else ()),
@@ -548,8 +552,8 @@ def _check_duration(mission: Mission, vehicles: list[Agent]) -> Iterator[Finding
             "W-ENDURANCE-DURATION",
             written or behavior_at,
             f"the dry run lasts {duration:g} s ({length}), longer than {agent.name}'s "
-            f"endurance of {envelope.endurance_s:g} s ({_endurance_source(envelope)} "
-            "endurance_s), and no state of its behaviour lands it (land, return_home or "
+            f"endurance of {envelope.endurance_s:g} s ({_endurance_source(envelope)}), and "
+            "no state of its behaviour lands it (land, return_home or "
             "terminate), so the runtime will apply its on_breach action "
             f"({envelope.on_breach}) when its time is up; land it in the behaviour, or "
             "shorten sim.duration_s",
