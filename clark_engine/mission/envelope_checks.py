@@ -140,18 +140,14 @@ def check_point(
     label: str,
     use_location: Location,
     *,
-    guided: bool,
-    horizontal: bool = True,
     orbit_m: float | None = None,
 ) -> Iterator[Finding]:
-    """A fixed target inside its vehicle's envelope, far enough in to be sent as written.
+    """A guided target inside its vehicle's envelope, far enough in to be sent as written.
 
     The ceiling itself, and heights below the origin, are
-    :func:`~clark_engine.mission.primitives._shared.check_ceiling`'s. A rover's
-    heights are ignored. The runtime keeps every target ``margin_m`` inside the
-    envelope, so a target closer to an edge is warned about (the vehicle stops short
-    of it); a fixed-wing aircraft circles its target ``orbit_m`` away, so a target
-    closer to the fence than that plus the margin is an error.
+    :func:`~clark_engine.mission.primitives._shared.check_ceiling`'s; the floor is
+    :func:`check_floor`'s, the margins :func:`check_height_margin`'s, the geofence
+    :func:`check_fence_point`'s.
 
     Args:
         agent: The vehicle.
@@ -159,55 +155,101 @@ def check_point(
         where: Where the target was written.
         label: What it is, as the message names it ("waypoint 2").
         use_location: The ``use:`` of the state (a note).
-        guided: The target is flown in guided flight (the floor holds); False for a
-            takeoff, which climbs through the floor.
-        horizontal: Check it against the geofence too (False for a takeoff height,
-            which is over the vehicle's start).
         orbit_m: The radius a fixed-wing aircraft circles the target at; None for others.
+    """
+    yield from check_floor(agent, point.up_m, where, label, use_location)
+    yield from check_height_margin(agent, point.up_m, where, label, use_location, guided=True)
+    yield from check_fence_point(agent, point, where, label, use_location, orbit_m=orbit_m)
+
+
+def check_floor(
+    agent: Agent, up_m: float, where: Location, label: str, use_location: Location
+) -> Iterator[Finding]:
+    """An aircraft's guided target is not under its floor (a rover's heights are ignored).
+
+    Heights below the origin are left to ``check_ceiling``, which says so.
+    """
+    envelope = agent.envelope
+    if envelope is None or agent.airframe_class == "rover" or not 0 <= up_m < envelope.floor_m:
+        return
+    floor_at = envelope.sources.get("floor_m")
+    yield error(
+        "E-ALTITUDE-FLOOR",
+        where,
+        f"{label} is {up_m:g} m above the origin, under {agent.name}'s floor of "
+        f"{envelope.floor_m:g} m, which holds in guided flight; fly it at least "
+        f"{envelope.floor_m + envelope.margin_m:g} m up (the floor plus envelope.margin_m), "
+        "or lower the floor",
+        use_location,
+        *((floor_at,) if floor_at else ()),
+    )
+
+
+def check_height_margin(
+    agent: Agent,
+    up_m: float,
+    where: Location,
+    label: str,
+    use_location: Location,
+    *,
+    guided: bool,
+) -> Iterator[Finding]:
+    """An aircraft's target height is not within ``margin_m`` of its ceiling (or floor).
+
+    The runtime keeps every target ``margin_m`` inside the envelope, so a height nearer
+    an edge is sent short of where it was written. The floor holds only in guided
+    flight (``guided``); a takeoff climbs through it.
+    """
+    envelope = agent.envelope
+    if envelope is None or agent.airframe_class == "rover":
+        return
+    margin = envelope.margin_m
+    if envelope.ceiling_m - margin < up_m <= envelope.ceiling_m:
+        ceiling_at = envelope.sources.get("ceiling_m")
+        yield warning(
+            "W-ENVELOPE-MARGIN",
+            where,
+            f"{label} is {up_m:g} m above the origin, within envelope.margin_m {margin:g} m "
+            f"of {agent.name}'s ceiling of {envelope.describe_ceiling()}; the runtime "
+            f"sends it at {envelope.ceiling_m - margin:g} m, so the vehicle stops short "
+            f"of it; fly it at most {envelope.ceiling_m - margin:g} m up",
+            use_location,
+            *((ceiling_at,) if ceiling_at else ()),
+        )
+    elif guided and envelope.floor_m <= up_m < envelope.floor_m + margin:
+        floor_at = envelope.sources.get("floor_m")
+        yield warning(
+            "W-ENVELOPE-MARGIN",
+            where,
+            f"{label} is {up_m:g} m above the origin, within envelope.margin_m {margin:g} m "
+            f"of {agent.name}'s floor of {envelope.floor_m:g} m; the runtime sends it at "
+            f"{envelope.floor_m + margin:g} m, so the vehicle stops short of it; fly it at "
+            f"least {envelope.floor_m + margin:g} m up",
+            use_location,
+            *((floor_at,) if floor_at else ()),
+        )
+
+
+def check_fence_point(
+    agent: Agent,
+    point: LocalPoint,
+    where: Location,
+    label: str,
+    use_location: Location,
+    *,
+    orbit_m: float | None = None,
+) -> Iterator[Finding]:
+    """A target inside its vehicle's geofence, and far enough inside to be sent as written.
+
+    Outside a zone is an error naming the zone. The runtime keeps targets ``margin_m``
+    inside, so one nearer the edge is warned about; a fixed-wing aircraft circles its
+    target ``orbit_m`` away, so one nearer the edge than that plus the margin is an
+    error (its circle would cross the fence).
     """
     envelope = agent.envelope
     if envelope is None:
         return
     margin = envelope.margin_m
-    floor_at = envelope.sources.get("floor_m")
-    ceiling_at = envelope.sources.get("ceiling_m")
-    if agent.airframe_class != "rover" and point.up_m >= 0:
-        up = point.up_m
-        if guided and up < envelope.floor_m:
-            yield error(
-                "E-ALTITUDE-FLOOR",
-                where,
-                f"{label} is {up:g} m above the origin, under {agent.name}'s floor of "
-                f"{envelope.floor_m:g} m, which holds in guided flight; fly it at least "
-                f"{envelope.floor_m + margin:g} m up (the floor plus envelope.margin_m), or "
-                "lower the floor",
-                use_location,
-                *((floor_at,) if floor_at else ()),
-            )
-        elif envelope.ceiling_m - margin < up <= envelope.ceiling_m:
-            yield warning(
-                "W-ENVELOPE-MARGIN",
-                where,
-                f"{label} is {up:g} m above the origin, within envelope.margin_m {margin:g} m "
-                f"of {agent.name}'s ceiling of {envelope.describe_ceiling()}; the runtime "
-                f"sends it at {envelope.ceiling_m - margin:g} m, so the vehicle stops short "
-                f"of it; fly it at most {envelope.ceiling_m - margin:g} m up",
-                use_location,
-                *((ceiling_at,) if ceiling_at else ()),
-            )
-        elif guided and envelope.floor_m <= up < envelope.floor_m + margin:
-            yield warning(
-                "W-ENVELOPE-MARGIN",
-                where,
-                f"{label} is {up:g} m above the origin, within envelope.margin_m {margin:g} m "
-                f"of {agent.name}'s floor of {envelope.floor_m:g} m; the runtime sends it at "
-                f"{envelope.floor_m + margin:g} m, so the vehicle stops short of it; fly it at "
-                f"least {envelope.floor_m + margin:g} m up",
-                use_location,
-                *((floor_at,) if floor_at else ()),
-            )
-    if not horizontal:
-        return
     outside = [(z, z.outside_m(point)) for z in fence_zones(envelope)]
     beyond = sorted((item for item in outside if item[1] > 0), key=lambda item: -item[1])
     if beyond:

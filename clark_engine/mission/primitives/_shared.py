@@ -11,8 +11,10 @@ import math
 from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
 
-from clark_engine.mission.envelope_checks import check_leg
-from clark_engine.mission.envelope_checks import check_point as check_point  # re-exported
+from clark_engine.mission.envelope_checks import (
+    check_height_margin as check_height_margin,  # for takeoff, beside the other checks
+)
+from clark_engine.mission.envelope_checks import check_leg, check_point
 from clark_engine.mission.findings import Finding, Location, error, warning
 from clark_engine.mission.geo import LocalPoint, Origin, parse_point, to_global
 from clark_engine.mission.model import Channel
@@ -193,9 +195,7 @@ def check_points(
         where = ctx.locate(f"{param}[{index}]" if indexed else param)
         label = f"waypoint {index}" if indexed else "the waypoint"
         yield from check_ceiling(ctx, point.up_m, where, label)
-        yield from check_point(
-            ctx.agent, point, where, label, ctx.use_location, guided=True, orbit_m=orbit_m
-        )
+        yield from check_point(ctx.agent, point, where, label, ctx.use_location, orbit_m=orbit_m)
         yield from _check_range(ctx, point, where, label)
         problem = off_the_globe(point, mission.origin)
         if problem:

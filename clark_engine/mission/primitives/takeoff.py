@@ -16,8 +16,11 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 from clark_engine.mission.findings import Finding
-from clark_engine.mission.geo import LocalPoint
-from clark_engine.mission.primitives._shared import check_airframe, check_ceiling, check_point
+from clark_engine.mission.primitives._shared import (
+    check_airframe,
+    check_ceiling,
+    check_height_margin,
+)
 from clark_engine.mission.primitives.base import PrimitiveSpec, UseContext, raises_done
 from clark_engine.mission.schema_source.common import number, obj
 
@@ -31,12 +34,9 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
     alt_m = float(ctx.params["alt_m"])
     where = ctx.locate("alt_m")
     yield from check_ceiling(ctx, alt_m, where, "the takeoff altitude")
-    # A climb passes through the floor, so only the ceiling's margin applies; the
-    # takeoff is over the vehicle's start, whose place in the fence is checked there.
-    takeoff = LocalPoint(0.0, 0.0, alt_m)
-    label = "the takeoff altitude"
-    yield from check_point(
-        ctx.agent, takeoff, where, label, ctx.use_location, guided=False, horizontal=False
+    # A climb passes through the floor: only the ceiling's margin applies to a takeoff.
+    yield from check_height_margin(
+        ctx.agent, alt_m, where, "the takeoff altitude", ctx.use_location, guided=False
     )
 
 
