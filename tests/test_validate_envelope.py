@@ -160,7 +160,7 @@ def test_the_default_fence_is_the_radio_range_around_home(tmp_path: Path) -> Non
     )
     finding = m.one("E-GEOFENCE-POINT")
     assert finding.location.line == m.line("far")
-    assert "its default geofence, the circle of 1609 m" in finding.message
+    assert "its default geofence, the 1609 m circle around its start" in finding.message
     assert "declare a geofence of your own" in finding.message
 
 
@@ -776,3 +776,21 @@ def test_a_block_waypoint_outside_the_fence_points_at_the_use(tmp_path: Path) ->
     finding = m.one("E-GEOFENCE-POINT")
     assert (finding.location.file, finding.location.line) == ("mission.yaml", m.line("use"))
     assert any(r.file.endswith("far_point.yaml") for r in finding.related)
+
+
+def test_a_broken_vehicle_named_in_a_separation_is_not_reported_again(tmp_path: Path) -> None:
+    m = Checked(
+        tmp_path,
+        """\
+        envelope:
+          separation: [{between: [slash_a, slash_b], min_m: 1}]
+        agents:
+          slash_a:
+            id: 2
+            profile: traxxas_slash
+            hardware: {radio: {throughput_bps: -5}}  #@broken
+            telemetry: {heartbeat: 1}
+          slash_b: {id: 3, profile: traxxas_slash, position: [10, 0], telemetry: {heartbeat: 1}}
+        """,
+    )
+    assert m.codes == [("E-RANGE", m.line("broken"))]

@@ -393,7 +393,9 @@ def _envelopes(
             )
     vehicles = [a.name for a in mission.agents.values() if a.is_vehicle]
     stations = [a.name for a in mission.stations]
-    return list(envelope.check_decl(mission.envelope, written, vehicles, stations))
+    return list(
+        envelope.check_decl(mission.envelope, written, vehicles, stations, mission.unresolved)
+    )
 
 
 #: Schema errors about one scalar's value (a name's spelling, a number's range): the
