@@ -770,15 +770,11 @@ def _checked_state_paths(kind: str, body: Any) -> list[str]:
     return [path] if kind in ("state", "signal") and isinstance(path, str) else []
 
 
-#: The dry run's length when the mission's sim.duration_s does not say.
-DEFAULT_DURATION_S = 300.0
-
-
 def _check_possible(
     mission: Mission, kind: str, check: Mapping[str, Any], body: Any, where: Location
 ) -> Iterator[Finding]:
     """A check that no dry run of this mission can pass is an error now, not a FAIL later."""
-    duration = float(mission.sim.get("duration_s", DEFAULT_DURATION_S))
+    duration = mission.sim_duration_s
     by_s = check.get("by_s")
     if isinstance(by_s, int | float) and by_s > duration:
         yield error(

@@ -227,6 +227,9 @@ class State:
         return node
 
 
+#: The dry run's length when the mission's ``sim.duration_s`` does not say.
+DEFAULT_SIM_DURATION_S = 300.0
+
 #: Who may arm a vehicle (``launch.armed_by``); the first is the default.
 ARMED_BY = ("pilot", "engine")
 
@@ -377,6 +380,11 @@ class Mission:
     check_locations: list[Location] = field(default_factory=list)
     unresolved: set[str] = field(default_factory=set)
     envelope: EnvelopeDecl | None = None
+
+    @property
+    def sim_duration_s(self) -> float:
+        """How long a dry run of the mission lasts: ``sim.duration_s``, else the default."""
+        return float(self.sim.get("duration_s", DEFAULT_SIM_DURATION_S))
 
     @property
     def stations(self) -> list[Agent]:
