@@ -66,6 +66,8 @@ def fleet_mission(
                 "    launch: {airborne: true}",
                 f"    position: [{north}, {east}, {HANDOVER_HEIGHT_M[platform]}]",
             ]
+        else:  # rovers start on the ground, each on its own spot
+            lines += [f"    position: [{north}, {east}]"]
         if i % 4 == 0:  # anaconda: survey block with photos
             lines += [
                 "    behavior:",
@@ -95,8 +97,9 @@ def fleet_mission(
                 "      initial: idle",
                 "      states:",
                 "        idle: {use: hold, transitions: {activate: chase}}",
-                f"        chase: {{use: follow_agent, with: {{target: {target}, tolerance_m: 6}},"
-                " transitions: {done: parked}}",
+                # 12 m behind it, done within 6 m: never inside the 5 m separation
+                f"        chase: {{use: follow_agent, with: {{target: {target},"
+                " offset: {north_m: -12}, tolerance_m: 6}, transitions: {done: parked}}",
                 "        parked: {use: hold, final: true}",
             ]
         else:  # traxxas_slash: a looping tour

@@ -21,8 +21,8 @@ AGENTS = """\
 agents:
   mcs: {id: 1, profile: mcs_laptop, telemetry: {heartbeat: 1}}
   slash: {id: 2, profile: traxxas_slash, position: [10, 20], telemetry: {heartbeat: 1}}
-  f450: {id: 3, profile: dji_f450, telemetry: {heartbeat: 1}%s}
-  cub: {id: 4, profile: super_cub, telemetry: {heartbeat: 1}}
+  f450: {id: 3, profile: dji_f450, position: [-20, 0], telemetry: {heartbeat: 1}%s}
+  cub: {id: 4, profile: super_cub, position: [-40, 0], telemetry: {heartbeat: 1}}
 """
 
 

@@ -31,6 +31,7 @@ from clark_engine.runtime.commands import (
     SetMode,
 )
 from clark_engine.runtime.config import AgentConfig, config_from_dict
+from clark_engine.runtime.context import offset_position
 from clark_engine.runtime.events import (
     AutopilotHeartbeat,
     AutopilotStatus,
@@ -159,12 +160,13 @@ def test_activation_by_the_station_makes_slash_b_follow(slash_b: AgentRuntime) -
     (goto,) = of(out, Goto)
     assert goto.lat_deg == pytest.approx(30.6380)  # type: ignore[attr-defined]
     assert slash_b.machine is not None and slash_b.machine.active_paths() == ("chase",)
-    # arrive within 6 m of slash_a: done -> parked (hold, final)
+    # arrive within tolerance_m of the goal beside slash_a: done -> parked (hold, final)
+    _, east = offset_position(30.6380, -96.4787, 0.0, -3.5)  # the mission's offset
     t = 0.2
     out = run(
         slash_b,
         t,
-        vehicle(t, lat=30.63799, mode="GUIDED", custom_mode=15),
+        vehicle(t, lat=30.63799, lon=east, mode="GUIDED", custom_mode=15),
         AutopilotHeartbeat("GUIDED", 15, True),
     )
     t = 0.3

@@ -352,8 +352,17 @@ LEAD_M = 2.0 * 2.5  # the leader reports 2 m/s due north; follow_agent leads by 
 
 
 def aimed(config: AgentConfig, north_m: float, east_m: float, alt_m: float = 0.0) -> Goto:
-    """The Goto that follows a leader reported at north/east: led along its velocity."""
-    lat, lon = local(config, north_m + LEAD_M, east_m)
+    """The Goto that follows a leader reported at north/east.
+
+    It is moved by the mission's offset (Slash B aims beside Slash A, never at it) and
+    led along the leader's velocity.
+    """
+    offset = params_of(config, "follow_agent").get("offset") or {}
+    lat, lon = offset_position(
+        *local(config, north_m + LEAD_M, east_m),
+        float(offset.get("north_m", 0.0)),
+        float(offset.get("east_m", 0.0)),
+    )
     return Goto(lat, lon, alt_m, None, 2.0, 0.0)
 
 

@@ -1,7 +1,8 @@
 """Checks that should exist (issue 10, item 12).
 
 Before: a mission without a station had no range check (a waypoint 500 km away passed); a
-continuous follower with no offset drove onto its leader unwarned; checks no run can pass
+continuous follower with no offset drove onto its leader unwarned (now an error:
+tests/test_validate_envelope.py has the envelope's checks); checks no run can pass
 (photos from an agent with no camera, a failsafe on a station, min > max, by_s after the
 run's end) passed ``clark validate`` and failed only in the dry run; and a check whose
 by_s lay past ``--until`` said FAIL rather than "not evaluated".
@@ -33,9 +34,12 @@ agents:
   chase:
     id: 3
     profile: traxxas_slash
+    position: [-10, 0]
     telemetry: {heartbeat: 1, agent_status: 2}
     behavior: {use: follow_agent, with: {target: lead, continuous: true, retarget_hz: 2OFFSET}}
 """
+#: What any follower of a moving leader is warned about: the dry run judges the pair.
+REACTIVE = ("W-ENVELOPE-REACTIVE", 14)
 
 
 def _codes(tmp_path: Path, text: str) -> list[tuple[str, int | None]]:
@@ -50,21 +54,23 @@ def _rovers(target: str = "30", offset: str = ", offset: {north_m: -5}") -> str:
 
 
 def test_range_is_checked_without_a_station(tmp_path: Path) -> None:
-    assert _codes(tmp_path, _rovers("500000")) == [("E-RADIO-RANGE", 8)]
-    assert _codes(tmp_path, _rovers("300")) == []
+    # 500 km is beyond the radio's mile, and so outside the default geofence too.
+    far = [("E-GEOFENCE-POINT", 8), ("E-RADIO-RANGE", 8), REACTIVE]
+    assert _codes(tmp_path, _rovers("500000")) == far
+    assert _codes(tmp_path, _rovers("300")) == [REACTIVE]
 
 
 def test_lone_vehicle_is_measured_from_the_origin(tmp_path: Path) -> None:
     text = HEAD + "\n".join(_rovers("500000").splitlines()[2:8]) + "\n"
-    assert _codes(tmp_path, text) == [("E-RADIO-RANGE", 8)]
+    assert _codes(tmp_path, text) == [("E-GEOFENCE-POINT", 8), ("E-RADIO-RANGE", 8)]
 
 
-def test_continuous_follower_without_offset_is_warned(tmp_path: Path) -> None:
-    assert _codes(tmp_path, _rovers(offset="")) == [("W-FOLLOW-SEPARATION", 13)]
+def test_continuous_follower_without_offset_is_an_error(tmp_path: Path) -> None:
+    assert _codes(tmp_path, _rovers(offset="")) == [("E-FOLLOW-SEPARATION", 14)]
     assert _codes(tmp_path, _rovers(offset=", offset: {east_m: 1}")) == [
-        ("W-FOLLOW-SEPARATION", 13)
+        ("E-FOLLOW-SEPARATION", 14)
     ]
-    assert _codes(tmp_path, _rovers()) == []
+    assert _codes(tmp_path, _rovers()) == [REACTIVE]
 
 
 STATION = """\

@@ -740,10 +740,13 @@ def points_section(schema: Schema) -> list[str]:
         "  - {lat: 30.6390, lon: -96.4780, alt_m: 60}",
         "```",
         "",
-        "Aircraft waypoints must stay under `mission.ceiling_m` and not below the origin "
-        "([[E-ALTITUDE-CEILING]]); every waypoint must be "
-        "within radio range of each station "
-        "([[E-RADIO-RANGE]]).",
+        "Aircraft waypoints must stay under their vehicle's ceiling (`envelope.ceiling_m`) "
+        "and not below the origin ([[E-ALTITUDE-CEILING]]), and over its floor in guided "
+        "flight ([[E-ALTITUDE-FLOOR]]); every waypoint must be inside its vehicle's "
+        "geofence ([[E-GEOFENCE-POINT]]), far enough inside for the runtime to send it as "
+        "written ([[W-ENVELOPE-MARGIN]], [[E-ORBIT-FENCE]]), and within radio range of each "
+        "station ([[E-RADIO-RANGE]]); [safety.md](safety.md#what-clark-validate-proves) "
+        "lists every check of the envelope.",
         "",
     ]
     return lines
@@ -1040,30 +1043,27 @@ def conditions_section(schema: Schema) -> list[str]:
 
 
 def _shared_codes(module: ModuleType, shared: ModuleType) -> set[str]:
-    """Codes a primitive module can emit: its own, and those of the shared checks it uses."""
+    """Codes a primitive module can emit: its own, and those of the shared checks it uses.
+
+    The shared checks are the functions it imports from ``shared``, and every function
+    those call, wherever it is defined (the envelope's checks live in
+    ``clark_engine.mission.envelope_checks``).
+    """
     source = inspect.getsource(module)
     codes = set(_CODE_RE.findall(source))
-    imported: set[str] = set()
+    pending: list[Any] = []
     for node in ast.walk(ast.parse(source)):
         if isinstance(node, ast.ImportFrom) and node.module == shared.__name__:
-            imported.update(alias.name for alias in node.names)
-    seen: set[str] = set()
-    pending = sorted(imported)
+            pending.extend(getattr(shared, alias.name, None) for alias in node.names)
+    seen: set[Any] = set()
     while pending:
-        name = pending.pop()
-        if name in seen:
+        func = pending.pop()
+        if not inspect.isfunction(func) or func in seen:
             continue
-        seen.add(name)
-        func = getattr(shared, name, None)
-        if not inspect.isfunction(func):
-            continue
+        seen.add(func)
         body = inspect.getsource(func)
         codes.update(_CODE_RE.findall(body))
-        pending.extend(
-            n
-            for n in re.findall(r"\b([A-Za-z_]\w*)\(", body)
-            if inspect.isfunction(getattr(shared, n, None))
-        )
+        pending.extend(func.__globals__.get(n) for n in re.findall(r"\b([A-Za-z_]\w*)\(", body))
     return codes
 
 

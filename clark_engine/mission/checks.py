@@ -15,8 +15,10 @@ import re
 from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
 
+from clark_engine.mission import envelope_checks
 from clark_engine.mission.faults import fault_problems
-from clark_engine.mission.findings import Finding, Location, error, warning
+from clark_engine.mission.findings import Finding, Location, error, rehome, warning
+from clark_engine.mission.flow import entry_leaves
 from clark_engine.mission.model import Agent, Mission, State, Transition
 from clark_engine.mission.primitives import PRIMITIVES, UseContext
 from clark_engine.mission.primitives._shared import off_the_globe
@@ -66,6 +68,8 @@ def run_all(mission: Mission, bad_states: set[tuple[str, tuple[str, ...]]]) -> l
             findings.extend(check_states(mission, agent, agent.behavior))
             findings.extend(check_primitives(mission, agent, agent.behavior, bad_states))
             findings.extend(check_takeoff(agent, agent.behavior))
+            findings.extend(check_launch_flight(agent, agent.behavior))
+    findings.extend(envelope_checks.check_mission(mission))
     findings.extend(check_expectations(mission))
     findings.extend(check_operator(mission))
     findings.extend(check_faults(mission))
@@ -404,6 +408,48 @@ def check_takeoff(agent: Agent, root: State) -> Iterator[Finding]:
     )
 
 
+#: How long ArduCopter stays armed on the ground without taking off (DISARM_DELAY's default).
+DISARM_DELAY_S = 10
+
+
+def check_launch_flight(agent: Agent, root: State) -> Iterator[Finding]:
+    """A ground-start multirotor armed by its pilot takes off in its first state.
+
+    ArduCopter disarms a copter that was armed on the ground and has not taken off
+    after DISARM_DELAY (10 s). The safety pilot arms it once it is ready, whatever the
+    behaviour is doing; a first state that waits (for an activation, a timer, a
+    transition) before its takeoff leaves the copter disarmed by the time the takeoff
+    comes, and the takeoff then fails. A behaviour without any takeoff is
+    W-TAKEOFF-MISSING's.
+    """
+    launch = agent.launch
+    if (
+        launch is None
+        or launch.airborne
+        or launch.engine_arms
+        or agent.airframe_class != "multirotor"
+        or not any(state.primitive == "takeoff" for state in root.walk())
+    ):
+        return
+    first = entry_leaves(root)
+    if not first or any(leaf.primitive == "takeoff" or leaf.unresolved for leaf in first):
+        return
+    leaf = first[0]
+    what = leaf.primitive or ("a final state" if leaf.final else "an empty state")
+    default = "" if "armed_by" in dict(launch.key_locations) else ", the default"
+    yield warning(
+        "W-LAUNCH-NO-FLIGHT",
+        launch.locate("armed_by"),
+        f"{agent.name} ({agent.profile}) starts on the ground and its pilot arms it "
+        f"(launch.armed_by: pilot{default}), but its first state {leaf.dotted} ({what}) does "
+        f"not take off: ArduCopter disarms a copter that has not taken off {DISARM_DELAY_S} s "
+        "after it was armed (DISARM_DELAY), so the takeoff that comes later fails; write "
+        "launch: {armed_by: engine}, so that the engine arms it when it takes off, or make "
+        "takeoff its first state",
+        leaf.mission_use or leaf.use_location or leaf.location,
+    )
+
+
 def check_states(mission: Mission, agent: Agent, root: State) -> Iterator[Finding]:
     """Events are known, timeouts have targets, done can happen, states are reachable."""
     targeted = {t.target for s in root.walk() for t in s.transitions if t.target}
@@ -709,22 +755,8 @@ def check_primitives(
 
 
 def _rehome(finding: Finding, state: State, mission: Mission) -> Finding:
-    """Point a finding about a block's own value at the mission's use of the block.
-
-    When the value that does not fit this agent was written in a block file (the
-    block's ``channel: aileron`` on a quadcopter), the place to change is where the
-    mission uses the block; the block line becomes a note.
-    """
-    if finding.location.file == mission.file or state.mission_use is None:
-        return finding
-    related = tuple(r for r in finding.related if r != state.mission_use)
-    return Finding(
-        finding.code,
-        finding.severity,
-        state.mission_use,
-        finding.message,
-        (finding.location, *related),
-    )
+    """Point a finding about a block's own value at the mission's use of the block."""
+    return rehome(finding, mission.file, state.mission_use)
 
 
 def _checked_state_paths(kind: str, body: Any) -> list[str]:
@@ -738,15 +770,11 @@ def _checked_state_paths(kind: str, body: Any) -> list[str]:
     return [path] if kind in ("state", "signal") and isinstance(path, str) else []
 
 
-#: The dry run's length when the mission's sim.duration_s does not say.
-DEFAULT_DURATION_S = 300.0
-
-
 def _check_possible(
     mission: Mission, kind: str, check: Mapping[str, Any], body: Any, where: Location
 ) -> Iterator[Finding]:
     """A check that no dry run of this mission can pass is an error now, not a FAIL later."""
-    duration = float(mission.sim.get("duration_s", DEFAULT_DURATION_S))
+    duration = mission.sim_duration_s
     by_s = check.get("by_s")
     if isinstance(by_s, int | float) and by_s > duration:
         yield error(

@@ -16,7 +16,7 @@ the behaviours do inside the envelope is proved in :mod:`.envelope_checks`.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -281,6 +281,7 @@ def check_decl(
     agent_decls: Mapping[str, EnvelopeDecl],
     vehicles: Sequence[str],
     stations: Sequence[str],
+    unresolved: Collection[str] = (),
 ) -> Iterator[Finding]:
     """What is wrong with the envelope as written, before any behaviour is looked at.
 
@@ -289,6 +290,8 @@ def check_decl(
         agent_decls: Agent -> its ``envelope:``, for the agents that wrote one.
         vehicles: The mission's vehicles.
         stations: The mission's stations.
+        unresolved: Agents declared but too broken to resolve (their own errors say
+            why); a separation naming one is not reported again.
     """
     legal = float(mission_decl.get("legal_ceiling_m", DEFAULT_LEGAL_CEILING_M))
     if legal > DEFAULT_LEGAL_CEILING_M:
@@ -321,7 +324,7 @@ def check_decl(
         yield from _check_zone(zone)
     for (a, b), _min_m, where in mission_decl.separation:
         for other in (a, b):
-            if other not in vehicles:
+            if other not in vehicles and other not in unresolved:
                 known = "a station has no separation" if other in stations else "no such vehicle"
                 yield error(
                     "E-SEPARATION-AGENT",

@@ -85,6 +85,38 @@ class Zone:
                 best, best_m = p, d
         return best
 
+    def first_crossing(self, start: Point2, end: Point2) -> float | None:
+        """Where the segment from ``start`` to ``end`` first crosses the zone's edge, exactly.
+
+        The answer is a fraction 0..1 of the segment's length, or None when it crosses
+        no edge (touching one, or running along it, is not crossing). Exact where
+        :meth:`Fence.leaves_at` samples, so a static check finds a small zone on a long
+        leg: a segment whose ends are both inside a polygon and that crosses an edge
+        leaves it; one whose ends are both outside a zone and that crosses an edge goes
+        through it.
+        """
+        dn, de = end[0] - start[0], end[1] - start[1]
+        if dn * dn + de * de < 1e-18:
+            return None
+        if self.kind == "circle":
+            length2 = dn * dn + de * de
+            fn, fe = start[0] - self.center[0], start[1] - self.center[1]
+            b = 2.0 * (fn * dn + fe * de)
+            c = fn * fn + fe * fe - self.radius_m**2
+            disc = b * b - 4.0 * length2 * c
+            if disc <= 1e-9:
+                return None  # misses the circle, or only touches it
+            root = math.sqrt(disc)
+            hits = [(-b - root) / (2.0 * length2), (-b + root) / (2.0 * length2)]
+            inside = [t for t in hits if 0.0 < t < 1.0]
+            return min(inside) if inside else None
+        best: float | None = None
+        for a, b2 in _edges(self.corners):
+            t = _proper_crossing(start, end, a, b2)
+            if t is not None and (best is None or t < best):
+                best = t
+        return best
+
     def self_crossing(self) -> tuple[int, int] | None:
         """For a polygon, the first pair of edges (by index) that cross; None when none do."""
         if self.kind != "polygon":
@@ -266,6 +298,22 @@ def _segments_cross(a: Point2, b: Point2, c: Point2, d: Point2) -> bool:
         abs(o) < 1e-12 and _segment_distance_m(p, s, e) < 1e-9
         for o, p, s, e in ((o1, c, a, b), (o2, d, a, b), (o3, a, c, d), (o4, b, c, d))
     )
+
+
+def _proper_crossing(p: Point2, q: Point2, a: Point2, b: Point2) -> float | None:
+    """The fraction along p-q at which it crosses segment a-b, strictly inside both; else None."""
+    o1, o2 = _orientation(p, q, a), _orientation(p, q, b)
+    o3, o4 = _orientation(a, b, p), _orientation(a, b, q)
+    span_pq = max(1.0, abs(q[0] - p[0]) + abs(q[1] - p[1]))
+    span_ab = max(1.0, abs(b[0] - a[0]) + abs(b[1] - a[1]))
+    eps = 1e-9 * span_pq * span_ab  # orientations scale with both lengths
+
+    def opposite(u: float, v: float) -> bool:
+        return (u > eps and v < -eps) or (u < -eps and v > eps)
+
+    if opposite(o1, o2) and opposite(o3, o4):
+        return o3 / (o3 - o4)
+    return None
 
 
 def _inward(zone: Zone, edge: Point2, inclusion: bool) -> Point2 | None:

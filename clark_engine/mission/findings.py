@@ -138,3 +138,29 @@ def error(code: str, location: Location, message: str, *related: Location) -> Fi
 def warning(code: str, location: Location, message: str, *related: Location) -> Finding:
     """Make a warning finding."""
     return Finding(code, Severity.WARNING, location, message, _notes(location, related))
+
+
+def rehome(finding: Finding, mission_file: str, mission_use: Location | None) -> Finding:
+    """Point a finding about a block's own value at the mission's use of the block.
+
+    When the value that does not fit this agent was written in a block file (the
+    block's ``channel: aileron`` on a quadcopter, a survey waypoint outside this
+    vehicle's geofence), the place to change is where the mission uses the block;
+    the block line becomes a note.
+
+    Args:
+        finding: The finding, located where the value was written.
+        mission_file: The mission file as findings name it.
+        mission_use: Where the mission's ``use:`` brought the block in; None for
+            states written in the mission itself.
+    """
+    if finding.location.file == mission_file or mission_use is None:
+        return finding
+    related = tuple(r for r in finding.related if r != mission_use)
+    return Finding(
+        finding.code,
+        finding.severity,
+        mission_use,
+        finding.message,
+        (finding.location, *related),
+    )

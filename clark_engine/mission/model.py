@@ -227,6 +227,9 @@ class State:
         return node
 
 
+#: The dry run's length when the mission's ``sim.duration_s`` does not say.
+DEFAULT_SIM_DURATION_S = 300.0
+
 #: Who may arm a vehicle (``launch.armed_by``); the first is the default.
 ARMED_BY = ("pilot", "engine")
 
@@ -346,6 +349,7 @@ class Mission:
         faults: Faults a dry run injects, as written.
         fault_locations: Where each fault was written.
         sim: Dry-run settings (duration, seed, radio loss and latency, GPS noise).
+        sim_locations: Where each dry-run setting was written (``duration_s`` -> location).
         locations: Where each mission setting was written (``loop_hz`` -> location).
         check_locations: Where each dry-run check was written, in order.
         unresolved: Agents declared but too broken to resolve; references to them are
@@ -371,10 +375,16 @@ class Mission:
     faults: list[dict[str, Any]] = field(default_factory=list)
     fault_locations: list[Location] = field(default_factory=list)
     sim: dict[str, Any] = field(default_factory=dict)
+    sim_locations: dict[str, Location] = field(default_factory=dict)
     locations: dict[str, Location] = field(default_factory=dict)
     check_locations: list[Location] = field(default_factory=list)
     unresolved: set[str] = field(default_factory=set)
     envelope: EnvelopeDecl | None = None
+
+    @property
+    def sim_duration_s(self) -> float:
+        """How long a dry run of the mission lasts: ``sim.duration_s``, else the default."""
+        return float(self.sim.get("duration_s", DEFAULT_SIM_DURATION_S))
 
     @property
     def stations(self) -> list[Agent]:

@@ -317,6 +317,7 @@ def _build_mission(
         faults=faults,
         fault_locations=[doc.location(("faults", i)) for i in range(len(faults))],
         sim=dict(sim) if not _dirty(schema_findings, ("sim",)) else {},
+        sim_locations={key: doc.location(("sim", key)) for key in sim},
         locations={key: doc.location(("mission", key)) for key in section},
         checks=checks,
         check_locations=[doc.location(("checks", i)) for i in range(len(checks))],
@@ -392,7 +393,9 @@ def _envelopes(
             )
     vehicles = [a.name for a in mission.agents.values() if a.is_vehicle]
     stations = [a.name for a in mission.stations]
-    return list(envelope.check_decl(mission.envelope, written, vehicles, stations))
+    return list(
+        envelope.check_decl(mission.envelope, written, vehicles, stations, mission.unresolved)
+    )
 
 
 #: Schema errors about one scalar's value (a name's spelling, a number's range): the

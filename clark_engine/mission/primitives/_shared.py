@@ -11,6 +11,10 @@ import math
 from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
 
+from clark_engine.mission.envelope_checks import (
+    check_height_margin as check_height_margin,  # for takeoff, beside the other checks
+)
+from clark_engine.mission.envelope_checks import check_leg, check_point
 from clark_engine.mission.findings import Finding, Location, error, warning
 from clark_engine.mission.geo import LocalPoint, Origin, parse_point, to_global
 from clark_engine.mission.model import Channel
@@ -176,17 +180,44 @@ def check_channel_swing(ctx: UseContext) -> Iterator[Finding]:
 def check_points(
     ctx: UseContext, points: list[Any], param: str, *, indexed: bool
 ) -> Iterator[Finding]:
-    """Every point stays under the ceiling and within radio range of the station(s)."""
+    """Every point stays inside the envelope and within radio range of the station(s).
+
+    Inside the envelope: under the ceiling (:func:`check_ceiling`), over the floor,
+    inside the geofence and far enough inside for the runtime to send it as written
+    (a fixed-wing aircraft's circle round it included): :func:`check_point`.
+    """
     mission = ctx.mission
+    airframe = ctx.agent.hardware.part("airframe") or {}
+    autopilot = ctx.agent.hardware.part("autopilot") or {}
+    orbit_m = orbit_radius_m(airframe, autopilot, ctx.params.get("speed_m_s"))
     for index, raw in enumerate(points):
         point = parse_point(raw, mission.origin)
         where = ctx.locate(f"{param}[{index}]" if indexed else param)
         label = f"waypoint {index}" if indexed else "the waypoint"
         yield from check_ceiling(ctx, point.up_m, where, label)
+        yield from check_point(ctx.agent, point, where, label, ctx.use_location, orbit_m=orbit_m)
         yield from _check_range(ctx, point, where, label)
         problem = off_the_globe(point, mission.origin)
         if problem:
             yield error("E-POSITION", where, f"{label} {problem}", ctx.use_location)
+
+
+def check_tour_legs(ctx: UseContext) -> Iterator[Finding]:
+    """Each leg of a tour, and a looping tour's closing leg, stays inside the geofence."""
+    points = [parse_point(raw, ctx.mission.origin) for raw in ctx.params["waypoints"]]
+    legs = [(i, i + 1) for i in range(len(points) - 1)]
+    if ctx.params.get("loop") and len(points) > 2:
+        legs.append((len(points) - 1, 0))  # with two points it is the first leg, reversed
+    for i, j in legs:
+        yield from check_leg(
+            ctx.agent,
+            points[i],
+            points[j],
+            ctx.locate(f"waypoints[{j}]"),
+            f"the leg from waypoint {i} to waypoint {j}",
+            ctx.locate(f"waypoints[{i}]"),
+            ctx.use_location,
+        )
 
 
 def check_ceiling(ctx: UseContext, up_m: float, where: Location, label: str) -> Iterator[Finding]:

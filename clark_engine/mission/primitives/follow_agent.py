@@ -13,7 +13,15 @@ import math
 from collections.abc import Iterator, Mapping
 from typing import Any
 
+from clark_engine.mission.envelope_checks import (
+    goal_distance_range,
+    possible_heights,
+    separation_m,
+    separation_source,
+    vertically_apart,
+)
 from clark_engine.mission.findings import Finding, error, warning
+from clark_engine.mission.model import Agent
 from clark_engine.mission.primitives._shared import (
     AGENT_NAME_SCHEMA,
     TOLERANCE_SCHEMA,
@@ -55,6 +63,7 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
         return
     status = target.telemetry.get("agent_status")
     retarget_hz = float(ctx.params["retarget_hz"])
+    reported = status is not None and status.reaches(me.name)
     if status is None or not status.reaches(me.name):
         why = (
             "sends no agent_status"
@@ -77,18 +86,7 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
             "retarget_hz",
             status.location,
         )
-    yield from _check_separation(ctx, target_name)
-    offset_up = float((ctx.params.get("offset") or {}).get("up_m", 0.0))
-    is_air = (me.hardware.part("airframe") or {}).get("class") != "rover"
-    envelope = me.envelope
-    if is_air and envelope is not None and offset_up > envelope.ceiling_m:
-        yield error(
-            "E-ALTITUDE-CEILING",
-            ctx.locate("offset"),
-            f"an offset {offset_up:g} m above the target is over {me.name}'s ceiling of "
-            f"{envelope.describe_ceiling()} wherever the target is; lower offset.up_m",
-            ctx.use_location,
-        )
+    yield from _check_envelope(ctx, target, reported=reported)
     if retarget_hz > ctx.mission.loop_hz:
         yield error(
             "E-RATE",
@@ -99,30 +97,124 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
         )
 
 
-#: A continuous follower's offset must keep it at least this far from its leader: it
-#: keeps driving onto the point the offset names, whatever its tolerance_m.
-MIN_FOLLOW_SEPARATION_M = 3.0
-
-
-def _check_separation(ctx: UseContext, target_name: str) -> Iterator[Finding]:
-    """A continuous follower keeps chasing: its offset is all that keeps it off its leader."""
-    if not ctx.params.get("continuous"):
-        return
+def _offset(ctx: UseContext) -> tuple[float, float, float]:
     offset = ctx.params.get("offset") or {}
     north, east, up = (float(offset.get(k, 0.0)) for k in ("north_m", "east_m", "up_m"))
-    rover = (ctx.agent.hardware.part("airframe") or {}).get("class") == "rover"
-    distance = math.hypot(north, east) if rover else math.sqrt(north**2 + east**2 + up**2)
-    if distance >= MIN_FOLLOW_SEPARATION_M:
+    return north, east, up
+
+
+def _check_envelope(ctx: UseContext, target: Agent, *, reported: bool) -> Iterator[Finding]:
+    """The follower's goal against its envelope and its target's separation.
+
+    The goal is the target's height above the origin plus ``offset.up_m``: a rover
+    target is at 0 m, an aircraft anywhere between the ground (while it takes off or
+    lands) and its ceiling. A goal always over the follower's ceiling or always under
+    its floor is an error, and so is an offset that aims inside the pair's separation;
+    what depends on where the target goes is said once, as a warning the dry run judges
+    (not while the target reports no position to the follower, which then goes nowhere:
+    E-FOLLOW-STATUS says so).
+    """
+    me = ctx.agent
+    mine = me.envelope
+    if mine is None or target.envelope is None:
         return
-    need = MIN_FOLLOW_SEPARATION_M
-    yield warning(
-        "W-FOLLOW-SEPARATION",
-        ctx.locate("offset") if "offset" in ctx.params else ctx.use_location,
-        f"{ctx.agent.name!r} follows {target_name!r} without end, aiming {distance:g} m from "
-        f"its reported position, so it drives up to its leader (a dry run closes to under a "
-        f"metre); give an offset of at least {need:g} m, such as offset: {{north_m: -{need:g}}}",
-        ctx.use_location,
-    )
+    north, east, up = _offset(ctx)
+    offset_at = ctx.locate("offset") if "offset" in ctx.params else ctx.use_location
+    low, high = possible_heights(target)
+    on_ground = target.airframe_class == "rover"
+    where_target = "a rover, on the ground" if on_ground else f"at {low:g}..{high:g} m"
+    reasons: list[str] = []
+    if me.airframe_class != "rover":
+        lowest, highest = low + up, high + up
+        if lowest > mine.ceiling_m:
+            yield error(
+                "E-FOLLOW-HEIGHT",
+                offset_at,
+                f"{me.name} aims {up:g} m above {target.name} ({where_target}), so at least "
+                f"{lowest:g} m above the origin, over its ceiling of "
+                f"{mine.describe_ceiling()} wherever {target.name} goes; lower offset.up_m to "
+                f"at most {mine.ceiling_m - mine.margin_m - low:g} m",
+                ctx.use_location,
+            )
+            return
+        if highest < mine.floor_m:
+            yield error(
+                "E-FOLLOW-HEIGHT",
+                offset_at,
+                f"{me.name} aims {up:g} m above {target.name} ({where_target}), so at most "
+                f"{highest:g} m above the origin, under its floor of {mine.floor_m:g} m "
+                f"wherever {target.name} goes; raise offset.up_m to at least "
+                f"{mine.floor_m + mine.margin_m - high:g} m",
+                ctx.use_location,
+            )
+            return
+        if highest > mine.ceiling_m:
+            reasons.append(
+                f"its goal, {up:g} m above {target.name}, is over its ceiling of "
+                f"{mine.ceiling_m:g} m whenever {target.name} flies above "
+                f"{mine.ceiling_m - up:g} m (the runtime then holds it under the ceiling)"
+            )
+        if lowest < mine.floor_m:
+            reasons.append(
+                f"its goal, {up:g} m above {target.name}, is under its floor of "
+                f"{mine.floor_m:g} m whenever {target.name} is below {mine.floor_m - up:g} m "
+                "(the runtime then holds it over the floor)"
+            )
+    need = separation_m(me, target)
+    if need is not None:
+        near, far = goal_distance_range(me, target, (north, east, up))
+        # What the offset aims at as written: 3-D for an aircraft, on the ground between
+        # rovers; a rover under an aircraft is as far from it as the aircraft's height.
+        if me.airframe_class != "rover":
+            aimed = math.sqrt(north**2 + east**2 + up**2)
+        else:
+            aimed = math.hypot(north, east) if target.airframe_class == "rover" else far
+        tolerance = float(ctx.params.get("tolerance_m", 5.0))
+        source = separation_source(me, target)
+        if aimed < need:
+            yield error(
+                "E-FOLLOW-SEPARATION",
+                offset_at,
+                f"{me.name} aims {aimed:.1f} m from {target.name}, inside the {need:g} m the "
+                f"pair keeps apart ({source}), so it drives up to its leader; give an offset "
+                f"of at least {need:g} m (such as offset: {{north_m: -{need:g}}}), or, if the "
+                "two are meant to meet, lower the pair's separation in envelope.separation",
+                ctx.use_location,
+            )
+            return
+        if near < need:
+            reasons.append(
+                f"its goal comes within {near:.1f} m of {target.name} when the runtime holds "
+                f"it inside {me.name}'s envelope, inside the {need:g} m the pair keeps apart"
+                if me.airframe_class != "rover"
+                else f"its goal comes within {near:.1f} m of {target.name} when "
+                f"{target.name} flies low, inside the {need:g} m the pair keeps apart"
+            )
+        elif not ctx.params.get("continuous") and aimed - tolerance < need:
+            yield warning(
+                "W-FOLLOW-SEPARATION",
+                ctx.locate("tolerance_m"),
+                f"{me.name} is done anywhere within tolerance_m {tolerance:g} m of its goal, "
+                f"{aimed:.1f} m from {target.name}, so it may stop "
+                f"{max(aimed - tolerance, 0):.1f} m from it, inside the {need:g} m the pair "
+                f"keeps apart ({source}); lower tolerance_m to at most {aimed - need:.1f} m or "
+                "widen the offset",
+                ctx.use_location,
+            )
+        elif not vertically_apart(me, target, need):
+            reasons.append(
+                f"nothing before flight proves it keeps {need:g} m from {target.name} on its "
+                f"way to its goal and while {target.name} moves (it may turn back toward it)"
+            )
+    if reasons and reported:
+        yield warning(
+            "W-ENVELOPE-REACTIVE",
+            ctx.use_location,
+            f"{me.name} follows {target.name}, so where it goes depends on where "
+            f"{target.name} goes: {'; and '.join(reasons)}; the runtime holds the envelope in "
+            "flight and the dry run judges it (read its altitude and closest-approach "
+            "figures)",
+        )
 
 
 SPEC = PrimitiveSpec(

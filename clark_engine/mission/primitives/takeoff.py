@@ -16,7 +16,11 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 from clark_engine.mission.findings import Finding
-from clark_engine.mission.primitives._shared import check_airframe, check_ceiling
+from clark_engine.mission.primitives._shared import (
+    check_airframe,
+    check_ceiling,
+    check_height_margin,
+)
 from clark_engine.mission.primitives.base import PrimitiveSpec, UseContext, raises_done
 from clark_engine.mission.schema_source.common import number, obj
 
@@ -28,7 +32,12 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
         {"rover": "a rover never leaves the ground; drive it with waypoint or waypoint_tour"},
     )
     alt_m = float(ctx.params["alt_m"])
-    yield from check_ceiling(ctx, alt_m, ctx.locate("alt_m"), "the takeoff altitude")
+    where = ctx.locate("alt_m")
+    yield from check_ceiling(ctx, alt_m, where, "the takeoff altitude")
+    # A climb passes through the floor: only the ceiling's margin applies to a takeoff.
+    yield from check_height_margin(
+        ctx.agent, alt_m, where, "the takeoff altitude", ctx.use_location, guided=False
+    )
 
 
 SPEC = PrimitiveSpec(

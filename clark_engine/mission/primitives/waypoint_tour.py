@@ -18,6 +18,7 @@ from clark_engine.mission.primitives._shared import (
     check_orbit_tolerance,
     check_points,
     check_speed,
+    check_tour_legs,
 )
 from clark_engine.mission.primitives.base import PrimitiveSpec, UseContext
 from clark_engine.mission.schema_source.common import array, boolean, obj
@@ -29,6 +30,7 @@ def _events(params: Mapping[str, Any]) -> frozenset[str]:
 
 def _check(ctx: UseContext) -> Iterator[Finding]:
     yield from check_points(ctx, list(ctx.params["waypoints"]), "waypoints", indexed=True)
+    yield from check_tour_legs(ctx)
     yield from check_speed(ctx)
     yield from check_orbit_tolerance(ctx)
 
