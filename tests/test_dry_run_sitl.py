@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from passing_follow import passing_follow
 
 from clark_engine.sim.recording import Recording, StateEntry
 from clark_engine.sim.sitl import ENV_SITL, SitlInstall, SitlNotFound
@@ -148,6 +149,14 @@ SPEEDUP = os.environ.get("CLARK_SITL_SPEEDUP_TESTS", "10")
 busy 2-core machine)."""
 
 
+def comparison_row(stdout: str) -> str:
+    """The checks table's last row: the SITL comparison (the safety tables follow it)."""
+    checks = stdout.split("\nSafety (judged in every run):", 1)[0]
+    last = checks.strip().splitlines()[-1]
+    assert last.startswith("| the same mission on ArduPilot SITL |"), stdout
+    return last
+
+
 def on_sitl(mission: Path, tmp_path: Path, *args: str) -> subprocess.CompletedProcess[str]:
     assert REAL is not None
     return clark(
@@ -177,11 +186,12 @@ def on_sitl(mission: Path, tmp_path: Path, *args: str) -> subprocess.CompletedPr
 def test_the_example_flies_on_sitl_as_on_the_simulated_autopilot(
     mission: str, tmp_path: Path
 ) -> None:
-    run = on_sitl(MISSIONS / mission, tmp_path)
+    path = passing_follow(tmp_path) if mission == "cooperative_follow.yaml" else MISSIONS / mission
+    run = on_sitl(path, tmp_path)
     assert run.returncode == 0, run.stdout + run.stderr
-    last = run.stdout.strip().splitlines()[-1]
-    assert last.startswith("| the same mission on ArduPilot SITL |"), run.stdout
+    last = comparison_row(run.stdout)
     assert last.endswith("| pass |")
+    assert "Safety (judged in every run):" in run.stdout
     assert "on ArduPilot SITL at" in run.stderr
     summary = (tmp_path / "report" / "summary.md").read_text(encoding="utf-8")
     assert "## ArduPilot SITL against the simulated autopilot" in summary
@@ -208,8 +218,7 @@ def test_a_simulation_kinder_than_sitl_fails_the_comparison(tmp_path: Path) -> N
     run = on_sitl(quick, tmp_path, "--until", "50")
     assert run.returncode == 1
     assert "sim.autopilot_ready_s (2 s) speeds up the simulated autopilot only" in run.stderr
-    last = run.stdout.strip().splitlines()[-1]
-    assert last.startswith("| the same mission on ArduPilot SITL |")
+    last = comparison_row(run.stdout)
     assert last.endswith("| **FAIL** |")
     assert "each within 30 s" in last
     assert "slash ready +" in last
