@@ -497,8 +497,8 @@ def _ends_at(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Chec
     if here is None:
         return CheckResult(label, expected, "no position recorded", False)
     d = _gap_m(here, point, three_d)
-    place = _point_text((here[0], here[1], here[2]), three_d)
-    observed = f"{d:.1f} m away, at ({place[1:-1]})"
+    place = ", ".join(f"{v:.1f}" for v in (here if three_d else here[:2]))
+    observed = f"{d:.1f} m away, at ({place})"
     return CheckResult(label, expected, observed, d <= within + 1e-9)
 
 
