@@ -395,13 +395,15 @@ class _Watch:
 
         A margin is a distance to the fence's edges, so it changes by at most the
         distance moved: while the vehicle stays closer to the last point computed
-        than that point's margin exceeds the smallest so far, it cannot be smaller.
+        than that point's margin exceeds the smallest so far, it cannot be smaller
+        (and a margin equal to the smallest is not a new one: the first is kept, so a
+        vehicle standing still at its smallest margin is not measured again).
         """
         best = self.fence
         last = self._fence_at
         if best is not None and last is not None:
             moved = math.hypot(north - last[0], east - last[1])
-            if last[2] - moved > best.value:
+            if last[2] - moved >= best.value:
                 return
         envelope = self.config.envelope
         assert envelope is not None
@@ -468,19 +470,33 @@ def judge(recording: Recording, configs: Mapping[str, AgentConfig]) -> SafetyJud
         )
     pair_index = [(i, j) for i in range(len(names)) for j in range(i + 1, len(names))]
     limits = [_pair_limit(configs[names[i]], configs[names[j]]) for i, j in pair_index]
-    closest: list[tuple[float, float, Position, Position] | None] = [None] * len(pair_index)
+    # Each pair's closest so far: distance, time, both positions (the hot loop: flat lists).
+    best_m = [math.inf] * len(pair_index)
+    best_s = [0.0] * len(pair_index)
+    best_at: list[tuple[Position, Position] | None] = [None] * len(pair_index)
+    dist = math.dist
     for row in _rows(recording, names):
+        here: list[Position | None] = []
+        armed: list[bool] = []
+        t_s = 0.0
         for watch, sample in zip(watches, row, strict=True):
-            if sample is not None:
-                watch.see(*sample)
-        for k, (i, j) in enumerate(pair_index):
-            a, b = row[i], row[j]
-            if a is None or b is None or not (watches[i].armed or watches[j].armed):
+            if sample is None:
+                here.append(None)
+                armed.append(False)
                 continue
-            d = math.dist(a[1:], b[1:])
-            best = closest[k]
-            if best is None or d < best[0]:
-                closest[k] = (d, a[0], (a[1], a[2], a[3]), (b[1], b[2], b[3]))
+            t_s, north, east, up = sample
+            watch.see(t_s, north, east, up)
+            here.append((north, east, up))
+            armed.append(watch.armed)
+        for k, (i, j) in enumerate(pair_index):
+            if not (armed[i] or armed[j]):
+                continue
+            a, b = here[i], here[j]
+            if a is None or b is None:
+                continue
+            d = dist(a, b)
+            if d < best_m[k]:
+                best_m[k], best_s[k], best_at[k] = d, t_s, (a, b)
     vehicles = []
     for watch in watches:
         envelope = watch.config.envelope
@@ -501,9 +517,10 @@ def judge(recording: Recording, configs: Mapping[str, AgentConfig]) -> SafetyJud
             )
         )
     pairs = []
-    for (i, j), limit, best in zip(pair_index, limits, closest, strict=True):
-        if best is None:
+    for k, ((i, j), limit) in enumerate(zip(pair_index, limits, strict=True)):
+        at = best_at[k]
+        if at is None:
             pairs.append(PairSafety(names[i], names[j], limit))
         else:
-            pairs.append(PairSafety(names[i], names[j], limit, best[0], best[1], best[2], best[3]))
+            pairs.append(PairSafety(names[i], names[j], limit, best_m[k], best_s[k], *at))
     return SafetyJudgement(tuple(vehicles), tuple(pairs))
