@@ -39,6 +39,9 @@ How (each agent's four files, named by its compiled config: ``<agent>.mission.lo
   (entered again when it was active: a transition to itself, to an ancestor or to an
   active descendant), and every state active afterwards that was not before.
   ``failed`` enters nothing.
+- **Why a state was not reached**: the last ``launch: the behaviour waits for ...``
+  line of ``launch.update`` (mission log) before the behaviour started, for an agent
+  whose behaviour never did; the ``state`` and ``sequence`` checks quote it.
 - **Safety events**, as the dry run records them: the first ``failsafe ACTION`` line
   of ``runtime._apply_failsafe`` (mission log; ``continue`` is no failsafe) and the
   first ``autopilot silent ...: lost`` line (interface log).
@@ -51,7 +54,8 @@ How (each agent's four files, named by its compiled config: ``<agent>.mission.lo
 - **Control signals** (the ``signal`` check) are not in the logs: that check is
   reported ``not evaluated``. So is any check whose data the folder lacks (an
   agent's log missing, a log level that hides the lines, a vehicle never seen):
-  no check passes on missing data.
+  no check passes on missing data. ``altitude_m`` and ``ends_at`` read the tracks
+  (the altitude is Agent Status's ``alt_m``, above the origin), as ``reached`` does.
 - ``end_s`` is the latest mission time in any of the logs.
 
 A row or line that cannot be read is a warning with its file and line, and is
@@ -100,6 +104,8 @@ _CHANGE: Final = re.compile(
 _FAILSAFE: Final = re.compile(r"failsafe (?P<action>\S+)")
 _AUTOPILOT_LOST: Final = re.compile(r"autopilot silent for \S+ s: lost\b")
 _NO_POSITION_PICTURE: Final = re.compile(r".*: picture \d+ \(.*\) taken before any position\b")
+_LAUNCH_WAITS: Final = "launch: the behaviour waits for "
+_LAUNCH_STARTS: Final = re.compile(r"launch: the autopilot is ready; .*; the behaviour starts")
 _HEADER: Final = "logbook opened: "
 _LEVELS: Final = {"DEBUG": 10, "INFO": 20, "WARNING": 30, "ERROR": 40, "CRITICAL": 50}
 _PICTURE_DATA: Final = "picture_data"
@@ -153,6 +159,8 @@ class AgentLogs:
         failsafe: (t, action) of its first failsafe, if any.
         autopilot_lost_s: When it first lost its autopilot, if it did.
         pictures_s: When it sent Picture Data or logged a picture without position.
+        waiting: What its launch gate last said it waited for, until the behaviour
+            started (None then, or without such a line).
         latest_s: Its latest time in any of its logs.
     """
 
@@ -167,6 +175,7 @@ class AgentLogs:
     failsafe: tuple[float, str] | None = None
     autopilot_lost_s: float | None = None
     pictures_s: list[float] = field(default_factory=list)
+    waiting: str | None = None
     latest_s: float | None = None
 
     def seen(self, t_s: float) -> None:
@@ -347,6 +356,11 @@ def read_mission_log(path: Path, logs: AgentLogs, problems: list[Problem]) -> No
                 logs.failsafe = (line.t_s, found["action"])
         elif line.where.startswith("photo_trigger.") and _NO_POSITION_PICTURE.match(message):
             logs.pictures_s.append(line.t_s)
+        elif line.where == "launch.update":
+            if message.startswith(_LAUNCH_WAITS):
+                logs.waiting = printable(message.removeprefix(_LAUNCH_WAITS), 400)
+            elif _LAUNCH_STARTS.fullmatch(message):
+                logs.waiting = None
 
 
 def read_interface_log(path: Path, logs: AgentLogs, problems: list[Problem]) -> None:
@@ -857,6 +871,8 @@ def rebuild(
             events.append((logs.autopilot_lost_s + shift, "autopilot_lost"))
         if events:
             recording.safety[name] = sorted(events, key=lambda e: e[0])
+        if logs.waiting is not None and not recording.states[name]:
+            recording.waiting[name] = (logs.waiting,)
         if logs.pictures_s:
             track = recording.tracks.get(name)
             recording.photos[name] = [
@@ -913,7 +929,7 @@ def unsupported(check: Mapping[str, Any], run: LogRun) -> str | None:
     body = check[kind]
     if kind == "signal":
         return NO_SIGNALS
-    if kind in ("distance_m", "reached"):
+    if kind in ("distance_m", "reached", "altitude_m", "ends_at"):
         names = [str(n) for n in body["between"]] if kind == "distance_m" else [str(body["agent"])]
         why = next((w for n in names if (w := _needs_position(run, n)) is not None), None)
         by_s = float(check.get("by_s", run.recording.end_s))

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from passing_follow import passing_follow
 
 from clark_engine.errors import UsageError
 from clark_engine.sim.dryrun import parse_fault, run_dry_run
@@ -20,6 +21,11 @@ from clark_engine.sim.dryrun import parse_fault, run_dry_run
 ROOT = Path(__file__).resolve().parent.parent
 MISSIONS = sorted((ROOT / "missions").glob("*.yaml"))
 FOLLOW = ROOT / "missions" / "cooperative_follow.yaml"
+#: Examples that fail the dry run's safety judgement, and why (the mission change is pending).
+BREACHING = {
+    "cooperative_follow": "Slash B parks within about 1 m of Slash A, under the default 5 m "
+    "separation between vehicles",
+}
 
 
 def dry_run(path: Path, **kwargs: object) -> tuple[int, str, str]:
@@ -31,13 +37,38 @@ def dry_run(path: Path, **kwargs: object) -> tuple[int, str, str]:
     return outcome.exit_code, out.getvalue(), err.getvalue()
 
 
-@pytest.mark.parametrize("path", MISSIONS, ids=[p.stem for p in MISSIONS])
-def test_every_example_passes_its_checks(path: Path) -> None:
+def checks_part(table: str) -> str:
+    """The checks table of a dry run's output (the safety tables follow it)."""
+    return table.split("\nSafety (judged in every run):", 1)[0]
+
+
+@pytest.mark.parametrize(
+    "path",
+    [
+        pytest.param(p, marks=pytest.mark.xfail(reason=BREACHING[p.stem], strict=True))
+        if p.stem in BREACHING
+        else p
+        for p in MISSIONS
+    ],
+    ids=[p.stem for p in MISSIONS],
+)
+def test_every_example_passes_its_checks_and_stays_in_its_envelope(path: Path) -> None:
     code, table, err = dry_run(path)
-    assert code == 0, table + err
-    assert "| pass |" in table and "FAIL" not in table
-    rows = [line for line in table.splitlines() if line.startswith("| ") and "---" not in line]
+    checks = checks_part(table)
+    assert "| pass |" in checks and "FAIL" not in checks, table + err
+    rows = [line for line in checks.splitlines() if line.startswith("| ") and "---" not in line]
     assert len(rows) >= 3, "an example checks what it demonstrates"
+    assert "Safety (judged in every run):" in table
+    assert code == 0, table + err  # no breach either
+
+
+def test_the_breaching_example_fails_on_safety_alone() -> None:
+    """cooperative_follow passes every check it declares, and still fails: its near miss."""
+    code, table, err = dry_run(FOLLOW)
+    assert code == 1
+    assert "FAIL" not in checks_part(table)
+    assert "safety: 1 breach; the run fails:" in err
+    assert "slash_a and slash_b came within" in err and "under their 5 m separation" in err
 
 
 def test_examples_cover_the_faults() -> None:
@@ -69,7 +100,7 @@ def test_same_seed_gives_byte_identical_logs(tmp_path: Path) -> None:
 
 def test_report_has_summary_plots_and_logs(tmp_path: Path) -> None:
     folder = tmp_path / "report"
-    code, _, err = dry_run(FOLLOW, report=folder)
+    code, _, err = dry_run(passing_follow(tmp_path), report=folder)
     assert code == 0
     assert f"report: {folder / 'summary.md'}" in err
     for name in ("summary.md", "tracks.png", "timeline.png"):
@@ -77,6 +108,9 @@ def test_report_has_summary_plots_and_logs(tmp_path: Path) -> None:
     assert (folder / "tracks.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     summary = (folder / "summary.md").read_text()
     assert "Slash B reaches Slash A" in summary and "pass" in summary
+    assert "## Safety" in summary and "No breach." in summary
+    # Only aircraft make the altitude plot worth drawing: two rovers have none.
+    assert not (folder / "altitude.png").exists()
     # Slash A's behaviour is one block: its state is the root, named rather than blank.
     assert "| slash_a | start | (the whole behaviour) |" in summary
     assert "| slash_b | activate | chase |" in summary
@@ -199,7 +233,7 @@ def cli(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 def test_cli_exit_codes_and_no_tracebacks(tmp_path: Path) -> None:
-    good = cli(str(FOLLOW), "--until", "130")
+    good = cli(str(passing_follow(tmp_path)), "--until", "130")
     assert good.returncode == 0, good.stderr
     bad_fault = cli(str(FOLLOW), "--fault", "kill:nobody@3")
     assert bad_fault.returncode == 2

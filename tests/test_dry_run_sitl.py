@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from passing_follow import passing_follow
 
 from clark_engine.sim.recording import Recording, StateEntry
 from clark_engine.sim.sitl import ENV_SITL, SitlInstall, SitlNotFound
@@ -148,6 +149,14 @@ SPEEDUP = os.environ.get("CLARK_SITL_SPEEDUP_TESTS", "10")
 busy 2-core machine)."""
 
 
+def comparison_row(stdout: str) -> str:
+    """The checks table's last row: the SITL comparison (the safety tables follow it)."""
+    checks = stdout.split("\nSafety (judged in every run):", 1)[0]
+    last = checks.strip().splitlines()[-1]
+    assert last.startswith("| the same mission on ArduPilot SITL |"), stdout
+    return last
+
+
 def on_sitl(mission: Path, tmp_path: Path, *args: str) -> subprocess.CompletedProcess[str]:
     assert REAL is not None
     return clark(
@@ -177,17 +186,38 @@ def on_sitl(mission: Path, tmp_path: Path, *args: str) -> subprocess.CompletedPr
 def test_the_example_flies_on_sitl_as_on_the_simulated_autopilot(
     mission: str, tmp_path: Path
 ) -> None:
-    run = on_sitl(MISSIONS / mission, tmp_path)
+    path = passing_follow(tmp_path) if mission == "cooperative_follow.yaml" else MISSIONS / mission
+    run = on_sitl(path, tmp_path)
     assert run.returncode == 0, run.stdout + run.stderr
-    last = run.stdout.strip().splitlines()[-1]
-    assert last.startswith("| the same mission on ArduPilot SITL |"), run.stdout
+    last = comparison_row(run.stdout)
     assert last.endswith("| pass |")
+    assert "Safety (judged in every run):" in run.stdout
     assert "on ArduPilot SITL at" in run.stderr
     summary = (tmp_path / "report" / "summary.md").read_text(encoding="utf-8")
     assert "## ArduPilot SITL against the simulated autopilot" in summary
     # the engine's logs name the real firmware: this was not the simulated autopilot
     logs = (tmp_path / "report" / "logs").glob("*.interface.log")
     assert any("answers: ArduPilot 4." in log.read_text(encoding="utf-8") for log in logs)
+
+
+@pytest.mark.sitl
+@needs_sitl
+def test_a_copter_its_pilot_arms_takes_off_on_sitl(tmp_path: Path) -> None:
+    """Issue 17 item 7 on real ArduCopter: the pilot arms at the ready light, it takes off.
+
+    Armed on a streamed GPS position (about 25 s), ArduCopter disarmed it at 35 s, before
+    the engine's behaviour could start; the run said so and failed.
+    """
+    mission = ROOT / "tests" / "dryrun" / "copter_pilot_takeoff.yaml"
+    run = on_sitl(mission, tmp_path)
+    assert run.returncode == 0, run.stdout + run.stderr
+    row = next(line for line in run.stdout.splitlines() if line.startswith("| takes off |"))
+    assert "| entered at " in row and row.endswith("| pass |")
+    assert comparison_row(run.stdout).endswith("| pass |")
+    # Its arming comes from ArduCopter's own HEARTBEAT: the judgement counts it armed.
+    f450 = next(line for line in run.stdout.splitlines() if line.startswith("| f450 |"))
+    armed_s = float(f450.split(" | ")[4].split(" s ")[0])
+    assert 30.0 < armed_s < 60.0, f450
 
 
 @pytest.mark.sitl
@@ -208,8 +238,7 @@ def test_a_simulation_kinder_than_sitl_fails_the_comparison(tmp_path: Path) -> N
     run = on_sitl(quick, tmp_path, "--until", "50")
     assert run.returncode == 1
     assert "sim.autopilot_ready_s (2 s) speeds up the simulated autopilot only" in run.stderr
-    last = run.stdout.strip().splitlines()[-1]
-    assert last.startswith("| the same mission on ArduPilot SITL |")
+    last = comparison_row(run.stdout)
     assert last.endswith("| **FAIL** |")
     assert "each within 30 s" in last
     assert "slash ready +" in last

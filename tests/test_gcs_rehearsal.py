@@ -232,9 +232,14 @@ def test_the_page_watches_and_commands_the_rehearsal(rehearsal: Rehearsal, tmp_p
     assert "stopped at" in last["err"] and "(Ctrl-C)" in last["err"]
     assert (tmp_path / "report" / "summary.md").exists()
     # The checks table and the page's last checks agree, row by row.
-    rows = [line.split(" | ") for line in last["out"].splitlines() if line.startswith("| ")][1:]
+    checks_out = last["out"].split("\nSafety (judged in every run):", 1)[0]
+    rows = [line.split(" | ") for line in checks_out.splitlines() if line.startswith("| ")][1:]
     table = {row[0].lstrip("| "): row[-1].rstrip(" |") for row in rows if "---" not in row[0]}
     page = {c["name"]: c["status"] for c in last["final"]["checks"]}
+    # The run's safety judgement comes last, a row per vehicle and per pair.
+    safety = [name for name in page if name.startswith("safety: ")]
+    assert safety == ["safety: slash_a", "safety: slash_b", "safety: slash_a - slash_b"]
+    page = {name: status for name, status in page.items() if name not in safety}
     words = {"pass": PASSED, "FAIL": "failed", "not evaluated": NOT_EVALUATED}
     assert page == {name: words[verdict] for name, verdict in table.items()}
     assert page["no failsafe"] == PASSED

@@ -67,9 +67,10 @@ def dry_run(path: Path) -> int:
     outcome = run_dry_run(path, seed=None, until_s=None, report=report, speed=None, err=sys.stdout)
     print()
     if outcome.exit_code != 0:
-        print("The dry run's checks failed; see the table above.")
+        print("The dry run failed (a check, or its safety judgement); see the tables above.")
         return outcome.exit_code
-    print(f"All checks passed. Open {(report / 'summary.md').resolve()}")
+    summary = (report / "summary.md").resolve()
+    print(f"All checks passed, no vehicle left its envelope. Open {summary}")
     print("Try: .venv/bin/clark dry-run missions/fault_station_loss.yaml --report out/")
     print("     .venv/bin/clark explain missions/supercub_sysid.yaml --agent cub")
     return 0

@@ -793,9 +793,23 @@ def _check_possible(
             f"min {low:g} is above max {high:g}, so no run can pass this {kind} check; "
             "swap them or correct one",
         )
+    if kind == "altitude_m" and low is None and high is None:
+        yield error(
+            "E-CHECK-SHAPE",
+            where,
+            "an altitude_m check bounds the altitude: give min, max or both (metres above "
+            "the origin)",
+        )
     agent = mission.agents.get(str(body.get("agent")))
     if agent is None:
         return
+    if kind in ("altitude_m", "ends_at", "reached") and not agent.is_vehicle:
+        yield error(
+            "E-CHECK-IMPOSSIBLE",
+            where,
+            f"{agent.name} is a station: the dry run records no track of it, so this {kind} "
+            "check always fails; check a vehicle",
+        )
     if kind == "failsafe" and not agent.is_vehicle:
         yield error(
             "E-CHECK-IMPOSSIBLE",
@@ -836,7 +850,8 @@ def check_expectations(mission: Mission) -> Iterator[Finding]:
                 "E-CHECK-SHAPE",
                 where,
                 "each check states exactly one expectation (distance_m, reached, separation_m, "
-                f"state, sequence, photos, no_failsafe, failsafe or signal); this one has "
+                "altitude_m, ends_at, state, sequence, photos, no_failsafe, failsafe or "
+                f"signal); this one has "
                 f"{len(kinds) or 'none'}",
             )
             continue

@@ -50,6 +50,14 @@ class VehicleBackend(ABC):
         """Where the vehicle truly is now (the simulator's, not the autopilot's estimate)."""
 
     @abstractmethod
+    def flight_status(self) -> tuple[bool, str]:
+        """(armed, flight mode's name) as the autopilot has them now, for the recording.
+
+        The autopilot's own state, not what the engine heard: the safety judgement
+        reads it for a vehicle whose mission computer died too.
+        """
+
+    @abstractmethod
     def rc_inputs(self) -> tuple[int, ...]:
         """RC input pulse widths the autopilot sees now, channel 1 first (0: none)."""
 
@@ -97,6 +105,10 @@ class SimulatedBackend(VehicleBackend):
     def truth(self) -> Truth:
         """The model's true state."""
         return self.model.truth()
+
+    def flight_status(self) -> tuple[bool, str]:
+        """The model's arming and flight mode."""
+        return self.model.armed, self.model.mode
 
     def rc_inputs(self) -> tuple[int, ...]:
         """The model's RC inputs (the pilot's, or an override)."""

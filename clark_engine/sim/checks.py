@@ -3,6 +3,17 @@
 Each check states one expectation (see the mission schema); the result says
 what was expected, what was observed, and whether it held, for the table the
 dry run prints and writes into its report.
+
+Distances are 3-D where a check is about an aircraft (any airframe but a rover):
+``distance_m`` and ``separation_m`` when either vehicle of a pair is one, ``reached``
+and ``ends_at`` when the agent is one (a point written without a height is on the
+ground). Between rovers, and from a rover to a point, they are ground distances: a
+rover's altitude is the ground's, and its GPS height noise says nothing.
+
+A ``state`` or ``sequence`` check that fails says why the state was not reached when
+the recording knows (:func:`why_not_entered`): the behaviour never started and what
+its launch still waited for, the autopilot disarmed the vehicle, a failsafe stopped
+the behaviour, a fault killed the mission computer.
 """
 
 from __future__ import annotations
@@ -15,7 +26,7 @@ from typing import Any
 
 from clark_engine.mission.geo import Origin, parse_point
 from clark_engine.runtime.config import AgentConfig, StateSpec
-from clark_engine.sim.recording import Recording, distance_m
+from clark_engine.sim.recording import Recording
 
 
 @dataclass(frozen=True, slots=True)
@@ -36,6 +47,19 @@ class CheckResult:
         if not self.evaluated:
             return "not evaluated"
         return "pass" if self.passed else "FAIL"
+
+
+def _aircraft(run: Run, name: str) -> bool:
+    """True when ``name`` is a vehicle that flies (distances to it are 3-D)."""
+    config = run.configs.get(name)
+    return config is not None and config.is_aircraft
+
+
+def _gap_m(a: tuple[float, float, float], b: tuple[float, float, float], three_d: bool) -> float:
+    """Distance between two local points: 3-D, or on the ground (north and east only)."""
+    if three_d:
+        return math.dist(a, b)
+    return math.hypot(a[0] - b[0], a[1] - b[1])
 
 
 def _label(check: Mapping[str, Any], kind: str, index: int) -> str:
@@ -68,10 +92,14 @@ def evaluate(
         evaluator = _EVALUATORS[kind]
         result = evaluator(label, body, by_s, run)
         early = by_s > recording.end_s + 1e-9
-        at_by_s = kind == "distance_m" and isinstance(body, Mapping) and "min" in body
-        if early and (at_by_s or (not result.passed and kind in _BY_S_KINDS)):
-            # It may still hold before by_s (or, for a distance at by_s, not hold
-            # then): the run ended too early to say.
+        at_by_s = (kind == "distance_m" and isinstance(body, Mapping) and "min" in body) or (
+            kind == "ends_at"
+        )
+        until_by_s = kind in _UNTIL_BY_S_KINDS and result.passed
+        if early and (at_by_s or until_by_s or (not result.passed and kind in _BY_S_KINDS)):
+            # It may still hold before by_s (or, for a distance or position at by_s,
+            # not hold then; for a bound held so far, break it before by_s): the run
+            # ended too early to say.
             result = CheckResult(
                 label,
                 result.expected,
@@ -88,12 +116,13 @@ def _distance(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Che
     """max: the two come within max of each other by by_s; min: they are min apart at by_s."""
     a, b = (str(n) for n in body["between"])
     ta, tb = run.rec.tracks.get(a), run.rec.tracks.get(b)
+    three_d = _aircraft(run, a) or _aircraft(run, b)
     parts = []
     if "max" in body:
         parts.append(f"within {float(body['max']):g} m by {by_s:g} s")
     if "min" in body:
         parts.append(f"at least {float(body['min']):g} m apart at {by_s:g} s")
-    expected = f"{a} and {b} " + " and ".join(parts)
+    expected = f"{a} and {b} " + " and ".join(parts) + (" (3-D)" if three_d else "")
     if ta is None or tb is None:
         return CheckResult(label, expected, "no position recorded", False)
     passed = True
@@ -101,10 +130,10 @@ def _distance(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Che
     if "max" in body:
         closest, when = math.inf, 0.0
         # Every sample, read back from disk (the tracks' lists are decimated for plots).
-        for (t, na, ea, _), (_, nb, eb, _) in zip(ta.samples(), tb.samples(), strict=False):
+        for (t, na, ea, ua), (_, nb, eb, ub) in zip(ta.samples(), tb.samples(), strict=False):
             if t > by_s + 1e-9:
                 break
-            d = math.hypot(na - nb, ea - eb)
+            d = _gap_m((na, ea, ua), (nb, eb, ub), three_d)
             if d < closest:
                 closest, when = d, t
         passed = passed and closest <= float(body["max"])
@@ -113,7 +142,7 @@ def _distance(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Che
         pa, pb = ta.at(by_s), tb.at(by_s)
         if pa is None or pb is None:
             return CheckResult(label, expected, "no position recorded", False)
-        d = distance_m(pa, pb)
+        d = _gap_m(pa, pb, three_d)
         passed = passed and d >= float(body["min"])
         observed.append(f"{d:.1f} m at {by_s:g} s")
     return CheckResult(label, expected, "; ".join(observed), passed)
@@ -124,16 +153,17 @@ def _reached(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Chec
     target = parse_point(body["to"], run.origin)
     tolerance = float(body.get("tolerance_m", 5.0))
     point = (target.north_m, target.east_m, target.up_m)
-    expected = f"{agent} within {tolerance:g} m of ({point[0]:g}, {point[1]:g}) by {by_s:g} s"
+    three_d = _aircraft(run, agent)
+    expected = f"{agent} within {tolerance:g} m of {_point_text(point, three_d)} by {by_s:g} s"
     track = run.rec.tracks.get(agent)
     if track is None:
         return CheckResult(label, expected, "no position recorded", False)
     best = math.inf
     when: float | None = None
-    for t, north, east, _ in track.samples():
+    for t, north, east, up in track.samples():
         if t > by_s + 1e-9:
             break
-        d = math.hypot(north - point[0], east - point[1])
+        d = _gap_m((north, east, up), point, three_d)
         if d < best:
             best = d
         if d <= tolerance and when is None:
@@ -154,6 +184,8 @@ def _separation(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> 
     when = 0.0
     tracks = [(n, run.rec.tracks[n]) for n in names if n in run.rec.tracks]
     pairs = [(i, j) for i in range(len(tracks)) for j in range(i + 1, len(tracks))]
+    # 3-D when either of the two flies; on the ground between two rovers.
+    flat = [not (_aircraft(run, tracks[i][0]) or _aircraft(run, tracks[j][0])) for i, j in pairs]
     # One pass over every track's samples (read back from disk), each pair's closest kept.
     best = [(math.inf, 0.0)] * len(pairs)
     for row in itertools.zip_longest(*(track.samples() for _, track in tracks)):
@@ -161,7 +193,7 @@ def _separation(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> 
             a, b = row[i], row[j]
             if a is None or b is None:
                 continue
-            d = math.dist(a[1:], b[1:])
+            d = math.hypot(a[1] - b[1], a[2] - b[2]) if flat[k] else math.dist(a[1:], b[1:])
             if d < best[k][0]:
                 best[k] = (d, a[0])
     for (i, j), (d, t) in zip(pairs, best, strict=True):
@@ -178,9 +210,11 @@ def _state(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> CheckR
     expected = f"{agent} in {path} by {by_s:g} s"
     when = run.rec.entered_by(agent, path, by_s)
     if when is None:
-        last = run.rec.states.get(agent, [])
+        last = [e for e in run.rec.states.get(agent, []) if e.time_s <= by_s + 1e-9]
         where = ", ".join(last[-1].active) if last else "no state"
-        return CheckResult(label, expected, f"not reached (last: {where})", False)
+        why = why_not_entered(run.rec, agent, by_s)
+        observed = f"not reached (last: {where})" + (f": {why}" if why else "")
+        return CheckResult(label, expected, observed, False)
     return CheckResult(label, expected, f"entered at {when:.1f} s", True)
 
 
@@ -201,7 +235,8 @@ def _sequence(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Che
         return CheckResult(label, expected, ", ".join(seen), True)
     missing = paths[len(seen)]
     observed = ", ".join(seen) + ("; then " if seen else "") + f"never {missing}"
-    return CheckResult(label, expected, observed, False)
+    why = why_not_entered(run.rec, agent, by_s)
+    return CheckResult(label, expected, observed + (f": {why}" if why else ""), False)
 
 
 def _photos(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> CheckResult:
@@ -405,8 +440,131 @@ def _failsafe(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Che
     return CheckResult(label, expected, observed, False)
 
 
+def _point_text(point: tuple[float, float, float], three_d: bool) -> str:
+    """A local point as a check's expectation shows it: with its height for an aircraft."""
+    if three_d:
+        return f"({point[0]:g}, {point[1]:g}, {point[2]:g})"
+    return f"({point[0]:g}, {point[1]:g})"
+
+
+def _altitude(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> CheckResult:
+    """The agent's altitude above the origin stays within [min, max] at every sample to by_s."""
+    agent = str(body["agent"])
+    low, high = body.get("min"), body.get("max")
+    bounds = []
+    if low is not None:
+        bounds.append(f">= {float(low):g} m")
+    if high is not None:
+        bounds.append(f"<= {float(high):g} m")
+    expected = f"{agent} altitude above origin {' and '.join(bounds)} until {by_s:g} s"
+    track = run.rec.tracks.get(agent)
+    if track is None:
+        return CheckResult(label, expected, "no position recorded", False)
+    lowest: tuple[float, float] | None = None  # (altitude, time)
+    highest: tuple[float, float] | None = None
+    first_out: tuple[float, float] | None = None
+    for t, _, _, up in track.samples():
+        if t > by_s + 1e-9:
+            break
+        if lowest is None or up < lowest[0]:
+            lowest = (up, t)
+        if highest is None or up > highest[0]:
+            highest = (up, t)
+        out = (low is not None and up < float(low)) or (high is not None and up > float(high))
+        if out and first_out is None:
+            first_out = (up, t)
+    if lowest is None or highest is None:
+        return CheckResult(label, expected, "no position recorded", False)
+    observed = (
+        f"lowest {lowest[0]:.1f} m at {lowest[1]:.1f} s, highest {highest[0]:.1f} m at "
+        f"{highest[1]:.1f} s"
+    )
+    if first_out is not None:
+        observed += f"; first outside at {first_out[1]:.1f} s ({first_out[0]:.1f} m)"
+    return CheckResult(label, expected, observed, first_out is None)
+
+
+def _ends_at(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> CheckResult:
+    """The agent's position at by_s (the run's end by default) is within_m of the point."""
+    agent = str(body["agent"])
+    target = parse_point(body["to"], run.origin)
+    within = float(body.get("within_m", 5.0))
+    point = (target.north_m, target.east_m, target.up_m)
+    three_d = _aircraft(run, agent)
+    expected = f"{agent} ends within {within:g} m of {_point_text(point, three_d)} at {by_s:g} s"
+    track = run.rec.tracks.get(agent)
+    here = track.at(by_s) if track is not None else None
+    if here is None:
+        return CheckResult(label, expected, "no position recorded", False)
+    d = _gap_m(here, point, three_d)
+    place = ", ".join(f"{v:.1f}" for v in (here if three_d else here[:2]))
+    observed = f"{d:.1f} m away, at ({place})"
+    return CheckResult(label, expected, observed, d <= within + 1e-9)
+
+
+def why_not_entered(rec: Recording, agent: str, by_s: float) -> str:
+    """Why an agent's behaviour did not get somewhere by ``by_s``, from what was recorded.
+
+    Each thing that held it back, in words: its mission computer killed by a fault, a
+    failsafe or a lost autopilot that stopped the behaviour, a behaviour that never
+    started and what its launch still waited for, the autopilot disarming the vehicle
+    (the engine never disarms: a disarm is the autopilot's, as ArduCopter's after 10 s
+    armed on the ground). Empty when the recording says nothing of the kind.
+    """
+    reasons = []
+    killed = rec.killed.get(agent)
+    if killed is not None and killed <= by_s + 1e-9:
+        reasons.append(f"its mission computer was killed at {killed:.1f} s (fault)")
+    for t, what in rec.safety.get(agent, []):
+        if t > by_s + 1e-9:
+            continue
+        if what.startswith("failsafe"):
+            reasons.append(f"the behaviour was stopped by a failsafe ({what[9:]}) at {t:.1f} s")
+        elif what == "autopilot_lost":
+            reasons.append(f"its autopilot was lost at {t:.1f} s")
+    states = rec.states.get(agent, [])
+    started_s = states[0].time_s if states else None
+    if started_s is None or started_s > by_s + 1e-9:
+        waiting = rec.waiting.get(agent)
+        reasons.append(
+            "the behaviour never started"
+            + (f", waiting for {', '.join(waiting)}" if waiting else "")
+        )
+    reasons.extend(_disarms(rec, agent, by_s, started_s))
+    return "; ".join(reasons)
+
+
+def _disarms(rec: Recording, agent: str, by_s: float, started_s: float | None) -> list[str]:
+    """The autopilot's disarms that explain a stall, in words.
+
+    Those before the behaviour started, and one after it started that was never
+    followed by another arming by ``by_s``.
+    """
+    out = []
+    armed_s: float | None = None
+    flight = [e for e in rec.flight.get(agent, []) if e.time_s <= by_s + 1e-9]
+    for index, entry in enumerate(flight):
+        if entry.armed and armed_s is None:
+            armed_s = entry.time_s
+        elif not entry.armed and armed_s is not None:
+            before_start = started_s is None or entry.time_s < started_s
+            rearmed = any(e.armed for e in flight[index + 1 :])
+            if before_start:
+                out.append(
+                    f"armed at {armed_s:.1f} s and disarmed by the autopilot at "
+                    f"{entry.time_s:.1f} s, before the behaviour started"
+                )
+            elif not rearmed:
+                out.append(f"disarmed by the autopilot at {entry.time_s:.1f} s")
+            armed_s = None
+    return out
+
+
 #: Kinds whose verdict is "by by_s": a run that ends sooner cannot fail them.
 _BY_S_KINDS = frozenset({"distance_m", "reached", "state", "sequence", "failsafe"})
+#: Kinds that must hold at every moment until by_s: a run that ends sooner, with the
+#: kind holding so far, was not judged (it could still break before by_s).
+_UNTIL_BY_S_KINDS = frozenset({"altitude_m"})
 
 _EVALUATORS = {
     "distance_m": _distance,
@@ -418,4 +576,6 @@ _EVALUATORS = {
     "no_failsafe": _no_failsafe,
     "failsafe": _failsafe,
     "signal": _signal,
+    "altitude_m": _altitude,
+    "ends_at": _ends_at,
 }

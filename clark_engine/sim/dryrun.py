@@ -1,8 +1,11 @@
 """``clark dry-run``: validate, simulate, evaluate the checks, write the report.
 
 This is the command's logic, apart from argument parsing: it turns a mission
-file into a verdict. Exit codes: 0 when every check holds, 1 when one fails or
-the mission is invalid, 2 for usage errors (and a SITL that cannot be started).
+file into a verdict. Every run is also judged against each vehicle's safety envelope
+(:mod:`clark_engine.sim.safety`), whether or not the mission declares a check. Exit
+codes: 0 when every check holds and nothing left its envelope, 1 when a check fails,
+a vehicle breached its envelope or the mission is invalid, 2 for usage errors (and a
+SITL that cannot be started).
 
 With ``--autopilot sitl`` every vehicle's autopilot is real ArduPilot SITL
 (:mod:`clark_engine.sim.sitl_backend`); the mission is then also simulated on the
@@ -44,11 +47,14 @@ from clark_engine.sim.report import (
     RunOrigin,
     checks_table,
     equivalent_command,
+    plot_altitude,
     plot_inputs,
     plot_timeline,
     plot_tracks,
     write_summary,
 )
+from clark_engine.sim.safety import SafetyJudgement, count_breaches
+from clark_engine.sim.safety import judge as judge_safety
 from clark_engine.sim.sitl import SitlError, SitlInstall
 from clark_engine.sim.sitl_backend import SitlBackend
 from clark_engine.sim.timeline import DEFAULT_TOLERANCE_S, Comparison, compare
@@ -123,6 +129,8 @@ class Outcome:
     result: DryRunResult | None
     comparison: Comparison | None = None
     """With SITL: its states against the simulated autopilot's."""
+    safety: SafetyJudgement | None = None
+    """Every vehicle against its envelope and every pair against its separation."""
 
 
 class _Progress:
@@ -391,6 +399,7 @@ def _run_live(
         print(f"stopped at {stopped_at_s:.1f} s of {until:g} s (Ctrl-C)", file=err)
     until = min(until, result.recording.end_s)  # earlier when Ctrl-C ended a real-time run
     results = evaluate(mission.checks, result.recording, result.configs, mission.origin)
+    safety = judge_safety(result.recording, result.configs)
     comparison = None
     if simulated is not None:
         tolerance = float(mission.sim.get("sitl_tolerance_s", DEFAULT_TOLERANCE_S))
@@ -399,15 +408,19 @@ def _run_live(
         )
         results.append(comparison.check())
     if view is not None:
-        view.finish(results, until)  # the page shows the report's verdicts, then stops updating
+        # The page shows the report's verdicts, safety's too, then stops updating.
+        view.finish([*results, *safety.results()], until)
     rate = until / result.wall_s if result.wall_s > 0 else float("inf")
     print(f"simulated {until:g} s in {result.wall_s:.1f} s ({rate:.0f}x real time)", file=err)
     if results:
         out.write(checks_table(results))
     else:
         print("the mission declares no checks", file=out)
+    out.write("\nSafety (judged in every run):\n\n" + safety.table())
     if folder is not None:
-        _write_report(folder.folder, mission.name, seed, until, result, results, comparison, origin)
+        _write_report(
+            folder.folder, mission.name, seed, until, result, results, comparison, origin, safety
+        )
         folder.commit()
         print(f"report: {folder.target / 'summary.md'}", file=err)
     failed = [r for r in results if r.evaluated and not r.passed]
@@ -420,7 +433,13 @@ def _run_live(
         )
     if failed:
         print(f"{len(failed)} of {len(results)} checks failed", file=err)
-    return Outcome(1 if failed else 0, results, result, comparison)
+    breaches = safety.breaches
+    if breaches:
+        print(f"safety: {count_breaches(len(breaches))}; the run fails:", file=err)
+        for breach in breaches:
+            print(f"  {breach}", file=err)
+    code = 1 if failed or breaches else 0
+    return Outcome(code, results, result, comparison, safety)
 
 
 def _simulate(
@@ -655,11 +674,15 @@ def _write_report(
     results: list[CheckResult],
     comparison: Comparison | None = None,
     origin: RunOrigin | None = None,
+    safety: SafetyJudgement | None = None,
 ) -> None:
     from clark_engine.analyze import analyze_folder, explain_deviation, format_text
 
     plots = ["tracks.png"]
-    plot_tracks(report / "tracks.png", result.recording, result.configs)
+    closest = safety.closest_pair if safety is not None else None
+    plot_tracks(report / "tracks.png", result.recording, result.configs, closest)
+    if plot_altitude(report / "altitude.png", result.recording, result.configs, safety):
+        plots.append("altitude.png")
     if plot_inputs(report / "inputs.png", result.recording, result.configs):
         plots.append("inputs.png")
     plot_timeline(
@@ -680,4 +703,5 @@ def _write_report(
         comparison=comparison.table() if comparison is not None else None,
         origin=origin,
         links_note=explain_deviation(analysis),
+        safety=safety,
     )

@@ -71,7 +71,7 @@ from clark_engine.sim.firmware import FIRMWARES
 from clark_engine.sim.model import VehicleModel
 from clark_engine.sim.pilot import SimPilot
 from clark_engine.sim.radio import LinkStats, Position, RadioMesh
-from clark_engine.sim.recording import Photo, Recording, StateEntry, Track
+from clark_engine.sim.recording import FlightEntry, Photo, Recording, StateEntry, Track
 from clark_engine.sim.sitl import Home, SitlInstall, SitlProcess, vehicle_for_firmware
 from clark_engine.sim.sitl_backend import SitlBackend
 from clark_engine.sim.vehicles import make_vehicle
@@ -366,6 +366,7 @@ def build_sitl_vehicle(
         system_id=int(mav.get("system_id", 1)),
         component_id=int(mav.get("component_id", 1)),
         params=params,
+        modes=dict(autopilot["modes"]),
     )
     throttle = config.channels.get("throttle")
     copter_throttle = throttle if airframe.get("class") == "multirotor" else None
@@ -616,6 +617,7 @@ class DryRun:
             AutopilotSettings.from_config(sim_agent.config), logger=sim_agent.logbook.interface
         )
         self.recording.tracks[sim_agent.name] = Track()
+        self.recording.flight[sim_agent.name] = []
         if self.sitl is None:
             self._to_autopilot(sim_agent, sim_agent.adapter.start(0.0), 0.0)
 
@@ -735,6 +737,9 @@ class DryRun:
                 sim_agent.logbook.close()
             self.close()
         self.recording.end_s = min(self._t, self.until_s)
+        for name, sim_agent in self.agents.items():
+            if not sim_agent.runtime.behaviour_started:
+                self.recording.waiting[name] = sim_agent.runtime.launch.waiting_for
         return DryRunResult(
             self.recording,
             {name: a.config for name, a in self.agents.items()},
@@ -896,6 +901,7 @@ class DryRun:
                     self._route(sim_agent, out, t_s)
 
     def _sample(self, t_s: float) -> None:
+        flight = self.recording.flight
         for name, track in self.recording.tracks.items():
             backend = self.agents[name].backend
             assert backend is not None
@@ -909,6 +915,10 @@ class DryRun:
                 truth.pitch_deg,
                 truth.yaw_deg,
             )
+            armed, mode = backend.flight_status()
+            changes = flight[name]
+            if not changes or changes[-1].armed != armed or changes[-1].mode != mode:
+                changes.append(FlightEntry(t_s, armed, mode))
 
     def _radio(self, t_s: float) -> None:
         event: PacketReceived | None = None
@@ -952,6 +962,7 @@ class DryRun:
             _, index, name = self._kills.pop(0)
             sim_agent = self.agents[name]
             sim_agent.alive = False
+            self.recording.killed[name] = t_s
             sim_agent.logbook.mission.error("killed by the dry run's fault at %.2f s", t_s)
             self._key = (t_s, self._visit, _SCENARIO, 0, index, 0)
             self._key_n = 0

@@ -8,9 +8,14 @@ holds a transmitter, so :class:`SimPilot` does the pilot's part, through the
 same autopilot the engine talks to and by MAVLink, as a pilot's handheld ground
 station would (a stick-arming pilot goes through the same arming checks):
 
-- It watches the autopilot's own messages (HEARTBEAT, SYS_STATUS) and, once the
-  pre-arm checks pass and the autopilot has a position, arms the vehicle in the
-  mode it is in, as a pilot waiting for the ready light does. It asks again every
+- It watches the autopilot's own messages and arms the vehicle, in the mode it is
+  in, once the autopilot reports itself ready as a pilot sees it: the ready light
+  (:attr:`SimPilot.sees_ready`) is its pre-arm checks passed (SYS_STATUS), its
+  EKF's absolute position (EKF_STATUS_REPORT) and its home (HOME_POSITION). A
+  position in GLOBAL_POSITION_INT is not enough: ArduCopter's pre-arm checks pass
+  and it streams a GPS position about 18 s before its EKF has an absolute one (24 s
+  against 42 s after power-on), and a copter armed then is disarmed by ArduCopter
+  10 s later, before the engine may start its behaviour. It asks again every
   :data:`ARM_RETRY_S` until the vehicle is armed, and never again after that: a
   vehicle disarmed later (its pilot's business, a copter's auto-disarm after
   landing) stays disarmed.
@@ -44,6 +49,8 @@ PILOT_COMPONENT_ID: Final = 25
 
 _PREARM_BIT: Final = mavlink2.MAV_SYS_STATUS_PREARM_CHECK
 _POSITION_FLAGS: Final = mavlink2.EKF_POS_HORIZ_ABS
+_CONST_POS_FLAG: Final = mavlink2.EKF_CONST_POS_MODE
+"""An EKF in constant-position mode has no position source: not ready, whatever else it sets."""
 
 
 class SimPilot:
@@ -83,6 +90,7 @@ class SimPilot:
         self._ever_armed = False
         self._prearm_ok = False
         self._position_ok = False
+        self._home = False
         self._flying = False
         self._throttle_centred = False
         self._next_arm_s = 0.0
@@ -98,8 +106,12 @@ class SimPilot:
 
     @property
     def sees_ready(self) -> bool:
-        """The autopilot reports its pre-arm checks passed and a position: a pilot would arm."""
-        return self._prearm_ok and self._position_ok
+        """The ready light: pre-arm checks passed, an EKF absolute position, and home.
+
+        What the engine's own launch gate waits for too (``AutopilotStatus.ready``), as
+        the autopilot reports it; a pilot arms only then.
+        """
+        return self._prearm_ok and self._position_ok and self._home
 
     def write(self, data: bytes) -> None:
         """Where pymavlink puts the pilot's encoded frames."""
@@ -123,9 +135,10 @@ class SimPilot:
         elif kind == "SYS_STATUS":
             self._prearm_ok = bool(msg.onboard_control_sensors_health & _PREARM_BIT)
         elif kind == "EKF_STATUS_REPORT":
-            self._position_ok = bool(msg.flags & _POSITION_FLAGS)
-        elif kind == "GLOBAL_POSITION_INT":
-            self._position_ok = self._position_ok or (msg.lat != 0 or msg.lon != 0)
+            flags = int(msg.flags)
+            self._position_ok = bool(flags & _POSITION_FLAGS) and not flags & _CONST_POS_FLAG
+        elif kind == "HOME_POSITION":
+            self._home = True
         elif kind == "EXTENDED_SYS_STATE":
             self._flying = msg.landed_state in (
                 mavlink2.MAV_LANDED_STATE_IN_AIR,
@@ -133,13 +146,7 @@ class SimPilot:
             )
 
     def _act(self, now_s: float) -> None:
-        if (
-            self.arms
-            and not self._ever_armed
-            and self._prearm_ok
-            and self._position_ok
-            and now_s >= self._next_arm_s
-        ):
+        if self.arms and not self._ever_armed and self.sees_ready and now_s >= self._next_arm_s:
             self._next_arm_s = now_s + ARM_RETRY_S
             system, component = self._target
             self._mav.command_long_send(

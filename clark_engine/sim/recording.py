@@ -15,7 +15,7 @@ import weakref
 from array import array
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 #: Most samples a track keeps in memory for the plots: past it, every other one is dropped
 #: and the sampling interval kept doubles, so memory stays constant in the run's length.
@@ -204,6 +204,19 @@ class StateEntry:
     entered: tuple[str, ...]
 
 
+class FlightEntry(NamedTuple):
+    """A vehicle's arming or flight mode as its autopilot truly had it, from a time on.
+
+    Recorded when either changes (sampled with the tracks), from the simulated
+    autopilot's model or SITL's own HEARTBEAT: what the vehicle did, not what the
+    engine heard. The safety judgement reads it (time armed, guided flight).
+    """
+
+    time_s: float
+    armed: bool
+    mode: str
+
+
 @dataclass(frozen=True, slots=True)
 class Photo:
     """A picture a camera took, with where the vehicle truly was."""
@@ -225,6 +238,11 @@ class Recording:
             sampled at each of the agent's ticks while a doublet or sweep drove it.
         photos: Agent name -> pictures its cameras took.
         safety: Agent name -> (time, what): mcs_lost, autopilot_lost, failsafe actions.
+        flight: Vehicle name -> its arming and flight mode, an entry at each change.
+        waiting: Agent name -> what its launch gate still waited for when the run ended
+            (or its mission computer died), for an agent whose behaviour never started;
+            absent for one whose behaviour started.
+        killed: Agent name -> when a fault killed its mission computer.
         end_s: Simulated time at which the run ended.
     """
 
@@ -233,6 +251,9 @@ class Recording:
     signals: dict[tuple[str, str], list[tuple[float, int]]] = field(default_factory=dict)
     photos: dict[str, list[Photo]] = field(default_factory=dict)
     safety: dict[str, list[tuple[float, str]]] = field(default_factory=dict)
+    flight: dict[str, list[FlightEntry]] = field(default_factory=dict)
+    waiting: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    killed: dict[str, float] = field(default_factory=dict)
     end_s: float = 0.0
 
     def entered_by(self, agent: str, path: str, by_s: float) -> float | None:
@@ -243,6 +264,20 @@ class Recording:
             if any(p == path or p.startswith(path + ".") for p in entry.entered):
                 return entry.time_s
         return None
+
+    def armed_intervals(self, vehicle: str) -> list[tuple[float, float]]:
+        """Every (armed, disarmed) time interval of a vehicle; the last may end at the run's."""
+        out: list[tuple[float, float]] = []
+        start: float | None = None
+        for entry in self.flight.get(vehicle, []):
+            if entry.armed and start is None:
+                start = entry.time_s
+            elif not entry.armed and start is not None:
+                out.append((start, entry.time_s))
+                start = None
+        if start is not None:
+            out.append((start, self.end_s))
+        return out
 
     def intervals(self, agent: str, path: str) -> list[tuple[float, float]]:
         """Every (entered, left) time interval during which ``path`` was active."""

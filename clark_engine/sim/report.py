@@ -3,12 +3,16 @@
 Written into ``--report DIR`` beside every agent's CSV and logs:
 
 * ``tracks.png``: every vehicle's path in metres from the origin, with its
-  waypoints and the positions of its pictures, and the altitude of air vehicles;
+  waypoints, the positions of its pictures, and the closest approach of the pair of
+  vehicles that came closest (both positions, the distance and the time);
+* ``altitude.png`` (when the fleet has an aircraft): every vehicle's altitude above the
+  origin over time, against each aircraft's ceiling and floor, breaches marked;
 * ``inputs.png``: the pulse widths the autopilots received for doublets and sweeps,
   each channel named by its function in the vehicle's profile;
 * ``timeline.png``: which state each agent was in, over time;
 * ``summary.md``: the command line, seed and injected faults, the checks table, the
-  state timeline as text, and the latency and loss tables of ``clark analyze``.
+  safety judgement (:mod:`clark_engine.sim.safety`), the state timeline as text, and
+  the latency and loss tables of ``clark analyze``.
 
 Plots use matplotlib's non-interactive Agg backend; files are written with fixed
 metadata so the same run gives the same bytes.
@@ -39,6 +43,7 @@ from clark_engine.mission.compiler import foreign_files, swap_in, write_marker
 from clark_engine.runtime.config import AgentConfig
 from clark_engine.sim.checks import CheckResult
 from clark_engine.sim.recording import Recording
+from clark_engine.sim.safety import PairSafety, SafetyJudgement, count_breaches
 
 #: PNG metadata without the matplotlib version or a date, for reproducible files.
 _PNG_METADATA = {"Software": None}
@@ -49,7 +54,9 @@ _SIGNAL_LABEL: Final = re.compile(r"(rc|servo)([0-9]+)")
 REPORT_MARKER: Final = ".clark-report.json"
 """Written last into a complete report: the list of its files, all the engine's."""
 
-_REPORT_FILES: Final = frozenset({"summary.md", "tracks.png", "inputs.png", "timeline.png"})
+_REPORT_FILES: Final = frozenset(
+    {"summary.md", "tracks.png", "altitude.png", "inputs.png", "timeline.png"}
+)
 _LOG_SUFFIXES: Final = (".mission.log", ".interface.log", ".fleet.csv", ".messages.csv")
 
 
@@ -283,18 +290,15 @@ def _waypoints(config: AgentConfig) -> list[tuple[float, float]]:
     return points
 
 
-def tracks_figure(recording: Recording, configs: Mapping[str, AgentConfig]) -> Any:
-    """The figure of :func:`plot_tracks`, unsaved (its axes: paths, then altitudes if any)."""
+def tracks_figure(
+    recording: Recording,
+    configs: Mapping[str, AgentConfig],
+    closest: PairSafety | None = None,
+) -> Any:
+    """The figure of :func:`plot_tracks`, unsaved (one axes: the paths)."""
     plt = _pyplot()
     names = sorted(recording.tracks)
-    flying = [n for n in names if n in configs and configs[n].is_aircraft]
-    if flying:
-        fig, (ax, alt) = plt.subplots(
-            2, 1, figsize=(8, 9.5), dpi=100, gridspec_kw={"height_ratios": [3, 1]}
-        )
-    else:
-        fig, ax = plt.subplots(figsize=(8, 7), dpi=100)
-        alt = None
+    fig, ax = plt.subplots(figsize=(8, 7), dpi=100)
     colors = {name: f"C{index % 10}" for index, name in enumerate(names)}
     for name in names:
         track, color = recording.tracks[name], colors[name]
@@ -315,33 +319,123 @@ def tracks_figure(recording: Recording, configs: Mapping[str, AgentConfig]) -> A
                 linestyle="none",
                 label=f"{name} photos",
             )
+    if closest is not None and closest.distance_m is not None:
+        # Both vehicles where they came closest, joined; the distance and time in the
+        # legend (a label on the map could hide the paths it marks).
+        (na, ea, _), (nb, eb, _) = closest.where_a, closest.where_b
+        verdict = "" if closest.passed else f", under {closest.limit_m:g} m"
+        ax.plot(
+            [ea, eb], [na, nb], "-", color="black", linewidth=1.0, marker="o",
+            markersize=9, markerfacecolor="none", markeredgewidth=1.5,
+            label=f"closest: {closest.a} - {closest.b}, {closest.distance_m:.1f} m at "
+            f"{closest.time_s:.1f} s{verdict}",
+        )  # fmt: skip
     ax.set_xlabel("east of origin (m)")
     ax.set_ylabel("north of origin (m)")
-    ax.set_title("Paths (o start, x waypoints, ^ pictures)")
+    ax.set_title("Paths (o start, x waypoints, ^ pictures, circled: closest approach)")
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(True, linewidth=0.3)
     ax.legend(loc="best", fontsize=8)
-    if alt is not None:
-        # Air vehicles only: a rover's altitude is the ground's, and says nothing.
-        for name in flying:
-            track = recording.tracks[name]
-            alt.plot(track.times_s, track.up_m, color=colors[name], linewidth=1.2, label=name)
-        alt.set_xlabel("simulated time (s)")
-        alt.set_ylabel("altitude above origin (m)")
-        alt.set_title("Altitude of the air vehicles")
-        alt.grid(True, linewidth=0.3)
-        alt.legend(loc="best", fontsize=8)
     fig.tight_layout()
     return fig
 
 
-def plot_tracks(path: Path, recording: Recording, configs: Mapping[str, AgentConfig]) -> None:
+def plot_tracks(
+    path: Path,
+    recording: Recording,
+    configs: Mapping[str, AgentConfig],
+    closest: PairSafety | None = None,
+) -> None:
     """Every vehicle's path (east right, north up), waypoints and picture positions.
 
-    Below it, when the fleet has air vehicles (planes, multirotors: any airframe but a
-    rover), their altitude above the origin over time.
+    ``closest``: the pair of vehicles that came closest, marked where each was then.
     """
-    _save(tracks_figure(recording, configs), path)
+    _save(tracks_figure(recording, configs, closest), path)
+
+
+def _limit_lines(
+    configs: Mapping[str, AgentConfig], names: Sequence[str], key: str
+) -> dict[float, list[str]]:
+    """Each distinct ceiling (or floor above the ground) of the aircraft, with who has it."""
+    lines: dict[float, list[str]] = {}
+    for name in names:
+        config = configs.get(name)
+        envelope = config.envelope if config is not None else None
+        if config is None or envelope is None or not config.is_aircraft:
+            continue
+        value = envelope.ceiling_m if key == "ceiling" else envelope.floor_m
+        if key == "floor" and value <= 0:
+            continue  # a floor at the ground: the field is flat at the origin's height
+        lines.setdefault(value, []).append(name)
+    return lines
+
+
+def altitude_figure(
+    recording: Recording,
+    configs: Mapping[str, AgentConfig],
+    safety: SafetyJudgement | None = None,
+) -> Any | None:
+    """The figure of :func:`plot_altitude`, unsaved; None when no vehicle flies."""
+    names = sorted(recording.tracks)
+    if not any(n in configs and configs[n].is_aircraft for n in names):
+        return None
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(10, 5), dpi=100)
+    colors = {name: f"C{index % 10}" for index, name in enumerate(names)}
+    for name in names:
+        track = recording.tracks[name]
+        ax.plot(track.times_s, track.up_m, color=colors[name], linewidth=1.2, label=name)
+    for key, style in (("ceiling", "--"), ("floor", ":")):
+        for value, owners in sorted(_limit_lines(configs, names, key).items()):
+            color = colors[owners[0]] if len(owners) == 1 else "0.3"
+            ax.axhline(
+                value, color=color, linestyle=style, linewidth=1.0,
+                label=f"{key} {value:g} m ({', '.join(owners)})",
+            )  # fmt: skip
+    for vehicle in safety.vehicles if safety is not None else ():
+        if vehicle.passed or vehicle.envelope is None:
+            continue
+        marks = []
+        if vehicle.highest is not None and vehicle.highest.value > vehicle.envelope.ceiling_m:
+            marks.append(("above its ceiling", vehicle.highest))
+        low = vehicle.lowest_guided
+        if low is not None and low.value < vehicle.envelope.floor_m:
+            marks.append(("below its floor", low))
+        for what, extreme in marks:
+            ax.plot(
+                [extreme.time_s], [extreme.value], "X", color="red", markersize=10,
+                linestyle="none",
+                label=f"{vehicle.name} {what}: {extreme.value:.1f} m at {extreme.time_s:.1f} s",
+            )  # fmt: skip
+    ax.set_xlabel("simulated time (s)")
+    ax.set_ylabel("altitude above origin (m)")
+    ax.set_title("Altitude above the origin, against each aircraft's ceiling and floor")
+    ax.set_xlim(0, max(recording.end_s, 1e-3))
+    ax.grid(True, linewidth=0.3)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0.0)
+    fig.tight_layout()
+    return fig
+
+
+def plot_altitude(
+    path: Path,
+    recording: Recording,
+    configs: Mapping[str, AgentConfig],
+    safety: SafetyJudgement | None = None,
+) -> bool:
+    """Every vehicle's altitude over time against the aircraft's ceilings and floors.
+
+    Floors at the ground (0 m) are not drawn. A vehicle the safety judgement found
+    above its ceiling, or below its floor in guided flight, is marked there.
+
+    Returns:
+        False (no file) when the fleet has no aircraft: a rover's altitude is the ground's.
+    """
+    fig = altitude_figure(recording, configs, safety)
+    if fig is None:
+        return False
+    _save(fig, path)
+    return True
 
 
 def _save(fig: Any, path: Path) -> None:
@@ -549,6 +643,24 @@ def timeline_text(recording: Recording) -> str:
     return "\n".join(lines) + "\n"
 
 
+def safety_section(safety: SafetyJudgement) -> list[str]:
+    """``summary.md``'s Safety section: what was judged, each breach, the two tables."""
+    breaches = safety.breaches
+    lines = [
+        "## Safety",
+        "",
+        "Every vehicle against its envelope and every pair against its separation, from the "
+        "true tracks, whether or not the mission checks it (docs/dry-run.md#safety). "
+        + (f"**{count_breaches(len(breaches))}: the run fails.**" if breaches else "No breach."),
+        "",
+    ]
+    lines += [f"- {breach}" for breach in breaches]
+    if breaches:
+        lines.append("")
+    lines.append(safety.table())
+    return lines
+
+
 def write_summary(
     path: Path,
     *,
@@ -563,14 +675,16 @@ def write_summary(
     comparison: str | None = None,
     origin: RunOrigin | None = None,
     links_note: str = "",
+    safety: SafetyJudgement | None = None,
 ) -> None:
-    """``summary.md``: how the run was made, the checks, the timeline, the link tables.
+    """``summary.md``: how the run was made, the checks, safety, the timeline, the links.
 
     ``origin``: the command line and the injected faults (none shown when None).
     ``links_note``: Markdown under the link tables: what "deviation from ideal" means
     (:func:`clark_engine.analyze.explain_deviation`).
     ``comparison``: with ``--autopilot sitl``, the table of each state's first entry on
     SITL and on the simulated autopilot (:meth:`~clark_engine.sim.timeline.Comparison.table`).
+    ``safety``: the run's safety judgement, in a section of its own after the checks.
     """
     passed = sum(r.passed for r in results)
     failed = sum(r.evaluated and not r.passed for r in results)
@@ -580,6 +694,8 @@ def write_summary(
         verdict += f", {skipped} not evaluated: the run ended before their by_s"
     elif not failed:
         verdict = "all checks pass"
+    if safety is not None and not safety.passed:
+        verdict += f"; safety: {count_breaches(len(safety.breaches))}, so the run fails"
     how = "Command line" if origin is None or origin.command_given else "Equivalent command"
     text = [
         f"# Dry run of {mission}",
@@ -595,6 +711,7 @@ def write_summary(
         "## Checks",
         "",
         checks_table(results) if results else "The mission declares no checks.\n",
+        *(safety_section(safety) if safety is not None else []),
         "## Plots",
         "",
         *[f"![{p}]({p})" for p in plots],

@@ -97,6 +97,8 @@ class SitlBackend(VehicleBackend):
         system_id: The autopilot's MAVLink system id.
         component_id: Its component id.
         params: Parameters to set before the run (ArduPilot names and units).
+        modes: Mode name -> ArduPilot custom_mode number (the autopilot profile's), to
+            name the mode its HEARTBEAT reports.
     """
 
     def __init__(
@@ -108,8 +110,10 @@ class SitlBackend(VehicleBackend):
         system_id: int = 1,
         component_id: int = 1,
         params: Mapping[str, float] | None = None,
+        modes: Mapping[str, int] | None = None,
     ) -> None:
         self.process = process
+        self._mode_names = {int(number): name for name, number in (modes or {}).items()}
         self.origin = origin
         self.firmware = firmware
         self._target = (system_id, component_id)
@@ -212,6 +216,20 @@ class SitlBackend(VehicleBackend):
     def truth(self) -> Truth:
         """The simulator's true state (SIM_STATE), with VFR_HUD's airspeed and throttle."""
         return self._truth
+
+    def flight_status(self) -> tuple[bool, str]:
+        """Arming and mode from SITL's latest HEARTBEAT on the backend's own link.
+
+        ArduPilot sends HEARTBEAT on every MAVLink channel once a second; before the
+        first, the vehicle is disarmed in no known mode (``""``). A mode the profile
+        does not name reads ``mode N``.
+        """
+        beat = self._latest.get("HEARTBEAT")
+        if beat is None:
+            return False, ""
+        armed = bool(int(beat.base_mode) & mavlink2.MAV_MODE_FLAG_SAFETY_ARMED)
+        number = int(beat.custom_mode)
+        return armed, self._mode_names.get(number, f"mode {number}")
 
     def rc_inputs(self) -> tuple[int, ...]:
         """RC_CHANNELS as SITL reported them after the engine's last bytes reached it."""

@@ -150,7 +150,8 @@ def _check() -> Schema:
             ),
             "distance_m": obj(
                 "Distance between two agents: with max, they come within max of each other "
-                "by by_s; with min, they are at least min apart at by_s.",
+                "by by_s; with min, they are at least min apart at by_s. 3-D when either is "
+                "an aircraft (any airframe but a rover); on the ground between two rovers.",
                 {
                     "between": agents2,
                     "max": number("Largest allowed distance.", unit="m", minimum=0),
@@ -159,7 +160,8 @@ def _check() -> Schema:
                 required=["between"],
             ),
             "reached": obj(
-                "An agent comes within tolerance of a position by by_s.",
+                "An agent comes within tolerance of a position by by_s: 3-D for an aircraft "
+                "(a point without a height is on the ground), on the ground for a rover.",
                 {
                     "agent": AGENT_NAME_SCHEMA,
                     "to": POINT_SCHEMA,
@@ -170,7 +172,8 @@ def _check() -> Schema:
                 required=["agent", "to"],
             ),
             "separation_m": obj(
-                "Minimum distance between any two of the vehicles at every moment.",
+                "Minimum distance between any two of the vehicles at every moment: 3-D for "
+                "a pair with an aircraft, on the ground between two rovers.",
                 {
                     "min": number("Smallest allowed separation.", unit="m", minimum=0),
                     "agents": array(
@@ -178,6 +181,30 @@ def _check() -> Schema:
                     ),
                 },
                 required=["min"],
+            ),
+            "altitude_m": obj(
+                "An agent's altitude above the mission origin stays within min and max at "
+                "every moment until by_s (the end of the run when by_s is omitted); give "
+                "min, max or both.",
+                {
+                    "agent": AGENT_NAME_SCHEMA,
+                    "min": number("Lowest allowed altitude above the origin.", unit="m"),
+                    "max": number("Highest allowed altitude above the origin.", unit="m"),
+                },
+                required=["agent"],
+            ),
+            "ends_at": obj(
+                "An agent's position at by_s (the end of the run when by_s is omitted) is "
+                "within within_m of a point: where it ends up. 3-D for an aircraft (a point "
+                "without a height is on the ground), on the ground for a rover.",
+                {
+                    "agent": AGENT_NAME_SCHEMA,
+                    "to": POINT_SCHEMA,
+                    "within_m": number(
+                        "Largest distance from the point.", unit="m", exclusive_minimum=0, default=5
+                    ),
+                },
+                required=["agent", "to"],
             ),
             "state": obj(
                 "An agent's behaviour reaches a state by by_s.",
