@@ -13,7 +13,6 @@ import sys
 from pathlib import Path
 
 import pytest
-from passing_follow import passing_follow
 
 from clark_engine.errors import UsageError
 from clark_engine.sim.dryrun import parse_fault, run_dry_run
@@ -22,12 +21,6 @@ ROOT = Path(__file__).resolve().parent.parent
 MISSIONS = sorted((ROOT / "missions").glob("*.yaml"))
 FOLLOW = ROOT / "missions" / "cooperative_follow.yaml"
 #: Examples that fail the dry run's safety judgement, and why (the mission change is pending).
-BREACHING = {
-    "cooperative_follow": "Slash B parks within about 1 m of Slash A, under the default 5 m "
-    "separation between vehicles",
-}
-
-
 def dry_run(path: Path, **kwargs: object) -> tuple[int, str, str]:
     """Run in process; the exit code, the checks table and the diagnostics."""
     out, err = io.StringIO(), io.StringIO()
@@ -42,16 +35,7 @@ def checks_part(table: str) -> str:
     return table.split("\nSafety (judged in every run):", 1)[0]
 
 
-@pytest.mark.parametrize(
-    "path",
-    [
-        pytest.param(p, marks=pytest.mark.xfail(reason=BREACHING[p.stem], strict=True))
-        if p.stem in BREACHING
-        else p
-        for p in MISSIONS
-    ],
-    ids=[p.stem for p in MISSIONS],
-)
+@pytest.mark.parametrize("path", MISSIONS, ids=[p.stem for p in MISSIONS])
 def test_every_example_passes_its_checks_and_stays_in_its_envelope(path: Path) -> None:
     code, table, err = dry_run(path)
     checks = checks_part(table)
@@ -60,15 +44,6 @@ def test_every_example_passes_its_checks_and_stays_in_its_envelope(path: Path) -
     assert len(rows) >= 3, "an example checks what it demonstrates"
     assert "Safety (judged in every run):" in table
     assert code == 0, table + err  # no breach either
-
-
-def test_the_breaching_example_fails_on_safety_alone() -> None:
-    """cooperative_follow passes every check it declares, and still fails: its near miss."""
-    code, table, err = dry_run(FOLLOW)
-    assert code == 1
-    assert "FAIL" not in checks_part(table)
-    assert "safety: 1 breach; the run fails:" in err
-    assert "slash_a and slash_b came within" in err and "under their 5 m separation" in err
 
 
 def test_examples_cover_the_faults() -> None:
@@ -100,7 +75,7 @@ def test_same_seed_gives_byte_identical_logs(tmp_path: Path) -> None:
 
 def test_report_has_summary_plots_and_logs(tmp_path: Path) -> None:
     folder = tmp_path / "report"
-    code, _, err = dry_run(passing_follow(tmp_path), report=folder)
+    code, _, err = dry_run(FOLLOW, report=folder)
     assert code == 0
     assert f"report: {folder / 'summary.md'}" in err
     for name in ("summary.md", "tracks.png", "timeline.png"):
@@ -233,7 +208,7 @@ def cli(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 def test_cli_exit_codes_and_no_tracebacks(tmp_path: Path) -> None:
-    good = cli(str(passing_follow(tmp_path)), "--until", "130")
+    good = cli(str(FOLLOW), "--until", "130")
     assert good.returncode == 0, good.stderr
     bad_fault = cli(str(FOLLOW), "--fault", "kill:nobody@3")
     assert bad_fault.returncode == 2

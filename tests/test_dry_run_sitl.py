@@ -15,7 +15,6 @@ import sys
 from pathlib import Path
 
 import pytest
-from passing_follow import passing_follow
 
 from clark_engine.sim.recording import Recording, StateEntry
 from clark_engine.sim.sitl import ENV_SITL, SitlInstall, SitlNotFound
@@ -186,7 +185,7 @@ def on_sitl(mission: Path, tmp_path: Path, *args: str) -> subprocess.CompletedPr
 def test_the_example_flies_on_sitl_as_on_the_simulated_autopilot(
     mission: str, tmp_path: Path
 ) -> None:
-    path = passing_follow(tmp_path) if mission == "cooperative_follow.yaml" else MISSIONS / mission
+    path = MISSIONS / mission
     run = on_sitl(path, tmp_path)
     assert run.returncode == 0, run.stdout + run.stderr
     last = comparison_row(run.stdout)

@@ -23,7 +23,6 @@ from typing import Any
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from passing_follow import passing_follow
 
 from clark_engine import cli
 from clark_engine.mission.model import Mission
@@ -223,8 +222,6 @@ def test_a_split_run_gives_the_same_checks_table(path: Path, tmp_path: Path) -> 
 
     So does the safety judgement (every vehicle's envelope, every pair): its tables too.
     """
-    if path.stem == "cooperative_follow":
-        path = passing_follow(tmp_path)  # the example's near miss is not what this tests
     tables = []
     for workers in (1, 2):
         out, err = io.StringIO(), io.StringIO()
@@ -350,7 +347,7 @@ def test_cli_reports_a_vanished_worker_in_one_line(
 
 
 def test_cli_workers_option(tmp_path: Path) -> None:
-    mission = passing_follow(tmp_path)
+    mission = MISSIONS / "cooperative_follow.yaml"
 
     def clark(*args: str) -> subprocess.CompletedProcess[str]:
         return subprocess.run(
