@@ -69,8 +69,9 @@ def cub_runtime(peers: int) -> AgentRuntime:
     """The Super Cub's runtime, with ``peers`` more vehicles in its mission's peer table.
 
     The peers are added to the compiled config (vehicles sending a heartbeat and a
-    status a second), as a mission naming them would: the fleet table keeps records
-    only for the mission's agents, so peers outside it would cost nothing here.
+    status a second, flying in the Cub's own envelope), as a mission naming them
+    would: the fleet table keeps records only for the mission's agents, so peers
+    outside it would cost nothing here.
     """
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "sweep.yaml"
@@ -89,6 +90,7 @@ def cub_runtime(peers: int) -> AgentRuntime:
                 "radio_address": f"0013A2004100{i:04X}",
                 "sends": {"heartbeat": 1.0, "agent_status": 1.0},
                 "modes": {},
+                "envelope": compiled["envelope"],
             }
             for i in range(peers)
         ),
