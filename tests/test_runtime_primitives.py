@@ -286,7 +286,8 @@ def test_tour_visits_in_order_and_loops() -> None:
     params = params_of(config, "waypoint_tour")
     waypoints, speed = params["waypoints"], params["speed_m_s"]
     assert len(waypoints) == 8 and speed == 2
-    run = Run(config, make_primitive(states_of(config, "waypoint_tour")[0]))
+    # Slash A's tour, looped (the example drives it once round, to keep clear of Slash B)
+    run = Run(config, WaypointTour(params_of(config, "waypoint_tour", loop=True)))
     assert run.start(at(config, -5, -5)) == [
         set_mode(config, "GUIDED"),
         goto(waypoints[0], speed),
@@ -348,7 +349,13 @@ class Leader:
         self.fleet.receive(packet, now_s, gps_ms)
 
 
-LEAD_M = 2.0 * 2.5  # the leader reports 2 m/s due north; follow_agent leads by 2.5 s
+LEAD_S = 2.5  # follow_agent's default lead (the example follows with none)
+LEAD_M = 2.0 * LEAD_S  # the leader reports 2 m/s due north
+
+
+def leading(config: AgentConfig, **changes: Any) -> FollowAgent:
+    """Slash B's follow_agent, leading its target by LEAD_S."""
+    return FollowAgent(params_of(config, "follow_agent", lead_s=LEAD_S, **changes))
 
 
 def aimed(config: AgentConfig, north_m: float, east_m: float, alt_m: float = 0.0) -> Goto:
@@ -383,7 +390,7 @@ def test_follow_tracks_a_moving_agent_at_the_retarget_rate() -> None:
     assert params["retarget_hz"] == 2 and config.loop_hz == 10  # a Goto every 5 ticks
     fleet = fleet_for(config)
     leader = Leader(config, fleet)
-    run = Run(config, make_primitive(states_of(config, "follow_agent")[0]), fleet)
+    run = Run(config, leading(config), fleet)
     me = at(config, -50, -50)
     # no status yet: guided mode, no target
     assert run.start(me) == [set_mode(config, "GUIDED")]  # tick 0
@@ -408,10 +415,8 @@ def test_follow_applies_the_offset_and_finishes_at_the_offset_goal() -> None:
     fleet = fleet_for(config)
     leader = Leader(config, fleet)
     leader.report(40, 10, now_s=0.0, alt_m=1.0)
-    params = params_of(
-        config, "follow_agent", offset={"north_m": -8, "east_m": 3, "up_m": 0}, tolerance_m=6
-    )
-    run = Run(config, FollowAgent(params), fleet)
+    offset = {"north_m": -8, "east_m": 3, "up_m": 0}
+    run = Run(config, leading(config, offset=offset, tolerance_m=6), fleet)
     goal = Goto(*offset_position(*local(config, 40 + LEAD_M, 10), -8, 3), 1.0, None, 2.0, 0.0)
     start = run.start(at(config, 0, 0, mode="HOLD"))
     assert start == [set_mode(config, "GUIDED"), Near(goal)]
@@ -436,7 +441,7 @@ def test_follow_without_a_vehicle_state_sends_targets_but_never_finishes() -> No
     config = compiled(*FOLLOW)
     fleet = fleet_for(config)
     Leader(config, fleet).report(0, 0, now_s=0.0)
-    run = Run(config, make_primitive(states_of(config, "follow_agent")[0]), fleet)
+    run = Run(config, leading(config), fleet)
     target = Near(aimed(config, 0, 0))
     assert run.start() == [set_mode(config, "GUIDED"), target]
     statuses = [run.step() for _ in range(5)]  # ticks 1..5; the next Goto is due at 0.5 s
