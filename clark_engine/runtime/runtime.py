@@ -653,16 +653,21 @@ class AgentRuntime:
             self._first_tick_s = now_s
             if self._stations_silent_since_s is None and not self._stations_in_contact:
                 self._stations_silent_since_s = now_s
-        if (
+        opening = (
             not self._started
             and self.failsafe is None
             and self.launch.update(self.context.autopilot, self.context.vehicle)
-        ):
+        )
+        if opening:
             self._started = True
             self._started_s = now_s
-            if self.machine is not None:
-                self.machine.start(self.context)
-                self._collect_outbox()
+        if self.envelope_watch is not None:
+            # Before the machine starts: a breach in force as the gate opens is acted on
+            # instead of starting a behaviour that its failsafe would stop at once.
+            self._watch(now_s)
+        if opening and self.failsafe is None and self.machine is not None:
+            self.machine.start(self.context)
+            self._collect_outbox()
         for phase in self.config.tick_phases:
             if self.terminated:
                 break
@@ -671,8 +676,6 @@ class AgentRuntime:
                 if self.logbook.rejections_pending:
                     self.logbook.summarise_rejections(now_s)
             elif phase == "machine":
-                if self.envelope_watch is not None:
-                    self._watch(now_s)
                 self._machine_phase()
             elif phase == "commands":
                 self._collect_outbox()
@@ -932,9 +935,10 @@ class AgentRuntime:
     def _watch(self, now_s: float) -> None:
         """The vehicle and its peers against the envelope; a breach's action, once.
 
-        Before the behaviour starts the engine commands nothing, so a breach then is
-        logged only; once it runs, the first breach in force (begun now or before the
-        start) applies its action as a failsafe, and any later one is logged only.
+        Run at the start of every tick, before the machine phase. Before the behaviour
+        starts the engine commands nothing, so a breach then is logged only; from the
+        tick the launch gate opens, the first breach in force (begun then or before)
+        applies its action as a failsafe, and any later one is logged only.
         """
         watch, vehicle = self.envelope_watch, self.context.vehicle
         if watch is None or vehicle is None:
