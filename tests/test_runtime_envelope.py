@@ -16,6 +16,7 @@ import io
 import json
 import logging
 import math
+import random
 from collections.abc import Callable
 from pathlib import Path
 from string import Template
@@ -332,11 +333,7 @@ def test_a_target_outside_the_fence_is_cut_on_the_line_from_the_vehicle(tmp_path
 
 def test_a_line_that_leaves_the_fence_is_cut_where_it_leaves(tmp_path: Path) -> None:
     """Both ends inside an L-shaped field; the straight line crosses the corner cut out."""
-    l_shape = (
-        "{geofence: {include: [{polygon: "
-        "[[0, 0], [100, 0], [100, 20], [20, 20], [20, 100], [0, 100]]}]}}"
-    )
-    config = compiled(tmp_path, "copter", envelope=l_shape, edit=waypoint_to(10, 90, 30))
+    config = compiled(tmp_path, "copter", envelope=L_SHAPE, edit=waypoint_to(10, 90, 30))
     flight = Flight(config)
     (goto,) = of(flight.tick(flight.state(90, 10, 30)), Goto)
     point = local(goto)
@@ -347,6 +344,51 @@ def test_a_line_that_leaves_the_fence_is_cut_where_it_leaves(tmp_path: Path) -> 
     assert "the straight line to it from north 90.0 m, east 10.0 m leaves the geofence" in (
         flight.mission_log()
     )
+
+
+L_SHAPE = (
+    "{geofence: {include: [{polygon: "
+    "[[0, 0], [100, 0], [100, 20], [20, 20], [20, 100], [0, 100]]}]}}"
+)
+
+
+@pytest.mark.parametrize(
+    "envelope",
+    [
+        SQUARE,
+        L_SHAPE,
+        "{geofence: {include: [{polygon: [[-50, -50], [50, -50], [50, 50], [-50, 50]]}], "
+        "exclude: [{circle: {center: [10, 10], radius_m: 15}}]}}",
+    ],
+    ids=["convex", "l-shape", "with-exclusion"],
+)
+def test_the_guard_moves_targets_where_fence_clamp_does(tmp_path: Path, envelope: str) -> None:
+    """The guard skips Fence.clamp's walk along lines plainly inside: same answers."""
+    config = compiled(tmp_path, "copter", envelope=envelope)
+    assert config.envelope is not None
+    fence = config.envelope.fence
+    guard = EnvelopeGuard(config, config.envelope, _logger(io.StringIO()))
+    draw = random.Random(17)
+    moved = checked = 0
+    while checked < 200:
+        start = (draw.uniform(-60, 110), draw.uniform(-60, 110))
+        if not fence.contains(*start):
+            continue
+        checked += 1
+        target = (draw.uniform(-120, 170), draw.uniform(-120, 170))
+        lat, lon, _ = to_global(LocalPoint(*target, 30.0), ORIGIN)
+        here_lat, here_lon = position(*start)
+        state = VehicleState(None, here_lat, here_lon, 30.0, 0, 0, 0, 0, 0, 0, "GUIDED", 4, True)
+        sent = guard.check(Goto(lat, lon, 30.0), state, [], 0.0)
+        expected = fence.clamp(start, target, 2.0)
+        if expected is None:
+            assert sent is None
+            continue
+        assert isinstance(sent, Goto)
+        point = local(sent)
+        assert math.dist((point.north_m, point.east_m), expected) < 0.01, (start, target)
+        moved += math.dist(expected, target) > 0.01
+    assert moved > 100  # most targets were outside, or their lines left the fence
 
 
 def test_a_target_in_an_exclusion_zone_is_moved_out_of_it(tmp_path: Path) -> None:

@@ -41,6 +41,7 @@ from typing import Final
 
 from clark_engine.link.fleet import FleetTable
 from clark_engine.link.messages import AgentStatus
+from clark_engine.mission.fence import Zone
 from clark_engine.mission.geo import LocalPoint, Origin, to_global, to_local
 from clark_engine.mission.primitives._shared import orbit_radius_m
 from clark_engine.runtime.commands import Goto, Takeoff
@@ -127,6 +128,21 @@ def _origin(config: AgentConfig) -> Origin:
     return Origin(config.origin_lat_deg, config.origin_lon_deg, config.origin_alt_amsl_m)
 
 
+def _convex(zone: Zone) -> bool:
+    """True for a circle, and for a polygon whose corners all turn the same way."""
+    if zone.kind == "circle":
+        return True
+    corners = zone.corners
+    turns = set()
+    for i, (n0, e0) in enumerate(corners):
+        n1, e1 = corners[(i + 1) % len(corners)]
+        n2, e2 = corners[(i + 2) % len(corners)]
+        cross = (n1 - n0) * (e2 - e1) - (e1 - e0) * (n2 - n1)
+        if abs(cross) > 1e-9:
+            turns.add(cross > 0)
+    return len(turns) <= 1
+
+
 def loiter_radius_m(config: AgentConfig, speed_m_s: float | None = None) -> float:
     """How far from its guided target the vehicle circles it: 0 but for a fixed wing.
 
@@ -206,6 +222,8 @@ class EnvelopeGuard:
         self._clamped_by: dict[str, int] = {}
         self._refused_by: dict[str, int] = {}
         self._episode: _Episode | None = None
+        fence = envelope.fence
+        self._convex_fence = not fence.exclude and all(_convex(z) for z in fence.include)
 
     @property
     def counts(self) -> EnvelopeCounts:
@@ -290,7 +308,7 @@ class EnvelopeGuard:
                 up = kept
 
         inset_m = env.margin_m + self._loiter(goto.speed_m_s)
-        point = env.fence.clamp(start, (north, east), inset_m)
+        point = self._fence_clamp(start, (north, east), inset_m)
         if point is None:
             self._refuse(
                 "Goto",
@@ -342,7 +360,7 @@ class EnvelopeGuard:
             north, east, up = pushed
             if self._aircraft:
                 up = self._height(up)
-            point = env.fence.clamp(start, (north, east), inset_m)
+            point = self._fence_clamp(start, (north, east), inset_m)
             if point is None:
                 break
             north, east = point
@@ -379,6 +397,36 @@ class EnvelopeGuard:
         return Goto(lat_deg, lon_deg, alt_m, goto.speed_m_s, None, None)
 
     # -- geometry ----------------------------------------------------------------------
+
+    def _fence_clamp(
+        self, start: tuple[float, float], target: tuple[float, float], inset_m: float
+    ) -> tuple[float, float] | None:
+        """:meth:`Fence.clamp`, without its walk along the line where the line is plainly in.
+
+        ``Fence.clamp`` moves a target outside to the nearest point inside, then walks
+        the line from the vehicle to it in up to 256 steps, looking for where it leaves
+        the fence: milliseconds for a polygon. The walk is skipped when both ends are
+        ``inset_m`` inside and either the fence is convex (inclusion circles and convex
+        polygons, no exclusion zone: a straight line between two points inside stays
+        inside, at least as far in as its nearer end), or the ends are far enough in
+        that no line between them could reach the edge (a fence's margin changes by at
+        most a metre per metre moved). Same answer, two margins instead of hundreds.
+        """
+        fence = self.envelope.fence
+        goal = target
+        goal_margin_m = fence.margin_m(*goal)
+        if goal_margin_m < inset_m:
+            moved = fence.nearest_inside(*goal, inset_m)
+            if moved is None:
+                return None
+            goal, goal_margin_m = moved, fence.margin_m(*moved)
+        start_margin_m = fence.margin_m(*start)
+        if start_margin_m >= inset_m and goal_margin_m >= inset_m - 1e-6:
+            if self._convex_fence:
+                return goal
+            if (start_margin_m + goal_margin_m - math.dist(start, goal)) / 2.0 >= inset_m:
+                return goal
+        return fence.clamp(start, goal, inset_m)
 
     def _height(self, up_m: float) -> float:
         """A height kept ``margin_m`` inside the floor and the ceiling (aircraft)."""
@@ -441,11 +489,6 @@ class EnvelopeGuard:
         env = self.envelope
         return f"{env.separation_from_m(peer):g} m separation and the {env.margin_m:g} m margin"
 
-    def _bubble_m(self, peer: str, speed_m_s: float | None) -> float:
-        """How far a target is kept from a peer: its separation, the margin, a loiter circle."""
-        env = self.envelope
-        return env.separation_from_m(peer) + env.margin_m + self._loiter(speed_m_s)
-
     def _intruded(
         self,
         north_m: float,
@@ -454,13 +497,24 @@ class EnvelopeGuard:
         peers: Iterable[PeerFix],
         speed_m_s: float | None,
     ) -> tuple[PeerFix, float, float] | None:
-        """The peer whose bubble the point is deepest inside: (peer, bubble, distance)."""
+        """The peer whose bubble the point is deepest inside: (peer, bubble, distance).
+
+        A peer's bubble is its separation, the margin and, for a plane, its loiter circle.
+        """
+        env = self.envelope
+        extra_m = env.margin_m + self._loiter(speed_m_s)
+        default_m = env.min_separation_m + extra_m
+        pairs = env.separation
         worst: tuple[PeerFix, float, float] | None = None
-        depth = 0.0
+        depth = 1e-6
         for peer in peers:
-            need_m = self._bubble_m(peer.name, speed_m_s)
-            apart_m = math.dist((north_m, east_m, up_m), (peer.north_m, peer.east_m, peer.up_m))
-            if need_m - apart_m > max(depth, 1e-6):
+            dn, de, du = north_m - peer.north_m, east_m - peer.east_m, up_m - peer.up_m
+            apart2 = dn * dn + de * de + du * du
+            need_m = pairs[peer.name] + extra_m if peer.name in pairs else default_m
+            if apart2 >= (need_m - depth) ** 2:
+                continue  # the usual case: far outside this bubble
+            apart_m = math.sqrt(apart2)
+            if need_m - apart_m > depth:
                 worst, depth = (peer, need_m, apart_m), need_m - apart_m
         return worst
 
