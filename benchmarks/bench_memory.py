@@ -1,7 +1,8 @@
 """How the memory of a long dry run grows with its simulated length.
 
-Runs ``clark dry-run`` of one example mission whose behaviour keeps running
-(``cooperative_follow``: Slash A drives its loop for as long as the run lasts) for
+Runs ``clark dry-run`` of one example mission whose agents keep running
+(``cooperative_follow``: both Slashes report, and are recorded, for as long as the run
+lasts; Slash A drives its tour once round, then stands at its last waypoint) for
 several simulated lengths, each in a fresh process, and prints the process's peak
 resident memory (``resource.getrusage``), the samples the recording holds in memory,
 and the growth per simulated hour over the shortest run. A dry run whose memory is
