@@ -600,7 +600,24 @@ def test_a_fence_breach_returns_the_copter_home_once(tmp_path: Path) -> None:
     )
     assert lines(log, "ERROR runtime._apply_failsafe: failsafe rtl")  # clark analyze reads it
     (later,) = lines(log, "envelope breach: ceiling:")
-    assert "(the failsafe rtl already holds; it is applied once)" in later
+    assert later.endswith(": rtl not applied (the failsafe rtl holds; a failsafe is applied once)")
+
+
+def test_two_breaches_in_one_tick_apply_the_first_kinds_action(tmp_path: Path) -> None:
+    """Out of the fence and over the ceiling at once: the fence's action, once."""
+    config = compiled(tmp_path, "copter", envelope=SQUARE[:-1] + ", ceiling_m: 60}")
+    flight = Flight(config)
+    _leave(flight, (0, 0, 30))
+    out = _leave(flight, (60, 0, 70))
+    assert of(out, SetMode) == [SetMode("RTL", 6)]
+    breach = flight.runtime.breach
+    assert breach is not None and breach.kind == "fence"
+    log = lines(flight.mission_log(), "envelope breach:")
+    assert [line.split("runtime._watch: ")[1].split(":")[1] for line in log] == [
+        " fence",
+        " ceiling",
+    ]
+    assert log[1].endswith(": rtl not applied (the failsafe rtl holds; a failsafe is applied once)")
 
 
 def test_a_rovers_fence_breach_holds_it(tmp_path: Path) -> None:

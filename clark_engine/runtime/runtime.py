@@ -953,6 +953,10 @@ class AgentRuntime:
             self.logbook.mission.info("envelope breach over: %s", ended.describe())
         acting = result.active and self._started and self.failsafe is None
         act = result.active[0] if acting else None
+        if act is not None:
+            self.breach = act
+            self.logbook.mission.error("envelope breach: %s: %s", act.describe(), act.action)
+            self._apply_failsafe(act.action, breach=act)
         for breach in result.began:
             if breach is act:
                 continue
@@ -964,15 +968,12 @@ class AgentRuntime:
                 )
             else:
                 self.logbook.mission.error(
-                    "envelope breach: %s: %s (the failsafe %s already holds; it is applied once)",
+                    "envelope breach: %s: %s not applied (the failsafe %s holds; a failsafe "
+                    "is applied once)",
                     breach.describe(),
                     breach.action,
-                    self.failsafe or "continue",
+                    self.failsafe,
                 )
-        if act is not None:
-            self.breach = act
-            self.logbook.mission.error("envelope breach: %s: %s", act.describe(), act.action)
-            self._apply_failsafe(act.action, breach=act)
 
     def _guided_flight(self, vehicle: VehicleState) -> bool:
         """An aircraft in the air, in the guided mode, flying to a Goto (not taking off)."""
