@@ -331,6 +331,17 @@ def test_a_target_outside_the_fence_is_cut_on_the_line_from_the_vehicle(tmp_path
     assert "north 120.0 m, east 30.0 m is 70.0 m outside the geofence" in line
 
 
+def test_refuse_drops_a_target_outside_the_fence(tmp_path: Path) -> None:
+    envelope = SQUARE[:-1] + ", outside: refuse}"
+    config = compiled(tmp_path, "copter", envelope=envelope, edit=waypoint_to(120, 30, 30))
+    flight = Flight(config)
+    assert of(flight.tick(flight.state(0, 0, 30)), Goto) == []
+    counts = flight.runtime.envelope_counts
+    assert counts is not None and counts.refused_by == {"fence": 1} and counts.clamped == 0
+    (line,) = lines(flight.mission_log(), "Goto refused (fence)")
+    assert "is 70.0 m outside the geofence" in line and line.endswith("; not sent")
+
+
 def test_a_line_that_leaves_the_fence_is_cut_where_it_leaves(tmp_path: Path) -> None:
     """Both ends inside an L-shaped field; the straight line crosses the corner cut out."""
     config = compiled(tmp_path, "copter", envelope=L_SHAPE, edit=waypoint_to(10, 90, 30))
