@@ -531,8 +531,7 @@ def test_a_takeoff_is_clamped_under_the_ceiling(tmp_path: Path) -> None:
     )
     config = compiled(tmp_path, "copter", text=text, edit=takeoff_to(130))
     flight = Flight(config)
-    flight.ready = AutopilotStatus(3, True, True, (ORIGIN.lat_deg, ORIGIN.lon_deg, 90.0))
-    flight.ready = AutopilotStatus(
+    flight.ready = AutopilotStatus(  # on the ground: the engine arms it, it takes off
         3, True, True, (ORIGIN.lat_deg, ORIGIN.lon_deg, 90.0), LandedState.ON_GROUND
     )
     takeoffs: list[Takeoff] = []
