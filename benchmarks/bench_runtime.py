@@ -15,6 +15,13 @@ the peers' packets delivered that tick, and ticks per second of the pure core.
 Compare with the thesis: 13 Hz maximum loop on a Raspberry Pi 2 and 98 Hz on an
 i5 laptop, two agents (5.1.1).
 
+Then the envelope's share (runtime/envelope.py), measured apart because it is a few
+per cent of a tick and a busy machine's noise is more: per N, the watch's CPU time per
+tick (the peers' latest reports on the local plane, then the vehicle and every fresh
+report against the envelope: what ``AgentRuntime`` runs at the start of each tick),
+and the guard's per Goto: one inside the default circle fence, and one past the edge
+of a four-corner polygon, moved inside along the line from the vehicle.
+
 Run: python benchmarks/bench_runtime.py
 """
 
@@ -28,7 +35,9 @@ from clark_engine.link.codec import Codec
 from clark_engine.link.messages import ActivateController, AgentStatus, AgentType, Heartbeat
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.validate import validate_path
-from clark_engine.runtime.config import config_from_dict
+from clark_engine.runtime.commands import Goto
+from clark_engine.runtime.config import config_from_dict, envelope_from_dict
+from clark_engine.runtime.envelope import EnvelopeGuard, PeerPositions
 from clark_engine.runtime.events import (
     AutopilotHeartbeat,
     AutopilotStatus,
@@ -69,8 +78,9 @@ def cub_runtime(peers: int) -> AgentRuntime:
     """The Super Cub's runtime, with ``peers`` more vehicles in its mission's peer table.
 
     The peers are added to the compiled config (vehicles sending a heartbeat and a
-    status a second), as a mission naming them would: the fleet table keeps records
-    only for the mission's agents, so peers outside it would cost nothing here.
+    status a second, flying in the Cub's own envelope), as a mission naming them
+    would: the fleet table keeps records only for the mission's agents, so peers
+    outside it would cost nothing here.
     """
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "sweep.yaml"
@@ -89,6 +99,7 @@ def cub_runtime(peers: int) -> AgentRuntime:
                 "radio_address": f"0013A2004100{i:04X}",
                 "sends": {"heartbeat": 1.0, "agent_status": 1.0},
                 "modes": {},
+                "envelope": compiled["envelope"],
             }
             for i in range(peers)
         ),
@@ -157,12 +168,68 @@ def measure(peers: int, seconds: float) -> tuple[float, float, float]:
     return per_tick * 1e6, (tick_cpu + deliver_cpu) / ticks * 1e6, 1.0 / per_tick
 
 
+def measure_envelope(peers: int, ticks: int) -> tuple[float, float, float]:
+    """(us per tick of the watch, us per Goto inside, us per Goto clamped at a polygon).
+
+    The peers report from 100 m around the Cub (inside their separation's reach, so no
+    distance is skipped), each heard once, fresh for the whole measurement.
+    """
+    runtime = cub_runtime(peers)
+    runtime.deliver(READY_IN_AIR, 0.0)
+    state = vehicle(0.0)
+    runtime.deliver(state, 0.0)
+    gps = 1_400_000_000_000
+    for i in range(peers):
+        codec = Codec(533, PEER_BASE_ID + i)
+        heartbeat = Heartbeat(PEER_BASE_ID + i, gps, mission_id=533, agent_type=AgentType.VEHICLE)
+        north = 30.6372 + 0.0009 * ((i % 10) - 5) / 5
+        status = AgentStatus(PEER_BASE_ID + i, gps, north, -96.4787, 60.0, 10.0, 0.0, 45.0, 5)
+        (packet,) = codec.encode([heartbeat, status], 0, 256)
+        runtime.deliver(PacketReceived(packet), 0.0)
+    watch = runtime.envelope_watch
+    assert watch is not None
+    positions = PeerPositions(runtime.config, runtime.fleet)
+    assert len(positions.fixes()) == peers
+    start = time.process_time()
+    for k in range(ticks):
+        watch.look(state, positions.fixes(), k * 0.1, guided_flight=False)
+    watch_us = (time.process_time() - start) / ticks * 1e6
+
+    config = runtime.config
+    assert config.envelope is not None
+    guard = EnvelopeGuard(config, config.envelope, runtime.logbook.mission)
+    inside = Goto(30.6380, -96.4787, 60.0)
+    square = dict(config.envelope.raw)
+    square["geofence"] = dict(square["geofence"], default_radius_m=None)
+    corners = [(-300.0, -300.0), (300.0, -300.0), (300.0, 300.0), (-300.0, 300.0)]
+    home = square["geofence"]["home"]
+    square["geofence"]["include"] = [
+        {"kind": "polygon", "points": [dict(home, north_m=n, east_m=e) for n, e in corners]}
+    ]
+    polygon = EnvelopeGuard(config, envelope_from_dict(square), runtime.logbook.mission)
+    outside = Goto(30.6372 + 500 / 111_195, -96.4787, 60.0)  # 500 m north: past the edge
+    fixes = positions.fixes()
+    timed = []
+    for guard_, goto in ((guard, inside), (polygon, outside)):
+        start = time.process_time()
+        for k in range(ticks):
+            guard_.check(goto, state, fixes, k * 0.1)
+        timed.append((time.process_time() - start) / ticks * 1e6)
+    return watch_us, timed[0], timed[1]
+
+
 def main() -> None:
     print("Super Cub elevator sweep at 10 Hz; CPU time per tick (process time)")
     print(f"{'peers':>6}{'tick us':>10}{'with peers us':>15}{'ticks/s':>10}")
     for peers in (1, 4, 16, 100):
         alone, total, rate = measure(peers, seconds=300.0)
         print(f"{peers:>6}{alone:>10.1f}{total:>15.1f}{rate:>10.0f}")
+    print()
+    print("The envelope: CPU time of the watch per tick, of the guard per Goto (process time)")
+    print(f"{'peers':>6}{'watch us':>10}{'Goto inside us':>16}{'Goto clamped us':>17}")
+    for peers in (1, 4, 16, 100):
+        watch_us, inside_us, clamped_us = measure_envelope(peers, ticks=3000)
+        print(f"{peers:>6}{watch_us:>10.1f}{inside_us:>16.1f}{clamped_us:>17.1f}")
 
 
 if __name__ == "__main__":

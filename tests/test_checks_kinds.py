@@ -36,6 +36,7 @@ agents:
   rover_a:
     id: 3
     profile: traxxas_slash
+    position: [-8, 0]
     telemetry: {heartbeat: 1, agent_status: 2}
     behavior: {use: hold}
   rover_b:
@@ -218,4 +219,4 @@ def test_clark_analyze_judges_the_new_kinds_from_logs(tmp_path: Path) -> None:
     for result in outcome.results:
         again = from_logs[result.name]
         assert again.evaluated and again.passed == result.passed, (result, again)
-    assert from_logs["A ends at its waypoint"].observed.endswith(")")
+    assert from_logs["A ends at the crossing"].observed.endswith(")")

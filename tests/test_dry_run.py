@@ -20,6 +20,8 @@ from clark_engine.sim.dryrun import parse_fault, run_dry_run
 ROOT = Path(__file__).resolve().parent.parent
 MISSIONS = sorted((ROOT / "missions").glob("*.yaml"))
 FOLLOW = ROOT / "missions" / "cooperative_follow.yaml"
+
+
 #: Examples that fail the dry run's safety judgement, and why (the mission change is pending).
 def dry_run(path: Path, **kwargs: object) -> tuple[int, str, str]:
     """Run in process; the exit code, the checks table and the diagnostics."""

@@ -125,7 +125,7 @@ def test_a_near_miss_fails_the_run_with_the_pair_time_and_place(tmp_path: Path) 
     assert "slash_a (" in row and "slash_b (" in row and row.endswith("| **FAIL** |")
     # The checks table is the checks' alone.
     checks = summary.split("## Checks", 1)[1].split("## Safety", 1)[0]
-    assert "| A arrives |" in checks and "slash_a - slash_b" not in checks
+    assert "| A drives |" in checks and "slash_a - slash_b" not in checks
     assert (report / "tracks.png").stat().st_size > 0
     figure = tracks_figure(result.recording, result.configs, pair)
     labels = [line.get_label() for line in figure.axes[0].get_lines()]

@@ -62,7 +62,7 @@ import logging
 import math
 import sys
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal, TextIO
@@ -338,6 +338,10 @@ class Logbook:
         self._rejection_bytes = 0
         #: False when fleet CSV and message log rows are dropped unformatted.
         self.tables = True
+        #: Called in order as the logbook closes, before anything is flushed: what its
+        #: owner writes last (the runtime's envelope summary), whoever closes it (a
+        #: terminate, the real-time shell, the end of a dry run).
+        self.closing: list[Callable[[], None]] = []
         level = levels[config.log_level]
         prefix = f"clark.{config.mission_name}.{config.agent}"
         formatter = logging.Formatter(LINE_FORMAT)
@@ -692,6 +696,9 @@ class Logbook:
         """
         if self._closed:
             return
+        closing, self.closing = self.closing, []
+        for last_words in closing:
+            last_words()
         self.summarise_rejections(self.now_s, force=True)
         with self._csv_lock:
             self._closed = True

@@ -31,6 +31,7 @@ the codec rejects every other packet before anything is looked at.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -66,6 +67,14 @@ from clark_engine.runtime.commands import (
 )
 from clark_engine.runtime.config import AgentConfig
 from clark_engine.runtime.context import PrimitiveContext, ground_distance_m
+from clark_engine.runtime.envelope import (
+    Breach,
+    EnvelopeCounts,
+    EnvelopeGuard,
+    EnvelopeWatch,
+    ModeOwner,
+    PeerPositions,
+)
 from clark_engine.runtime.events import (
     AutopilotHeartbeat,
     AutopilotStatus,
@@ -77,13 +86,15 @@ from clark_engine.runtime.events import (
     StationCommand,
     VehicleState,
 )
-from clark_engine.runtime.launch import LaunchGate
+from clark_engine.runtime.launch import LaunchGate, is_airborne
 from clark_engine.runtime.logbook import BROADCAST_PEER, Logbook
 from clark_engine.runtime.machine import BehaviorMachine, StateChange
 from clark_engine.runtime.primitives import make_primitive
 
 #: Commands that move the vehicle; never sent while the autopilot is lost or after terminate.
 VEHICLE_COMMANDS = (Goto, SetMode, Arm, Takeoff, SetServo, RcOverride)
+#: Commands the envelope guard checks as they leave (AgentRuntime._guard).
+_GUARDED = (Goto, Takeoff)
 #: An RC input above this is a switch in its high position, below the low one (ArduPilot's
 #: auxiliary-switch thresholds); the events fire on crossing, not while held.
 RC_HIGH_US = 1800
@@ -123,6 +134,12 @@ class AgentRuntime:
         logbook: Mission log, interface log, fleet CSV, message log.
         terminated: True once the agent has terminated; it then does nothing.
         failsafe: The failsafe in force (``hold``, ``rtl``...), None when none.
+        breach: The envelope breach whose action was applied as the failsafe, None
+            when none was (docs/runtime.md#the-envelope-in-flight).
+        envelope_guard: Keeps every Goto and Takeoff inside the envelope (vehicles
+            with an envelope; None otherwise).
+        envelope_watch: Watches the vehicle and its peers against the envelope each
+            tick (None where there is no guard).
     """
 
     def __init__(
@@ -176,6 +193,26 @@ class AgentRuntime:
         )
         self.terminated = False
         self.failsafe: str | None = None
+        self.breach: Breach | None = None
+        envelope = config.envelope if config.is_vehicle else None
+        self.envelope_guard = (
+            EnvelopeGuard(config, envelope, self.logbook.mission) if envelope is not None else None
+        )
+        self.envelope_watch = EnvelopeWatch(config, envelope) if envelope is not None else None
+        self._peer_positions = PeerPositions(config, self.fleet)
+        #: Whether the vehicle is in a mode the engine put it in (a breach never fights
+        #: a pilot or a station who took it).
+        self._modes = ModeOwner()
+        #: The last navigation command that left: "goto" or "takeoff" (the floor is
+        #: watched only in guided flight to a Goto, never in a take-off's climb).
+        self._last_navigation: str | None = None
+        if envelope is not None:
+            self.logbook.closing.append(self._envelope_summary)
+        elif config.is_vehicle:
+            self.logbook.mission.warning(
+                "no envelope in this config: targets are not checked and nothing is "
+                "watched; compile the mission again with clark compile"
+            )
         #: When the behaviour may start (readiness, arming, take-off, as the mission says).
         self.launch = LaunchGate(config, self.logbook.mission)
         #: Called with every state change, after the runtime's own handling (the
@@ -327,6 +364,7 @@ class AgentRuntime:
         )
 
     def _mode_seen(self, mode: str) -> None:
+        self._modes.mode_reported(mode)
         if mode != self._last_mode:
             if self._last_mode is not None:
                 self.logbook.mission.info("autopilot mode %s -> %s", self._last_mode, mode)
@@ -615,16 +653,21 @@ class AgentRuntime:
             self._first_tick_s = now_s
             if self._stations_silent_since_s is None and not self._stations_in_contact:
                 self._stations_silent_since_s = now_s
-        if (
+        opening = (
             not self._started
             and self.failsafe is None
             and self.launch.update(self.context.autopilot, self.context.vehicle)
-        ):
+        )
+        if opening:
             self._started = True
             self._started_s = now_s
-            if self.machine is not None:
-                self.machine.start(self.context)
-                self._collect_outbox()
+        if self.envelope_watch is not None:
+            # Before the machine starts: a breach in force as the gate opens is acted on
+            # instead of starting a behaviour that its failsafe would stop at once.
+            self._watch(now_s)
+        if opening and self.failsafe is None and self.machine is not None:
+            self.machine.start(self.context)
+            self._collect_outbox()
         for phase in self.config.tick_phases:
             if self.terminated:
                 break
@@ -719,6 +762,11 @@ class AgentRuntime:
         outbox = self.context.outbox
         if self._requests_void and outbox.commands:
             outbox.commands = self._void_requests(outbox.commands)
+        for command in outbox.commands:
+            if isinstance(command, SetMode):
+                self._modes.engine_asked(command.mode)
+            elif isinstance(command, Takeoff) and self.config.airframe_class == "fixed_wing":
+                self._modes.engine_asked("TAKEOFF")  # the adapter's way of taking off
         self._commands.extend(outbox.commands)
         outbox.commands = []
         if outbox.messages:
@@ -836,11 +884,23 @@ class AgentRuntime:
             )
         return kept
 
-    def _apply_failsafe(self) -> None:
-        """The declared mcs_lost failsafe, when the behaviour does not handle the event."""
-        action = (
-            self.config.failsafe.get("mcs_lost", "hold") if self.config.is_vehicle else "continue"
-        )
+    def _apply_failsafe(self, action: str | None = None, *, breach: Breach | None = None) -> None:
+        """A failsafe: the machine stopped, then the action's mode; never applied twice.
+
+        Args:
+            action: ``hold``, ``rtl``, ``land`` or ``continue``; None: the declared
+                mcs_lost failsafe (when the behaviour does not handle the event).
+            breach: The envelope breach this failsafe answers. Its mode is sent only
+                when the vehicle is in a mode the engine put it in: a pilot, a station
+                or the autopilot's own failsafe that took the vehicle is not fought.
+        """
+        if action is None:
+            action = (
+                self.config.failsafe.get("mcs_lost", "hold")
+                if self.config.is_vehicle
+                else "continue"
+            )
+        # `clark analyze --checks` and `clark replay` read this line (log_checks): keep it.
         self.logbook.mission.error("failsafe %s", action)
         if action == "continue" or self.failsafe is not None:
             return
@@ -853,11 +913,95 @@ class AgentRuntime:
         if self.machine is not None:
             self.machine.stop(self.context)
             self._collect_outbox()
+        if self.envelope_guard is not None:
+            self.envelope_guard.end_episode()  # the behaviour sends no more targets
+        if breach is not None and not self._modes.engine_holds:
+            reported = self._modes.reported or "an unknown mode"
+            self.logbook.mission.warning(
+                "failsafe %s: no mode sent: the vehicle is in %s, a mode the engine did not "
+                "put it in (its pilot, the station or the autopilot chose it); the "
+                "behaviour is stopped",
+                action,
+                reported,
+            )
+            return
         if mode is not None and mode in self.config.modes:
             command = SetMode(mode, int(self.config.modes[mode]))
+            self._modes.engine_asked(mode)
             self._commands.append(command)
             if self._autopilot_lost:
                 self._failsafe_unsent = command  # sent when the autopilot returns
+
+    def _watch(self, now_s: float) -> None:
+        """The vehicle and its peers against the envelope; a breach's action, once.
+
+        Run at the start of every tick, before the machine phase. Before the behaviour
+        starts the engine commands nothing, so a breach then is logged only; from the
+        tick the launch gate opens, the first breach in force (begun then or before)
+        applies its action as a failsafe, and any later one is logged only.
+        """
+        watch, vehicle = self.envelope_watch, self.context.vehicle
+        if watch is None or vehicle is None:
+            return
+        result = watch.look(
+            vehicle,
+            self._peer_positions.fixes(),
+            now_s,
+            guided_flight=self._guided_flight(vehicle),
+        )
+        for ended in result.ended:
+            self.logbook.mission.info("envelope breach over: %s", ended.describe())
+        acting = result.active and self._started and self.failsafe is None
+        act = result.active[0] if acting else None
+        if act is not None:
+            self.breach = act
+            self.logbook.mission.error("envelope breach: %s: %s", act.describe(), act.action)
+            self._apply_failsafe(act.action, breach=act)
+        for breach in result.began:
+            if breach is act:
+                continue
+            if not self._started:
+                self.logbook.mission.warning(
+                    "envelope breach: %s: logged only (the behaviour has not started, "
+                    "the engine commands nothing)",
+                    breach.describe(),
+                )
+            else:
+                self.logbook.mission.error(
+                    "envelope breach: %s: %s not applied (the failsafe %s holds; a failsafe "
+                    "is applied once)",
+                    breach.describe(),
+                    breach.action,
+                    self.failsafe,
+                )
+
+    def _guided_flight(self, vehicle: VehicleState) -> bool:
+        """An aircraft in the air, in the guided mode, flying to a Goto (not taking off)."""
+        return (
+            self.config.is_aircraft
+            and vehicle.mode == self.config.guided_mode
+            and self._last_navigation == "goto"
+            and is_airborne(self.context.autopilot, vehicle)
+        )
+
+    def _envelope_summary(self) -> None:
+        """The mission log's closing line: what the guard did, and the breach, if any."""
+        guard = self.envelope_guard
+        if guard is None:
+            return
+        guard.end_episode()
+        counts = guard.counts
+        breach = self.breach
+        self.logbook.mission.log(
+            logging.WARNING if counts.clamped or counts.refused or breach else logging.INFO,
+            "envelope: %s; %s",
+            counts.describe(),
+            (
+                f"breach at t={breach.began_s:.3f}: {breach.describe()}: {breach.action}"
+                if breach is not None
+                else "no breach acted on"
+            ),
+        )
 
     def _terminate(self, now_s: float, mode: str | None) -> None:
         """Thesis 7.3.5: stop commanding, terminal mode, close interfaces, flush logs."""
@@ -959,6 +1103,11 @@ class AgentRuntime:
         return self._started
 
     @property
+    def envelope_counts(self) -> EnvelopeCounts | None:
+        """What the envelope guard did with the targets so far; None without a guard."""
+        return self.envelope_guard.counts if self.envelope_guard is not None else None
+
+    @property
     def autopilot_lost(self) -> bool:
         """True from the autopilot's timeout to its next VehicleState: vehicle commands dropped."""
         return self._autopilot_lost
@@ -991,7 +1140,27 @@ class AgentRuntime:
         commands, self._commands = self._commands, []
         if self._autopilot_lost or (self.terminated and not self._closing(commands)):
             commands = [c for c in commands if not isinstance(c, VEHICLE_COMMANDS)]
+        elif self.envelope_guard is not None:
+            for command in commands:
+                if isinstance(command, _GUARDED):
+                    return self._guard(commands)
         return commands
+
+    def _guard(self, commands: list[Command]) -> list[Command]:
+        """The last step before commands leave: every Goto and Takeoff kept in the envelope."""
+        guard = self.envelope_guard
+        assert guard is not None
+        peers = self._peer_positions.fixes()
+        out: list[Command] = []
+        for command in commands:
+            if isinstance(command, _GUARDED):
+                kept = guard.check(command, self.context.vehicle, peers, self.context.now_s)
+                if kept is None:
+                    continue
+                self._last_navigation = "goto" if isinstance(kept, Goto) else "takeoff"
+                command = kept
+            out.append(command)
+        return out
 
     @staticmethod
     def _closing(commands: list[Command]) -> bool:
