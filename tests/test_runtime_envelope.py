@@ -236,7 +236,15 @@ class Flight:
             armed,
         )
 
-    def peer(self, name: str, north_m: float, east_m: float, up_m: float) -> PacketReceived:
+    def peer(
+        self,
+        name: str,
+        north_m: float,
+        east_m: float,
+        up_m: float,
+        speed_m_s: float = 0.0,
+        heading_deg: float = 0.0,
+    ) -> PacketReceived:
         """A peer's heartbeat and Agent Status, as its radio would bring them."""
         spec = self.config.peer(name)
         assert spec is not None
@@ -245,7 +253,7 @@ class Flight:
         lat, lon = position(north_m, east_m)
         messages = [
             Heartbeat(spec.id, gps, self.config.mission_id, AgentType.VEHICLE),
-            AgentStatus(spec.id, gps, lat, lon, up_m, 0.0, 0.0, 0.0, 0),
+            AgentStatus(spec.id, gps, lat, lon, up_m, speed_m_s, 0.0, heading_deg, 0),
         ]
         (data,) = codec.encode(messages, 0, 256)  # type: ignore[arg-type]
         return PacketReceived(data)
@@ -753,6 +761,34 @@ def test_a_near_miss_holds_once(tmp_path: Path) -> None:
         "envelope breach: separation: rover 4.5 m away (3-D), inside the 5 m separation: hold"
         in (flight.mission_log())
     )
+
+
+def test_a_moving_peers_report_is_carried_to_now(tmp_path: Path) -> None:
+    """A report 0.5 s old of a rover driving at us at 4 m/s is 2 m behind where it is."""
+    config = compiled(tmp_path, "copter")
+    flight = Flight(config)
+    _leave(flight, (0, 0, 30))
+    # 6.5 m away when it reported, heading west (270 deg) toward the copter at 4 m/s
+    report = flight.peer("rover", 0, 6.5, 0.0, speed_m_s=4.0, heading_deg=270.0)
+    out = flight.tick(flight.state(0, 0, 0.5), report)
+    assert not of(out, SetMode)  # 6.5 m: outside the 5 m
+    for _ in range(4):  # no new report; 0.5 s later it is 4.5 m away if it drove on
+        out += flight.tick(flight.state(0, 0, 0.5))
+    assert of(out, SetMode) == [SetMode("LOITER", 5)]
+    assert "where its last report puts it now, inside the 5 m separation" in (
+        flight.mission_log()
+    )
+
+
+def test_a_peer_standing_still_is_not_carried_anywhere(tmp_path: Path) -> None:
+    config = compiled(tmp_path, "copter")
+    flight = Flight(config)
+    _leave(flight, (0, 0, 30))
+    report = flight.peer("rover", 0, 6.5, 0.0, speed_m_s=0.2, heading_deg=270.0)
+    out = flight.tick(flight.state(0, 0, 0.5), report)
+    for _ in range(9):
+        out += flight.tick(flight.state(0, 0, 0.5))
+    assert not of(out, SetMode) and flight.runtime.failsafe is None
 
 
 def test_height_keeps_vehicles_apart(tmp_path: Path) -> None:

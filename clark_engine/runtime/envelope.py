@@ -65,9 +65,23 @@ _MOVED_M: Final = 1e-3
 BREACH_KINDS: Final = ("fence", "ceiling", "floor", "endurance", "separation")
 
 
+PREDICT_MAX_S: Final = 1.0
+"""How far ahead a peer's report is carried along its reported velocity, at most: a report
+at 2 Hz is up to half a second old, and a truck closing at 4 m/s is 2 m nearer than it
+says. Beyond a second a straight line is no longer a fair guess of where it went."""
+
+PREDICT_MIN_SPEED_M_S: Final = 0.5
+"""Below this reported ground speed a peer is taken to stand where it reported (a GPS's
+speed at rest is noise)."""
+
+
 @dataclass(frozen=True, slots=True)
 class PeerFix:
-    """Another vehicle's latest reported position (its Agent Status) on the local plane.
+    """Another vehicle's position on the local plane, as its latest Agent Status puts it.
+
+    A moving peer has two fixes: where it reported itself, and where that report's
+    velocity puts it now (``predicted``); the separation is kept from both, so a report's
+    age never lets a vehicle come closer than its separation says.
 
     Attributes:
         name: The peer's name.
@@ -75,6 +89,7 @@ class PeerFix:
         east_m: Metres east of the origin.
         up_m: Metres above the origin (as it reported).
         received_s: When the report arrived (runtime clock).
+        predicted: Carried forward from the report along its velocity, to now.
     """
 
     name: str
@@ -82,6 +97,7 @@ class PeerFix:
     east_m: float
     up_m: float
     received_s: float
+    predicted: bool = False
 
 
 class PeerPositions:
@@ -100,10 +116,15 @@ class PeerPositions:
         self._fleet = fleet
         self._origin = _origin(config)
         self._peers = tuple((p.id, p.name) for p in config.peers if p.role == "vehicle")
-        self._cache: dict[int, tuple[object, PeerFix]] = {}
+        self._cache: dict[int, tuple[object, PeerFix, tuple[float, float, float] | None]] = {}
 
-    def fixes(self) -> list[PeerFix]:
-        """Every vehicle peer's latest reported position, stale or not."""
+    def fixes(self, now_s: float | None = None) -> list[PeerFix]:
+        """Every vehicle peer's latest reported position, stale or not.
+
+        With ``now_s``, a peer that reported itself moving also gets a second fix: its
+        report carried along its reported velocity to ``now_s`` (at most
+        :data:`PREDICT_MAX_S` ahead).
+        """
         out: list[PeerFix] = []
         for peer_id, name in self._peers:
             record = self._fleet.record(peer_id)
@@ -114,14 +135,38 @@ class PeerPositions:
                 continue
             cached = self._cache.get(peer_id)
             if cached is not None and cached[0] is sample:
-                out.append(cached[1])
-                continue
-            status = sample.value
-            point = to_local(status.lat_deg, status.lon_deg, status.alt_m, self._origin)
-            fix = PeerFix(name, point.north_m, point.east_m, point.up_m, sample.received_s)
-            self._cache[peer_id] = (sample, fix)
+                fix, velocity = cached[1], cached[2]
+            else:
+                status = sample.value
+                point = to_local(status.lat_deg, status.lon_deg, status.alt_m, self._origin)
+                fix = PeerFix(name, point.north_m, point.east_m, point.up_m, sample.received_s)
+                velocity = _velocity(status)
+                self._cache[peer_id] = (sample, fix, velocity)
             out.append(fix)
+            if now_s is not None and velocity is not None:
+                ahead_s = min(max(now_s - fix.received_s, 0.0), PREDICT_MAX_S)
+                if ahead_s > 0.0:
+                    vn, ve, vu = velocity
+                    out.append(
+                        PeerFix(
+                            name,
+                            fix.north_m + vn * ahead_s,
+                            fix.east_m + ve * ahead_s,
+                            fix.up_m + vu * ahead_s,
+                            fix.received_s,
+                            predicted=True,
+                        )
+                    )
         return out
+
+
+def _velocity(status: AgentStatus) -> tuple[float, float, float] | None:
+    """A report's velocity north, east and up (m/s); None for a peer standing still."""
+    speed = status.ground_speed_m_s
+    if speed < PREDICT_MIN_SPEED_M_S:
+        return None
+    heading = math.radians(status.heading_deg)
+    return speed * math.cos(heading), speed * math.sin(heading), status.climb_rate_m_s
 
 
 def _origin(config: AgentConfig) -> Origin:
@@ -737,6 +782,7 @@ class EnvelopeWatch:
                 None,
             )
         if vehicle.armed:
+            closest: dict[str, float] = {}
             for peer in peers:
                 if now_s - peer.received_s > self._stale_s:
                     continue  # stale: where it was, not where it is
@@ -746,10 +792,14 @@ class EnvelopeWatch:
                 dn, de, du = north - peer.north_m, east - peer.east_m, up - peer.up_m
                 if dn * dn + de * de + du * du < limit_m * limit_m:
                     apart_m = math.sqrt(dn * dn + de * de + du * du)
+                    if key in found and closest.get(key, math.inf) <= apart_m:
+                        continue  # its other fix (reported or carried forward) is nearer
+                    closest[key] = apart_m
+                    where = " where its last report puts it now" if peer.predicted else ""
                     found[key] = (
                         "separation",
-                        f"{peer.name} {apart_m:.1f} m away (3-D), inside the {need_m:g} m "
-                        "separation",
+                        f"{peer.name} {apart_m:.1f} m away (3-D){where}, inside the "
+                        f"{need_m:g} m separation",
                         peer.name,
                     )
 

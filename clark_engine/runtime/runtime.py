@@ -945,7 +945,7 @@ class AgentRuntime:
             return
         result = watch.look(
             vehicle,
-            self._peer_positions.fixes(),
+            self._peer_positions.fixes(now_s),
             now_s,
             guided_flight=self._guided_flight(vehicle),
         )
@@ -1150,7 +1150,7 @@ class AgentRuntime:
         """The last step before commands leave: every Goto and Takeoff kept in the envelope."""
         guard = self.envelope_guard
         assert guard is not None
-        peers = self._peer_positions.fixes()
+        peers = self._peer_positions.fixes(self.context.now_s)
         out: list[Command] = []
         for command in commands:
             if isinstance(command, _GUARDED):
