@@ -89,6 +89,7 @@ from clark_engine.runtime.commands import (
 )
 from clark_engine.runtime.events import (
     AutopilotHeartbeat,
+    AutopilotSafetyResult,
     AutopilotStatus,
     AutopilotText,
     CommandRefused,
@@ -112,6 +113,7 @@ _RUNTIME_EVENTS = (
     AutopilotStatus,
     AutopilotText,
     CommandRefused,
+    AutopilotSafetyResult,
     RcChannels,
 )
 

@@ -56,6 +56,7 @@ from clark_engine.runtime.commands import (
     SendPacket,
     SetMode,
     SetServo,
+    SetUpAutopilotSafety,
     Takeoff,
 )
 from clark_engine.runtime.config import AgentConfig, config_from_dict
@@ -86,7 +87,7 @@ START_UNIX_US = 1_767_225_600_000_000
 #: beyond its autopilot's boot: it is ready, and its pilot took off, before time 0.
 AIRBORNE_BOOTED_S = 60.0
 
-_AUTOPILOT_COMMANDS = (Goto, SetMode, Arm, Takeoff, SetServo, RcOverride)
+_AUTOPILOT_COMMANDS = (Goto, SetMode, Arm, Takeoff, SetServo, RcOverride, SetUpAutopilotSafety)
 
 #: How much shorter than the mesh's lookahead a split run's window is.
 WINDOW_MARGIN_S = 1e-7
