@@ -297,7 +297,7 @@ def bench(bench_for: Any) -> Bench:
 def test_connection_is_verified(bench: Bench) -> None:
     assert bench.adapter.verified
     assert bench.adapter.problem is None
-    assert bench.adapter.flight_sw_version == "4.5.7"
+    assert bench.adapter.flight_sw_version == "4.7.0"
     assert not bench.adapter.lost(bench.now_s)
     assert (255, 191) in bench.sim.gcs_peers
     assert bench.of(AutopilotHeartbeat)[-1] == AutopilotHeartbeat("MANUAL", 0, False)

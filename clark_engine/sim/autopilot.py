@@ -65,15 +65,18 @@ What it does, in ArduPilot's order:
   GET_MESSAGE_INTERVAL, REQUEST_MESSAGE, REQUEST_AUTOPILOT_CAPABILITIES; anything
   else UNSUPPORTED. SET_POSITION_TARGET_GLOBAL_INT in guided (position, or position
   and velocity, which ArduCopter extrapolates; ArduPlane takes only the altitude);
-  RC_CHANNELS_OVERRIDE from SYSID_MYGCS, lapsing after RC_OVERRIDE_TIME; the
-  guided-mode MISSION_ITEM(_INT) of MAVProxy's ``guided``; PARAM_* (a PARAM_VALUE
-  answering a read by name or a set carries index 65535, as ArduPilot's);
+  RC_CHANNELS_OVERRIDE from MAV_GCS_SYSID, lapsing after RC_OVERRIDE_TIME; the
+  guided-mode MISSION_ITEM(_INT) of MAVProxy's ``guided``; PARAM_* as ArduPilot 4.7
+  answers them (a PARAM_VALUE answering a read by name or a set carries index 65535;
+  a set is echoed with the stored value in the parameter's own type, integers
+  truncated and clamped to their C type, never clamped to the documented range;
+  unknown names, NaN and infinities get no answer);
   FILE_TRANSFER_PROTOCOL (a NAK, so stations fall back to parameters); TIMESYNC.
 - **Streams**: HEARTBEAT at 1 Hz; SYS_STATUS, GPS_RAW_INT, GLOBAL_POSITION_INT,
   ATTITUDE (with body rates), VFR_HUD, SYSTEM_TIME, RC_CHANNELS, SERVO_OUTPUT_RAW,
   EKF_STATUS_REPORT, EXTENDED_SYS_STATE (ArduCopter, ArduPlane), MISSION_CURRENT,
   BATTERY_STATUS, NAV_CONTROLLER_OUTPUT and POSITION_TARGET_GLOBAL_INT (while the
-  mode flies to a target) at rates from the SR0_* stream parameters (ArduCopter
+  mode flies to a target) at rates from the MAV1_* stream parameters (ArduCopter
   streams nothing until asked), overridden per message by
   MAV_CMD_SET_MESSAGE_INTERVAL (-1 stops, 0 restores the default) or per group by
   REQUEST_DATA_STREAM. STATUSTEXT whenever ArduPilot would speak.
@@ -113,8 +116,12 @@ FIRMWARE_TYPES: Final[Mapping[str, int]] = {
 }
 """HEARTBEAT vehicle type per firmware."""
 
-FIRMWARE_VERSION: Final = (4, 5, 7)
-"""The ArduPilot release the simulation claims in AUTOPILOT_VERSION."""
+FIRMWARE_VERSION: Final = (4, 7, 0)
+"""The ArduPilot version the simulation claims in AUTOPILOT_VERSION: the SITL build its
+facts were measured on (4.7.0-dev), whose parameter names it has (MAV_SYSID,
+MAV_GCS_SYSID, MAV1_*; 4.5's SYSID_THISMAV, SYSID_MYGCS and SR0_* are unknown to it)."""
+FIRMWARE_VERSION_TYPE: Final = int(mavlink2.FIRMWARE_VERSION_TYPE_DEV)
+"""A development build, as SITL's master build reports itself."""
 
 CAPABILITIES: Final[Mapping[str, int]] = {
     "ardurover": 0xF1EF,
@@ -222,22 +229,22 @@ _INFO, _NOTICE, _WARNING, _CRITICAL = (
 
 STREAM_GROUPS: Final[Mapping[str, str | None]] = {
     "HEARTBEAT": None,
-    "SYS_STATUS": "SR0_EXT_STAT",
-    "GPS_RAW_INT": "SR0_EXT_STAT",
-    "MISSION_CURRENT": "SR0_EXT_STAT",
-    "NAV_CONTROLLER_OUTPUT": "SR0_EXT_STAT",
-    "POSITION_TARGET_GLOBAL_INT": "SR0_EXT_STAT",
-    "EXTENDED_SYS_STATE": "SR0_EXT_STAT",
-    "GLOBAL_POSITION_INT": "SR0_POSITION",
-    "ATTITUDE": "SR0_EXTRA1",
-    "VFR_HUD": "SR0_EXTRA2",
-    "SYSTEM_TIME": "SR0_EXTRA3",
-    "EKF_STATUS_REPORT": "SR0_EXTRA3",
-    "BATTERY_STATUS": "SR0_EXTRA3",
-    "RC_CHANNELS": "SR0_RC_CHAN",
-    "SERVO_OUTPUT_RAW": "SR0_RC_CHAN",
+    "SYS_STATUS": "MAV1_EXT_STAT",
+    "GPS_RAW_INT": "MAV1_EXT_STAT",
+    "MISSION_CURRENT": "MAV1_EXT_STAT",
+    "NAV_CONTROLLER_OUTPUT": "MAV1_EXT_STAT",
+    "POSITION_TARGET_GLOBAL_INT": "MAV1_EXT_STAT",
+    "EXTENDED_SYS_STATE": "MAV1_EXT_STAT",
+    "GLOBAL_POSITION_INT": "MAV1_POSITION",
+    "ATTITUDE": "MAV1_EXTRA1",
+    "VFR_HUD": "MAV1_EXTRA2",
+    "SYSTEM_TIME": "MAV1_EXTRA3",
+    "EKF_STATUS_REPORT": "MAV1_EXTRA3",
+    "BATTERY_STATUS": "MAV1_EXTRA3",
+    "RC_CHANNELS": "MAV1_RC_CHAN",
+    "SERVO_OUTPUT_RAW": "MAV1_RC_CHAN",
 }
-"""Streamed messages, in emission order, and the SR0_* parameter (Hz) that sets each
+"""Streamed messages, in emission order, and the MAV1_* parameter (Hz) that sets each
 one's default rate (None: HEARTBEAT, always 1 Hz by default), as ArduPilot groups them."""
 
 _NOT_STREAMED: Final[Mapping[str, frozenset[str]]] = {}
@@ -245,15 +252,19 @@ _NOT_STREAMED: Final[Mapping[str, frozenset[str]]] = {}
 with an undefined landed state)."""
 
 _DATA_STREAM_PARAMS: Final[Mapping[int, str]] = {
-    mavlink2.MAV_DATA_STREAM_RAW_SENSORS: "SR0_RAW_SENS",
-    mavlink2.MAV_DATA_STREAM_EXTENDED_STATUS: "SR0_EXT_STAT",
-    mavlink2.MAV_DATA_STREAM_RC_CHANNELS: "SR0_RC_CHAN",
-    mavlink2.MAV_DATA_STREAM_RAW_CONTROLLER: "SR0_RAW_CTRL",
-    mavlink2.MAV_DATA_STREAM_POSITION: "SR0_POSITION",
-    mavlink2.MAV_DATA_STREAM_EXTRA1: "SR0_EXTRA1",
-    mavlink2.MAV_DATA_STREAM_EXTRA2: "SR0_EXTRA2",
-    mavlink2.MAV_DATA_STREAM_EXTRA3: "SR0_EXTRA3",
+    mavlink2.MAV_DATA_STREAM_RAW_SENSORS: "MAV1_RAW_SENS",
+    mavlink2.MAV_DATA_STREAM_EXTENDED_STATUS: "MAV1_EXT_STAT",
+    mavlink2.MAV_DATA_STREAM_RC_CHANNELS: "MAV1_RC_CHAN",
+    mavlink2.MAV_DATA_STREAM_RAW_CONTROLLER: "MAV1_RAW_CTRL",
+    mavlink2.MAV_DATA_STREAM_POSITION: "MAV1_POSITION",
+    mavlink2.MAV_DATA_STREAM_EXTRA1: "MAV1_EXTRA1",
+    mavlink2.MAV_DATA_STREAM_EXTRA2: "MAV1_EXTRA2",
+    mavlink2.MAV_DATA_STREAM_EXTRA3: "MAV1_EXTRA3",
 }
+STREAM_RATES: Final = frozenset(_DATA_STREAM_PARAMS.values())
+"""The stream-rate parameters that start at the firmware's default rate (not MAV1_PARAMS)."""
+_MAV_OPTION_GCS_ONLY: Final = 1
+"""MAV_OPTIONS bit 0: accept MAVLink only from MAV_GCS_SYSID (and our own system)."""
 
 _INT8, _INT16, _INT32 = (
     mavlink2.MAV_PARAM_TYPE_INT8,
@@ -337,6 +348,7 @@ _BOOT_TEXTS: Final[tuple[tuple[str, float, int, str], ...]] = (
 class _Param:
     value: float
     param_type: int
+    listed: bool = True  # in PARAM_REQUEST_LIST (False: read and set by name only)
 
 
 @dataclass(frozen=True, slots=True)
@@ -359,6 +371,15 @@ def _msg_id(name: str) -> int:
     return int(getattr(mavlink2, f"MAVLINK_MSG_ID_{name}"))
 
 
+_FLOAT32_MAX: Final = 3.4028234663852886e38
+
+
+def _float32(value: float) -> float:
+    """``value`` as a C float holds it (rounded to 24 bits; beyond the range, the largest)."""
+    bounded = min(max(value, -_FLOAT32_MAX), _FLOAT32_MAX)
+    return float(struct.unpack("<f", struct.pack("<f", bounded))[0])
+
+
 def _clamp(value: float, low: int, high: int) -> int:
     rounded = round(value)  # (comparisons, not min and max: several per streamed message)
     return low if rounded < low else high if rounded > high else rounded
@@ -378,7 +399,7 @@ class SimAutopilot:
     Args:
         model: The vehicle it flies.
         firmware: ``arduplane``, ``arducopter`` or ``ardurover``.
-        system_id: Its MAVLink system id (SYSID_THISMAV).
+        system_id: Its MAVLink system id (MAV_SYSID).
         component_id: Its component id (1).
         modes: Mode name -> custom_mode number; the model's by default.
         guided_mode: The mode in which position targets are flown.
@@ -501,11 +522,13 @@ class SimAutopilot:
         self._takeoff_starts_s = -math.inf  # ArduPlane's takeoff proper starts then
         self._guided_wp_active = False  # ArduCopter flies guided position targets now
         self._text_id = 0  # id of the last STATUSTEXT sent in chunks
-        self._params: dict[str, _Param] = {"SYSID_THISMAV": _Param(system_id, _INT16)}
+        self._params: dict[str, _Param] = {"MAV_SYSID": _Param(system_id, _INT16)}
         for name, (value, kind) in {**COMMON_PARAMS, **self.fw.params}.items():
-            if name.startswith("SR0_") and name != "SR0_PARAMS":
+            if name in STREAM_RATES:
                 value = self.fw.default_stream_hz if value else 0.0
-            self._params[name] = _Param(float(value), kind)
+            self._params[name] = _Param(float(value), kind, name not in self.fw.hidden_params)
+        # What PARAM_REQUEST_LIST lists, and the count every PARAM_VALUE carries.
+        self._listed = [name for name, entry in self._params.items() if entry.listed]
         for name, value in (params or {}).items():
             if name not in self._params:
                 raise ValueError(f"no parameter {name!r} in the simulated {firmware}")
@@ -569,7 +592,7 @@ class SimAutopilot:
         if channel.get("rc") is not None:
             zero = channel.get("pwm_trim_us" if firmware == "ardurover" else "pwm_min_us")
             throttle = (int(channel["rc"]), int(zero if zero is not None else 1100))
-        known = {"SYSID_THISMAV", *COMMON_PARAMS, *FIRMWARES[firmware].params}
+        known = {"MAV_SYSID", *COMMON_PARAMS, *FIRMWARES[firmware].params}
         params = {
             str(name): float(value)
             for name, value in (autopilot.get("parameters") or {}).items()
@@ -1095,6 +1118,8 @@ class SimAutopilot:
             return  # addressed to another vehicle or component
         asker = _Asker(*source)
         kind = msg.get_type()
+        if not self._accepts(msg):
+            return
         if kind == "HEARTBEAT":
             if msg.type == mavlink2.MAV_TYPE_GCS or msg.autopilot == mavlink2.MAV_AUTOPILOT_INVALID:
                 self._peers[source] = now_s
@@ -1115,15 +1140,12 @@ class SimAutopilot:
         elif kind == "RC_CHANNELS_OVERRIDE":
             self._rc_override(msg, now_s)
         elif kind == "PARAM_REQUEST_LIST":
-            for index, name in enumerate(self._params):
+            for index, name in enumerate(self._listed):
                 self._send_param(name, index)
         elif kind == "PARAM_REQUEST_READ":
             self._param_read(msg)
         elif kind == "PARAM_SET":
-            name = str(msg.param_id)
-            if name in self._params:  # ArduPilot ignores unknown names without a word
-                self._set_param(name, msg.param_value)
-                self._send_param(name, _PARAM_INDEX_BY_NAME)
+            self._param_set(msg)
         elif kind == "REQUEST_DATA_STREAM":
             self._request_data_stream(msg)
         elif kind.startswith("MISSION_") and self.missions.handle(msg, now_s):
@@ -1140,6 +1162,24 @@ class SimAutopilot:
             self._ftp_nak(msg, asker)
         elif kind == "TIMESYNC" and msg.tc1 == 0:
             self._mav.send(self._mav.timesync_encode(round((now_s - self.boot_s) * 1e9), msg.ts1))
+
+    def _accepts(self, msg: Any) -> bool:
+        """Whether ArduPilot takes this message (GCS_MAVLINK::accept_packet).
+
+        With MAV_OPTIONS bit 0 only our own system, MAV_GCS_SYSID, and radio status
+        messages are taken; otherwise everyone.
+        """
+        if not int(self._params["MAV_OPTIONS"].value) & _MAV_OPTION_GCS_ONLY:
+            return True
+        sysid = msg.get_srcSystem()
+        return sysid in (self._sysid, self._gcs_sysid()) or msg.get_type() in (
+            "RADIO",
+            "RADIO_STATUS",
+        )
+
+    def _gcs_sysid(self) -> int:
+        """MAV_GCS_SYSID: the system whose heartbeats and RC overrides are the GCS's."""
+        return int(self._params["MAV_GCS_SYSID"].value)
 
     def _ack(self, command: int, result: int, asker: _Asker) -> None:
         self._mav.send(
@@ -1624,7 +1664,7 @@ class SimAutopilot:
             self._enter_mode("RTL", now_s)
 
     def _rc_override(self, msg: Any, now_s: float) -> None:
-        if msg.get_srcSystem() != round(self._params["SYSID_MYGCS"].value):
+        if msg.get_srcSystem() != self._gcs_sysid():
             return  # ArduPilot takes overrides only from its ground station
         if self._params["RC_OVERRIDE_TIME"].value == 0:
             return  # overrides disabled
@@ -1662,16 +1702,41 @@ class SimAutopilot:
 
     # -- parameters --------------------------------------------------------------------------
 
+    def _param_set(self, msg: Any) -> None:
+        """PARAM_SET as ArduPilot's GCS_MAVLINK::handle_param_set.
+
+        An unknown name, NaN or an infinity: no answer at all, nothing changes.
+        Otherwise the value is stored (as :meth:`_set_param` converts it) and echoed in
+        one PARAM_VALUE with the parameter's own type, index 65535, even when unchanged.
+        """
+        name = str(msg.param_id)
+        value = float(msg.param_value)
+        if name not in self._params or not math.isfinite(value):
+            return
+        self._set_param(name, value)
+        self._send_param(name, _PARAM_INDEX_BY_NAME)
+
     def _set_param(self, name: str, value: float) -> None:
+        """Store a value as AP_Param::set_float does.
+
+        The stored type decides, whatever type the sender said: a float is kept as a
+        32-bit float; an integer gets 0.01 added away from zero, is clamped to its C
+        type's range and truncated (2.7 -> 2, -2.7 -> -2, 300 in an int8 -> 127). The
+        documented @Range is never enforced (FENCE_RADIUS 5 is kept).
+        """
+        if not math.isfinite(value):
+            return
         self._next_due_us = 0  # a stream-rate parameter may have changed
         self._schedule = None
         entry = self._params[name]
+        single = _float32(value)
         if entry.param_type in _INT_RANGES:
             low, high = _INT_RANGES[entry.param_type]
-            entry.value = float(_clamp(value, low, high))
+            nudged = _float32(single + (0.01 if single >= 0 else -0.01))
+            entry.value = float(math.trunc(min(max(nudged, low), high)))
         else:
-            entry.value = float(struct.unpack("<f", struct.pack("<f", value))[0])
-        if name.startswith("SR0_"):  # a new group rate replaces the per-message intervals
+            entry.value = single
+        if name in STREAM_RATES:  # a new group rate replaces the per-message intervals
             for stream, group in STREAM_GROUPS.items():
                 if group == name:
                     self._interval_us.pop(stream, None)
@@ -1683,12 +1748,12 @@ class SimAutopilot:
         entry = self._params[name]
         self._mav.send(
             self._mav.param_value_encode(
-                name.encode("ascii"), entry.value, entry.param_type, len(self._params), index
+                name.encode("ascii"), entry.value, entry.param_type, len(self._listed), index
             )
         )
 
     def _param_read(self, msg: Any) -> None:
-        names = list(self._params)
+        names = self._listed
         if msg.param_index >= 0:
             if msg.param_index < len(names):
                 self._send_param(names[msg.param_index], msg.param_index)
@@ -2152,9 +2217,7 @@ class SimAutopilot:
 
     def _msg_autopilot_version(self, now_s: float) -> Any:
         major, minor, patch = FIRMWARE_VERSION
-        version = (
-            (major << 24) | (minor << 16) | (patch << 8) | mavlink2.FIRMWARE_VERSION_TYPE_OFFICIAL
-        )
+        version = (major << 24) | (minor << 16) | (patch << 8) | FIRMWARE_VERSION_TYPE
         zeros8 = [0] * 8
         uid = int.from_bytes(b"CLARK", "big") << 16 | self._sysid << 8 | self._compid
         return self._mav.autopilot_version_encode(

@@ -132,6 +132,9 @@ class Firmware:
             (ArduCopter's DISARM_DELAY); None: never.
         params: Parameter name -> (ArduPilot default, MAV_PARAM_TYPE) beyond the
             common ones.
+        hidden_params: Parameters of ``params`` that ArduPilot hides from this
+            vehicle's parameter list (``AP_GROUPINFO_FRAME`` for other frames) but still
+            reads and sets by name (ArduRover's FENCE_ALT_MAX, measured).
         flight_params: The parameters that shape how the vehicle moves (speeds,
             accelerations, radii, heights): a SITL autopilot standing in for the
             simulated one (``clark dry-run --autopilot sitl``) is set to the same values,
@@ -161,6 +164,7 @@ class Firmware:
     disarmed_text: str
     auto_disarm_s: float | None
     params: Mapping[str, tuple[float, int]] = field(default_factory=dict)
+    hidden_params: frozenset[str] = frozenset()
     flight_params: tuple[str, ...] = ()
     spelled: Mapping[str, str] = field(default_factory=dict)
     refused_armed_on_ground: Mapping[str, Texts] = field(default_factory=dict)
@@ -176,23 +180,102 @@ class Firmware:
         return self.spelled.get(mode, mode)
 
 
+STREAM_RATE_PREFIX: Final = "MAV1_"
+"""The stream-rate parameters of the first MAVLink channel (ArduPilot 4.7's MAV1_EXTRA1...;
+4.5's SR0_EXTRA1... are gone)."""
+
 COMMON_PARAMS: Final[Mapping[str, tuple[float, int]]] = {
-    "SYSID_MYGCS": (255, _INT16),
+    "MAV_GCS_SYSID": (255, _INT16),
+    "MAV_OPTIONS": (0, _INT16),
     "RC_OVERRIDE_TIME": (3.0, _REAL32),
-    "FS_GCS_ENABLE": (0, _INT8),
     "BATT_CAPACITY": (3300, _INT32),
-    "SR0_RAW_SENS": (0, _INT16),
-    "SR0_EXT_STAT": (1, _INT16),
-    "SR0_RC_CHAN": (1, _INT16),
-    "SR0_RAW_CTRL": (0, _INT16),
-    "SR0_POSITION": (1, _INT16),
-    "SR0_EXTRA1": (1, _INT16),
-    "SR0_EXTRA2": (1, _INT16),
-    "SR0_EXTRA3": (1, _INT16),
-    "SR0_PARAMS": (10, _INT16),
+    "MAV1_RAW_SENS": (0, _INT16),
+    "MAV1_EXT_STAT": (1, _INT16),
+    "MAV1_RC_CHAN": (1, _INT16),
+    "MAV1_RAW_CTRL": (0, _INT16),
+    "MAV1_POSITION": (1, _INT16),
+    "MAV1_EXTRA1": (1, _INT16),
+    "MAV1_EXTRA2": (1, _INT16),
+    "MAV1_EXTRA3": (1, _INT16),
+    "MAV1_PARAMS": (10, _INT16),
+    # The fence (AC_Fence), on every firmware; the per-firmware defaults are below.
+    "FENCE_ENABLE": (0, _INT8),
+    "FENCE_ACTION": (1, _INT8),
+    "FENCE_RADIUS": (300.0, _REAL32),
+    "FENCE_MARGIN": (2.0, _REAL32),
+    "FENCE_TOTAL": (0, _INT8),
+    "FENCE_OPTIONS": (0, _INT16),
+    "FENCE_NTF_FREQ": (1.0, _REAL32),
+    "FENCE_ALT_MAX": (100.0, _REAL32),
+    "FENCE_ALT_MIN": (-10.0, _REAL32),
+    "FENCE_AUTOENABLE": (0, _INT8),
 }
-"""Parameters every firmware has (after SYSID_THISMAV), with ArduPilot's defaults. The
-SR0_* stream rates are the firmware's own (Firmware.default_stream_hz) at start."""
+"""Parameters every firmware has (after MAV_SYSID), with ArduPilot 4.7's names, types and
+defaults as each SITL build reads them back (/work/notes/sitl_findings.md, sections 3-5).
+MAV_GCS_SYSID is the one system whose HEARTBEAT, RC_CHANNELS_OVERRIDE and MANUAL_CONTROL
+count as the ground station's (ArduPilot 4.5 called it SYSID_MYGCS, and MAV_SYSID
+SYSID_THISMAV; those names are unknown here as in 4.7). MAV_OPTIONS bit 0 accepts MAVLink
+only from MAV_GCS_SYSID. The MAV1_* stream rates are the firmware's own
+(Firmware.default_stream_hz) at start. FENCE_* are metres above home (ALT_MAX, ALT_MIN) and
+from home (RADIUS); FENCE_TYPE is per firmware."""
+
+RETURN_ALTITUDE_PARAMS: Final[Mapping[str, tuple[str, float]]] = {
+    "arducopter": ("RTL_ALT", 0.01),
+    "arduplane": ("RTL_ALTITUDE", 1.0),
+}
+"""Per firmware: the parameter of the height RTL returns at (above home), and the metres per
+unit it is in (ArduCopter's RTL_ALT is in centimetres, ArduPlane's RTL_ALTITUDE in metres).
+ArduRover drives home at its own height."""
+
+GCS_FAILSAFE_PARAMS: Final[Mapping[str, tuple[str, ...]]] = {
+    "arducopter": ("FS_GCS_ENABLE", "FS_GCS_TIMEOUT", "FS_OPTIONS"),
+    "ardurover": ("FS_GCS_ENABLE", "FS_GCS_TIMEOUT", "FS_ACTION", "FS_TIMEOUT", "FS_OPTIONS"),
+    "arduplane": (
+        "FS_GCS_ENABL",
+        "FS_LONG_ACTN",
+        "FS_LONG_TIMEOUT",
+        "FS_SHORT_ACTN",
+        "FS_SHORT_TIMEOUT",
+    ),
+}
+"""Per firmware: the parameters of its ground-station (heartbeat) failsafe, in its names."""
+
+FENCE_PARAMS: Final[Mapping[str, tuple[str, ...]]] = {
+    "arducopter": (
+        "FENCE_ENABLE",
+        "FENCE_TYPE",
+        "FENCE_ACTION",
+        "FENCE_ALT_MAX",
+        "FENCE_ALT_MIN",
+        "FENCE_RADIUS",
+        "FENCE_MARGIN",
+        "FENCE_AUTOENABLE",
+        "FENCE_OPTIONS",
+    ),
+    "ardurover": (
+        "FENCE_ENABLE",
+        "FENCE_TYPE",
+        "FENCE_ACTION",
+        "FENCE_RADIUS",
+        "FENCE_MARGIN",
+        "FENCE_OPTIONS",
+        "AVOID_ENABLE",
+    ),
+    "arduplane": (
+        "FENCE_ENABLE",
+        "FENCE_TYPE",
+        "FENCE_ACTION",
+        "FENCE_ALT_MAX",
+        "FENCE_ALT_MIN",
+        "FENCE_RADIUS",
+        "FENCE_MARGIN",
+        "FENCE_AUTOENABLE",
+        "FENCE_OPTIONS",
+    ),
+}
+"""Per firmware: its fence's parameters as a ground station sees them in its list (ArduRover
+also reads and sets FENCE_ALT_MAX, FENCE_ALT_MIN and FENCE_AUTOENABLE by name, and ignores
+them: it has no altitude fence)."""
 
 ROVER: Final = Firmware(
     name="ardurover",
@@ -246,7 +329,19 @@ ROVER: Final = Firmware(
         "ATC_TURN_MAX_G": (0.6, _REAL32),
         "TURN_RADIUS": (0.9, _REAL32),
         "RTL_SPEED": (0.0, _REAL32),
+        # The fence (AC_Fence: circle and polygons only) and simple avoidance (AC_Avoid),
+        # which stops the rover FENCE_MARGIN short of a circle fence.
+        "FENCE_TYPE": (6, _INT8),
+        "AVOID_ENABLE": (3, _INT8),
+        "AVOID_MARGIN": (2.0, _REAL32),
+        # The ground-station failsafe (Rover::gcs_failsafe_check, Rover::failsafe_trigger).
+        "FS_GCS_ENABLE": (0, _INT8),
+        "FS_GCS_TIMEOUT": (5.0, _REAL32),
+        "FS_ACTION": (2, _INT8),
+        "FS_TIMEOUT": (1.5, _REAL32),
+        "FS_OPTIONS": (0, _INT32),
     },
+    hidden_params=frozenset({"FENCE_ALT_MAX", "FENCE_ALT_MIN", "FENCE_AUTOENABLE"}),
     flight_params=(
         "WP_SPEED",
         "WP_RADIUS",
@@ -384,6 +479,15 @@ COPTER: Final = Firmware(
         "PILOT_SPEED_UP": (250, _INT16),
         "DISARM_DELAY": (10, _INT8),
         "FRAME_CLASS": (1, _INT8),
+        # The fence: every kind on by default (SITL's copter.parm sets FENCE_RADIUS 150; the
+        # firmware's default, kept here, is 300 m).
+        "FENCE_TYPE": (7, _INT8),
+        "AVOID_ENABLE": (3, _INT8),
+        "AVOID_MARGIN": (2.0, _REAL32),
+        # The ground-station failsafe (Copter::failsafe_gcs_check).
+        "FS_GCS_ENABLE": (0, _INT8),
+        "FS_GCS_TIMEOUT": (5.0, _REAL32),
+        "FS_OPTIONS": (16, _INT32),
     },
     flight_params=(
         "WPNAV_SPEED",
@@ -451,8 +555,19 @@ PLANE: Final = Firmware(
         "TKOFF_DIST": (200, _INT16),
         "WP_RADIUS": (90, _INT16),
         "WP_LOITER_RAD": (60, _INT16),
-        "RTL_ALTITUDE": (100, _INT16),
+        "RTL_ALTITUDE": (100.0, _REAL32),
         "LAND_DISARMDELAY": (20, _INT8),
+        # The fence: uploaded polygons only by default, and no mode change while breached.
+        "FENCE_TYPE": (4, _INT8),
+        "FENCE_OPTIONS": (1, _INT16),
+        "FENCE_RET_RALLY": (0, _INT8),
+        "FENCE_RET_ALT": (0, _INT16),
+        # The ground-station (long) failsafe; the short one is the RC's.
+        "FS_GCS_ENABL": (0, _INT8),
+        "FS_LONG_ACTN": (0, _INT8),
+        "FS_LONG_TIMEOUT": (5.0, _REAL32),
+        "FS_SHORT_ACTN": (0, _INT8),
+        "FS_SHORT_TIMEOUT": (1.5, _REAL32),
     },
     flight_params=(
         "AIRSPEED_CRUISE",

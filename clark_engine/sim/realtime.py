@@ -68,7 +68,7 @@ class Endpoint:
     port: int
     """Its UDP port: the base port plus the vehicle's index among the mission's vehicles."""
     system_id: int
-    """Its MAVLink system id (SYSID_THISMAV), which a station sees in its HEARTBEAT."""
+    """Its MAVLink system id (MAV_SYSID), which a station sees in its HEARTBEAT."""
 
     @property
     def address(self) -> str:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 from harness import Peer
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -72,35 +74,169 @@ def test_unknown_names_are_not_answered(peer: Peer) -> None:
     assert answers == [], f"answered: {[m.param_id for m in values]}"
 
 
-# ArduPilot 4.7 renamed the system id parameters (and dropped the SRn_* stream rates).
-SYSID_NAMES_BEFORE_4_7 = ("SYSID_THISMAV", "SYSID_MYGCS")
-SYSID_NAMES_FROM_4_7 = ("MAV_SYSID", "MAV_GCS_SYSID")
+# ArduPilot 4.7 renamed the system id parameters and the SRn_* stream rates (MAVn_*). The
+# simulation claims the SITL build's version, 4.7.0-dev, and has its names.
+NAMES_FROM_4_7 = ("MAV_SYSID", "MAV_GCS_SYSID", "MAV_OPTIONS", "MAV1_EXTRA1")
+NAMES_BEFORE_4_7 = ("SYSID_THISMAV", "SYSID_MYGCS", "SYSID_ENFORCE", "SR0_EXTRA1")
+
+_I8, _I16, _I32, _F = (
+    mavlink2.MAV_PARAM_TYPE_INT8,
+    mavlink2.MAV_PARAM_TYPE_INT16,
+    mavlink2.MAV_PARAM_TYPE_INT32,
+    mavlink2.MAV_PARAM_TYPE_REAL32,
+)
+_FENCE = {
+    "FENCE_ENABLE": (_I8, 0),
+    "FENCE_ACTION": (_I8, 1),
+    "FENCE_MARGIN": (_F, 2),
+    "FENCE_OPTIONS": (_I16, 0),
+}
+_AIRCRAFT_FENCE = {
+    "FENCE_ALT_MAX": (_F, 100),
+    "FENCE_ALT_MIN": (_F, -10),
+    "FENCE_AUTOENABLE": (_I8, 0),
+}
+SAFETY_PARAMETERS: dict[str, dict[str, tuple[int, float | None]]] = {
+    "rover": {
+        **_FENCE,
+        "FENCE_TYPE": (_I8, 6),
+        "FENCE_RADIUS": (_F, 300),
+        "AVOID_ENABLE": (_I8, 3),
+        "FS_GCS_ENABLE": (_I8, 0),
+        "FS_GCS_TIMEOUT": (_F, 5),
+        "FS_ACTION": (_I8, 2),
+        "FS_TIMEOUT": (_F, 1.5),
+        "FS_OPTIONS": (_I32, 0),
+    },
+    "copter": {
+        **_FENCE,
+        **_AIRCRAFT_FENCE,
+        "FENCE_TYPE": (_I8, 7),
+        "FENCE_RADIUS": (_F, None),  # SITL's copter.parm sets 150; the firmware's default is 300
+        "AVOID_ENABLE": (_I8, 3),
+        "FS_GCS_ENABLE": (_I8, 0),
+        "FS_GCS_TIMEOUT": (_F, 5),
+        "FS_OPTIONS": (_I32, 16),
+        "RTL_ALT": (_I32, 1500),
+    },
+    "plane": {
+        **_FENCE,
+        **_AIRCRAFT_FENCE,
+        "FENCE_TYPE": (_I8, 4),
+        "FENCE_RADIUS": (_F, 300),
+        "FENCE_OPTIONS": (_I16, 1),
+        "FS_GCS_ENABL": (_I8, 0),
+        "FS_LONG_ACTN": (_I8, 0),
+        "FS_LONG_TIMEOUT": (_F, 5),
+        "FS_SHORT_ACTN": (_I8, 0),
+        "FS_SHORT_TIMEOUT": (_F, 1.5),
+        "RTL_ALTITUDE": (_F, 100),
+    },
+}
+"""The parameters the engine sets for the autopilot's own fence and ground-station failsafe,
+with their type and default (None: SITL's parameter file changes it) as read back from each
+fresh SITL build (sitl_findings.md sections 3 and 4)."""
 
 
-def claimed_version(peer: Peer) -> tuple[int, int]:
-    """(major, minor) of the ArduPilot release AUTOPILOT_VERSION claims."""
+def claimed_version(peer: Peer) -> int:
+    """AUTOPILOT_VERSION.flight_sw_version."""
     mark = peer.mark()
     peer.command_long(mavlink2.MAV_CMD_REQUEST_MESSAGE, mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
-    version = peer.wait_for("AUTOPILOT_VERSION", 1.0, since=mark).flight_sw_version
-    return version >> 24 & 0xFF, version >> 16 & 0xFF
+    return int(peer.wait_for("AUTOPILOT_VERSION", 1.0, since=mark).flight_sw_version)
 
 
-def test_system_ids_by_the_names_of_the_claimed_version(peer: Peer) -> None:
-    # The simulation claims 4.5.7 and has 4.5's names; the SITL build is 4.7.0-dev. Either
-    # way the names must be those of the version claimed, and the other names absent.
-    if claimed_version(peer) >= (4, 7):
-        (this, gcs), gone = SYSID_NAMES_FROM_4_7, SYSID_NAMES_BEFORE_4_7
-    else:
-        (this, gcs), gone = SYSID_NAMES_BEFORE_4_7, SYSID_NAMES_FROM_4_7
-    assert peer.param_get(this).param_value == peer.spec.system_id
-    assert peer.param_get(gcs).param_value == 255
+def unanswered(peer: Peer, names: tuple[str, ...], set_too: bool = False) -> list[str]:
+    """Those of ``names`` the autopilot answered within 1.5 s of a read (and a set) of each."""
     mark = peer.mark()
-    for name in gone:
+    for name in names:
         peer.send(
             mavlink2.MAVLink_param_request_read_message(
                 peer.spec.system_id, 1, name.encode("ascii"), -1
             )
         )
-    peer.run_for(1.0)
-    answers = [m.param_id for _, m in peer.history[mark:] if m.get_type() == "PARAM_VALUE"]
-    assert not set(answers) & set(gone), answers
+        if set_too:
+            peer.send(
+                mavlink2.MAVLink_param_set_message(
+                    peer.spec.system_id, 1, name.encode("ascii"), 7.0, mavlink2.MAV_PARAM_TYPE_INT16
+                )
+            )
+    peer.run_for(1.5)
+    return [
+        m.param_id
+        for _, m in peer.history[mark:]
+        if m.get_type() == "PARAM_VALUE" and m.param_id in names
+    ]
+
+
+def test_the_version_and_names_of_ardupilot_4_7(peer: Peer) -> None:
+    version = claimed_version(peer)
+    assert (version >> 24 & 0xFF, version >> 16 & 0xFF, version & 0xFF) == (
+        4,
+        7,
+        mavlink2.FIRMWARE_VERSION_TYPE_DEV,
+    ), hex(version)
+    assert peer.param_get("MAV_SYSID").param_value == peer.spec.system_id
+    gcs = peer.param_get("MAV_GCS_SYSID")
+    assert (gcs.param_value, gcs.param_type) == (255, mavlink2.MAV_PARAM_TYPE_INT16)
+    assert peer.param_get("MAV_OPTIONS").param_value == 0
+    # 4.5's names are unknown: no answer to a read, and a set is ignored without a word.
+    assert unanswered(peer, NAMES_BEFORE_4_7, set_too=True) == []
+
+
+def test_fence_and_failsafe_parameters(peer: Peer) -> None:
+    for name, (param_type, default) in SAFETY_PARAMETERS[peer.kind].items():
+        value = peer.param_get(name)
+        assert value.param_type == param_type, name
+        if default is not None:
+            assert value.param_value == pytest.approx(default), name
+
+
+def test_the_other_firmwares_failsafe_names_are_unknown(peer: Peer) -> None:
+    others = {
+        "rover": ("FS_GCS_ENABL",),
+        "copter": ("FS_GCS_ENABL", "FS_ACTION"),
+        "plane": ("FS_GCS_ENABLE",),
+    }
+    assert unanswered(peer, others[peer.kind]) == []
+
+
+@pytest.mark.parametrize(
+    ("sent", "sent_type", "stored"),
+    [
+        (2.7, mavlink2.MAV_PARAM_TYPE_REAL32, 2),  # truncated after adding 0.01
+        (-2.7, mavlink2.MAV_PARAM_TYPE_REAL32, -2),
+        (300, mavlink2.MAV_PARAM_TYPE_INT8, 127),  # clamped to the int8
+    ],
+)
+def test_an_integer_parameter_truncates_and_clamps(
+    peer: Peer, sent: float, sent_type: int, stored: float
+) -> None:
+    try:
+        echo = peer.param_set("FENCE_ACTION", sent, sent_type)
+        assert (echo.param_value, echo.param_type) == (stored, mavlink2.MAV_PARAM_TYPE_INT8)
+        assert echo.param_index == NO_PARAM_INDEX
+        assert peer.param_get("FENCE_ACTION").param_value == stored
+    finally:
+        peer.param_set("FENCE_ACTION", 1, mavlink2.MAV_PARAM_TYPE_INT8)
+
+
+def test_no_range_is_enforced_and_nan_is_ignored(peer: Peer) -> None:
+    before = peer.param_get("FENCE_RADIUS").param_value
+    try:
+        assert peer.param_set("FENCE_RADIUS", 5).param_value == 5  # @Range 30-10000
+        mark = peer.mark()
+        peer.send(
+            mavlink2.MAVLink_param_set_message(
+                peer.spec.system_id, 1, b"FENCE_RADIUS", math.nan, mavlink2.MAV_PARAM_TYPE_REAL32
+            )
+        )
+        peer.run_for(1.5)
+        echoes = [
+            m
+            for _, m in peer.history[mark:]
+            if m.get_type() == "PARAM_VALUE" and m.param_id == "FENCE_RADIUS"
+        ]
+        assert echoes == []
+        assert peer.param_get("FENCE_RADIUS").param_value == 5
+    finally:
+        peer.param_set("FENCE_RADIUS", before)
