@@ -934,6 +934,10 @@ class AutopilotAdapter:
         """The autopilot's warnings since ``since_s`` (escaped), joined by ``; ``."""
         return "; ".join(text for t, text in self._warnings if since_s <= t <= now_s)
 
+    def setup_note(self, text: str) -> None:
+        """A line of the safety set-up for the interface log."""
+        self._log.info("safety set-up: %s", text)
+
     @property
     def own_system_id(self) -> int:
         """Our MAVLink system id: the one the autopilot's ground-station failsafe watches."""

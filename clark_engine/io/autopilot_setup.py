@@ -82,6 +82,9 @@ class SetupLink(Protocol):
     def setup_reasons(self, since_s: float, now_s: float) -> str:
         """The autopilot's warnings (STATUSTEXT) from ``since_s`` to now, joined."""
 
+    def setup_note(self, text: str) -> None:
+        """Write a line about the set-up to the interface log."""
+
     @property
     def own_system_id(self) -> int:
         """The adapter's own MAVLink system id."""
@@ -231,6 +234,7 @@ class SafetySetup:
             if value is None:
                 self._silent(step.name, step.value)
             elif value <= step.value:
+                self._link.setup_note(f"{step.name} = {value:g}, kept (at most {step.value:g})")
                 self._next(now_s)  # already low enough: the pilot's choice stands
             else:
                 self._write(step, step.name, now_s, then=self._next)
@@ -247,6 +251,7 @@ class SafetySetup:
                 self._silent(name, step.value)
             elif took(step.value, value, param_type):
                 self.took_names.add(name)
+                self._link.setup_note(f"{name} = {value:g} (read back)")
                 then(at_s)
             else:
                 reason = self._link.setup_reasons(self._step_started_s, at_s)
@@ -273,6 +278,7 @@ class SafetySetup:
         assert upload is not None
         self._upload = None
         if upload.result == mavlink2.MAV_MISSION_ACCEPTED:
+            self._link.setup_note(f"fence list of {upload.count} item(s) accepted")
             self._next(now_s)
             return
         if upload.gave_up:

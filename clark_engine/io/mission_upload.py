@@ -129,6 +129,11 @@ class MissionUpload:
         self._count(now_s)
 
     @property
+    def count(self) -> int:
+        """How many items the upload carries."""
+        return len(self._items)
+
+    @property
     def done(self) -> bool:
         """The upload is over: acknowledged (see :attr:`result`) or given up."""
         return self.result is not None or self.gave_up

@@ -151,8 +151,11 @@ def safety_setup(
                 f"of {envelope.margin_m:g} m, leaves {cap_m:.1f} m above home to return at; "
                 "raise the ceiling"
             )
-        steps.append(SetParam((name,), float(math.floor(cap_m * per_m)), at_most=True))
-        words.append(f"return altitude at most {math.floor(cap_m * per_m):g} ({name})")
+        value = float(math.floor(cap_m * per_m))
+        steps.append(SetParam((name,), value, at_most=True))
+        words.append(
+            f"return altitude at most {value / per_m:g} m above home ({name} {value:g})"
+        )
 
     steps.append(SetParam((COMPUTER_LOST_TIMEOUT[firmware],), float(config.computer_lost_s)))
     steps.extend(SetParam((name,), float(value)) for name, value in COMPUTER_LOST[firmware][action])
