@@ -33,6 +33,7 @@ from clark_engine.mission.compiler import agent_config
 from clark_engine.runtime.autopilot_safety import safety_setup
 from clark_engine.runtime.commands import (
     FenceZone,
+    Pause,
     SetParam,
     SetUpAutopilotSafety,
     UploadFence,
@@ -90,6 +91,8 @@ class ScriptedArduPilot:
         self.fence_result = mavlink2.MAV_MISSION_ACCEPTED
         self.drop_requests = 0
         self.heard: list[Any] = []
+        self.timed: list[tuple[float, Any]] = []
+        self.now_s = 0.0
         self.sets: list[tuple[str, float]] = []
         self._out = bytearray()
         self.mav = mavlink2.MAVLink(self, srcSystem=1, srcComponent=1)
@@ -121,6 +124,7 @@ class ScriptedArduPilot:
     def hear(self, data: bytes) -> None:
         for msg in self._parser.parse_buffer(data) or []:
             self.heard.append(msg)
+            self.timed.append((self.now_s, msg))
             if not self.silent:
                 self._answer(msg)
 
@@ -199,7 +203,7 @@ class Bench:
 
     def run(self, duration_s: float) -> list[AutopilotSafetyResult]:
         for _ in range(round(duration_s / 0.05)):
-            self.now_s = round(self.now_s + 0.05, 9)
+            self.now_s = self.peer.now_s = round(self.now_s + 0.05, 9)
             if round(self.now_s * 20) % 20 == 0:
                 self.peer.heartbeat()
             self.events += self.adapter.receive(self.peer.take(), self.now_s)
@@ -377,6 +381,20 @@ def test_at_most_keeps_a_value_already_low_enough_and_lowers_one_above() -> None
     bench.command(command(SetParam(("RTL_ALT",), 5800.0, at_most=True)))
     bench.run(1.0)
     assert bench.peer.params["RTL_ALT"] == (5800.0, INT32)
+
+
+def test_a_pause_holds_the_next_step_back() -> None:
+    bench = Bench()
+    bench.command(
+        command(SetParam(("FENCE_ENABLE",), 0.0), Pause(0.5), SetParam(("FENCE_ENABLE",), 1.0))
+    )
+    bench.run(2.0)
+    times = [
+        t
+        for t, m in bench.peer.timed
+        if m.get_type() == "PARAM_SET" and m.param_id == "FENCE_ENABLE"
+    ]
+    assert times[1] - times[0] >= 0.5
 
 
 def test_a_refused_fence_list_says_why() -> None:

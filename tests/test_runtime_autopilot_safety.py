@@ -70,9 +70,15 @@ def compiled(tmp_path: Path, profile: str, *, envelope: str = "", agent: str = "
 
 
 def params(command: SetUpAutopilotSafety) -> list[tuple[str, float, bool] | str]:
-    return [
-        (s.name, s.value, s.at_most) if isinstance(s, SetParam) else "upload" for s in command.steps
-    ]
+    out: list[tuple[str, float, bool] | str] = []
+    for step in command.steps:
+        if isinstance(step, SetParam):
+            out.append((step.name, step.value, step.at_most))
+        elif isinstance(step, UploadFence):
+            out.append("upload")
+        else:
+            out.append(f"pause {step.seconds:g} s")
+    return out
 
 
 # -- the language ------------------------------------------------------------------------
@@ -130,6 +136,7 @@ def test_a_copter_gets_its_return_altitude_failsafe_and_fence(tmp_path: Path) ->
         ("FS_GCS_TIMEOUT", 5.0, False),
         ("FS_GCS_ENABLE", 1.0, False),  # RTL
         ("FENCE_ENABLE", 0.0, False),
+        "pause 0.3 s",  # ArduPilot sees FENCE_ENABLE 0 before the new FENCE_TYPE goes on
         "upload",
         ("FENCE_TYPE", 3.0, False),  # maximum altitude and the circle around home
         ("FENCE_ALT_MAX", 59.5, False),  # the ceiling above home
@@ -137,7 +144,7 @@ def test_a_copter_gets_its_return_altitude_failsafe_and_fence(tmp_path: Path) ->
         ("FENCE_ACTION", 1.0, False),  # RTL or Land
         ("FENCE_ENABLE", 1.0, False),
     ]
-    assert command.steps[4] == UploadFence(())  # no zones: the autopilot's list cleared
+    assert command.steps[5] == UploadFence(())  # no zones: the autopilot's list cleared
     assert command.on_close == (SetParam(("FS_GCS_ENABLE",), 0.0),)
     assert "ceiling 59.5 m above home" in command.summary
 
@@ -165,6 +172,7 @@ def test_a_rover_holds_and_has_no_ceiling_on_its_autopilot(tmp_path: Path) -> No
         ("FS_ACTION", 2.0, False),  # Hold
         ("FS_GCS_ENABLE", 1.0, False),
         ("FENCE_ENABLE", 0.0, False),
+        "pause 0.3 s",
         "upload",
         ("FENCE_TYPE", 2.0, False),
         ("FENCE_RADIUS", 1609.34, False),  # the radio's range, a mile

@@ -14,7 +14,7 @@ one step at a time, each once the one before it took, and ends with an
 2. Each step: a parameter set (PARAM_SET) and read back from ArduPilot's answer to it,
    the PARAM_VALUE echo of what it stored (``AP_Param::save_sync``); an ``at_most``
    parameter read first and set only when above the value; the fence list uploaded
-   (:mod:`clark_engine.io.mission_upload`).
+   (:mod:`clark_engine.io.mission_upload`); a pause (by :meth:`SafetySetup.poll`).
 
 What counts as taken: the echo equals the value asked, as the parameter's type holds it
 (float32, or for an integer parameter the value truncated as ArduPilot truncates:
@@ -41,7 +41,7 @@ from typing import Any, Final, Protocol
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.io.mission_upload import MissionUpload, result_name
-from clark_engine.runtime.commands import SetParam, SetUpAutopilotSafety, UploadFence
+from clark_engine.runtime.commands import Pause, SetParam, SetUpAutopilotSafety, UploadFence
 from clark_engine.runtime.events import AutopilotSafetyResult
 
 INTEGER_TYPES: Final[dict[int, tuple[int, int]]] = {
@@ -120,6 +120,7 @@ class SafetySetup:
         self._report = report
         self._steps = list(command.steps)
         self._upload: MissionUpload | None = None
+        self._resume_s: float | None = None  # a pause under way ends then
         self._upload_started_s = 0.0
         self._step_started_s = 0.0
         self._reading: dict[str, tuple[float | None, bool]] = {}  # name -> (value, answered)
@@ -147,7 +148,11 @@ class SafetySetup:
         return True
 
     def poll(self, now_s: float) -> None:
-        """Time passes: a silent upload is restarted or given up."""
+        """Time passes: a pause ends; a silent upload is restarted or given up."""
+        if self._resume_s is not None and now_s >= self._resume_s:
+            self._resume_s = None
+            self._next(now_s)
+            return
         upload = self._upload
         if upload is None:
             return
@@ -215,6 +220,9 @@ class SafetySetup:
             self._report(AutopilotSafetyResult())
             return
         step = self._steps.pop(0)
+        if isinstance(step, Pause):
+            self._resume_s = now_s + step.seconds
+            return
         if isinstance(step, UploadFence):
             self._upload_started_s = now_s
             self._upload = self._link.setup_upload(step, now_s)
@@ -278,7 +286,11 @@ class SafetySetup:
         assert upload is not None
         self._upload = None
         if upload.result == mavlink2.MAV_MISSION_ACCEPTED:
-            self._link.setup_note(f"fence list of {upload.count} item(s) accepted")
+            self._link.setup_note(
+                f"fence list of {upload.count} item(s) accepted"
+                if upload.count
+                else "fence list cleared (no zones declared)"
+            )
             self._next(now_s)
             return
         if upload.gave_up:

@@ -26,8 +26,9 @@ the project's notes; line numbers there):
   FS_GCS_ENABLE 1, acting FS_TIMEOUT (1.5 s) later; ArduPlane FS_LONG_TIMEOUT,
   FS_LONG_ACTN (1 RTL, 5 AUTOLAND) and FS_GCS_ENABL 1. ArduRover's FS_ACTION and
   ArduPlane's FS_LONG_ACTN also decide their radio failsafe's action.
-- **The fence, at the envelope itself**: FENCE_ENABLE 0 first (ArduPilot applies a new
-  FENCE_TYPE only when FENCE_ENABLE changes, ``AC_Fence::update``); the fence list
+- **The fence, at the envelope itself**: FENCE_ENABLE 0 first, for long enough that
+  ArduPilot's 10 Hz ``AC_Fence::update`` sees it (it applies a new FENCE_TYPE only when
+  it sees FENCE_ENABLE change); the fence list
   replaced by the envelope's zones (cleared when it declares none); FENCE_TYPE: the
   maximum altitude (aircraft), the circle around home (the envelope's default circle,
   FENCE_RADIUS its radius), the uploaded zones; FENCE_ALT_MAX the ceiling above home;
@@ -48,7 +49,13 @@ import math
 from collections.abc import Mapping
 from typing import Any, Final
 
-from clark_engine.runtime.commands import FenceZone, SetParam, SetUpAutopilotSafety, UploadFence
+from clark_engine.runtime.commands import (
+    FenceZone,
+    Pause,
+    SetParam,
+    SetUpAutopilotSafety,
+    UploadFence,
+)
 from clark_engine.runtime.config import AgentConfig
 
 GCS_ID_NAMES: Final = ("MAV_GCS_SYSID", "SYSID_MYGCS")
@@ -105,6 +112,11 @@ RETURN_ALTITUDE: Final[Mapping[str, tuple[str, float]]] = {
 }
 """The return-to-launch altitude above home per aircraft firmware, and its units per metre."""
 
+FENCE_UPDATE_S: Final = 0.3
+"""How long FENCE_ENABLE stays 0 before the fence is set: ArduPilot reconfigures its fence
+only when its 10 Hz ``AC_Fence::update`` sees FENCE_ENABLE change, so it must see the 0
+before the new FENCE_TYPE is switched on, or it keeps the old type."""
+
 _ACTION_WORDS: Final = {"rtl": "return to launch", "land": "land", "hold": "hold"}
 
 
@@ -139,7 +151,7 @@ def safety_setup(
     home_above_origin_m = 0.0 if home is None else home[2] - config.origin_alt_amsl_m
     ceiling_above_home_m = envelope.ceiling_m - home_above_origin_m
     action = config.failsafe.get("computer_lost") or ("rtl" if aircraft else "hold")
-    steps: list[SetParam | UploadFence] = []
+    steps: list[SetParam | UploadFence | Pause] = []
     words: list[str] = []
 
     if firmware in RETURN_ALTITUDE:
@@ -153,9 +165,7 @@ def safety_setup(
             )
         value = float(math.floor(cap_m * per_m))
         steps.append(SetParam((name,), value, at_most=True))
-        words.append(
-            f"return altitude at most {value / per_m:g} m above home ({name} {value:g})"
-        )
+        words.append(f"return altitude at most {value / per_m:g} m above home ({name} {value:g})")
 
     steps.append(SetParam((COMPUTER_LOST_TIMEOUT[firmware],), float(config.computer_lost_s)))
     steps.extend(SetParam((name,), float(value)) for name, value in COMPUTER_LOST[firmware][action])
@@ -171,6 +181,7 @@ def safety_setup(
         fence_type |= FENCE_TYPE_POLYGON
     fence_action = FENCE_ACTIONS[firmware][envelope.on_breach]
     steps.append(SetParam(("FENCE_ENABLE",), 0.0))
+    steps.append(Pause(FENCE_UPDATE_S))
     steps.append(UploadFence(zones))
     steps.append(SetParam(("FENCE_TYPE",), float(fence_type)))
     fence_words = []

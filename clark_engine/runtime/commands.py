@@ -156,6 +156,20 @@ class UploadFence:
 
 
 @dataclass(frozen=True, slots=True)
+class Pause:
+    """Wait before the next step of a safety set-up.
+
+    The autopilot acts on some changes only in a loop of its own (ArduPilot applies a
+    FENCE_ENABLE change at 10 Hz).
+
+    Attributes:
+        seconds: How long.
+    """
+
+    seconds: float
+
+
+@dataclass(frozen=True, slots=True)
 class SetUpAutopilotSafety:
     """Set the autopilot's own fence and its reaction to a dead mission computer.
 
@@ -169,7 +183,8 @@ class SetUpAutopilotSafety:
        ground-station failsafe watches is set to the adapter's own MAVLink system id
        (a heartbeat follows at once), so that the mission computer's silence is what
        the failsafe reacts to.
-    2. ``steps``: parameters set and read back, and the fence list uploaded, in order.
+    2. ``steps``: parameters set and read back, the fence list uploaded, and pauses, in
+       order.
 
     Attributes:
         gcs_id_names: That parameter's names, newest first (MAV_GCS_SYSID, then
@@ -182,7 +197,7 @@ class SetUpAutopilotSafety:
     """
 
     gcs_id_names: tuple[str, ...]
-    steps: tuple[SetParam | UploadFence, ...]
+    steps: tuple[SetParam | UploadFence | Pause, ...]
     on_close: tuple[SetParam, ...] = ()
     summary: str = ""
 
