@@ -81,11 +81,25 @@ What it does, in ArduPilot's order:
   MAV_CMD_SET_MESSAGE_INTERVAL (-1 stops, 0 restores the default) or per group by
   REQUEST_DATA_STREAM. STATUSTEXT whenever ArduPilot would speak.
 
-Not simulated (docs/autopilot-fidelity.md): flying by fences or rally points (they
-are kept, never used), mission DO items other than DO_CHANGE_SPEED, DO_SET_SERVO and
-DO_SET_HOME, signing, terrain, failsafes (GCS, radio, battery; of the EKF's, only
-ArduRover's refusal of modes that need a position), AUTOLAND, and more than one MAVLink
-channel (all peers share one byte stream, as behind a router).
+- **The fence** (:mod:`clark_engine.sim.ap_fence`): FENCE_* and the uploaded fence list,
+  checked at each firmware's rate against the position the autopilot believes (its
+  altitude above home as it reports it), breach texts and FENCE_ACTION, manual
+  recovery, pre-arm refusals, guided destinations refused (ArduCopter, ArduPlane),
+  ArduRover's avoidance stopping short, SYS_STATUS's geofence bit, FENCE_STATUS,
+  MAV_CMD_DO_FENCE_ENABLE.
+- **The ground-station failsafe** (:mod:`clark_engine.sim.gcs_failsafe`): the silence of
+  MAV_GCS_SYSID's heartbeats (and RC overrides, MANUAL_CONTROL), each firmware's
+  timeouts, actions and texts.
+- **Altitudes** as each firmware fills GLOBAL_POSITION_INT while it boots: ArduCopter
+  all zero before its fix; ArduRover and ArduPlane their barometer's height until their
+  estimate has one above sea level (ArduRover's home set at that height).
+
+Not simulated (docs/autopilot-fidelity.md): flying by rally points (they are kept,
+never used), mission DO items other than DO_CHANGE_SPEED, DO_SET_SERVO and
+DO_SET_HOME, signing, terrain, failsafes other than the ground station's and the fence
+(radio, battery; of the EKF's, only ArduRover's refusal of modes that need a position),
+AUTOLAND, and more than one MAVLink channel (all peers share one byte stream, as behind
+a router).
 """
 
 from __future__ import annotations
@@ -98,7 +112,21 @@ from typing import Any, Final
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from clark_engine.mission.fence import Fence, Zone
 from clark_engine.mission.geo import EARTH_RADIUS_M
+from clark_engine.sim.ap_fence import (
+    ALL_FENCES,
+    ALT_MIN,
+    CHECK_PERIOD_S,
+    CIRCLE,
+    POLYGON,
+    ArduFence,
+    FencePosition,
+    FenceZones,
+    Point2,
+    react,
+)
+from clark_engine.sim.ap_vehicle import ModeReason
 from clark_engine.sim.firmware import (
     COMMON_PARAMS,
     FIRMWARES,
@@ -106,6 +134,7 @@ from clark_engine.sim.firmware import (
     BootTimes,
     Firmware,
 )
+from clark_engine.sim.gcs_failsafe import GcsFailsafe
 from clark_engine.sim.mission_protocol import MissionItem, MissionProtocol, MissionState
 from clark_engine.sim.model import Truth, VehicleModel
 
@@ -193,6 +222,8 @@ MIN_INTERVAL_US: Final = 25_000
 """The fastest stream ArduPilot grants (40 Hz; a faster request is DENIED, measured)."""
 PLANE_HOME_PERIOD_S: Final = 6.0
 """ArduPlane re-sends HOME_POSITION this often while disarmed (measured)."""
+FENCE_UPDATE_S: Final = 0.1
+"""ArduPilot looks at FENCE_ENABLE and FENCE_AUTOENABLE at 10 Hz (AC_Fence::update)."""
 ROVER_HOME_CHECK_PERIOD_S: Final = 1.0
 """ArduRover looks at moving home once a second while disarmed (Rover::one_second_loop)."""
 ROVER_HOME_MIN_CHANGE_M: Final = 0.5
@@ -233,6 +264,7 @@ STREAM_GROUPS: Final[Mapping[str, str | None]] = {
     "GPS_RAW_INT": "MAV1_EXT_STAT",
     "MISSION_CURRENT": "MAV1_EXT_STAT",
     "NAV_CONTROLLER_OUTPUT": "MAV1_EXT_STAT",
+    "FENCE_STATUS": "MAV1_EXT_STAT",
     "POSITION_TARGET_GLOBAL_INT": "MAV1_EXT_STAT",
     "EXTENDED_SYS_STATE": "MAV1_EXT_STAT",
     "GLOBAL_POSITION_INT": "MAV1_POSITION",
@@ -309,6 +341,7 @@ _SENSORS: Final = {
     )
 }
 _PREARM_BIT: Final = _SENSORS["PREARM_CHECK"]
+_GEOFENCE_BIT: Final = int(mavlink2.MAV_SYS_STATUS_GEOFENCE)
 _GPS_BIT: Final = _SENSORS["SENSOR_GPS"]
 _AHRS_BIT: Final = _SENSORS["AHRS"]
 _CONTROL_BITS: Final = (
@@ -535,6 +568,24 @@ class SimAutopilot:
             self._set_param(name, value)
         self.model.configure(self.param_values())
 
+        self._mode_reason: ModeReason = "autopilot"  # why the current mode was entered
+        self.fence = ArduFence(firmware, self._param_value, self._text, self._fence_status_due)
+        """ArduPilot's geofence (FENCE_* and the uploaded fence list)."""
+        self._fence_list_changes = -1  # MissionProtocol.changed when the zones were built
+        # The fence was idle at its last check and nothing it reads changed since (a
+        # parameter, the fence list, DO_FENCE_ENABLE, arming): checks are skipped.
+        self._fence_quiet = False
+        self._next_fence_check_s = 0.0
+        self._next_fence_update_s = 0.0
+        self.gcs_failsafe = GcsFailsafe(firmware, boot_s)
+        """ArduPilot's ground-station failsafe (MAV_GCS_SYSID's heartbeats)."""
+        self._hooks = _Hooks(self)
+        self._plane_climbing = False  # ArduPlane in its TAKEOFF climb at the last look
+        # ArduRover's simple avoidance: the point the model drives to instead of the
+        # target, when the straight line to the target would cross the fence margin.
+        self._avoid_cut = False
+        self._avoid_key: tuple[int, float, float] | None = None
+
         self._overrides: dict[int, tuple[int, float]] = {}  # channel -> (width, set at)
         self._target: tuple[float, float, float] | None = None  # guided lat, lon, rel alt
         # A velocity target (ArduCopter extrapolates it): position, velocity n/e, set at.
@@ -638,6 +689,9 @@ class SimAutopilot:
         entry = self._params.get(name)
         return None if entry is None else entry.value
 
+    def _param_value(self, name: str) -> float:
+        return self._params[name].value
+
     def param_values(self) -> dict[str, float]:
         """Every parameter's value by name (what the vehicle model is configured from)."""
         return {name: entry.value for name, entry in self._params.items()}
@@ -740,7 +794,11 @@ class SimAutopilot:
         return self._age_s(now_s) >= self.boot_times.position_s
 
     def _supervise(self, now_s: float) -> None:
-        """What ArduPilot does by itself: boot texts, home, pre-arm reports, auto-disarm."""
+        """What ArduPilot does by itself: boot texts, home, pre-arm reports, auto-disarm.
+
+        Also its fence and its ground-station failsafe, each at its firmware's rate.
+        """
+        self._hooks.now_s = now_s
         if self._texts_due and self._texts_due[0][0] <= now_s:
             while self._texts_due and self._texts_due[0][0] <= now_s:
                 _at, severity, text = self._texts_due.pop(0)
@@ -783,7 +841,12 @@ class SimAutopilot:
             self._fly_velocity_target(now_s)
         if self.model.mode == "AUTO":
             self._fly_mission(now_s)
-        if self._guided_arrival_due and self.model.target_reached and self._in_guided():
+        if (
+            self._guided_arrival_due
+            and self.model.target_reached
+            and self._in_guided()
+            and not self._avoid_cut
+        ):
             self._guided_arrival_due = False
             self._mav.send(self._mav.mission_item_reached_encode(0))
         if (
@@ -794,7 +857,175 @@ class SimAutopilot:
         ):
             self._rtl_arrival_due = False  # ArduRover's RTL and SMART_RTL stop there
             self._text(_INFO, "Reached destination")
+        if now_s >= self._next_fence_update_s:
+            # AC_Fence::update at 10 Hz: a FENCE_ENABLE changed and changed back between
+            # two of them goes unnoticed, as on ArduPilot (measured).
+            self._next_fence_update_s = max(self._next_fence_update_s + FENCE_UPDATE_S, now_s)
+            if not self._fence_quiet:
+                self.fence.update()
+        if now_s >= self._next_fence_check_s:
+            self._fence_check(now_s)
+        if now_s >= self.gcs_failsafe.next_check_s:
+            self.gcs_failsafe.check(self._hooks, now_s)
+        if self._plane_climbing or (self.firmware == "arduplane" and self.model.mode == "TAKEOFF"):
+            climbing = self._hooks.initial_climb
+            if self._plane_climbing and not climbing and self.model.mode == "TAKEOFF":
+                self.gcs_failsafe.takeoff_climb_over(self._hooks)
+            self._plane_climbing = climbing
         self._landing_and_disarm(now_s)
+
+    # -- the fence ----------------------------------------------------------------------
+
+    def _to_local(self, lat_deg: float, lon_deg: float) -> Point2:
+        """(north_m, east_m) from the mission origin (the model's frame)."""
+        north = (lat_deg - self.origin_lat_deg) * _M_PER_DEG_LAT
+        east = (
+            (lon_deg - self.origin_lon_deg)
+            * _M_PER_DEG_LAT
+            * math.cos(math.radians(self.origin_lat_deg))
+        )
+        return north, east
+
+    def _fence_zones(self) -> FenceZones:
+        """The uploaded fence as zones, built again whenever the lists changed."""
+        if self.missions.changed != self._fence_list_changes:
+            self._fence_list_changes = self.missions.changed
+            self.fence.zones = FenceZones.from_items(self.missions.fence_items, self._to_local)
+        return self.fence.zones
+
+    def _fence_position(self, now_s: float) -> FencePosition:
+        """Where the fence sees the vehicle: its true position through the firmware's datum."""
+        truth = self.model.truth()
+        alt_above_home_m = self._alt_above_home_m(now_s, truth.up_m)
+        if not self._gps_fix(now_s):
+            return FencePosition(alt_above_home_m, None, None)
+        here = (truth.north_m, truth.east_m)
+        from_home = None
+        if self._home is not None:
+            home = self._to_local(self._home[0], self._home[1])
+            from_home = (here[0] - home[0], here[1] - home[1])
+        return FencePosition(alt_above_home_m, from_home, here)
+
+    def _fence_check(self, now_s: float) -> None:
+        """Each firmware's fence_checks_async and fence_check, at its rate (25, 10, 3 Hz)."""
+        self._next_fence_check_s = now_s + CHECK_PERIOD_S[self.firmware]
+        if self._fence_quiet and self.missions.changed == self._fence_list_changes:
+            return
+        fence = self.fence
+        self._fence_zones()
+        if fence.idle and not fence.update_pending:
+            if self.firmware == "ardurover":
+                self._avoidance(now_s)
+            self._fence_quiet = True
+            return
+        orig = fence.breaches
+        model = self.model
+        if self.firmware == "arducopter":
+            landing = self._hooks.landing or self._hooks.landed or not model.armed
+        elif self.firmware == "arduplane":
+            landing = not model.armed or self._hooks.landing
+        else:
+            landing = False
+        new = fence.check(self._fence_position(now_s), now_s, landing)
+        react(self._hooks, fence, new, orig, self._fence_guide)
+        if self.firmware == "ardurover":
+            self._avoidance(now_s)
+
+    def _fence_status_due(self) -> None:
+        if "FENCE_STATUS" not in self._deferred:
+            self._deferred.append("FENCE_STATUS")
+        self._next_due_us = 0
+
+    def _fence_guide(self, point: Point2 | None, alt_above_home_m: float) -> None:
+        """ArduPlane's GUIDED fence action: to the fence's return point (or home)."""
+        if point is None:
+            if self._home is None:
+                return
+            lat, lon = self._home[0], self._home[1]
+        else:
+            lat, lon = self._from_local(*point)
+        alt_m = alt_above_home_m + self._home_alt_m() - self.origin_alt_amsl_m
+        self._goto(lat, lon, alt_m)
+
+    def _from_local(self, north_m: float, east_m: float) -> tuple[float, float]:
+        lat = self.origin_lat_deg + north_m / _M_PER_DEG_LAT
+        lon = self.origin_lon_deg + east_m / (
+            _M_PER_DEG_LAT * math.cos(math.radians(self.origin_lat_deg))
+        )
+        return lat, lon
+
+    def _target_inside_fence(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
+        """AC_Fence::check_destination_within_fence for a target (its height above the origin)."""
+        here = self._to_local(lat_deg, lon_deg)
+        from_home = None
+        above_home_m = None
+        if self._home is not None:
+            home = self._to_local(self._home[0], self._home[1])
+            from_home = (here[0] - home[0], here[1] - home[1])
+            above_home_m = alt_m + self.origin_alt_amsl_m - self._home[2]
+        self._fence_zones()
+        return self.fence.destination_inside(above_home_m, from_home, here)
+
+    # -- ArduRover's simple avoidance ----------------------------------------------------------
+
+    def _avoidance_fence(self) -> Fence | None:
+        """The fence ArduRover's avoidance keeps inside of (AVOID_ENABLE bit 0), if any.
+
+        AC_Avoid stops the rover FENCE_MARGIN short of the enabled circle fence and
+        uploaded zones (measured: 48.09 m on a 50 m circle with the default margin 2).
+        """
+        if not int(self._params["AVOID_ENABLE"].value) & 1 or self._home is None:
+            return None
+        enabled = self.fence.enabled_fences()
+        include: list[Zone] = []
+        exclude: list[Zone] = []
+        if enabled & CIRCLE:
+            home = self._to_local(self._home[0], self._home[1])
+            include.append(Zone.circle(home, self._params["FENCE_RADIUS"].value))
+        if enabled & POLYGON:
+            include.extend(self.fence.zones.inclusions)
+            exclude.extend(self.fence.zones.exclusions)
+        if not include and not exclude:
+            return None
+        return Fence(tuple(include), tuple(exclude))
+
+    def _avoided(self, end: Point2) -> Point2 | None:
+        """Where ArduRover stops short of the fence on its way to ``end``; None: not short.
+
+        Sets :attr:`_avoid_key` to the fence's state it was worked out for.
+        """
+        self._avoid_key = (
+            self.fence.enabled_fences(),
+            self.fence.margin_m,
+            self._params["AVOID_ENABLE"].value,
+        )
+        fence = self._avoidance_fence()
+        if fence is None:
+            return None
+        truth = self.model.truth()
+        start = (truth.north_m, truth.east_m)
+        cut = fence.leaves_at(start, end, self.fence.margin_m)
+        if cut is None:
+            return None
+        return start[0] + (end[0] - start[0]) * cut, start[1] + (end[1] - start[1]) * cut
+
+    def _drive_to(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
+        """The model goes to a guided target, or where ArduRover's avoidance stops it short."""
+        self._avoid_cut = False
+        if self.firmware == "ardurover":
+            short = self._avoided(self._to_local(lat_deg, lon_deg))
+            if short is not None:
+                self._avoid_cut = True
+                lat_deg, lon_deg = self._from_local(*short)
+        return self.model.goto(lat_deg, lon_deg, alt_m, None)
+
+    def _avoidance(self, now_s: float) -> None:
+        """Cut the guided target short again when the fence's state changed on the way."""
+        if not self._in_guided() or self._target is None:
+            return
+        key = (self.fence.enabled_fences(), self.fence.margin_m, self._params["AVOID_ENABLE"].value)
+        if key != self._avoid_key:
+            self._drive_to(*self._target)
 
     def _landing_and_disarm(self, now_s: float) -> None:
         """Touchdowns, and ArduCopter's disarms after one or after an idle arm."""
@@ -853,6 +1084,12 @@ class SimAutopilot:
             reasons.append("Arm: AHRS: waiting for home")
         elif age < boot.prearm_s:
             reasons.append("Arm: Gyros inconsistent")
+        self._fence_zones()
+        fence_problem = self.fence.pre_arm_failure(self._fence_position(now_s), now_s)
+        if fence_problem is not None:
+            reasons.append(f"Arm: {fence_problem}")
+        if self.firmware == "arducopter" and self.gcs_failsafe.active:
+            reasons.append("Arm: GCS failsafe on")
         if not self._throttle_at_zero():
             reasons.append(
                 "Arm: Throttle too high"
@@ -905,6 +1142,8 @@ class SimAutopilot:
         self._armed_s = now_s
         self._ground_since_s = None if model.airborne else now_s
         self._smart_rtl_entered = False  # arming starts a new SmartRTL path
+        self._fence_quiet = False
+        self.fence.auto_enable_on_arming()
         self._text(_INFO, self.fw.armed_text)
         for severity, text in self.fw.arm_texts.get(model.mode, ()):
             self._text(severity, text)
@@ -944,6 +1183,8 @@ class SimAutopilot:
             self._armed_s = None
             self._ground_since_s = None
             self._text(_INFO, self.fw.disarmed_text)
+            self._fence_quiet = False
+            self.fence.auto_disable_on_disarming()
             if self.firmware == "arducopter" and self.model.mode == "AUTO":
                 # ArduCopter resets its mission at disarming, and AUTO starts it over:
                 # "Mission: 1 Takeoff" again, waiting for the next arming and start.
@@ -1000,15 +1241,41 @@ class SimAutopilot:
     def _home_here(self, now_s: float) -> None:
         """Home where the vehicle is now (ArduPilot's own re-setting of home).
 
-        Before the EKF has its origin, ArduRover's position has no altitude above sea
-        level: the home it sets then is at its barometer's height (about 0 m; SITL:
+        Until its EKF takes over from DCM, ArduRover's position has no altitude above
+        sea level: the home it sets then is at its barometer's height (about 0 m; SITL:
         0.19 m), so a rover on the ground reads 90 m above such a home (measured).
+        ArduCopter and ArduPlane set home with the GPS's altitude.
         """
         truth = self.model.truth()
         alt_m = self.origin_alt_amsl_m + truth.up_m
-        if self.fw.home_alt_needs_origin and not self._origin_set(now_s):
-            alt_m = truth.up_m
+        if self.fw.baro_alt_until == "position":
+            alt_m = self._fused_alt_m(now_s, truth.up_m)
         self.set_home(truth.lat_deg, truth.lon_deg, alt_m, now_s)
+
+    def _baro_only(self, now_s: float) -> bool:
+        """The firmware's position still has no height above sea level (its barometer's)."""
+        until = self.fw.baro_alt_until
+        if until == "position":
+            return not self._position_ok(now_s)
+        if until == "home":
+            return self._home is None
+        return False
+
+    def _fused_alt_m(self, now_s: float, up_m: float) -> float:
+        """GLOBAL_POSITION_INT.alt's height (m) for a height above the origin.
+
+        Above sea level, or the barometer's height (relative to where it booted, on the
+        ground: about the height above the origin) while the firmware has no better.
+        """
+        if self._baro_only(now_s) or not self._gps_fix(now_s):
+            return up_m
+        return self.origin_alt_amsl_m + up_m
+
+    def _alt_above_home_m(self, now_s: float, up_m: float) -> float:
+        """GLOBAL_POSITION_INT.relative_alt's height (m): the barometer's before home."""
+        if self._home is None:
+            return up_m
+        return self._fused_alt_m(now_s, up_m) - self._home[2]
 
     # -- modes -------------------------------------------------------------------------------
 
@@ -1023,7 +1290,12 @@ class SimAutopilot:
             return _FAILED
         return self._enter_mode(name, now_s)
 
-    def _enter_mode(self, name: str, now_s: float) -> int:
+    def _enter_mode(self, name: str, now_s: float, reason: ModeReason = "gcs") -> int:
+        """Change mode as ArduPilot's set_mode does, for ``reason``; returns MAV_RESULT.
+
+        After a change during a fence breach, the fence ignores new breaches for ten
+        seconds ("Manual recovery started"; ArduCopter only with a FENCE_ACTION).
+        """
         model, fw = self.model, self.fw
         if name == model.mode:
             return _ACCEPTED
@@ -1036,7 +1308,12 @@ class SimAutopilot:
         self._target = None  # ArduPilot forgets the guided target on changing mode
         self._velocity_target = None
         self._guided_wp_active = False
+        self._avoid_cut = False
         self._last_mode = name
+        self._mode_reason = reason
+        self.gcs_failsafe.mode_changed()
+        if fw.name != "arducopter" or self.fence.action != 0:
+            self.fence.manual_recovery_start(now_s)
         for severity, text in fw.enter_texts.get(name, ()):
             self._text(severity, text)
         self._rtl_arrival_due = fw.name == "ardurover" and name in ("RTL", "SMART_RTL")
@@ -1070,12 +1347,16 @@ class SimAutopilot:
         """
         fw, model = self.fw, self.model
         refused = [(_WARNING, fw.mode_refused_text)]
+        if fw.name == "arduplane" and self._in_fence_recovery() and not name.startswith("Q"):
+            return [(_NOTICE, "Mode change to {mode} denied, in fence recovery")]
         if (
             model.armed
             and name in fw.set_needs_position_armed
             and (not self._position_ok(now_s) or self._ekf_failsafe)
         ):
             return [(_WARNING, fw.position_refused_text)]
+        if fw.name == "arducopter" and self._in_fence_recovery() and model.airborne:
+            return [(_WARNING, "Mode change to {mode} failed: in fence recovery")]
         if name in fw.refused_modes:
             return list(fw.refused_modes[name])
         if model.armed and not model.airborne and name in fw.refused_armed_on_ground:
@@ -1106,9 +1387,25 @@ class SimAutopilot:
     def _in_guided(self) -> bool:
         return self.model.mode == self.guided_mode
 
+    def _in_fence_recovery(self) -> bool:
+        """Whether a mode change is refused now, as in a fence's recovery.
+
+        FENCE_OPTIONS bit 0 (ArduPlane's default), armed, breached, and in the mode the
+        fence chose (ArduCopter and ArduPlane).
+        """
+        fence = self.fence
+        return (
+            self.model.armed
+            and fence.enabled
+            and fence.option(1)
+            and bool(fence.breaches)
+            and self._mode_reason == "fence"
+        )
+
     # -- handling ---------------------------------------------------------------------------
 
     def _handle(self, msg: Any, now_s: float) -> None:
+        self._hooks.now_s = now_s
         source = (msg.get_srcSystem(), msg.get_srcComponent())
         if source == (self._sysid, self._compid):
             return  # our own frames echoed back by a shared link
@@ -1123,6 +1420,12 @@ class SimAutopilot:
         if kind == "HEARTBEAT":
             if msg.type == mavlink2.MAV_TYPE_GCS or msg.autopilot == mavlink2.MAV_AUTOPILOT_INVALID:
                 self._peers[source] = now_s
+            if source[0] == self._gcs_sysid():  # any type, any component
+                self.gcs_failsafe.seen(now_s)
+        elif kind == "MANUAL_CONTROL":
+            # Not flown here, but ArduPilot counts it as its ground station's heartbeat.
+            if source[0] == self._gcs_sysid() and msg.target == self._sysid:
+                self.gcs_failsafe.seen(now_s)
         elif kind == "COMMAND_LONG":
             params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6)
             result = self._command(msg.command, params, msg.param7, None, now_s)
@@ -1253,7 +1556,29 @@ class SimAutopilot:
             return self._mission_start(p1, p2, now_s)
         if command == mavlink2.MAV_CMD_DO_REPOSITION and frame is not None:
             return self._reposition(params, z, frame, now_s)
+        if command == mavlink2.MAV_CMD_DO_FENCE_ENABLE:
+            return self._fence_enable(int(p1), int(p2) & 0xFF)
         return _UNSUPPORTED
+
+    def _fence_enable(self, action: int, fences: int) -> int:
+        """MAV_CMD_DO_FENCE_ENABLE: 0 off, 1 on (FAILED if none of them exists), 2 floor off.
+
+        The fences asked for (param2; 0: all) change, FENCE_ENABLE does not.
+        """
+        fences = fences or ALL_FENCES
+        self._fence_quiet = False
+        self._fence_zones()
+        if action == 0:
+            self.fence.enable(False, fences)
+        elif action == 1:
+            if not self.fence.present() & fences:
+                return _FAILED
+            self.fence.enable(True, fences)
+        elif action == 2:
+            self.fence.enable(False, ALT_MIN)
+        else:
+            return _FAILED
+        return _ACCEPTED
 
     def _servo_free(self, servo: int) -> bool:
         """An output DO_SET_SERVO may drive: 1-16, with no function (ArduPilot's rule)."""
@@ -1351,7 +1676,7 @@ class SimAutopilot:
     def _goto(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
         self._target = (lat_deg, lon_deg, alt_m)
         self._guided_arrival_due = self.fw.guided_reached_text
-        taken = self.model.goto(lat_deg, lon_deg, alt_m, None)
+        taken = self._drive_to(lat_deg, lon_deg, alt_m)
         self._guided_wp_active = taken and self.model.airborne
         return taken
 
@@ -1375,6 +1700,12 @@ class SimAutopilot:
         if alt_m is None or not (abs(lat_e7) <= 90e7 and abs(lon_e7) <= 180e7):
             return _DENIED
         change_mode = bool(flags & mavlink2.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE)
+        if self.firmware != "ardurover" and not self._target_inside_fence(
+            lat_e7 / 1e7, lon_e7 / 1e7, alt_m
+        ):
+            # ArduPlane DENIED, ArduCopter FAILED (its guided destination check), before
+            # any mode change; ArduRover does not check (measured).
+            return _DENIED if self.firmware == "arduplane" else _FAILED
         if change_mode and not self._in_guided():
             self._enter_mode(self.guided_mode, now_s)
         if not self._in_guided():
@@ -1404,8 +1735,12 @@ class SimAutopilot:
             return int(mavlink2.MAV_MISSION_UNSUPPORTED_FRAME)
         if msg.current == 3:
             if self._target is not None and self._in_guided():
+                if not self._copter_may_go(self._target[0], self._target[1], alt_m):
+                    return int(mavlink2.MAV_MISSION_ERROR)
                 self._goto(self._target[0], self._target[1], alt_m)
             return int(mavlink2.MAV_MISSION_ACCEPTED)
+        if not self._copter_may_go(lat_deg, lon_deg, alt_m):
+            return int(mavlink2.MAV_MISSION_ERROR)
         if not self._in_guided() or not self._goto(lat_deg, lon_deg, alt_m):
             return int(mavlink2.MAV_MISSION_ERROR)
         return int(mavlink2.MAV_MISSION_ACCEPTED)
@@ -1438,12 +1773,18 @@ class SimAutopilot:
             mavlink2.POSITION_TARGET_TYPEMASK_VX_IGNORE
             | mavlink2.POSITION_TARGET_TYPEMASK_VY_IGNORE
         )
+        if not self._copter_may_go(lat_deg, lon_deg, alt_m):
+            return  # ArduCopter refuses a target outside its fence without a word (measured)
         self._velocity_target = None
         if not velocity_ignored and self.firmware == "arducopter":
             # ArduCopter's guided position and velocity target: the position moves on
             # with the velocity until the next one (or GUID_TIMEOUT).
             self._velocity_target = (lat_deg, lon_deg, alt_m, msg.vx, msg.vy, now_s)
         self._goto(lat_deg, lon_deg, alt_m)
+
+    def _copter_may_go(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
+        """ArduCopter's guided destinations must be inside its fence (set_destination)."""
+        return self.firmware != "arducopter" or self._target_inside_fence(lat_deg, lon_deg, alt_m)
 
     def _fly_velocity_target(self, now_s: float) -> None:
         assert self._velocity_target is not None
@@ -1569,7 +1910,7 @@ class SimAutopilot:
             if self.firmware == "arducopter" and not model.airborne and not self._auto_go:
                 return  # armed on the ground in AUTO: waits for MISSION_START (measured)
             self._begin_item(item, now_s)
-        if self._auto_phase == _AUTO_FLYING and model.target_reached:
+        if self._auto_phase == _AUTO_FLYING and model.target_reached and not self._avoid_cut:
             if self._auto_landing and self.firmware == "arducopter":
                 return  # landed: its disarm ends the item, and starts the mission over
             if self._auto_land_there:  # over the land item's place: now land
@@ -1628,6 +1969,12 @@ class SimAutopilot:
             else:
                 north, east = self._item_place(item)
                 alt = self._item_alt_m(item)
+            self._avoid_cut = False
+            if self.firmware == "ardurover":
+                short = self._avoided((north, east))
+                if short is not None:  # ArduRover's avoidance: it stops short, item not done
+                    self._avoid_cut = True
+                    north, east = short
             model.auto_target(north, east, alt, None)
         else:  # not simulated: done at once
             self._auto_phase = _AUTO_HOLDING
@@ -1661,11 +2008,12 @@ class SimAutopilot:
             self._text(_NOTICE, "Mission Complete")
         elif self.firmware == "arduplane":
             self._text(_INFO, "Mission complete, changing mode to RTL")
-            self._enter_mode("RTL", now_s)
+            self._enter_mode("RTL", now_s, "autopilot")
 
     def _rc_override(self, msg: Any, now_s: float) -> None:
         if msg.get_srcSystem() != self._gcs_sysid():
             return  # ArduPilot takes overrides only from its ground station
+        self.gcs_failsafe.seen(now_s)  # (an override is its heartbeat too)
         if self._params["RC_OVERRIDE_TIME"].value == 0:
             return  # overrides disabled
         changes: dict[int, int] = {}
@@ -1728,6 +2076,7 @@ class SimAutopilot:
             return
         self._next_due_us = 0  # a stream-rate parameter may have changed
         self._schedule = None
+        self._fence_quiet = False  # a fence parameter may have changed
         entry = self._params[name]
         single = _float32(value)
         if entry.param_type in _INT_RANGES:
@@ -1973,6 +2322,13 @@ class SimAutopilot:
             health |= _AHRS_BIT
         if self.model.armed or self._prearm_healthy(now_s):
             health |= _PREARM_BIT
+        # The geofence: present with any fence configured that exists, enabled with a
+        # fence on and an action, healthy unless breached (AC_Fence::sys_status_*).
+        self._fence_zones()
+        fence_present, fence_enabled, fence_healthy = self.fence.sys_status()
+        present |= _GEOFENCE_BIT if fence_present else 0
+        enabled |= _GEOFENCE_BIT if fence_enabled else 0
+        health |= _GEOFENCE_BIT if fence_healthy else 0
         current_ca, remaining = self._battery(now_s)
         return self._mav.sys_status_encode(
             present, enabled, health, 0, BATTERY_VOLTAGE_MV, current_ca, remaining, 0, 0, 0, 0, 0, 0
@@ -1992,18 +2348,21 @@ class SimAutopilot:
     def _position(self, now_s: float) -> tuple[float, float, float]:
         """Latitude, longitude and height above the origin as the GPS reports them.
 
-        Before the GPS has a fix ArduPilot reports 0, 0 (and a height near 0). A model
-        with a GPS (``gps_fix``: seeded noise at the receiver's rate) is read through it,
-        as ArduPilot reads its receiver; otherwise the truth is reported.
+        Before the GPS has a fix ArduPilot reports 0, 0, and a height from its
+        barometer (taken here as the height with the receiver's vertical error: a little
+        noise around the truth). A model with a GPS (``gps_fix``: seeded noise at the
+        receiver's rate) is read through it, as ArduPilot reads its receiver; otherwise
+        the truth is reported.
         """
-        if not self._gps_fix(now_s):
-            return 0.0, 0.0, 0.0
         fix = getattr(self.model, "gps_fix", None)
         if fix is not None:
             lat, lon, alt = fix()
-            return float(lat), float(lon), float(alt)
-        t = self._truth()
-        return t.lat_deg, t.lon_deg, t.up_m
+        else:
+            t = self._truth()
+            lat, lon, alt = t.lat_deg, t.lon_deg, t.up_m
+        if not self._gps_fix(now_s):
+            return 0.0, 0.0, float(alt)
+        return float(lat), float(lon), float(alt)
 
     def _home_alt_m(self) -> float:
         return self._home[2] if self._home is not None else self.origin_alt_amsl_m
@@ -2031,14 +2390,22 @@ class SimAutopilot:
     # which packs it anew, rather than a new object each time.
 
     def _msg_global_position_int(self, now_s: float) -> Any:
+        """The fused position (see :meth:`_fused_alt_m` for its altitudes).
+
+        Before the GPS fix ArduCopter sends its never-filled location (all zero); the
+        others 0, 0 and their barometer's height in both altitudes.
+        """
         t = self._truth()
         lat, lon, up = self._position(now_s)
         msg = self._position_message
         msg.time_boot_ms = self._boot_ms(now_s)
         msg.lat = round(lat * 1e7)
         msg.lon = round(lon * 1e7)
-        msg.alt = round((self.origin_alt_amsl_m + up) * 1000)
-        msg.relative_alt = round((self.origin_alt_amsl_m + up - self._home_alt_m()) * 1000)
+        if self.fw.zero_before_fix and not self._gps_fix(now_s):
+            msg.alt = msg.relative_alt = 0
+        else:
+            msg.alt = round(self._fused_alt_m(now_s, up) * 1000)
+            msg.relative_alt = round(self._alt_above_home_m(now_s, up) * 1000)
         msg.vx = _clamp(t.velocity_north_m_s * 100, -32768, 32767)
         msg.vy = _clamp(t.velocity_east_m_s * 100, -32768, 32767)
         msg.vz = _clamp(-t.climb_rate_m_s * 100, -32768, 32767)
@@ -2074,7 +2441,7 @@ class SimAutopilot:
         msg.groundspeed = t.ground_speed_m_s
         msg.heading = int(t.yaw_deg % 360.0)
         msg.throttle = _clamp(t.throttle_pct, 0, 100)
-        msg.alt = self.origin_alt_amsl_m + t.up_m
+        msg.alt = self._fused_alt_m(now_s, t.up_m)
         msg.climb = t.climb_rate_m_s
         return msg
 
@@ -2172,6 +2539,25 @@ class SimAutopilot:
             0.0,
         )
 
+    def _msg_fence_status(self, now_s: float) -> Any:
+        """FENCE_STATUS while a fence is enabled (and at once on a new breach).
+
+        The mitigation is ArduRover's and ArduCopter's avoidance (velocity limited while
+        it holds the rover short of the fence, else none); ArduPlane reports unknown.
+        """
+        status = self.fence.status()
+        if status is None:
+            return None
+        breached, count, kind, at_s = status
+        if self.firmware == "arduplane":
+            mitigation = mavlink2.FENCE_MITIGATE_UNKNOWN
+        elif self._avoid_cut and self.model.target_reached:
+            mitigation = mavlink2.FENCE_MITIGATE_VEL_LIMIT
+        else:
+            mitigation = mavlink2.FENCE_MITIGATE_NONE
+        time_ms = max(0, round((at_s - self.boot_s) * 1000)) if count else 0
+        return self._mav.fence_status_encode(breached, count, kind, time_ms, mitigation)
+
     def _msg_position_target_global_int(self, now_s: float) -> Any:
         target = self._waypoint_target()
         if target is None:
@@ -2223,3 +2609,77 @@ class SimAutopilot:
         return self._mav.autopilot_version_encode(
             CAPABILITIES[self.firmware], version, 0, 0, 0, zeros8, zeros8, zeros8, 0, 0, uid
         )
+
+
+class _Hooks:
+    """The autopilot as ArduPilot's fence and failsafes see it (:class:`ApVehicle`)."""
+
+    def __init__(self, autopilot: SimAutopilot) -> None:
+        self._ap = autopilot
+        self.now_s = 0.0
+        """The time of the advance or message being handled."""
+
+    @property
+    def firmware(self) -> str:
+        return self._ap.firmware
+
+    @property
+    def mode(self) -> str:
+        return self._ap.model.mode
+
+    @property
+    def mode_reason(self) -> ModeReason:
+        return self._ap._mode_reason
+
+    @property
+    def armed(self) -> bool:
+        return self._ap.model.armed
+
+    @property
+    def landed(self) -> bool:
+        return not self._ap.model.airborne
+
+    @property
+    def landing(self) -> bool:
+        ap, model = self._ap, self._ap.model
+        if model.mode == "LAND":
+            return True
+        if model.mode == "AUTO" and ap._auto_landing:
+            return True
+        return model.mode in ("RTL", "SMART_RTL") and model.landed_state == "landing"
+
+    @property
+    def initial_climb(self) -> bool:
+        model = self._ap.model
+        return model.mode == "TAKEOFF" and model.landed_state == "taking_off"
+
+    @property
+    def throttle_zero(self) -> bool:
+        return self._ap._throttle_at_zero()
+
+    def param(self, name: str) -> float:
+        return self._ap._params[name].value
+
+    def text(self, severity: int, text: str) -> None:
+        self._ap._text(severity, text)
+
+    def try_mode(self, mode: str, reason: ModeReason) -> bool:
+        ap = self._ap
+        if mode not in ap.modes:
+            return False  # the profile has no such mode: nothing to try
+        if mode == ap.model.mode:
+            return True
+        return ap._enter_mode(mode, self.now_s, reason) == _ACCEPTED and ap.model.mode == mode
+
+    def disarm(self) -> None:
+        self._ap._disarm(self.now_s, force=True)
+
+    def clear_overrides(self) -> None:
+        ap = self._ap
+        if ap._overrides:
+            released = dict.fromkeys(ap._overrides, 0)
+            ap._overrides.clear()
+            ap.model.set_rc_override(released)
+
+    def spell(self, mode: str) -> str:
+        return self._ap.fw.spell(mode)

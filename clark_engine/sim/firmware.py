@@ -112,8 +112,15 @@ class Firmware:
         enter_texts: Texts sent on entering a mode.
         arm_texts: Texts sent after the armed text when arming in a mode.
         set_home_text: Whether DO_SET_HOME says "Set HOME to LAT LON at ALTm" (ArduRover).
-        home_alt_needs_origin: Whether a home set before the EKF origin has the
-            barometer's height (about 0 m) for its altitude (ArduRover, measured).
+        baro_alt_until: Until when GLOBAL_POSITION_INT.alt (and VFR_HUD.alt) is the
+            barometer's height (about 0 m on any field) rather than above sea level:
+            ``position`` (ArduRover: its AHRS stays on DCM until the EKF uses the GPS,
+            about 42 s), ``home`` (ArduPlane: until home, 0.8 s after the fix), None
+            (ArduCopter: the GPS's from the first fix). ArduRover also sets home at that
+            barometer height while it lasts (0.19 m measured), so its relative_alt reads
+            +90 m on a 90 m field. Measured on SITL (sitl_findings.md section 1).
+        zero_before_fix: GLOBAL_POSITION_INT is all zero before the GPS fix (ArduCopter
+            sends its never-filled location); the others send the barometer's height.
         guided_reached_text: Whether arriving at a guided target sends
             MISSION_ITEM_REACHED (seq 0), as ArduRover does (measured).
         throttle_too_high_modes: Modes whose arming with the throttle off zero says
@@ -173,7 +180,8 @@ class Firmware:
     throttle_too_high_modes: frozenset[str] = frozenset()
     guided_reached_text: bool = False
     set_home_text: bool = False
-    home_alt_needs_origin: bool = False
+    baro_alt_until: str | None = None
+    zero_before_fix: bool = False
 
     def spell(self, mode: str) -> str:
         """A mode's name as this firmware's texts spell it."""
@@ -316,7 +324,7 @@ ROVER: Final = Firmware(
     auto_disarm_s=None,
     guided_reached_text=True,
     set_home_text=True,
-    home_alt_needs_origin=True,
+    baro_alt_until="position",
     params={
         # ArduRover defaults (AR_WPNav, AR_AttitudeControl, Rover/Parameters.cpp).
         "CRUISE_SPEED": (2.0, _REAL32),
@@ -459,6 +467,7 @@ COPTER: Final = Firmware(
         }
     ),
     home_at="arming",
+    zero_before_fix=True,
     mode_refused_text="Mode change to {mode} failed: init failed",
     not_armable_text="Arm: {mode} mode not armable",
     no_position_text="Arm: Need Position Estimate",
@@ -540,6 +549,7 @@ PLANE: Final = Firmware(
         "LOITERALTQLAND": ((_INFO, "Q_ENABLE 0"),),
     },
     home_at="while_disarmed",
+    baro_alt_until="home",
     mode_refused_text="Flight mode change failed",
     not_armable_text="Arm: {mode} mode not armable",
     no_position_text="Arm: Need Position Estimate",

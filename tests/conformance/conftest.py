@@ -40,6 +40,8 @@ RUN_LAST = (
     "test_guided.py",
     "test_rtl.py",
     "test_mission.py",
+    "test_fence.py",  # fences switched on and breached; put back after each scenario
+    "test_gcs_failsafe.py",  # the ground station's heartbeats stopped and restarted
     "test_home.py",  # locks home (DO_SET_HOME): after the scenarios that move it
     "test_plane.py",  # the plane stays in the air
 )

@@ -377,6 +377,12 @@ class Peer:
         """Message type -> the latest message of that type."""
         self.subscribed: dict[str, int] = {}
         """Status message -> MAV_RESULT of the request for it at 1 Hz (see :meth:`start`)."""
+        self.heartbeat_from: tuple[int, ...] = (GCS_SYSTEM_ID,)
+        """System ids this ground station sends a HEARTBEAT as, once a second each (empty:
+        silent, as a ground station or mission computer that died)."""
+        self.heartbeat_sent_s: dict[int, float] = {}
+        """System id -> the autopilot's time when its last HEARTBEAT was sent."""
+        self._senders: dict[int, Any] = {GCS_SYSTEM_ID: self._mav}
         self._chunks: dict[int, list[str]] = {}  # STATUSTEXT id -> the chunks so far
 
     # -- time --------------------------------------------------------------------------
@@ -550,14 +556,20 @@ class Peer:
     def _pump(self) -> list[Any]:
         """One pump of the link: parse, record, keep the ground station's heartbeat going."""
         if self._now_s >= self._heartbeat_due_s:
-            heartbeat = self._mav.heartbeat_encode(
-                mavlink2.MAV_TYPE_GCS,
-                mavlink2.MAV_AUTOPILOT_INVALID,
-                0,
-                0,
-                mavlink2.MAV_STATE_ACTIVE,
-            )
-            self.link.send(heartbeat.pack(self._mav))
+            for sysid in self.heartbeat_from:
+                sender = self._senders.get(sysid)
+                if sender is None:
+                    sender = mavlink2.MAVLink(None, srcSystem=sysid, srcComponent=GCS_COMPONENT_ID)
+                    self._senders[sysid] = sender
+                heartbeat = sender.heartbeat_encode(
+                    mavlink2.MAV_TYPE_GCS,
+                    mavlink2.MAV_AUTOPILOT_INVALID,
+                    0,
+                    0,
+                    mavlink2.MAV_STATE_ACTIVE,
+                )
+                self.link.send(heartbeat.pack(sender))
+                self.heartbeat_sent_s[sysid] = self._now_s
             self._heartbeat_due_s = self._now_s + 1.0
         return self._take(self.link.pump())
 

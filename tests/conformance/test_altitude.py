@@ -1,0 +1,84 @@
+"""The altitude fields as each firmware fills them while it boots (GLOBAL_POSITION_INT).
+
+Measured on SITL at a 90 m field (sitl_findings.md section 1):
+
+- ArduCopter sends its never-filled location before the GPS fix: everything 0. From the
+  fix on, ``alt`` is above sea level (90 m) and ``relative_alt`` about 0.
+- ArduRover and ArduPlane send their barometer's height (about 0 m) in both altitudes
+  until their estimate has a height above sea level: ArduRover until its EKF takes over
+  from DCM (about 42 s), ArduPlane until home (0.8 s after the fix). Then ``alt`` is
+  above sea level.
+- ArduRover's home is set in that barometer phase, at about 0 m above sea level, so its
+  ``relative_alt`` reads about +90 m on the ground once ``alt`` is above sea level.
+
+The engine takes a vehicle's height from ``alt`` less the origin's, and the GPS's height
+while ``alt`` is a barometer's (clark_engine.io.autopilot): a simulation that filled these
+fields more kindly would hide what the engine has to cope with.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from harness import Peer, backends
+
+FIELD_AMSL_M = 90.0
+"""The origin's (and SITL's home's) height above sea level."""
+WATCH_S = {"rover": 48.0, "copter": 25.0, "plane": 20.0}
+"""How long each is watched after boot: past the end of its barometer phase."""
+EKF_TAKES_OVER_S = 41.9
+"""ArduRover: ``alt`` above sea level from here (SITL: "AHRS: EKF3 active" at 41.91 s)."""
+BARO_M = 1.0
+"""A barometer's height on the ground: about 0 (SITL's noise: -0.3..+0.5 m)."""
+
+
+def positions(peer: Peer) -> list[tuple[float, Any]]:
+    return [(t, m) for t, m in peer.history if m.get_type() == "GLOBAL_POSITION_INT"]
+
+
+def has_position(msg: Any) -> bool:
+    """A real position (ArduPlane's dead reckoning drifts a few metres from 0, 0 before)."""
+    return abs(msg.lat) > 10_000_000
+
+
+@backends("fresh_peer")
+def test_altitude_fields_over_boot(fresh_peer: Peer) -> None:
+    peer = fresh_peer
+    peer.message_interval("GLOBAL_POSITION_INT", 200_000)
+    peer.message_interval("HOME_POSITION", 1_000_000)
+    peer.run_for(WATCH_S[peer.kind] - peer.now_s)
+    fixes = positions(peer)
+    before = [(t, m) for t, m in fixes if not has_position(m)]
+    after = [(t, m) for t, m in fixes if has_position(m)]
+    assert before and after, "no GLOBAL_POSITION_INT before and after the GPS fix"
+    home = peer.wait_for("HOME_POSITION", 5.0, since=0)
+    home_alt_m = home.altitude / 1000
+    if peer.kind == "copter":
+        assert all((m.lat, m.lon, m.alt, m.relative_alt) == (0, 0, 0, 0) for _, m in before)
+        assert all(abs(m.alt / 1000 - FIELD_AMSL_M) < 1.0 for _, m in after)
+        assert all(abs(m.relative_alt / 1000) < 0.5 for _, m in after)
+        assert abs(home_alt_m - FIELD_AMSL_M) < 1.0
+        return
+    # ArduRover and ArduPlane: the barometer's height before the fix, in both fields.
+    # (SITL reads its noisy barometer separately for the two: they differ by centimetres.)
+    assert all(abs(m.alt / 1000) < BARO_M for _, m in before)
+    assert all(abs(m.relative_alt / 1000) < BARO_M for _, m in before)
+    baro = [(t, m) for t, m in after if abs(m.alt / 1000) < BARO_M]
+    amsl = [(t, m) for t, m in after if abs(m.alt / 1000 - FIELD_AMSL_M) < BARO_M]
+    assert len(baro) + len(amsl) == len(after), "an altitude neither ~0 nor ~90 m"
+    assert amsl, "never above sea level"
+    switch_s = amsl[0][0]
+    assert all(t < switch_s for t, _ in baro)  # once above sea level, it stays so
+    first_fix_s = after[0][0]
+    if peer.kind == "plane":
+        # Until home, 0.8 s after the fix (SITL: 9.46 s and 10.26 s); then about home.
+        assert switch_s - first_fix_s <= 2.0
+        assert abs(home_alt_m - FIELD_AMSL_M) < 1.0
+        assert all(abs(m.relative_alt / 1000) < BARO_M for _, m in fixes)
+        return
+    # ArduRover: the barometer's height for some 30 s after the fix, until its EKF takes
+    # over; home at the barometer's height, so relative_alt reads +90 m from then on.
+    assert abs(switch_s - EKF_TAKES_OVER_S) <= 3.0, switch_s
+    assert abs(home_alt_m) < BARO_M
+    assert all(abs(m.relative_alt / 1000 - (m.alt / 1000 - home_alt_m)) < 0.5 for _, m in after)
+    assert all(abs(m.relative_alt / 1000 - FIELD_AMSL_M) < 1.5 for _, m in amsl)
