@@ -9,7 +9,8 @@ autopilot-sim --autopilot sitl`` (real time), is killed with SIGKILL (no termina
 sequence, no goodbye), and the autopilot's own MAVLink, as ``clark autopilot-sim``
 announces it on the pilot's link, shows the reaction: the mission computer's last
 heartbeat, then ArduCopter's "GCS Failsafe" text and its mode RTL, all on the autopilot's
-clock. Then the same against the simulated autopilot (``--autopilot sim``).
+clock. Then the same against the simulated autopilot (``clark autopilot-sim --autopilot
+sim``, real time), whose port hears ``clark run``'s heartbeats directly.
 
 Every process is a real ``python -m clark_engine`` child; nothing is mocked. Each wait is
 for a line, with a timeout.
@@ -192,7 +193,11 @@ def fly_kill_and_watch(
     """Hover, kill ``clark run``; (last heartbeat, failsafe text, RTL) on the autopilot's clock."""
     mission = tmp_path / "computer_lost.yaml"
     mission.write_text(MISSION, encoding="utf-8")
-    extra = ["--autopilot", "sitl"] if autopilot == "sitl" else ["--listen", "127.0.0.1:0"]
+    extra = (
+        ["--autopilot", "sitl"]
+        if autopilot == "sitl"
+        else ["--listen", "127.0.0.1:0", "--ready-s", "5"]
+    )
     server = Process("autopilot-sim", str(mission), "--agent", "f450", *extra)
     processes.append(server)
     connection = server.wait_for(r"--autopilot-connection (\S+)", START_TIMEOUT_S)[1]
@@ -240,4 +245,12 @@ def test_arducopter_returns_by_itself_when_clark_run_is_killed(
     tmp_path: Path, processes: list[Process]
 ) -> None:
     last, reacted, rtl = fly_kill_and_watch(tmp_path, processes, "sitl")
+    assert_reacted_in_time(last, reacted, rtl)
+
+
+@pytest.mark.slow
+def test_the_simulated_arducopter_returns_by_itself_when_clark_run_is_killed(
+    tmp_path: Path, processes: list[Process]
+) -> None:
+    last, reacted, rtl = fly_kill_and_watch(tmp_path, processes, "sim")
     assert_reacted_in_time(last, reacted, rtl)
