@@ -300,7 +300,7 @@ def test_asked_once_home_is_known_not_after_the_pre_arm_checks(tmp_path: Path) -
     assert command == safety_setup(runtime.config, HOME)
     assert setups(runtime.tick(0.2) + runtime.tick(0.3)) == []  # once
     assert "waits for the pre-arm checks, the autopilot's safety set-up" in mission_log(runtime)
-    assert "setting up the autopilot's own safety: fence (ceiling 59.5 m" in mission_log(runtime)
+    assert "own safety (the behaviour waits for it): fence (ceiling 59.5 m" in mission_log(runtime)
 
 
 def test_the_behaviour_starts_once_the_set_up_took(tmp_path: Path) -> None:

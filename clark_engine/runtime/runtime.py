@@ -928,7 +928,7 @@ class AgentRuntime:
         self._safety_state = "sent"
         self._commands.append(command)
         self.logbook.mission.info(
-            "setting up the autopilot's own safety: %s; the behaviour starts once it took",
+            "setting up the autopilot's own safety (the behaviour waits for it): %s",
             command.summary,
         )
 
