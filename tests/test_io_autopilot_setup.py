@@ -294,7 +294,7 @@ def test_a_heartbeat_follows_the_ground_station_id_at_once() -> None:
 
 
 def test_the_older_name_is_used_when_only_it_answers() -> None:
-    """ArduPilot 4.5 calls the ground station's id SYSID_MYGCS; 4.7 does not know it."""
+    """ArduPilot before 4.7 calls the ground station's id SYSID_MYGCS; 4.7 does not know it."""
     params = dict(COPTER_PARAMS)
     params["SYSID_MYGCS"] = params.pop("MAV_GCS_SYSID")
     bench = Bench(ScriptedArduPilot(params))

@@ -311,7 +311,9 @@ class AutopilotSettings:
             sent and which HEARTBEAT vehicle types are accepted. None: any ArduPilot.
         system_id: The autopilot's MAVLink system id (SYSID_THISMAV).
         component_id: The autopilot's component id (1, MAV_COMP_ID_AUTOPILOT1).
-        source_system_id: Ours. ArduPilot takes RC overrides only from SYSID_MYGCS (255).
+        source_system_id: Ours. The safety set-up makes it the autopilot's ground-station
+            id (MAV_GCS_SYSID): ArduPilot takes RC overrides, and counts heartbeats for its
+            failsafe, only from that id.
         source_component_id: Ours (191, MAV_COMP_ID_ONBOARD_COMPUTER).
         stream_rate_hz: Rate asked for each of :data:`STREAMED_MESSAGES`.
         heartbeat_timeout_s: Autopilot silence after which :meth:`AutopilotAdapter.lost`.

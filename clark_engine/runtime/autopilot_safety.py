@@ -13,7 +13,7 @@ What is set, and why each value (ArduPilot 4.7 at 90700977, the SITL build measu
 the project's notes; line numbers there):
 
 - **The mission computer becomes the autopilot's ground station**: MAV_GCS_SYSID
-  (SYSID_MYGCS before ArduPilot 4.6) is set to the adapter's own system id. ArduPilot's
+  (SYSID_MYGCS before ArduPilot 4.7) is set to the adapter's own system id. ArduPilot's
   ground-station failsafe counts only HEARTBEAT, RC_CHANNELS_OVERRIDE and MANUAL_CONTROL
   from exactly that id (``GCS_MAVLINK::handle_heartbeat``), so the mission computer's
   silence is what it reacts to.
@@ -59,7 +59,7 @@ from clark_engine.runtime.commands import (
 from clark_engine.runtime.config import AgentConfig
 
 GCS_ID_NAMES: Final = ("MAV_GCS_SYSID", "SYSID_MYGCS")
-"""The parameter naming the autopilot's ground station: ArduPilot 4.6 and later, then 4.5."""
+"""The parameter naming the autopilot's ground station: ArduPilot 4.7's name, then the older."""
 
 FENCE_TYPE_ALT_MAX: Final = 1
 FENCE_TYPE_CIRCLE: Final = 2

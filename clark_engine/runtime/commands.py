@@ -188,7 +188,7 @@ class SetUpAutopilotSafety:
 
     Attributes:
         gcs_id_names: That parameter's names, newest first (MAV_GCS_SYSID, then
-            ArduPilot 4.5's SYSID_MYGCS); empty to leave it.
+            SYSID_MYGCS before ArduPilot 4.7); empty to leave it.
         steps: What to set, in order.
         on_close: Parameters written as the engine leaves on purpose (a clean stop): the
             ground-station failsafe is turned off, since the engine's departure then is

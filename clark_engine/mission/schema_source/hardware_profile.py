@@ -495,7 +495,7 @@ def _autopilot_properties() -> dict[str, Schema]:
                 "source_system_id": integer(
                     "System id the engine sends as. Before the behaviour starts the engine "
                     "makes it the autopilot's ground-station id (MAV_GCS_SYSID, SYSID_MYGCS "
-                    "before ArduPilot 4.6): ArduPilot takes RC overrides, and counts heartbeats "
+                    "before ArduPilot 4.7): ArduPilot takes RC overrides, and counts heartbeats "
                     "for its failsafe, only from that id, so a ground station flying beside "
                     "the engine must use another.",
                     default=255,
