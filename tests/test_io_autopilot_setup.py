@@ -278,6 +278,19 @@ def test_every_step_is_set_and_read_back_in_order_and_the_fence_uploaded() -> No
     assert order.index(("MISSION_COUNT",)) == order.index(("set", "FENCE_ENABLE", 0.0)) + 1
 
 
+def test_the_next_step_is_ready_to_send_as_soon_as_an_answer_arrives() -> None:
+    """The shells send what receive() queued at once (flush), not at the next poll."""
+    bench = Bench()
+    bench.command(command(SetParam(("FENCE_ENABLE",), 0.0)))
+    bench.adapter.receive(bench.peer.take(), 0.01)  # MAV_GCS_SYSID read: set it now
+    bench.peer.hear(bench.adapter.flush())
+    assert bench.peer.sets == [("MAV_GCS_SYSID", 245.0)]
+    bench.adapter.receive(bench.peer.take(), 0.02)  # its echo: the heartbeat, the next step
+    bench.peer.hear(bench.adapter.flush())
+    assert bench.peer.sets == [("MAV_GCS_SYSID", 245.0), ("FENCE_ENABLE", 0.0)]
+    assert bench.adapter.flush() == b""  # nothing else waits
+
+
 def test_a_heartbeat_follows_the_ground_station_id_at_once() -> None:
     """ArduPlane's failsafe clock runs from boot: the new id must be heard before it is on."""
     bench = Bench()

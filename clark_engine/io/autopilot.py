@@ -623,6 +623,15 @@ class AutopilotAdapter:
         self._send_due(now_s)
         return self._outbox.take()
 
+    def flush(self) -> bytes:
+        """What the adapter queued while receiving: send it now rather than at the next poll.
+
+        An answer from the autopilot may call for the next message at once (the next step
+        of a safety set-up, an item of a fence upload it asks for; overrides released
+        after a silence); usually nothing (``b""``).
+        """
+        return self._outbox.take()
+
     def poll(self, now_s: float) -> bytes:
         """Periodic duties; call every loop (at least every 0.5 s).
 

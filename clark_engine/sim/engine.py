@@ -895,6 +895,7 @@ class DryRun:
                 out = sim_agent.runtime.deliver(event, t_s)  # type: ignore[arg-type]
                 if out:
                     self._route(sim_agent, out, t_s)
+            self._to_autopilot(sim_agent, sim_agent.adapter.flush(), t_s)
 
     def _sample(self, t_s: float) -> None:
         for name, track in self.recording.tracks.items():
