@@ -456,14 +456,18 @@ def test_a_clean_stop_turns_off_the_failsafe_the_set_up_switched_on() -> None:
     assert bench.peer.sets[-1] == ("FS_GCS_ENABLE", 0.0)
 
 
-def test_a_failed_set_up_leaves_nothing_to_turn_off() -> None:
-    bench = Bench()
+def test_a_failed_set_up_turns_off_only_what_it_switched_on() -> None:
+    close = [SetParam(("FS_GCS_ENABLE",), 0.0)]
+    bench = Bench()  # the failsafe on, then a parameter that does not exist
     bench.command(
-        command(
-            SetParam(("FS_GCS_ENABLE",), 1.0),
-            SetParam(("NO_SUCH_PARAM",), 1.0),
-            close=[SetParam(("FS_GCS_ENABLE",), 0.0)],
-        )
+        command(SetParam(("FS_GCS_ENABLE",), 1.0), SetParam(("NO_SUCH_PARAM",), 1.0), close=close)
+    )
+    bench.run(5.0)
+    bench.peer.hear(bench.adapter.close(bench.now_s))
+    assert bench.peer.sets[-1] == ("FS_GCS_ENABLE", 0.0)
+    bench = Bench()  # failed before the failsafe was switched on: nothing to switch off
+    bench.command(
+        command(SetParam(("NO_SUCH_PARAM",), 1.0), SetParam(("FS_GCS_ENABLE",), 1.0), close=close)
     )
     bench.run(5.0)
     sets = len(bench.peer.sets)

@@ -867,10 +867,13 @@ class AutopilotAdapter:
 
     def _safety_over(self, result: AutopilotSafetyResult) -> None:
         safety, self._safety = self._safety, None
-        if safety is not None and result.ok:
-            self._on_close = tuple(
+        if safety is not None:
+            # What it switched on, a clean stop switches off, whether or not the rest took.
+            close = dict(self._on_close)
+            close.update(
                 (p.name, p.value) for p in safety.command.on_close if p.name in safety.took_names
             )
+            self._on_close = tuple(close.items())
         if result.ok:
             self._log.info("safety set-up: every parameter took")
         else:
@@ -878,7 +881,11 @@ class AutopilotAdapter:
         self._late_events.append(result)
 
     def _safety_close(self) -> None:
-        """A clean stop: write the set-up's on_close (the failsafe switched off), unchecked."""
+        """A clean stop: write the set-up's on_close (the failsafe switched off), unchecked.
+
+        Only what a set-up switched on (its value read back) is switched off, whether or
+        not the set-up as a whole took.
+        """
         s = self.settings
         for name, value in self._on_close:
             self._log.info("leaving on purpose: %s = %g", name, value)
@@ -1193,9 +1200,8 @@ class AutopilotAdapter:
             self._overrides.clear()
             self._override_out(released, self._override_sent_s)
         if self._safety is not None:
-            safety, self._safety = self._safety, None
             self._param_answers.clear()
-            safety.interrupted("went silent" if why.startswith("heard again") else why)
+            self._safety.interrupted("went silent" if why.startswith("heard again") else why)
         self._version = None
         self._verify_attempts = 0
         self._next_verify_s = -math.inf
