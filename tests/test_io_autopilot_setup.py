@@ -13,7 +13,10 @@ the runtime makes from real compiled missions: what each firmware ends up holdin
 from __future__ import annotations
 
 import math
+import os
 import struct
+import subprocess
+import sys
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -41,6 +44,7 @@ from clark_engine.runtime.commands import (
 from clark_engine.runtime.config import config_from_dict
 from clark_engine.runtime.events import AutopilotSafetyResult
 from clark_engine.sim.engine import PHYSICS_STEP_S, build_vehicle
+from clark_engine.sim.sitl import ENV_SITL, SitlInstall, SitlNotFound
 from clark_engine.validation import load_mission
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -64,6 +68,18 @@ COPTER_PARAMS = {
     "MIS_TOTAL": (0.0, INT16),
 }
 """ArduCopter 4.7's parameters the set-up touches, with their SITL defaults and types."""
+
+
+def real_install() -> SitlInstall | None:
+    default = ROOT.parent / "shared" / "ardupilot-sitl"
+    given = os.environ.get(ENV_SITL) or (str(default) if default.is_dir() else None)
+    try:
+        return SitlInstall.find(given) if given else None
+    except SitlNotFound:
+        return None
+
+
+SITL = real_install()
 
 
 def f32(value: float) -> float:
@@ -575,3 +591,75 @@ def test_the_simulated_autopilot_holds_what_the_runtime_planned(
         assert sim.param("RTL_ALTITUDE") == min(
             100.0, math.floor(ceiling_above_home_m - config.envelope.margin_m)
         )
+
+
+ZONED = """
+clark: 1
+mission: {id: 3, name: zoned, loop_hz: 10, origin: {lat: 30.6372, lon: -96.4787, alt_amsl_m: 90}}
+envelope:
+  ceiling_m: 60
+  geofence:
+    include: [{polygon: [[-50, -50], [200, -50], [200, 200], [-50, 200]]}]
+    exclude: [{circle: {center: [100, 100], radius_m: 20}}]
+agents:
+  f450:
+    id: 2
+    profile: dji_f450
+    telemetry: {heartbeat: 1}
+    launch: {armed_by: engine}
+    behavior: {use: wait}
+sim: {duration_s: 40}
+"""
+
+
+def test_the_simulated_autopilot_takes_declared_zones(tmp_path: Path) -> None:
+    path = tmp_path / "zoned.yaml"
+    path.write_text(ZONED, encoding="utf-8")
+    resolved = load_mission(str(path))
+    agent = resolved.agents["f450"]
+    config = config_from_dict(agent_config(resolved, agent))
+    backend, _pilot = build_vehicle(resolved, agent, config, seed=1)
+    adapter = AutopilotAdapter(AutopilotSettings.from_config(config))
+    results: list[AutopilotSafetyResult] = []
+    backend.send(adapter.start(0.0), 0.0)
+    asked = False
+    for i in range(1, 1200):
+        now = round(i * PHYSICS_STEP_S, 9)
+        events = adapter.receive(backend.step(now, PHYSICS_STEP_S), now)
+        results += [e for e in events if isinstance(e, AutopilotSafetyResult)]
+        backend.send(adapter.flush(), now)
+        if not asked and adapter.status.home is not None:
+            asked = True
+            backend.send(adapter.command(safety_setup(config, adapter.status.home), now), now)
+        backend.send(adapter.poll(now), now)
+        if results:
+            break
+    assert results == [AutopilotSafetyResult()]
+    sim = backend.autopilot
+    stored = [(item.command, item.param1) for item in sim.missions.fence_items]
+    assert stored == [(mavlink2.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION, 4.0)] * 4 + [
+        (mavlink2.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION, 20.0)
+    ]
+    assert sim.param("FENCE_TYPE") == 5  # the ceiling and the zones; no circle around home
+    assert sim.param("FENCE_ALT_MAX") == pytest.approx(60.0, abs=0.5)
+
+
+@pytest.mark.sitl
+@pytest.mark.skipif(SITL is None, reason=f"no ArduPilot SITL: set {ENV_SITL} to its folder")
+def test_arducopter_sitl_takes_the_set_up_with_declared_zones(tmp_path: Path) -> None:
+    """Real ArduCopter accepts the fence items as the engine writes them, and each value."""
+    assert SITL is not None
+    path = tmp_path / "zoned.yaml"
+    path.write_text(ZONED, encoding="utf-8")
+    run = subprocess.run(
+        [
+            sys.executable, "-m", "clark_engine", "dry-run", str(path), "--autopilot", "sitl",
+            "--sitl", str(SITL.folder), "--until", "30", "--report", str(tmp_path / "report"),
+        ],
+        cwd=ROOT, capture_output=True, text=True, timeout=600, check=False,
+    )  # fmt: skip
+    interface = (tmp_path / "report" / "logs" / "f450.interface.log").read_text(encoding="utf-8")
+    assert "answers: ArduPilot 4." in interface, run.stdout + run.stderr
+    assert "safety set-up: fence list of 5 item(s) accepted" in interface
+    assert "safety set-up: FENCE_TYPE = 5 (read back)" in interface
+    assert "safety set-up: every parameter took" in interface
