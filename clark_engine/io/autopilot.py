@@ -197,9 +197,9 @@ _FORCE_ARM_MAGIC: Final = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2: skip pre
 _STATUS_MESSAGES: Final = frozenset(
     {"GPS_RAW_INT", "EKF_STATUS_REPORT", "SYS_STATUS", "HOME_POSITION", "EXTENDED_SYS_STATE"}
 )
+"""Messages :attr:`AutopilotAdapter.status` is made of."""
 _MISSION_ANSWERS: Final = frozenset({"MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"})
 """The autopilot's side of an upload (the safety set-up's fence list)."""
-"""Messages :attr:`AutopilotAdapter.status` is made of."""
 _RC_CHANNEL_FIELDS: Final = operator.attrgetter(
     *(f"chan{i}_raw" for i in range(1, RC_OVERRIDE_CHANNELS + 1))
 )

@@ -85,7 +85,11 @@ class LaunchGate:
         return not self._safety_due
 
     def safety_result(self, problem: str) -> None:
-        """The autopilot's safety set-up ended: took (``problem`` empty) or what did not."""
+        """The autopilot's safety set-up ended: took (``problem`` empty) or what did not.
+
+        A set-up asked for again (after a silence) reports its new answer the same way;
+        until then the gate says what the last one ended with.
+        """
         if problem:
             self._safety_problem = problem
         else:
