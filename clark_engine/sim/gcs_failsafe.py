@@ -156,8 +156,12 @@ class GcsFailsafe:
             self.next_check_s = now_s + CHECK_PERIOD_S["arducopter"]
             self._copter(vehicle, now_s)
         elif self.firmware == "ardurover":
-            self.next_check_s = now_s + ROVER_TRIGGER_PERIOD_S
             self._rover(vehicle, now_s)
+            # The 50 Hz trigger matters only once the silence is noticed (at 10 Hz).
+            lost = self._rover_lost and not self.active
+            self.next_check_s = now_s + (
+                ROVER_TRIGGER_PERIOD_S if lost else CHECK_PERIOD_S["ardurover"]
+            )
         else:
             self.next_check_s = now_s + CHECK_PERIOD_S["arduplane"]
             self._plane(vehicle, now_s)
