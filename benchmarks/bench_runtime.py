@@ -35,11 +35,12 @@ from clark_engine.link.codec import Codec
 from clark_engine.link.messages import ActivateController, AgentStatus, AgentType, Heartbeat
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.validate import validate_path
-from clark_engine.runtime.commands import Goto
+from clark_engine.runtime.commands import Goto, SetUpAutopilotSafety
 from clark_engine.runtime.config import config_from_dict, envelope_from_dict
 from clark_engine.runtime.envelope import EnvelopeGuard, PeerPositions
 from clark_engine.runtime.events import (
     AutopilotHeartbeat,
+    AutopilotSafetyResult,
     AutopilotStatus,
     LandedState,
     PacketReceived,
@@ -140,6 +141,9 @@ def measure(peers: int, seconds: float) -> tuple[float, float, float]:
     codecs = [Codec(533, PEER_BASE_ID + i) for i in range(peers)]
     runtime.deliver(READY_IN_AIR, 0.0)
     runtime.deliver(vehicle(0.0), 0.0)
+    # The autopilot takes the safety set-up the runtime asks for first, as in flight.
+    assert any(isinstance(c, SetUpAutopilotSafety) for c in runtime.tick(0.0))
+    runtime.deliver(AutopilotSafetyResult(), 0.0)
     # The station (id 1) activates the controller over ClarkLink, as in flight.
     station = Codec(533, 1)
     gps = 1_400_000_000_000
@@ -148,7 +152,7 @@ def measure(peers: int, seconds: float) -> tuple[float, float, float]:
     ticks = int(seconds * loop_hz)
     tick_cpu = 0.0
     deliver_cpu = 0.0
-    for k in range(ticks):
+    for k in range(1, ticks + 1):
         now = k / loop_hz
         start = time.process_time()
         runtime.deliver(AutopilotHeartbeat("FBWA", 5, True), now)

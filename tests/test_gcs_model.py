@@ -10,6 +10,7 @@ runtime sends (as tests/test_runtime.py plays them). Nothing sleeps.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -56,8 +57,10 @@ def configs(mission_file: str) -> dict[str, AgentConfig]:
     result = validate_path(ROOT / "missions" / mission_file, mission_file)
     assert result.mission is not None
     mission = result.mission
+    # The autopilots here are streams of events, which cannot answer the autopilot's safety
+    # set-up (tests/test_runtime_autopilot_safety.py): the behaviours start without it.
     return {
-        name: config_from_dict(agent_config(mission, agent))
+        name: replace(config_from_dict(agent_config(mission, agent)), safety_setup=False)
         for name, agent in mission.agents.items()
     }
 

@@ -57,7 +57,10 @@ def config_of(
         path.write_text(text, encoding="utf-8")
     result = validate_path(path, path.name)
     assert result.mission is not None, [f.format_text() for f in result.findings]
-    return config_from_dict(agent_config(result.mission, result.mission.agents[agent]))
+    config = config_from_dict(agent_config(result.mission, result.mission.agents[agent]))
+    # The autopilot here is a stream of events, which cannot answer the autopilot's safety
+    # set-up (tests/test_runtime_autopilot_safety.py): the behaviour starts without it.
+    return replace(config, safety_setup=False)
 
 
 def vehicle(

@@ -20,10 +20,11 @@ from clark_engine.link.fleet import FleetTable
 from clark_engine.link.messages import ActivateController, AgentType, Heartbeat
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.validate import validate_path
-from clark_engine.runtime.commands import Arm, Command, Goto, SetMode, Takeoff
+from clark_engine.runtime.commands import Arm, Command, Goto, SetMode, SetUpAutopilotSafety, Takeoff
 from clark_engine.runtime.config import AgentConfig, config_from_dict
 from clark_engine.runtime.context import Outbox, PrimitiveContext, Status, offset_position
 from clark_engine.runtime.events import (
+    AutopilotSafetyResult,
     AutopilotStatus,
     CommandRefused,
     LandedState,
@@ -107,8 +108,12 @@ def test_a_pilot_armed_rover_waits_for_readiness_then_the_pilot() -> None:
         "an EKF position",
         "the pre-arm checks",
         "a home position",
+        "the autopilot's safety set-up",
         "the pilot to arm it",
     )
+    assert not gate.update(READY, state())
+    assert gate.waiting_for == ("the autopilot's safety set-up", "the pilot to arm it")
+    gate.safety_result("")  # the autopilot's fence and failsafe took
     assert not gate.update(READY, state())
     assert gate.waiting_for == ("the pilot to arm it",)
     assert gate.update(READY, state(armed=True))
@@ -118,11 +123,36 @@ def test_a_pilot_armed_rover_waits_for_readiness_then_the_pilot() -> None:
 
 def test_an_engine_armed_copter_starts_when_ready_and_disarmed() -> None:
     gate = LaunchGate(config("copter_takeoff_land.yaml", "f450"), _log())
+    assert not gate.update(READY, state(mode="STABILIZE"))
+    assert gate.waiting_for == ("the autopilot's safety set-up",)
+    gate.safety_result("")
     assert gate.update(READY, state(mode="STABILIZE"))
+
+
+def test_a_failed_safety_set_up_keeps_the_gate_shut_and_says_what_did_not_take() -> None:
+    gate = LaunchGate(config("copter_takeoff_land.yaml", "f450"), _log())
+    gate.safety_result("FENCE_ALT_MAX did not take: reads 100, asked 118")
+    assert not gate.update(READY, state(mode="STABILIZE"))
+    assert gate.waiting_for == (
+        "the autopilot's safety set-up (FENCE_ALT_MAX did not take: reads 100, asked 118)",
+    )
+    assert not gate.safety_done
+
+
+def test_a_bench_profile_without_the_safety_set_up_starts_with_a_warning(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    cfg = replace(config("copter_takeoff_land.yaml", "f450"), safety_setup=False)
+    gate = LaunchGate(cfg, _log())
+    assert gate.safety_done
+    with caplog.at_level(logging.WARNING, logger="test-launch"):
+        assert gate.update(READY, state(mode="STABILIZE"))
+    assert "are NOT set up (its profile says safety_setup: false)" in caplog.text
 
 
 def test_an_airborne_handover_waits_for_the_pilot_to_take_off() -> None:
     gate = LaunchGate(config("supercub_sysid.yaml", "cub"), _log())
+    gate.safety_result("")
     assert not gate.update(READY, state(armed=True))
     assert gate.waiting_for == ("the pilot to take off",)
     flying = replace(READY, landed=LandedState.IN_AIR)
@@ -132,6 +162,7 @@ def test_an_airborne_handover_waits_for_the_pilot_to_take_off() -> None:
 def test_a_vehicle_whose_height_disagrees_with_the_origin_does_not_start() -> None:
     """A wrong origin.alt_amsl_m would put every commanded height off by as much."""
     gate = LaunchGate(config("copter_takeoff_land.yaml", "f450"), _log())
+    gate.safety_result("")
     assert not gate.update(READY, state(alt_m=23.4, mode="STABILIZE"))
     (why,) = gate.waiting_for
     assert "on the ground it reads +23 m from the origin" in why
@@ -142,6 +173,7 @@ def test_a_vehicle_whose_height_disagrees_with_the_origin_does_not_start() -> No
 def test_without_wait_ready_only_the_pilot_is_waited_for() -> None:
     cfg = replace(config("cooperative_follow.yaml", "slash_b"), wait_ready=False)
     gate = LaunchGate(cfg, _log())
+    gate.safety_result("")
     assert not gate.update(None, state())
     assert gate.waiting_for == ("the pilot to arm it",)
     assert gate.update(None, state(armed=True))
@@ -165,7 +197,11 @@ def test_the_behaviour_starts_only_once_ready_and_armed() -> None:
     assert not of(runtime.tick(0.0), SetMode)
     runtime.deliver(state(t=1.0), 1.0)
     runtime.deliver(READY, 1.0)
-    assert not of(runtime.tick(1.0), SetMode)  # ready, not armed by its pilot yet
+    out = runtime.tick(1.0)
+    assert not of(out, SetMode)  # ready, not armed by its pilot yet
+    assert len(of(out, SetUpAutopilotSafety)) == 1  # the autopilot is asked to hold it too
+    runtime.deliver(AutopilotSafetyResult(), 1.5)
+    assert not of(runtime.tick(1.5), SetMode)
     assert runtime.machine is not None and not runtime.machine.running
     runtime.deliver(state(armed=True, t=2.0), 2.0)
     out = runtime.tick(2.0)
@@ -187,7 +223,9 @@ def test_an_activation_before_the_behaviour_starts_never_acts() -> None:
     runtime.deliver(READY, 2.0)
     runtime.deliver(state(armed=True, t=2.0), 2.0)
     runtime.tick(2.0)
+    runtime.deliver(AutopilotSafetyResult(), 2.05)
     runtime.tick(2.1)
+    runtime.tick(2.2)
     assert runtime.machine is not None
     assert runtime.machine.active_paths() == ("idle",)  # not chase: the activation is gone
     log = runtime.logbook.streams.mission.getvalue()

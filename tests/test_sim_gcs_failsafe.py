@@ -164,7 +164,7 @@ agents:
   rover:
     id: 2
     profile: traxxas_slash
-    hardware: {{autopilot: {{parameters: {{{failsafe}}}}}}}
+    hardware: {{autopilot: {{{autopilot}}}}}
     telemetry: {{heartbeat: 1, agent_status: 2}}
     behavior:
       use: waypoint_tour
@@ -176,20 +176,25 @@ sim: {{duration_s: 80, seed: 1}}
 
 
 @pytest.mark.parametrize(
-    ("failsafe", "mode"),
-    [("FS_GCS_ENABLE: 1, FS_GCS_TIMEOUT: 2", "HOLD"), ("FS_GCS_ENABLE: 0", "GUIDED")],
+    ("autopilot", "mode"),
+    [
+        ("parameters: {FS_GCS_ENABLE: 0}", "HOLD"),
+        ("safety_setup: false, parameters: {FS_GCS_ENABLE: 0}", "GUIDED"),
+    ],
     ids=["failsafe-set", "failsafe-off"],
 )
 def test_a_killed_mission_computer_leaves_its_rover_to_the_autopilot(
-    tmp_path: Path, failsafe: str, mode: str
+    tmp_path: Path, autopilot: str, mode: str
 ) -> None:
     """The engine's adapter heartbeats as the ground station; killed, it falls silent.
 
-    With ArduRover's GCS failsafe set, the rover holds FS_GCS_TIMEOUT + FS_TIMEOUT (3.5 s)
-    after the last heartbeat; without it, it drives on to its last target in GUIDED.
+    The engine sets ArduRover's GCS failsafe before the behaviour starts (whatever the
+    profile's parameters say): the rover holds FS_GCS_TIMEOUT + FS_TIMEOUT (6.5 s) after
+    the last heartbeat. A bench profile that opts out of that set-up leaves it off: the
+    rover drives on to its last target in GUIDED.
     """
     path = tmp_path / "killed_rover.yaml"
-    path.write_text(KILLED_ROVER.format(failsafe=failsafe), encoding="utf-8")
+    path.write_text(KILLED_ROVER.format(autopilot=autopilot), encoding="utf-8")
     out, err = io.StringIO(), io.StringIO()
     outcome = run_dry_run(path, seed=None, until_s=None, report=None, speed=None, out=out, err=err)
     assert outcome.result is not None, err.getvalue()

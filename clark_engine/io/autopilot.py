@@ -65,6 +65,8 @@ from typing import Any, Final
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from clark_engine.io.autopilot_setup import ParamAnswer, SafetySetup
+from clark_engine.io.mission_upload import MissionUpload, fence_items
 from clark_engine.runtime.commands import (
     Arm,
     Command,
@@ -72,11 +74,14 @@ from clark_engine.runtime.commands import (
     RcOverride,
     SetMode,
     SetServo,
+    SetUpAutopilotSafety,
     Takeoff,
+    UploadFence,
 )
 from clark_engine.runtime.config import AgentConfig, ConfigError
 from clark_engine.runtime.events import (
     AutopilotHeartbeat,
+    AutopilotSafetyResult,
     AutopilotStatus,
     AutopilotText,
     CommandRefused,
@@ -193,6 +198,8 @@ _STATUS_MESSAGES: Final = frozenset(
     {"GPS_RAW_INT", "EKF_STATUS_REPORT", "SYS_STATUS", "HOME_POSITION", "EXTENDED_SYS_STATE"}
 )
 """Messages :attr:`AutopilotAdapter.status` is made of."""
+_MISSION_ANSWERS: Final = frozenset({"MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"})
+"""The autopilot's side of an upload (the safety set-up's fence list)."""
 _RC_CHANNEL_FIELDS: Final = operator.attrgetter(
     *(f"chan{i}_raw" for i in range(1, RC_OVERRIDE_CHANNELS + 1))
 )
@@ -286,6 +293,7 @@ AutopilotEvent = (
     | ParamValue
     | CommandRefused
     | AutopilotMessage
+    | AutopilotSafetyResult
 )
 """Everything :meth:`AutopilotAdapter.receive` returns."""
 
@@ -303,7 +311,9 @@ class AutopilotSettings:
             sent and which HEARTBEAT vehicle types are accepted. None: any ArduPilot.
         system_id: The autopilot's MAVLink system id (SYSID_THISMAV).
         component_id: The autopilot's component id (1, MAV_COMP_ID_AUTOPILOT1).
-        source_system_id: Ours. ArduPilot takes RC overrides only from SYSID_MYGCS (255).
+        source_system_id: Ours. The safety set-up makes it the autopilot's ground-station
+            id (MAV_GCS_SYSID): ArduPilot takes RC overrides, and counts heartbeats for its
+            failsafe, only from that id.
         source_component_id: Ours (191, MAV_COMP_ID_ONBOARD_COMPUTER).
         stream_rate_hz: Rate asked for each of :data:`STREAMED_MESSAGES`.
         heartbeat_timeout_s: Autopilot silence after which :meth:`AutopilotAdapter.lost`.
@@ -524,6 +534,11 @@ class AutopilotAdapter:
         # refusals waiting REASON_WAIT_S for theirs: (due time, refusal, refused at).
         self._warnings: list[tuple[float, str]] = []
         self._refusals: list[tuple[float, CommandRefused, float]] = []
+        # The safety set-up under way (None when none), who waits for which parameter's
+        # answer, and what a clean stop writes (the set-up's on_close, once it took).
+        self._safety: SafetySetup | None = None
+        self._param_answers: dict[str, list[ParamAnswer]] = {}
+        self._on_close: tuple[tuple[str, float], ...] = ()
 
         self.bad_frames = 0
         """Frames that failed their checksum or were not MAVLink (garbage on the link)."""
@@ -608,6 +623,15 @@ class AutopilotAdapter:
         self._send_due(now_s)
         return self._outbox.take()
 
+    def flush(self) -> bytes:
+        """What the adapter queued while receiving: send it now rather than at the next poll.
+
+        An answer from the autopilot may call for the next message at once (the next step
+        of a safety set-up, an item of a fence upload it asks for; overrides released
+        after a silence); usually nothing (``b""``).
+        """
+        return self._outbox.take()
+
     def poll(self, now_s: float) -> bytes:
         """Periodic duties; call every loop (at least every 0.5 s).
 
@@ -662,6 +686,8 @@ class AutopilotAdapter:
             self._send_due(now_s, heard=heard)
         if heard:
             self._speed(now_s)
+        if self._safety is not None:
+            self._safety.poll(now_s)
         self._release_refusals(now_s, self._late_events)
         return self._outbox.take()
 
@@ -676,6 +702,7 @@ class AutopilotAdapter:
             self._override_out(dict.fromkeys(self._overrides, 0), now_s)
             self._overrides.clear()
         self._requests.clear()
+        self._safety_close()
         return self._outbox.take()
 
     # -- commands ----------------------------------------------------------------------------
@@ -741,6 +768,8 @@ class AutopilotAdapter:
             )
         elif isinstance(cmd, RcOverride):
             self._rc_override(cmd, now_s)
+        elif isinstance(cmd, SetUpAutopilotSafety):
+            self._safety_start(cmd, now_s)
         return self._outbox.take()
 
     def arm(self, armed: bool, now_s: float, *, force: bool = False) -> bytes:
@@ -788,7 +817,13 @@ class AutopilotAdapter:
         self._param_set(name, value, now_s)
         return self._outbox.take()
 
-    def _param_set(self, name: str, value: float, now_s: float) -> None:
+    def _param_set(
+        self,
+        name: str,
+        value: float,
+        now_s: float,
+        answered: Callable[[int | None, float], None] | None = None,
+    ) -> None:
         param_id = _param_id(name)
         known = self._param_types.get(name, mavlink2.MAV_PARAM_TYPE_REAL32)
         s = self.settings
@@ -800,6 +835,7 @@ class AutopilotAdapter:
                 lambda _attempt: self._mav.param_set_encode(
                     s.system_id, s.component_id, param_id, float(value), known
                 ),
+                answered=answered,
             ),
             now_s,
         )
@@ -817,6 +853,113 @@ class AutopilotAdapter:
         self._wanted.add(name)
         self._command_long(mavlink2.MAV_CMD_REQUEST_MESSAGE, f"request {name}", now_s, msg_id)
         return self._outbox.take()
+
+    # -- the safety set-up (SetUpAutopilotSafety; see io/autopilot_setup.py) ----------------
+
+    def _safety_start(self, cmd: SetUpAutopilotSafety, now_s: float) -> None:
+        """Start a safety set-up; one under way is dropped (the runtime asks once at a time)."""
+        if self._safety is not None:
+            self._log.warning("a new safety set-up replaces the one under way")
+            self._param_answers.clear()
+        self._log.info("safety set-up: %s", cmd.summary or "(no summary)")
+        self._safety = SafetySetup(cmd, self, self._safety_over)
+        self._safety.start(now_s)
+
+    def _safety_over(self, result: AutopilotSafetyResult) -> None:
+        safety, self._safety = self._safety, None
+        if safety is not None:
+            # What it switched on, a clean stop switches off, whether or not the rest took.
+            close = dict(self._on_close)
+            close.update(
+                (p.name, p.value) for p in safety.command.on_close if p.name in safety.took_names
+            )
+            self._on_close = tuple(close.items())
+        if result.ok:
+            self._log.info("safety set-up: every parameter took")
+        else:
+            self._log.error("safety set-up failed: %s", printable(result.problem))
+        self._late_events.append(result)
+
+    def _safety_close(self) -> None:
+        """A clean stop: write the set-up's on_close (the failsafe switched off), unchecked.
+
+        Only what a set-up switched on (its value read back) is switched off, whether or
+        not the set-up as a whole took.
+        """
+        s = self.settings
+        for name, value in self._on_close:
+            self._log.info("leaving on purpose: %s = %g", name, value)
+            known = self._param_types.get(name, mavlink2.MAV_PARAM_TYPE_REAL32)
+            self._mav.send(
+                self._mav.param_set_encode(
+                    s.system_id, s.component_id, _param_id(name), float(value), known
+                )
+            )
+        self._on_close = ()
+
+    def _param_silent(self, name: str, now_s: float) -> None:
+        for answer in self._param_answers.pop(name, ()):
+            answer(None, None, now_s)
+
+    def setup_read(self, name: str, now_s: float, answer: ParamAnswer) -> None:
+        """Read a parameter for the safety set-up; ``answer`` hears it or its silence."""
+        self._param_answers.setdefault(name, []).append(answer)
+        param_id = _param_id(name)
+        s = self.settings
+        self._track(
+            _Request(
+                "PARAM_REQUEST_READ",
+                name,
+                f"read {name}",
+                lambda _attempt: self._mav.param_request_read_encode(
+                    s.system_id, s.component_id, param_id, -1
+                ),
+                answered=lambda _result, at_s: self._param_silent(name, at_s),
+            ),
+            now_s,
+        )
+
+    def setup_write(self, name: str, value: float, now_s: float, answer: ParamAnswer) -> None:
+        """Set a parameter for the safety set-up; ``answer`` hears its echo or its silence."""
+        self._param_answers.setdefault(name, []).append(answer)
+        self._param_set(name, value, now_s, lambda _result, at_s: self._param_silent(name, at_s))
+
+    def setup_forget(self, name: str) -> None:
+        """Stop asking for a parameter the set-up no longer needs."""
+        self._param_answers.pop(name, None)
+        self._requests = [r for r in self._requests if r.key != name]
+
+    def setup_heartbeat(self, now_s: float) -> None:
+        """Send our HEARTBEAT now, off its 1 Hz grid."""
+        self._heartbeat_out(now_s)
+
+    def setup_upload(self, zones: UploadFence, now_s: float) -> MissionUpload:
+        """Start replacing the autopilot's fence list."""
+        s = self.settings
+        return MissionUpload(
+            self._mav,
+            (s.system_id, s.component_id),
+            fence_items(zones.zones),
+            int(mavlink2.MAV_MISSION_TYPE_FENCE),
+            now_s,
+        )
+
+    def setup_heard_since(self, t_s: float) -> bool:
+        """True when a HEARTBEAT from the autopilot arrived at or after ``t_s``."""
+        return self._heartbeat_s is not None and self._heartbeat_s >= t_s
+
+    def setup_reasons(self, since_s: float, now_s: float) -> str:
+        """The autopilot's warnings since ``since_s`` (escaped), joined by ``; ``."""
+        return "; ".join(text for t, text in self._warnings if since_s <= t <= now_s)
+
+    def setup_note(self, text: str) -> None:
+        """A line of the safety set-up for the interface log."""
+        self._log.info("safety set-up: %s", text)
+
+    @property
+    def own_system_id(self) -> int:
+        """Our MAVLink system id: the one the autopilot's ground-station failsafe watches."""
+        return self.settings.source_system_id
 
     # -- bytes in ---------------------------------------------------------------------------
 
@@ -860,6 +1003,9 @@ class AutopilotAdapter:
             messages = []
         for msg in messages:
             self._handle(msg, now_s, events)
+        if self._late_events:  # what the messages ended (a safety set-up's result)
+            events.extend(self._late_events)
+            self._late_events = []
         self._release_refusals(now_s, events)
         return events
 
@@ -902,7 +1048,11 @@ class AutopilotAdapter:
         elif kind == "RC_CHANNELS":
             events.append(RcChannels(self._rc_values(_RC_CHANNEL_FIELDS(msg))))
         elif kind == "PARAM_VALUE":
-            events.append(self._on_param(msg))
+            events.append(self._on_param(msg, now_s))
+        elif kind in _MISSION_ANSWERS:
+            if self._safety is not None:
+                own = (self.settings.source_system_id, self.settings.source_component_id)
+                self._safety.on_mission(msg, own, now_s)
         elif kind == "COMMAND_ACK":
             self._on_ack(msg, now_s, events)
         elif kind == "STATUSTEXT":
@@ -1049,6 +1199,9 @@ class AutopilotAdapter:
             released = dict.fromkeys(self._overrides, 0)
             self._overrides.clear()
             self._override_out(released, self._override_sent_s)
+        if self._safety is not None:
+            self._param_answers.clear()
+            self._safety.interrupted("went silent" if why.startswith("heard again") else why)
         self._version = None
         self._verify_attempts = 0
         self._next_verify_s = -math.inf
@@ -1119,12 +1272,14 @@ class AutopilotAdapter:
             self._rc = tuple(0 if v == _UINT16_MAX else int(v) for v in raw)
         return self._rc
 
-    def _on_param(self, msg: Any) -> ParamValue:
+    def _on_param(self, msg: Any, now_s: float) -> ParamValue:
         name = str(msg.param_id)
         self._param_types[name] = int(msg.param_type)
         self._requests = [
             r for r in self._requests if not (isinstance(r.key, str) and r.key == name)
         ]
+        for answer in self._param_answers.pop(name, ()):
+            answer(float(msg.param_value), int(msg.param_type), now_s)
         return ParamValue(
             name=name,
             value=float(msg.param_value),

@@ -243,7 +243,9 @@ def agent_config(mission: Mission, agent: Agent) -> dict[str, Any]:
             "role": agent.role,
             "profile": agent.profile,
             "terminal_mode": agent.terminal_mode if is_vehicle else None,
-            "failsafe": dict(agent.failsafe) if is_vehicle else {},
+            "failsafe": (
+                {**agent.failsafe, "computer_lost_s": agent.computer_lost_s} if is_vehicle else {}
+            ),
             "launch": _launch(agent),
             "position": _point(agent.position, mission),
             "hardware": {

@@ -21,6 +21,14 @@ TELEMETRY_MESSAGES = ("heartbeat", "agent_status", "agent_attitude", "behavior_s
 
 PARTS = ("airframe", "autopilot", "radio", "computer")
 
+#: What the autopilot itself does when the mission computer falls silent
+#: (``failsafe.computer_lost``): ArduPilot's GCS failsafe, set up by the engine.
+COMPUTER_LOST_ACTIONS = ("rtl", "land", "hold")
+#: Default seconds from the mission computer's last heartbeat to the autopilot's reaction.
+DEFAULT_COMPUTER_LOST_S = 5.0
+#: The range ArduPilot gives that time (ArduCopter's and ArduRover's FS_GCS_TIMEOUT).
+COMPUTER_LOST_RANGE_S = (2.0, 120.0)
+
 
 @dataclass(frozen=True, slots=True)
 class Channel:
@@ -279,7 +287,10 @@ class Agent:
         hardware: The resolved hardware.
         telemetry: Message name -> schedule.
         behavior: Root state of its behaviour, or None.
-        failsafe: Situation (``mcs_lost``) -> action (``hold``, ``rtl``, ``land``, ``continue``).
+        failsafe: Situation -> action: ``mcs_lost`` (``hold``, ``rtl``, ``land``,
+            ``continue``: the runtime's, on the station's silence) and, for vehicles,
+            ``computer_lost`` (``rtl``, ``land``, ``hold``: the autopilot's own, on the
+            mission computer's silence).
         terminal_mode: Mode the vehicle is put in when the mission terminates.
         position: Where the agent is in the local frame (stations; vehicles start here).
         launch: How a vehicle gets going (defaults when not written); None for stations,
@@ -293,6 +304,8 @@ class Agent:
         envelope: A vehicle's resolved safety envelope (the mission's, narrowed by its
             own); None for stations, and for a vehicle whose envelope the schema rejected.
         envelope_decl: The vehicle's own ``envelope:`` as written, when it wrote one.
+        computer_lost_s: How long after the mission computer's last heartbeat the
+            autopilot applies ``failsafe.computer_lost`` (``failsafe.computer_lost_s``).
     """
 
     name: str
@@ -312,6 +325,7 @@ class Agent:
     locations: dict[str, Location] = field(default_factory=dict)
     envelope: Envelope | None = None
     envelope_decl: EnvelopeDecl | None = None
+    computer_lost_s: float = DEFAULT_COMPUTER_LOST_S
 
     @property
     def is_vehicle(self) -> bool:

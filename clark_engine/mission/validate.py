@@ -25,6 +25,7 @@ from clark_engine.mission.geo import LocalPoint, Origin, parse_point
 from clark_engine.mission.machine import BehaviorResolver
 from clark_engine.mission.model import (
     ARMED_BY,
+    DEFAULT_COMPUTER_LOST_S,
     TELEMETRY_MESSAGES,
     Agent,
     Launch,
@@ -492,6 +493,22 @@ def _build_agent(
             ("address",), doc.location(path)
         )
     locations.setdefault("telemetry", doc.location(path))
+    if role == "vehicle" and autopilot and autopilot.get("safety_setup") is False:
+        where = (
+            result.origins["autopilot"].locate(("safety_setup",), doc.location(path))
+            if "autopilot" in result.origins
+            else doc.location(path)
+        )
+        findings.append(
+            warning(
+                "W-AUTOPILOT-SAFETY-OFF",
+                where,
+                f"{name}'s autopilot profile says safety_setup: false, so the engine will not "
+                "set the autopilot's own fence or its reaction to a dead mission computer: "
+                "if this computer stops, the vehicle flies on to its last target. Use it "
+                "only on the bench; remove it for any flight",
+            )
+        )
     # Launch checks compare launch with the start position; with either one broken the
     # schema's error comes first and they wait.
     launch = (
@@ -508,7 +525,7 @@ def _build_agent(
         hardware=hardware,
         telemetry=telemetry,
         behavior=None,
-        failsafe={"mcs_lost": str((clean("failsafe") or {}).get("mcs_lost", "hold"))},
+        failsafe=_failsafe(clean("failsafe") or {}, role, hardware.part("airframe")),
         terminal_mode=str(terminal) if terminal is not None else None,
         position=position,
         radio_address=str(radio["address"]) if radio.get("address") is not None else None,
@@ -516,7 +533,25 @@ def _build_agent(
         launch=launch,
         raw=raw,
         locations=locations,
+        computer_lost_s=float(
+            (clean("failsafe") or {}).get("computer_lost_s", DEFAULT_COMPUTER_LOST_S)
+        ),
     )
+
+
+def _failsafe(
+    declared: Mapping[str, Any], role: str, airframe: Mapping[str, Any] | None
+) -> dict[str, str]:
+    """The agent's failsafe actions, defaults filled in (``computer_lost`` for vehicles only).
+
+    A vehicle's autopilot returns to launch when its mission computer falls silent, a
+    rover's holds: a rover's home is no safer than where it stopped, and it cannot land.
+    """
+    actions = {"mcs_lost": str(declared.get("mcs_lost", "hold"))}
+    if role == "vehicle":
+        rover = (airframe or {}).get("class") == "rover"
+        actions["computer_lost"] = str(declared.get("computer_lost", "hold" if rover else "rtl"))
+    return actions
 
 
 def _launch(doc: Document, path: DocPath, raw: Mapping[str, Any]) -> Launch:

@@ -103,6 +103,106 @@ class SendPacket:
 
 
 @dataclass(frozen=True, slots=True)
+class SetParam:
+    """One autopilot parameter the safety set-up writes, then reads back.
+
+    Attributes:
+        names: The parameter's name, then the names older ArduPilot versions give it,
+            newest first. With more than one, each is read first and the first the
+            autopilot answers to is the one set.
+        value: The value, in the parameter's own unit (RTL_ALT in centimetres). For an
+            integer parameter, a whole number: ArduPilot truncates.
+        at_most: Only lower the parameter: it is read first, and left as it is when it
+            already reads ``value`` or less (a return altitude chosen under the ceiling).
+    """
+
+    names: tuple[str, ...]
+    value: float
+    at_most: bool = False
+
+    @property
+    def name(self) -> str:
+        """The newest of its names."""
+        return self.names[0]
+
+
+@dataclass(frozen=True, slots=True)
+class FenceZone:
+    """One zone of the autopilot's own fence, uploaded in its fence list.
+
+    Attributes:
+        inclusion: True for a zone the vehicle stays inside, False for one it keeps out of.
+        corners_deg: A polygon's corners in order, as (latitude, longitude); empty for a
+            circle.
+        center_deg: A circle's centre (latitude, longitude); None for a polygon.
+        radius_m: A circle's radius.
+    """
+
+    inclusion: bool
+    corners_deg: tuple[tuple[float, float], ...] = ()
+    center_deg: tuple[float, float] | None = None
+    radius_m: float = 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class UploadFence:
+    """Replace the autopilot's fence list with these zones (none: clear it).
+
+    ArduPilot keeps its inclusion and exclusion zones in a list of its own, uploaded
+    with the MAVLink mission protocol (MAV_MISSION_TYPE_FENCE).
+    """
+
+    zones: tuple[FenceZone, ...] = ()
+
+
+@dataclass(frozen=True, slots=True)
+class Pause:
+    """Wait before the next step of a safety set-up.
+
+    The autopilot acts on some changes only in a loop of its own (ArduPilot applies a
+    FENCE_ENABLE change at 10 Hz).
+
+    Attributes:
+        seconds: How long.
+    """
+
+    seconds: float
+
+
+@dataclass(frozen=True, slots=True)
+class SetUpAutopilotSafety:
+    """Set the autopilot's own fence and its reaction to a dead mission computer.
+
+    The runtime issues it once, when the autopilot is ready and before the behaviour
+    starts (docs/safety.md#held-by-the-autopilot); the adapter answers with an
+    :class:`~clark_engine.runtime.events.AutopilotSafetyResult`. The adapter carries it
+    out in order, each step once the one before it took, and stops at the first that
+    does not:
+
+    1. ``gcs_id_names``: the parameter naming whose heartbeat the autopilot's
+       ground-station failsafe watches is set to the adapter's own MAVLink system id
+       (a heartbeat follows at once), so that the mission computer's silence is what
+       the failsafe reacts to.
+    2. ``steps``: parameters set and read back, the fence list uploaded, and pauses, in
+       order.
+
+    Attributes:
+        gcs_id_names: That parameter's names, newest first (MAV_GCS_SYSID, then
+            SYSID_MYGCS before ArduPilot 4.7); empty to leave it.
+        steps: What to set, in order.
+        on_close: Parameters written as the engine leaves on purpose (a clean stop): the
+            ground-station failsafe is turned off, since the engine's departure then is
+            no loss. Sent once, not read back.
+        summary: What it sets up, in words, for the logs.
+    """
+
+    gcs_id_names: tuple[str, ...]
+    steps: tuple[SetParam | UploadFence | Pause, ...]
+    on_close: tuple[SetParam, ...] = ()
+    summary: str = ""
+
+
+@dataclass(frozen=True, slots=True)
 class CloseInterfaces:
     """Terminate: close the autopilot, radio and payload connections (thesis 7.3.5)."""
 
@@ -116,5 +216,6 @@ Command = (
     | RcOverride
     | PayloadCommand
     | SendPacket
+    | SetUpAutopilotSafety
     | CloseInterfaces
 )

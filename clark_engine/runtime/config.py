@@ -16,6 +16,7 @@ from typing import Any
 
 from clark_engine.errors import ClarkError, UsageError
 from clark_engine.mission.fence import Fence, Zone
+from clark_engine.mission.model import DEFAULT_COMPUTER_LOST_S
 
 
 class ConfigError(ClarkError):
@@ -206,6 +207,12 @@ class AgentConfig:
             level: the one AMSL figure, from which every altitude above the origin is
             worked out.
         envelope: The vehicle's safety envelope; None for a station.
+        firmware: The autopilot's ArduPilot firmware (``arducopter``, ``arduplane``,
+            ``ardurover``); None for a station, or a profile that names none.
+        computer_lost_s: Seconds from the mission computer's last heartbeat to the
+            autopilot's own reaction (``failsafe.computer_lost``).
+        safety_setup: The engine sets the autopilot's fence and computer-lost failsafe
+            before the behaviour starts (the autopilot profile's ``safety_setup``).
         raw: The config as loaded (for the parts the runtime passes through, such as
             connection settings the shells read).
     """
@@ -243,6 +250,9 @@ class AgentConfig:
     machine: StateSpec | None
     raw: Mapping[str, Any]
     envelope: EnvelopeSpec | None = None
+    firmware: str | None = None
+    computer_lost_s: float = DEFAULT_COMPUTER_LOST_S
+    safety_setup: bool = True
 
     @property
     def is_vehicle(self) -> bool:
@@ -302,6 +312,7 @@ def config_from_dict(data: Mapping[str, Any]) -> AgentConfig:
     autopilot = hardware.get("autopilot") or {}
     airframe = hardware.get("airframe") or {}
     launch = agent.get("launch") or {}
+    failsafe: Mapping[str, Any] = agent.get("failsafe") or {}
     channels = {
         name: ChannelSpec(
             name,
@@ -341,7 +352,7 @@ def config_from_dict(data: Mapping[str, Any]) -> AgentConfig:
             airborne=bool(launch.get("airborne", False)),
         ),
         wait_ready=bool(autopilot.get("wait_ready", True)),
-        failsafe=dict(agent.get("failsafe") or {}),
+        failsafe={k: v for k, v in failsafe.items() if isinstance(v, str)},
         channels=channels,
         payloads=dict(hardware.get("payloads") or {}),
         autopilot_timeout_s=float(autopilot.get("heartbeat_timeout_s", 3.0)),
@@ -364,6 +375,9 @@ def config_from_dict(data: Mapping[str, Any]) -> AgentConfig:
         machine=_state(data["machine"]) if data["machine"] is not None else None,
         raw=data,
         envelope=envelope_from_dict(data["envelope"]) if data["envelope"] is not None else None,
+        firmware=autopilot.get("firmware"),
+        computer_lost_s=float(failsafe.get("computer_lost_s", DEFAULT_COMPUTER_LOST_S)),
+        safety_setup=bool(autopilot.get("safety_setup", True)),
     )
 
 

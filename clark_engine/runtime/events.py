@@ -149,6 +149,29 @@ class CommandRefused:
 
 
 @dataclass(frozen=True, slots=True)
+class AutopilotSafetyResult:
+    """How the autopilot's safety set-up ended (the adapter's answer to SetUpAutopilotSafety).
+
+    Attributes:
+        problem: Empty when every parameter took and the fence list was accepted; else
+            what did not, in words (``FENCE_ALT_MAX did not take: reads 100, asked 118``).
+        parameter: The parameter that did not take; None when every one did, or when
+            the fence upload failed.
+        retry: The set-up was cut short by the autopilot's silence or reboot, not by an
+            answer: worth asking again once the autopilot is back.
+    """
+
+    problem: str = ""
+    parameter: str | None = None
+    retry: bool = False
+
+    @property
+    def ok(self) -> bool:
+        """True when everything took."""
+        return not self.problem
+
+
+@dataclass(frozen=True, slots=True)
 class RcChannels:
     """RC input pulse widths as the autopilot reports them (RC_CHANNELS).
 
@@ -205,6 +228,7 @@ Event = (
     | AutopilotStatus
     | AutopilotText
     | CommandRefused
+    | AutopilotSafetyResult
     | RcChannels
     | PacketReceived
     | PayloadEvent

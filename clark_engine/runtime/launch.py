@@ -10,6 +10,11 @@ the autopilot reports into one answer: may the behaviour start now? Until it
 may, the runtime runs its safety rules and telemetry but no primitive, so
 nothing is commanded that the autopilot would refuse or ignore.
 
+A vehicle's gate also waits for the autopilot's safety set-up (its own fence and
+its reaction to a dead mission computer, :mod:`clark_engine.runtime.autopilot_safety`)
+to have taken, and says what did not when it failed: the behaviour never starts
+on an autopilot that would fly on alone if the mission computer stopped.
+
 The gate opens once and stays open: a vehicle disarmed later (by its pilot, or
 ArduCopter's auto-disarm after landing) keeps its behaviour; what happens then
 is the behaviour's business and the pilot's.
@@ -60,6 +65,9 @@ class LaunchGate:
         self._log = log
         self._open = not config.is_vehicle
         self._waiting: tuple[str, ...] | None = None
+        #: The autopilot's safety set-up is yet to take (vehicles whose profile has it).
+        self._safety_due = config.is_vehicle and config.safety_setup
+        self._safety_problem = ""
 
     @property
     def open(self) -> bool:
@@ -70,6 +78,23 @@ class LaunchGate:
     def waiting_for(self) -> tuple[str, ...]:
         """What the gate waits for, in words (empty once open)."""
         return () if self._open else (self._waiting or ())
+
+    @property
+    def safety_done(self) -> bool:
+        """True once the autopilot's safety set-up took, or when none is due."""
+        return not self._safety_due
+
+    def safety_result(self, problem: str) -> None:
+        """The autopilot's safety set-up ended: took (``problem`` empty) or what did not.
+
+        A set-up asked for again (after a silence) reports its new answer the same way;
+        until then the gate says what the last one ended with.
+        """
+        if problem:
+            self._safety_problem = problem
+        else:
+            self._safety_due = False
+            self._safety_problem = ""
 
     def update(self, status: AutopilotStatus | None, vehicle: VehicleState | None) -> bool:
         """Look again at what the autopilot reports; True when the gate is (now) open."""
@@ -87,6 +112,12 @@ class LaunchGate:
                 else "the engine arms it when the behaviour needs it"
             )
             self._log.info("launch: the autopilot is ready; %s; the behaviour starts", how)
+            if self._config.is_vehicle and not self._config.safety_setup:
+                self._log.warning(
+                    "launch: the autopilot's own fence and its reaction to a dead mission "
+                    "computer are NOT set up (its profile says safety_setup: false): if this "
+                    "computer stops, the vehicle flies on to its last target"
+                )
             return True
         if missing != self._waiting:
             self._waiting = missing
@@ -105,6 +136,12 @@ class LaunchGate:
                 missing.append("the autopilot's readiness report")
             else:
                 missing.extend(status.waiting_for)
+        if self._safety_due:
+            missing.append(
+                f"the autopilot's safety set-up ({self._safety_problem})"
+                if self._safety_problem
+                else "the autopilot's safety set-up"
+            )
         if not config.launch.engine_arms and (vehicle is None or not vehicle.armed):
             missing.append("the pilot to arm it")
         airborne = is_airborne(status, vehicle)

@@ -32,6 +32,7 @@ the codec rejects every other packet before anything is looked at.
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -54,6 +55,7 @@ from clark_engine.link.messages import (
     Terminate,
 )
 from clark_engine.link.packet import BROADCAST, Packet
+from clark_engine.runtime.autopilot_safety import SafetyPlanError, safety_setup
 from clark_engine.runtime.commands import (
     Arm,
     CloseInterfaces,
@@ -77,6 +79,7 @@ from clark_engine.runtime.envelope import (
 )
 from clark_engine.runtime.events import (
     AutopilotHeartbeat,
+    AutopilotSafetyResult,
     AutopilotStatus,
     CommandRefused,
     Event,
@@ -108,6 +111,9 @@ _REQUESTS = (SetMode, Arm, Takeoff)
 TERMINATE_RESEND_S = 1.0
 #: Most messages one packet may hold from an agent not in the mission: one of each kind.
 _MAX_MESSAGES_UNKNOWN = len(MESSAGE_NAMES)
+#: An autopilot safety set-up cut short by the autopilot's silence is asked for again no
+#: sooner than this after, once the autopilot is back.
+SAFETY_RETRY_S = 5.0
 
 
 class TooManyMessages(MalformedPacket):
@@ -215,6 +221,10 @@ class AgentRuntime:
             )
         #: When the behaviour may start (readiness, arming, take-off, as the mission says).
         self.launch = LaunchGate(config, self.logbook.mission)
+        #: The autopilot's safety set-up: ``due`` (to be sent), ``sent``, ``done`` or
+        #: ``failed``; and when one cut short by a silence may be sent again.
+        self._safety_state = "done" if self.launch.safety_done else "due"
+        self._safety_due_s = -math.inf
         #: Called with every state change, after the runtime's own handling (the
         #: simulator records them; a shell could show them).
         self.state_listeners: list[Callable[[StateChange], None]] = []
@@ -314,6 +324,8 @@ class AgentRuntime:
             self._rc(event)
         elif isinstance(event, AutopilotStatus):
             self.context.autopilot = event
+        elif isinstance(event, AutopilotSafetyResult):
+            self._safety_result(event, now_s)
         elif isinstance(event, CommandRefused):
             self.logbook.mission.warning(
                 "autopilot refused %s: %s%s",
@@ -653,6 +665,8 @@ class AgentRuntime:
             self._first_tick_s = now_s
             if self._stations_silent_since_s is None and not self._stations_in_contact:
                 self._stations_silent_since_s = now_s
+        if not self._started and self._safety_state == "due":
+            self._autopilot_safety(now_s)
         opening = (
             not self._started
             and self.failsafe is None
@@ -1025,6 +1039,70 @@ class AgentRuntime:
         self._commands.append(CloseInterfaces())
         self.logbook.mission.warning("terminated%s", f"; vehicle to {terminal}" if terminal else "")
         self.logbook.close()
+
+    # -- the autopilot's safety set-up -----------------------------------------------------
+
+    def _autopilot_safety(self, now_s: float) -> None:
+        """Ask the autopilot to hold the envelope itself, once it can (before the start).
+
+        Sent once the vehicle reports where it is and, when the profile waits for
+        readiness, its home (FENCE_ALT_MAX and the return altitude are above home): not
+        after its pre-arm checks, which a fence left on the autopilot by an earlier
+        mission may fail until this set-up replaces it.
+        """
+        status = self.context.autopilot
+        if (
+            self._autopilot_lost
+            or self.terminated
+            or self.context.vehicle is None
+            or now_s < self._safety_due_s
+            or (self.config.wait_ready and (status is None or status.home is None))
+        ):
+            return
+        try:
+            command = safety_setup(self.config, status.home if status is not None else None)
+        except SafetyPlanError as exc:
+            self._safety_state = "failed"
+            self.launch.safety_result(str(exc))
+            self.logbook.mission.error(
+                "the autopilot's safety set-up cannot be made: %s; the behaviour will not start",
+                exc,
+            )
+            return
+        self._safety_state = "sent"
+        self._commands.append(command)
+        self.logbook.mission.info(
+            "setting up the autopilot's own safety (the behaviour waits for it): %s",
+            command.summary,
+        )
+
+    def _safety_result(self, result: AutopilotSafetyResult, now_s: float) -> None:
+        """The adapter's answer: the gate may open, or says why it will not."""
+        if self._safety_state != "sent":
+            return  # an answer to nothing asked (a set-up already ended)
+        self.launch.safety_result(result.problem)
+        if result.ok:
+            self._safety_state = "done"
+            self.logbook.mission.info(
+                "the autopilot's fence and its reaction to a dead mission computer are set "
+                "and read back"
+            )
+            return
+        if result.retry:
+            self._safety_state = "due"
+            self._safety_due_s = now_s + SAFETY_RETRY_S
+            self.logbook.mission.error(
+                "the autopilot's safety set-up was cut short: %s; asked again once the "
+                "autopilot is back",
+                result.problem,
+            )
+            return
+        self._safety_state = "failed"
+        self.logbook.mission.error(
+            "the autopilot's safety set-up failed: %s; the behaviour will not start: fix "
+            "the autopilot (or its profile) and start again",
+            result.problem,
+        )
 
     # -- machine callbacks ---------------------------------------------------------------
 

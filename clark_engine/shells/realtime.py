@@ -89,6 +89,7 @@ from clark_engine.runtime.commands import (
 )
 from clark_engine.runtime.events import (
     AutopilotHeartbeat,
+    AutopilotSafetyResult,
     AutopilotStatus,
     AutopilotText,
     CommandRefused,
@@ -112,6 +113,7 @@ _RUNTIME_EVENTS = (
     AutopilotStatus,
     AutopilotText,
     CommandRefused,
+    AutopilotSafetyResult,
     RcChannels,
 )
 
@@ -525,6 +527,7 @@ class RealtimeShell:
         for event in link.adapter.receive(data, now):
             if isinstance(event, _RUNTIME_EVENTS):
                 self._carry_out(self.runtime.deliver(event, now), now)
+        self._to_autopilot(link.adapter.flush(), now)  # what the answers called for
 
     def _from_radio(self, now: float) -> None:
         link = self.radio

@@ -56,6 +56,7 @@ from clark_engine.runtime.commands import (
     SendPacket,
     SetMode,
     SetServo,
+    SetUpAutopilotSafety,
     Takeoff,
 )
 from clark_engine.runtime.config import AgentConfig, config_from_dict
@@ -86,7 +87,7 @@ START_UNIX_US = 1_767_225_600_000_000
 #: beyond its autopilot's boot: it is ready, and its pilot took off, before time 0.
 AIRBORNE_BOOTED_S = 60.0
 
-_AUTOPILOT_COMMANDS = (Goto, SetMode, Arm, Takeoff, SetServo, RcOverride)
+_AUTOPILOT_COMMANDS = (Goto, SetMode, Arm, Takeoff, SetServo, RcOverride, SetUpAutopilotSafety)
 
 #: How much shorter than the mesh's lookahead a split run's window is.
 WINDOW_MARGIN_S = 1e-7
@@ -899,6 +900,7 @@ class DryRun:
                 out = sim_agent.runtime.deliver(event, t_s)  # type: ignore[arg-type]
                 if out:
                     self._route(sim_agent, out, t_s)
+            self._to_autopilot(sim_agent, sim_agent.adapter.flush(), t_s)
 
     def _sample(self, t_s: float) -> None:
         flight = self.recording.flight

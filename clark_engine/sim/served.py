@@ -36,7 +36,7 @@ from __future__ import annotations
 import contextlib
 import select
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import replace
 from typing import Any, Final
 
@@ -53,6 +53,7 @@ from clark_engine.sim.pilot import SimPilot
 from clark_engine.sim.realtime import StopFlag, datagrams
 from clark_engine.sim.sitl import SitlError, SitlInstall
 from clark_engine.sim.sitl_backend import SitlBackend
+from clark_engine.untrusted import printable
 
 SITL_STEP_S: Final = 0.05
 """How far SITL's clock is let run between two looks at what its SERIAL0 sent."""
@@ -67,6 +68,9 @@ STREAM_RETRY_S: Final = 1.0
 """Stream requests are sent again this often until the stream arrives (ArduPilot drops
 those it gets before it is ready)."""
 
+COMPUTER_SILENT_S: Final = 2.0
+"""The mission computer's heartbeat (1 Hz) missing this long is announced."""
+
 DEFAULT_LISTEN: Final = "127.0.0.1:14550"
 """Where the simulated autopilot listens unless ``--listen`` says otherwise."""
 
@@ -80,14 +84,63 @@ def _vehicle(mission: Mission, name: str) -> tuple[Any, Any]:
 
 
 class _Announcer:
-    """Says once each of: the autopilot ready (as the pilot sees it), the vehicle armed."""
+    """Says what the autopilot does, as the bench sees it, each line with its time.
 
-    def __init__(self, name: str, pilot: SimPilot, say: Say) -> None:
+    Once each: the autopilot ready (as the pilot sees it), the vehicle armed. Every
+    change of flight mode, and every text of notice severity or worse the autopilot
+    sends (a failsafe, a fence breach, a refused arm). And the mission computer's
+    heartbeat: when it is first heard, and when it has been silent for
+    :data:`COMPUTER_SILENT_S` (with the time of the last one), which is what
+    ArduPilot's ground-station failsafe counts from. ArduPilot forwards a ground
+    station's HEARTBEAT to its other links (``MAVLink_routing::handle_heartbeat``), so
+    on SITL the pilot's link hears ``clark run``'s; the simulated autopilot's port hears
+    it directly. Times are the autopilot's (SITL's clock, or the simulation's).
+    """
+
+    def __init__(
+        self, name: str, pilot: SimPilot, say: Say, modes: Mapping[str, int], system_id: int
+    ) -> None:
         self._name = name
         self._pilot = pilot
         self._say = say
         self._ready_said = False
         self._armed_said = False
+        self._mode_names = {int(number): mode for mode, number in modes.items()}
+        self._system_id = system_id
+        self._parser = mavlink2.MAVLink(None, 255, 25)
+        self._parser.robust_parsing = True
+        self._mode: int | None = None
+        self._computer_s: float | None = None  # its last heartbeat
+        self._computer_silent = False
+
+    def hear(self, data: bytes, now_s: float) -> None:
+        """Bytes from the autopilot, or from ``clark run`` to it, at ``now_s``."""
+        if not data:
+            return
+        for msg in self._parser.parse_buffer(data) or []:
+            kind = msg.get_type()
+            if msg.get_srcSystem() != self._system_id:
+                if kind == "HEARTBEAT" and msg.type == mavlink2.MAV_TYPE_GCS:
+                    self._computer(msg, now_s)
+            elif kind == "HEARTBEAT" and msg.autopilot == mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA:
+                mode = int(msg.custom_mode)
+                if mode != self._mode:
+                    self._mode = mode
+                    name = self._mode_names.get(mode, f"UNKNOWN_{mode}")
+                    self._say(f"{self._name}: mode {name} at {now_s:.2f} s")
+            elif kind == "STATUSTEXT" and msg.severity <= mavlink2.MAV_SEVERITY_NOTICE:
+                text = printable(str(msg.text))
+                self._say(f'{self._name}: autopilot says "{text}" at {now_s:.2f} s')
+
+    def _computer(self, msg: Any, now_s: float) -> None:
+        if self._computer_s is None or self._computer_silent:
+            again = " again" if self._computer_silent else ""
+            self._say(
+                f"{self._name}: mission computer (system {msg.get_srcSystem()}) heard{again} "
+                f"at {now_s:.2f} s"
+            )
+        self._computer_s = now_s
+        self._computer_silent = False
 
     def __call__(self, now_s: float) -> None:
         if not self._ready_said and self._pilot.sees_ready:
@@ -97,6 +150,10 @@ class _Announcer:
             self._armed_said = True
             who = "the pilot" if self._pilot.arms else "the engine"
             self._say(f"{self._name}: armed by {who} at {self._pilot.armed_at_s:.1f} s")
+        last = self._computer_s
+        if last is not None and not self._computer_silent and now_s - last > COMPUTER_SILENT_S:
+            self._computer_silent = True
+            self._say(f"{self._name}: no heartbeat from the mission computer since {last:.2f} s")
 
 
 class ServedSimulated:
@@ -130,6 +187,8 @@ class ServedSimulated:
         self.backend: SimulatedBackend
         self.backend, self.pilot = build_vehicle(mission, spec, config, run_seed, wall_clock=True)
         self.transport = UdpTransport(bind=(host, port))
+        self._modes = dict(config.modes)
+        self._announce: _Announcer | None = None  # while serving
 
     @property
     def connection(self) -> str:
@@ -140,6 +199,8 @@ class ServedSimulated:
     def _emit(self, data: bytes, t_s: float) -> None:
         if not data:
             return
+        if self._announce is not None:
+            self._announce.hear(data, t_s)
         if not self.pilot.done:
             self.pilot.hear(data, t_s)
         if self.transport.peers:
@@ -149,7 +210,9 @@ class ServedSimulated:
 
     def serve(self, stopped: Stopped, say: Say = print) -> None:
         """Step the physics every PHYSICS_STEP_S of wall time until ``stopped()``."""
-        announce = _Announcer(self.name, self.pilot, say)
+        announce = self._announce = _Announcer(
+            self.name, self.pilot, say, self._modes, self.backend.system_id
+        )
         start = time.monotonic()
         steps = 0
         self._emit(self.backend.step(0.0, 0.0), 0.0)
@@ -163,6 +226,7 @@ class ServedSimulated:
             except TransportError:
                 data = b""
             if data:
+                announce.hear(data, t_s)
                 self.backend.send(data, t_s)
             while (steps + 1) * PHYSICS_STEP_S <= t_s:
                 steps += 1
@@ -197,6 +261,7 @@ class ServedSitl:
         self.backend, self.pilot, self._fly_up = build_sitl_vehicle(
             mission, spec, config, install, 1.0
         )
+        self._modes = dict(config.modes)
         self._mav = mavlink2.MAVLink(self, srcSystem=255, srcComponent=25)
         self._out = bytearray()
         self._parser = mavlink2.MAVLink(None, 255, 25)
@@ -240,7 +305,7 @@ class ServedSitl:
             say(f"{self.name}: flying up to its start point")
             self.backend.fly_up(**self._fly_up)
         self.backend.start_run_here()
-        announce = _Announcer(self.name, self.pilot, say)
+        announce = _Announcer(self.name, self.pilot, say, self._modes, self.backend.system_id)
         t_s = 0.0
         clock_said = False
         while not stopped():
@@ -252,6 +317,7 @@ class ServedSitl:
                     clock_said = True
                     say(self._clock_note(msg.time_unix_usec / 1e6 - time.time()))
             self._ask_streams(t_s)
+            announce.hear(data, t_s)
             if not self.pilot.done:
                 self.pilot.hear(data, t_s)
             announce(t_s)

@@ -9,7 +9,12 @@ from __future__ import annotations
 
 from typing import Any
 
-from clark_engine.mission.model import ARMED_BY, TELEMETRY_MESSAGES
+from clark_engine.mission.model import (
+    ARMED_BY,
+    COMPUTER_LOST_ACTIONS,
+    COMPUTER_LOST_RANGE_S,
+    TELEMETRY_MESSAGES,
+)
 from clark_engine.mission.schema_source.common import (
     DIALECT,
     NAME_PATTERN,
@@ -338,10 +343,28 @@ def build() -> dict[str, Any]:
                     "profile": string("Platform profile.", pattern=NAME_PATTERN),
                     "terminal_mode": _NULLABLE_STRING
                     | {"description": "Mode left in on termination."},
-                    "failsafe": {
-                        "type": "object",
-                        "description": "Situation -> action (mcs_lost: hold...).",
-                    },
+                    "failsafe": obj(
+                        "What the agent does when something it depends on goes silent; "
+                        "empty for a station.",
+                        {
+                            "mcs_lost": string(
+                                "The runtime's action on every station's silence.",
+                                enum=["hold", "rtl", "land", "continue"],
+                            ),
+                            "computer_lost": string(
+                                "The autopilot's own action on the mission computer's "
+                                "silence (ArduPilot's GCS failsafe, set up by the engine).",
+                                enum=list(COMPUTER_LOST_ACTIONS),
+                            ),
+                            "computer_lost_s": number(
+                                "Seconds from the mission computer's last heartbeat to the "
+                                "autopilot's reaction.",
+                                unit="s",
+                                minimum=COMPUTER_LOST_RANGE_S[0],
+                                maximum=COMPUTER_LOST_RANGE_S[1],
+                            ),
+                        },
+                    ),
                     "launch": _nullable(
                         obj(
                             "How the vehicle gets going before its behaviour runs (the "

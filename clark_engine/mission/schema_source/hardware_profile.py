@@ -493,8 +493,11 @@ def _autopilot_properties() -> dict[str, Schema]:
                     **ids,
                 ),
                 "source_system_id": integer(
-                    "System id the engine sends as. ArduPilot accepts RC overrides only from "
-                    "its ground-station id (SYSID_MYGCS, default 255).",
+                    "System id the engine sends as. Before the behaviour starts the engine "
+                    "makes it the autopilot's ground-station id (MAV_GCS_SYSID, SYSID_MYGCS "
+                    "before ArduPilot 4.7): ArduPilot takes RC overrides, and counts heartbeats "
+                    "for its failsafe, only from that id, so a ground station flying beside "
+                    "the engine must use another.",
                     default=255,
                     **ids,
                 ),
@@ -527,6 +530,14 @@ def _autopilot_properties() -> dict[str, Schema]:
         "wait_ready": boolean(
             "Start the behaviour only once the autopilot reports itself ready: a 3-D GPS fix, "
             "an EKF position, the pre-arm checks passed and a home position.",
+            default=True,
+        ),
+        "safety_setup": boolean(
+            "Before the behaviour starts, set the autopilot's own fence from the vehicle's "
+            "envelope and its reaction to a dead mission computer (failsafe.computer_lost), "
+            "read them back, and start the behaviour only if they took. false is for a bench "
+            "autopilot that cannot hold a fence (no GPS): every validation and every run then "
+            "warns that the autopilot holds nothing of the envelope.",
             default=True,
         ),
         "heartbeat_timeout_s": number(

@@ -4,7 +4,13 @@ from __future__ import annotations
 
 from typing import Any
 
-from clark_engine.mission.model import ARMED_BY, TELEMETRY_MESSAGES
+from clark_engine.mission.model import (
+    ARMED_BY,
+    COMPUTER_LOST_ACTIONS,
+    COMPUTER_LOST_RANGE_S,
+    DEFAULT_COMPUTER_LOST_S,
+    TELEMETRY_MESSAGES,
+)
 from clark_engine.mission.primitives._shared import AGENT_NAME_SCHEMA, POINT_SCHEMA
 from clark_engine.mission.schema_source.common import (
     DIALECT,
@@ -117,7 +123,25 @@ def _agent() -> Schema:
                         "land, or continue. Never resumes by itself when the station returns.",
                         enum=["hold", "rtl", "land", "continue"],
                         default="hold",
-                    )
+                    ),
+                    "computer_lost": string(
+                        "What the vehicle's autopilot does by itself when this mission "
+                        "computer falls silent (a crash, a cable): return to launch, land, "
+                        "or hold where it is (a rover stops; it cannot land). The engine sets "
+                        "it up as ArduPilot's ground-station failsafe, driven by the mission "
+                        "computer's heartbeat, before the behaviour starts; it cannot be "
+                        "turned off here. rtl for aircraft and hold for rovers when omitted.",
+                        enum=list(COMPUTER_LOST_ACTIONS),
+                    ),
+                    "computer_lost_s": number(
+                        "Seconds from the mission computer's last heartbeat to the "
+                        "autopilot's reaction (ArduPilot's FS_GCS_TIMEOUT, FS_LONG_TIMEOUT on "
+                        "ArduPlane; ArduRover waits its FS_TIMEOUT, 1.5 s by default, more).",
+                        unit="s",
+                        minimum=COMPUTER_LOST_RANGE_S[0],
+                        maximum=COMPUTER_LOST_RANGE_S[1],
+                        default=DEFAULT_COMPUTER_LOST_S,
+                    ),
                 },
             ),
             "terminal_mode": string(
