@@ -27,12 +27,14 @@ HEALTH = VehicleHealth(
     text_severity=2,
     text="PreArm: Need Position Estimate",
     failsafe="hold: mcs_lost",
+    text_age_s=12,
 )
 
-# Bundle field 9 (vehicle_health), 72 bytes: agent 2, gps time, armed, 12600 mV, 87 %,
-# fix 6 (RTK fixed), 10 satellites, PASSING, severity 2, the text (30 bytes), the failsafe.
+# Bundle field 9 (vehicle_health), 74 bytes: agent 2, gps time, armed, 12600 mV, 87 %,
+# fix 6 (RTK fixed), 10 satellites, PASSING, severity 2, the text (30 bytes), the failsafe,
+# the text's age (12 s).
 GOLDEN_HEALTH = (
-    "4a48"
+    "4a4a"
     "0802"  # agent_id 2
     "1080e082b4df28"  # gps_time_ms 1400000000000
     "1801"  # armed
@@ -42,14 +44,14 @@ GOLDEN_HEALTH = (
     "380a"  # satellites 10
     "4002"  # prearm PASSING
     "4802"  # text_severity 2 (CRITICAL)
-    "521e" + b"PreArm: Need Position Estimate".hex() + "5a0e" + b"hold: mcs_lost".hex()
+    "521e" + b"PreArm: Need Position Estimate".hex() + "5a0e" + b"hold: mcs_lost".hex() + "680c"
 )
 
 
 def test_golden_bytes() -> None:
     assert bundle_bytes([HEALTH]).hex() == GOLDEN_HEALTH
     assert parse_bundle(bytes.fromhex(GOLDEN_HEALTH)) == (HEALTH,)
-    assert encoded_size(HEALTH) == 74
+    assert encoded_size(HEALTH) == 76
 
 
 def test_a_health_of_nothing_known_is_six_bytes_and_says_unknown() -> None:
@@ -114,6 +116,7 @@ def test_the_bounds_themselves_are_accepted() -> None:
         text="E" * MAX_HEALTH_TEXT_BYTES,
         failsafe="F" * MAX_FAILSAFE_TEXT_BYTES,
         autopilot_lost=True,
+        text_age_s=(1 << 32) - 1,
     )
     assert parse_bundle(bundle_bytes([edge])) == (edge,)
 
@@ -136,7 +139,7 @@ def _health(*fields: bytes) -> bytes:
         (_health(vfield(5, 101)), "battery_remaining_pct"),
         (_health(vfield(7, 255)), "satellites"),
         (_health(lfield(10, b"\xc3")), "UTF-8"),
-        (_health(vfield(13, 1)), "vehicle_health has fields"),
+        (_health(vfield(14, 1)), "vehicle_health has fields"),
         (lfield(9, vfield(1, 0) + vfield(8, 2)), "agent_id"),
     ],
 )

@@ -192,6 +192,7 @@ class VehicleHealth:
     text: str = ""  # the autopilot's latest STATUSTEXT of WARNING or worse; "" when none
     failsafe: str = ""  # the failsafe in force and why (``hold: mcs_lost``); "" when none
     autopilot_lost: bool = False  # the runtime has not heard its autopilot for its timeout
+    text_age_s: int = 0  # whole seconds since ``text`` arrived; 0 when there is no text
 
 
 Message = (

@@ -272,6 +272,7 @@ def _vehicle_health_to_pb(m: VehicleHealth) -> pb.VehicleHealth:
         "text": text,
         "failsafe": _text(m.failsafe, MAX_FAILSAFE_TEXT_BYTES, "failsafe"),
         "autopilot_lost": bool(m.autopilot_lost),
+        "text_age_s": _uint(m.text_age_s, _U32, "text_age_s"),
     }
     # Absent, not zero, when unknown: proto3's optional fields keep the difference.
     if m.battery_v is not None:
@@ -540,6 +541,7 @@ def _vehicle_health_from_pb(p: pb.VehicleHealth) -> VehicleHealth:
         text=p.text,
         failsafe=p.failsafe,
         autopilot_lost=p.autopilot_lost,
+        text_age_s=p.text_age_s,
     )
 
 

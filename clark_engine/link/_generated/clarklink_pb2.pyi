@@ -164,7 +164,7 @@ class BehaviorState(_message.Message):
     def __init__(self, agent_id: _Optional[int] = ..., gps_time_ms: _Optional[int] = ..., active_states: _Optional[_Iterable[str]] = ..., last_event: _Optional[str] = ...) -> None: ...
 
 class VehicleHealth(_message.Message):
-    __slots__ = ("agent_id", "gps_time_ms", "armed", "battery_mv", "battery_remaining_pct", "gps_fix_type", "satellites", "prearm", "text_severity", "text", "failsafe", "autopilot_lost")
+    __slots__ = ("agent_id", "gps_time_ms", "armed", "battery_mv", "battery_remaining_pct", "gps_fix_type", "satellites", "prearm", "text_severity", "text", "failsafe", "autopilot_lost", "text_age_s")
     AGENT_ID_FIELD_NUMBER: _ClassVar[int]
     GPS_TIME_MS_FIELD_NUMBER: _ClassVar[int]
     ARMED_FIELD_NUMBER: _ClassVar[int]
@@ -177,6 +177,7 @@ class VehicleHealth(_message.Message):
     TEXT_FIELD_NUMBER: _ClassVar[int]
     FAILSAFE_FIELD_NUMBER: _ClassVar[int]
     AUTOPILOT_LOST_FIELD_NUMBER: _ClassVar[int]
+    TEXT_AGE_S_FIELD_NUMBER: _ClassVar[int]
     agent_id: int
     gps_time_ms: int
     armed: bool
@@ -189,7 +190,8 @@ class VehicleHealth(_message.Message):
     text: str
     failsafe: str
     autopilot_lost: bool
-    def __init__(self, agent_id: _Optional[int] = ..., gps_time_ms: _Optional[int] = ..., armed: _Optional[bool] = ..., battery_mv: _Optional[int] = ..., battery_remaining_pct: _Optional[int] = ..., gps_fix_type: _Optional[int] = ..., satellites: _Optional[int] = ..., prearm: _Optional[_Union[PrearmState, str]] = ..., text_severity: _Optional[int] = ..., text: _Optional[str] = ..., failsafe: _Optional[str] = ..., autopilot_lost: _Optional[bool] = ...) -> None: ...
+    text_age_s: int
+    def __init__(self, agent_id: _Optional[int] = ..., gps_time_ms: _Optional[int] = ..., armed: _Optional[bool] = ..., battery_mv: _Optional[int] = ..., battery_remaining_pct: _Optional[int] = ..., gps_fix_type: _Optional[int] = ..., satellites: _Optional[int] = ..., prearm: _Optional[_Union[PrearmState, str]] = ..., text_severity: _Optional[int] = ..., text: _Optional[str] = ..., failsafe: _Optional[str] = ..., autopilot_lost: _Optional[bool] = ..., text_age_s: _Optional[int] = ...) -> None: ...
 
 class Bundle(_message.Message):
     __slots__ = ("heartbeat", "agent_status", "picture_data", "mode_change_request", "activate_controller", "agent_attitude", "terminate", "behavior_state", "vehicle_health")
