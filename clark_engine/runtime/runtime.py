@@ -39,6 +39,9 @@ from clark_engine.link.codec import Codec
 from clark_engine.link.errors import ClarkLinkError, MalformedPacket
 from clark_engine.link.fleet import AgentFound, AgentLost, FleetTable, ForeignAgent
 from clark_engine.link.messages import (
+    MAX_FAILSAFE_TEXT_BYTES,
+    MAX_HEALTH_TEXT_BYTES,
+    MAX_SEVERITY_SENT,
     MESSAGE_NAMES,
     ActivateController,
     AgentAttitude,
@@ -50,7 +53,10 @@ from clark_engine.link.messages import (
     Message,
     ModeChangeRequest,
     PictureData,
+    PrearmState,
     Terminate,
+    VehicleHealth,
+    fit_text,
 )
 from clark_engine.link.packet import BROADCAST, Packet
 from clark_engine.runtime.commands import (
@@ -67,8 +73,10 @@ from clark_engine.runtime.commands import (
 from clark_engine.runtime.config import AgentConfig
 from clark_engine.runtime.context import PrimitiveContext, ground_distance_m
 from clark_engine.runtime.events import (
+    AutopilotHealth,
     AutopilotHeartbeat,
     AutopilotStatus,
+    AutopilotText,
     CommandRefused,
     Event,
     PacketReceived,
@@ -95,6 +103,10 @@ _REQUESTS = (SetMode, Arm, Takeoff)
 #: confirmed it (a heartbeat with the terminated condition) this often: one broadcast on
 #: a lossy radio is not enough to stop every vehicle.
 TERMINATE_RESEND_S = 1.0
+#: Vehicle Health's figures outside these are sent as unknown (the wire refuses them).
+_BATTERY_V_MAX = 65.534
+_GPS_FIX_TYPE_MAX = 8
+_SATELLITES_MAX = 254
 #: Most messages one packet may hold from an agent not in the mission: one of each kind.
 _MAX_MESSAGES_UNKNOWN = len(MESSAGE_NAMES)
 
@@ -123,6 +135,8 @@ class AgentRuntime:
         logbook: Mission log, interface log, fleet CSV, message log.
         terminated: True once the agent has terminated; it then does nothing.
         failsafe: The failsafe in force (``hold``, ``rtl``...), None when none.
+        failsafe_reason: Why it is in force (``mcs_lost``), "" when none; with
+            ``failsafe`` it is Vehicle Health's ``failsafe`` text (``hold: mcs_lost``).
     """
 
     def __init__(
@@ -176,6 +190,7 @@ class AgentRuntime:
         )
         self.terminated = False
         self.failsafe: str | None = None
+        self.failsafe_reason = ""
         #: When the behaviour may start (readiness, arming, take-off, as the mission says).
         self.launch = LaunchGate(config, self.logbook.mission)
         #: Called with every state change, after the runtime's own handling (the
@@ -209,6 +224,11 @@ class AgentRuntime:
         # Messages primitives queued (Picture Data) wait here for the telemetry phase.
         self._pending_messages: list[tuple[Message, tuple[str, ...]]] = []
         self._gps_epoch_ms = gps_epoch_ms
+        # Vehicle Health: the autopilot's latest battery, GPS and pre-arm figures, its
+        # latest text of WARNING or worse with when it arrived, and whether it is armed.
+        self._health: AutopilotHealth | None = None
+        self._warning: tuple[AutopilotText, float] | None = None
+        self._armed = False
         self._vehicle_gps: tuple[int, float] | None = None  # (gps ms, runtime s) of last fix
         self._autopilot_seen_s: float | None = None
         self._autopilot_lost = False
@@ -277,6 +297,11 @@ class AgentRuntime:
             self._rc(event)
         elif isinstance(event, AutopilotStatus):
             self.context.autopilot = event
+        elif isinstance(event, AutopilotHealth):
+            self._health = event
+        elif isinstance(event, AutopilotText):
+            if event.severity <= MAX_SEVERITY_SENT:
+                self._warning = (event, now_s)
         elif isinstance(event, CommandRefused):
             self.logbook.mission.warning(
                 "autopilot refused %s: %s%s",
@@ -295,6 +320,7 @@ class AgentRuntime:
 
     def _vehicle(self, state: VehicleState, now_s: float) -> None:
         self.context.vehicle = state
+        self._armed = state.armed
         if state.gps_time_ms:
             self._vehicle_gps = (state.gps_time_ms, now_s)
             self.context.gps_time_ms = state.gps_time_ms
@@ -307,6 +333,7 @@ class AgentRuntime:
         # Heard, but the loss ends only with a VehicleState: the behaviour must see where
         # the vehicle is and its mode now before anything commands it again.
         self._autopilot_seen_s = now_s
+        self._armed = beat.armed
         self._mode_seen(beat.mode)
 
     def _autopilot_back(self) -> None:
@@ -689,7 +716,7 @@ class AgentRuntime:
     def _machine_phase(self) -> None:
         if self.machine is None or not self._started:
             if "mcs_lost" in self._events:
-                self._apply_failsafe()
+                self._mcs_lost_failsafe()
             ignored = [e for e in self._events if e != "mcs_lost"]
             if self.machine is not None and ignored:
                 # An activation before the vehicle can fly must not act minutes later.
@@ -707,7 +734,7 @@ class AgentRuntime:
                 if taken:
                     self.logbook.mission.warning("mcs_lost handled by the behaviour")
                 else:
-                    self._apply_failsafe()
+                    self._mcs_lost_failsafe()
             if self.terminated:
                 return
         if self.failsafe is None:
@@ -798,7 +825,55 @@ class AgentRuntime:
             return AgentAttitude(me, gps, vehicle.roll_deg, vehicle.pitch_deg, vehicle.yaw_deg)
         if name == "behavior_state" and self.machine is not None:
             return BehaviorState(me, gps, self.machine.active_paths(), self.machine.last_event)
+        if name == "vehicle_health" and self.config.is_vehicle:
+            return self._vehicle_health(me, gps)
         return None
+
+    def _vehicle_health(self, me: int, gps: int) -> VehicleHealth:
+        """Vehicle Health now: what the autopilot last said, and the failsafe in force.
+
+        Every figure is sent within the wire's range or as unknown (an autopilot's
+        garbled figure must not stop the tick: the encoder refuses what is out of
+        range), and the texts are cut to their bounds at a character boundary.
+        """
+        health = self._health or AutopilotHealth()
+        battery_v = health.battery_v
+        if battery_v is not None and not 0.0 <= battery_v <= _BATTERY_V_MAX:
+            battery_v = None
+        pct = health.battery_pct if health.battery_pct in range(101) else None
+        satellites = health.satellites
+        if satellites is not None and not 0 <= satellites <= _SATELLITES_MAX:
+            satellites = None
+        severity, text, age_s = 0, "", 0
+        if self._warning is not None:
+            said, at_s = self._warning
+            text = fit_text(said.text, MAX_HEALTH_TEXT_BYTES)
+            severity = max(0, said.severity) if text else 0
+            age_s = max(0, int(self.context.now_s - at_s)) if text else 0
+        failsafe = ""
+        if self.failsafe is not None:
+            why = f": {self.failsafe_reason}" if self.failsafe_reason else ""
+            failsafe = fit_text(f"{self.failsafe}{why}", MAX_FAILSAFE_TEXT_BYTES)
+        prearm = {None: PrearmState.UNKNOWN, True: PrearmState.PASSING}.get(
+            health.prearm_ok, PrearmState.FAILING
+        )
+        return VehicleHealth(
+            agent_id=me,
+            gps_time_ms=gps,
+            armed=self._armed,
+            battery_v=battery_v,
+            battery_pct=pct,
+            gps_fix_type=health.gps_fix_type
+            if 0 <= health.gps_fix_type <= _GPS_FIX_TYPE_MAX
+            else 0,
+            satellites=satellites,
+            prearm=prearm,
+            text_severity=severity,
+            text=text,
+            failsafe=failsafe,
+            autopilot_lost=self._autopilot_lost,
+            text_age_s=age_s,
+        )
 
     def _condition(self) -> Condition:
         if self.terminated:
@@ -835,6 +910,13 @@ class AgentRuntime:
                 ", ".join(type(c).__name__ for c in commands if isinstance(c, _REQUESTS)),
             )
         return kept
+
+    def _mcs_lost_failsafe(self) -> None:
+        """The mcs_lost failsafe, its reason kept for Vehicle Health when it takes hold."""
+        before = self.failsafe
+        self._apply_failsafe()
+        if before is None and self.failsafe is not None:
+            self.failsafe_reason = "mcs_lost"
 
     def _apply_failsafe(self) -> None:
         """The declared mcs_lost failsafe, when the behaviour does not handle the event."""
