@@ -258,3 +258,13 @@ def test_a_failsafe_shows_from_the_heartbeat_and_the_health(fleet: Fleet) -> Non
     row = agent(snap, "slash_b")
     assert row["condition"] == "failsafe" and row["health"]["failsafe"] == "hold: mcs_lost"  # type: ignore[index]
     assert sum("ALARM" in line for line in alarm_lines(fleet)) == 2
+
+
+def test_a_failsafe_s_reason_arriving_after_its_condition_updates_the_alarm() -> None:
+    w = watch()
+    w.see_condition("cub", failsafe_words("failsafe", None))  # its heartbeat, first
+    (change,) = w.evaluate(0.0)
+    assert change.alarm.text == "cub in failsafe: in force (its heartbeat's condition)"
+    w.see_condition("cub", failsafe_words("failsafe", "rtl: mcs_lost"))  # its health, next
+    assert w.evaluate(1.0) == []  # the same episode: nothing raised again
+    assert [a.text for a in w.active] == ["cub in failsafe: rtl: mcs_lost"]

@@ -59,7 +59,8 @@ class Alarm:
         kind: :data:`BREACH`, :data:`NEAR_MISS` or :data:`FAILSAFE`.
         agents: The vehicles it is about (two for a near miss).
         what: The limit for a breach (``fence``, ``ceiling``); empty otherwise.
-        text: What happened, in words, when it was raised (worst figures kept updated).
+        text: What happened, in words, when it was raised (a failsafe's: why, as its
+            vehicle last said).
         raised_s: When it was raised, on the station's clock.
         cleared_s: When it ended; None while it is active.
         worst: The worst figure of the episode (metres outside or over, or apart).
@@ -226,15 +227,11 @@ class AlarmWatch:
 
     def _judge_failsafe(self, name: str, now_s: float, changes: list[AlarmChange]) -> None:
         words = self._failsafe.get(name)
-        self._hold(
-            (FAILSAFE, name),
-            words is not None,
-            words is None,
-            0.0,
-            f"{name} in failsafe: {printable(words or '', 64)}",
-            now_s,
-            changes,
-        )
+        text = f"{name} in failsafe: {printable(words or '', 64)}"
+        alarm = self._active.get((FAILSAFE, name))
+        if alarm is not None and words is not None:
+            alarm.text = text  # its health may tell why after its heartbeat told that
+        self._hold((FAILSAFE, name), words is not None, words is None, 0.0, text, now_s, changes)
 
     def _hold(
         self,

@@ -331,7 +331,7 @@
     var who = CLASS_SAFE.test(agent.name) ? " envelope-of-" + agent.name : "";
     var zone = function (item, inclusion) {
       var style = inclusion
-        ? { color: colour, weight: 1.5, opacity: 0.8, dashArray: "8 6", fill: false,
+        ? { color: colour, weight: 1.5, opacity: 0.7, dashArray: "8 6", fill: false,
             className: "envelope envelope-include" + who }
         : { color: "#b00020", weight: 1.5, opacity: 0.9, fillColor: "#b00020", fillOpacity: 0.12,
             className: "envelope envelope-exclude" + who };
@@ -462,8 +462,10 @@
     c.behaviour.textContent = agent.behaviour
       ? (agent.behaviour.active.map(function (path) { return path || "(behaviour)"; }).join(", ") || "(none)") + (agent.behaviour.last_event ? " ← " + agent.behaviour.last_event : "")
       : "–";
-    c.condition.textContent = (agent.condition || "–") +
-      (agent.health && agent.health.failsafe ? " (" + agent.health.failsafe + ")" : "");
+    // The failsafe in force and why, from its health; a terminated vehicle's has ended.
+    var failsafe = agent.health && agent.health.failsafe && agent.condition !== "terminated"
+      ? " (" + agent.health.failsafe + ")" : "";
+    c.condition.textContent = (agent.condition || "–") + failsafe;
     c.condition.className = agent.condition && agent.condition !== "ok" ? "condition-bad" : "";
     var pos = agent.position;
     c.local.textContent = pos ? fixed(pos.north_m, 1) + ", " + fixed(pos.east_m, 1) : "–";
