@@ -268,3 +268,31 @@ def test_a_failsafe_s_reason_arriving_after_its_condition_updates_the_alarm() ->
     w.see_condition("cub", failsafe_words("failsafe", "rtl: mcs_lost"))  # its health, next
     assert w.evaluate(1.0) == []  # the same episode: nothing raised again
     assert [a.text for a in w.active] == ["cub in failsafe: rtl: mcs_lost"]
+
+
+@pytest.mark.parametrize("east_m", [5.9, 6.0, 6.1, -0.1, 0.1, 11.9, 12.1, -6.1])
+def test_a_near_miss_is_found_across_the_watch_s_cells(east_m: float) -> None:
+    # Pairs are looked for among neighbouring cells 6 m wide (5 m and the hysteresis):
+    # a pair astride any cell boundary is still judged.
+    w = watch()
+    w.see_position("cub", 0.0, east_m, 10.0, 0.0)
+    w.see_position("f450", 0.0, east_m + 4.0, 10.0, 0.0)
+    assert kinds(w.evaluate(0.0)) == [(NEAR_MISS, ("cub", "f450"), True)]
+
+
+def test_a_near_miss_ends_when_one_of_the_pair_jumps_far_away() -> None:
+    w = watch()
+    w.see_position("cub", 0.0, 0.0, 10.0, 0.0)
+    w.see_position("f450", 0.0, 2.0, 10.0, 0.0)
+    assert len(w.evaluate(0.0)) == 1
+    w.see_position("f450", 60.0, -60.0, 10.0, 0.5)  # cells away in one report
+    assert kinds(w.evaluate(0.5)) == [(NEAR_MISS, ("cub", "f450"), False)]
+
+
+def test_many_vehicles_apart_cost_no_pair_check_beyond_their_neighbours() -> None:
+    envelopes = {f"r{i}": envelope(radius_m=5000.0) for i in range(100)}
+    w = AlarmWatch(envelopes, stale_after_s=3.0)
+    for i in range(100):  # a 60 m grid: nobody near anybody
+        w.see_position(f"r{i}", (i // 10) * 60.0, (i % 10) * 60.0, 10.0, 0.0)
+    assert w.evaluate(0.0) == []
+    assert all(w._near(f"r{i}") == [] for i in range(100))

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Final
 
@@ -115,12 +115,24 @@ class AlarmWatch:
         self.envelopes = dict(envelopes)
         self.stale_after_s = stale_after_s
         self._names = sorted(self.envelopes)
+        # Near misses are looked for among neighbours only: the plane is cut in square
+        # cells as wide as the largest separation (and its hysteresis), so a pair that
+        # could be a near miss is in the same or an adjacent cell (3-D distance is never
+        # less than the horizontal one).
+        widest = max(
+            (max([e.min_separation_m, *e.separation.values()]) for e in self.envelopes.values()),
+            default=0.0,
+        )
+        self._cell_m = max(widest + HYSTERESIS_M, 1.0)
+        self._cells: dict[tuple[int, int], set[str]] = {}
+        self._cell_of: dict[str, tuple[int, int]] = {}
         # name -> (north_m, east_m, up_m, when it was reported)
         self._positions: dict[str, tuple[float, float, float, float]] = {}
         self._failsafe: dict[str, str | None] = {}  # name -> its failsafe in words, or None
         self._moved: set[str] = set()
         self._changed: set[str] = set()
         self._active: dict[tuple[str, ...], Alarm] = {}
+        self._keep: dict[tuple[str, str], float] = {}  # a pair's separation, worked out once
         self._cleared: deque[Alarm] = deque(maxlen=MAX_CLEARED_KEPT)
         self._next_id = 1
 
@@ -133,6 +145,13 @@ class AlarmWatch:
         if name in self.envelopes and all(map(math.isfinite, (north_m, east_m, up_m))):
             self._positions[name] = (north_m, east_m, up_m, t_s)
             self._moved.add(name)
+            cell = (math.floor(north_m / self._cell_m), math.floor(east_m / self._cell_m))
+            old = self._cell_of.get(name)
+            if old != cell:
+                if old is not None:
+                    self._cells[old].discard(name)
+                self._cells.setdefault(cell, set()).add(name)
+                self._cell_of[name] = cell
 
     def see_condition(self, name: str, failsafe: str | None) -> None:
         """A vehicle's failsafe as its heartbeat and health tell it: words, or None when none.
@@ -157,18 +176,38 @@ class AlarmWatch:
         changed, self._changed = self._changed, set()
         for name in sorted(changed):
             self._judge_failsafe(name, now_s, changes)
-        fresh = {
-            name: p for name, p in self._positions.items() if now_s - p[3] <= self.stale_after_s
-        }
+        oldest_s = now_s - self.stale_after_s
+        positions = self._positions
         for name in sorted(moved):
-            position = fresh.get(name)
-            if position is None:
+            position = positions[name]
+            if position[3] < oldest_s:
                 continue
             self._judge_breach(name, position, now_s, changes)
-            for other in self._names:
-                if other != name and other in fresh and (other not in moved or other > name):
-                    self._judge_pair(name, other, position, fresh[other], now_s, changes)
+            for other in self._near(name):
+                there = positions[other]
+                if there[3] >= oldest_s and (other not in moved or other > name):
+                    self._judge_pair(name, other, position, there, now_s, changes)
         return changes
+
+    def _near(self, name: str) -> list[str]:
+        """The vehicles that may be within a separation of ``name``, or in a near miss with it.
+
+        Those in its cell and the eight around it, and those an alarm in force pairs it
+        with (wherever they are now: the alarm must be judged to end), in name order.
+        """
+        cn, ce = self._cell_of[name]
+        found: set[str] = set()
+        cells = self._cells
+        for dn in (-1, 0, 1):
+            for de in (-1, 0, 1):
+                there = cells.get((cn + dn, ce + de))
+                if there:
+                    found |= there
+        for key in self._active:
+            if key[0] == NEAR_MISS and name in key:
+                found.update(key[1:])
+        found.discard(name)
+        return sorted(found)
 
     def _judge_breach(
         self,
@@ -177,30 +216,37 @@ class AlarmWatch:
         now_s: float,
         changes: list[AlarmChange],
     ) -> None:
+        # Every position of every vehicle comes here: the words are made only for an
+        # alarm that starts (the usual position raises and clears nothing).
         envelope = self.envelopes[name]
         north, east, up, _ = position
         outside_m = -envelope.fence.margin_m(north, east)
-        where = f"N {north:.1f} E {east:.1f} m"
-        self._hold(
-            (BREACH, name, "fence"),
-            outside_m > 0.0,
-            outside_m <= -HYSTERESIS_M,
-            outside_m,
-            f"{name} {outside_m:.1f} m outside its geofence at {where}",
-            now_s,
-            changes,
-        )
+        key = (BREACH, name, "fence")
+        if outside_m > 0.0 or key in self._active:
+            self._hold(
+                key,
+                outside_m > 0.0,
+                outside_m <= -HYSTERESIS_M,
+                outside_m,
+                lambda: f"{name} {outside_m:.1f} m outside its geofence at {_where(north, east)}",
+                now_s,
+                changes,
+            )
         over_m = up - envelope.ceiling_m
-        self._hold(
-            (BREACH, name, "ceiling"),
-            over_m > 0.0,
-            over_m <= -HYSTERESIS_M,
-            over_m,
-            f"{name} at {up:.1f} m, {over_m:.1f} m above its ceiling of "
-            f"{envelope.ceiling_m:g} m, at {where}",
-            now_s,
-            changes,
-        )
+        key = (BREACH, name, "ceiling")
+        if over_m > 0.0 or key in self._active:
+            self._hold(
+                key,
+                over_m > 0.0,
+                over_m <= -HYSTERESIS_M,
+                over_m,
+                lambda: (
+                    f"{name} at {up:.1f} m, {over_m:.1f} m above its ceiling of "
+                    f"{envelope.ceiling_m:g} m, at {_where(north, east)}"
+                ),
+                now_s,
+                changes,
+            )
 
     def _judge_pair(
         self,
@@ -211,16 +257,26 @@ class AlarmWatch:
         now_s: float,
         changes: list[AlarmChange],
     ) -> None:
-        first, second = sorted((a, b))
-        keep_m = pair_separation_m(self.envelopes[first], self.envelopes[second], first, second)
+        # O(vehicles) per position received: kept to a distance and a comparison unless
+        # the pair is, or becomes, a near miss.
+        first, second = (a, b) if a < b else (b, a)
+        keep_m = self._keep.get((first, second))
+        if keep_m is None:
+            keep_m = pair_separation_m(self.envelopes[first], self.envelopes[second], first, second)
+            self._keep[(first, second)] = keep_m
         apart_m = math.dist(pa[:3], pb[:3])
+        key = (NEAR_MISS, first, second)
+        if apart_m >= keep_m and key not in self._active:
+            return
         self._hold(
-            (NEAR_MISS, first, second),
+            key,
             apart_m < keep_m,
             apart_m >= keep_m + HYSTERESIS_M,
             -apart_m,
-            f"{first} and {second} {apart_m:.1f} m apart, inside their {keep_m:g} m "
-            f"separation, near N {(pa[0] + pb[0]) / 2:.1f} E {(pa[1] + pb[1]) / 2:.1f} m",
+            lambda: (
+                f"{first} and {second} {apart_m:.1f} m apart, inside their {keep_m:g} m "
+                f"separation, near {_where((pa[0] + pb[0]) / 2, (pa[1] + pb[1]) / 2)}"
+            ),
             now_s,
             changes,
         )
@@ -231,7 +287,9 @@ class AlarmWatch:
         alarm = self._active.get((FAILSAFE, name))
         if alarm is not None and words is not None:
             alarm.text = text  # its health may tell why after its heartbeat told that
-        self._hold((FAILSAFE, name), words is not None, words is None, 0.0, text, now_s, changes)
+        self._hold(
+            (FAILSAFE, name), words is not None, words is None, 0.0, lambda: text, now_s, changes
+        )
 
     def _hold(
         self,
@@ -239,15 +297,18 @@ class AlarmWatch:
         starts: bool,
         ends: bool,
         figure: float,
-        text: str,
+        text: Callable[[], str],
         now_s: float,
         changes: list[AlarmChange],
     ) -> None:
-        """Raise the alarm ``key`` when ``starts``, clear it when ``ends``, once each."""
+        """Raise the alarm ``key`` when ``starts``, clear it when ``ends``, once each.
+
+        ``text`` makes the alarm's words, called only when it is raised.
+        """
         alarm = self._active.get(key)
         if alarm is None:
             if starts:
-                alarm = Alarm(self._next_id, key[0], _agents(key), _what(key), text, now_s)
+                alarm = Alarm(self._next_id, key[0], _agents(key), _what(key), text(), now_s)
                 alarm.worst = figure
                 self._next_id += 1
                 self._active[key] = alarm
@@ -276,6 +337,10 @@ class AlarmWatch:
     def in_alarm(self) -> set[str]:
         """The vehicles some alarm in force is about."""
         return {name for alarm in self._active.values() for name in alarm.agents}
+
+
+def _where(north_m: float, east_m: float) -> str:
+    return f"N {north_m:.1f} E {east_m:.1f} m"
 
 
 def _agents(key: tuple[str, ...]) -> tuple[str, ...]:
