@@ -202,11 +202,7 @@ def test_each_row_shows_its_vehicle_s_health(fleet: Fleet) -> None:
     health = row["health"]
     assert isinstance(health, dict)
     assert (health["battery_v"], health["battery_pct"]) == (12.4, 81)
-    assert (health["gps_fix"], health["satellites"], health["prearm"]) == (
-        "RTK fixed",
-        10,
-        "passing",
-    )
+    assert (health["gps_fix_type"], health["satellites"], health["prearm"]) == (6, 10, "passing")
     assert health["text"] == "<b>GPS Glitch</b>\\x0a"  # escaped, and the page writes text
     assert health["text_severity"] == 4 and health["text_age_s"] is not None
     assert health["failsafe"] is None and health["autopilot_lost"] is False

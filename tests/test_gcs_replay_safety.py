@@ -83,11 +83,7 @@ def test_health_and_alarms_replayed_from_the_station_s_fleet_csv(tmp_path: Path)
     calm = _state_at(replay, 2.0)
     assert calm["alarms"] == []
     health = _row(calm, "slash_a")["health"]
-    assert (health["battery_v"], health["battery_pct"], health["gps_fix"]) == (
-        12.6,
-        87,
-        "RTK fixed",
-    )
+    assert (health["battery_v"], health["battery_pct"], health["gps_fix_type"]) == (12.6, 87, 6)
     assert health["prearm"] == "passing" and _row(calm, "slash_a")["armed"] is True
     # a hostile text stays the escaped text the logbook wrote, for the page to write as text
     assert health["text"] == "GPS Glitch\\x0a<script>alert(1)</script>"

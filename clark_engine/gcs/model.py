@@ -82,7 +82,7 @@ STALE_HEARTBEATS: Final = 1.5
 UNSETTABLE_MODES: Final = frozenset({"INITIALISING"})
 """Modes an autopilot reports but never accepts as a request (ArduPilot's boot mode)."""
 
-GPS_FIX_NAMES: Final = (
+GPS_FIX_NAMES: Final = (  # app.js's GPS_FIXES
     "no GPS",
     "no fix",
     "2-D fix",
@@ -625,16 +625,16 @@ def health_json(health: VehicleHealth, age_s: float | None) -> Json:
     """An agent row's ``health``: its latest Vehicle Health, texts escaped and bounded.
 
     ``text_age_s`` is the text's age now: its age when the vehicle sent the health, plus
-    the health's own age at the station.
+    the health's own age at the station. The row's ``armed`` is the health's; the page
+    names the fix type (0 no GPS ... 6 RTK fixed, :data:`GPS_FIX_NAMES`). Kept small: a
+    state carries one per vehicle, five times a second.
     """
     fix = health.gps_fix_type
     text = line_safe(health.text, 100) if health.text else None
     return {
-        "armed": health.armed,
         "battery_v": _round(health.battery_v, 2),
         "battery_pct": health.battery_pct,
         "gps_fix_type": fix,
-        "gps_fix": GPS_FIX_NAMES[fix] if 0 <= fix < len(GPS_FIX_NAMES) else f"type {fix}",
         "satellites": health.satellites,
         "prearm": health.prearm.name.lower(),
         "text": text,

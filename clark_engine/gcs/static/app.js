@@ -22,6 +22,7 @@
   var MAX_LOG_ITEMS = 500;
   var RECONNECT_MS = 2000;
   var SEVERITIES = ["EMERGENCY", "ALERT", "CRITICAL", "ERROR", "WARNING"];
+  var GPS_FIXES = ["no GPS", "no fix", "2-D fix", "3-D fix", "DGPS", "RTK float", "RTK fixed", "static", "PPP"];
   var LOW_BATTERY_PCT = 20;
   var CLASS_SAFE = /^[a-z][a-z0-9_]*$/; // mission names: usable in a class name as they are
   var PALETTE = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf",
@@ -439,64 +440,74 @@
     updateChecks(message.checks);
   }
 
+  // A cell's text or an attribute, written only when it changes: every write dirties the
+  // page's style and layout, which each agent's map label then measures again.
+  function put(node, value) {
+    if (node.textContent !== value) { node.textContent = value; }
+  }
+
+  function attr(node, name, value) {
+    if (node.getAttribute(name) !== value) { node.setAttribute(name, value); }
+  }
+
   function updateRow(agent) {
     var entry = rows[agent.name];
     if (!entry) { return; }
     var c = entry.cells;
     var live = liveness(agent);
-    entry.row.className = "agent agent-" + live[0];
-    entry.row.setAttribute("data-liveness", live[0]);
-    c.liveness.textContent = live[1];
-    c.heard.textContent = agent.since_heartbeat_s === null ? "never" : fixed(agent.since_heartbeat_s, 1) + " s ago";
-    c.mode.textContent = agent.mode ? (agent.mode.name || "?") + " (" + agent.mode.number + ")" : "–";
+    attr(entry.row, "class", "agent agent-" + live[0] + (agent.alarm ? " agent-alarm" : ""));
+    attr(entry.row, "data-liveness", live[0]);
+    put(c.liveness, live[1]);
+    put(c.heard, agent.since_heartbeat_s === null ? "never" : fixed(agent.since_heartbeat_s, 1) + " s ago");
+    put(c.mode, agent.mode ? (agent.mode.name || "?") + " (" + agent.mode.number + ")" : "–");
     var chooser = entry.select;
     if (chooser && agent.mode && agent.mode.name && !chooser.hasAttribute("data-chosen") &&
         document.activeElement !== chooser &&
         Array.prototype.some.call(chooser.options, function (o) { return o.value === agent.mode.name; })) {
       chooser.value = agent.mode.name;
     }
-    c.armed.textContent = agent.armed === null ? "unknown" : (agent.armed ? "ARMED" : "disarmed");
-    entry.row.classList.toggle("agent-alarm", Boolean(agent.alarm));
-    entry.row.setAttribute("data-alarm", agent.alarm ? "1" : "0");
+    put(c.armed, agent.armed === null ? "unknown" : (agent.armed ? "ARMED" : "disarmed"));
+    attr(entry.row, "data-alarm", agent.alarm ? "1" : "0");
     updateHealth(c, agent.health);
-    c.behaviour.textContent = agent.behaviour
+    put(c.behaviour, agent.behaviour
       ? (agent.behaviour.active.map(function (path) { return path || "(behaviour)"; }).join(", ") || "(none)") + (agent.behaviour.last_event ? " ← " + agent.behaviour.last_event : "")
-      : "–";
+      : "–");
     // The failsafe in force and why, from its health; a terminated vehicle's has ended.
     var failsafe = agent.health && agent.health.failsafe && agent.condition !== "terminated"
       ? " (" + agent.health.failsafe + ")" : "";
-    c.condition.textContent = (agent.condition || "–") + failsafe;
-    c.condition.className = agent.condition && agent.condition !== "ok" ? "condition-bad" : "";
+    put(c.condition, (agent.condition || "–") + failsafe);
+    attr(c.condition, "class", agent.condition && agent.condition !== "ok" ? "condition-bad" : "");
     var pos = agent.position;
-    c.local.textContent = pos ? fixed(pos.north_m, 1) + ", " + fixed(pos.east_m, 1) : "–";
-    c.latlon.textContent = pos ? fixed(pos.lat, 7) + ", " + fixed(pos.lon, 7) : "–";
-    c.alt.textContent = pos ? fixed(pos.alt_m, 1) : "–";
-    c.speed.textContent = pos ? fixed(pos.ground_speed_m_s, 1) : "–";
-    c.heading.textContent = pos ? fixed(pos.heading_deg, 0) : "–";
+    put(c.local, pos ? fixed(pos.north_m, 1) + ", " + fixed(pos.east_m, 1) : "–");
+    put(c.latlon, pos ? fixed(pos.lat, 7) + ", " + fixed(pos.lon, 7) : "–");
+    put(c.alt, pos ? fixed(pos.alt_m, 1) : "–");
+    put(c.speed, pos ? fixed(pos.ground_speed_m_s, 1) : "–");
+    put(c.heading, pos ? fixed(pos.heading_deg, 0) : "–");
     var link = agent.link;
-    c.link.textContent = link
+    put(c.link, link
       ? link.packets + " pkts, loss " + (link.loss_ratio === null ? "–" : (100 * link.loss_ratio).toFixed(1) + " %") +
         ", " + (link.latency_mean_ms === null ? "–" : fixed(link.latency_mean_ms, 0) + " ms")
-      : "–";
+      : "–");
   }
 
   // Battery, GPS, pre-arm and the autopilot's latest warning, from the Vehicle Health.
   function updateHealth(c, h) {
-    var mark = function (cell, bad) { cell.classList.toggle("health-bad", Boolean(bad)); };
+    var mark = function (cell, bad) { attr(cell, "class", bad ? "health-bad" : ""); };
     if (!h) {
-      ["battery", "gps", "prearm", "autopilot"].forEach(function (f) { c[f].textContent = "–"; mark(c[f], false); });
+      ["battery", "gps", "prearm", "autopilot"].forEach(function (f) { put(c[f], "–"); mark(c[f], false); });
       return;
     }
-    c.battery.textContent = (h.battery_v === null ? "? V" : fixed(h.battery_v, 1) + " V") +
-      (h.battery_pct === null ? "" : " " + h.battery_pct + " %");
+    put(c.battery, (h.battery_v === null ? "? V" : fixed(h.battery_v, 1) + " V") +
+      (h.battery_pct === null ? "" : " " + h.battery_pct + " %"));
     mark(c.battery, h.battery_pct !== null && h.battery_pct <= LOW_BATTERY_PCT);
-    c.gps.textContent = h.gps_fix + (h.satellites === null ? "" : ", " + h.satellites + " sats");
+    put(c.gps, (GPS_FIXES[h.gps_fix_type] || "fix type " + h.gps_fix_type) +
+      (h.satellites === null ? "" : ", " + h.satellites + " sats"));
     mark(c.gps, h.gps_fix_type < 3);
-    c.prearm.textContent = h.prearm === "failing" ? "FAILING" : h.prearm;
+    put(c.prearm, h.prearm === "failing" ? "FAILING" : h.prearm);
     mark(c.prearm, h.prearm === "failing");
     var says = h.text === null ? "–"
       : (SEVERITIES[h.text_severity] || "?") + ": " + h.text + " (" + fixed(h.text_age_s, 0) + " s ago)";
-    c.autopilot.textContent = (h.autopilot_lost ? "AUTOPILOT LOST · " : "") + says;
+    put(c.autopilot, (h.autopilot_lost ? "AUTOPILOT LOST · " : "") + says);
     mark(c.autopilot, h.autopilot_lost || (h.text !== null && h.text_severity <= 2));
   }
 
