@@ -11,8 +11,10 @@ warm-up (``--warm-s``, 15):
   behaviour a looping ``waypoint_tour`` round a 20 m square at its start (so the page
   draws N tours and N tracks), loop 10 Hz, telemetry as the repository's missions
   declare it: heartbeat 1 Hz, Agent Status 2 Hz (``--agent-status-hz``), Behavior
-  State 1 Hz. ``--auth`` names a key file (``clark keygen``'s format): every packet
-  is then tagged and checked.
+  State 1 Hz, Vehicle Health every 2 s to the station (``--no-health``: none, as before
+  issue 17). Every vehicle has the default envelope (a 1000 m circle round its start,
+  which the page draws: the UDP radio declares no range). ``--auth`` names a key file
+  (``clark keygen``'s format): every packet is then tagged and checked.
 - **The agents' traffic** comes from one load-generator process (this file with
   ``--generate``), not N ``clark run`` vehicles: 100 processes do not fit on a 2-core
   machine, and a vehicle in testing mode (``--no-autopilot``) has no vehicle state, so
@@ -23,7 +25,10 @@ warm-up (``--warm-s``, 15):
   on a 10 Hz drift-free schedule, packs for each vehicle the messages due at that
   tick into one packet to the station, as a vehicle's runtime bundles its telemetry:
   a Heartbeat, an Agent Status on the vehicle's tour at 2 m/s in GUIDED, and a
-  Behavior State (``tour``). The vehicles' phases are spread over the period, as
+  Behavior State (``tour``); and every 2 s a Vehicle Health, in a packet of its own to
+  the station, as the repository's missions send it. ``r3`` reports a failsafe in force
+  (its heartbeat's condition and its health), so the page shows one alarm throughout.
+  The vehicles' phases are spread over the period, as
   agents started one after another are. GPS stamps come from the system clock, as
   the station's own (no autopilot) does, so the station's latency figures mean
   something.
@@ -214,7 +219,11 @@ def tour_of(start: tuple[float, float]) -> list[tuple[float, float]]:
 
 
 def mission_text(
-    agents: int, ports: Sequence[int], agent_status_hz: float, key_file: str | None
+    agents: int,
+    ports: Sequence[int],
+    agent_status_hz: float,
+    key_file: str | None,
+    health: bool = True,
 ) -> str:
     """The generated mission: station ``mcs`` and ``agents - 1`` touring rovers on UDP."""
     lines = [
@@ -243,10 +252,11 @@ def mission_text(
             continue
         start = start_of(i, agents - 1)
         points = ", ".join(f"[{n:g}, {e:g}]" for n, e in tour_of(start))
+        sends_health = ", vehicle_health: {rate_hz: 0.5, to: [mcs]}" if health else ""
         lines += [
             f"    position: [{start[0]:g}, {start[1]:g}]",
             f"    telemetry: {{heartbeat: 1, agent_status: {agent_status_hz:g}, "
-            "behavior_state: 1}",
+            f"behavior_state: 1{sends_health}}}",
             "    behavior:",
             "      initial: tour",
             "      states:",
@@ -281,7 +291,7 @@ def generate(spec: dict[str, Any]) -> None:
 
     ``spec``: ``agents`` (station included), ``ports`` (every agent's UDP port, the
     station's first), ``agent_status_hz``, ``key_file`` (None: unauthenticated),
-    ``seconds`` (the longest it runs).
+    ``seconds`` (the longest it runs), ``health`` (Vehicle Health every 2 s).
     """
     from clark_engine.io.autopilot import gps_time_ms_from_unix_us
     from clark_engine.link import (
@@ -292,6 +302,8 @@ def generate(spec: dict[str, Any]) -> None:
         Condition,
         Heartbeat,
         Message,
+        PrearmState,
+        VehicleHealth,
         load_key,
     )
     from clark_engine.mission.geo import LocalPoint, Origin, to_global
@@ -322,7 +334,10 @@ def generate(spec: dict[str, Any]) -> None:
         "heartbeat": round(LOOP_HZ / 1.0),
         "agent_status": max(1, round(LOOP_HZ / float(spec["agent_status_hz"]))),
         "behavior_state": round(LOOP_HZ / 1.0),
+        "vehicle_health": round(LOOP_HZ / 0.5),
     }
+    health = bool(spec.get("health", True))
+    in_failsafe = 3  # r3: its failsafe in force all along, one alarm on the page
     starts = {i: start_of(i, agents - 1) for i in ids}
     period = 1.0 / LOOP_HZ
     t0 = time.monotonic()
@@ -347,17 +362,31 @@ def generate(spec: dict[str, Any]) -> None:
         for index, i in enumerate(ids):
             phase = tick + index  # agents started one after another: spread phases
             messages: list[Message] = []
+            failsafe = health and i == in_failsafe
+            condition = Condition.FAILSAFE if failsafe else Condition.OK
             if phase % every["heartbeat"] == 0:
-                messages.append(Heartbeat(i, gps, MISSION_ID, AgentType.VEHICLE, Condition.OK))
+                messages.append(Heartbeat(i, gps, MISSION_ID, AgentType.VEHICLE, condition))
             if phase % every["agent_status"] == 0:
                 north, east, heading = on_tour(starts[i], SPEED_M_S * now_s + index * 7.0)
                 lat, lon, _ = to_global(LocalPoint(north, east, 0.0), origin)
                 messages.append(AgentStatus(i, gps, lat, lon, 0.0, SPEED_M_S, 0.0, heading, GUIDED))
             if phase % every["behavior_state"] == 0:
                 messages.append(BehaviorState(i, gps, ("tour",), ""))
-            if not messages:
-                continue
-            for data in codecs[i].encode(messages, 0):
+            packets = codecs[i].encode(messages, 0) if messages else []
+            if health and phase % every["vehicle_health"] == 0:
+                vehicle = VehicleHealth(
+                    i,
+                    gps,
+                    armed=True,
+                    battery_v=12.6,
+                    battery_pct=max(0, 100 - int(now_s / 36)),
+                    gps_fix_type=3,
+                    satellites=10,
+                    prearm=PrearmState.PASSING,
+                    failsafe="hold: mcs_lost" if failsafe else "",
+                )
+                packets += codecs[i].encode([vehicle], 1)  # to the station alone
+            for data in packets:
                 with contextlib.suppress(BlockingIOError, ConnectionRefusedError):
                     socks[i].sendto(data, station)
                 sent += 1
@@ -622,6 +651,7 @@ async def measure(
     browser: bool,
     profile_s: float = 0.0,
     view_hz: float = 5.0,
+    health: bool = True,
 ) -> Result:
     """One run: the station (with or without the view) under N agents' traffic.
 
@@ -637,7 +667,9 @@ async def measure(
         generate_key_file(folder / "mission.key")
         key_file = "mission.key"
     mission = folder / "mission.yaml"
-    mission.write_text(mission_text(agents, ports, agent_status_hz, key_file), encoding="utf-8")
+    mission.write_text(
+        mission_text(agents, ports, agent_status_hz, key_file, health), encoding="utf-8"
+    )
     if variant not in VARIANTS:
         raise ValueError(f"variant {variant!r}: one of {', '.join(VARIANTS)}")
     view = variant != "noview"
@@ -701,6 +733,7 @@ async def measure(
             "agent_status_hz": agent_status_hz,
             "key_file": str(folder / key_file) if key_file else None,
             "seconds": until_s + 10.0,
+            "health": health,
         }
         generator = subprocess.Popen(
             [sys.executable, __file__, "--generate", json.dumps(spec)],
@@ -1045,6 +1078,7 @@ async def run_all(args: argparse.Namespace) -> None:
                     browser=not args.no_browser,
                     profile_s=args.profile_page_s,
                     view_hz=args.view_hz,
+                    health=not args.no_health,
                 )
                 report(result)
 
@@ -1065,6 +1099,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--auth", action="store_true", help="an authenticated mission")
     parser.add_argument("--no-browser", action="store_true", help="the WebSocket client only")
     parser.add_argument(
+        "--no-health", action="store_true", help="no Vehicle Health (as before issue 17)"
+    )
+    parser.add_argument(
         "--profile-page-s",
         type=float,
         default=10.0,
@@ -1080,7 +1117,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"machine: {os.cpu_count()} cores ({len(os.sched_getaffinity(0))} usable here), "
         f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}; "
         f"{'authenticated' if args.auth else 'unauthenticated'} mission, Agent Status "
-        f"{args.agent_status_hz:g} Hz, view {args.view_hz:g} Hz, loop {LOOP_HZ:g} Hz",
+        f"{args.agent_status_hz:g} Hz, Vehicle Health {'none' if args.no_health else '0.5 Hz'}, "
+        f"view {args.view_hz:g} Hz, loop {LOOP_HZ:g} Hz",
         flush=True,
     )
     asyncio.run(run_all(args))

@@ -19,6 +19,9 @@ from clark_engine.link import wire
 from clark_engine.link.auth import load_key
 from clark_engine.link.budget import Flow, MeshBudget, PacketCosts, mesh_budget
 from clark_engine.link.messages import (
+    MAX_FAILSAFE_TEXT_BYTES,
+    MAX_HEALTH_TEXT_BYTES,
+    MAX_SEVERITY_SENT,
     AgentAttitude,
     AgentStatus,
     AgentType,
@@ -27,6 +30,8 @@ from clark_engine.link.messages import (
     Heartbeat,
     Message,
     PictureData,
+    PrearmState,
+    VehicleHealth,
 )
 from clark_engine.link.packet import HEADER_BYTES, TAG_BYTES
 from clark_engine.mission.findings import Finding, Location, error, warning
@@ -41,6 +46,9 @@ WIRE_MAX_ALTITUDE_M = 2_000_000.0
 WIRE_MAX_SPEED_M_S = 40_000_000.0
 #: A climb rate at least this big takes the field's full two bytes on the wire.
 MIN_WORST_CLIMB_M_S = 2.0
+#: Telemetry only a vehicle sends: a station has no autopilot, so its runtime sends none of
+#: these (and the budget does not count them).
+VEHICLE_ONLY_TELEMETRY = ("agent_status", "agent_attitude", "vehicle_health")
 #: Utilisation of the measured throughput above which the budget warns, and errs.
 WARN_UTILISATION = 0.70
 ERROR_UTILISATION = 1.00
@@ -56,7 +64,11 @@ def validate_file(path: Path, shown: str | None = None) -> Validation:
     mission = result.mission
     if result.kind != "mission" or mission is None:
         return result
-    extra = [*check_key_file(mission, path), *check_link_budget(mission)]
+    extra = [
+        *check_key_file(mission, path),
+        *check_station_telemetry(mission),
+        *check_link_budget(mission),
+    ]
     result.findings = sorted([*result.findings, *extra], key=Finding.sort_key)
     if not result.ok:
         result.mission = None
@@ -126,6 +138,27 @@ def check_key_file(mission: Mission, mission_path: Path) -> list[Finding]:
     if stat.S_IMODE(mode) & 0o077:  # load_key refuses these too; kept for clarity
         return [error("E-KEY-FILE", where, "the key file is readable by others; chmod 600 it")]
     return []
+
+
+def check_station_telemetry(mission: Mission) -> list[Finding]:
+    """A station's telemetry names no message that only a vehicle can send."""
+    findings: list[Finding] = []
+    for agent in mission.agents.values():
+        if agent.is_vehicle:
+            continue
+        for name in VEHICLE_ONLY_TELEMETRY:
+            item = agent.telemetry.get(name)
+            if item is None:
+                continue
+            findings.append(
+                warning(
+                    "W-TELEMETRY-VEHICLE-ONLY",
+                    item.location,
+                    f"{agent.name} is a station: it has no autopilot, so it sends no {name} "
+                    f"(only vehicles do); remove {name} from its telemetry",
+                )
+            )
+    return findings
 
 
 # -- worst-case messages ------------------------------------------------------------------
@@ -199,6 +232,23 @@ def worst_messages(mission: Mission, agent: Agent) -> dict[str, Message]:
             image_index=2**32 - 1,
         ),
     }
+    # The autopilot's longest warning and the longest failsafe text, every optional figure
+    # present at its widest, a text hours old: what no Vehicle Health can exceed.
+    messages["vehicle_health"] = VehicleHealth(
+        agent_id=agent.id,
+        gps_time_ms=t,
+        armed=True,
+        battery_v=65.534,
+        battery_pct=100,
+        gps_fix_type=8,
+        satellites=254,
+        prearm=PrearmState.FAILING,
+        text_severity=MAX_SEVERITY_SENT,
+        text="W" * MAX_HEALTH_TEXT_BYTES,
+        failsafe="F" * MAX_FAILSAFE_TEXT_BYTES,
+        autopilot_lost=True,
+        text_age_s=2**32 - 1,
+    )
     paths = _worst_paths(agent.behavior) if agent.behavior is not None else []
     messages["behavior_state"] = BehaviorState(
         agent_id=agent.id,
@@ -219,6 +269,8 @@ def mission_flows(mission: Mission) -> list[Flow]:
     for agent in mission.agents.values():
         worst = worst_messages(mission, agent)
         for name, item in agent.telemetry.items():
+            if not agent.is_vehicle and name in VEHICLE_ONLY_TELEMETRY:
+                continue  # never sent (W-TELEMETRY-VEHICLE-ONLY)
             flows.append(
                 Flow(
                     sender=agent.name,

@@ -58,8 +58,8 @@ def test_warnings_alone_exit_zero(tmp_path: Path, capsys: pytest.CaptureFixture[
             1,
         )
         .replace(
-            "telemetry: {heartbeat: 1, agent_status: 2}\n    behavior:\n      use",
-            "telemetry: {heartbeat: 1, agent_status: 3}\n    behavior:\n      use",
+            "telemetry: {heartbeat: 1, agent_status: 2, vehicle_health",
+            "telemetry: {heartbeat: 1, agent_status: 3, vehicle_health",
             1,
         )
     )

@@ -61,7 +61,7 @@ def test_invalid_mission_writes_nothing(tmp_path: Path, capsys: pytest.CaptureFi
     bad.write_text(
         (ROOT / "missions" / "cooperative_follow.yaml")
         .read_text(encoding="utf-8")
-        .replace("agent_status: 2}", "agent_status: 40}"),
+        .replace("agent_status: 2,", "agent_status: 40,"),
         encoding="utf-8",
     )
     out = tmp_path / "out"
@@ -85,7 +85,7 @@ def test_config_has_the_thesis_three_sections_and_the_rest() -> None:
     assert {p["name"] for p in config["peers"]} == {"mcs", "slash_a"}
     slash_a = next(p for p in config["peers"] if p["name"] == "slash_a")
     assert slash_a["sends"] == {"agent_status": 2, "heartbeat": 1}
-    assert [t["every_ticks"] for t in config["telemetry"]] == [10, 5]
+    assert [t["every_ticks"] for t in config["telemetry"]] == [10, 5, 20]  # health every 2 s
     chase = next(s for s in config["machine"]["states"] if s["name"] == "chase")
     assert chase["params"]["target"] == {"name": "slash_a", "id": 2}
     assert chase["transitions"][0] == {

@@ -204,7 +204,8 @@ def test_state_shows_each_agent_from_the_fleet_table(fleet: Fleet) -> None:
     slash_b = agent(snap.state, "slash_b")
     assert slash_b["heard"] is True and slash_b["lost"] is False and slash_b["stale"] is False
     assert slash_b["condition"] == "ok"
-    assert slash_b["airframe"] == "rover" and slash_b["armed"] is None
+    # armed from its Vehicle Health (the fleet's autopilots report armed)
+    assert slash_b["airframe"] == "rover" and slash_b["armed"] is True
     position = slash_b["position"]
     assert isinstance(position, dict)
     assert position["north_m"] == pytest.approx(-15.0, abs=0.01)
@@ -217,6 +218,7 @@ def test_state_shows_each_agent_from_the_fleet_table(fleet: Fleet) -> None:
     assert link["latency_mean_ms"] is not None
     assert snap.state["station"]["terminated"] is False  # type: ignore[index]
     assert snap.state["checks"] is None
+    assert snap.state["alarms"] == [] and slash_b["alarm"] is False
     # track points: one per Agent Status received, numbered, never sent twice
     assert snap.track and all(p["agent"] in (2, 3) for p in snap.track)
     seqs = [p["seq"] for p in snap.track]

@@ -57,13 +57,13 @@ STATUS = AgentStatus(
 # Header: version 1 | flags | mission 7 | sender 2 | destination 1 | counter 1 (48 bits).
 GOLDEN_HEADER_PLAIN = "01000000000700020001000000000001"
 GOLDEN_HEADER_KEYED = "01010000000700020001000000000001"
-# Bundle field 1 (heartbeat), 17 bytes: agent 2, gps time, mission 7, VEHICLE, OK, version 6.
-GOLDEN_HEARTBEAT = "0a1108021080e082b4df281807200128013806"
+# Bundle field 1 (heartbeat), 17 bytes: agent 2, gps time, mission 7, VEHICLE, OK, version 7.
+GOLDEN_HEARTBEAT = "0a1108021080e082b4df281807200128013807"
 # Bundle field 2 (agent_status), 35 bytes: agent 2, gps time, lat 306319000 (sfixed32 LE),
 # lon -964826000, alt 121500 mm (zigzag), 1725 cm/s, -150 cm/s (zigzag), 27130 cdeg, mode 10.
 GOLDEN_STATUS = "1223080210e4e082b4df281d980e42122570ec7dc628b8ea0e30bd0d38ab0240fad301480a"
 # HMAC-SHA256 over header and bundle under KEY = bytes(range(32)), first 12 bytes.
-GOLDEN_TAG = "e2b46a8c2cccbb664dfd3c0b"
+GOLDEN_TAG = "19f634df72ad0dc8c60eb4da"
 
 
 def test_golden_bytes_without_a_key() -> None:

@@ -11,7 +11,7 @@ from types import ModuleType
 
 import pytest
 
-from clark_engine.link.messages import MESSAGE_NAMES, AgentType, Condition
+from clark_engine.link.messages import MESSAGE_NAMES, AgentType, Condition, PrearmState
 from clark_engine.link.wire import MESSAGE_ORDER
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -64,6 +64,7 @@ def test_the_proto_defines_every_message_and_enum_value_of_messages_py() -> None
     for enum, ours, prefix in (
         (pb.AgentType, AgentType, "AGENT_TYPE_"),
         (pb.Condition, Condition, "CONDITION_"),
+        (pb.PrearmState, PrearmState, "PREARM_STATE_"),
     ):
         assert enum.Value(f"{prefix}UNSPECIFIED") == 0
         assert {enum.Name(v)[len(prefix) :]: v for v in enum.values() if v} == {

@@ -21,7 +21,9 @@ from clark_engine.link.messages import (
     Message,
     ModeChangeRequest,
     PictureData,
+    PrearmState,
     Terminate,
+    VehicleHealth,
 )
 from clark_engine.link.wire import (
     MESSAGE_ORDER,
@@ -44,6 +46,7 @@ SAMPLES: tuple[Message, ...] = (
     AgentAttitude(2, GPS_MS, -12.5, 3.25, 271.3),
     Terminate(2, GPS_MS, target_id=0, reason="operator: weather"),
     BehaviorState(2, GPS_MS, ("survey.leg_2", "photos"), "done"),
+    VehicleHealth(2, GPS_MS, True, 12.6, 87, 6, 10, PrearmState.PASSING, 4, "GPS Glitch", ""),
 )
 
 
@@ -291,7 +294,7 @@ def test_an_empty_sequence_bundles_to_nothing() -> None:
         (b"\xff", "does not parse"),
         (lfield(2, GOOD_STATUS_BODY)[:-1], "does not parse"),
         (lfield(7, vfield(1, 2) + lfield(4, b"\xff\xfe")), "UTF-8"),
-        (lfield(9, b""), "fields this ClarkLink version does not define"),
+        (lfield(10, b""), "fields this ClarkLink version does not define"),
         (lfield(2, GOOD_STATUS_BODY) + vfield(15, 1), "fields this ClarkLink version"),
         (lfield(2, GOOD_STATUS_BODY + vfield(15, 1)), "agent_status has fields"),
         (lfield(2, vfield(1, 2) + f32field(3, 900_000_001)), "lat_e7"),

@@ -20,6 +20,7 @@ from clark_engine.link.messages import (
     Heartbeat,
     ModeChangeRequest,
     Terminate,
+    VehicleHealth,
 )
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.validate import validate_path
@@ -298,8 +299,10 @@ def test_state_changes_go_to_the_station_as_behavior_state(slash_b: AgentRuntime
     out = run(slash_b, 0.0, vehicle(0.0), AutopilotHeartbeat("MANUAL", 0, True))
     to_station = [p for p in of(out, SendPacket) if p.destination == "mcs"]  # type: ignore[attr-defined]
     (packet,) = to_station
-    (state,) = station_codec.decode(packet.data).messages  # type: ignore[attr-defined]
+    # bundled with its Vehicle Health, due to the station in the same tick
+    state, health = station_codec.decode(packet.data).messages  # type: ignore[attr-defined]
     assert isinstance(state, BehaviorState) and state.active_states == ("idle",)
+    assert isinstance(health, VehicleHealth) and health.agent_id == 3
 
 
 def test_authenticated_mission_ignores_unauthenticated_commands(tmp_path: Path) -> None:

@@ -32,7 +32,8 @@ def codes(path: Path) -> list[str]:
 
 
 def test_budget_matches_a_hand_count() -> None:
-    """Slash A: heartbeat 1 Hz + status 2 Hz at 10 Hz, broadcast, XBee framing, no key."""
+    """Slash A: heartbeat 1 Hz + status 2 Hz at 10 Hz, broadcast, and its Vehicle Health
+    every 2 s to the station alone; XBee framing, no key."""
     mission = validate_path(ROOT / "missions" / "cooperative_follow.yaml").mission
     assert mission is not None
     flows = mission_flows(mission)
@@ -40,9 +41,13 @@ def test_budget_matches_a_hand_count() -> None:
     load = sender_load("slash_a", flows, mission.loop_hz, costs)
     hb = next(f.size_bytes for f in flows if f.sender == "slash_a" and f.message == "heartbeat")
     st = next(f.size_bytes for f in flows if f.sender == "slash_a" and f.message == "agent_status")
-    # tick 0: heartbeat + status in one packet; tick 5: status alone; 2 packets a second
-    assert load.packets_per_s == 2
-    assert load.bytes_per_s == pytest.approx((hb + st + 34) + (st + 34))
+    vh = next(
+        f.size_bytes for f in flows if f.sender == "slash_a" and f.message == "vehicle_health"
+    )
+    # tick 0: heartbeat + status in one packet; tick 5: status alone; 2 packets a second;
+    # and every other tick 0, the health in a packet of its own to mcs: half a packet more
+    assert load.packets_per_s == 2.5
+    assert load.bytes_per_s == pytest.approx((hb + st + 34) + (st + 34) + (vh + 34) / 2)
     assert sum(load.by_message.values()) == pytest.approx(load.bytes_per_s)
 
 

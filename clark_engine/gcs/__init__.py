@@ -3,6 +3,9 @@
 - :mod:`clark_engine.gcs.model`: what the page shows, as JSON-able dicts, built from
   the station's runtime (pure: no clock, no socket, no thread), and the operator's
   commands carried out through it and followed until they take effect;
+- :mod:`clark_engine.gcs.alarms`: the station's alarms (a breach, a near miss, a
+  failsafe) judged from what the vehicles report against their envelopes (pure), for the
+  live view and the replay;
 - :mod:`clark_engine.gcs.server`: the aiohttp server on its own thread and event loop
   (the page, its static files, the WebSocket), with the token and origin checks;
 - :mod:`clark_engine.gcs.station`: the glue to whatever runs the station (its

@@ -39,6 +39,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Final
 
+from clark_engine.gcs.alarms import AlarmChange, AlarmWatch, failsafe_words
 from clark_engine.link.fleet import AgentRecord, Sample
 from clark_engine.link.messages import (
     AgentAttitude,
@@ -46,9 +47,11 @@ from clark_engine.link.messages import (
     BehaviorState,
     Condition,
     PictureData,
+    VehicleHealth,
 )
+from clark_engine.mission.fence import Zone
 from clark_engine.mission.geo import Origin, parse_point, to_local
-from clark_engine.runtime.config import AgentConfig, StateSpec
+from clark_engine.runtime.config import AgentConfig, EnvelopeSpec, StateSpec
 from clark_engine.runtime.events import StationCommand
 from clark_engine.runtime.logbook import line_safe
 from clark_engine.runtime.runtime import AgentRuntime
@@ -78,6 +81,22 @@ STALE_HEARTBEATS: Final = 1.5
 
 UNSETTABLE_MODES: Final = frozenset({"INITIALISING"})
 """Modes an autopilot reports but never accepts as a request (ArduPilot's boot mode)."""
+
+GPS_FIX_NAMES: Final = (  # app.js's GPS_FIXES
+    "no GPS",
+    "no fix",
+    "2-D fix",
+    "3-D fix",
+    "DGPS",
+    "RTK float",
+    "RTK fixed",
+    "static",
+    "PPP",
+)
+"""MAVLink's GPS_FIX_TYPE by number, as the page shows it."""
+
+
+_CONDITION_WORDS: Final = {member: member.name.lower() for member in Condition}
 
 
 def stale_after_s(heartbeat_hz: float | None, heartbeat_timeout_s: float) -> float:
@@ -202,6 +221,42 @@ def plan_of(config: AgentConfig) -> list[Json]:
     return items
 
 
+def _zone_json(zone: Zone) -> Json:
+    if zone.kind == "circle":
+        return {
+            "kind": "circle",
+            "center": {"north_m": _round(zone.center[0]), "east_m": _round(zone.center[1])},
+            "radius_m": _round(zone.radius_m),
+        }
+    return {
+        "kind": "polygon",
+        "points": [{"north_m": _round(n), "east_m": _round(e)} for n, e in zone.corners],
+    }
+
+
+def envelope_json(envelope: EnvelopeSpec | None) -> Json | None:
+    """A vehicle's envelope as the page draws it: its zones in metres from the origin.
+
+    ``include`` holds the default circle around home when the mission declared no
+    inclusion zone (``default_radius_m`` says so); the page draws a vehicle's zones in its
+    colour and names its ceiling in its row.
+    """
+    if envelope is None:
+        return None
+    return {
+        "ceiling_m": _round(envelope.ceiling_m),
+        "floor_m": _round(envelope.floor_m),
+        "margin_m": _round(envelope.margin_m),
+        "min_separation_m": _round(envelope.min_separation_m),
+        "separation": {name: _round(m) for name, m in sorted(envelope.separation.items())},
+        "default_radius_m": _round(envelope.default_radius_m),
+        "include": [_zone_json(z) for z in envelope.fence.include],
+        "exclude": [_zone_json(z) for z in envelope.fence.exclude],
+        "on_breach": envelope.on_breach,
+        "on_near_miss": envelope.on_near_miss,
+    }
+
+
 def _settable_modes(modes: Mapping[str, int]) -> list[Json]:
     return [
         {"name": name, "number": int(number)}
@@ -249,6 +304,7 @@ def build_hello(
                     stale_after_s(heartbeat_hz, station.heartbeat_timeout_s), 3
                 ),
                 "home": _local(position, origin) if position else None,
+                "envelope": envelope_json(peer.envelope),
             }
         )
         if config is not None and config.is_vehicle:
@@ -473,6 +529,9 @@ def agent_row(
     behaviour: BehaviorState | None = None,
     behaviour_age_s: float | None = None,
     attitude: AgentAttitude | None = None,
+    health: VehicleHealth | None = None,
+    health_age_s: float | None = None,
+    in_alarm: bool = False,
 ) -> Json:
     """One agent's row of a ``state`` message (docs/station-view.md, "The protocol").
 
@@ -495,6 +554,9 @@ def agent_row(
         behaviour: Its latest Behavior State, if any.
         behaviour_age_s: Seconds since it arrived (the replay: since the change).
         attitude: Its latest Agent Attitude, if any.
+        health: Its latest Vehicle Health, if any (``armed`` comes from it).
+        health_age_s: Seconds since that Vehicle Health arrived.
+        in_alarm: Whether an alarm in force is about it.
     """
     out: Json = {
         "id": int(info["id"]),
@@ -508,9 +570,11 @@ def agent_row(
         "condition": None,
         "position": None,
         "mode": None,
-        "armed": None,  # ClarkLink's Agent Status does not carry it (docs/station-view.md)
+        "armed": None,  # from Vehicle Health; unknown without it
         "behaviour": None,
         "attitude": None,
+        "health": None,
+        "alarm": in_alarm,
         "link": link,
     }
     if not heard:
@@ -551,7 +615,35 @@ def agent_row(
             "pitch_deg": _round(attitude.pitch_deg, 1),
             "yaw_deg": _round(attitude.yaw_deg, 1),
         }
+    if health is not None:
+        out["armed"] = health.armed
+        out["health"] = health_json(health, health_age_s)
     return out
+
+
+def health_json(health: VehicleHealth, age_s: float | None) -> Json:
+    """An agent row's ``health``: its latest Vehicle Health, texts escaped and bounded.
+
+    ``text_age_s`` is the text's age now: its age when the vehicle sent the health, plus
+    the health's own age at the station. The row's ``armed`` is the health's; the page
+    names the fix type (0 no GPS ... 6 RTK fixed, :data:`GPS_FIX_NAMES`). Kept small: a
+    state carries one per vehicle, five times a second.
+    """
+    fix = health.gps_fix_type
+    text = line_safe(health.text, 100) if health.text else None
+    return {
+        "battery_v": _round(health.battery_v, 2),
+        "battery_pct": health.battery_pct,
+        "gps_fix_type": fix,
+        "satellites": health.satellites,
+        "prearm": health.prearm.name.lower(),
+        "text": text,
+        "text_severity": health.text_severity if text else None,
+        "text_age_s": _round(health.text_age_s + (age_s or 0.0), 1) if text else None,
+        "failsafe": line_safe(health.failsafe, 64) or None,
+        "autopilot_lost": health.autopilot_lost,
+        "age_s": _round(age_s, 2),
+    }
 
 
 def track_point_json(
@@ -654,6 +746,9 @@ class StationView:
         self._by_name = {str(a["name"]): a for a in hello["agents"]}
         self._seen_status: dict[int, Sample[AgentStatus]] = {}
         self._seen_picture: dict[int, Sample[PictureData]] = {}
+        envelopes = {p.name: p.envelope for p in self.config.peers if p.envelope is not None}
+        self.alarms = AlarmWatch(envelopes, self.config.heartbeat_timeout_s)
+        """Breaches, near misses and failsafes, judged after every tick (docs/station-view.md)."""
         self._track_seq = 0
         self._photo_seq = 0
         self._new_track: list[Json] = []
@@ -665,20 +760,63 @@ class StationView:
     # -- per tick ------------------------------------------------------------------------
 
     def observe(self, now_s: float) -> None:
-        """Take what arrived since the last call: track points, photos, command answers."""
+        """Take what arrived since the last call: track points, photos, alarms, answers."""
         fleet = self.runtime.fleet
+        alarms = self.alarms
         for record in fleet.agents():
             status = record.sample(AgentStatus)
             if status is not None and status is not self._seen_status.get(record.agent_id):
                 self._seen_status[record.agent_id] = status
                 self._track_point(record, status)
+                value = status.value
+                local = to_local(value.lat_deg, value.lon_deg, value.alt_m, self.origin)
+                alarms.see_position(
+                    record.name, local.north_m, local.east_m, value.alt_m, status.received_s
+                )
             picture = record.sample(PictureData)
             if picture is not None and picture is not self._seen_picture.get(record.agent_id):
                 self._seen_picture[record.agent_id] = picture
                 self._photo(record, picture)
+            health = record.sample(VehicleHealth)
+            alarms.see_condition(
+                record.name,
+                failsafe_words(
+                    _CONDITION_WORDS[record.condition],
+                    health.value.failsafe if health is not None else None,
+                ),
+            )
+        changes = alarms.evaluate(now_s)
+        if changes:
+            self._log_alarms(changes)
         for command in self._commands:
             if command.status == "pending":
                 self._follow(command, now_s)
+
+    def _log_alarms(self, changes: list[AlarmChange]) -> None:
+        """One mission-log line per alarm raised and per alarm cleared: never one per tick."""
+        logbook = self.runtime.logbook
+        if logbook.closed:
+            return
+        for change in changes:
+            alarm = change.alarm
+            if change.raised:
+                logbook.mission.warning("ALARM %d %s: %s", alarm.id, alarm.kind, alarm.text)
+                continue
+            lasted_s = (alarm.cleared_s or alarm.raised_s) - alarm.raised_s
+            worst = ""
+            if alarm.kind == "near miss":
+                worst = f"; closest {-alarm.worst:.1f} m"
+            elif alarm.kind == "breach":
+                side = "over" if alarm.what == "ceiling" else "outside"
+                worst = f"; at worst {alarm.worst:.1f} m {side}"
+            logbook.mission.info(
+                "alarm %d cleared after %.1f s (%s: %s)%s",
+                alarm.id,
+                lasted_s,
+                alarm.kind + (f" {alarm.what}" if alarm.what else ""),
+                " and ".join(alarm.agents),
+                worst,
+            )
 
     def _track_point(self, record: AgentRecord, sample: Sample[AgentStatus]) -> None:
         value = sample.value
@@ -713,9 +851,12 @@ class StationView:
         runtime = self.runtime
         fleet = runtime.fleet
         agents: list[Json] = []
+        alarmed = self.alarms.in_alarm()
         for info in self.hello["agents"]:
             agent_id = int(info["id"])
-            agents.append(self._agent(info, fleet.record(agent_id), agent_id, now_s))
+            row = self._agent(info, fleet.record(agent_id), agent_id, now_s)
+            row["alarm"] = info["name"] in alarmed
+            agents.append(row)
         log: list[Json] = []
         if self.log is not None:
             lines = self.log.since(self._log_sent)
@@ -737,6 +878,7 @@ class StationView:
             "agents": agents,
             "commands": [c.to_json() for c in self._commands],
             "checks": self.checks,
+            "alarms": [a.to_json() for a in self.alarms.shown(now_s)],
         }
         return Snapshot(state, track, photos, log)
 
@@ -760,6 +902,7 @@ class StationView:
         status = record.sample(AgentStatus)
         behaviour = record.sample(BehaviorState)
         attitude = record.sample(AgentAttitude)
+        health = record.sample(VehicleHealth)
         return agent_row(
             info,
             self.origin,
@@ -774,6 +917,8 @@ class StationView:
             behaviour=behaviour.value if behaviour is not None else None,
             behaviour_age_s=now_s - behaviour.received_s if behaviour is not None else None,
             attitude=attitude.value if attitude is not None else None,
+            health=health.value if health is not None else None,
+            health_age_s=now_s - health.received_s if health is not None else None,
         )
 
     def _mode_name(self, info: Mapping[str, Any], number: int) -> str | None:

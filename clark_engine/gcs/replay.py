@@ -54,6 +54,7 @@ from typing import Any, Final
 
 from clark_engine.analyze import Problem
 from clark_engine.errors import ClarkError, UsageError
+from clark_engine.gcs.alarms import CLEARED_SHOWN_S, Alarm, AlarmWatch, failsafe_words
 from clark_engine.gcs.model import (
     MAX_LOG_LINES,
     MAX_LOG_TEXT_CHARS,
@@ -65,7 +66,14 @@ from clark_engine.gcs.model import (
     mode_name,
     photo_json,
 )
-from clark_engine.link.messages import AgentAttitude, AgentStatus, BehaviorState, PictureData
+from clark_engine.link.messages import (
+    AgentAttitude,
+    AgentStatus,
+    BehaviorState,
+    PictureData,
+    PrearmState,
+    VehicleHealth,
+)
 from clark_engine.log_checks import (
     LOG_FILES,
     AgentLogs,
@@ -133,7 +141,22 @@ _NUMBERS: Final = (
     "bad_tags",
     "malformed",
     "duplicates",
+    "armed",
+    "battery_v",
+    "battery_pct",
+    "gps_fix_type",
+    "satellites",
+    "autopilot_severity",
+    "autopilot_text_age_s",
+    "autopilot_lost",
+    "health_age_s",
 )
+#: Fleet CSV text columns kept per row (Vehicle Health's), interned.
+_TEXTS: Final = ("prearm", "autopilot_text", "failsafe")
+_PREARM, _AP_TEXT, _FAILSAFE = range(len(_TEXTS))
+MAX_TEXTS: Final = 10_000
+"""Distinct Vehicle Health texts kept per fleet CSV; the rest read as a note saying so."""
+_TOO_MANY_TEXTS: Final = "(more distinct texts than the replay keeps)"
 _REQUIRED: Final = ("now_s", "name", "condition", "lost", "since_heartbeat_s")
 _CONDITIONS: Final = ("ok", "degraded", "failsafe", "terminated")
 (
@@ -156,6 +179,15 @@ _CONDITIONS: Final = ("ok", "degraded", "failsafe", "terminated")
     _BAD_TAGS,
     _MALFORMED,
     _DUPLICATES,
+    _ARMED,
+    _BATTERY_V,
+    _BATTERY_PCT,
+    _GPS_FIX,
+    _SATELLITES,
+    _AP_SEVERITY,
+    _AP_TEXT_AGE,
+    _AP_LOST,
+    _HEALTH_AGE,
 ) = range(len(_NUMBERS))
 
 
@@ -174,6 +206,15 @@ def _int(value: float) -> int:
 
 def _opt(value: float) -> float | None:
     return value if math.isfinite(value) else None
+
+
+def _int_opt(value: float) -> int | None:
+    return int(value) if math.isfinite(value) else None
+
+
+_PREARM_STATES: Final = {state.name.lower(): state for state in PrearmState}
+MAX_ALARMS: Final = 10_000
+"""Alarm episodes a replay keeps (the earliest); a run with more is noted."""
 
 
 # -- finding the files -----------------------------------------------------------------------
@@ -282,6 +323,12 @@ class _Rows:
     lost: array[int] = field(default_factory=lambda: array("b"))
     flat: array[float] = field(default_factory=lambda: array("d"))
     """While reading: every row's numbers one after the other (one append per row)."""
+    texts: list[array[int]] = field(default_factory=lambda: [array("l") for _ in _TEXTS])
+    """One array per column of :data:`_TEXTS`: each row's index in :attr:`strings`."""
+    strings: list[str] = field(default_factory=lambda: [""])
+    """The distinct texts of :attr:`texts`, escaped and bounded; index 0 is empty."""
+    lookup: dict[str, int] = field(default_factory=dict)
+    """A text as read -> its index in :attr:`strings` (while reading)."""
 
     def __len__(self) -> int:
         return len(self.now_s)
@@ -291,6 +338,7 @@ class _Rows:
         width = len(_NUMBERS)
         self.numbers = [self.flat[c::width] for c in range(width)]
         self.flat = array("d")
+        self.lookup = {}
 
 
 def _bad_cell(row: list[str], columns: Sequence[tuple[str, int | None]]) -> str:
@@ -329,6 +377,7 @@ def read_fleet_csv(
     now_at, name_at, id_at = at["now_s"], at["name"], at.get("agent_id")
     condition_at, lost_at = at["condition"], at["lost"]
     indexes = [at.get(column) for column in _NUMBERS]
+    text_at = [at.get(column) for column in _TEXTS]
     labelled = list(zip(_NUMBERS, indexes, strict=True))
     missing = None in indexes  # an older logbook's header: those columns are empty
     cells = operator.itemgetter(*(width if i is None else i for i in indexes))
@@ -385,6 +434,8 @@ def read_fleet_csv(
             continue
         agent.now_s.append(now_s)
         agent.flat.extend(values)
+        for column, index in zip(agent.texts, text_at, strict=True):
+            column.append(_intern(agent, row[index]) if index is not None and row[index] else 0)
         agent.condition.append(_CONDITIONS.index(condition) if condition else -1)
         agent.lost.append(1 if row[lost_at] == "1" else 0)
     for agent in out.values():
@@ -399,6 +450,25 @@ def read_fleet_csv(
             )
         )
     return out
+
+
+def _intern(rows: _Rows, cell: str) -> int:
+    """The index of a Vehicle Health text in ``rows.strings``, escaped and bounded.
+
+    The texts came over the air and through a file: each is escaped (its CSV cell was
+    already, by the logbook) and cut; at most :data:`MAX_TEXTS` distinct ones are kept.
+    """
+    index = rows.lookup.get(cell)
+    if index is None:
+        if len(rows.strings) > MAX_TEXTS:
+            cell = _TOO_MANY_TEXTS
+            index = rows.lookup.get(cell)
+            if index is not None:
+                return index
+        index = len(rows.strings)
+        rows.strings.append(line_safe(cell, MAX_LOG_TEXT_CHARS))
+        rows.lookup[cell] = index
+    return index
 
 
 # -- the replay ------------------------------------------------------------------------------
@@ -457,6 +527,7 @@ class Replay:
         station: Json,
         station_gps_ms: float | None,
         span: tuple[float, float],
+        alarms: Sequence[Alarm] = (),
     ) -> None:
         self.hello = hello
         self.origin = origin
@@ -470,6 +541,8 @@ class Replay:
         self._station = station
         self._station_gps_ms = station_gps_ms
         self.start_s, self.end_s = span
+        self._alarms = sorted(alarms, key=lambda a: (a.raised_s, a.id))
+        self._alarm_t = [a.raised_s for a in self._alarms]
 
     # -- time ----------------------------------------------------------------------------
 
@@ -549,11 +622,17 @@ class Replay:
         station = dict(self._station)
         if self._station_gps_ms is not None:
             station["gps_time_ms"] = int(self._station_gps_ms + 1000 * t)
+        alarms = self.alarms_at(t)
+        alarmed = {name for a in alarms if a["cleared_s"] is None for name in a["agents"]}
+        rows = [self._row(agent, t) for agent in self._agents]
+        for row in rows:
+            row["alarm"] = row["name"] in alarmed
         return {
             "type": "state",
             "t": round(t, 3),
             "station": station,
-            "agents": [self._row(agent, t) for agent in self._agents],
+            "agents": rows,
+            "alarms": alarms,
             "track": [self._point(i) for i in range(start, end)],
             "photos": photos,
             "log": log,
@@ -561,6 +640,25 @@ class Replay:
             "checks": self.checks,
             "replay": {"t": round(t, 3), "start_s": self.start_s, "end_s": self.end_s},
         }
+
+    def alarms_at(self, t_s: float) -> list[Json]:
+        """The banner at ``t_s``: alarms in force then, and those cleared just before.
+
+        An alarm cleared after ``t_s`` is shown in force (``cleared_s`` null), as the
+        operator saw it then.
+        """
+        out: list[Json] = []
+        for alarm in self._alarms[: bisect.bisect_right(self._alarm_t, t_s)]:
+            cleared = alarm.cleared_s
+            if cleared is not None and cleared <= t_s:
+                if t_s - cleared >= CLEARED_SHOWN_S:
+                    continue
+                out.append(alarm.to_json())
+            else:
+                item = alarm.to_json()
+                item["cleared_s"] = None
+                out.append(item)
+        return out
 
     def _point(self, i: int) -> Json:
         return {
@@ -637,6 +735,26 @@ class Replay:
             )
         since = n[_SINCE_HB][i]
         code = rows.condition[i]
+        health: VehicleHealth | None = None
+        health_age: float | None = None
+        if math.isfinite(n[_HEALTH_AGE][i]):
+            texts = rows.texts
+            health = VehicleHealth(
+                int(info["id"]),
+                0,
+                armed=n[_ARMED][i] == 1,
+                battery_v=_opt(n[_BATTERY_V][i]),
+                battery_pct=_int_opt(n[_BATTERY_PCT][i]),
+                gps_fix_type=_int(n[_GPS_FIX][i]),
+                satellites=_int_opt(n[_SATELLITES][i]),
+                prearm=_PREARM_STATES.get(rows.strings[texts[_PREARM][i]], PrearmState.UNKNOWN),
+                text_severity=_int(n[_AP_SEVERITY][i]),
+                text=rows.strings[texts[_AP_TEXT][i]],
+                failsafe=rows.strings[texts[_FAILSAFE][i]],
+                autopilot_lost=n[_AP_LOST][i] == 1,
+                text_age_s=_int(n[_AP_TEXT_AGE][i]),
+            )
+            health_age = n[_HEALTH_AGE][i] + grown
         return agent_row(
             info,
             self.origin,
@@ -651,6 +769,8 @@ class Replay:
             behaviour=behaviour,
             behaviour_age_s=behaviour_age,
             attitude=attitude,
+            health=health,
+            health_age_s=health_age,
         )
 
 
@@ -702,6 +822,7 @@ def _hello_from_logs(
                 "heartbeat_hz": None,
                 "stale_after_s": None,
                 "home": None,
+                "envelope": None,
             }
         )
     station_logs = agents.get(station) if station else None
@@ -860,6 +981,72 @@ def _photos(
     ]
 
 
+def _alarm_episodes(
+    chosen: Mapping[str, tuple[_Rows, float]],
+    station: AgentConfig,
+    origin: Origin,
+    notes: list[str],
+) -> list[Alarm]:
+    """The alarms the station's view raised, judged again from the fleet tables' rows.
+
+    The same :class:`~clark_engine.gcs.alarms.AlarmWatch` the live view runs, fed in
+    mission time with what each row holds: a position at each Agent Status arrival, the
+    heartbeat's condition and the Vehicle Health's failsafe as they change. The fleet
+    CSV is written every tick from the fleet table the live view reads, so the episodes
+    are those the operator saw (where the station's own table is the one shown).
+    """
+    envelopes = {p.name: p.envelope for p in station.peers if p.envelope is not None}
+    if not envelopes:
+        return []
+    events: list[tuple[float, int, str, tuple[float, float, float, float] | str | None]] = []
+    for name, (rows, shift) in chosen.items():
+        if name not in envelopes:
+            continue
+        n = rows.numbers
+        last_arrival = math.nan
+        last_words: str | None = None
+        for i in range(len(rows)):
+            t_s = rows.now_s[i] + shift
+            code = rows.condition[i]
+            words = failsafe_words(
+                _CONDITIONS[code] if code >= 0 else None,
+                rows.strings[rows.texts[_FAILSAFE][i]] or None,
+            )
+            if words != last_words:
+                last_words = words
+                events.append((t_s, 0, name, words))
+            lat, lon, age = n[_LAT][i], n[_LON][i], n[_STATUS_AGE][i]
+            if not (math.isfinite(lat) and math.isfinite(lon)):
+                continue
+            arrival = rows.now_s[i] - (age if math.isfinite(age) else 0.0)
+            if abs(arrival - last_arrival) < 1e-6:
+                continue
+            last_arrival = arrival
+            alt_m = n[_ALT][i] if math.isfinite(n[_ALT][i]) else 0.0
+            local = to_local(lat, lon, alt_m, origin)
+            events.append((t_s, 1, name, (local.north_m, local.east_m, alt_m, arrival + shift)))
+    events.sort(key=lambda e: (e[0], e[1], e[2]))
+    watch = AlarmWatch(envelopes, station.heartbeat_timeout_s)
+    episodes: list[Alarm] = []
+    k = 0
+    while k < len(events):
+        t_s = events[k][0]
+        while k < len(events) and events[k][0] == t_s:
+            _, kind, name, data = events[k]
+            if kind == 0:
+                watch.see_condition(name, data if isinstance(data, str) else None)
+            elif isinstance(data, tuple):
+                watch.see_position(name, *data)
+            k += 1
+        for change in watch.evaluate(t_s):
+            if change.raised:
+                episodes.append(change.alarm)
+        if len(episodes) > MAX_ALARMS:
+            notes.append(f"more than {MAX_ALARMS} alarms: only the first are shown")
+            return episodes[:MAX_ALARMS]
+    return episodes
+
+
 def load_replay(
     folder: Path,
     mission: Mission | None = None,
@@ -996,6 +1183,11 @@ def load_replay(
         )
     photos = _photos(agents, ids_by_name, chosen, origin)
     log = _log_lines(agents, station, problems)
+    alarms: list[Alarm] = []
+    if mission is not None and station is not None:
+        alarms = _alarm_episodes(
+            {n: c for n, c in chosen.items() if n in ids_by_name}, configs[station], origin, notes
+        )
 
     checks: list[Json] | None = None
     checks_note = "no mission given (--checks MISSION): no check is judged"
@@ -1053,7 +1245,9 @@ def load_replay(
         "checks_note": checks_note,
     }
     span = (round(start_s, 3), round(max(end_s, start_s), 3))
-    replay = Replay(hello, origin, shown, track, photos, log, checks, station_json, gps_ms, span)
+    replay = Replay(
+        hello, origin, shown, track, photos, log, checks, station_json, gps_ms, span, alarms
+    )
     problems.sort(key=lambda p: (p.file, p.line or 0))
     return replay, load
 

@@ -80,6 +80,7 @@ from clark_engine.runtime.commands import (
 )
 from clark_engine.runtime.config import AgentConfig, ConfigError
 from clark_engine.runtime.events import (
+    AutopilotHealth,
     AutopilotHeartbeat,
     AutopilotSafetyResult,
     AutopilotStatus,
@@ -200,6 +201,10 @@ _STATUS_MESSAGES: Final = frozenset(
 """Messages :attr:`AutopilotAdapter.status` is made of."""
 _MISSION_ANSWERS: Final = frozenset({"MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"})
 """The autopilot's side of an upload (the safety set-up's fence list)."""
+_HEALTH_MESSAGES: Final = frozenset({"SYS_STATUS", "GPS_RAW_INT"})
+"""Messages :class:`AutopilotHealth` is made of; one is sent each time either arrives."""
+_NOT_MEASURED_MV: Final = 65535  # SYS_STATUS.voltage_battery: UINT16_MAX
+_UNKNOWN_SATELLITES: Final = 255  # GPS_RAW_INT.satellites_visible: UINT8_MAX
 _RC_CHANNEL_FIELDS: Final = operator.attrgetter(
     *(f"chan{i}_raw" for i in range(1, RC_OVERRIDE_CHANNELS + 1))
 )
@@ -288,6 +293,7 @@ AutopilotEvent = (
     VehicleState
     | AutopilotHeartbeat
     | AutopilotStatus
+    | AutopilotHealth
     | AutopilotText
     | RcChannels
     | ParamValue
@@ -982,6 +988,8 @@ class AutopilotAdapter:
         - GPS_RAW_INT, EKF_STATUS_REPORT, SYS_STATUS, HOME_POSITION and
           EXTENDED_SYS_STATE -> :class:`AutopilotStatus` when readiness or the
           landed state changed.
+        - SYS_STATUS and GPS_RAW_INT -> :class:`AutopilotHealth`, every time
+          (battery, fix type and satellites, pre-arm checks).
         - RC_CHANNELS -> :class:`RcChannels`, 18 channels, "unused" as 0.
         - PARAM_VALUE -> :class:`ParamValue`; COMMAND_ACK refusals -> :class:`CommandRefused`;
           a message asked for by :meth:`request_message` -> :class:`AutopilotMessage`.
@@ -1061,6 +1069,8 @@ class AutopilotAdapter:
             status = self._on_status(kind, msg)
             if status is not None:
                 events.append(status)
+            if kind in _HEALTH_MESSAGES:
+                events.append(self.health)
         elif kind == "AUTOPILOT_VERSION":
             first = self._version is None
             self._version = int(msg.flight_sw_version)
@@ -1125,6 +1135,40 @@ class AutopilotAdapter:
                     ", ".join(new.waiting_for),
                 )
         return new
+
+    @property
+    def health(self) -> AutopilotHealth:
+        """Battery, GPS and pre-arm checks from the latest SYS_STATUS and GPS_RAW_INT.
+
+        MAVLink's "not measured" values (voltage 65535, remaining -1, satellites 255)
+        become None; a figure outside MAVLink's own range (a garbled or hostile
+        message) is None too, never passed on.
+        """
+        sys_status = self._latest.get("SYS_STATUS")
+        gps = self._latest.get("GPS_RAW_INT")
+        battery_v: float | None = None
+        battery_pct: int | None = None
+        if sys_status is not None:
+            millivolts = int(sys_status.voltage_battery)
+            if 0 <= millivolts < _NOT_MEASURED_MV:
+                battery_v = millivolts / 1000.0
+            remaining = int(sys_status.battery_remaining)
+            battery_pct = remaining if 0 <= remaining <= 100 else None
+        satellites: int | None = None
+        fix_type = 0
+        if gps is not None:
+            fix_type = int(gps.fix_type)
+            if not 0 <= fix_type <= mavlink2.GPS_FIX_TYPE_PPP:
+                fix_type = 0
+            visible = int(gps.satellites_visible)
+            satellites = visible if 0 <= visible < _UNKNOWN_SATELLITES else None
+        return AutopilotHealth(
+            battery_v=battery_v,
+            battery_pct=battery_pct,
+            gps_fix_type=fix_type,
+            satellites=satellites,
+            prearm_ok=self._status.prearm_ok,
+        )
 
     def _on_heartbeat(self, msg: Any, now_s: float) -> AutopilotHeartbeat | None:
         if msg.autopilot == mavlink2.MAV_AUTOPILOT_INVALID:

@@ -38,7 +38,9 @@ from clark_engine.link.messages import (
     Message,
     ModeChangeRequest,
     PictureData,
+    PrearmState,
     Terminate,
+    VehicleHealth,
 )
 from clark_engine.link.packet import Packet
 
@@ -89,11 +91,13 @@ __all__ = [
     "OversizePacket",
     "Packet",
     "PictureData",
+    "PrearmState",
     "ReplayStore",
     "ReplayStoreError",
     "ReplayedPacket",
     "Terminate",
     "TruncatedPacket",
+    "VehicleHealth",
     "generate_key_file",
     "load_key",
 ]

@@ -38,7 +38,7 @@ from __future__ import annotations
 import math
 import operator
 from collections import OrderedDict
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from enum import Enum
 from typing import Any, Generic, TypeVar
@@ -58,8 +58,10 @@ from clark_engine.link.messages import (
     Heartbeat,
     Message,
     PictureData,
+    VehicleHealth,
 )
 from clark_engine.link.packet import Packet
+from clark_engine.untrusted import printable
 
 M = TypeVar("M", bound=Message)
 
@@ -422,11 +424,19 @@ _STATUS_FIELDS = (
     "mode",
 )
 _ATTITUDE_FIELDS = ("roll_deg", "pitch_deg", "yaw_deg")
+#: Vehicle Health's columns (docs/logs.md); ``health_age_s`` follows them.
+_HEALTH_COLUMNS = (
+    *("armed", "battery_v", "battery_pct", "gps_fix_type", "satellites", "prearm"),
+    *("autopilot_severity", "autopilot_text", "autopilot_text_age_s", "failsafe"),
+    "autopilot_lost",
+)
 _CSV_HEADER = (
     *("agent_id", "name", "agent_type", "condition", "lost", "since_heartbeat_s"),
     *_STATUS_FIELDS,
     "status_age_s",
     *_ATTITUDE_FIELDS,
+    *_HEALTH_COLUMNS,
+    "health_age_s",
     *("since_packet_s", "since_rejected_s", "packets", "bytes"),
     *(f"rx_{name}" for name in MESSAGE_NAMES.values()),
     *("lost_packets", "loss_ratio", "duplicates", "out_of_window", "resyncs"),
@@ -440,6 +450,7 @@ _STATUS_CELLS = operator.attrgetter(*_STATUS_FIELDS)
 _ATTITUDE_CELLS = operator.attrgetter(*_ATTITUDE_FIELDS)
 _NO_STATUS: tuple[CsvValue, ...] = ("",) * len(_STATUS_FIELDS)
 _NO_ATTITUDE: tuple[CsvValue, ...] = ("",) * len(_ATTITUDE_FIELDS)
+_NO_HEALTH: tuple[CsvValue, ...] = ("",) * len(_HEALTH_COLUMNS)
 _MESSAGE_COLUMNS = tuple(MESSAGE_NAMES.values())
 _ZEROS = (0,) * len(_MESSAGE_COLUMNS)  # the count of a message never received
 # (Two tables: both are IntEnums, whose members with equal values are equal keys.)
@@ -449,6 +460,27 @@ _COUNT_CELLS = operator.attrgetter(
     *("duplicates", "out_of_window", "resyncs", "bad_tags", "malformed", "foreign"),
     *("misattributed", "latency_count"),
 )
+
+
+def _health_cells(health: VehicleHealth) -> tuple[CsvValue, ...]:
+    """Vehicle Health as the CSV has it: flags 0/1, unknowns empty, texts escaped.
+
+    The texts came over the air: :func:`~clark_engine.untrusted.printable` escapes every
+    control character, so a text is one inert cell on one line whatever it holds.
+    """
+    return (
+        int(health.armed),
+        _blank(health.battery_v),
+        _blank(health.battery_pct),
+        health.gps_fix_type,
+        _blank(health.satellites),
+        health.prearm.name.lower(),
+        health.text_severity if health.text else "",
+        printable(health.text),
+        health.text_age_s if health.text else "",
+        printable(health.failsafe),
+        int(health.autopilot_lost),
+    )
 
 
 def _blank(value: float | None) -> CsvValue:
@@ -494,7 +526,9 @@ class _SampleText:
 
     __slots__ = ("_cells", "_empty", "_sample", "_text")
 
-    def __init__(self, cells: operator.attrgetter[Any], empty: tuple[CsvValue, ...]) -> None:
+    def __init__(
+        self, cells: Callable[[Any], tuple[CsvValue, ...]], empty: tuple[CsvValue, ...]
+    ) -> None:
         self._cells = cells
         self._empty = empty
         self._sample: Sample[Any] | None = None
@@ -510,11 +544,12 @@ class _SampleText:
 class _CsvTexts:
     """One agent's CSV cells that change only when a packet arrives, kept as text."""
 
-    __slots__ = ("_key", "_link", "_stats_text", "attitude", "status")
+    __slots__ = ("_key", "_link", "_stats_text", "attitude", "health", "status")
 
     def __init__(self) -> None:
         self.status = _SampleText(_STATUS_CELLS, _NO_STATUS)
         self.attitude = _SampleText(_ATTITUDE_CELLS, _NO_ATTITUDE)
+        self.health = _SampleText(_health_cells, _NO_HEALTH)
         self._link: LinkStats | None = None  # held, so that its identity stays its own
         self._key: tuple[int, ...] | None = None
         self._stats_text: tuple[str, ...] = ()
@@ -841,6 +876,7 @@ class FleetTable:
             samples = record._samples
             status = samples.get(AgentStatus)
             attitude = samples.get(AgentAttitude)
+            health = samples.get(VehicleHealth)
             last_s = stats.last_packet_s
             rejected_s = stats.last_rejected_s
             row: list[CsvValue] = [
@@ -855,6 +891,8 @@ class FleetTable:
                 row += _NO_STATUS if status is None else _STATUS_CELLS(status.value)
                 row.append("" if status is None else now_s - status.received_s)
                 row += _NO_ATTITUDE if attitude is None else _ATTITUDE_CELLS(attitude.value)
+                row += _NO_HEALTH if health is None else _health_cells(health.value)
+                row.append("" if health is None else now_s - health.received_s)
                 row.append("" if last_s is None else now_s - last_s)
                 row.append("" if rejected_s is None else now_s - rejected_s)
                 row += _stats_cells(stats)
@@ -865,6 +903,8 @@ class FleetTable:
                 row += texts.status(status)
                 row.append("" if status is None else now_s - status.received_s)
                 row += texts.attitude(attitude)
+                row += texts.health(health)
+                row.append("" if health is None else now_s - health.received_s)
                 row.append("" if last_s is None else now_s - last_s)
                 row.append("" if rejected_s is None else now_s - rejected_s)
                 row += texts.stats(stats)

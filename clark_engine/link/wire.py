@@ -22,7 +22,10 @@ Decisions, each pinned by tests:
   within +-360 degrees (either convention for yaw, +-180 or 0..360, fits), agent
   and target ids within 16 bits (the header's width), enum values this engine
   knows (proto3 keeps unknown enum numbers as plain ints; the zero
-  ``UNSPECIFIED`` value is never sent, so it is rejected too).
+  ``UNSPECIFIED`` value is never sent, so it is rejected too), and Vehicle Health's
+  texts within their bounds (:data:`~clark_engine.link.messages.MAX_HEALTH_TEXT_BYTES`,
+  :data:`~clark_engine.link.messages.MAX_FAILSAFE_TEXT_BYTES` of UTF-8), its
+  battery, fix type, satellites and severity within MAVLink's ranges.
 * **Unknown fields are rejected** on decode, in the bundle and in every message:
   the header's protocol version fixes the message set, so a field this engine
   does not know means a peer speaking another version or damaged bytes, and half
@@ -51,6 +54,9 @@ from google.protobuf.unknown_fields import UnknownFieldSet
 from clark_engine.link._generated import clarklink_pb2 as pb
 from clark_engine.link.errors import MalformedPacket
 from clark_engine.link.messages import (
+    MAX_FAILSAFE_TEXT_BYTES,
+    MAX_HEALTH_TEXT_BYTES,
+    MAX_SEVERITY_SENT,
     MESSAGE_NAMES,
     ActivateController,
     AgentAttitude,
@@ -62,7 +68,9 @@ from clark_engine.link.messages import (
     Message,
     ModeChangeRequest,
     PictureData,
+    PrearmState,
     Terminate,
+    VehicleHealth,
 )
 
 #: Message types in bundle order; index + 1 is the ``Bundle`` field number.
@@ -75,6 +83,7 @@ MESSAGE_ORDER: tuple[type[Message], ...] = (
     AgentAttitude,
     Terminate,
     BehaviorState,
+    VehicleHealth,
 )
 _RANK: dict[type, int] = {cls: i for i, cls in enumerate(MESSAGE_ORDER)}
 # Field key of each Bundle field: (field number << 3) | wire type 2 (length-delimited).
@@ -91,6 +100,9 @@ LAT_E7_MAX = 900_000_000
 LON_E7_MAX = 1_800_000_000
 HEADING_CDEG_MAX = 35_999
 ATTITUDE_CDEG_MAX = 36_000
+BATTERY_MV_MAX = 65_534  # SYS_STATUS.voltage_battery is a uint16; 65535 means "not measured"
+GPS_FIX_TYPE_MAX = 8  # MAVLink GPS_FIX_TYPE_PPP
+SATELLITES_MAX = 254  # GPS_RAW_INT.satellites_visible is a uint8; 255 means "unknown"
 
 
 # --------------------------------------------------------------------------- encode helpers
@@ -137,6 +149,16 @@ def _heading_cdeg(heading_deg: float) -> int:
 
 def _attitude_cdeg(angle_deg: float, name: str) -> int:
     return _scaled(angle_deg, 100, -ATTITUDE_CDEG_MAX, ATTITUDE_CDEG_MAX, name)
+
+
+def _text(value: str, limit: int, name: str) -> str:
+    """A bounded text field: refused (ValueError) beyond ``limit`` bytes of UTF-8."""
+    if not isinstance(value, str):
+        raise TypeError(f"{name} must be a str, not {type(value).__name__}")
+    size = len(value.encode("utf-8"))
+    if size > limit:
+        raise ValueError(f"{name} is {size} bytes of UTF-8, over {limit}; cut it with fit_text")
+    return value
 
 
 def _heartbeat_to_pb(m: Heartbeat) -> pb.Heartbeat:
@@ -234,6 +256,34 @@ def _behavior_state_to_pb(m: BehaviorState) -> pb.BehaviorState:
     )
 
 
+def _vehicle_health_to_pb(m: VehicleHealth) -> pb.VehicleHealth:
+    agent_id, gps_time_ms = _ids(m)
+    severity = _uint(m.text_severity, MAX_SEVERITY_SENT, "text_severity")
+    text = _text(m.text, MAX_HEALTH_TEXT_BYTES, "text")
+    if severity and not text:
+        raise ValueError(f"text_severity={severity} without a text")
+    fields: dict[str, Any] = {
+        "agent_id": agent_id,
+        "gps_time_ms": gps_time_ms,
+        "armed": bool(m.armed),
+        "gps_fix_type": _uint(m.gps_fix_type, GPS_FIX_TYPE_MAX, "gps_fix_type"),
+        "prearm": cast(pb.PrearmState, PrearmState(m.prearm).value),
+        "text_severity": severity,
+        "text": text,
+        "failsafe": _text(m.failsafe, MAX_FAILSAFE_TEXT_BYTES, "failsafe"),
+        "autopilot_lost": bool(m.autopilot_lost),
+        "text_age_s": _uint(m.text_age_s, _U32, "text_age_s"),
+    }
+    # Absent, not zero, when unknown: proto3's optional fields keep the difference.
+    if m.battery_v is not None:
+        fields["battery_mv"] = _scaled(m.battery_v, 1000, 0, BATTERY_MV_MAX, "battery_v")
+    if m.battery_pct is not None:
+        fields["battery_remaining_pct"] = _uint(m.battery_pct, 100, "battery_pct")
+    if m.satellites is not None:
+        fields["satellites"] = _uint(m.satellites, SATELLITES_MAX, "satellites")
+    return pb.VehicleHealth(**fields)
+
+
 _TO_PB: dict[type, Callable[[Any], PbMessage]] = {
     Heartbeat: _heartbeat_to_pb,
     AgentStatus: _agent_status_to_pb,
@@ -243,6 +293,7 @@ _TO_PB: dict[type, Callable[[Any], PbMessage]] = {
     AgentAttitude: _agent_attitude_to_pb,
     Terminate: _terminate_to_pb,
     BehaviorState: _behavior_state_to_pb,
+    VehicleHealth: _vehicle_health_to_pb,
 }
 
 
@@ -448,6 +499,52 @@ def _behavior_state_from_pb(p: pb.BehaviorState) -> BehaviorState:
     )
 
 
+def _vehicle_health_from_pb(p: pb.VehicleHealth) -> VehicleHealth:
+    _check_ids(p, "vehicle_health")
+    try:
+        prearm = PrearmState(p.prearm)
+    except ValueError:
+        raise MalformedPacket(f"vehicle_health has an unknown prearm {p.prearm}") from None
+    for name, value, limit in (
+        ("text", p.text, MAX_HEALTH_TEXT_BYTES),
+        ("failsafe", p.failsafe, MAX_FAILSAFE_TEXT_BYTES),
+    ):
+        size = len(value.encode("utf-8"))
+        _check(size <= limit, f"vehicle_health.{name} is {size} bytes, over {limit}")
+    _check(
+        p.text_severity <= MAX_SEVERITY_SENT and (bool(p.text) or not p.text_severity),
+        f"vehicle_health.text_severity {p.text_severity} is not a warning of its text",
+    )
+    _check(
+        p.gps_fix_type <= GPS_FIX_TYPE_MAX,
+        f"vehicle_health.gps_fix_type {p.gps_fix_type} is above {GPS_FIX_TYPE_MAX}",
+    )
+    battery_mv = p.battery_mv if p.HasField("battery_mv") else None
+    pct = p.battery_remaining_pct if p.HasField("battery_remaining_pct") else None
+    satellites = p.satellites if p.HasField("satellites") else None
+    _check(battery_mv is None or battery_mv <= BATTERY_MV_MAX, "vehicle_health.battery_mv")
+    _check(pct is None or pct <= 100, f"vehicle_health.battery_remaining_pct {pct} is over 100")
+    _check(
+        satellites is None or satellites <= SATELLITES_MAX,
+        f"vehicle_health.satellites {satellites} is over {SATELLITES_MAX}",
+    )
+    return VehicleHealth(
+        agent_id=p.agent_id,
+        gps_time_ms=p.gps_time_ms,
+        armed=p.armed,
+        battery_v=battery_mv / 1000 if battery_mv is not None else None,
+        battery_pct=pct,
+        gps_fix_type=p.gps_fix_type,
+        satellites=satellites,
+        prearm=prearm,
+        text_severity=p.text_severity,
+        text=p.text,
+        failsafe=p.failsafe,
+        autopilot_lost=p.autopilot_lost,
+        text_age_s=p.text_age_s,
+    )
+
+
 # Bundle field name -> converter; the names are MESSAGE_NAMES (and the .proto's field names).
 _FROM_PB: dict[str, Callable[[Any], Message]] = {
     MESSAGE_NAMES[Heartbeat]: _heartbeat_from_pb,
@@ -458,6 +555,7 @@ _FROM_PB: dict[str, Callable[[Any], Message]] = {
     MESSAGE_NAMES[AgentAttitude]: _agent_attitude_from_pb,
     MESSAGE_NAMES[Terminate]: _terminate_from_pb,
     MESSAGE_NAMES[BehaviorState]: _behavior_state_from_pb,
+    MESSAGE_NAMES[VehicleHealth]: _vehicle_health_from_pb,
 }
 
 

@@ -17,7 +17,13 @@ if TYPE_CHECKING:
     from clark_engine.mission.envelope import Envelope, EnvelopeDecl
 
 #: Messages an agent may send periodically (its telemetry schedule).
-TELEMETRY_MESSAGES = ("heartbeat", "agent_status", "agent_attitude", "behavior_state")
+TELEMETRY_MESSAGES = (
+    "heartbeat",
+    "agent_status",
+    "agent_attitude",
+    "behavior_state",
+    "vehicle_health",
+)
 
 PARTS = ("airframe", "autopilot", "radio", "computer")
 

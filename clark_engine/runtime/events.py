@@ -115,6 +115,31 @@ class AutopilotStatus:
 
 
 @dataclass(frozen=True, slots=True)
+class AutopilotHealth:
+    """The autopilot's battery, GPS and pre-arm checks, for the vehicle's Vehicle Health.
+
+    The adapter sends one each time SYS_STATUS or GPS_RAW_INT arrives (their stream
+    rates, 1 and 2 Hz), from the latest of both: a battery's voltage changes at every
+    sample, so "on change" would mean at every message anyway, and a fixed rate is what
+    the runtime's telemetry needs. Figures the autopilot marks as not measured are None.
+
+    Attributes:
+        battery_v: SYS_STATUS ``voltage_battery``; None when not measured (65535).
+        battery_pct: SYS_STATUS ``battery_remaining``, 0..100; None when unknown (-1).
+        gps_fix_type: GPS_RAW_INT ``fix_type`` (MAVLink GPS_FIX_TYPE: 0 no GPS, 1 no
+            fix, 2 2-D, 3 3-D, 4 DGPS, 5 RTK float, 6 RTK fixed, 7 static, 8 PPP).
+        satellites: GPS_RAW_INT ``satellites_visible``; None when unknown (255).
+        prearm_ok: SYS_STATUS's pre-arm check bit is healthy; None when not reported.
+    """
+
+    battery_v: float | None = None
+    battery_pct: int | None = None
+    gps_fix_type: int = 0
+    satellites: int | None = None
+    prearm_ok: bool | None = None
+
+
+@dataclass(frozen=True, slots=True)
 class AutopilotText:
     """A STATUSTEXT from the autopilot (a PreArm reason, a mode refusal, a notice).
 
@@ -226,6 +251,7 @@ Event = (
     VehicleState
     | AutopilotHeartbeat
     | AutopilotStatus
+    | AutopilotHealth
     | AutopilotText
     | CommandRefused
     | AutopilotSafetyResult

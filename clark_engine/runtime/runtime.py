@@ -41,6 +41,9 @@ from clark_engine.link.codec import Codec
 from clark_engine.link.errors import ClarkLinkError, MalformedPacket
 from clark_engine.link.fleet import AgentFound, AgentLost, FleetTable, ForeignAgent
 from clark_engine.link.messages import (
+    MAX_FAILSAFE_TEXT_BYTES,
+    MAX_HEALTH_TEXT_BYTES,
+    MAX_SEVERITY_SENT,
     MESSAGE_NAMES,
     ActivateController,
     AgentAttitude,
@@ -52,7 +55,10 @@ from clark_engine.link.messages import (
     Message,
     ModeChangeRequest,
     PictureData,
+    PrearmState,
     Terminate,
+    VehicleHealth,
+    fit_text,
 )
 from clark_engine.link.packet import BROADCAST, Packet
 from clark_engine.runtime.autopilot_safety import SafetyPlanError, safety_setup
@@ -78,9 +84,11 @@ from clark_engine.runtime.envelope import (
     PeerPositions,
 )
 from clark_engine.runtime.events import (
+    AutopilotHealth,
     AutopilotHeartbeat,
     AutopilotSafetyResult,
     AutopilotStatus,
+    AutopilotText,
     CommandRefused,
     Event,
     PacketReceived,
@@ -109,6 +117,10 @@ _REQUESTS = (SetMode, Arm, Takeoff)
 #: confirmed it (a heartbeat with the terminated condition) this often: one broadcast on
 #: a lossy radio is not enough to stop every vehicle.
 TERMINATE_RESEND_S = 1.0
+#: Vehicle Health's figures outside these are sent as unknown (the wire refuses them).
+_BATTERY_V_MAX = 65.534
+_GPS_FIX_TYPE_MAX = 8
+_SATELLITES_MAX = 254
 #: Most messages one packet may hold from an agent not in the mission: one of each kind.
 _MAX_MESSAGES_UNKNOWN = len(MESSAGE_NAMES)
 #: An autopilot safety set-up cut short by the autopilot's silence is asked for again no
@@ -146,6 +158,10 @@ class AgentRuntime:
             with an envelope; None otherwise).
         envelope_watch: Watches the vehicle and its peers against the envelope each
             tick (None where there is no guard).
+        failsafe_reason: Why it is in force: ``mcs_lost``, or the envelope breach's kind
+            (``fence``, ``ceiling``, ``floor``, ``endurance``, ``separation slash_a``);
+            "" when none. With ``failsafe`` it is Vehicle Health's ``failsafe`` text
+            (``hold: mcs_lost``, ``rtl: fence``).
     """
 
     def __init__(
@@ -219,6 +235,7 @@ class AgentRuntime:
                 "no envelope in this config: targets are not checked and nothing is "
                 "watched; compile the mission again with clark compile"
             )
+        self.failsafe_reason = ""
         #: When the behaviour may start (readiness, arming, take-off, as the mission says).
         self.launch = LaunchGate(config, self.logbook.mission)
         #: The autopilot's safety set-up: ``due`` (to be sent), ``sent``, ``done`` or
@@ -256,6 +273,11 @@ class AgentRuntime:
         # Messages primitives queued (Picture Data) wait here for the telemetry phase.
         self._pending_messages: list[tuple[Message, tuple[str, ...]]] = []
         self._gps_epoch_ms = gps_epoch_ms
+        # Vehicle Health: the autopilot's latest battery, GPS and pre-arm figures, its
+        # latest text of WARNING or worse with when it arrived, and whether it is armed.
+        self._health: AutopilotHealth | None = None
+        self._warning: tuple[AutopilotText, float] | None = None
+        self._armed = False
         self._vehicle_gps: tuple[int, float] | None = None  # (gps ms, runtime s) of last fix
         self._autopilot_seen_s: float | None = None
         self._autopilot_lost = False
@@ -326,6 +348,11 @@ class AgentRuntime:
             self.context.autopilot = event
         elif isinstance(event, AutopilotSafetyResult):
             self._safety_result(event, now_s)
+        elif isinstance(event, AutopilotHealth):
+            self._health = event
+        elif isinstance(event, AutopilotText):
+            if event.severity <= MAX_SEVERITY_SENT:
+                self._warning = (event, now_s)
         elif isinstance(event, CommandRefused):
             self.logbook.mission.warning(
                 "autopilot refused %s: %s%s",
@@ -344,6 +371,7 @@ class AgentRuntime:
 
     def _vehicle(self, state: VehicleState, now_s: float) -> None:
         self.context.vehicle = state
+        self._armed = state.armed
         if state.gps_time_ms:
             self._vehicle_gps = (state.gps_time_ms, now_s)
             self.context.gps_time_ms = state.gps_time_ms
@@ -356,6 +384,7 @@ class AgentRuntime:
         # Heard, but the loss ends only with a VehicleState: the behaviour must see where
         # the vehicle is and its mode now before anything commands it again.
         self._autopilot_seen_s = now_s
+        self._armed = beat.armed
         self._mode_seen(beat.mode)
 
     def _autopilot_back(self) -> None:
@@ -860,7 +889,55 @@ class AgentRuntime:
             return AgentAttitude(me, gps, vehicle.roll_deg, vehicle.pitch_deg, vehicle.yaw_deg)
         if name == "behavior_state" and self.machine is not None:
             return BehaviorState(me, gps, self.machine.active_paths(), self.machine.last_event)
+        if name == "vehicle_health" and self.config.is_vehicle:
+            return self._vehicle_health(me, gps)
         return None
+
+    def _vehicle_health(self, me: int, gps: int) -> VehicleHealth:
+        """Vehicle Health now: what the autopilot last said, and the failsafe in force.
+
+        Every figure is sent within the wire's range or as unknown (an autopilot's
+        garbled figure must not stop the tick: the encoder refuses what is out of
+        range), and the texts are cut to their bounds at a character boundary.
+        """
+        health = self._health or AutopilotHealth()
+        battery_v = health.battery_v
+        if battery_v is not None and not 0.0 <= battery_v <= _BATTERY_V_MAX:
+            battery_v = None
+        pct = health.battery_pct if health.battery_pct in range(101) else None
+        satellites = health.satellites
+        if satellites is not None and not 0 <= satellites <= _SATELLITES_MAX:
+            satellites = None
+        severity, text, age_s = 0, "", 0
+        if self._warning is not None:
+            said, at_s = self._warning
+            text = fit_text(said.text, MAX_HEALTH_TEXT_BYTES)
+            severity = max(0, said.severity) if text else 0
+            age_s = max(0, int(self.context.now_s - at_s)) if text else 0
+        failsafe = ""
+        if self.failsafe is not None:
+            why = f": {self.failsafe_reason}" if self.failsafe_reason else ""
+            failsafe = fit_text(f"{self.failsafe}{why}", MAX_FAILSAFE_TEXT_BYTES)
+        prearm = {None: PrearmState.UNKNOWN, True: PrearmState.PASSING}.get(
+            health.prearm_ok, PrearmState.FAILING
+        )
+        return VehicleHealth(
+            agent_id=me,
+            gps_time_ms=gps,
+            armed=self._armed,
+            battery_v=battery_v,
+            battery_pct=pct,
+            gps_fix_type=health.gps_fix_type
+            if 0 <= health.gps_fix_type <= _GPS_FIX_TYPE_MAX
+            else 0,
+            satellites=satellites,
+            prearm=prearm,
+            text_severity=severity,
+            text=text,
+            failsafe=failsafe,
+            autopilot_lost=self._autopilot_lost,
+            text_age_s=age_s,
+        )
 
     def _condition(self) -> Condition:
         if self.terminated:
@@ -924,6 +1001,13 @@ class AgentRuntime:
             "land": self.config.land_mode,
         }.get(action)
         self.failsafe = action
+        self.failsafe_reason = (
+            "mcs_lost"
+            if breach is None
+            else f"{breach.kind} {breach.peer}"
+            if breach.peer
+            else breach.kind
+        )
         if self.machine is not None:
             self.machine.stop(self.context)
             self._collect_outbox()

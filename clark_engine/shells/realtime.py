@@ -88,6 +88,7 @@ from clark_engine.runtime.commands import (
     SendPacket,
 )
 from clark_engine.runtime.events import (
+    AutopilotHealth,
     AutopilotHeartbeat,
     AutopilotSafetyResult,
     AutopilotStatus,
@@ -111,6 +112,7 @@ _RUNTIME_EVENTS = (
     VehicleState,
     AutopilotHeartbeat,
     AutopilotStatus,
+    AutopilotHealth,
     AutopilotText,
     CommandRefused,
     AutopilotSafetyResult,

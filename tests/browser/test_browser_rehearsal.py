@@ -6,15 +6,21 @@ view served on loopback, the mission's operator actions left to the page) and on
 of headless Chromium, taken through the mission in order, step by step, by one test (so
 that however the suite is spread over processes, the steps stay together and in order):
 
-1. the agents appear with their states, and the checks pane lists the mission's checks;
+1. the agents appear with their states and health, each vehicle's envelope is drawn on the
+   map (its default geofence, a mile around its start, its ceiling in its row), and the
+   checks pane lists the mission's checks;
 2. the link between the station and slash_a drops from 20 s to 26 s (a fault of the
    run): slash_a is flagged STALE, then LOST, then live again;
 3. once both vehicles' behaviours have started (about 44 s), Activate for slash_b: its
    command shows pending, then done, it chases slash_a on the map (its label moves, its
    track grows) and parks, and the checks pane shows the checks passing;
 4. a mode change from the page (slash_b to MANUAL) shows in its row;
-5. Terminate from the dialog: slash_a alone stops where it is; then all: the station
-   terminates slash_b, takes its confirmation and terminates itself.
+5. the link between the station and slash_b drops from 75 s to 81 s (a second fault of
+   the run): slash_b loses its station and its failsafe holds it; once heard again, the
+   page raises a failsafe alarm, once, in its banner and its mission log;
+6. Terminate from the dialog: slash_a alone stops where it is; then all: the station
+   terminates slash_b, takes its confirmation and terminates itself, and slash_b's alarm
+   is cleared.
 
 Every step waits on the page's own content (its clock, rows, commands, labels), never
 on a fixed sleep; a failure names its step. The rehearsal is the slow part: about 80 s
@@ -50,8 +56,12 @@ LINK_DOWN_S = (20, 26)
 """The station and slash_a cannot hear each other then: before the vehicles' behaviours
 start (about 44 s), so that the drop changes nothing in the mission but the view."""
 
-UNTIL_S = 110
-"""The rehearsal's end, at the latest (the steps are over by about 80 s)."""
+SLASH_B_DOWN_S = (75, 81)
+"""The station and slash_b cannot hear each other then: after slash_b has parked (about
+60 s) and its mode was changed, so that its failsafe changes nothing but the view."""
+
+UNTIL_S = 130
+"""The rehearsal's end, at the latest (the steps are over by about 95 s)."""
 
 STEP_TIMEOUT_MS = 60_000
 """The longest a step waits for what it expects (a timeout, never a measured time)."""
@@ -200,6 +210,8 @@ def rehearsal(tmp_path: Path) -> Iterator[ServedStation]:
         "--no-operator-script",
         "--fault",
         f"link_drop:mcs,slash_a@{LINK_DOWN_S[0]}-{LINK_DOWN_S[1]}",
+        "--fault",
+        f"link_drop:mcs,slash_b@{SLASH_B_DOWN_S[0]}-{SLASH_B_DOWN_S[1]}",
         "--until",
         str(UNTIL_S),
         "--quiet",
@@ -248,6 +260,8 @@ def test_the_cooperative_follow_rehearsal_through_the_page(view: Any) -> None:
         activating_the_follower_makes_it_chase_on_the_map(view)
     with step("a mode change from the page shows in the row"):
         a_mode_change_from_the_page_shows_in_its_row(view)
+    with step("slash_b's failsafe raises an alarm, once"):
+        a_failsafe_raises_an_alarm_once(view)
     with step("Terminate from the dialog stops one vehicle, then every agent"):
         terminate_stops_every_agent(view)
 
@@ -267,9 +281,26 @@ def agents_appear_with_their_states(page: Any) -> None:
         expect(_cell(page, name, "liveness")).to_have_text("live")
         expect(_cell(page, name, "heard")).to_have_text(re.compile(r"^\d+\.\d s ago$"))
         expect(_cell(page, name, "condition")).to_have_text("ok")
-        expect(_cell(page, name, "armed")).to_have_text("unknown")  # not carried by ClarkLink
         expect(_cell(page, name, "mode")).to_have_text("MANUAL (0)")  # their pilots' mode
         expect(_cell(page, name, "behaviour")).to_have_text(NOTHING)  # not started yet
+        # their Vehicle Health, every 2 s: on the ground, unarmed, the simulated battery
+        expect(_cell(page, name, "armed")).to_have_text("disarmed")
+        expect(_cell(page, name, "battery")).to_have_text("12.6 V 100 %")
+        expect(_cell(page, name, "ceiling")).to_have_text("120")  # the legal ceiling
+    # each vehicle's envelope: its default geofence, a circle of the XBee's range (a mile)
+    # around its start, dashed in its colour; drawn even where it is off the map's view
+    fences = page.locator("path.envelope-include")
+    expect(fences).to_have_count(2)
+    for name in ("slash_a", "slash_b"):
+        expect(page.locator(f"path.envelope-of-{name}")).to_have_count(1)
+    # drawn as circles (an SVG arc), each far wider than the field the map shows
+    page.wait_for_function(
+        """() => [...document.querySelectorAll("path.envelope-include")].every(path =>
+          /a[\\d.]+,[\\d.]+ /.test(path.getAttribute("d") || "")
+          && path.getBBox().width > document.getElementById("map").clientWidth)""",
+        timeout=STEP_TIMEOUT_MS,
+    )
+    expect(page.get_by_test_id("alarms")).to_be_hidden()  # no alarm yet
     # the rehearsal evaluates the mission's checks as it runs
     expect(page.get_by_test_id("checks-none")).to_be_hidden()
     checks = page.get_by_test_id("checks").locator("li")
@@ -297,6 +328,10 @@ def activating_the_follower_makes_it_chase_on_the_map(page: Any) -> None:
     # both behaviours have started: slash_a on its tour, slash_b waiting in idle
     expect(_cell(page, "slash_b", "behaviour")).to_have_text("idle ← start")
     expect(_cell(page, "slash_a", "behaviour")).to_have_text("(behaviour) ← start")
+    for name in ("slash_a", "slash_b"):  # armed by their pilots once their autopilots were ready
+        expect(_cell(page, name, "armed")).to_have_text("ARMED")
+        expect(_cell(page, name, "prearm")).to_have_text("passing")
+        expect(_cell(page, name, "gps")).to_have_text("3-D fix, 10 sats")
     before = _label(page, "slash_b")
     track = page.evaluate(TRACK_BOX, "slash_b")
     assert track is not None, "no track of slash_b on the map"
@@ -344,6 +379,24 @@ def a_mode_change_from_the_page_shows_in_its_row(page: Any) -> None:
     expect(_cell(page, "slash_a", "mode")).to_have_text("GUIDED (15)")  # the other unchanged
 
 
+def a_failsafe_raises_an_alarm_once(page: Any) -> None:
+    _wait_clock(page, SLASH_B_DOWN_S[1])  # the link is back: slash_b is heard again
+    alarm = page.get_by_test_id("alarm-list").locator('li[data-kind="failsafe"]')
+    expect(alarm).to_have_count(1)
+    expect(page.get_by_test_id("alarms")).to_be_visible()
+    expect(alarm).to_have_attribute("data-status", "active")
+    expect(alarm.locator(".alarm-text")).to_have_text("slash_b in failsafe: hold: mcs_lost")
+    expect(_cell(page, "slash_b", "condition")).to_have_text("failsafe (hold: mcs_lost)")
+    expect(_row(page, "slash_b")).to_have_attribute("data-alarm", "1")
+    log = page.get_by_test_id("mission-log")
+    expect(log).to_contain_text("failsafe: slash_b in failsafe")
+    # raised once per episode: seconds later, still one alarm and one log line
+    _wait_clock(page, _clock_s(page) + 3.0)
+    expect(alarm).to_have_count(1)
+    raised = log.locator("li").filter(has_text=re.compile(r"ALARM \d+ failsafe: slash_b"))
+    expect(raised).to_have_count(1)
+
+
 def _terminate(page: Any, target: str) -> None:
     page.get_by_test_id("terminate-open").click()
     dialog = page.get_by_test_id("terminate-dialog")
@@ -388,6 +441,11 @@ def terminate_stops_every_agent(page: Any) -> None:
     expect(_cell(page, "slash_b", "condition")).to_have_text("terminated")
     expect(page.get_by_test_id("station-clock")).to_contain_text("station TERMINATED")
     expect(page.get_by_test_id("activate-slash_b")).to_be_disabled()
+    # slash_b's failsafe ended with it: its alarm is cleared, visibly (the station, which
+    # terminated in the same tick, has closed its log: the clearing is not logged)
+    alarm = page.get_by_test_id("alarm-list").locator('li[data-kind="failsafe"]')
+    expect(alarm).to_have_attribute("data-status", "cleared")
+    expect(alarm.locator(".alarm-time")).to_contain_text("cleared at t = ")
     sent = ["terminate all", "terminate slash_a", "mode slash_b MANUAL", "activate slash_b"]
     expect(page.get_by_test_id("commands").locator(".command-what")).to_have_text(
         [re.compile(rf"^#\d+ {what}$") for what in sent]  # newest first; none on cancel

@@ -3,8 +3,10 @@
  * It opens the WebSocket /ws of the page's own server (the token travels in the cookie
  * the server set), draws `hello` (the mission, its agents, its plan) and each `state`
  * (the agents, new track points, photos and mission-log lines, the commands and their
- * lifecycle), and sends the operator's commands. Everything received is written as
- * text (textContent), never as HTML. Protocol: docs/station-view.md.
+ * lifecycle, the alarms), and sends the operator's commands. Each vehicle's envelope
+ * (geofence zones, ceiling) comes in `hello`; its health (armed, battery, GPS, pre-arm,
+ * the autopilot's latest warning) in each row of `state`. Everything received is written
+ * as text (textContent), never as HTML. Protocol: docs/station-view.md.
  *
  * In a replay (`clark replay LOGS`, hello.mode "replay") there are no controls: a time
  * slider, play/pause and a speed choice send `seek`, `play`, `pause` and `speed`; the
@@ -19,6 +21,10 @@
   var photoMarkers = []; // oldest first
   var MAX_LOG_ITEMS = 500;
   var RECONNECT_MS = 2000;
+  var SEVERITIES = ["EMERGENCY", "ALERT", "CRITICAL", "ERROR", "WARNING"];
+  var GPS_FIXES = ["no GPS", "no fix", "2-D fix", "3-D fix", "DGPS", "RTK float", "RTK fixed", "static", "PPP"];
+  var LOW_BATTERY_PCT = 20;
+  var CLASS_SAFE = /^[a-z][a-z0-9_]*$/; // mission names: usable in a class name as they are
   var PALETTE = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf",
     "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22"];
 
@@ -212,8 +218,9 @@
       var row = el("tr", { "data-testid": "agent-row-" + agent.name, "data-agent": agent.name });
       var cells = {};
       var controls = el("td", { "data-field": "controls", "class": "controls" });
-      ["name", "controls", "airframe", "liveness", "heard", "mode", "armed", "behaviour", "condition",
-        "local", "latlon", "alt", "speed", "heading", "link"].forEach(function (field) {
+      ["name", "controls", "airframe", "liveness", "heard", "mode", "armed", "battery", "gps", "prearm",
+        "autopilot", "behaviour", "condition", "local", "latlon", "alt", "ceiling", "speed", "heading",
+        "link"].forEach(function (field) {
         var cell = field === "controls" ? controls : el("td", { "data-field": field });
         cells[field] = cell;
         row.appendChild(cell);
@@ -222,6 +229,7 @@
       cells.name.style.borderLeftColor = colourOf(agent.id);
       cells.name.className = "agent-name";
       cells.airframe.textContent = agent.airframe || (agent.role === "mcs" ? "station" : "–");
+      cells.ceiling.textContent = agent.envelope ? fixed(agent.envelope.ceiling_m, 0) : "–";
       var select = null;
       if (agent.role !== "mcs" && !replay) {
         var activate = el("button", { type: "button", "data-testid": "activate-" + agent.name }, "Activate");
@@ -269,8 +277,9 @@
     photoMarkers = [];
     map = L.map("map", { crs: L.CRS.Simple, minZoom: -6, maxZoom: 6, zoomSnap: 0.25, attributionControl: false });
     L.control.scale({ metric: true, imperial: false, maxWidth: 150 }).addTo(map);
-    layers = { plan: L.layerGroup().addTo(map), tracks: L.layerGroup().addTo(map),
-      photos: L.layerGroup().addTo(map), agents: L.layerGroup().addTo(map) };
+    layers = { envelope: L.layerGroup().addTo(map), plan: L.layerGroup().addTo(map),
+      tracks: L.layerGroup().addTo(map), photos: L.layerGroup().addTo(map),
+      agents: L.layerGroup().addTo(map) };
     var bounds = L.latLngBounds([[0, 0], [0, 0]]);
     L.circleMarker([0, 0], { radius: 3, color: "#444", weight: 1, fillOpacity: 1 })
       .bindTooltip(text("origin")).addTo(layers.plan);
@@ -281,6 +290,7 @@
     }
     message.agents.forEach(function (agent) {
       var colour = colourOf(agent.id);
+      drawEnvelope(agent, colour, bounds);
       if (agent.home) {
         L.circleMarker(ll(agent.home), { radius: 4, color: colour, weight: 1, fillOpacity: 0.2 })
           .bindTooltip(text(agent.name + " start")).addTo(layers.plan);
@@ -311,6 +321,36 @@
     var padded = bounds.pad(0.2);
     if (padded.getNorth() - padded.getSouth() < 20) { padded = L.latLngBounds([[-30, -30], [30, 30]]).extend(padded); }
     map.fitBounds(padded);
+  }
+
+  // A vehicle's geofence: its inclusion zones dashed in its colour (the default circle
+  // around its start too), its exclusion zones filled red. Declared zones widen the view;
+  // the default circle (a radio's range, often a mile) does not.
+  function drawEnvelope(agent, colour, bounds) {
+    var envelope = agent.envelope;
+    if (!envelope) { return; }
+    var who = CLASS_SAFE.test(agent.name) ? " envelope-of-" + agent.name : "";
+    var zone = function (item, inclusion) {
+      var style = inclusion
+        ? { color: colour, weight: 1.5, opacity: 0.7, dashArray: "8 6", fill: false,
+            className: "envelope envelope-include" + who }
+        : { color: "#b00020", weight: 1.5, opacity: 0.9, fillColor: "#b00020", fillOpacity: 0.12,
+            className: "envelope envelope-exclude" + who };
+      var shape;
+      if (item.kind === "circle") {
+        shape = L.circle(ll(item.center), Object.assign({ radius: item.radius_m }, style));
+      } else {
+        shape = L.polygon(item.points.map(ll), style);
+      }
+      var isDefault = inclusion && envelope.default_radius_m !== null;
+      var label = agent.name + ": " + (inclusion
+        ? (isDefault ? "geofence, " + fixed(envelope.default_radius_m, 0) + " m around its start (default)" : "geofence")
+        : "excluded zone") + "; ceiling " + fixed(envelope.ceiling_m, 0) + " m";
+      shape.bindTooltip(text(label), { sticky: true }).addTo(layers.envelope);
+      if (!isDefault) { bounds.extend(shape.getBounds()); }
+    };
+    envelope.include.forEach(function (item) { zone(item, true); });
+    envelope.exclude.forEach(function (item) { zone(item, false); });
   }
 
   function updateMap(message) {
@@ -360,6 +400,11 @@
         layer.faded = faded;
         layer.marker.setStyle({ fillOpacity: faded ? 0.3 : 0.9, dashArray: faded ? "3 3" : null });
       }
+      var alarm = Boolean(agent.alarm);
+      if (layer.alarm !== alarm) {
+        layer.alarm = alarm;
+        layer.marker.setStyle({ color: alarm ? "#b00020" : "#000", weight: alarm ? 4 : 2 });
+      }
       var label = agent.name + (agent.lost ? " (LOST)" : agent.stale ? " (STALE)" : "");
       if (layer.label !== label) {
         layer.label = label;
@@ -388,10 +433,21 @@
     if (station.terminated && !replay) { setControlsEnabled(false); }
     if (replay && message.replay) { updateReplayBar(message.replay); }
     message.agents.forEach(updateRow);
+    updateAlarms(message.alarms || []);
     updateMap(message);
     updateLog(message.log);
     updateCommands(message.commands);
     updateChecks(message.checks);
+  }
+
+  // A cell's text or an attribute, written only when it changes: every write dirties the
+  // page's style and layout, which each agent's map label then measures again.
+  function put(node, value) {
+    if (node.textContent !== value) { node.textContent = value; }
+  }
+
+  function attr(node, name, value) {
+    if (node.getAttribute(name) !== value) { node.setAttribute(name, value); }
   }
 
   function updateRow(agent) {
@@ -399,34 +455,80 @@
     if (!entry) { return; }
     var c = entry.cells;
     var live = liveness(agent);
-    entry.row.className = "agent agent-" + live[0];
-    entry.row.setAttribute("data-liveness", live[0]);
-    c.liveness.textContent = live[1];
-    c.heard.textContent = agent.since_heartbeat_s === null ? "never" : fixed(agent.since_heartbeat_s, 1) + " s ago";
-    c.mode.textContent = agent.mode ? (agent.mode.name || "?") + " (" + agent.mode.number + ")" : "–";
+    attr(entry.row, "class", "agent agent-" + live[0] + (agent.alarm ? " agent-alarm" : ""));
+    attr(entry.row, "data-liveness", live[0]);
+    put(c.liveness, live[1]);
+    put(c.heard, agent.since_heartbeat_s === null ? "never" : fixed(agent.since_heartbeat_s, 1) + " s ago");
+    put(c.mode, agent.mode ? (agent.mode.name || "?") + " (" + agent.mode.number + ")" : "–");
     var chooser = entry.select;
     if (chooser && agent.mode && agent.mode.name && !chooser.hasAttribute("data-chosen") &&
         document.activeElement !== chooser &&
         Array.prototype.some.call(chooser.options, function (o) { return o.value === agent.mode.name; })) {
       chooser.value = agent.mode.name;
     }
-    c.armed.textContent = agent.armed === null ? "unknown" : (agent.armed ? "ARMED" : "disarmed");
-    c.behaviour.textContent = agent.behaviour
+    put(c.armed, agent.armed === null ? "unknown" : (agent.armed ? "ARMED" : "disarmed"));
+    attr(entry.row, "data-alarm", agent.alarm ? "1" : "0");
+    updateHealth(c, agent.health);
+    put(c.behaviour, agent.behaviour
       ? (agent.behaviour.active.map(function (path) { return path || "(behaviour)"; }).join(", ") || "(none)") + (agent.behaviour.last_event ? " ← " + agent.behaviour.last_event : "")
-      : "–";
-    c.condition.textContent = agent.condition || "–";
-    c.condition.className = agent.condition && agent.condition !== "ok" ? "condition-bad" : "";
+      : "–");
+    // The failsafe in force and why, from its health; a terminated vehicle's has ended.
+    var failsafe = agent.health && agent.health.failsafe && agent.condition !== "terminated"
+      ? " (" + agent.health.failsafe + ")" : "";
+    put(c.condition, (agent.condition || "–") + failsafe);
+    attr(c.condition, "class", agent.condition && agent.condition !== "ok" ? "condition-bad" : "");
     var pos = agent.position;
-    c.local.textContent = pos ? fixed(pos.north_m, 1) + ", " + fixed(pos.east_m, 1) : "–";
-    c.latlon.textContent = pos ? fixed(pos.lat, 7) + ", " + fixed(pos.lon, 7) : "–";
-    c.alt.textContent = pos ? fixed(pos.alt_m, 1) : "–";
-    c.speed.textContent = pos ? fixed(pos.ground_speed_m_s, 1) : "–";
-    c.heading.textContent = pos ? fixed(pos.heading_deg, 0) : "–";
+    put(c.local, pos ? fixed(pos.north_m, 1) + ", " + fixed(pos.east_m, 1) : "–");
+    put(c.latlon, pos ? fixed(pos.lat, 7) + ", " + fixed(pos.lon, 7) : "–");
+    put(c.alt, pos ? fixed(pos.alt_m, 1) : "–");
+    put(c.speed, pos ? fixed(pos.ground_speed_m_s, 1) : "–");
+    put(c.heading, pos ? fixed(pos.heading_deg, 0) : "–");
     var link = agent.link;
-    c.link.textContent = link
+    put(c.link, link
       ? link.packets + " pkts, loss " + (link.loss_ratio === null ? "–" : (100 * link.loss_ratio).toFixed(1) + " %") +
         ", " + (link.latency_mean_ms === null ? "–" : fixed(link.latency_mean_ms, 0) + " ms")
-      : "–";
+      : "–");
+  }
+
+  // Battery, GPS, pre-arm and the autopilot's latest warning, from the Vehicle Health.
+  function updateHealth(c, h) {
+    var mark = function (cell, bad) { attr(cell, "class", bad ? "health-bad" : ""); };
+    if (!h) {
+      ["battery", "gps", "prearm", "autopilot"].forEach(function (f) { put(c[f], "–"); mark(c[f], false); });
+      return;
+    }
+    put(c.battery, (h.battery_v === null ? "? V" : fixed(h.battery_v, 1) + " V") +
+      (h.battery_pct === null ? "" : " " + h.battery_pct + " %"));
+    mark(c.battery, h.battery_pct !== null && h.battery_pct <= LOW_BATTERY_PCT);
+    put(c.gps, (GPS_FIXES[h.gps_fix_type] || "fix type " + h.gps_fix_type) +
+      (h.satellites === null ? "" : ", " + h.satellites + " sats"));
+    mark(c.gps, h.gps_fix_type < 3);
+    put(c.prearm, h.prearm === "failing" ? "FAILING" : h.prearm);
+    mark(c.prearm, h.prearm === "failing");
+    var says = h.text === null ? "–"
+      : (SEVERITIES[h.text_severity] || "?") + ": " + h.text + " (" + fixed(h.text_age_s, 0) + " s ago)";
+    put(c.autopilot, (h.autopilot_lost ? "AUTOPILOT LOST · " : "") + says);
+    mark(c.autopilot, h.autopilot_lost || (h.text !== null && h.text_severity <= 2));
+  }
+
+  // The banner: every alarm in force, and those cleared in the last seconds (greyed).
+  function updateAlarms(alarms) {
+    var banner = $("alarms");
+    var list = $("alarm-list");
+    banner.hidden = alarms.length === 0;
+    banner.classList.toggle("alarms-active", alarms.some(function (a) { return a.cleared_s === null; }));
+    list.textContent = "";
+    alarms.forEach(function (alarm) {
+      var active = alarm.cleared_s === null;
+      var item = el("li", { "data-testid": "alarm-" + alarm.id, "data-kind": alarm.kind,
+        "data-status": active ? "active" : "cleared", "class": "alarm alarm-" + (active ? "active" : "cleared") });
+      item.appendChild(el("span", { "class": "alarm-kind" }, String(alarm.kind).toUpperCase()));
+      item.appendChild(el("span", { "class": "alarm-text" }, alarm.text));
+      item.appendChild(el("span", { "class": "alarm-time" }, active
+        ? "since t = " + fixed(alarm.raised_s, 1) + " s"
+        : "cleared at t = " + fixed(alarm.cleared_s, 1) + " s (raised " + fixed(alarm.raised_s, 1) + " s)"));
+      list.appendChild(item);
+    });
   }
 
   function updateLog(lines) {

@@ -8,6 +8,13 @@ from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
 
 DESCRIPTOR: _descriptor.FileDescriptor
 
+class PrearmState(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
+    __slots__ = ()
+    PREARM_STATE_UNSPECIFIED: _ClassVar[PrearmState]
+    PREARM_STATE_UNKNOWN: _ClassVar[PrearmState]
+    PREARM_STATE_PASSING: _ClassVar[PrearmState]
+    PREARM_STATE_FAILING: _ClassVar[PrearmState]
+
 class AgentType(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
     __slots__ = ()
     AGENT_TYPE_UNSPECIFIED: _ClassVar[AgentType]
@@ -21,6 +28,10 @@ class Condition(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
     CONDITION_DEGRADED: _ClassVar[Condition]
     CONDITION_FAILSAFE: _ClassVar[Condition]
     CONDITION_TERMINATED: _ClassVar[Condition]
+PREARM_STATE_UNSPECIFIED: PrearmState
+PREARM_STATE_UNKNOWN: PrearmState
+PREARM_STATE_PASSING: PrearmState
+PREARM_STATE_FAILING: PrearmState
 AGENT_TYPE_UNSPECIFIED: AgentType
 AGENT_TYPE_VEHICLE: AgentType
 AGENT_TYPE_MCS: AgentType
@@ -152,8 +163,38 @@ class BehaviorState(_message.Message):
     last_event: str
     def __init__(self, agent_id: _Optional[int] = ..., gps_time_ms: _Optional[int] = ..., active_states: _Optional[_Iterable[str]] = ..., last_event: _Optional[str] = ...) -> None: ...
 
+class VehicleHealth(_message.Message):
+    __slots__ = ("agent_id", "gps_time_ms", "armed", "battery_mv", "battery_remaining_pct", "gps_fix_type", "satellites", "prearm", "text_severity", "text", "failsafe", "autopilot_lost", "text_age_s")
+    AGENT_ID_FIELD_NUMBER: _ClassVar[int]
+    GPS_TIME_MS_FIELD_NUMBER: _ClassVar[int]
+    ARMED_FIELD_NUMBER: _ClassVar[int]
+    BATTERY_MV_FIELD_NUMBER: _ClassVar[int]
+    BATTERY_REMAINING_PCT_FIELD_NUMBER: _ClassVar[int]
+    GPS_FIX_TYPE_FIELD_NUMBER: _ClassVar[int]
+    SATELLITES_FIELD_NUMBER: _ClassVar[int]
+    PREARM_FIELD_NUMBER: _ClassVar[int]
+    TEXT_SEVERITY_FIELD_NUMBER: _ClassVar[int]
+    TEXT_FIELD_NUMBER: _ClassVar[int]
+    FAILSAFE_FIELD_NUMBER: _ClassVar[int]
+    AUTOPILOT_LOST_FIELD_NUMBER: _ClassVar[int]
+    TEXT_AGE_S_FIELD_NUMBER: _ClassVar[int]
+    agent_id: int
+    gps_time_ms: int
+    armed: bool
+    battery_mv: int
+    battery_remaining_pct: int
+    gps_fix_type: int
+    satellites: int
+    prearm: PrearmState
+    text_severity: int
+    text: str
+    failsafe: str
+    autopilot_lost: bool
+    text_age_s: int
+    def __init__(self, agent_id: _Optional[int] = ..., gps_time_ms: _Optional[int] = ..., armed: _Optional[bool] = ..., battery_mv: _Optional[int] = ..., battery_remaining_pct: _Optional[int] = ..., gps_fix_type: _Optional[int] = ..., satellites: _Optional[int] = ..., prearm: _Optional[_Union[PrearmState, str]] = ..., text_severity: _Optional[int] = ..., text: _Optional[str] = ..., failsafe: _Optional[str] = ..., autopilot_lost: _Optional[bool] = ..., text_age_s: _Optional[int] = ...) -> None: ...
+
 class Bundle(_message.Message):
-    __slots__ = ("heartbeat", "agent_status", "picture_data", "mode_change_request", "activate_controller", "agent_attitude", "terminate", "behavior_state")
+    __slots__ = ("heartbeat", "agent_status", "picture_data", "mode_change_request", "activate_controller", "agent_attitude", "terminate", "behavior_state", "vehicle_health")
     HEARTBEAT_FIELD_NUMBER: _ClassVar[int]
     AGENT_STATUS_FIELD_NUMBER: _ClassVar[int]
     PICTURE_DATA_FIELD_NUMBER: _ClassVar[int]
@@ -162,6 +203,7 @@ class Bundle(_message.Message):
     AGENT_ATTITUDE_FIELD_NUMBER: _ClassVar[int]
     TERMINATE_FIELD_NUMBER: _ClassVar[int]
     BEHAVIOR_STATE_FIELD_NUMBER: _ClassVar[int]
+    VEHICLE_HEALTH_FIELD_NUMBER: _ClassVar[int]
     heartbeat: _containers.RepeatedCompositeFieldContainer[Heartbeat]
     agent_status: _containers.RepeatedCompositeFieldContainer[AgentStatus]
     picture_data: _containers.RepeatedCompositeFieldContainer[PictureData]
@@ -170,4 +212,5 @@ class Bundle(_message.Message):
     agent_attitude: _containers.RepeatedCompositeFieldContainer[AgentAttitude]
     terminate: _containers.RepeatedCompositeFieldContainer[Terminate]
     behavior_state: _containers.RepeatedCompositeFieldContainer[BehaviorState]
-    def __init__(self, heartbeat: _Optional[_Iterable[_Union[Heartbeat, _Mapping]]] = ..., agent_status: _Optional[_Iterable[_Union[AgentStatus, _Mapping]]] = ..., picture_data: _Optional[_Iterable[_Union[PictureData, _Mapping]]] = ..., mode_change_request: _Optional[_Iterable[_Union[ModeChangeRequest, _Mapping]]] = ..., activate_controller: _Optional[_Iterable[_Union[ActivateController, _Mapping]]] = ..., agent_attitude: _Optional[_Iterable[_Union[AgentAttitude, _Mapping]]] = ..., terminate: _Optional[_Iterable[_Union[Terminate, _Mapping]]] = ..., behavior_state: _Optional[_Iterable[_Union[BehaviorState, _Mapping]]] = ...) -> None: ...
+    vehicle_health: _containers.RepeatedCompositeFieldContainer[VehicleHealth]
+    def __init__(self, heartbeat: _Optional[_Iterable[_Union[Heartbeat, _Mapping]]] = ..., agent_status: _Optional[_Iterable[_Union[AgentStatus, _Mapping]]] = ..., picture_data: _Optional[_Iterable[_Union[PictureData, _Mapping]]] = ..., mode_change_request: _Optional[_Iterable[_Union[ModeChangeRequest, _Mapping]]] = ..., activate_controller: _Optional[_Iterable[_Union[ActivateController, _Mapping]]] = ..., agent_attitude: _Optional[_Iterable[_Union[AgentAttitude, _Mapping]]] = ..., terminate: _Optional[_Iterable[_Union[Terminate, _Mapping]]] = ..., behavior_state: _Optional[_Iterable[_Union[BehaviorState, _Mapping]]] = ..., vehicle_health: _Optional[_Iterable[_Union[VehicleHealth, _Mapping]]] = ...) -> None: ...

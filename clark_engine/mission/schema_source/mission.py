@@ -45,6 +45,9 @@ _MESSAGE_DESCRIPTIONS = {
     "agent_status": "Agent Status: position, altitude, velocity, heading and autopilot mode.",
     "agent_attitude": "Agent Attitude: roll, pitch and yaw.",
     "behavior_state": "Behavior State: active states and last event, for the station's view.",
+    "vehicle_health": "Vehicle Health: armed, battery, GPS fix and satellites, the autopilot's "
+    "pre-arm checks and latest warning, and the failsafe in force, for the station's view "
+    "(docs/clarklink.md). Vehicles only: a station has no autopilot and sends none.",
 }
 
 
