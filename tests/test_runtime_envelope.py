@@ -775,9 +775,7 @@ def test_a_moving_peers_report_is_carried_to_now(tmp_path: Path) -> None:
     for _ in range(4):  # no new report; 0.5 s later it is 4.5 m away if it drove on
         out += flight.tick(flight.state(0, 0, 0.5))
     assert of(out, SetMode) == [SetMode("LOITER", 5)]
-    assert "where its last report puts it now, inside the 5 m separation" in (
-        flight.mission_log()
-    )
+    assert "where its last report puts it now, inside the 5 m separation" in (flight.mission_log())
 
 
 def test_a_peer_standing_still_is_not_carried_anywhere(tmp_path: Path) -> None:
