@@ -114,9 +114,13 @@ class Rehearsal:
         self.connections: dict[str, str] = {}
 
     def serve_autopilots(self) -> None:
+        # The simulated autopilot answers on 14550 unless told otherwise: a user's ground
+        # station may hold it, and two of them cannot share it. SITL picks free instances.
+        listen = iter(free_udp_ports(len(VEHICLES)))
         for name in VEHICLES:
+            where = ["--listen", f"127.0.0.1:{next(listen)}"] if AUTOPILOT == "sim" else []
             process = clark(
-                "autopilot-sim", str(MISSION), "--agent", name, "--autopilot", AUTOPILOT
+                "autopilot-sim", str(MISSION), "--agent", name, "--autopilot", AUTOPILOT, *where
             )
             self.servers.append(process)
         for name, process in zip(VEHICLES, self.servers[-2:], strict=True):
