@@ -1,7 +1,8 @@
 """``clark replay``: each vehicle's health and the station's alarms, from the fleet CSV.
 
 A hand-written station fleet CSV of cooperative_follow (10 Hz rows, as the logbook
-writes them): Slash B drives up to 3 m of Slash A and away again (a near miss), then
+writes them): Slash B drives up to 0.5 m of Slash A, inside the 1 m the pair keeps, and
+away again (a near miss), then
 reports a failsafe in its health; Slash A's autopilot says something hostile. The
 replay judges the rows with the live view's alarm watch, so the banner at any time is
 what the operator saw then.
@@ -44,7 +45,7 @@ def _folder(folder: Path) -> Path:
     rows = [FLEET_HEADER]
     for k in range(0, 201):  # 20 s at 10 Hz
         t = k / 10
-        east_b = 20.0 if t < 3.0 or t >= 7.0 else 3.0  # inside 5 m from 3 s to 7 s
+        east_b = 20.0 if t < 3.0 or t >= 7.0 else 0.5  # inside 1 m from 3 s to 7 s
         failsafe = "hold: mcs_lost" if t >= 12.0 else ""
         rows.append(
             _fleet_row(

@@ -18,6 +18,7 @@ import logging
 import math
 import random
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from string import Template
 from typing import Any
@@ -120,7 +121,9 @@ def compiled(
     data = json.loads(json.dumps(agent_config(mission, mission.agents[agent])))
     if edit is not None:
         edit(data)
-    return config_from_dict(data)
+    # The autopilot here is a stream of events, which cannot answer the autopilot's safety
+    # set-up (tests/test_runtime_autopilot_safety.py): the behaviour starts without it.
+    return replace(config_from_dict(data), safety_setup=False)
 
 
 #: What `clark validate` proves of the envelope (mission/envelope_checks.py): a mission

@@ -273,6 +273,7 @@ def test_reposition_outside_the_fence_is_refused(peer: Peer) -> None:
     peer.wait_for("HOME_POSITION", 40.0, since=0)
     lat, lon, _ = home_of(peer)
     with params(peer, {"FENCE_TYPE": 2, "FENCE_RADIUS": 300, "FENCE_ENABLE": 1}):
+        peer.run_for(0.3)  # ArduPilot's fence loop (10 Hz) takes the new FENCE_ENABLE in
         mode = mode_now(peer)
         ack = reposition(peer, *moved(lat, lon, 600.0, 0.0), 50.0)
         # ArduPlane DENIED; ArduCopter FAILED (its guided destination check), both before
