@@ -36,8 +36,8 @@ from clark_engine.sim.sitl import ENV_SITL, SitlInstall, SitlNotFound
 ROOT = Path(__file__).resolve().parent.parent
 COMPUTER_LOST_S = 4.0
 COPTER_SLACK_S = 0.5
-"""ArduCopter checks its ground-station failsafe at 3 Hz (0.33 s, sitl_findings.md 4), and
-autopilot-sim reads SITL's clock in 0.05 s steps."""
+"""ArduCopter checks its ground-station failsafe at 3 Hz (0.33 s, docs/sitl-measurements.md,
+section 4), and autopilot-sim reads SITL's clock in 0.05 s steps."""
 HEARTBEAT_PERIOD_S = 1.0
 """The mission computer's heartbeat period: its last one came at most this long before the
 kill, so the reaction comes at least computer_lost_s less this after the kill."""

@@ -2,7 +2,7 @@
 back, the fence list uploaded, and the answer it gives the runtime.
 
 Two peers. A scripted ArduPilot (below) writes the frames the real firmware writes, as
-measured on SITL (/work/notes/sitl_findings.md, section 5): one PARAM_VALUE echo per
+measured on SITL (docs/sitl-measurements.md, section 5): one PARAM_VALUE echo per
 accepted PARAM_SET with the value stored in the parameter's own type (integers truncated
 and clamped), silence for an unknown name, "Param write denied" and the old value for an
 internal one; MISSION_REQUEST_INT per item and MISSION_ACK for a fence upload. Then the

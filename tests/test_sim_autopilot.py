@@ -509,7 +509,7 @@ def test_parameters() -> None:
 @pytest.mark.parametrize(
     ("name", "sent", "sent_type", "stored", "stored_type"),
     [
-        # Measured on SITL (sitl_findings.md section 5): integers get 0.01 away from zero,
+        # Measured on SITL (docs/sitl-measurements.md, section 5): integers get 0.01 away from zero,
         # are clamped to their C type and truncated; the echo carries the stored type.
         ("FENCE_ACTION", 2.7, 9, 2.0, 2),
         ("FENCE_ACTION", -2.7, 9, -2.0, 2),

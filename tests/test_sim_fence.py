@@ -2,7 +2,7 @@
 
 tests/conformance/test_fence.py holds the simulation to what SITL does (both must
 pass). These cover the rest of AC_Fence and each firmware's reaction as ArduPilot's
-source has them (sitl_findings.md section 3 and libraries/AC_Fence at the SITL
+source has them (docs/sitl-measurements.md, section 3, and libraries/AC_Fence at the SITL
 build): the quirks of FENCE_ENABLE, exclusion zones, the union of inclusion zones, the
 backup fence that re-fires a breach further out, giving up beyond 100 m, refusing mode
 changes in recovery, ArduPlane's GUIDED action, DO_FENCE_ENABLE.

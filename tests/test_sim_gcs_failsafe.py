@@ -2,7 +2,7 @@
 
 tests/conformance/test_gcs_failsafe.py holds the simulation to what SITL does. These
 cover the rest of each firmware's rules as ArduPilot's source has them
-(sitl_findings.md section 4): what keeps the failsafe away besides heartbeats,
+(docs/sitl-measurements.md, section 4): what keeps the failsafe away besides heartbeats,
 ArduCopter's FS_OPTIONS and its arming refusal, ArduRover's HOLD exemption, ArduPlane's
 FS_LONG_ACTN by mode and its failsafe deferred during a takeoff climb.
 """

@@ -10,7 +10,7 @@ after a mode change during a breach, the guided-destination check, the pre-arm
 checks and their words, and what SYS_STATUS and FENCE_STATUS say. :func:`react`
 is each firmware's ``fence_check``: the texts and the FENCE_ACTION it takes.
 
-Quirks kept because ArduPilot has them (sitl_findings.md section 3, measured on SITL):
+Quirks kept because ArduPilot has them (measured on SITL: docs/sitl-measurements.md, section 3):
 
 - The enabled fences are worked out again only when FENCE_ENABLE or
   FENCE_AUTOENABLE *change*: a FENCE_TYPE change with the fence on does nothing until

@@ -118,7 +118,7 @@ class Firmware:
             about 42 s), ``home`` (ArduPlane: until home, 0.8 s after the fix), None
             (ArduCopter: the GPS's from the first fix). ArduRover also sets home at that
             barometer height while it lasts (0.19 m measured), so its relative_alt reads
-            +90 m on a 90 m field. Measured on SITL (sitl_findings.md section 1).
+            +90 m on a 90 m field. Measured on SITL (docs/sitl-measurements.md, section 1).
         zero_before_fix: GLOBAL_POSITION_INT is all zero before the GPS fix (ArduCopter
             sends its never-filled location); the others send the barometer's height.
         guided_reached_text: Whether arriving at a guided target sends
@@ -219,7 +219,7 @@ COMMON_PARAMS: Final[Mapping[str, tuple[float, int]]] = {
     "FENCE_AUTOENABLE": (0, _INT8),
 }
 """Parameters every firmware has (after MAV_SYSID), with ArduPilot 4.7's names, types and
-defaults as each SITL build reads them back (/work/notes/sitl_findings.md, sections 3-5).
+defaults as each SITL build reads them back (docs/sitl-measurements.md, sections 3-5).
 MAV_GCS_SYSID is the one system whose HEARTBEAT, RC_CHANNELS_OVERRIDE and MANUAL_CONTROL
 count as the ground station's (ArduPilot 4.5 called it SYSID_MYGCS, and MAV_SYSID
 SYSID_THISMAV; those names are unknown here as in 4.7). MAV_OPTIONS bit 0 accepts MAVLink

@@ -5,7 +5,7 @@ exactly one system, MAV_GCS_SYSID; the type and component of the heartbeat do no
 matter. When it falls silent for longer than a timeout the vehicle reacts, and when
 it is heard again the failsafe ends without restoring the mode. The engine uses this
 as its dead-mission-computer reaction: the mission computer is the "ground station".
-Measured on SITL and read in its source (sitl_findings.md section 4):
+Measured on SITL and read in its source (docs/sitl-measurements.md, section 4):
 
 - **ArduCopter** (``Copter::failsafe_gcs_check``, 3 Hz): FS_GCS_ENABLE on; never
   before that system was heard once; FS_GCS_TIMEOUT (+ up to a check period).

@@ -1,6 +1,6 @@
 """The altitude fields as each firmware fills them while it boots (GLOBAL_POSITION_INT).
 
-Measured on SITL at a 90 m field (sitl_findings.md section 1):
+Measured on SITL at a 90 m field (docs/sitl-measurements.md, section 1):
 
 - ArduCopter sends its never-filled location before the GPS fix: everything 0. From the
   fix on, ``alt`` is above sea level (90 m) and ``relative_alt`` about 0.

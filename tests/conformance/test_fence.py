@@ -1,6 +1,6 @@
 """The autopilot's own geofence: what it reports, what it refuses, and its breach actions.
 
-Measured on SITL (sitl_findings.md section 3; ArduPilot's AC_Fence and each firmware's
+Measured on SITL (docs/sitl-measurements.md, section 3; ArduPilot's AC_Fence and each firmware's
 fence.cpp): the fence can be switched on while disarmed, and SYS_STATUS's geofence bit
 and FENCE_STATUS then say so; arming is refused with the fence's own words while it is
 misconfigured or breached; FENCE_TYPE takes effect only when FENCE_ENABLE changes;

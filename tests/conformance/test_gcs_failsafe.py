@@ -1,7 +1,7 @@
 """The ground-station failsafe: what each firmware does when MAV_GCS_SYSID falls silent.
 
 The engine uses it as the autopilot's reaction to a dead mission computer (its
-heartbeats are the ground station's). Measured on SITL (sitl_findings.md section 4):
+heartbeats are the ground station's). Measured on SITL (docs/sitl-measurements.md, section 4):
 only HEARTBEATs from exactly MAV_GCS_SYSID count; ArduCopter reacts FS_GCS_TIMEOUT
 after the last one (checked at 3 Hz), ArduRover FS_GCS_TIMEOUT + FS_TIMEOUT later
 (announced as "Radio Failsafe"), ArduPlane FS_LONG_TIMEOUT later (3 Hz); ArduCopter and

@@ -135,7 +135,7 @@ SAFETY_PARAMETERS: dict[str, dict[str, tuple[int, float | None]]] = {
 }
 """The parameters the engine sets for the autopilot's own fence and ground-station failsafe,
 with their type and default (None: SITL's parameter file changes it) as read back from each
-fresh SITL build (sitl_findings.md sections 3 and 4)."""
+fresh SITL build (docs/sitl-measurements.md, sections 3 and 4)."""
 
 
 def claimed_version(peer: Peer) -> int:
