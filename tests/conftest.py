@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import ipaddress
-import os
 import socket
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
+from sitl_here import NO_SITL, real_install
 
-from clark_engine.sim.sitl import ENV_SITL, SitlInstall, SitlNotFound
+from clark_engine.sim.sitl import SitlInstall
 
 ROOT = Path(__file__).resolve().parent.parent
 MISSIONS = sorted((ROOT / "missions").glob("*.yaml"))
@@ -52,18 +52,11 @@ def root() -> Path:
 
 @pytest.fixture(scope="session")
 def sitl_install() -> SitlInstall:
-    """ArduPilot SITL's launcher: ``$CLARK_SITL``, else ``../shared/ardupilot-sitl``.
-
-    Skips the test, saying why, where neither is here (CI has it).
-    """
-    default = ROOT.parent / "shared" / "ardupilot-sitl"
-    given = os.environ.get(ENV_SITL) or (str(default) if default.is_dir() else None)
-    try:
-        if given:
-            return SitlInstall.find(given)
-    except SitlNotFound:
-        pass
-    pytest.skip(f"no ArduPilot SITL: set {ENV_SITL} to the folder with the `sitl` launcher")
+    """ArduPilot SITL's launcher (tests/sitl_here.py); skips the test, saying why, without."""
+    install = real_install()
+    if install is None:
+        pytest.skip(NO_SITL)
+    return install
 
 
 LONGEST_MODULES = ("test_run_end_to_end.py",)

@@ -16,10 +16,11 @@ from pathlib import Path
 
 import pytest
 from pymavlink import mavutil
+from sitl_here import real_install
 
 from clark_engine.cli import main
 from clark_engine.io.xbee import XBeeRadio
-from clark_engine.sim.sitl import ENV_SITL, SitlInstall, SitlNotFound
+from clark_engine.sim.sitl import ENV_SITL
 
 ROOT = Path(__file__).resolve().parent.parent
 MISSION = ROOT / "missions" / "cooperative_follow.yaml"
@@ -125,15 +126,6 @@ def test_autopilot_sim_refuses_an_invalid_mission(
     err = capsys.readouterr().err
     assert "broken.yaml" in err and "is not a valid mission" in err
     assert main(["autopilot-sim", str(tmp_path / "absent.yaml"), "--agent", "slash_b"]) == 2
-
-
-def real_install() -> SitlInstall | None:
-    default = ROOT.parent / "shared" / "ardupilot-sitl"
-    given = os.environ.get(ENV_SITL) or (str(default) if default.is_dir() else None)
-    try:
-        return SitlInstall.find(given) if given else None
-    except SitlNotFound:
-        return None
 
 
 SITL = real_install()

@@ -30,8 +30,9 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from sitl_here import real_install
 
-from clark_engine.sim.sitl import ENV_SITL, SitlInstall, SitlNotFound
+from clark_engine.sim.sitl import ENV_SITL
 
 ROOT = Path(__file__).resolve().parent.parent
 COMPUTER_LOST_S = 4.0
@@ -69,15 +70,6 @@ agents:
           transitions: {{done: hovering}}
         hovering: {{use: wait, final: true}}
 """
-
-
-def real_install() -> SitlInstall | None:
-    default = ROOT.parent / "shared" / "ardupilot-sitl"
-    given = os.environ.get(ENV_SITL) or (str(default) if default.is_dir() else None)
-    try:
-        return SitlInstall.find(given) if given else None
-    except SitlNotFound:
-        return None
 
 
 SITL = real_install()

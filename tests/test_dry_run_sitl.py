@@ -15,9 +15,10 @@ import sys
 from pathlib import Path
 
 import pytest
+from sitl_here import real_install
 
 from clark_engine.sim.recording import Recording, StateEntry
-from clark_engine.sim.sitl import ENV_SITL, SitlInstall, SitlNotFound
+from clark_engine.sim.sitl import ENV_SITL
 from clark_engine.sim.timeline import compare
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -127,15 +128,6 @@ def test_no_sitl_anywhere_says_where_to_point() -> None:
 
 
 # -- on real ArduPilot SITL ------------------------------------------------------------------
-
-
-def real_install() -> SitlInstall | None:
-    default = ROOT.parent / "shared" / "ardupilot-sitl"
-    given = os.environ.get(ENV_SITL) or (str(default) if default.is_dir() else None)
-    try:
-        return SitlInstall.find(given) if given else None
-    except SitlNotFound:
-        return None
 
 
 REAL = real_install()

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import asyncio
 import json
-import os
 import re
 import signal
 import socket
@@ -24,6 +23,7 @@ from typing import Any
 
 import aiohttp
 import pytest
+from sitl_here import real_install
 
 from clark_engine.cli import main
 from clark_engine.gcs.rehearsal import (
@@ -396,18 +396,8 @@ def test_checks_are_evaluated_about_once_a_second() -> None:
 # -- over ArduPilot SITL ---------------------------------------------------------------------
 
 
-def _sitl_folder() -> Path | None:
-    from clark_engine.sim.sitl import ENV_SITL, SitlInstall, SitlNotFound
-
-    default = ROOT.parent / "shared" / "ardupilot-sitl"
-    given = os.environ.get(ENV_SITL) or (str(default) if default.is_dir() else None)
-    try:
-        return SitlInstall.find(given).folder if given else None
-    except SitlNotFound:
-        return None
-
-
-SITL_FOLDER = _sitl_folder()
+_SITL = real_install()
+SITL_FOLDER = _SITL.folder if _SITL is not None else None
 SITL_TIMEOUT_S = 120.0
 """ArduRover SITL at real time: booted, its GPS fixed and its position reported."""
 

@@ -13,7 +13,6 @@ the runtime makes from real compiled missions: what each firmware ends up holdin
 from __future__ import annotations
 
 import math
-import os
 import struct
 import subprocess
 import sys
@@ -23,6 +22,7 @@ from typing import Any
 
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+from sitl_here import real_install
 
 from clark_engine.io.autopilot import (
     ACK_TIMEOUT_S,
@@ -44,7 +44,7 @@ from clark_engine.runtime.commands import (
 from clark_engine.runtime.config import config_from_dict
 from clark_engine.runtime.events import AutopilotSafetyResult
 from clark_engine.sim.engine import PHYSICS_STEP_S, build_vehicle
-from clark_engine.sim.sitl import ENV_SITL, SitlInstall, SitlNotFound
+from clark_engine.sim.sitl import ENV_SITL
 from clark_engine.validation import load_mission
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -68,15 +68,6 @@ COPTER_PARAMS = {
     "MIS_TOTAL": (0.0, INT16),
 }
 """ArduCopter 4.7's parameters the set-up touches, with their SITL defaults and types."""
-
-
-def real_install() -> SitlInstall | None:
-    default = ROOT.parent / "shared" / "ardupilot-sitl"
-    given = os.environ.get(ENV_SITL) or (str(default) if default.is_dir() else None)
-    try:
-        return SitlInstall.find(given) if given else None
-    except SitlNotFound:
-        return None
 
 
 SITL = real_install()

@@ -28,8 +28,9 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
+from sitl_here import real_install
 
-from clark_engine.sim.sitl import ENV_SITL, SitlInstall, SitlNotFound
+from clark_engine.sim.sitl import ENV_SITL
 
 ROOT = Path(__file__).resolve().parent.parent
 MISSION = ROOT / "missions" / "cooperative_follow.yaml"
@@ -40,15 +41,6 @@ START_TIMEOUT_S = 90.0
 MISSION_TIMEOUT_S = 240.0
 """Longest wait for Slash B to park: the checks want it by 120 s of the station's clock."""
 STOP_TIMEOUT_S = 60.0
-
-
-def real_install() -> SitlInstall | None:
-    default = ROOT.parent / "shared" / "ardupilot-sitl"
-    given = os.environ.get(ENV_SITL) or (str(default) if default.is_dir() else None)
-    try:
-        return SitlInstall.find(given) if given else None
-    except SitlNotFound:
-        return None
 
 
 SITL = real_install()

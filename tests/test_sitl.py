@@ -21,6 +21,7 @@ from pathlib import Path
 
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+from sitl_here import real_install
 
 from clark_engine.errors import ClarkError
 from clark_engine.sim.sitl import (
@@ -458,15 +459,6 @@ def test_a_killed_parent_takes_its_sitl_along(listener: SitlInstall) -> None:
 
 
 # -- real SITL ---------------------------------------------------------------------------------
-
-
-def real_install() -> SitlInstall | None:
-    default = ROOT.parent / "shared" / "ardupilot-sitl"
-    given = os.environ.get(ENV_SITL) or (str(default) if default.is_dir() else None)
-    try:
-        return SitlInstall.find(given) if given else None
-    except SitlNotFound:
-        return None
 
 
 REAL = real_install()
