@@ -125,6 +125,7 @@ def test_the_compiled_config_carries_every_envelope(tmp_path: Path) -> None:
     fence = config.envelope.fence
     assert fence.contains(0, 0) and not fence.contains(50, 50)
     assert not fence.contains(2000, 0)  # the default circle around home
-    slash = config.peer("slash")
+    assert all(p.envelope is None for p in config.peers)  # a vehicle keeps its own only
+    slash = config_from_dict(station).peer("slash")
     assert slash is not None and slash.envelope is not None
     assert (slash.envelope.home_north_m, slash.envelope.home_east_m) == (10.0, 20.0)

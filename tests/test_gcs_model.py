@@ -163,7 +163,8 @@ def test_hello_lists_every_agent_with_its_airframe_modes_and_plan(fleet: Fleet) 
     assert slash_b["home"] == {"north_m": -15.0, "east_m": -10.0, "up_m": 0.0}
     assert slash_b["heartbeat_hz"] == 1.0 and slash_b["stale_after_s"] == 1.5
     (tour,) = hello["plan"]["slash_a"]
-    assert tour["kind"] == "tour" and tour["loop"] is True and tour["survey"] is False
+    # once round (cooperative_follow keeps Slash A off Slash B parked on its track)
+    assert tour["kind"] == "tour" and tour["loop"] is False and tour["survey"] is False
     assert tour["points"][2] == {"north_m": 40.0, "east_m": 10.0, "up_m": 0.0}
     assert len(tour["points"]) == 8
     assert hello["plan"]["slash_b"] == []  # hold and follow_agent: no fixed point

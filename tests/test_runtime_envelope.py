@@ -792,6 +792,23 @@ def test_a_peer_standing_still_is_not_carried_anywhere(tmp_path: Path) -> None:
     assert not of(out, SetMode) and flight.runtime.failsafe is None
 
 
+def test_only_peers_that_could_close_within_a_second_are_carried_forward(
+    tmp_path: Path,
+) -> None:
+    """A prediction is skipped only for a peer that a second of its speed cannot bring
+    inside the separation (plus PREDICT_NEAR_M to spare): a truck 200 m off at 4 m/s is
+    not carried, a plane 130 m off at 30 m/s is."""
+    config = compiled(tmp_path, "copter")
+    flight = Flight(config)
+    _leave(flight, (0, 0, 30))
+    flight.tick(flight.state(0, 0, 30), flight.peer("rover", 0, 200, 0.0, speed_m_s=4.0))
+    fixes = flight.runtime._peer_positions.fixes(flight.t + 0.5, (0.0, 0.0))
+    assert [f.predicted for f in fixes] == [False]
+    flight.tick(flight.state(0, 0, 30), flight.peer("rover", 0, 130, 0.0, speed_m_s=30.0))
+    fixes = flight.runtime._peer_positions.fixes(flight.t + 0.5, (0.0, 0.0))
+    assert [f.predicted for f in fixes] == [False, True]
+
+
 def test_height_keeps_vehicles_apart(tmp_path: Path) -> None:
     """3-D: a copter 10 m over the rover is no near miss."""
     config = compiled(tmp_path, "copter")

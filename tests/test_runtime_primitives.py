@@ -285,8 +285,9 @@ def test_tour_visits_in_order_and_loops() -> None:
     config = compiled("cooperative_follow.yaml", "slash_a")
     params = params_of(config, "waypoint_tour")
     waypoints, speed = params["waypoints"], params["speed_m_s"]
-    assert len(waypoints) == 8 and speed == 2
-    run = Run(config, make_primitive(states_of(config, "waypoint_tour")[0]))
+    assert len(waypoints) == 8 and speed == 1
+    # Slash A's tour, looped (the example drives it once round, to keep clear of Slash B)
+    run = Run(config, WaypointTour(params_of(config, "waypoint_tour", loop=True)))
     assert run.start(at(config, -5, -5)) == [
         set_mode(config, "GUIDED"),
         goto(waypoints[0], speed),

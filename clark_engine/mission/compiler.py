@@ -181,8 +181,10 @@ def _peers(agent: Agent, mission: Mission) -> list[dict[str, Any]]:
                 "sends": dict(sorted(sends.items())),
                 # A station's Mode Change Request carries the target firmware's number.
                 "modes": dict(sorted(other.hardware.modes.items())),
-                # Where it may fly: the station draws it, a follower knows its leader's.
-                "envelope": _envelope(other, mission),
+                # Where it may fly, for a station to draw and judge its alarms by. A
+                # vehicle keeps its own envelope only: fifty peers' envelopes in every
+                # vehicle's config cost its loading (schema validation) seconds.
+                "envelope": _envelope(other, mission) if not agent.is_vehicle else None,
             }
         )
     return peers

@@ -100,32 +100,53 @@ class PeerFix:
     predicted: bool = False
 
 
+PREDICT_NEAR_M: Final = 100.0
+"""Beyond the largest separation the envelope keeps, how far (on the ground) a peer's report
+may put it from the vehicle and still be carried forward. A peer farther than that, plus
+what its speed covers in :data:`PREDICT_MAX_S`, cannot be inside any separation within the
+second a prediction covers; fifty peers' predictions every tick would otherwise cost the
+time of the tick itself."""
+
+
 class PeerPositions:
     """The peers' latest reports as :class:`PeerFix`, converted once per report.
 
     Only the mission's other vehicles are looked at (a station sends no position).
     Each report is converted to the local plane when it first arrives and reused
-    until the next one, so the per-tick cost is one dictionary look-up per peer.
+    until the next one, and the list is made once per tick (the watch and the guard
+    share it), so the per-tick cost is one dictionary look-up per peer.
 
     Args:
         config: The agent's compiled config (its peers, its origin).
         fleet: The agent's fleet table.
+        largest_separation_m: The largest separation (with its margins) the envelope
+            keeps from any peer: a moving peer is carried forward while its report is
+            within this, :data:`PREDICT_NEAR_M` and a second of its speed.
     """
 
-    def __init__(self, config: AgentConfig, fleet: FleetTable) -> None:
+    def __init__(
+        self, config: AgentConfig, fleet: FleetTable, largest_separation_m: float = 0.0
+    ) -> None:
         self._fleet = fleet
+        self._near_m = largest_separation_m + PREDICT_NEAR_M
         self._origin = _origin(config)
         self._peers = tuple((p.id, p.name) for p in config.peers if p.role == "vehicle")
         self._cache: dict[int, tuple[object, PeerFix, tuple[float, float, float] | None]] = {}
+        #: The reported fixes with their velocities, as of the fleet table's ``stored``.
+        self._reported: list[tuple[PeerFix, tuple[float, float, float] | None]] = []
+        self._stored = -1
+        self._made: tuple[float | None, tuple[float, float] | None, list[PeerFix]] | None = None
+        self._made_from: list[tuple[PeerFix, tuple[float, float, float] | None]] | None = None
 
-    def fixes(self, now_s: float | None = None) -> list[PeerFix]:
-        """Every vehicle peer's latest reported position, stale or not.
+    def _reports(self) -> list[tuple[PeerFix, tuple[float, float, float] | None]]:
+        """Every vehicle peer's latest report as a fix and a velocity.
 
-        With ``now_s``, a peer that reported itself moving also gets a second fix: its
-        report carried along its reported velocity to ``now_s`` (at most
-        :data:`PREDICT_MAX_S` ahead).
+        Rebuilt only when the fleet table stored a message since the last time.
         """
-        out: list[PeerFix] = []
+        if self._fleet.stored == self._stored:
+            return self._reported
+        self._stored = self._fleet.stored
+        out: list[tuple[PeerFix, tuple[float, float, float] | None]] = []
         for peer_id, name in self._peers:
             record = self._fleet.record(peer_id)
             if record is None:
@@ -134,22 +155,54 @@ class PeerPositions:
             if sample is None:
                 continue
             cached = self._cache.get(peer_id)
-            if cached is not None and cached[0] is sample:
-                fix, velocity = cached[1], cached[2]
-            else:
+            if cached is None or cached[0] is not sample:
                 status = sample.value
                 point = to_local(status.lat_deg, status.lon_deg, status.alt_m, self._origin)
                 fix = PeerFix(name, point.north_m, point.east_m, point.up_m, sample.received_s)
-                velocity = _velocity(status)
-                self._cache[peer_id] = (sample, fix, velocity)
-            out.append(fix)
-            if now_s is not None and velocity is not None:
+                cached = (sample, fix, _velocity(status))
+                self._cache[peer_id] = cached
+            out.append((cached[1], cached[2]))
+        self._reported = out
+        return out
+
+    def fixes(
+        self, now_s: float | None = None, here: tuple[float, float] | None = None
+    ) -> list[PeerFix]:
+        """Every vehicle peer's latest reported position, stale or not.
+
+        With ``now_s`` and the vehicle's own position ``here`` (north, east), a peer that
+        reported itself moving near it (see :data:`PREDICT_NEAR_M`) also gets a second
+        fix: its report carried along its reported velocity to ``now_s`` (at most
+        :data:`PREDICT_MAX_S` ahead). Asked again with the same time and position (the
+        guard, after the watch, in one tick) and nothing new heard, the same list is
+        given back.
+        """
+        reports = self._reports()
+        made = self._made
+        if (
+            made is not None
+            and now_s is not None
+            and made[0] == now_s
+            and made[1] == here
+            and made[2] is not None
+            and self._made_from is reports
+        ):
+            return made[2]
+        out = [fix for fix, _ in reports]
+        if now_s is not None and here is not None:
+            for fix, velocity in reports:
+                if velocity is None:
+                    continue
+                dn, de = fix.north_m - here[0], fix.east_m - here[1]
+                near_m = self._near_m + _speed_m_s(velocity) * PREDICT_MAX_S
+                if dn * dn + de * de > near_m * near_m:
+                    continue
                 ahead_s = min(max(now_s - fix.received_s, 0.0), PREDICT_MAX_S)
                 if ahead_s > 0.0:
                     vn, ve, vu = velocity
                     out.append(
                         PeerFix(
-                            name,
+                            fix.name,
                             fix.north_m + vn * ahead_s,
                             fix.east_m + ve * ahead_s,
                             fix.up_m + vu * ahead_s,
@@ -157,6 +210,8 @@ class PeerPositions:
                             predicted=True,
                         )
                     )
+        self._made = (now_s, here, out)
+        self._made_from = reports
         return out
 
 
@@ -167,6 +222,22 @@ def _velocity(status: AgentStatus) -> tuple[float, float, float] | None:
         return None
     heading = math.radians(status.heading_deg)
     return speed * math.cos(heading), speed * math.sin(heading), status.climb_rate_m_s
+
+
+def largest_separation_m(envelope: EnvelopeSpec) -> float:
+    """The farthest from any peer that the watch or the guard acts on.
+
+    That is the largest separation, the margin and a breach's clearance (a plane's loiter
+    circle is left to :data:`PREDICT_NEAR_M`).
+    """
+    return max(envelope.min_separation_m, *envelope.separation.values(), 0.0) + (
+        envelope.margin_m + BREACH_CLEAR_M
+    )
+
+
+def _speed_m_s(velocity: tuple[float, float, float]) -> float:
+    vn, ve, vu = velocity
+    return math.sqrt(vn * vn + ve * ve + vu * vu)
 
 
 def _origin(config: AgentConfig) -> Origin:

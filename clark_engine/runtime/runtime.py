@@ -61,6 +61,7 @@ from clark_engine.link.messages import (
     fit_text,
 )
 from clark_engine.link.packet import BROADCAST, Packet
+from clark_engine.mission.geo import Origin, to_local
 from clark_engine.runtime.autopilot_safety import SafetyPlanError, safety_setup
 from clark_engine.runtime.commands import (
     Arm,
@@ -82,6 +83,7 @@ from clark_engine.runtime.envelope import (
     EnvelopeWatch,
     ModeOwner,
     PeerPositions,
+    largest_separation_m,
 )
 from clark_engine.runtime.events import (
     AutopilotHealth,
@@ -221,7 +223,15 @@ class AgentRuntime:
             EnvelopeGuard(config, envelope, self.logbook.mission) if envelope is not None else None
         )
         self.envelope_watch = EnvelopeWatch(config, envelope) if envelope is not None else None
-        self._peer_positions = PeerPositions(config, self.fleet)
+        self._peer_positions = PeerPositions(
+            config,
+            self.fleet,
+            largest_separation_m(envelope) if envelope is not None else 0.0,
+        )
+        self._origin = Origin(
+            config.origin_lat_deg, config.origin_lon_deg, config.origin_alt_amsl_m
+        )
+        self._here_cache: tuple[VehicleState, tuple[float, float]] | None = None
         #: Whether the vehicle is in a mode the engine put it in (a breach never fights
         #: a pilot or a station who took it).
         self._modes = ModeOwner()
@@ -1030,6 +1040,16 @@ class AgentRuntime:
             if self._autopilot_lost:
                 self._failsafe_unsent = command  # sent when the autopilot returns
 
+    def _here(self, vehicle: VehicleState) -> tuple[float, float]:
+        """The vehicle's position on the local plane (north, east), once per state."""
+        cached = self._here_cache
+        if cached is not None and cached[0] is vehicle:
+            return cached[1]
+        point = to_local(vehicle.lat_deg, vehicle.lon_deg, 0.0, self._origin)
+        here = (point.north_m, point.east_m)
+        self._here_cache = (vehicle, here)
+        return here
+
     def _watch(self, now_s: float) -> None:
         """The vehicle and its peers against the envelope; a breach's action, once.
 
@@ -1043,7 +1063,7 @@ class AgentRuntime:
             return
         result = watch.look(
             vehicle,
-            self._peer_positions.fixes(now_s),
+            self._peer_positions.fixes(now_s, self._here(vehicle)),
             now_s,
             guided_flight=self._guided_flight(vehicle),
         )
@@ -1312,7 +1332,10 @@ class AgentRuntime:
         """The last step before commands leave: every Goto and Takeoff kept in the envelope."""
         guard = self.envelope_guard
         assert guard is not None
-        peers = self._peer_positions.fixes(self.context.now_s)
+        vehicle = self.context.vehicle
+        peers = self._peer_positions.fixes(
+            self.context.now_s, self._here(vehicle) if vehicle is not None else None
+        )
         out: list[Command] = []
         for command in commands:
             if isinstance(command, _GUARDED):

@@ -460,7 +460,10 @@ def build() -> dict[str, Any]:
                             "additionalProperties": {"type": "integer"},
                         },
                         "envelope": _nullable({"$ref": "#/$defs/envelope"})
-                        | {"description": "The peer's safety envelope; null for a station."},
+                        | {
+                            "description": "The peer's safety envelope, in a station's "
+                            "config (null in a vehicle's, and for a station peer)."
+                        },
                     },
                     required=["name", "id", "role", "radio_address", "sends", "modes", "envelope"],
                 ),
