@@ -24,7 +24,7 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -182,15 +182,6 @@ class Rehearsal:
                 process.communicate()
 
 
-@pytest.fixture
-def rehearsal(tmp_path: Path) -> Iterator[Rehearsal]:
-    fleet = Rehearsal(tmp_path / "logs")
-    try:
-        yield fleet
-    finally:
-        fleet.close()
-
-
 def fly_and_check(fleet: Rehearsal) -> None:
     """Serve the autopilots; the caller started the agents; fly to the end and check."""
     slash_b_log = fleet.mission_log("slash_b")
@@ -244,9 +235,7 @@ def fly_and_check(fleet: Rehearsal) -> None:
         assert name in check.stdout
 
 
-@pytest.mark.slow
-@pytest.mark.sitl
-def test_cooperative_follow_on_udp_radios(rehearsal: Rehearsal) -> None:
+def start_on_udp_radios(fleet: Rehearsal) -> None:
     ports = dict(zip(AGENTS, free_udp_ports(len(AGENTS)), strict=True))
 
     def radios(name: str) -> list[str]:
@@ -256,23 +245,38 @@ def test_cooperative_follow_on_udp_radios(rehearsal: Rehearsal) -> None:
                 args += ["--peer", f"{peer}=127.0.0.1:{ports[peer]}"]
         return args
 
-    rehearsal.serve_autopilots()
-    rehearsal.run_agents(radios)
-    fly_and_check(rehearsal)
+    fleet.serve_autopilots()
+    fleet.run_agents(radios)
 
 
-@pytest.mark.slow
-@pytest.mark.sitl
-def test_cooperative_follow_on_emulated_xbees(rehearsal: Rehearsal, tmp_path: Path) -> None:
-    folder = tmp_path / "radios"
+def start_on_emulated_xbees(fleet: Rehearsal, folder: Path) -> None:
     network = clark("radio-sim", "xbee", str(MISSION), "--dir", str(folder))
-    rehearsal.servers.append(network)
+    fleet.servers.append(network)
     for name in AGENTS:
         read_line_with(network, f"{name}: clark run")
 
     def radios(name: str) -> list[str]:
         return ["--radio", "xbee", "--radio-device", str(folder / name)]
 
-    rehearsal.serve_autopilots()
-    rehearsal.run_agents(radios)
-    fly_and_check(rehearsal)
+    fleet.serve_autopilots()
+    fleet.run_agents(radios)
+
+
+@pytest.mark.slow
+@pytest.mark.sitl
+def test_cooperative_follow_on_udp_radios_and_on_emulated_xbees(tmp_path: Path) -> None:
+    """The two fleets fly side by side, each its own processes, autopilots and logs.
+
+    Each takes about 100 s of real time and most of it is waiting for ArduRover and the
+    operator's script; one after the other they held a test worker for 200 s.
+    """
+    on_udp = Rehearsal(tmp_path / "udp" / "logs")
+    on_xbees = Rehearsal(tmp_path / "xbee" / "logs")
+    try:
+        start_on_udp_radios(on_udp)
+        start_on_emulated_xbees(on_xbees, tmp_path / "xbee" / "radios")
+        fly_and_check(on_udp)
+        fly_and_check(on_xbees)
+    finally:
+        on_udp.close()
+        on_xbees.close()
