@@ -10,9 +10,22 @@ from __future__ import annotations
 PLATFORMS = ("anaconda", "dji_f450", "super_cub", "traxxas_slash")
 
 
+SPACING_M = 250
+"""Between neighbouring vehicles' starts, on a grid ten wide: room for a plane's survey
+(200 m north) and its loiter circle in its own cell, so that the fleet keeps its 5 m
+separation and the dry run's safety judgement passes it (at 40 m the planes' circles
+crossed: twelve near misses in a minute)."""
+
+XBEE_SPACING_M = 140
+"""The grid on an XBee mesh: fifty agents within the radio's mile of the station
+(E-RADIO-RANGE), closer than a safe fleet would fly. Those fleets load the link (its
+budget, the split run's byte-identical logs); their dry runs report near misses."""
+
 #: Aircraft start in flight, handed over by their pilots at this height (``launch.airborne``);
 #: rovers start on the ground.
-HANDOVER_HEIGHT_M = {"anaconda": 60, "dji_f450": 20, "super_cub": 60}
+HANDOVER_HEIGHT_M = {"anaconda": 80, "dji_f450": 20, "super_cub": 60}
+"""The Anacondas survey at 80 m and the Super Cubs circle at 60 m: a survey's last loiter
+circle reaches into the next cell north, where a Super Cub circles."""
 
 #: Every vehicle's telemetry by default: heartbeat and status bundle into one packet a
 #: second; the behaviour's state goes to the station only.
@@ -27,8 +40,11 @@ def fleet_mission(
     """A mission with one station and ``agents - 1`` vehicles, as YAML text.
 
     The radio defaults to the UDP LAN profile: a hundred agents' telemetry is far
-    beyond the 33 kbps of an XBee mesh (clark validate says so, E-LINK-BUDGET).
+    beyond the 33 kbps of an XBee mesh (clark validate says so, E-LINK-BUDGET). On the
+    LAN the vehicles start :data:`SPACING_M` apart, on XBees :data:`XBEE_SPACING_M`.
     """
+
+    spacing_m = SPACING_M if radio == "udp_lan" else XBEE_SPACING_M
 
     def address(i: int) -> str:
         if radio == "udp_lan":
@@ -52,8 +68,8 @@ def fleet_mission(
     for i in range(2, agents + 1):
         platform = PLATFORMS[i % len(PLATFORMS)]
         name = f"v{i:03d}"
-        east = (i % 10) * 40
-        north = (i // 10) * 40
+        east = (i % 10) * spacing_m
+        north = (i // 10) * spacing_m
         lines += [
             f"  {name}:",
             f"    id: {i}",
@@ -69,14 +85,15 @@ def fleet_mission(
         else:  # rovers start on the ground, each on its own spot
             lines += [f"    position: [{north}, {east}]"]
         if i % 4 == 0:  # anaconda: survey block with photos
+            survey_m = HANDOVER_HEIGHT_M["anaconda"]
             lines += [
                 "    behavior:",
                 "      initial: survey",
                 "      states:",
                 "        survey:",
                 "          use: survey_with_photos",
-                f"          with: {{waypoints: [[{north}, {east}, 60],"
-                f" [{north + 200}, {east}, 60]], tolerance_m: 75}}",
+                f"          with: {{waypoints: [[{north}, {east}, {survey_m}],"
+                f" [{north + 200}, {east}, {survey_m}]], tolerance_m: 75}}",
                 "          transitions: {done: doublet}",
                 "        doublet: {use: aileron_doublet, transitions: {done: loiter}}",
                 "        loiter: {use: hold, final: true}",

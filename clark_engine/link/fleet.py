@@ -622,9 +622,10 @@ class FleetTable:
         # check_timeouts skips its scan while even this one is within the timeout.
         self._oldest_heartbeat_s = math.inf
         self.unattributed = LinkStats()
-        #: Counts every message stored as an agent's latest: a reader that caches what it
-        #: derives from the records (the envelope's peer positions) rebuilds when it moves.
-        self.stored = 0
+        #: Counts every Agent Status stored as an agent's latest: a reader that caches what
+        #: it derives from the positions (the envelope's peer positions) rebuilds when it
+        #: moves.
+        self.statuses_stored = 0
         self.unknown_packets = 0
         self.recent_unknown: OrderedDict[int, int] = OrderedDict()
 
@@ -696,7 +697,8 @@ class FleetTable:
                 old = samples.get(cls)
                 if old is None or not late or counter >= old.counter:
                     samples[cls] = Sample(message, now_s, counter, packet.authenticated)
-                    self.stored += 1
+                    if cls is AgentStatus:
+                        self.statuses_stored += 1
         return events
 
     def _heartbeat(self, heartbeat: Heartbeat, now_s: float, events: list[FleetEvent]) -> bool:

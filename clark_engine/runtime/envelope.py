@@ -100,6 +100,9 @@ class PeerFix:
     predicted: bool = False
 
 
+_Velocity = tuple[float, float, float, float]
+"""North, east and up (m/s), and the 3-D speed they make."""
+
 PREDICT_NEAR_M: Final = 100.0
 """Beyond the largest separation the envelope keeps, how far (on the ground) a peer's report
 may put it from the vehicle and still be carried forward. A peer farther than that, plus
@@ -131,22 +134,22 @@ class PeerPositions:
         self._near_m = largest_separation_m + PREDICT_NEAR_M
         self._origin = _origin(config)
         self._peers = tuple((p.id, p.name) for p in config.peers if p.role == "vehicle")
-        self._cache: dict[int, tuple[object, PeerFix, tuple[float, float, float] | None]] = {}
+        self._cache: dict[int, tuple[object, PeerFix, _Velocity | None]] = {}
         #: The reported fixes with their velocities, as of the fleet table's ``stored``.
-        self._reported: list[tuple[PeerFix, tuple[float, float, float] | None]] = []
+        self._reported: list[tuple[PeerFix, _Velocity | None]] = []
         self._stored = -1
         self._made: tuple[float | None, tuple[float, float] | None, list[PeerFix]] | None = None
-        self._made_from: list[tuple[PeerFix, tuple[float, float, float] | None]] | None = None
+        self._made_from: list[tuple[PeerFix, _Velocity | None]] | None = None
 
-    def _reports(self) -> list[tuple[PeerFix, tuple[float, float, float] | None]]:
+    def _reports(self) -> list[tuple[PeerFix, _Velocity | None]]:
         """Every vehicle peer's latest report as a fix and a velocity.
 
-        Rebuilt only when the fleet table stored a message since the last time.
+        Rebuilt only when the fleet table stored an Agent Status since the last time.
         """
-        if self._fleet.stored == self._stored:
+        if self._fleet.statuses_stored == self._stored:
             return self._reported
-        self._stored = self._fleet.stored
-        out: list[tuple[PeerFix, tuple[float, float, float] | None]] = []
+        self._stored = self._fleet.statuses_stored
+        out: list[tuple[PeerFix, _Velocity | None]] = []
         for peer_id, name in self._peers:
             record = self._fleet.record(peer_id)
             if record is None:
@@ -193,13 +196,13 @@ class PeerPositions:
             for fix, velocity in reports:
                 if velocity is None:
                     continue
+                vn, ve, vu, speed_m_s = velocity
                 dn, de = fix.north_m - here[0], fix.east_m - here[1]
-                near_m = self._near_m + _speed_m_s(velocity) * PREDICT_MAX_S
+                near_m = self._near_m + speed_m_s * PREDICT_MAX_S
                 if dn * dn + de * de > near_m * near_m:
                     continue
                 ahead_s = min(max(now_s - fix.received_s, 0.0), PREDICT_MAX_S)
                 if ahead_s > 0.0:
-                    vn, ve, vu = velocity
                     out.append(
                         PeerFix(
                             fix.name,
@@ -215,13 +218,22 @@ class PeerPositions:
         return out
 
 
-def _velocity(status: AgentStatus) -> tuple[float, float, float] | None:
-    """A report's velocity north, east and up (m/s); None for a peer standing still."""
+def _velocity(status: AgentStatus) -> _Velocity | None:
+    """A report's velocity north, east and up, and its 3-D speed (m/s).
+
+    None for a peer standing still.
+    """
     speed = status.ground_speed_m_s
     if speed < PREDICT_MIN_SPEED_M_S:
         return None
     heading = math.radians(status.heading_deg)
-    return speed * math.cos(heading), speed * math.sin(heading), status.climb_rate_m_s
+    climb = status.climb_rate_m_s
+    return (
+        speed * math.cos(heading),
+        speed * math.sin(heading),
+        climb,
+        math.sqrt(speed * speed + climb * climb),
+    )
 
 
 def largest_separation_m(envelope: EnvelopeSpec) -> float:
@@ -233,11 +245,6 @@ def largest_separation_m(envelope: EnvelopeSpec) -> float:
     return max(envelope.min_separation_m, *envelope.separation.values(), 0.0) + (
         envelope.margin_m + BREACH_CLEAR_M
     )
-
-
-def _speed_m_s(velocity: tuple[float, float, float]) -> float:
-    vn, ve, vu = velocity
-    return math.sqrt(vn * vn + ve * ve + vu * vu)
 
 
 def _origin(config: AgentConfig) -> Origin:
@@ -794,6 +801,30 @@ class EnvelopeWatch:
         self._last_armed = False
         self._floor_watched = False
         self._active: dict[str, Breach] = {}
+        self._reach_m = (
+            max(envelope.min_separation_m, *envelope.separation.values(), 0.0) + BREACH_CLEAR_M
+        )
+        """No peer farther than this can be in breach of any pair's separation."""
+        self._measured: tuple[float, float, float] | None = None
+        """Where the fence margin was last measured: (north, east, margin)."""
+
+    def _fence_margin_m(self, north_m: float, east_m: float) -> float:
+        """The fence margin here, or a lower bound of it that is clear of any breach.
+
+        A margin is a distance to the fence's edges, so it shrinks by at most the
+        distance moved since it was measured: while that bound stays above the
+        clearance a breach needs, the polygon is not measured again (a parked rover, a
+        vehicle deep inside its fence). Near the edge it is measured every time.
+        """
+        last = self._measured
+        if last is not None:
+            moved_m = math.hypot(north_m - last[0], east_m - last[1])
+            bound_m = last[2] - moved_m
+            if bound_m > BREACH_CLEAR_M:
+                return bound_m
+        margin_m = self.envelope.fence.margin_m(north_m, east_m)
+        self._measured = (north_m, east_m, margin_m)
+        return margin_m
 
     def look(
         self,
@@ -819,7 +850,7 @@ class EnvelopeWatch:
         north, east, up = here.north_m, here.east_m, here.up_m
         found: dict[str, tuple[str, str, str | None]] = {}  # key -> (kind, detail, peer)
 
-        margin_m = env.fence.margin_m(north, east)
+        margin_m = self._fence_margin_m(north, east)
         if margin_m < (BREACH_CLEAR_M if "fence" in self._active else 0.0):
             found["fence"] = (
                 "fence",
@@ -854,15 +885,23 @@ class EnvelopeWatch:
             )
         if vehicle.armed:
             closest: dict[str, float] = {}
+            stale_before_s = now_s - self._stale_s
+            # Any peer nearer than this is looked at closely; the rest (nearly all, in a
+            # big fleet) cost one distance each.
+            reach_m = self._reach_m
+            reach2 = reach_m * reach_m
             for peer in peers:
-                if now_s - peer.received_s > self._stale_s:
+                if peer.received_s < stale_before_s:
                     continue  # stale: where it was, not where it is
+                dn, de, du = north - peer.north_m, east - peer.east_m, up - peer.up_m
+                apart2 = dn * dn + de * de + du * du
+                if apart2 >= reach2:
+                    continue
                 key = f"separation:{peer.name}"
                 need_m = env.separation_from_m(peer.name)
                 limit_m = need_m + (BREACH_CLEAR_M if key in self._active else 0.0)
-                dn, de, du = north - peer.north_m, east - peer.east_m, up - peer.up_m
-                if dn * dn + de * de + du * du < limit_m * limit_m:
-                    apart_m = math.sqrt(dn * dn + de * de + du * du)
+                if apart2 < limit_m * limit_m:
+                    apart_m = math.sqrt(apart2)
                     if key in found and closest.get(key, math.inf) <= apart_m:
                         continue  # its other fix (reported or carried forward) is nearer
                     closest[key] = apart_m
