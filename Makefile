@@ -6,7 +6,11 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 # Test processes: one per core by default; `make test TEST_WORKERS=0` runs in one process.
 TEST_WORKERS ?= auto
-STAMP  := $(VENV)/.installed-$(shell cat pyproject.toml | cksum | cut -d' ' -f1)
+CKSUM  := $(shell cat pyproject.toml | cksum | cut -d' ' -f1)
+# What is installed, by pyproject.toml's checksum: the engine alone (what `make demo`
+# needs, about half the size) or with the test and development tools (everything else).
+RUN_STAMP := $(VENV)/.installed-run-$(CKSUM)
+STAMP     := $(VENV)/.installed-dev-$(CKSUM)
 
 .PHONY: demo test lint format typecheck schemas docs bench check clean
 
@@ -14,13 +18,18 @@ $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
+$(RUN_STAMP): pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e .
+	rm -f $(VENV)/.installed-run-*
+	touch $(RUN_STAMP)
+
 $(STAMP): pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	rm -f $(VENV)/.installed-*
-	touch $(STAMP)
+	touch $(STAMP) $(RUN_STAMP)
 
 ## demo: validate and compile every example mission, print a summary and where the configs are
-demo: $(STAMP)
+demo: $(RUN_STAMP)
 	$(BIN)/python tools/demo.py
 
 ## test: the whole suite, spread over the machine's cores (pytest-xdist); first makes sure

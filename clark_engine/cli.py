@@ -229,6 +229,48 @@ def cmd_keygen(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_examples(args: argparse.Namespace) -> int:
+    """Copy the shipped example missions, and the schemas their editors' lines name.
+
+    An installed engine keeps its examples inside the package, where a user should not
+    edit them; this gives a copy to work on. ``DIR/missions`` and ``DIR/schemas`` keep the
+    repository's layout, so each mission's ``$schema=../schemas/...`` line resolves. The
+    copy is made in a hidden folder in DIR and moved into place whole: an error leaves
+    nothing half-copied, and nothing of the user's is ever overwritten.
+    """
+    import shutil
+    import tempfile
+
+    from clark_engine.data import data_dir
+
+    target = Path(args.dir)
+    if target.exists() and not target.is_dir():
+        raise UsageError(f"{target} is a file; give a folder to copy the examples into")
+    taken = [target / name for name in ("missions", "schemas") if (target / name).exists()]
+    if taken:
+        names = " and ".join(str(t) for t in taken)
+        raise UsageError(
+            f"{names} already {'exists' if len(taken) == 1 else 'exist'}; clark examples "
+            "never overwrites: give another folder"
+        )
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(prefix=".clark-examples-", dir=target) as staging:
+            for name in ("missions", "schemas"):
+                shutil.copytree(data_dir(name), Path(staging) / name)
+            for name in ("missions", "schemas"):
+                (Path(staging) / name).rename(target / name)
+    except OSError as exc:
+        raise UsageError(f"cannot copy the examples into {target}: {exc.strerror or exc}") from None
+    missions = sorted(p.name for p in (target / "missions").glob("*.yaml"))
+    print(f"wrote {len(missions)} example missions to {target / 'missions'}:")
+    for name in missions:
+        print(f"  {name}")
+    print(f"and the JSON Schemas their editor lines name to {target / 'schemas'}")
+    print(f"try: clark dry-run {target / 'missions' / 'cooperative_follow.yaml'}")
+    return EXIT_OK
+
+
 def cmd_analyze(args: argparse.Namespace) -> int:
     """Print the message latency and loss per link from a folder of agents' logs.
 
@@ -661,6 +703,14 @@ def build_parser() -> argparse.ArgumentParser:
         "pilots' rc actions still play",
     )
     p.set_defaults(func=cmd_dry_run)
+
+    p = sub.add_parser(
+        "examples",
+        help="copy the example missions (and the schemas they name) into DIR/missions and "
+        "DIR/schemas, to try and edit",
+    )
+    p.add_argument("dir", metavar="DIR", help="the folder to copy into (created if need be)")
+    p.set_defaults(func=cmd_examples)
 
     p = sub.add_parser("keygen", help="write a new ClarkLink key file for mission.key_file")
     p.add_argument("path", metavar="PATH", help="where to write the key (must not exist)")

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from clark_engine.cli import build_parser, main
+from clark_engine.data import data_dir
 from clark_engine.sim import dryrun
 from clark_engine.sim.dryrun import run_dry_run
 
@@ -170,3 +171,31 @@ def test_version_comes_from_the_package_metadata(
         main(["--version"])
     assert exc.value.code == 0
     assert capsys.readouterr().out.strip() == "clark-engine 9.8.7"
+
+
+def test_examples_copies_the_missions_and_the_schemas_they_name(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A pip-installed engine's user gets the examples to edit, each valid where it lands."""
+    target = tmp_path / "mine"
+    assert main(["examples", str(target)]) == 0
+    out = capsys.readouterr().out
+    shipped = sorted(p.name for p in data_dir("missions").glob("*.yaml"))
+    assert sorted(p.name for p in (target / "missions").glob("*.yaml")) == shipped
+    assert (target / "schemas" / "mission.schema.json").is_file()
+    assert f"wrote {len(shipped)} example missions" in out
+    assert not [p for p in target.iterdir() if p.name.startswith(".")], "no staging left"
+    mission = target / "missions" / "cooperative_follow.yaml"
+    assert "$schema=../schemas/mission.schema.json" in mission.read_text(encoding="utf-8")
+    assert main(["validate", "-q", str(mission)]) == 0
+
+
+def test_examples_never_overwrites(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "missions").mkdir()
+    (tmp_path / "missions" / "mine.yaml").write_text("clark: 1\n", encoding="utf-8")
+    assert main(["examples", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "missions already exists; clark examples never overwrites" in err
+    assert "Traceback" not in err
+    assert [p.name for p in (tmp_path / "missions").iterdir()] == ["mine.yaml"]
+    assert not (tmp_path / "schemas").exists()

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from clark_engine.validation import validate_file
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -52,8 +54,21 @@ def test_tutorial_works_apart_from_the_examples() -> None:
 def test_readme_outputs_are_ignored_by_git() -> None:
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     assert "clark keygen keys/mission.key" in readme
-    for made in ("keys/mission.key", "out/summary.md", "build/x/cub.json"):
+    assert "clark schema mission > mission.schema.json" in readme
+    for made in ("keys/mission.key", "out/summary.md", "build/x/cub.json", "mission.schema.json"):
         assert _ignored_by_git(made), f"{made} is not ignored by git"
+
+
+def test_readme_mission_sketch_is_a_valid_mission(tmp_path: Path) -> None:
+    """The README's sketch says it is cut from the example and validates as it stands."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    lead, rest = readme.split("A mission is short.", 1)[1].split("```yaml\n", 1)
+    assert "missions/cooperative_follow.yaml" in lead
+    sketch = tmp_path / "missions" / "sketch.yaml"  # its $schema line is relative to missions/
+    sketch.parent.mkdir()
+    sketch.write_text(rest.split("```", 1)[0], encoding="utf-8")
+    result = validate_file(sketch)
+    assert result.ok, [f.message for f in result.findings]
 
 
 def test_readme_says_the_station_loss_fails_on_purpose(

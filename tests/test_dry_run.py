@@ -91,6 +91,9 @@ def test_report_has_summary_plots_and_logs(tmp_path: Path) -> None:
     # Slash A's behaviour is one block: its state is the root, named rather than blank.
     assert "| slash_a | start | (the whole behaviour) |" in summary
     assert "| slash_b | activate | chase |" in summary
+    # The links section names the report's own logs folder, not where it was staged.
+    assert "\nlogs: 3 agent(s) (mcs, slash_a, slash_b)" in summary
+    assert ".incomplete" not in summary and str(tmp_path) not in summary.split("\n", 3)[3]
     for agent in ("mcs", "slash_a", "slash_b"):
         for kind in ("mission.log", "messages.csv", "fleet.csv"):
             assert (folder / "logs" / f"{agent}.{kind}").exists(), (agent, kind)

@@ -376,3 +376,16 @@ def test_a_restarted_agent_is_not_terminated_by_a_recorded_terminate(tmp_path: P
     )
     run(again, 7.5, PacketReceived(fresh))
     assert again.terminated
+
+
+def test_a_vehicle_run_without_its_autopilot_on_purpose_logs_no_error() -> None:
+    """``clark run --no-autopilot``: lost as any silent autopilot, said once, as information."""
+    runtime = AgentRuntime(
+        config_of("cooperative_follow.yaml", "slash_b"), autopilot_connected=False
+    )
+    for k in range(60):  # 6 s: past the autopilot's timeout
+        runtime.tick(k * 0.1)
+    assert runtime.autopilot_lost
+    log = interface_log(runtime)
+    assert "ERROR" not in log and "autopilot silent" not in log
+    assert log.count("no autopilot (testing mode): treated as lost") == 1

@@ -108,6 +108,16 @@ def test_clark_validate_runs_from_outside_the_repo(installed: Path, tmp_path: Pa
     )
     assert compiled.returncode == 0, compiled.stderr
     assert (tmp_path / "out" / "cooperative-follow" / "slash_b.json").is_file()
+    # A pip user's way to the examples: a copy to edit, valid where it lands.
+    examples = _run(installed / "bin" / "clark", "examples", "mine", cwd=tmp_path)
+    assert examples.returncode == 0, examples.stderr
+    mine = _run(
+        installed / "bin" / "clark",
+        "validate",
+        tmp_path / "mine" / "missions" / "anaconda_survey.yaml",
+        cwd=tmp_path,
+    )
+    assert mine.returncode == 0 and "valid mission" in mine.stdout, mine.stderr
 
 
 def test_installed_engine_serves_the_station_view_page(installed: Path, tmp_path: Path) -> None:

@@ -175,6 +175,7 @@ class AgentRuntime:
         replay_store: ReplayStore | None = None,
         logbook: Logbook | None = None,
         gps_epoch_ms: int | None = None,
+        autopilot_connected: bool = True,
     ) -> None:
         """Build the runtime.
 
@@ -188,10 +189,15 @@ class AgentRuntime:
             logbook: Where the logs go; an in-memory logbook when None.
             gps_epoch_ms: GPS time at runtime time 0, for agents without an autopilot
                 (stations); vehicles take GPS time from their autopilot.
+            autopilot_connected: False for a vehicle run without its autopilot on
+                purpose (``clark run --no-autopilot``, testing mode): it is lost as
+                any silent autopilot is, but that is said once as information, not
+                as an error.
         """
         if config.authenticated and key is None:
             raise ValueError(f"mission {config.mission_name} is authenticated: give its key")
         self.config = config
+        self._autopilot_connected = autopilot_connected
         radio = config.raw["agent"]["hardware"].get("radio") or {}
         self.max_packet_bytes = int(radio.get("max_packet_bytes", 256))
         self.codec = Codec(
@@ -778,9 +784,16 @@ class AgentRuntime:
             self._autopilot_lost = True
             self._requests_void = True
             self._events.append("autopilot_lost")
-            self.logbook.interface.error(
-                "autopilot silent for %.1f s: lost; no more commands to it", now_s - seen
-            )
+            if self._autopilot_connected:
+                self.logbook.interface.error(
+                    "autopilot silent for %.1f s: lost; no more commands to it", now_s - seen
+                )
+            else:
+                self.logbook.interface.info(
+                    "no autopilot (testing mode): treated as lost after %.1f s; commands "
+                    "to it are dropped",
+                    now_s - seen,
+                )
 
     def _machine_phase(self) -> None:
         if self.machine is None or not self._started:

@@ -300,6 +300,7 @@ def open_agent(
             # Stations (and vehicles with the autopilot disabled) stamp GPS time from the
             # system clock; a vehicle's autopilot time takes over once it reports one.
             gps_epoch_ms=None if has_autopilot else gps_epoch_ms(time.time()),
+            autopilot_connected=options.autopilot or not config.is_vehicle,
         )
         autopilot = autopilot_link(config, options, logbook) if has_autopilot else None
         peer_addresses = {p.name: p.radio_address for p in config.peers if p.radio_address}

@@ -20,6 +20,7 @@ simulated or written, fed by the run, given the verdicts at the end, stopped las
 
 from __future__ import annotations
 
+import dataclasses
 import shlex
 import sys
 from collections.abc import Callable, Mapping, Sequence
@@ -689,7 +690,9 @@ def _write_report(
         report / "timeline.png", result.recording, origin.faults if origin is not None else ()
     )
     plots.append("timeline.png")
-    analysis = analyze_folder(report / "logs")
+    # Named as the summary's reader finds it: beside summary.md, not where the report was
+    # staged before it was moved into place.
+    analysis = dataclasses.replace(analyze_folder(report / "logs"), folder="logs")
     write_summary(
         report / "summary.md",
         mission=mission,
