@@ -90,3 +90,15 @@ def test_readme_says_the_station_loss_fails_on_purpose(
     shown = [line for line in block.splitlines() if line.startswith("|") or "checks" in line]
     real = [line for line in (out + err).splitlines() if line.startswith("|") or "checks" in line]
     assert shown == real
+
+
+def test_the_rehearsal_script_parses_and_flight_md_uses_it() -> None:
+    """tools/rehearse.sh is what docs/flight.md runs (it is flown by hand: it takes 100 s
+    of real time, as tests/test_run_end_to_end.py's rehearsals do)."""
+    script = ROOT / "tools" / "rehearse.sh"
+    assert script.stat().st_mode & 0o111, "executable"
+    parsed = subprocess.run(["bash", "-n", str(script)], capture_output=True, text=True)
+    assert parsed.returncode == 0, parsed.stderr
+    flight = (ROOT / "docs" / "flight.md").read_text(encoding="utf-8")
+    assert "tools/rehearse.sh" in flight
+    assert "use the connection each\n`autopilot-sim` prints" in flight
