@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import os
 import selectors
+import socket
+import sys
 from collections.abc import Iterator
 
 import pytest
@@ -175,3 +178,31 @@ def test_host_names_resolve_at_open_never_in_the_loop(fleet: list[UdpRadio]) -> 
     assert [f.data for f in _wait_frames(b, 1)] == [b"named"]
     a.send(b"x", "some-host.invalid:14600")  # not a peer: no DNS lookup in the loop
     assert a.stats.send_failures == {"bad address": 1}
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="SO_RXQ_OVFL is Linux's")
+def test_datagrams_the_kernel_dropped_are_counted() -> None:
+    """A flood that overfills the socket's buffer before the loop reads: the kernel's
+    drops are counted, so every datagram sent is either received or counted lost."""
+    with UdpRadio("127.0.0.1:0", max_pending_frames=100_000) as radio:
+        radio.open()
+        fd = radio.fileno()
+        assert fd is not None
+        # The same socket, its buffer made as small as the kernel allows (about 2 KiB).
+        view = socket.socket(fileno=os.dup(fd))
+        view.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1)
+        view.close()
+        sent = 2000
+        port = int(radio.address.split(":")[1])
+        frames: list[RadioFrame] = []
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as flood:
+            for i in range(sent):
+                flood.sendto(i.to_bytes(4, "big"), ("127.0.0.1", port))
+            while batch := radio.receive():
+                frames += batch
+            # The kernel hands its count with a datagram queued after the drops: the next.
+            flood.sendto(b"next", ("127.0.0.1", port))
+            frames += _wait_frames(radio, 1)
+        kernel = radio.stats.dropped.get("kernel", 0)
+        assert kernel > 0, "the buffer overflowed, and the drops are counted"
+        assert len(frames) + kernel == sent + 1

@@ -22,7 +22,11 @@ Addresses are ``host:port``, as ``hardware_profiles/radios/udp_lan.yaml``'s
   descriptor, for the shell's selector. :meth:`UdpRadio.receive` reads what the
   kernel holds (at most :data:`READ_BUDGET_FACTOR` times the queue bound per
   call, so a flood cannot starve the loop) into a bounded queue that drops the
-  oldest frame when full, counted in ``stats.dropped["receive queue"]``.
+  oldest frame when full, counted in ``stats.dropped["receive queue"]``. Datagrams the
+  kernel itself dropped because the socket's buffer was full (the loop fell behind a
+  flood) are counted in ``stats.dropped["kernel"]``, from the count Linux hands with
+  the next datagram queued after them (``SO_RXQ_OVFL``); where the platform has none
+  they go uncounted.
   Datagrams from addresses that are not known peers are still handed up (the
   codec's authentication decides, never the source address) but counted in
   :attr:`UdpRadio.unknown_source_frames`. UDP cannot tell a broadcast datagram
@@ -44,6 +48,7 @@ from __future__ import annotations
 
 import collections
 import socket
+import sys
 from collections.abc import Iterable, Mapping
 from typing import Any, Final
 
@@ -59,6 +64,13 @@ RECEIVE_BUFFER_BYTES: Final = 65536
 READ_BUDGET_FACTOR: Final = 4
 """Datagrams read per :meth:`UdpRadio.receive`, as a multiple of the queue bound."""
 
+
+SO_RXQ_OVFL: Final = getattr(socket, "SO_RXQ_OVFL", 40)
+"""Linux's socket option (asm-generic/socket.h: 40) that hands, with every datagram read,
+how many the kernel has dropped on this socket since it opened (a full buffer)."""
+
+_DROPS_CMSG_BYTES: Final = socket.CMSG_SPACE(4)
+"""Room for that count: one unsigned 32-bit integer of ancillary data."""
 
 MAX_RESOLVED: Final = 256
 """Destination addresses remembered once resolved (peers' are resolved at open)."""
@@ -129,6 +141,8 @@ class UdpRadio(Radio):
         self.name = f"udp {address}"
         self.stats = RadioStats()
         self.unknown_source_frames = 0
+        self._kernel_drops = 0  # the kernel's running count, as last read (SO_RXQ_OVFL)
+        self._counts_kernel_drops = False
         """Frames handed up whose sender is not a known peer (possibly hostile; still handed up)."""
         self._sock: socket.socket | None = None
         self._address = address
@@ -189,6 +203,7 @@ class UdpRadio(Radio):
             if broadcast is not None:
                 sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
             sock.bind(bind)
+            self._counts_kernel_drops = _count_kernel_drops(sock)
         except OSError as exc:
             sock.close()
             raise RadioError(
@@ -294,9 +309,16 @@ class UdpRadio(Radio):
         if sock is None:
             return []
         queue = self._queue
+        counts = self._counts_kernel_drops
         for _ in range(self.max_pending_frames * READ_BUDGET_FACTOR):
             try:
-                data, sender = sock.recvfrom(RECEIVE_BUFFER_BYTES)
+                if counts:
+                    data, ancillary, _flags, sender = sock.recvmsg(
+                        RECEIVE_BUFFER_BYTES, _DROPS_CMSG_BYTES
+                    )
+                    self._note_kernel_drops(ancillary)
+                else:
+                    data, sender = sock.recvfrom(RECEIVE_BUFFER_BYTES)
             except (BlockingIOError, InterruptedError):
                 break
             except ConnectionRefusedError:
@@ -316,6 +338,20 @@ class UdpRadio(Radio):
         self.stats.received += len(frames)
         return frames
 
+    def _note_kernel_drops(self, ancillary: list[tuple[int, int, bytes]]) -> None:
+        """Count what the kernel dropped since the last count it handed.
+
+        Its count only grows (wrapping at 2^32) and comes with a datagram queued after
+        the drops, so a flood's losses are counted when the next datagram is read.
+        """
+        for level, kind, data in ancillary:
+            if level == socket.SOL_SOCKET and kind == SO_RXQ_OVFL and len(data) >= 4:
+                total = int.from_bytes(data[:4], sys.byteorder)
+                dropped = (total - self._kernel_drops) % (1 << 32)
+                self._kernel_drops = total
+                if dropped:
+                    self.stats.drop("kernel", dropped)
+
     def fileno(self) -> int | None:
         """The socket's descriptor, readable while datagrams wait; None when closed."""
         return None if self._sock is None else self._sock.fileno()
@@ -326,6 +362,17 @@ class UdpRadio(Radio):
         if sock is not None:
             sock.close()
         self._queue.clear()
+
+
+def _count_kernel_drops(sock: socket.socket) -> bool:
+    """Ask the kernel for its drop count with every datagram; False where it cannot."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, SO_RXQ_OVFL, 1)
+    except OSError:
+        return False
+    return True
 
 
 def _is_local(host: str) -> bool:
