@@ -514,6 +514,13 @@ def link_json(
     }
 
 
+MAX_ACTIVE_STATES_SHOWN: Final = 32
+"""Active states shown per agent: deeper than any mission nests (a forged Behavior State
+may name hundreds)."""
+MAX_STATE_NAME_CHARS: Final = 100
+"""Longest state or event name shown, escaped (a dotted path of a deep state fits)."""
+
+
 def agent_row(
     info: Mapping[str, Any],
     origin: Origin,
@@ -604,9 +611,14 @@ def agent_row(
         }
         out["mode"] = {"number": status.mode, "name": mode}
     if behaviour is not None:
+        # Names from the air: a control character or a bidirectional override (U+202E
+        # shows the operator a reversed name) is escaped, and a flood of them is cut.
         out["behaviour"] = {
-            "active": list(behaviour.active_states),
-            "last_event": behaviour.last_event,
+            "active": [
+                line_safe(name, MAX_STATE_NAME_CHARS)
+                for name in behaviour.active_states[:MAX_ACTIVE_STATES_SHOWN]
+            ],
+            "last_event": line_safe(behaviour.last_event, MAX_STATE_NAME_CHARS),
             "age_s": _round(behaviour_age_s, 2),
         }
     if attitude is not None:
