@@ -395,9 +395,11 @@ def _run_live(
         if bridge is not None:
             bridge.close()
     stopper = bridge if bridge is not None else switch
-    stopped_at_s = stopper.stopped_at_s if stopper is not None else None
-    if stopped_at_s is not None:
-        print(f"stopped at {stopped_at_s:.1f} s of {until:g} s (Ctrl-C)", file=err)
+    if stopper is not None and stopper.stopped_at_s is not None:
+        print(
+            f"stopped at {stopper.stopped_at_s:.1f} s of {until:g} s ({stopper.stopped_by})",
+            file=err,
+        )
     until = min(until, result.recording.end_s)  # earlier when Ctrl-C ended a real-time run
     results = evaluate(mission.checks, result.recording, result.configs, mission.origin)
     safety = judge_safety(result.recording, result.configs)

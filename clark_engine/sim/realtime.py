@@ -37,7 +37,7 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from types import FrameType, TracebackType
-from typing import Final
+from typing import Any, Final
 
 from clark_engine.errors import UsageError
 from clark_engine.io.transports import TransportError, UdpTransport
@@ -141,9 +141,13 @@ class StopSwitch:
         self._stop = threading.Event()
         self.stopped_at_s: float | None = None
         """The simulated time at which :meth:`stop` took effect; None while running."""
+        self.stopped_by = "Ctrl-C"
+        """What stopped it (``Ctrl-C``, ``SIGTERM``), for the line that says so."""
 
-    def stop(self) -> None:
-        """End the run at its next step."""
+    def stop(self, reason: str = "Ctrl-C") -> None:
+        """End the run at its next step; ``reason`` says what stopped it."""
+        if not self._stop.is_set():
+            self.stopped_by = reason
         self._stop.set()
 
     def check(self, run: DryRun, t_s: float) -> None:
@@ -228,19 +232,24 @@ class MavlinkBridge:
 
     # -- public -------------------------------------------------------------------------
 
-    def stop(self) -> None:
+    def stop(self, reason: str = "Ctrl-C") -> None:
         """End the run at the next loop iteration, as if ``--until`` were now.
 
         Safe from any thread and from a signal handler: it only sets a flag; the
         run's own thread ends the loop, so the logs close and the report is written
         as after a normal end.
         """
-        self._switch.stop()
+        self._switch.stop(reason)
 
     @property
     def stopped_at_s(self) -> float | None:
         """The simulated time at which :meth:`stop` took effect; None while running."""
         return self._switch.stopped_at_s
+
+    @property
+    def stopped_by(self) -> str:
+        """What stopped the run (``Ctrl-C``, ``SIGTERM``)."""
+        return self._switch.stopped_by
 
     def peers(self, agent: str) -> tuple[tuple[str, int], ...]:
         """The UDP addresses of the stations a vehicle has heard, oldest first."""
@@ -305,31 +314,46 @@ class MavlinkBridge:
 
 
 @contextmanager
-def stop_on_interrupt(stop: Callable[[], None]) -> Iterator[None]:
-    """Within the block, the first Ctrl-C calls ``stop`` instead of raising.
+def stop_on_interrupt(stop: Callable[[str], None]) -> Iterator[None]:
+    """Within the block, the first Ctrl-C (SIGINT) or SIGTERM calls ``stop`` instead.
 
-    A real-time run has no end a person waits for, so Ctrl-C is its normal end:
-    the loop finishes its step, the logs close and the report is written. A
-    second Ctrl-C raises KeyboardInterrupt as usual, for a run that does not
-    stop. Signal handlers belong to the main thread; elsewhere (a test running
-    the dry run in a thread) this does nothing, as it does when SIGINT is ignored.
+    A real-time run has no end a person waits for, so Ctrl-C is its normal end, and
+    SIGTERM (a service manager, ``kill``, a CI runner's timeout) is the same end asked
+    by a program: the loop finishes its step, the logs close and the report is written.
+    ``stop`` is given ``"Ctrl-C"`` or ``"SIGTERM"``. After the first, both signals act
+    as they did before the block (a second Ctrl-C raises KeyboardInterrupt, for a run
+    that does not stop). Signal handlers belong to the main thread; elsewhere (a test
+    running the dry run in a thread) this does nothing, and a signal ignored on purpose
+    (a background job's SIGINT) stays ignored.
     """
-    installed = signal.getsignal(signal.SIGINT)
-    if threading.current_thread() is not threading.main_thread() or installed == signal.SIG_IGN:
-        yield  # not ours to change, or Ctrl-C is ignored on purpose (a background job)
+    if threading.current_thread() is not threading.main_thread():
+        yield  # not ours to change
         return
-    # None: a handler not set from Python; put Python's default back in its place.
-    previous = installed if installed is not None else signal.default_int_handler
+    names = {signal.SIGINT: "Ctrl-C", signal.SIGTERM: "SIGTERM"}
+    previous: dict[signal.Signals, Any] = {}
+    for signum in names:
+        installed = signal.getsignal(signum)
+        if installed == signal.SIG_IGN:
+            continue
+        # None: a handler not set from Python; put Python's default back in its place.
+        if installed is None:
+            installed = signal.default_int_handler if signum == signal.SIGINT else signal.SIG_DFL
+        previous[signum] = installed
+
+    def restore() -> None:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
 
     def interrupted(signum: int, frame: FrameType | None) -> None:
-        signal.signal(signal.SIGINT, previous)
-        stop()
+        restore()
+        stop(names[signal.Signals(signum)])
 
-    signal.signal(signal.SIGINT, interrupted)
+    for signum in previous:
+        signal.signal(signum, interrupted)
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        restore()
 
 
 class StopFlag:
