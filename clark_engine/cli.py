@@ -312,6 +312,7 @@ def cmd_dry_run(args: argparse.Namespace) -> int:
         for given, option in (
             (args.sitl is not None, "--sitl"),
             (args.sitl_speedup is not None, "--sitl-speedup"),
+            (args.sitl_instances is not None, "--sitl-instances"),
         ):
             if given:
                 raise UsageError(f"{option} only applies with --autopilot sitl")
@@ -350,7 +351,7 @@ def cmd_dry_run(args: argparse.Namespace) -> int:
     install = None
     if on_sitl:
         try:
-            install = SitlInstall.find(args.sitl)
+            install = SitlInstall.find(args.sitl, instances=args.sitl_instances)
         except SitlError as exc:
             raise UsageError(str(exc)) from None
     outcome = run_dry_run(
@@ -668,6 +669,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --autopilot sitl: run SITL X times faster than real time (10 by default)",
     )
     p.add_argument(
+        "--sitl-instances",
+        metavar="FIRST-LAST",
+        help="with --autopilot sitl: the SITL instance numbers (ports 5760+10*I...) its "
+        "vehicles may take, to keep runs on a shared machine apart ($CLARK_SITL_INSTANCES; "
+        "0-99 by default)",
+    )
+    p.add_argument(
         "--station",
         action="store_true",
         help="with --realtime: serve the station agent's live web view of the rehearsal "
@@ -792,6 +800,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="sim: the simulated autopilot on UDP (default); sitl: real ArduPilot SITL",
     )
     p.add_argument("--sitl", metavar="PATH", help="SITL folder or launcher ($CLARK_SITL)")
+    p.add_argument(
+        "--sitl-instances",
+        metavar="FIRST-LAST",
+        help="sitl: the instance numbers it may take ($CLARK_SITL_INSTANCES; 0-99 by default)",
+    )
     p.add_argument(
         "--listen",
         metavar="HOST:PORT",

@@ -26,6 +26,7 @@ from sitl_here import real_install
 from clark_engine.errors import ClarkError
 from clark_engine.sim.sitl import (
     ENV_SITL,
+    ENV_SITL_INSTANCES,
     Home,
     InstanceLock,
     InstancePorts,
@@ -34,6 +35,7 @@ from clark_engine.sim.sitl import (
     SitlNotFound,
     SitlProcess,
     instance_free,
+    parse_instances,
     port_free,
     reserve_instance,
     vehicle_for_firmware,
@@ -41,8 +43,13 @@ from clark_engine.sim.sitl import (
 
 ROOT = Path(__file__).resolve().parent.parent
 HOME = Home(30.6372, -96.4787, 90.0, 0.0)
-# High instance numbers (ports 7260 and up): clear of the ones people start by hand.
-INSTANCES = range(150, 190)
+# High instance numbers (ports 7260 and up): clear of the ones people start by hand; or
+# the range this machine's user keeps to ($CLARK_SITL_INSTANCES).
+INSTANCES = (
+    parse_instances(os.environ[ENV_SITL_INSTANCES])
+    if os.environ.get(ENV_SITL_INSTANCES)
+    else range(150, 190)
+)
 
 
 def alive(pid: int) -> bool:
@@ -117,6 +124,41 @@ def test_find_falls_back_to_the_environment(tmp_path: Path) -> None:
     launcher = make_launcher(tmp_path / "env", "exit 0\n")
     install = SitlInstall.find(None, environ={ENV_SITL: str(tmp_path / "env")})
     assert install.launcher == launcher.resolve()
+
+
+def test_the_instances_come_from_the_option_then_the_environment(tmp_path: Path) -> None:
+    """A shared lab machine keeps runs apart by instance ranges (--sitl-instances, or
+    $CLARK_SITL_INSTANCES for every run and test of one user)."""
+    make_launcher(tmp_path / "s", "exit 0\n")
+    folder = str(tmp_path / "s")
+    assert SitlInstall.find(folder, environ={}).instances == range(0, 100)
+    env = {ENV_SITL_INSTANCES: "20-39"}
+    assert SitlInstall.find(folder, environ=env).instances == range(20, 40)
+    assert SitlInstall.find(folder, instances="7", environ=env).instances == range(7, 8)
+    launcher = SitlInstall.find(folder, instances="300-301", environ={})
+    process = SitlProcess(launcher, "rover", HOME)
+    assert process._instances == [300, 301]
+
+
+@pytest.mark.parametrize("text", ["39-20", "x", "-1-3", "20-", "1-99999", "1" * 40])
+def test_a_bad_instance_range_says_what_to_write(tmp_path: Path, text: str) -> None:
+    make_launcher(tmp_path / "s", "exit 0\n")
+    with pytest.raises(SitlError, match=r"FIRST-LAST, each 0\.\.5000"):
+        SitlInstall.find(str(tmp_path / "s"), instances=text, environ={})
+    with pytest.raises(SitlError, match=r"\$CLARK_SITL_INSTANCES"):
+        SitlInstall.find(str(tmp_path / "s"), environ={ENV_SITL_INSTANCES: text})
+
+
+def test_the_cli_takes_an_instance_range_only_with_sitl(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from clark_engine.cli import main
+
+    mission = str(ROOT / "missions" / "single_vehicle_mode_change.yaml")
+    assert main(["dry-run", mission, "--sitl-instances", "20-39"]) == 2
+    assert "--sitl-instances only applies with --autopilot sitl" in capsys.readouterr().err
+    assert main(["autopilot-sim", mission, "--agent", "slash", "--sitl-instances", "1-2"]) == 2
+    assert "--sitl-instances only applies with --autopilot sitl" in capsys.readouterr().err
 
 
 def test_the_path_given_beats_the_environment(tmp_path: Path) -> None:

@@ -391,14 +391,15 @@ def serve_vehicle(args: Any) -> int:
                     "SERIAL1 on TCP and boots in its own time"
                 )
         try:
-            install = SitlInstall.find(args.sitl)
+            install = SitlInstall.find(args.sitl, instances=args.sitl_instances)
         except SitlError as exc:
             raise UsageError(str(exc)) from None
         server = ServedSitl(mission, args.agent, install)
         kind = f"ArduPilot SITL (instance {server.instance}, real time)"
     else:
-        if args.sitl is not None:
-            raise UsageError("--sitl only applies with --autopilot sitl")
+        for given, option in ((args.sitl, "--sitl"), (args.sitl_instances, "--sitl-instances")):
+            if given is not None:
+                raise UsageError(f"{option} only applies with --autopilot sitl")
         host, port = _listen_address(args.listen or DEFAULT_LISTEN)
         try:
             server = ServedSimulated(

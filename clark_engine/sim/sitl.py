@@ -91,6 +91,35 @@ PORT_STEP: Final = 10
 DEFAULT_INSTANCES: Final = range(0, 100)
 """Instance numbers tried, lowest first (ports up to 5763 + 990)."""
 
+ENV_SITL_INSTANCES: Final = "CLARK_SITL_INSTANCES"
+"""The instance numbers this user's runs may take, ``FIRST-LAST`` (``--sitl-instances``):
+on a lab machine shared by several people or CI jobs, each keeps to its own range."""
+
+MAX_INSTANCE: Final = 5000
+"""The highest instance number: its ports (up to 9005 + 10 * I) must stay below 65536."""
+
+
+def parse_instances(text: str, how: str = "--sitl-instances") -> range:
+    """``FIRST-LAST`` (or one number) as the range of instance numbers it names.
+
+    Raises:
+        SitlError: Not two numbers in order within 0..MAX_INSTANCE; the message says
+            what to write.
+    """
+    first, dash, last = text.strip().partition("-")
+    try:
+        low = int(first)
+        high = int(last) if dash else low
+    except ValueError:
+        low, high = -1, -1
+    if not (0 <= low <= high <= MAX_INSTANCE) or len(text) > 32:
+        raise SitlError(
+            f"{how} {text[:32]!r}: give the SITL instance numbers to use as FIRST-LAST, "
+            f"each 0..{MAX_INSTANCE}, FIRST not above LAST (e.g. 20-39: ports 5960-6153)"
+        )
+    return range(low, high + 1)
+
+
 RC_INPUT_CHANNELS: Final = 16
 """Channels one RC-input datagram carries (ArduPilot also takes 8)."""
 
@@ -299,9 +328,16 @@ def reserve_instance(
 
 @dataclass(frozen=True, slots=True)
 class SitlInstall:
-    """A SITL launcher script, found and checked."""
+    """A SITL launcher script, found and checked, and the instance numbers it may take.
+
+    Attributes:
+        launcher: The ``sitl`` launcher.
+        instances: Instance numbers a vehicle started from it may use, lowest first
+            (``--sitl-instances`` or ``$CLARK_SITL_INSTANCES``; 0-99 by default).
+    """
 
     launcher: Path
+    instances: range = DEFAULT_INSTANCES
 
     @property
     def folder(self) -> Path:
@@ -309,20 +345,35 @@ class SitlInstall:
         return self.launcher.parent
 
     @classmethod
-    def find(cls, given: str | None, *, environ: Mapping[str, str] | None = None) -> SitlInstall:
+    def find(
+        cls,
+        given: str | None,
+        *,
+        instances: str | None = None,
+        environ: Mapping[str, str] | None = None,
+    ) -> SitlInstall:
         """The launcher from ``--sitl PATH``, else from ``$CLARK_SITL``.
 
         Args:
             given: ``--sitl PATH``: a folder holding the ``sitl`` launcher, or the
                 launcher itself; None when not given.
+            instances: ``--sitl-instances FIRST-LAST``, else ``$CLARK_SITL_INSTANCES``,
+                else :data:`DEFAULT_INSTANCES`.
             environ: The environment to read ``CLARK_SITL`` from (``os.environ`` by
                 default; tests pass their own).
 
         Raises:
             SitlNotFound: Neither names an executable launcher; the message says what
                 to give instead.
+            SitlError: The instance range is not ``FIRST-LAST``.
         """
         env = os.environ if environ is None else environ
+        if instances is not None:
+            allowed = parse_instances(instances)
+        elif env.get(ENV_SITL_INSTANCES):
+            allowed = parse_instances(env[ENV_SITL_INSTANCES], f"${ENV_SITL_INSTANCES}")
+        else:
+            allowed = DEFAULT_INSTANCES
         how = "--sitl"
         if given is None:
             given = env.get(ENV_SITL) or None
@@ -346,7 +397,7 @@ class SitlInstall:
                 f"{how} {given}: {launcher} is not executable; make it so "
                 f"(chmod +x {launcher}) or point {how} at a working SITL folder"
             )
-        return cls(launcher.resolve())
+        return cls(launcher.resolve(), allowed)
 
 
 def _death_pact(parent_pid: int) -> Callable[[], None]:
@@ -411,7 +462,7 @@ class SitlProcess:
         home: Where it boots.
         speedup: ArduPilot's ``--speedup`` (1: real time).
         instance: A fixed instance number; None chooses a free one from ``instances``.
-        instances: Candidate instance numbers, lowest first.
+        instances: Candidate instance numbers, lowest first; None: the install's.
         work_dir: Its working folder (kept afterwards: it is the caller's); None for a
             fresh temp folder.
         keep_work: Keep the fresh temp folder after stopping (to read its logs).
@@ -435,7 +486,7 @@ class SitlProcess:
         *,
         speedup: float = 1.0,
         instance: int | None = None,
-        instances: Iterable[int] = DEFAULT_INSTANCES,
+        instances: Iterable[int] | None = None,
         work_dir: Path | None = None,
         keep_work: bool = False,
         lock_dir: Path | None = None,
@@ -453,7 +504,7 @@ class SitlProcess:
         self.home = Home(*home)
         self.speedup = float(speedup)
         self._fixed_instance = instance
-        self._instances = list(instances)
+        self._instances = list(install.instances if instances is None else instances)
         self._given_work_dir = work_dir
         self.keep_work = keep_work
         self.lock_dir = lock_dir or default_lock_dir()
