@@ -103,7 +103,7 @@ def attack(port: int, hostile: int, addresses: int, mode: str) -> None:
     opened = closed = failed = 0
     header = b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n" + b"X-a: b\r\n" * 10_000
     slot = 0
-    last_report = last_trickle = time.monotonic()
+    started = last_report = last_trickle = time.monotonic()
     os.set_blocking(sys.stdin.fileno(), False)
     while True:
         with contextlib.suppress(BlockingIOError):
@@ -151,6 +151,7 @@ def attack(port: int, hostile: int, addresses: int, mode: str) -> None:
             last_report = now
             report = {"open": len(open_socks), "opened": opened, "closed": closed}
             report["failed"] = failed
+            report["elapsed_ms"] = round(1000 * (now - started))
             print(json.dumps(report), flush=True)
     for sock, _sent in open_socks.values():
         sock.close()
@@ -274,7 +275,8 @@ def phase(
         print(
             f"  attacker: held {min(held)}-{max(held)} connections open "
             f"(median {statistics.median(held):.0f}), opened {last['opened']}, "
-            f"closed by the view {last['closed']}, connects that failed {last['failed']}"
+            f"closed by the view {last['closed']}, connects that failed {last['failed']}; "
+            f"{1000 * last['opened'] / max(1, last['elapsed_ms']):.0f} opened a second"
         )
     print(f"  view: {stats}")
     print(f"  view's stderr during the operator's rounds: {grown} bytes")

@@ -13,6 +13,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
+import logging
 import os
 import resource
 import socket
@@ -302,3 +303,23 @@ def test_a_flood_beyond_the_file_limit_writes_no_traceback_flood(
     assert "Traceback" not in log, log[:3000]
     assert len(log) < 20_000, log[:3000]
     assert log.count("could not accept") <= 3, log
+
+
+def test_bad_requests_are_logged_once_then_counted(caplog: pytest.LogCaptureFixture) -> None:
+    server = ViewServer(HELLO, lambda r: None, port=0, limits=ViewLimits(log_interval_s=60.0))
+    server.start()
+    try:
+        with caplog.at_level(logging.INFO):
+            for _ in range(30):
+                with socket.create_connection(("127.0.0.1", server.port), TIMEOUT_S) as sock:
+                    sock.sendall(b"GET / HTTP/1.1\r\nno colon here\r\n\r\n")
+                    sock.settimeout(TIMEOUT_S)
+                    with contextlib.suppress(OSError):
+                        while sock.recv(65536):  # the 400, then the close
+                            pass
+    finally:
+        server.stop()
+    noisy = [r for r in caplog.records if r.name.startswith("aiohttp")]
+    assert len(noisy) == 1, [r.getMessage() for r in noisy]  # the first, with its traceback
+    counted = [r.getMessage() for r in caplog.records if "more of aiohttp" in r.getMessage()]
+    assert counted == ["station view: 29 more of aiohttp's Error handling request from ..."]

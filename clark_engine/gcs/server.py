@@ -271,6 +271,10 @@ class _Throttle:
         self._last_s[kind] = now
         return self._counts.pop(kind)
 
+    def remember(self, kind: str, text: str) -> None:
+        """The line (a %-format with one ``%d``) :meth:`flush` writes for ``kind``."""
+        self._texts[kind] = text
+
     def note(self, kind: str, text: str, level: int = logging.WARNING) -> None:
         """Log ``text`` (a %-format with one ``%d`` for the count) when its kind may."""
         self._texts[kind] = text
@@ -306,6 +310,9 @@ class _ThrottledLogger(logging.LoggerAdapter):  # type: ignore[type-arg]
             return
         kind = f"aiohttp:{msg}"
         first = kind not in self.throttle.total
+        self.throttle.remember(
+            kind, f"station view: %d more of aiohttp's {msg!s}".replace("%s", "...")
+        )
         count = self.throttle.admit(kind)
         if count is None:
             return
