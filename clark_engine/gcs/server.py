@@ -45,6 +45,13 @@ Security (docs/station-view.md, "Security"):
   are not browsers send no Origin and pass this check (they still need the token).
 - The page is served with a strict Content-Security-Policy (its own scripts and styles
   only), ``X-Frame-Options: DENY``, ``nosniff`` and ``Referrer-Policy: no-referrer``.
+- Connections are bounded (docs/station-view.md, "Connections and floods"): asyncio
+  accepts, :class:`_Admitted` admits each under :class:`ViewLimits` (per address, in
+  all: below the file limit, :func:`view_limits`) before aiohttp sees it; a connection
+  must pass the checks above within :data:`HEADER_TIMEOUT_S` (until then it may be
+  closed to make room for a newer one, oldest first), a served one idle for
+  :data:`IDLE_TIMEOUT_S` is closed; floods of errors (accept() out of descriptors,
+  aiohttp's bad requests) are one counted line per :data:`LOG_INTERVAL_S`.
 """
 
 from __future__ import annotations
