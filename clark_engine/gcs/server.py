@@ -45,22 +45,31 @@ Security (docs/station-view.md, "Security"):
   are not browsers send no Origin and pass this check (they still need the token).
 - The page is served with a strict Content-Security-Policy (its own scripts and styles
   only), ``X-Frame-Options: DENY``, ``nosniff`` and ``Referrer-Policy: no-referrer``.
+- Connections are bounded (docs/station-view.md, "Connections and floods"): asyncio
+  accepts, :class:`_Admitted` admits each under :class:`ViewLimits` (per address, in
+  all: below the file limit, :func:`view_limits`) before aiohttp sees it; a connection
+  must pass the checks above within :data:`HEADER_TIMEOUT_S` (until then it may be
+  closed to make room for a newer one, oldest first), a served one idle for
+  :data:`IDLE_TIMEOUT_S` is closed; floods of errors (accept() out of descriptors,
+  aiohttp's bad requests) are one counted line per :data:`LOG_INTERVAL_S`.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
 import hmac
 import ipaddress
 import itertools
 import json
 import logging
 import math
+import resource
 import socket
 import threading
 import time
-from collections import deque
+from collections import OrderedDict, deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -133,7 +142,193 @@ REPLAY_ACTIONS: Final = ("seek", "play", "pause", "speed")
 STOP_FLUSH_S: Final = 1.0
 """How long the server, when it stops, gives its clients to receive the last state."""
 
+HEADER_TIMEOUT_S: Final = 10.0
+"""A new connection must send a whole request that passes the view's checks (its token,
+its Host) within this time, or it is closed: the slowloris guard. A browser sends its
+request within milliseconds of connecting."""
+
+IDLE_TIMEOUT_S: Final = 30.0
+"""A connection that has been served and then sends no new request for this long is
+closed (aiohttp's ``keepalive_timeout``); a WebSocket is not idle (its own heartbeat
+closes a dead one)."""
+
+MAX_CONNECTIONS_CEILING: Final = 1024
+"""The most connections served at once, however high the file limit: a station view
+has a handful of users."""
+
+MAX_PER_ADDRESS_CEILING: Final = 32
+"""The most connections one client address (an IPv6 client's /64) holds at once: a
+browser opens six per server and a WebSocket; a few tabs fit."""
+
+RESERVED_FILES: Final = 128
+"""File descriptors always left to the rest of the engine (logs, radios, serial ports,
+the autopilot's link) whatever the view holds: at least this, or a quarter of the
+limit."""
+
+LOG_INTERVAL_S: Final = 10.0
+"""At most one line per kind of trouble (connections shed, accept failures, errors of
+aiohttp or asyncio) per this interval; the others are counted into the next line."""
+
+ACCEPT_RETRY_S: Final = 0.5
+"""After accept() fails for want of a file descriptor, how long the view waits before
+accepting again (the pending connections wait in the kernel's backlog)."""
+
+LISTEN_BACKLOG: Final = 128
+
+_NO_RESOURCE: Final = frozenset({errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM})
+
 _LOG = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class ViewLimits:
+    """How many connections the view holds, and for how long (docs/station-view.md).
+
+    Left as None, the connection caps are derived from the process's file limit by
+    :func:`view_limits` when the server starts.
+    """
+
+    header_timeout_s: float = HEADER_TIMEOUT_S
+    """Time a new connection has to send a request that passes the checks."""
+    idle_timeout_s: float = IDLE_TIMEOUT_S
+    """Time a served connection may stay silent before it is closed."""
+    max_connections: int | None = None
+    """Connections held at once, in all."""
+    max_per_address: int | None = None
+    """Connections held at once from one client address (one IPv6 /64)."""
+    log_interval_s: float = LOG_INTERVAL_S
+    """At most one line per kind of trouble per this interval."""
+
+
+def view_limits(limits: ViewLimits, nofile: int | None = None) -> ViewLimits:
+    """``limits`` with its connection caps filled in and kept below the file limit.
+
+    ``nofile`` is the process's soft ``RLIMIT_NOFILE`` (read when None). The engine keeps
+    ``max(RESERVED_FILES, nofile // 4)`` descriptors for its own files and sockets; of
+    the rest, each view connection may take two at once (its socket, and a static file
+    while aiohttp sends it), so at most half the rest are connections, and never more
+    than :data:`MAX_CONNECTIONS_CEILING`. One address may hold an eighth of them, at
+    most :data:`MAX_PER_ADDRESS_CEILING`, at least 2, so that no one address (an
+    attacker's) can take every place. Caps given in ``limits`` are kept when below
+    these.
+    """
+    if nofile is None:
+        nofile = resource.getrlimit(resource.RLIMIT_NOFILE)[0]
+    if nofile == resource.RLIM_INFINITY or nofile <= 0:
+        nofile = 65536
+    reserve = max(RESERVED_FILES, nofile // 4)
+    ceiling = max(4, min(MAX_CONNECTIONS_CEILING, (nofile - reserve) // 2))
+    total = min(ceiling, limits.max_connections or ceiling)
+    per_address = max(2, min(MAX_PER_ADDRESS_CEILING, total // 8))
+    if limits.max_per_address is not None:
+        per_address = limits.max_per_address
+    per_address = max(1, min(per_address, total))
+    return ViewLimits(
+        header_timeout_s=limits.header_timeout_s,
+        idle_timeout_s=limits.idle_timeout_s,
+        max_connections=total,
+        max_per_address=per_address,
+        log_interval_s=limits.log_interval_s,
+    )
+
+
+def client_key(address: str) -> str:
+    """The key a client's connections are counted under, for the per-address cap.
+
+    Its IPv4 address; an IPv6 client's /64 (one host is commonly given a whole /64, so
+    counting single IPv6 addresses would give an attacker billions of places); an
+    IPv4-mapped IPv6 address as its IPv4 address.
+    """
+    try:
+        ip = ipaddress.ip_address(address.split("%", 1)[0])
+    except ValueError:
+        return address
+    if isinstance(ip, ipaddress.IPv6Address):
+        if ip.ipv4_mapped is not None:
+            return str(ip.ipv4_mapped)
+        if not ip.is_loopback:
+            return str(ipaddress.ip_network(f"{ip}/64", strict=False))
+    return str(ip)
+
+
+class _Throttle:
+    """Log lines that may come in floods: one per kind per interval, the rest counted.
+
+    ``note`` logs at once when its kind has been quiet for the interval, else counts;
+    the count goes out with the next line of that kind (or :meth:`flush`), so a flood of
+    a thousand accept failures a second is one line every ``interval_s``.
+    """
+
+    def __init__(self, logger: logging.Logger, interval_s: float) -> None:
+        self.logger = logger
+        self.interval_s = interval_s
+        self._last_s: dict[str, float] = {}
+        self._counts: dict[str, int] = {}
+        self._texts: dict[str, str] = {}
+        self.total: dict[str, int] = {}
+
+    def admit(self, kind: str) -> int | None:
+        """Count one of ``kind``; the number to report when a line may go out now, or None."""
+        self.total[kind] = self.total.get(kind, 0) + 1
+        self._counts[kind] = self._counts.get(kind, 0) + 1
+        now = time.monotonic()
+        last = self._last_s.get(kind)
+        if last is not None and now - last < self.interval_s:
+            return None
+        self._last_s[kind] = now
+        return self._counts.pop(kind)
+
+    def remember(self, kind: str, text: str) -> None:
+        """The line (a %-format with one ``%d``) :meth:`flush` writes for ``kind``."""
+        self._texts[kind] = text
+
+    def note(self, kind: str, text: str, level: int = logging.WARNING) -> None:
+        """Log ``text`` (a %-format with one ``%d`` for the count) when its kind may."""
+        self._texts[kind] = text
+        count = self.admit(kind)
+        if count is not None:
+            self.logger.log(level, text, count)
+
+    def flush(self) -> None:
+        """Log what was counted and not yet reported (when the server stops)."""
+        for kind, count in list(self._counts.items()):
+            text = self._texts.get(kind)
+            if count and text is not None:
+                self.logger.warning(text, count)
+        self._counts.clear()
+
+
+class _ThrottledLogger(logging.LoggerAdapter):  # type: ignore[type-arg]
+    """aiohttp's server logger, one record per message per interval, counted.
+
+    aiohttp logs each bad request ("Error handling request", with a traceback) and
+    each error of its own; from anyone who reaches the port, that is a flood. The first
+    of a kind keeps its traceback; later ones go out once per interval as one line with
+    their count. Debug records pass (they are off unless asked for).
+    """
+
+    def __init__(self, logger: logging.Logger, throttle: _Throttle) -> None:
+        super().__init__(logger, {})
+        self.throttle = throttle
+
+    def log(self, level: int, msg: object, *args: Any, **kwargs: Any) -> None:
+        if level < logging.WARNING:
+            self.logger.log(level, msg, *args, **kwargs)
+            return
+        kind = f"aiohttp:{msg}"
+        first = kind not in self.throttle.total
+        self.throttle.remember(
+            kind, f"station view: %d more of aiohttp's {msg!s}".replace("%s", "...")
+        )
+        count = self.throttle.admit(kind)
+        if count is None:
+            return
+        if not first:
+            kwargs.pop("exc_info", None)
+            kwargs.pop("stack_info", None)
+            msg = f"{msg} (%d like it in the last {self.throttle.interval_s:g} s)"
+            args = (*args, count)
+        self.logger.log(level, msg, *args, **kwargs)
 
 
 def is_loopback_host(host: str) -> bool:
@@ -236,6 +431,73 @@ class _Client:
     def allow_command(self) -> bool:
         """Whether one more command fits this client's rate (:data:`COMMANDS_PER_S`)."""
         return self.commands.allow()
+
+
+_FULL_RESPONSE: Final = (
+    b"HTTP/1.1 503 Service Unavailable\r\nContent-Type: text/plain\r\n"
+    b"Content-Length: 47\r\nConnection: close\r\nRetry-After: 5\r\n\r\n"
+    b"503: the station view holds all it can; retry\n"
+)
+"""What a connection the view has no room for is sent before it is closed."""
+
+
+@dataclass(eq=False)
+class _Connection:
+    """One TCP connection the view holds, for its caps and its header timeout.
+
+    It is *proven* once a request on it has passed the view's checks (the token when
+    there is one, the Host on loopback); until then it may be closed to make room for a
+    newer one, oldest first, and is closed when :data:`HEADER_TIMEOUT_S` runs out.
+    """
+
+    key: str
+    transport: asyncio.BaseTransport
+    proven: bool = False
+    closed: bool = False
+    timer: asyncio.TimerHandle | None = None
+
+
+class _Admitted(asyncio.Protocol):
+    """A connection's protocol: admitted under the view's limits, then aiohttp's.
+
+    asyncio accepts each connection and calls :meth:`connection_made`; there the view
+    decides whether it has room (:meth:`ViewServer._admit`). A connection admitted is
+    handed to aiohttp's request handler, which sees every call after; one refused is
+    sent a 503 and closed, and aiohttp never learns of it.
+    """
+
+    def __init__(self, server: ViewServer, handler_factory: Callable[[], asyncio.Protocol]):
+        self._server = server
+        self._factory = handler_factory
+        self._inner: asyncio.Protocol | None = None
+        self._connection: _Connection | None = None
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        self._connection = self._server._admit(transport)
+        if self._connection is not None:
+            self._inner = self._factory()
+            self._inner.connection_made(transport)
+
+    def data_received(self, data: bytes) -> None:
+        if self._inner is not None:
+            self._inner.data_received(data)
+
+    def eof_received(self) -> bool | None:
+        return self._inner.eof_received() if self._inner is not None else None
+
+    def pause_writing(self) -> None:
+        if self._inner is not None:
+            self._inner.pause_writing()
+
+    def resume_writing(self) -> None:
+        if self._inner is not None:
+            self._inner.resume_writing()
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        if self._connection is not None:
+            self._server._release(self._connection)
+        if self._inner is not None:
+            self._inner.connection_lost(exc)
 
 
 class ReplaySource(Protocol):
@@ -427,6 +689,8 @@ class ViewServer:
         static_dir: The page's folder (the package's by default).
         replay: Serve this finished run instead of snapshots (``clark replay``): each
             client moves through it at its own time, and commands are refused.
+        limits: Timeouts and connection caps (:class:`ViewLimits`); caps left out are
+            derived from the file limit when the server starts (:func:`view_limits`).
 
     Raises:
         UsageError: A non-loopback ``host`` without a token, or a token that is too
@@ -443,6 +707,7 @@ class ViewServer:
         token: str | None = None,
         static_dir: Path = STATIC_DIR,
         replay: ReplaySource | None = None,
+        limits: ViewLimits | None = None,
     ) -> None:
         loopback = is_loopback_host(host)
         if token is None and not loopback:
@@ -480,11 +745,35 @@ class ViewServer:
         self._track: deque[Json] = deque(maxlen=MAX_TRACK_POINTS)
         self._photos: deque[Json] = deque(maxlen=MAX_PHOTOS)
         self._log: deque[Json] = deque(maxlen=MAX_LOG_LINES)
-        self.stats = {"connections": 0, "refused": 0, "commands": 0, "rejected": 0}
+        self.limits = limits or ViewLimits()
+        """The view's timeouts and caps (the caps filled in by :meth:`start`)."""
+        self._throttle = _Throttle(_LOG, self.limits.log_interval_s)
+        self._open: dict[asyncio.BaseTransport, _Connection] = {}
+        self._unproven: OrderedDict[_Connection, None] = OrderedDict()
+        self._unproven_by_key: dict[str, OrderedDict[_Connection, None]] = {}
+        self._per_key: dict[str, int] = {}
+        self.stats = {
+            "connections": 0,
+            "refused": 0,
+            "commands": 0,
+            "rejected": 0,
+            "timed_out": 0,
+            "shed": 0,
+            "full": 0,
+            "accept_errors": 0,
+        }
         """Counts since the start: WebSocket connections, requests refused (403),
-        commands handed on, messages rejected."""
+        commands handed on, messages rejected; TCP connections closed for sending no
+        valid request in time (``timed_out``), closed to make room for a newer one
+        (``shed``), refused because every place was taken by proven ones (``full``),
+        and accept() failures for want of a file descriptor (``accept_errors``)."""
 
     # -- addresses -----------------------------------------------------------------------
+
+    @property
+    def open_connections(self) -> int:
+        """TCP connections held now (read on the server's thread, or as an estimate)."""
+        return len(self._open)
 
     @property
     def cookie_name(self) -> str:
@@ -529,7 +818,7 @@ class ViewServer:
         try:
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
             sock.bind(address)
-            sock.listen(64)
+            sock.listen(LISTEN_BACKLOG)
             sock.setblocking(False)
         except OSError as exc:
             sock.close()
@@ -538,6 +827,7 @@ class ViewServer:
             ) from None
         self._sock = sock
         self.port = int(sock.getsockname()[1])
+        self.limits = view_limits(self.limits)
         self._thread = threading.Thread(target=self._main, name="clark-view", daemon=True)
         self._thread.start()
         if not self._ready.wait(timeout_s) or self._error is not None:
@@ -559,6 +849,7 @@ class ViewServer:
 
     def _main(self) -> None:
         loop = asyncio.new_event_loop()
+        loop.set_exception_handler(self._loop_error)
         self._loop = loop
         try:
             loop.run_until_complete(self._serve())
@@ -577,20 +868,181 @@ class ViewServer:
         app.router.add_get("/", self._page)
         app.router.add_get("/ws", self._websocket)
         app.router.add_static("/static/", self.static_dir, follow_symlinks=False)
+        limits = self.limits
         runner = web.AppRunner(
-            app, handle_signals=False, access_log=None, shutdown_timeout=STOP_FLUSH_S
+            app,
+            handle_signals=False,
+            access_log=None,
+            shutdown_timeout=STOP_FLUSH_S,
+            keepalive_timeout=limits.idle_timeout_s,
+            lingering_time=min(limits.header_timeout_s, 10.0),
+            logger=_ThrottledLogger(logging.getLogger("aiohttp.server"), self._throttle),
         )
         await runner.setup()
-        assert self._sock is not None
-        site = web.SockSite(runner, self._sock)
-        await site.start()
+        assert self._sock is not None and runner.server is not None
+        handlers = runner.server
+        # Not a SockSite: each connection goes through _Admitted, which applies the caps.
+        listener = await asyncio.get_running_loop().create_server(
+            lambda: _Admitted(self, handlers), sock=self._sock, backlog=LISTEN_BACKLOG
+        )
         self._ready.set()
         try:
             await self._stopping.wait()
             self._take()
             await self._close_clients()
         finally:
+            listener.close()
             await runner.cleanup()
+            self._throttle.flush()
+
+    # -- connections: caps, header timeout, errors ---------------------------------------
+
+    def _admit(self, transport: asyncio.BaseTransport) -> _Connection | None:
+        """A new connection held under the caps, or None when there is no room for it.
+
+        Room is made by closing the oldest connection that has not proven itself (from
+        the same address when that address is at its cap, else from anyone): a flood of
+        new connections churns through the unproven places, while a browser, which
+        sends its request at once, proves itself long before its turn to go. A
+        connection is refused only when every place it could take is proven.
+        """
+        peer = transport.get_extra_info("peername")
+        address = str(peer[0]) if isinstance(peer, tuple) and peer else ""
+        key = client_key(address)
+        assert self.limits.max_connections is not None and self.limits.max_per_address is not None
+        if self._per_key.get(key, 0) >= self.limits.max_per_address:
+            victims = self._unproven_by_key.get(key)
+            if not victims:
+                self._refuse(transport)
+                return None
+            self._shed(next(iter(victims)))
+        if len(self._open) >= self.limits.max_connections:
+            if not self._unproven:
+                self._refuse(transport)
+                return None
+            self._shed(next(iter(self._unproven)))
+        connection = _Connection(key, transport)
+        self._open[transport] = connection
+        self._unproven[connection] = None
+        self._unproven_by_key.setdefault(key, OrderedDict())[connection] = None
+        self._per_key[key] = self._per_key.get(key, 0) + 1
+        loop = asyncio.get_running_loop()
+        connection.timer = loop.call_later(
+            self.limits.header_timeout_s, self._header_timeout, connection
+        )
+        return connection
+
+    def _unlist(self, connection: _Connection) -> None:
+        """Take ``connection`` off the unproven lists."""
+        self._unproven.pop(connection, None)
+        mine = self._unproven_by_key.get(connection.key)
+        if mine is not None:
+            mine.pop(connection, None)
+            if not mine:
+                del self._unproven_by_key[connection.key]
+        if connection.timer is not None:
+            connection.timer.cancel()
+            connection.timer = None
+
+    def _release(self, connection: _Connection) -> None:
+        """Forget a connection that closed (or is being closed); idempotent."""
+        if connection.closed:
+            return
+        connection.closed = True
+        self._unlist(connection)
+        self._open.pop(connection.transport, None)
+        left = self._per_key.get(connection.key, 1) - 1
+        if left > 0:
+            self._per_key[connection.key] = left
+        else:
+            self._per_key.pop(connection.key, None)
+
+    def _prove(self, transport: asyncio.BaseTransport | None) -> None:
+        """A request on this connection passed the checks: it keeps its place."""
+        connection = self._open.get(transport) if transport is not None else None
+        if connection is not None and not connection.proven:
+            connection.proven = True
+            self._unlist(connection)
+
+    def _limits_text(self) -> str:
+        return (
+            f"at most {self.limits.max_per_address} per address and "
+            f"{self.limits.max_connections} in all"
+        )
+
+    def _shed(self, connection: _Connection) -> None:
+        self.stats["shed"] += 1
+        self._throttle.note(
+            "shed",
+            "station view: %d connection(s) closed that had sent no valid request, "
+            f"to make room for new ones ({self._limits_text()})",
+        )
+        self._release(connection)
+        connection.transport.abort()  # type: ignore[attr-defined]
+
+    def _refuse(self, transport: asyncio.BaseTransport) -> None:
+        self.stats["full"] += 1
+        self._throttle.note(
+            "full",
+            "station view: %d connection(s) refused: every place is held by a served "
+            f"client ({self._limits_text()})",
+        )
+        with contextlib.suppress(Exception):
+            transport.write(_FULL_RESPONSE)  # type: ignore[attr-defined]
+        transport.close()
+
+    def _header_timeout(self, connection: _Connection) -> None:
+        connection.timer = None
+        if connection.closed or connection.proven:
+            return
+        self.stats["timed_out"] += 1
+        self._throttle.note(
+            "timeout",
+            "station view: %d connection(s) closed that sent no valid request within "
+            f"{self.limits.header_timeout_s:g} s",
+            logging.INFO,
+        )
+        self._release(connection)
+        connection.transport.abort()  # type: ignore[attr-defined]
+
+    def _loop_error(self, loop: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
+        """The server loop's exception handler: no traceback floods.
+
+        asyncio reports each failed accept() (no file descriptor left: the engine's or
+        the view's) with a traceback, once a second while it lasts; here it is one line
+        per :data:`LOG_INTERVAL_S` with the count, and the oldest unproven connections
+        are closed to give the operator (and the engine) room. Anything else is logged
+        in full the first time, then counted.
+        """
+        exc = context.get("exception")
+        if isinstance(exc, OSError) and exc.errno in _NO_RESOURCE:
+            self.stats["accept_errors"] += 1
+            nofile = resource.getrlimit(resource.RLIMIT_NOFILE)[0]
+            self._throttle.note(
+                "accept",
+                "station view: could not accept connections (%d failures): "
+                f"{exc.strerror} "
+                f"(file limit {nofile}, {len(self._open)} view connections open); "
+                "retrying every second",
+            )
+            for victim in list(self._unproven)[:8]:
+                self._shed(victim)
+            return
+        kind = f"loop:{context.get('message')}"
+        first = kind not in self._throttle.total
+        count = self._throttle.admit(kind)
+        if count is None:
+            return
+        if first:
+            loop.default_exception_handler(context)
+        else:
+            _LOG.error(
+                "station view: %s: %s (%d like it in the last %g s)",
+                context.get("message"),
+                exc,
+                count,
+                self._throttle.interval_s,
+            )
 
     async def _close_clients(self) -> None:
         clients = list(self._clients)
@@ -685,6 +1137,7 @@ class ViewServer:
         supplied, in_query = self._supplied_token(request)
         if not self._token_ok(supplied):
             return self._forbidden("a valid token is required (the URL clark run printed)")
+        self._prove(request.transport)
         upgrade = request.headers.get("Upgrade", "").lower() == "websocket"
         if self.token is not None and in_query and request.method == "GET" and not upgrade:
             # The token moves from the URL to a cookie, and the URL is shown without it.
@@ -915,10 +1368,13 @@ __all__ = [
     "STATIC_DIR",
     "CommandRejected",
     "ReplaySource",
+    "ViewLimits",
     "ViewServer",
     "check_token",
+    "client_key",
     "is_loopback_host",
     "parse_command",
     "parse_replay_control",
     "parse_view_address",
+    "view_limits",
 ]
