@@ -128,6 +128,16 @@ def test_checks_past_until_are_not_evaluated_and_do_not_fail_the_run(tmp_path: P
     assert "1 of 3 checks pass (no check failed, 2 not evaluated" in summary
 
 
+def test_a_photo_count_on_a_run_cut_short_is_not_evaluated() -> None:
+    """--until 60 of anaconda_survey's 150 s: 'min 14 photos' may still come (not
+    evaluated, not a failure); the run exits 0 (before: FAIL, exit 1)."""
+    code, table, err = dry_run(ROOT / "missions" / "anaconda_survey.yaml", until_s=60.0)
+    (row,) = [line for line in table.splitlines() if line.startswith("| a photo every 5 s")]
+    assert row.endswith("| not evaluated |"), row
+    assert "the run ended at 60 s, before its planned end at 150 s" in row
+    assert code == 0, table + err
+
+
 def test_a_sequence_out_of_order_fails(tmp_path: Path) -> None:
     mission = tmp_path / "m.yaml"
     sysid = ROOT / "missions" / "supercub_sysid.yaml"

@@ -22,7 +22,7 @@ import itertools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Final
 
 from clark_engine.mission.geo import Origin, parse_point
 from clark_engine.runtime.config import AgentConfig, StateSpec
@@ -80,31 +80,55 @@ def evaluate(
     recording: Recording,
     configs: Mapping[str, AgentConfig],
     origin: Origin,
+    planned_end_s: float | None = None,
 ) -> list[CheckResult]:
-    """Evaluate every check, in the order the mission lists them."""
+    """Evaluate every check, in the order the mission lists them.
+
+    Args:
+        checks: The mission's checks.
+        recording: The run.
+        configs: Every agent's compiled config.
+        origin: The mission's origin.
+        planned_end_s: When the mission's run was meant to end (its ``sim.duration_s``):
+            a check without ``by_s`` is due then. A run cut short of it (``--until``,
+            Ctrl-C) leaves such a check "not evaluated" where the rest of the run could
+            still change its verdict. None: the recording's end.
+    """
     run = Run(recording, configs, origin)
+    end_s = recording.end_s
+    planned_s = end_s if planned_end_s is None else max(planned_end_s, end_s)
     results = []
     for index, check in enumerate(checks):
         kind = next(k for k in check if k not in ("name", "by_s"))
-        by_s = float(check.get("by_s", recording.end_s))
+        given_by_s = check.get("by_s")
+        by_s = float(given_by_s) if given_by_s is not None else planned_s
         body = check[kind]
         label = _label(check, kind, index)
         evaluator = _EVALUATORS[kind]
-        result = evaluator(label, body, by_s, run)
-        early = by_s > recording.end_s + 1e-9
+        result = evaluator(label, body, min(by_s, end_s) if given_by_s is None else by_s, run)
+        early = by_s > end_s + 1e-9
         at_by_s = (kind == "distance_m" and isinstance(body, Mapping) and "min" in body) or (
             kind == "ends_at"
         )
-        until_by_s = kind in _UNTIL_BY_S_KINDS and result.passed
-        if early and (at_by_s or until_by_s or (not result.passed and kind in _BY_S_KINDS)):
+        until_by_s = result.passed and (
+            kind in _UNTIL_BY_S_KINDS or (kind == "photos" and "max" in body)
+        )
+        pending = not result.passed and (
+            kind in _BY_S_KINDS or (kind == "signal" and result.observed == _NOT_ENTERED)
+        )
+        if early and (at_by_s or until_by_s or pending):
             # It may still hold before by_s (or, for a distance or position at by_s,
             # not hold then; for a bound held so far, break it before by_s): the run
             # ended too early to say.
+            due = (
+                f"before by_s {by_s:g} s"
+                if given_by_s is not None
+                else f"before its planned end at {by_s:g} s"
+            )
             result = CheckResult(
                 label,
                 result.expected,
-                f"not evaluated: the run ended at {recording.end_s:g} s, before by_s "
-                f"{by_s:g} s (so far: {result.observed})",
+                f"not evaluated: the run ended at {end_s:g} s, {due} (so far: {result.observed})",
                 passed=False,
                 evaluated=False,
             )
@@ -389,7 +413,7 @@ def _signal(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> Chec
     samples = run.rec.signals.get((agent, key), [])
     intervals = run.rec.intervals(agent, path)
     if not intervals:
-        return CheckResult(label, expected_text, "state never entered", False)
+        return CheckResult(label, expected_text, _NOT_ENTERED, False)
     start, end = intervals[0]
     received = [pwm for t, pwm in samples if start - 1e-9 <= t <= end + 1e-9]
     want = expected_signal(state, config.loop_hz)
@@ -560,8 +584,11 @@ def _disarms(rec: Recording, agent: str, by_s: float, started_s: float | None) -
     return out
 
 
+_NOT_ENTERED: Final = "state never entered"
+"""A signal check's finding when its state never ran: a run cut short may yet run it."""
+
 #: Kinds whose verdict is "by by_s": a run that ends sooner cannot fail them.
-_BY_S_KINDS = frozenset({"distance_m", "reached", "state", "sequence", "failsafe"})
+_BY_S_KINDS = frozenset({"distance_m", "reached", "state", "sequence", "failsafe", "photos"})
 #: Kinds that must hold at every moment until by_s: a run that ends sooner, with the
 #: kind holding so far, was not judged (it could still break before by_s).
 _UNTIL_BY_S_KINDS = frozenset({"altitude_m"})

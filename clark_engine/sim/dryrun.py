@@ -61,6 +61,9 @@ from clark_engine.sim.sitl_backend import SitlBackend
 from clark_engine.sim.timeline import DEFAULT_TOLERANCE_S, Comparison, compare
 from clark_engine.validation import validate_file
 
+DEFAULT_DURATION_S: Final = 300.0
+"""A mission's simulated duration when its ``sim.duration_s`` says none."""
+
 DEFAULT_SITL_SPEEDUP: Final = 10.0
 """SITL's speed-up when ``--sitl-speedup`` is not given: a 3-minute mission in about
 20 s, while ArduPilot still keeps its loop rates on a busy 2-core machine."""
@@ -261,7 +264,9 @@ def run_dry_run(
             if name not in mission.agents:
                 raise UsageError(f"--fault {kind}: there is no agent {name!r} in the mission")
     seed = int(seed if seed is not None else mission.sim.get("seed", 0))
-    until = float(until_s if until_s is not None else mission.sim.get("duration_s", 300.0))
+    until = float(
+        until_s if until_s is not None else mission.sim.get("duration_s", DEFAULT_DURATION_S)
+    )
     origin = RunOrigin(
         shlex.join(command_line)
         if command_line is not None
@@ -401,7 +406,10 @@ def _run_live(
             file=err,
         )
     until = min(until, result.recording.end_s)  # earlier when Ctrl-C ended a real-time run
-    results = evaluate(mission.checks, result.recording, result.configs, mission.origin)
+    planned_end_s = float(mission.sim.get("duration_s", DEFAULT_DURATION_S))
+    results = evaluate(
+        mission.checks, result.recording, result.configs, mission.origin, planned_end_s
+    )
     safety = judge_safety(result.recording, result.configs)
     comparison = None
     if simulated is not None:
