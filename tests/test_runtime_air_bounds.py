@@ -227,3 +227,39 @@ def test_commands_from_a_peer_that_is_not_a_station_are_logged_within_bounds() -
     new = mission_lines(runtime)[before:]
     ignored = [line for line in new if "only a station commands" in line]
     assert 0 < len(ignored) <= AIR_LINES_PER_INTERVAL
+
+
+def test_a_flood_in_a_mission_agents_name_writes_rows_at_its_configured_rate_only() -> None:
+    """Message-log rows: every genuine one at Slash A's pace, a forger's flood bounded."""
+    runtime = slash_b()
+    station = Peer(521, 1, AgentType.MCS)
+    slash_a = Peer(521, 2, AgentType.VEHICLE)
+    started(runtime, station)
+    rows_before = len(message_rows(runtime))
+    for k in range(3, 303):  # 30 s of Slash A as configured: heartbeat 1 Hz, status 2 Hz
+        t = k / 10
+        extra = [slash_a.status(t, 30.6380, -96.4787)] if k % 5 == 0 else []
+        events = [slash_a.heartbeat(t, *extra)] if k % 10 == 0 else []
+        if k % 5 == 0 and k % 10:
+            (data,) = slash_a.codec.encode(extra, 0, 256)  # type: ignore[arg-type]
+            events.append(PacketReceived(data))
+        tick(runtime, t, station.heartbeat(t), *events)
+    genuine = [r for r in message_rows(runtime)[rows_before:] if ",slash_a," in r]
+    assert len(genuine) == 30 + 60  # every one written
+    forger = Codec(521, 2)  # in Slash A's name
+    rows_before = len(message_rows(runtime))
+    t = 30.3
+    for n in range(FLOOD):
+        status = AgentStatus(2, GPS0, 30.6, -96.4, 0.0, 1.0, 0.0, 90.0, 4)
+        (data,) = forger.encode([status], 0, 256)
+        runtime.deliver(PacketReceived(data), t)
+        if n % 1000 == 999:  # 10^4 packets a second
+            tick(runtime, t, station.heartbeat(t))
+            t = round(t + 0.1, 1)
+    for _ in range(int(AIR_SUMMARY_S * 10) + 5):
+        tick(runtime, t, station.heartbeat(t))
+        t = round(t + 0.1, 1)
+    forged = [r for r in message_rows(runtime)[rows_before:] if ",slash_a," in r]
+    assert len(forged) <= 2 * AIR_SUMMARY_S * (2 * 3 + 10), len(forged)
+    summary = [line for line in interface_lines(runtime) if "beyond their configured rates" in line]
+    assert summary and "slash_a" in summary[0], interface_lines(runtime)[-5:]

@@ -94,7 +94,7 @@ REJECTIONS_LOGGED_PER_INTERVAL = AIR_LINES_PER_INTERVAL
 #: (a sender id is whatever the packet claims, so their number is the sender's choice).
 MAX_SUMMARY_SENDERS = 8
 
-AirKind = Literal["rejected", "unknown", "ignored", "command"]
+AirKind = Literal["rejected", "unknown", "received", "ignored", "command"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -103,6 +103,9 @@ class _AirKindSpec:
 
     log: Literal["mission", "interface"]
     what: str
+    per_sender: bool = False
+    """The allowance is each sender's (the caller's, and only for a bounded set of senders:
+    the mission's agents), not the kind's."""
 
 
 #: The kinds of per-packet lines from the air (:meth:`Logbook.from_air`): the log the
@@ -110,6 +113,9 @@ class _AirKindSpec:
 AIR_KINDS: dict[str, _AirKindSpec] = {
     "rejected": _AirKindSpec("interface", "packets rejected"),
     "unknown": _AirKindSpec("interface", "packets from agents not in the mission"),
+    "received": _AirKindSpec(
+        "interface", "packets from mission agents beyond their configured rates", per_sender=True
+    ),
     "ignored": _AirKindSpec("mission", "commands not obeyed (not from a station)"),
     "command": _AirKindSpec("mission", "station commands"),
 }
@@ -124,6 +130,7 @@ class _AirTally:
     size_bytes: int = 0
     reasons: dict[str, int] = field(default_factory=dict)
     senders: dict[str, int] = field(default_factory=dict)
+    logged_by: dict[str, int] = field(default_factory=dict)  # per_sender kinds only
 
 
 #: Columns of the message log, in order (see docs/logs.md).
@@ -639,7 +646,13 @@ class Logbook:
     # ------------------------------------------------------- lines from the air
 
     def from_air(
-        self, now_s: float, kind: AirKind, peer: str, size_bytes: int = 0, reason: str = ""
+        self,
+        now_s: float,
+        kind: AirKind,
+        peer: str,
+        size_bytes: int = 0,
+        reason: str = "",
+        allowance: int = AIR_LINES_PER_INTERVAL,
     ) -> bool:
         """Count one per-packet event from the air; True while its line may be written whole.
 
@@ -658,6 +671,8 @@ class Logbook:
             peer: The sender the packet claims (a name, ``#id``), empty when unreadable.
             size_bytes: The packet's size on the wire, 0 when it does not apply.
             reason: What happened to it (``BadTag``, ``coalesced``), from a fixed set.
+            allowance: Lines written whole per interval: the kind's, or for a kind
+                counted per sender (``received``) this sender's.
         """
         if self.air_pending and now_s - self._air_since_s >= AIR_SUMMARY_S:
             self.summarise_air(now_s)
@@ -676,7 +691,12 @@ class Logbook:
         if sender not in senders and len(senders) >= MAX_SUMMARY_SENDERS:
             sender = "(others)"
         senders[sender] = senders.get(sender, 0) + 1
-        if tally.logged >= AIR_LINES_PER_INTERVAL:
+        if AIR_KINDS[kind].per_sender:
+            logged = tally.logged_by.get(peer, 0)
+            if logged >= allowance:
+                return False
+            tally.logged_by[peer] = logged + 1
+        elif tally.logged >= allowance:
             return False
         tally.logged += 1
         return True

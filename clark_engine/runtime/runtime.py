@@ -100,7 +100,12 @@ from clark_engine.runtime.events import (
     VehicleState,
 )
 from clark_engine.runtime.launch import LaunchGate, is_airborne
-from clark_engine.runtime.logbook import BROADCAST_PEER, Logbook
+from clark_engine.runtime.logbook import (
+    AIR_LINES_PER_INTERVAL,
+    AIR_SUMMARY_S,
+    BROADCAST_PEER,
+    Logbook,
+)
 from clark_engine.runtime.machine import BehaviorMachine, StateChange
 from clark_engine.runtime.primitives import make_primitive
 
@@ -140,6 +145,13 @@ MAX_ACTIVATION_AHEAD_S = 600.0
 #: A mode request for the mode one was passed on for less than this ago is not passed on
 #: again: the autopilot adapter already sends it until the autopilot answers.
 MODE_REQUEST_REPEAT_S = 1.0
+#: Message-log rows of a mission agent's packets are written for up to this many times
+#: the packets a second its telemetry is configured to send, plus
+#: :data:`RECEIVED_ROWS_SPARE_PER_S` (behaviour states, photos, commands), in each of the
+#: logbook's air intervals; beyond, on a mission without a key, someone is sending in its
+#: name, and the rest are counted in the interval's summary.
+RECEIVED_ROWS_RATE_FACTOR = 2
+RECEIVED_ROWS_SPARE_PER_S = 10
 
 
 class TooManyMessages(MalformedPacket):
@@ -327,6 +339,14 @@ class AgentRuntime:
         #: (each telemetry message once) and one of every ClarkLink message besides
         #: (Behavior State, Picture Data, a station's command); more is a stuffed packet.
         self._message_caps = {p.id: len(p.sends) + len(MESSAGE_NAMES) for p in config.peers}
+        #: Packets of each peer whose message-log rows are written per air interval.
+        self._received_rows_allowance = {
+            p.id: math.ceil(
+                AIR_SUMMARY_S
+                * (RECEIVED_ROWS_RATE_FACTOR * sum(p.sends.values()) + RECEIVED_ROWS_SPARE_PER_S)
+            )
+            for p in config.peers
+        }
         self._peer_by_id = {p.id: p for p in config.peers}
         self.logbook.mission.info(
             "agent %s (id %d) of mission %s (id %d) at %g Hz, %d peers",
@@ -485,13 +505,21 @@ class AgentRuntime:
         found = self.fleet.receive(packet, now_s, gps_now)
         if found:  # rarely: a first heartbeat, a return, another mission
             self._fleet_events(found)
-        # An agent not in the mission (anyone, on a mission without a key): its packets
-        # are counted, and their rows written within the air allowance.
-        logged = packet.sender_id in self._peer_by_id or self.logbook.from_air(
-            now_s, "unknown", self._peer_name(packet.sender_id), packet.size_bytes, "accepted"
-        )
-        if logged and self.logbook.tables:  # a dry run without a report drops these rows
-            self._log_received(packet, now_s, gps_now)
+        if self.logbook.tables:  # a dry run without a report drops these rows: skip their work
+            # Rows within the air allowance: a mission agent's at up to twice its
+            # configured rate (anyone may send in its name on a mission without a key),
+            # an agent not in the mission's a few per interval; the rest are counted.
+            sender = packet.sender_id
+            allowance = self._received_rows_allowance.get(sender)
+            if self.logbook.from_air(
+                now_s,
+                "unknown" if allowance is None else "received",
+                self._peer_name(sender),
+                packet.size_bytes,
+                "accepted",
+                AIR_LINES_PER_INTERVAL if allowance is None else allowance,
+            ):
+                self._log_received(packet, now_s, gps_now)
         self._commands_in(packet, now_s)
 
     def _rejected(
