@@ -147,11 +147,12 @@ MAX_ACTIVATION_AHEAD_S = 600.0
 MODE_REQUEST_REPEAT_S = 1.0
 #: Message-log rows of a mission agent's packets are written for up to this many times
 #: the packets a second its telemetry is configured to send, plus
-#: :data:`RECEIVED_ROWS_SPARE_PER_S` (behaviour states, photos, commands), in each of the
-#: logbook's air intervals; beyond, on a mission without a key, someone is sending in its
-#: name, and the rest are counted in the interval's summary.
+#: :data:`RECEIVED_ROWS_SPARE_PER_TICK` a tick of the mission's loop (behaviour states,
+#: photos, commands: an agent sends at most a packet to each destination a tick, split
+#: bundles aside), in each of the logbook's air intervals; beyond, on a mission without a
+#: key, someone is sending in its name, and the rest are counted in the summary.
 RECEIVED_ROWS_RATE_FACTOR = 2
-RECEIVED_ROWS_SPARE_PER_S = 10
+RECEIVED_ROWS_SPARE_PER_TICK = 2
 
 
 class TooManyMessages(MalformedPacket):
@@ -290,8 +291,10 @@ class AgentRuntime:
         # Behaviour events from the air (activate, deactivate) queued in _events and not yet
         # dispatched: each is queued once per tick, however many packets ask for it.
         self._air_events: set[str] = set()
-        # The last mode request passed on: (mode, runtime s); a repeat sooner is coalesced.
-        self._last_mode_request: tuple[str, float] | None = None
+        # When a mode request for each mode was last passed on (runtime s), until the
+        # vehicle reports another mode: a repeat sooner than MODE_REQUEST_REPEAT_S is
+        # coalesced. At most one entry per mode of the profile.
+        self._mode_requests: dict[str, float] = {}
         # The failsafe's SetMode when the autopilot was lost as it was applied: it is sent
         # when the autopilot returns (the failsafe still holds); nothing else of the loss is.
         self._failsafe_unsent: SetMode | None = None
@@ -343,7 +346,10 @@ class AgentRuntime:
         self._received_rows_allowance = {
             p.id: math.ceil(
                 AIR_SUMMARY_S
-                * (RECEIVED_ROWS_RATE_FACTOR * sum(p.sends.values()) + RECEIVED_ROWS_SPARE_PER_S)
+                * (
+                    RECEIVED_ROWS_RATE_FACTOR * sum(p.sends.values())
+                    + RECEIVED_ROWS_SPARE_PER_TICK * config.loop_hz
+                )
             )
             for p in config.peers
         }
@@ -455,6 +461,7 @@ class AgentRuntime:
     def _mode_seen(self, mode: str) -> None:
         self._modes.mode_reported(mode)
         if mode != self._last_mode:
+            self._mode_requests.clear()  # a request for a mode again is news now
             if self._last_mode is not None:
                 self.logbook.mission.info("autopilot mode %s -> %s", self._last_mode, mode)
             self._last_mode = mode
@@ -675,7 +682,13 @@ class AgentRuntime:
             self.logbook.mission.info("%s from %s at GPS time %d", event, sender.name, start_ms)
 
     def _mode_request(self, custom_mode: int, sender: str, size_bytes: int) -> None:
-        """A station's mode request, passed on once per mode per :data:`MODE_REQUEST_REPEAT_S`."""
+        """A station's mode request, passed on once per mode per :data:`MODE_REQUEST_REPEAT_S`.
+
+        Until the vehicle reports another mode: then a request for any mode is passed on
+        at once. A flood of requests for one mode, or for several in turn, reaches the
+        autopilot adapter (which tracks each command until answered) a bounded number
+        of times.
+        """
         now_s = self.context.now_s
         names = [n for n, number in self.config.modes.items() if number == custom_mode]
         if not names or not self.config.is_vehicle:
@@ -685,17 +698,17 @@ class AgentRuntime:
                 )
             return
         mode = names[0]
-        last = self._last_mode_request
-        if last is not None and last[0] == mode and 0 <= now_s - last[1] < MODE_REQUEST_REPEAT_S:
+        last_s = self._mode_requests.get(mode)
+        if last_s is not None and 0 <= now_s - last_s < MODE_REQUEST_REPEAT_S:
             if self.logbook.from_air(now_s, "command", sender, size_bytes, "coalesced"):
                 self.logbook.mission.info(
                     "mode request %s from %s: coalesced with the one %.1f s ago",
                     mode,
                     sender,
-                    now_s - last[1],
+                    now_s - last_s,
                 )
             return
-        self._last_mode_request = (mode, now_s)
+        self._mode_requests[mode] = now_s
         if self.logbook.from_air(now_s, "command", sender, size_bytes, "mode request"):
             self.logbook.mission.info("mode request %s from %s", mode, sender)
         self._commands.append(SetMode(mode, custom_mode))
