@@ -133,7 +133,8 @@ _MAX_MESSAGES_UNKNOWN = len(MESSAGE_NAMES)
 #: An autopilot safety set-up cut short by the autopilot's silence is asked for again no
 #: sooner than this after, once the autopilot is back.
 SAFETY_RETRY_S = 5.0
-#: Most activations timed for a GPS time held at once (docs/runtime.md#events). One per
+#: Most activations timed for a GPS time held at once
+#: (docs/runtime.md#commands-from-the-air-are-bounded). One per
 #: station, kind (activate, deactivate) and target (this agent, every agent) is held
 #: (:meth:`AgentRuntime._schedule`), so this bounds a mission with four stations or more;
 #: beyond it a new one is dropped and the ones held stay.
