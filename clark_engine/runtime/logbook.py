@@ -47,11 +47,17 @@ Decisions:
   escapes every string argument, every CSV text cell and any message that is not
   printable (:func:`line_safe`): no newline, no control character, bounded length.
   The CSV files are written by the csv module, which quotes delimiters and quotes.
-- **Rejected packets are counted, not written one by one** (:meth:`Logbook.rejected`):
-  anyone in range can send garbage at the radio's full rate, and a line per packet
-  would fill the disk. The first :data:`REJECTIONS_LOGGED_PER_INTERVAL` of each
-  :data:`REJECTION_SUMMARY_S` are written whole; the interval ends with one summary
-  line of counts per reason and per claimed sender.
+- **What a packet makes the logbook write is counted, not written one by one**
+  (:meth:`Logbook.from_air`): anyone in range can send packets at the radio's full rate,
+  and on a mission without a key nothing tells a forger from a genuine agent, so a line
+  per packet would fill the disk. One rate limiter serves every per-packet line: rejected
+  packets (:meth:`Logbook.rejected`), packets from agents not in the mission, commands
+  not obeyed or coalesced, the station's commands. Per kind of line (:data:`AIR_KINDS`),
+  the first :data:`AIR_LINES_PER_INTERVAL` of each :data:`AIR_SUMMARY_S` are written
+  whole; the interval ends with one summary line per kind of counts per reason and per
+  claimed sender ("240 more packets from agents not in the mission in the last 10.0 s,
+  not logged one by one"). Each kind has its own allowance, so a flood of one kind
+  cannot hide the few lines of another (a genuine station's activation).
 """
 
 from __future__ import annotations
@@ -63,7 +69,7 @@ import math
 import sys
 import threading
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal, TextIO
 
@@ -76,14 +82,56 @@ from clark_engine.untrusted import printable
 MAX_LOGGED_TEXT_CHARS = 500
 #: Longest log message written whole when it had to be escaped.
 MAX_LOGGED_LINE_CHARS = 2000
-#: Rejected packets are summarised once per this many seconds (runtime clock).
-REJECTION_SUMMARY_S = 10.0
-#: Rejected packets written one by one (a message-log row and an interface line) in each
-#: summary interval; the rest are only counted.
-REJECTIONS_LOGGED_PER_INTERVAL = 10
+#: Per-packet lines from the air are summarised once per this many seconds (runtime clock).
+AIR_SUMMARY_S = 10.0
+#: Per-packet lines from the air written whole in each summary interval, per kind of line
+#: (:data:`AIR_KINDS`); the rest are only counted in the interval's summary.
+AIR_LINES_PER_INTERVAL = 10
+#: The rejections' names for the same limits (a rejected packet is one kind of line).
+REJECTION_SUMMARY_S = AIR_SUMMARY_S
+REJECTIONS_LOGGED_PER_INTERVAL = AIR_LINES_PER_INTERVAL
 #: Distinct claimed senders counted apart in one summary; the rest are counted together
 #: (a sender id is whatever the packet claims, so their number is the sender's choice).
 MAX_SUMMARY_SENDERS = 8
+
+AirKind = Literal["rejected", "unknown", "received", "ignored", "command"]
+
+
+@dataclass(frozen=True, slots=True)
+class _AirKindSpec:
+    """Where one kind of per-packet line goes, and how its summary names what it counts."""
+
+    log: Literal["mission", "interface"]
+    what: str
+    per_sender: bool = False
+    """The allowance is each sender's (the caller's, and only for a bounded set of senders:
+    the mission's agents), not the kind's."""
+
+
+#: The kinds of per-packet lines from the air (:meth:`Logbook.from_air`): the log the
+#: lines and their summary go to, and what the summary counts.
+AIR_KINDS: dict[str, _AirKindSpec] = {
+    "rejected": _AirKindSpec("interface", "packets rejected"),
+    "unknown": _AirKindSpec("interface", "packets from agents not in the mission"),
+    "received": _AirKindSpec(
+        "interface", "packets from mission agents beyond their configured rates", per_sender=True
+    ),
+    "ignored": _AirKindSpec("mission", "commands not obeyed (not from a station)"),
+    "command": _AirKindSpec("mission", "station commands"),
+}
+
+
+@dataclass(slots=True)
+class _AirTally:
+    """One kind of per-packet line in the current summary interval."""
+
+    total: int = 0
+    logged: int = 0
+    size_bytes: int = 0
+    reasons: dict[str, int] = field(default_factory=dict)
+    senders: dict[str, int] = field(default_factory=dict)
+    logged_by: dict[str, int] = field(default_factory=dict)  # per_sender kinds only
+
 
 #: Columns of the message log, in order (see docs/logs.md).
 MESSAGE_LOG_COLUMNS: tuple[str, ...] = (
@@ -328,14 +376,11 @@ class Logbook:
         self._fleet_header: list[str] | None = None
         self.write_errors = 0
         self.last_write_error: str | None = None
-        #: True while rejected packets are counted for a summary not yet written.
-        self.rejections_pending = False
-        self._rejections_since_s = 0.0
-        self._rejections_logged = 0
-        self._rejection_counts: dict[str, int] = {}
-        self._rejection_senders: dict[str, int] = {}
-        self._rejection_total = 0
-        self._rejection_bytes = 0
+        #: True while per-packet lines from the air are counted for a summary not yet
+        #: written (:meth:`from_air`).
+        self.air_pending = False
+        self._air_since_s = 0.0
+        self._air: dict[str, _AirTally] = {}
         #: False when fleet CSV and message log rows are dropped unformatted.
         self.tables = True
         #: Called in order as the logbook closes, before anything is flushed: what its
@@ -598,7 +643,114 @@ class Logbook:
             )
             self._write(self.streams.messages, buffer.getvalue())
 
-    # ------------------------------------------------------------ rejections
+    # ------------------------------------------------------- lines from the air
+
+    def from_air(
+        self,
+        now_s: float,
+        kind: AirKind,
+        peer: str,
+        size_bytes: int = 0,
+        reason: str = "",
+        allowance: int = AIR_LINES_PER_INTERVAL,
+    ) -> bool:
+        """Count one per-packet event from the air; True while its line may be written whole.
+
+        The one rate limiter of every line a packet makes the logbook write. The caller
+        writes its line (or message-log rows) only when this returns True: the first
+        :data:`AIR_LINES_PER_INTERVAL` of each kind in each :data:`AIR_SUMMARY_S`
+        interval. Every one is counted, per reason and per claimed sender, and
+        :meth:`summarise_air` writes the interval's summary. So a flood costs a bounded
+        number of bytes of log per interval, whatever its rate and whether or not the
+        mission has a key. O(1) time; the memory is bounded by
+        :data:`MAX_SUMMARY_SENDERS` senders and the caller's fixed set of reasons.
+
+        Args:
+            now_s: The runtime clock when it arrived.
+            kind: Which kind of line (:data:`AIR_KINDS`).
+            peer: The sender the packet claims (a name, ``#id``), empty when unreadable.
+            size_bytes: The packet's size on the wire, 0 when it does not apply.
+            reason: What happened to it (``BadTag``, ``coalesced``), from a fixed set.
+            allowance: Lines written whole per interval: the kind's, or for a kind
+                counted per sender (``received``) this sender's.
+        """
+        if self.air_pending and now_s - self._air_since_s >= AIR_SUMMARY_S:
+            self.summarise_air(now_s)
+        if not self.air_pending:
+            self.air_pending = True
+            self._air_since_s = now_s
+        tally = self._air.get(kind)
+        if tally is None:
+            tally = self._air[kind] = _AirTally()
+        tally.total += 1
+        tally.size_bytes += size_bytes
+        if reason:
+            tally.reasons[reason] = tally.reasons.get(reason, 0) + 1
+        senders = tally.senders
+        sender = peer or "(unreadable)"
+        if sender not in senders and len(senders) >= MAX_SUMMARY_SENDERS:
+            sender = "(others)"
+        senders[sender] = senders.get(sender, 0) + 1
+        if AIR_KINDS[kind].per_sender:
+            logged = tally.logged_by.get(peer, 0)
+            if logged >= allowance:
+                return False
+            tally.logged_by[peer] = logged + 1
+        elif tally.logged >= allowance:
+            return False
+        tally.logged += 1
+        return True
+
+    def summarise_air(self, now_s: float, *, force: bool = False) -> None:
+        """Write the summaries of the lines counted, once their interval is over.
+
+        Rejected packets get their summary line whenever any was counted (it is the
+        only record of their number); every other kind only when some of its lines were
+        not written whole.
+
+        Args:
+            now_s: The runtime clock now.
+            force: Write them now, interval over or not (closing the logbook).
+        """
+        if not self.air_pending:
+            return
+        elapsed_s = now_s - self._air_since_s
+        if elapsed_s < AIR_SUMMARY_S and not force:
+            return
+        for kind, tally in self._air.items():
+            senders = ", ".join(
+                f"{s} {n}" for s, n in sorted(tally.senders.items(), key=lambda i: -i[1])
+            )
+            reasons = ", ".join(f"{r} {n}" for r, n in sorted(tally.reasons.items()))
+            unlogged = tally.total - tally.logged
+            if kind == "rejected":
+                self.interface.warning(
+                    "rejected %d packets (%d bytes) in %.1f s, %d of them not logged one by "
+                    "one; by reason: %s; by claimed sender: %s",
+                    tally.total,
+                    tally.size_bytes,
+                    elapsed_s,
+                    unlogged,
+                    reasons,
+                    senders,
+                )
+                continue
+            if not unlogged:
+                continue
+            spec = AIR_KINDS[kind]
+            logger = self.mission if spec.log == "mission" else self.interface
+            logger.warning(
+                "%d more %s in the last %.1f s, not logged one by one (%d in all%s); "
+                "by claimed sender: %s",
+                unlogged,
+                spec.what,
+                elapsed_s,
+                tally.total,
+                f"; {reasons}" if reasons else "",
+                senders,
+            )
+        self.air_pending = False
+        self._air = {}
 
     def rejected(
         self,
@@ -611,12 +763,10 @@ class Logbook:
     ) -> None:
         """Count a rejected packet; write it only while this interval's allowance lasts.
 
-        The first :data:`REJECTIONS_LOGGED_PER_INTERVAL` rejections of each
-        :data:`REJECTION_SUMMARY_S` interval get an interface-log line and a
-        message-log row (``rejected``), as before; every one is counted, per reason
-        and per claimed sender, and :meth:`summarise_rejections` writes one line of
-        the counts when the interval is over. So a flood of garbage costs a bounded
-        number of bytes of log per interval, whatever its rate.
+        Through :meth:`from_air` (kind ``rejected``): the first
+        :data:`AIR_LINES_PER_INTERVAL` rejections of each :data:`AIR_SUMMARY_S`
+        interval get an interface-log line and a message-log row (``rejected``); every
+        one is counted, per reason and per claimed sender, in the interval's summary.
 
         Args:
             now_s: The runtime clock when it arrived.
@@ -626,60 +776,14 @@ class Logbook:
             reason: Why, the error's class name (``BadTag``).
             detail: The error's text.
         """
-        if self.rejections_pending and now_s - self._rejections_since_s >= REJECTION_SUMMARY_S:
-            self.summarise_rejections(now_s)
-        if not self.rejections_pending:
-            self.rejections_pending = True
-            self._rejections_since_s = now_s
-        self._rejection_total += 1
-        self._rejection_bytes += size_bytes
-        counts = self._rejection_counts
-        counts[reason] = counts.get(reason, 0) + 1
-        senders = self._rejection_senders
-        sender = peer or "(unreadable)"
-        if sender not in senders and len(senders) >= MAX_SUMMARY_SENDERS:
-            sender = "(others)"
-        senders[sender] = senders.get(sender, 0) + 1
-        if self._rejections_logged >= REJECTIONS_LOGGED_PER_INTERVAL:
+        if not self.from_air(now_s, "rejected", peer, size_bytes, reason):
             return
-        self._rejections_logged += 1
-        self.interface.info("rejected %d bytes from %s: %s", size_bytes, sender, reason)
+        self.interface.info(
+            "rejected %d bytes from %s: %s", size_bytes, peer or "(unreadable)", reason
+        )
         self.message(
             "rejected", now_s, gps_time_ms, peer, None, size_bytes, reason, None, None, detail
         )
-
-    def summarise_rejections(self, now_s: float, *, force: bool = False) -> None:
-        """Write the summary line of the rejections counted, once their interval is over.
-
-        Args:
-            now_s: The runtime clock now.
-            force: Write it now, interval over or not (closing the logbook).
-        """
-        if not self.rejections_pending:
-            return
-        elapsed_s = now_s - self._rejections_since_s
-        if elapsed_s < REJECTION_SUMMARY_S and not force:
-            return
-        reasons = ", ".join(f"{r} {n}" for r, n in sorted(self._rejection_counts.items()))
-        senders = ", ".join(
-            f"{s} {n}" for s, n in sorted(self._rejection_senders.items(), key=lambda i: -i[1])
-        )
-        self.interface.warning(
-            "rejected %d packets (%d bytes) in %.1f s, %d of them not logged one by one; "
-            "by reason: %s; by claimed sender: %s",
-            self._rejection_total,
-            self._rejection_bytes,
-            elapsed_s,
-            self._rejection_total - self._rejections_logged,
-            reasons,
-            senders,
-        )
-        self.rejections_pending = False
-        self._rejections_logged = 0
-        self._rejection_counts = {}
-        self._rejection_senders = {}
-        self._rejection_total = 0
-        self._rejection_bytes = 0
 
     # ---------------------------------------------------------------- close
 
@@ -699,7 +803,7 @@ class Logbook:
         closing, self.closing = self.closing, []
         for last_words in closing:
             last_words()
-        self.summarise_rejections(self.now_s, force=True)
+        self.summarise_air(self.now_s, force=True)
         with self._csv_lock:
             self._closed = True
         for logger, handler in zip((self.mission, self.interface), self._handlers, strict=True):

@@ -74,7 +74,7 @@ from clark_engine.runtime.commands import (
     SetServo,
     Takeoff,
 )
-from clark_engine.runtime.config import AgentConfig
+from clark_engine.runtime.config import AgentConfig, PeerSpec
 from clark_engine.runtime.context import PrimitiveContext, ground_distance_m
 from clark_engine.runtime.envelope import (
     Breach,
@@ -100,7 +100,12 @@ from clark_engine.runtime.events import (
     VehicleState,
 )
 from clark_engine.runtime.launch import LaunchGate, is_airborne
-from clark_engine.runtime.logbook import BROADCAST_PEER, Logbook
+from clark_engine.runtime.logbook import (
+    AIR_LINES_PER_INTERVAL,
+    AIR_SUMMARY_S,
+    BROADCAST_PEER,
+    Logbook,
+)
 from clark_engine.runtime.machine import BehaviorMachine, StateChange
 from clark_engine.runtime.primitives import make_primitive
 
@@ -128,6 +133,27 @@ _MAX_MESSAGES_UNKNOWN = len(MESSAGE_NAMES)
 #: An autopilot safety set-up cut short by the autopilot's silence is asked for again no
 #: sooner than this after, once the autopilot is back.
 SAFETY_RETRY_S = 5.0
+#: Most activations timed for a GPS time held at once
+#: (docs/runtime.md#commands-from-the-air-are-bounded). One per
+#: station, kind (activate, deactivate) and target (this agent, every agent) is held
+#: (:meth:`AgentRuntime._schedule`), so this bounds a mission with four stations or more;
+#: beyond it a new one is dropped and the ones held stay.
+MAX_SCHEDULED_ACTIVATIONS = 16
+#: An activation timed further ahead of this agent's GPS time than this is not held: a
+#: synchronised start is seconds away, and a slot held for hours by a forged far-future
+#: start would refuse the station's next one as long.
+MAX_ACTIVATION_AHEAD_S = 600.0
+#: A mode request for the mode one was passed on for less than this ago is not passed on
+#: again: the autopilot adapter already sends it until the autopilot answers.
+MODE_REQUEST_REPEAT_S = 1.0
+#: Message-log rows of a mission agent's packets are written for up to this many times
+#: the packets a second its telemetry is configured to send, plus
+#: :data:`RECEIVED_ROWS_SPARE_PER_TICK` a tick of the mission's loop (behaviour states,
+#: photos, commands: an agent sends at most a packet to each destination a tick, split
+#: bundles aside), in each of the logbook's air intervals; beyond, on a mission without a
+#: key, someone is sending in its name, and the rest are counted in the summary.
+RECEIVED_ROWS_RATE_FACTOR = 2
+RECEIVED_ROWS_SPARE_PER_TICK = 2
 
 
 class TooManyMessages(MalformedPacket):
@@ -266,8 +292,16 @@ class AgentRuntime:
         self._events: list[str] = []
         self._commands: list[Command] = []
         self._state_messages: list[BehaviorState] = []
-        # Activations the station timed for a GPS time: (gps ms, event).
-        self._scheduled: list[tuple[int, str]] = []
+        # Activations the station timed for a GPS time: (gps ms, event, sender id, target
+        # id), at most one per (sender, event, target) and MAX_SCHEDULED_ACTIVATIONS in all.
+        self._scheduled: list[tuple[int, str, int, int]] = []
+        # Behaviour events from the air (activate, deactivate) queued in _events and not yet
+        # dispatched: each is queued once per tick, however many packets ask for it.
+        self._air_events: set[str] = set()
+        # When a mode request for each mode was last passed on (runtime s), until the
+        # vehicle reports another mode: a repeat sooner than MODE_REQUEST_REPEAT_S is
+        # coalesced. At most one entry per mode of the profile.
+        self._mode_requests: dict[str, float] = {}
         # The failsafe's SetMode when the autopilot was lost as it was applied: it is sent
         # when the autopilot returns (the failsafe still holds); nothing else of the loss is.
         self._failsafe_unsent: SetMode | None = None
@@ -315,6 +349,17 @@ class AgentRuntime:
         #: (each telemetry message once) and one of every ClarkLink message besides
         #: (Behavior State, Picture Data, a station's command); more is a stuffed packet.
         self._message_caps = {p.id: len(p.sends) + len(MESSAGE_NAMES) for p in config.peers}
+        #: Packets of each peer whose message-log rows are written per air interval.
+        self._received_rows_allowance = {
+            p.id: math.ceil(
+                AIR_SUMMARY_S
+                * (
+                    RECEIVED_ROWS_RATE_FACTOR * sum(p.sends.values())
+                    + RECEIVED_ROWS_SPARE_PER_TICK * config.loop_hz
+                )
+            )
+            for p in config.peers
+        }
         self._peer_by_id = {p.id: p for p in config.peers}
         self.logbook.mission.info(
             "agent %s (id %d) of mission %s (id %d) at %g Hz, %d peers",
@@ -423,6 +468,7 @@ class AgentRuntime:
     def _mode_seen(self, mode: str) -> None:
         self._modes.mode_reported(mode)
         if mode != self._last_mode:
+            self._mode_requests.clear()  # a request for a mode again is news now
             if self._last_mode is not None:
                 self.logbook.mission.info("autopilot mode %s -> %s", self._last_mode, mode)
             self._last_mode = mode
@@ -474,7 +520,20 @@ class AgentRuntime:
         if found:  # rarely: a first heartbeat, a return, another mission
             self._fleet_events(found)
         if self.logbook.tables:  # a dry run without a report drops these rows: skip their work
-            self._log_received(packet, now_s, gps_now)
+            # Rows within the air allowance: a mission agent's at up to twice its
+            # configured rate (anyone may send in its name on a mission without a key),
+            # an agent not in the mission's a few per interval; the rest are counted.
+            sender = packet.sender_id
+            allowance = self._received_rows_allowance.get(sender)
+            if self.logbook.from_air(
+                now_s,
+                "unknown" if allowance is None else "received",
+                self._peer_name(sender),
+                packet.size_bytes,
+                "accepted",
+                AIR_LINES_PER_INTERVAL if allowance is None else allowance,
+            ):
+                self._log_received(packet, now_s, gps_now)
         self._commands_in(packet, now_s)
 
     def _rejected(
@@ -523,15 +582,19 @@ class AgentRuntime:
             return  # telemetry only: the usual packet, looked at without building a list
         commands = [m for m in packet.messages if isinstance(m, _COMMAND_MESSAGES)]
         sender = self._peer_by_id.get(packet.sender_id)
+        size = packet.size_bytes
         if sender is None or sender.role != "mcs":
-            self.logbook.mission.warning(
-                "ignored %d command(s) from %s: only a station commands",
-                len(commands),
-                self._peer_name(packet.sender_id),
-            )
+            name = self._peer_name(packet.sender_id)
+            if self.logbook.from_air(now_s, "ignored", name, size, "not a station"):
+                self.logbook.mission.warning(
+                    "ignored %d command(s) from %s: only a station commands", len(commands), name
+                )
             return
         if self.config.authenticated and not packet.authenticated:
-            self.logbook.mission.warning("ignored unauthenticated command(s) from %s", sender.name)
+            if self.logbook.from_air(now_s, "ignored", sender.name, size, "unauthenticated"):
+                self.logbook.mission.warning(
+                    "ignored unauthenticated command(s) from %s", sender.name
+                )
             return
         me = self.config.agent_id
         for message in commands:
@@ -546,27 +609,116 @@ class AgentRuntime:
             if isinstance(message, ActivateController) and message.target_id in (0, me):
                 event = "activate" if message.active else "deactivate"
                 gps_now = self._gps_now_ms(now_s)
-                if message.start_time_ms and (gps_now is None or message.start_time_ms > gps_now):
+                start_ms = message.start_time_ms
+                if start_ms and (gps_now is None or start_ms > gps_now):
                     # The station asked for a synchronised start at a GPS time.
-                    self._scheduled.append((message.start_time_ms, event))
-                    self.logbook.mission.info(
-                        "%s from %s at GPS time %d", event, sender.name, message.start_time_ms
-                    )
+                    self._schedule(start_ms, event, sender, message.target_id, gps_now, size)
                 else:
-                    self._events.append(event)
-                    self.logbook.mission.info("%s from %s", event, sender.name)
+                    self._air_event(event, sender.name, size)
             if isinstance(message, ModeChangeRequest) and message.target_id == me:
-                self._mode_request(message.mode, sender.name)
+                self._mode_request(message.mode, sender.name, size)
 
-    def _mode_request(self, custom_mode: int, sender: str) -> None:
+    def _air_event(self, event: str, sender: str, size_bytes: int) -> None:
+        """Queue a station's ``activate`` or ``deactivate`` for the next machine phase, once.
+
+        However many packets ask for it before the tick, the event is dispatched once:
+        a flood must not make a tick's work grow. A repeat after the other kind moves it
+        behind that one, so the order of the last of each kind is kept (activate,
+        deactivate, activate in one tick ends active).
+        """
+        now_s = self.context.now_s
+        if event in self._air_events:
+            if self._events and self._events[-1] == event:
+                if self.logbook.from_air(now_s, "command", sender, size_bytes, "coalesced"):
+                    self.logbook.mission.info(
+                        "%s from %s: coalesced with the one queued this tick", event, sender
+                    )
+                return
+            self._events.remove(event)
+        self._air_events.add(event)
+        self._events.append(event)
+        if self.logbook.from_air(now_s, "command", sender, size_bytes, event):
+            self.logbook.mission.info("%s from %s", event, sender)
+
+    def _schedule(
+        self,
+        start_ms: int,
+        event: str,
+        sender: PeerSpec,
+        target_id: int,
+        gps_now: int | None,
+        size_bytes: int,
+    ) -> None:
+        """Hold a timed activation, bounded: one per (sender, kind, target), the first kept.
+
+        On a mission without a key nothing tells the station's packets from a forger's
+        that claims its id, so what is held must not depend on who sends more: the first
+        received of each (sender, kind, target) stands and a later one, a repeat or a
+        new time, is dropped (counted, and logged within the air allowance). A forger
+        therefore cannot evict a command the station sent before the flood began; at
+        worst it holds a free slot for :data:`MAX_ACTIVATION_AHEAD_S`. Keeping the
+        earliest due instead would let anyone evict by claiming an earlier time, and
+        keeping the latest received would let a flood evict everything. When
+        :data:`MAX_SCHEDULED_ACTIVATIONS` are held, a new one is dropped.
+        """
+        now_s = self.context.now_s
+        why = reason = ""
+        for held_ms, held_event, held_sender, held_target in self._scheduled:
+            if (held_event, held_sender, held_target) == (event, sender.id, target_id):
+                why = (
+                    "repeated"
+                    if held_ms == start_ms
+                    else f"one from {sender.name} for GPS time {held_ms} is held"
+                )
+                reason = "coalesced" if held_ms == start_ms else "one held"
+                break
+        else:
+            if gps_now is not None and start_ms - gps_now > MAX_ACTIVATION_AHEAD_S * 1000:
+                why, reason = f"more than {MAX_ACTIVATION_AHEAD_S:g} s ahead", "too far ahead"
+            elif len(self._scheduled) >= MAX_SCHEDULED_ACTIVATIONS:
+                why = f"{MAX_SCHEDULED_ACTIVATIONS} timed activations held, the most"
+                reason = "full"
+        if why:
+            if self.logbook.from_air(now_s, "command", sender.name, size_bytes, reason):
+                self.logbook.mission.warning(
+                    "%s from %s at GPS time %d not held: %s", event, sender.name, start_ms, why
+                )
+            return
+        self._scheduled.append((start_ms, event, sender.id, target_id))
+        if self.logbook.from_air(now_s, "command", sender.name, size_bytes, f"{event} timed"):
+            self.logbook.mission.info("%s from %s at GPS time %d", event, sender.name, start_ms)
+
+    def _mode_request(self, custom_mode: int, sender: str, size_bytes: int) -> None:
+        """A station's mode request, passed on once per mode per :data:`MODE_REQUEST_REPEAT_S`.
+
+        Until the vehicle reports another mode: then a request for any mode is passed on
+        at once. A flood of requests for one mode, or for several in turn, reaches the
+        autopilot adapter (which tracks each command until answered) a bounded number
+        of times.
+        """
+        now_s = self.context.now_s
         names = [n for n, number in self.config.modes.items() if number == custom_mode]
         if not names or not self.config.is_vehicle:
-            self.logbook.mission.warning(
-                "mode request %d from %s: no such mode", custom_mode, sender
-            )
+            if self.logbook.from_air(now_s, "command", sender, size_bytes, "no such mode"):
+                self.logbook.mission.warning(
+                    "mode request %d from %s: no such mode", custom_mode, sender
+                )
             return
-        self.logbook.mission.info("mode request %s from %s", names[0], sender)
-        self._commands.append(SetMode(names[0], custom_mode))
+        mode = names[0]
+        last_s = self._mode_requests.get(mode)
+        if last_s is not None and 0 <= now_s - last_s < MODE_REQUEST_REPEAT_S:
+            if self.logbook.from_air(now_s, "command", sender, size_bytes, "coalesced"):
+                self.logbook.mission.info(
+                    "mode request %s from %s: coalesced with the one %.1f s ago",
+                    mode,
+                    sender,
+                    now_s - last_s,
+                )
+            return
+        self._mode_requests[mode] = now_s
+        if self.logbook.from_air(now_s, "command", sender, size_bytes, "mode request"):
+            self.logbook.mission.info("mode request %s from %s", mode, sender)
+        self._commands.append(SetMode(mode, custom_mode))
 
     def _fleet_events(self, events: list[Any]) -> None:
         for event in events:
@@ -732,8 +884,8 @@ class AgentRuntime:
                 break
             if phase == "timeouts":
                 self._timeouts(now_s)
-                if self.logbook.rejections_pending:
-                    self.logbook.summarise_rejections(now_s)
+                if self.logbook.air_pending:
+                    self.logbook.summarise_air(now_s)
             elif phase == "machine":
                 self._machine_phase()
             elif phase == "commands":
@@ -756,10 +908,11 @@ class AgentRuntime:
                 return
         if self._scheduled:
             gps_now = self._gps_now_ms(now_s)
-            due = [e for e in self._scheduled if gps_now is not None and e[0] <= gps_now]
-            for item in due:
-                self._scheduled.remove(item)
-                self._events.append(item[1])
+            if gps_now is not None:
+                due = [e for e in self._scheduled if e[0] <= gps_now]
+                for item in sorted(due):
+                    self._scheduled.remove(item)
+                    self._events.append(item[1])
         silent_since = self._stations_silent_since_s
         if (
             silent_since is not None
@@ -808,8 +961,10 @@ class AgentRuntime:
                     ", ".join(ignored),
                 )
             self._events.clear()
+            self._air_events.clear()
             return
         events, self._events = self._events, []
+        self._air_events.clear()
         for event in events:
             taken = self.failsafe is None and self.machine.dispatch(event, self.context)
             if event == "mcs_lost":
