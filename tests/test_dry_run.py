@@ -138,6 +138,21 @@ def test_a_photo_count_on_a_run_cut_short_is_not_evaluated() -> None:
     assert code == 0, table + err
 
 
+def test_a_state_reached_late_says_so(tmp_path: Path) -> None:
+    """Slash B parks near 100 s; a check that wants it by 80 s fails saying when it did
+    (before: "not reached (last: chase)", as if it never had)."""
+    mission = tmp_path / "m.yaml"
+    text = FOLLOW.read_text().replace(
+        "{name: Slash B parks, by_s: 120,", "{name: Slash B parks, by_s: 80,"
+    )
+    assert text != FOLLOW.read_text()
+    mission.write_text(text)
+    code, table, _ = dry_run(mission)
+    (row,) = [line for line in table.splitlines() if line.startswith("| Slash B parks")]
+    assert "reached late, at " in row and "(by 80 s: chase)" in row, row
+    assert row.endswith("| **FAIL** |") and code == 1
+
+
 def test_a_sequence_out_of_order_fails(tmp_path: Path) -> None:
     mission = tmp_path / "m.yaml"
     sysid = ROOT / "missions" / "supercub_sysid.yaml"

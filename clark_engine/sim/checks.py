@@ -236,6 +236,10 @@ def _state(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> CheckR
     if when is None:
         last = [e for e in run.rec.states.get(agent, []) if e.time_s <= by_s + 1e-9]
         where = ", ".join(last[-1].active) if last else "no state"
+        late_s = run.rec.entered_by(agent, path, math.inf)
+        if late_s is not None:
+            observed = f"reached late, at {late_s:.1f} s (by {by_s:g} s: {where})"
+            return CheckResult(label, expected, observed, False)
         why = why_not_entered(run.rec, agent, by_s)
         observed = f"not reached (last: {where})" + (f": {why}" if why else "")
         return CheckResult(label, expected, observed, False)
