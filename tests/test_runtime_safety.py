@@ -389,3 +389,32 @@ def test_a_vehicle_run_without_its_autopilot_on_purpose_logs_no_error() -> None:
     log = interface_log(runtime)
     assert "ERROR" not in log and "autopilot silent" not in log
     assert log.count("no autopilot (testing mode): treated as lost") == 1
+
+
+def test_an_activate_no_state_takes_is_said_to_be_ignored() -> None:
+    """Slash A's tour has no activate transition: the station's activate is logged as
+    received and then as ignored, saying why (before: received, then nothing)."""
+    runtime = AgentRuntime(config_of("cooperative_follow.yaml", "slash_a"))
+    station = Peer(521, 1, AgentType.MCS)
+    for k in range(20):
+        t = k / 10
+        run(runtime, t, vehicle(t), AutopilotHeartbeat("MANUAL", 0, True), station.heartbeat(t))
+    assert runtime.machine is not None and runtime.machine.running
+    (activate,) = station.codec.encode([ActivateController(1, GPS0 + 2000, 2, True)], 2, 256)
+    run(runtime, 2.0, PacketReceived(activate), vehicle(2.0), station.heartbeat(2.0))
+    log = mission_log(runtime)
+    assert "activate from mcs" in log
+    assert "activate: ignored: no active state takes it (active: " in log
+
+
+def test_an_activate_after_a_failsafe_is_said_to_be_ignored() -> None:
+    runtime = slash_b()
+    for k in range(36):  # no station: mcs_lost at 3.1 s, the failsafe holds the vehicle
+        run(runtime, k / 10, AutopilotHeartbeat("HOLD", 4, True), vehicle(k / 10))
+    assert runtime.failsafe == "hold"
+    station = Peer(521, 1, AgentType.MCS)
+    (activate,) = station.codec.encode([ActivateController(1, GPS0 + 4000, 3, True)], 3, 256)
+    run(runtime, 4.0, station.heartbeat(4.0), PacketReceived(activate), vehicle(4.0))
+    log = mission_log(runtime)
+    assert "activate from mcs" in log
+    assert "activate: ignored: the failsafe hold holds (a failsafe is final" in log

@@ -34,7 +34,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import Any, Final
 
 from clark_engine.link.auth import CounterStore, ReplayStore
 from clark_engine.link.codec import Codec
@@ -112,6 +112,9 @@ from clark_engine.runtime.primitives import make_primitive
 #: Commands that move the vehicle; never sent while the autopilot is lost or after terminate.
 VEHICLE_COMMANDS = (Goto, SetMode, Arm, Takeoff, SetServo, RcOverride)
 #: Commands the envelope guard checks as they leave (AgentRuntime._guard).
+_STATION_EVENTS: Final = frozenset({"activate", "deactivate"})
+"""Events a station's Activate Controller raises: one that does nothing is logged so."""
+
 _GUARDED = (Goto, Takeoff)
 #: An RC input above this is a switch in its high position, below the low one (ArduPilot's
 #: auxiliary-switch thresholds); the events fire on crossing, not while held.
@@ -972,12 +975,38 @@ class AgentRuntime:
                     self.logbook.mission.warning("mcs_lost handled by the behaviour")
                 else:
                     self._apply_failsafe()
+            elif not taken and event in _STATION_EVENTS:
+                self._say_ignored(event)
             if self.terminated:
                 return
         if self.failsafe is None:
             self.machine.step(self.context)
         if self.context.terminate_requested:
             self._terminate(self.context.now_s, self.context.terminal_mode)
+
+    def _say_ignored(self, event: str) -> None:
+        """Log a station's activate or deactivate that did nothing, and why.
+
+        The operator who sent it reads in the log that it was dropped, not only that it
+        arrived. Once per tick at most (the station's events are coalesced per tick), and through
+        the air's rate limit, as every line a packet makes.
+        """
+        now_s = self.context.now_s
+        if not self.logbook.from_air(now_s, "command", "station", 0, f"{event} ignored"):
+            return
+        if self.failsafe is not None:
+            self.logbook.mission.warning(
+                "%s: ignored: the failsafe %s holds (a failsafe is final: the behaviour "
+                "does not resume)",
+                event,
+                self.failsafe,
+            )
+        else:
+            assert self.machine is not None
+            active = ", ".join(self.machine.active_paths()) or "the behaviour's root"
+            self.logbook.mission.info(
+                "%s: ignored: no active state takes it (active: %s)", event, active
+            )
 
     def _collect_outbox(self) -> None:
         outbox = self.context.outbox
