@@ -34,11 +34,21 @@ KEY_BYTES = 32
 #: tick), so it should be rare: at 100 packets per second a block of 65536 lasts
 #: 11 minutes. A restart skips at most one block, out of 2**48 counters.
 DEFAULT_COUNTER_BLOCK = 65_536
-#: Counters of each sender a receiver reserves per write of its replay store. After
-#: a crash the receiver refuses at most this many of each sender's packets that it
-#: had not seen (the reserved, unused rest); a write costs an fsync, made at most
-#: once per this many packets of the busiest sender (one write renews every sender).
-DEFAULT_REPLAY_BLOCK = 64
+#: How long a receiver's replay reservation lasts, in seconds of each sender's traffic.
+#: A write of the replay store reserves, for each sender, the counters it is expected
+#: to use in this long (at its slowest recent rate, rounded down: none for a sender
+#: slower than one packet in this long, whose exact mark is then written with each of
+#: its packets). After a crash the receiver refuses at most about this long of a
+#: sender's genuine packets that it had never seen, then the next; a write costs an
+#: fsync, made about 1 / DEFAULT_REPLAY_RESERVE_S times a second for every sender
+#: faster than that together (one write renews every sender), plus once per packet of
+#: each slower sender.
+DEFAULT_REPLAY_RESERVE_S = 0.5
+#: The most counters of one sender a receiver reserves per write, whatever its rate
+#: (a sender faster than DEFAULT_REPLAY_BLOCK / DEFAULT_REPLAY_RESERVE_S packets a second
+#: costs more writes): a bound on what a crash can make the receiver refuse if a sender's
+#: rate falls just before it.
+DEFAULT_REPLAY_BLOCK = 1024
 _REPLAY_MAGIC = "clarklink-replay 1"
 _MAX_REPLAY_FILE_BYTES = 4 << 20  # 65535 senders at 31 bytes a line, with room
 _MAX_KEY_FILE_BYTES = 256  # a key file is 65 bytes; never read a large file whole
@@ -258,13 +268,18 @@ class ReplayStore:
 
     The receiver's half of :class:`CounterStore`. Before a codec accepts an
     authenticated packet whose counter is above its sender's mark, it writes new
-    marks here (atomically, as the counter store does): that sender's counter
-    plus a block, and every other sender's highest accepted counter plus a block
-    (so that one write serves every sender, and writes follow the busiest
-    sender's rate, not the sum). After a restart the codec starts each sender's
-    replay window at its mark, so nothing accepted before the restart is
-    accepted again, whatever the crash. The cost: after a crash, up to one
-    block of each sender's packets that it had never seen are refused as well;
+    marks here (atomically, as the counter store does): for that sender and
+    every other it has heard, its highest accepted counter plus a reservation
+    of what it is expected to send in the next ``reserve_s`` seconds (one write
+    serves every sender, so writes follow time, not the sum of the rates). The
+    reservation is measured on each sender's slowest recent packet interval and
+    is none for a sender slower than one packet per ``reserve_s``: its exact
+    mark is written with each of its packets (an fsync per packet, at its low
+    rate). After a restart the codec starts each sender's replay window at its
+    mark, so nothing accepted before the restart is accepted after it, whatever
+    the crash. The cost: after a crash, a sender's packets that the receiver
+    had never seen are refused for about ``reserve_s`` of its traffic (at most
+    ``block_size`` counters), then accepted;
     :meth:`~clark_engine.link.codec.Codec.save_replay_marks` on a clean stop
     writes the exact marks, and then nothing is refused but what was accepted.
 
@@ -279,22 +294,36 @@ class ReplayStore:
     """
 
     def __init__(
-        self, path: str | os.PathLike[str], *, block_size: int = DEFAULT_REPLAY_BLOCK
+        self,
+        path: str | os.PathLike[str],
+        *,
+        block_size: int = DEFAULT_REPLAY_BLOCK,
+        reserve_s: float = DEFAULT_REPLAY_RESERVE_S,
     ) -> None:
         """Name the file; nothing is read or written until :meth:`load`.
 
         Args:
             path: The store's file; its folder must exist.
-            block_size: Counters reserved per sender per write (see DEFAULT_REPLAY_BLOCK).
+            block_size: The most counters reserved per sender per write (see
+                DEFAULT_REPLAY_BLOCK).
+            reserve_s: How long of each sender's traffic a write reserves (see
+                DEFAULT_REPLAY_RESERVE_S); 0 writes every sender's exact mark with
+                each of its packets.
         """
         if block_size < 1:
             raise ValueError(f"block_size must be at least 1, not {block_size}")
+        if not 0.0 <= reserve_s <= 60.0:
+            raise ValueError(f"reserve_s must be within 0..60 s, not {reserve_s}")
         self.path = Path(path)
         self.block_size = block_size
+        self.reserve_s = reserve_s
         self._binding = ""
 
     def __repr__(self) -> str:
-        return f"ReplayStore({str(self.path)!r}, block_size={self.block_size})"
+        return (
+            f"ReplayStore({str(self.path)!r}, block_size={self.block_size}, "
+            f"reserve_s={self.reserve_s})"
+        )
 
     def load(self, binding: str) -> dict[int, int]:
         """The stored marks, sender id -> mark; empty without a file or under another binding.

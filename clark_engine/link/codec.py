@@ -4,7 +4,8 @@ One :class:`Codec` per agent turns the messages due to one destination into
 packets (:meth:`Codec.encode`) and turns whatever bytes arrive into a
 :class:`~clark_engine.link.packet.Packet` or a
 :class:`~clark_engine.link.errors.ClarkLinkError` (:meth:`Codec.decode`). It is
-pure: no clock, no socket; the only I/O is the optional counter store.
+pure: no socket, and its only I/O is the optional counter and replay stores (its
+clock is read only with a replay store, to size the replay reservations).
 
 Decisions, each pinned by tests:
 
@@ -33,8 +34,10 @@ Decisions, each pinned by tests:
 from __future__ import annotations
 
 import functools
+import math
 import struct
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from clark_engine.link.auth import (
@@ -69,6 +72,44 @@ _HEADER = struct.Struct(">BBIHHHI")  # HEADER_BYTES long
 _MISSION_ID_MAX = (1 << 32) - 1
 
 
+class _Pace:
+    """A sender's slowest recent packet interval, which sizes its replay reservation.
+
+    The longest interval between its packets over the last one to two spans of
+    ``span_s`` (two spans, kept as the longest of each: constant memory and time per
+    packet). The longest, not the mean: a burst (a split bundle, packets queued
+    behind a radio) must not make a slow sender look fast, since a reservation too
+    large for its real rate is what a crash would make the receiver refuse.
+    """
+
+    __slots__ = ("_current_s", "_previous_s", "_span_start_s", "last_s")
+
+    def __init__(self, now_s: float) -> None:
+        self.last_s = now_s
+        self._span_start_s = now_s
+        self._current_s = -1.0  # -1: no interval yet
+        self._previous_s = -1.0
+
+    def arrived(self, now_s: float, span_s: float) -> None:
+        """Record a packet accepted at ``now_s``."""
+        interval_s = max(now_s - self.last_s, 0.0)
+        self.last_s = now_s
+        if now_s - self._span_start_s >= span_s:
+            self._previous_s, self._current_s = self._current_s, interval_s
+            self._span_start_s = now_s
+        else:
+            self._current_s = max(self._current_s, interval_s)
+
+    def longest_s(self, now_s: float) -> float:
+        """The longest recent interval, counting the silence since the latest packet.
+
+        -1 before a second packet.
+        """
+        if self._current_s < 0.0:
+            return -1.0
+        return max(self._previous_s, self._current_s, now_s - self.last_s)
+
+
 @dataclass(frozen=True, slots=True)
 class SentPacket:
     """One packet :meth:`Codec.encode_packets` made: its bytes, counter and messages."""
@@ -94,6 +135,7 @@ class Codec:
         counter_store: CounterStore | None = None,
         replay_store: ReplayStore | None = None,
         max_packet_bytes: int = 1400,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         """Set up a codec; reads the counter store, if any, to resume above its mark.
 
@@ -113,6 +155,9 @@ class Codec:
                 sender until that sender's first newer packet.
             max_packet_bytes: The largest packet decoded, and the default limit of
                 :meth:`encode` (the radio's packet size limit).
+            clock: Seconds on a clock that never goes back (the runtime's), read when a
+                packet is accepted with a replay store: packet intervals size each
+                sender's reservation (see :class:`~clark_engine.link.auth.ReplayStore`).
 
         Raises:
             ValueError: An id or size is out of range, or the key is too short.
@@ -140,6 +185,9 @@ class Codec:
         # sender -> the mark on disk, above every counter of it accepted; None: no store
         self._reserved: dict[int, int] | None = None
         self._replay_store = replay_store if self._tagger is not None else None
+        self._clock = clock
+        # sender -> the pace of its accepted packets (with a replay store only)
+        self._paces: dict[int, _Pace] = {}
         if self._replay_store is not None and self._tagger is not None:
             marks = self._replay_store.load(f"{mission_id} {self._tagger.fingerprint()}")
             self._reserved = dict(marks)
@@ -337,8 +385,17 @@ class Codec:
                 )
             restart = True
         reserved = self._reserved
-        if reserved is not None and counter > reserved.get(sender_id, 0):
-            self._reserve(sender_id, counter)  # on disk before the packet is accepted
+        if reserved is not None:
+            now_s = self._clock()
+            mark = reserved.get(sender_id, -1)  # -1: even a counter 0 is written first
+            if counter > mark or self._slack_too_long(sender_id, mark - counter, now_s):
+                self._reserve(sender_id, counter, now_s)  # on disk before the packet is accepted
+            pace = self._paces.get(sender_id)
+            if pace is None:
+                self._paces[sender_id] = _Pace(now_s)
+            else:
+                assert self._replay_store is not None  # reserved is None without one
+                pace.arrived(now_s, 2.0 * self._replay_store.reserve_s)
         # Every check passed: only now does anything change.
         if window is None:
             window = self._windows[sender_id] = ReplayWindow()
@@ -348,8 +405,43 @@ class Codec:
             window.commit(counter)
         return packet
 
-    def _reserve(self, sender_id: int, counter: int) -> None:
-        """Write marks one block above ``counter`` and every other sender's highest.
+    def _slack_too_long(self, sender_id: int, slack: int, now_s: float) -> bool:
+        """True when the sender's ``slack`` reserved counters now last too long.
+
+        That is, more than twice the reservation's time at its latest interval: it
+        slowed down since they were reserved, and a crash now would refuse its packets
+        for that long. Writing the marks again trims them to its new rate.
+        """
+        if slack <= 0:
+            return False
+        pace = self._paces.get(sender_id)
+        if pace is None:
+            return False  # resumed from the store: nothing heard yet, nothing reserved since
+        assert self._replay_store is not None  # only called with a store
+        return slack * (now_s - pace.last_s) > 2.0 * self._replay_store.reserve_s
+
+    def _reservation(self, sender_id: int, now_s: float) -> int:
+        """How many counters above its highest to reserve for a sender at ``now_s``.
+
+        What it sends in the store's ``reserve_s`` at its slowest recent interval (the
+        time since its latest packet counts as one: a sender gone quiet reserves none),
+        rounded down and capped at the store's block size; none before its second
+        packet, or when its packets come all at once (no rate can be told).
+        """
+        store = self._replay_store
+        assert store is not None  # only called with a store
+        pace = self._paces.get(sender_id)
+        longest_s = -1.0 if pace is None else pace.longest_s(now_s)
+        if longest_s <= 0.0:
+            return 0
+        return min(store.block_size, math.floor(store.reserve_s / longest_s))
+
+    def _reserve(self, sender_id: int, counter: int, now_s: float) -> None:
+        """Write new marks: each sender's highest accepted counter plus its reservation.
+
+        ``counter`` counts as ``sender_id``'s highest (it is being accepted). Every
+        mark is at or above everything accepted; a sender's mark may fall (to its
+        highest, when it went quiet), never below it.
 
         Raises:
             ReplayStoreError: The store cannot be written (nothing changes).
@@ -357,13 +449,14 @@ class Codec:
         store = self._replay_store
         reserved = self._reserved
         assert store is not None and reserved is not None  # only called with a store
-        block = store.block_size
         marks = {
-            sender: max(mark, min(self._windows[sender].highest + block, MAX_COUNTER))
-            for sender, mark in reserved.items()
-            if sender in self._windows
+            sender: min(window.highest + self._reservation(sender, now_s), MAX_COUNTER)
+            for sender, window in self._windows.items()
+            if sender in reserved
         }
-        marks[sender_id] = max(reserved.get(sender_id, 0), min(counter + block - 1, MAX_COUNTER))
+        window = self._windows.get(sender_id)
+        highest = counter if window is None else max(counter, window.highest)
+        marks[sender_id] = min(highest + self._reservation(sender_id, now_s), MAX_COUNTER)
         store.write(marks)
         self._reserved = marks
 
@@ -371,9 +464,10 @@ class Codec:
         """Write each sender's highest accepted counter as its exact mark (on a clean stop).
 
         After this, a restart refuses exactly what was accepted, and nothing of what
-        senders send next; without it (a crash), up to a block of each sender's
-        next packets is refused too. Accepting packets afterwards is still safe: it
-        reserves again. A no-op without a replay store.
+        senders send next; without it (a crash), each sender's next packets are
+        refused too for about the store's ``reserve_s`` (its reservation).
+        Accepting packets afterwards is still safe: it reserves again. A no-op
+        without a replay store.
 
         Raises:
             ReplayStoreError: The store cannot be written.

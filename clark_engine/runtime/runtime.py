@@ -201,6 +201,7 @@ class AgentRuntime:
             counter_store=counter_store,
             replay_store=replay_store,
             max_packet_bytes=max(self.max_packet_bytes, 64),
+            clock=self._link_now_s,
         )
         self.fleet = FleetTable(
             config.agent_id,
@@ -321,6 +322,13 @@ class AgentRuntime:
         )
 
     # -- time --------------------------------------------------------------------------
+
+    def _link_now_s(self) -> float:
+        """The codec's clock: the runtime's, set before each packet is decoded.
+
+        Replay reservations follow the packets' pace on it, in simulated time too.
+        """
+        return self.context.now_s
 
     def _gps_now_ms(self, now_s: float) -> int | None:
         if self._vehicle_gps is not None:
