@@ -204,23 +204,125 @@ def test_a_sender_that_slows_down_is_not_refused_for_long_after_a_crash(tmp_path
     assert again.decode(_packet(sender, 20.0)).counter == 511
 
 
-def test_high_rate_senders_do_not_cost_a_write_per_packet(tmp_path: Path) -> None:
-    """Three senders at 100 Hz for 10 s: the store is written a few times a second, not
-    3,000 times (a write is an fsync)."""
-    store = ReplayStore(tmp_path / "cub.replay")
-    writes: list[dict[int, int]] = []
-    real = store.write
+class CountingStore(ReplayStore):
+    """A replay store that counts its durable (fsynced) and live writes."""
 
-    def counting(marks: dict[int, int]) -> None:
-        writes.append(dict(marks))
-        real(marks)
+    def __init__(self, path: Path, **options: object) -> None:
+        super().__init__(path, **options)  # type: ignore[arg-type]
+        self.durable_writes = 0
+        self.live_writes = 0
 
-    store.write = counting  # type: ignore[method-assign]
+    def write_durable(self, marks: dict[int, int]) -> None:
+        self.durable_writes += 1
+        super().write_durable(marks)
+
+    def write_live(self, marks: dict[int, int]) -> None:
+        self.live_writes += 1
+        super().write_live(marks)
+
+
+@pytest.mark.parametrize(
+    ("rates_hz", "most_durable_per_s", "most_live_per_s"),
+    [
+        ((100.0,) * 3, 0.5, 3.0),  # fast senders: a write renews all, twice a second
+        ((1.0,) * 50, 0.5, 60.0),  # 50 slow senders: exact live marks, a rename a packet
+    ],
+)
+def test_fsyncs_stay_rare_at_any_rate(
+    tmp_path: Path, rates_hz: tuple[float, ...], most_durable_per_s: float, most_live_per_s: float
+) -> None:
+    """Whatever the senders' rates, the fsynced marks are written every few seconds, not
+    per packet; the live marks (no fsync) per packet only of senders slower than 2 Hz."""
+    rng = random.Random(18)
+    store = CountingStore(tmp_path / "cub.replay", boot_id="boot-1")
     clock = Clock()
-    codec = Codec(MISSION, 2, KEY, replay_store=store, clock=clock)
-    senders = [Codec(MISSION, agent, KEY) for agent in (1, 3, 4)]
-    for k in range(1000):
-        for n, sender in enumerate(senders):
-            clock.now_s = k / 100 + n / 1000
-            codec.decode(_packet(sender, clock.now_s))
-    assert len(writes) <= 10 * 3 + 10
+    codec = Codec(MISSION, 100, KEY, replay_store=store, clock=clock)
+    senders = [Codec(MISSION, agent + 1, KEY) for agent in range(len(rates_hz))]
+    traffic = sorted(
+        (t, n)
+        for n, rate in enumerate(rates_hz)
+        for t in _schedule(rng, rate, rng.uniform(0.0, 1.0 / rate), 30.0)
+    )
+    for t, n in traffic:
+        clock.now_s = t
+        codec.decode(_packet(senders[n], t))
+    warm_up = 2 * len(rates_hz) + 2  # each sender's first two packets: its pace unknown
+    assert store.durable_writes <= 30.0 * most_durable_per_s + warm_up
+    assert store.live_writes <= min(30.0 * most_live_per_s + warm_up, len(traffic))
+
+
+def test_after_the_computer_restarts_the_durable_marks_hold(tmp_path: Path) -> None:
+    """Another boot id: the live marks (not fsynced) are not trusted, the durable ones
+    are; nothing accepted before is accepted after, and the sender is heard again after
+    at most about durable_reserve_s of its traffic."""
+    path = tmp_path / "cub.replay"
+    sender = Codec(MISSION, 1, KEY)
+    clock = Clock()
+    receiver = Codec(MISSION, 2, KEY, replay_store=ReplayStore(path, boot_id="boot-1"), clock=clock)
+    accepted = []
+    for k in range(300):  # 30 s at 10 Hz
+        clock.now_s = k / 10
+        accepted.append(data := _packet(sender, clock.now_s))
+        receiver.decode(data)
+    clock = Clock(30.0)
+    store = ReplayStore(path, boot_id="boot-2")
+    again = Codec(MISSION, 2, KEY, replay_store=store, clock=clock)
+    assert store.live_marks is None
+    for data in accepted:
+        with pytest.raises(ReplayedPacket):
+            again.decode(data)
+    first = None
+    for k in range(300, 400):
+        clock.now_s = k / 10
+        try:
+            again.decode(_packet(sender, clock.now_s))
+        except ReplayedPacket:
+            continue
+        first = first if first is not None else clock.now_s
+    assert first is not None and first - 30.0 <= store.durable_reserve_s + 0.2
+
+
+@pytest.mark.parametrize("live_file", ["missing", "damaged", "another mission"])
+def test_a_lost_or_damaged_live_file_falls_back_to_the_durable_marks(
+    tmp_path: Path, live_file: str
+) -> None:
+    path = tmp_path / "cub.replay"
+    sender = Codec(MISSION, 1, KEY)
+    clock = Clock()
+    receiver = Codec(MISSION, 2, KEY, replay_store=ReplayStore(path, boot_id="b"), clock=clock)
+    accepted = []
+    for k in range(50):
+        clock.now_s = k / 10
+        accepted.append(data := _packet(sender, clock.now_s))
+        receiver.decode(data)
+    live = path.with_name("cub.replay.live")
+    if live_file == "missing":
+        live.unlink()
+    elif live_file == "damaged":
+        live.write_bytes(b"clarklink-replay-live 1 garbage\n")
+    else:
+        text = live.read_text(encoding="ascii")
+        live.write_text(text.replace(f"replay-live 1 {MISSION} ", "replay-live 1 99 "), "ascii")
+    again = Codec(MISSION, 2, KEY, replay_store=ReplayStore(path, boot_id="b"), clock=Clock(9.0))
+    for data in accepted:
+        with pytest.raises(ReplayedPacket):
+            again.decode(data)
+
+
+def test_without_a_boot_id_the_durable_marks_reserve_half_a_second(tmp_path: Path) -> None:
+    """Where the kernel has no boot id (not Linux) there is no live file: the durable
+    marks reserve what a live file would, at an fsync per write, and a 1 Hz sender is
+    still heard again at its next packet after a crash."""
+    path = tmp_path / "cub.replay"
+    store = ReplayStore(path, boot_id=None)
+    assert not store.live and store.durable_reserve_s == store.reserve_s
+    sender = Codec(MISSION, 1, KEY)
+    clock = Clock()
+    receiver = Codec(MISSION, 2, KEY, replay_store=store, clock=clock)
+    for k in range(20):
+        clock.now_s = float(k)
+        receiver.decode(_packet(sender, clock.now_s))
+    assert not path.with_name("cub.replay.live").exists()
+    again = Codec(MISSION, 2, KEY, replay_store=ReplayStore(path, boot_id=None), clock=clock)
+    clock.now_s = 20.0
+    assert again.decode(_packet(sender, 20.0)).counter == 21

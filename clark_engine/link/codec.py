@@ -70,35 +70,86 @@ from clark_engine.link.wire import AGENT_ID_MAX, canonical_order, encode_entry, 
 # version, flags, mission id, sender, destination, counter high 16 bits, counter low 32 bits
 _HEADER = struct.Struct(">BBIHHHI")  # HEADER_BYTES long
 _MISSION_ID_MAX = (1 << 32) - 1
+#: The span over which a sender's slowest packet interval is kept (one to two of them).
+_PACE_SPAN_S = 1.0
+#: The span over which a sender's counters' mean advance is measured (the latest whole one).
+_MEAN_SPAN_S = 5.0
+
+
+class _Tier:
+    """One set of replay marks a codec keeps on disk: how it writes them, what it reserves."""
+
+    __slots__ = ("by_mean", "marks", "reserve_s", "write")
+
+    def __init__(
+        self,
+        write: Callable[[dict[int, int]], None],
+        reserve_s: float,
+        marks: dict[int, int],
+        *,
+        by_mean: bool,
+    ) -> None:
+        self.write = write
+        self.reserve_s = reserve_s
+        self.by_mean = by_mean  # also reserve at the counters' mean rate (see _Pace)
+        self.marks = marks  # sender -> the mark on disk, above every counter of it accepted
 
 
 class _Pace:
-    """A sender's slowest recent packet interval, which sizes its replay reservation.
+    """How fast a sender's packets come, which sizes its replay reservations.
 
-    The longest interval between its packets over the last one to two spans of
-    ``span_s`` (two spans, kept as the longest of each: constant memory and time per
-    packet). The longest, not the mean: a burst (a split bundle, packets queued
-    behind a radio) must not make a slow sender look fast, since a reservation too
-    large for its real rate is what a crash would make the receiver refuse.
+    Two measures (kept per span: constant memory and time per packet):
+
+    * its slowest packet interval over the last one to two spans of ``span_s``,
+      for the reservations that decide how long a crash makes the receiver refuse
+      it: the longest, not the mean, so that a burst (a split bundle, packets
+      queued behind a radio) does not make a slow sender look fast;
+    * its counters' mean advance per second over the latest whole span of
+      ``mean_span_s``, bursts and packets to others included, for the
+      reservations that should rarely run out (the fsynced ones). A step above
+      the replay window's 64 (a sender that restarted and jumped its counter)
+      counts as 64.
     """
 
-    __slots__ = ("_current_s", "_previous_s", "_span_start_s", "last_s")
+    __slots__ = (
+        "_advance",
+        "_current_s",
+        "_mean_start_s",
+        "_previous_s",
+        "_span_start_s",
+        "last_counter",
+        "last_s",
+        "rate_per_s",
+    )
 
-    def __init__(self, now_s: float) -> None:
+    def __init__(self, now_s: float, counter: int) -> None:
         self.last_s = now_s
+        self.last_counter = counter
         self._span_start_s = now_s
         self._current_s = -1.0  # -1: no interval yet
         self._previous_s = -1.0
+        self._mean_start_s = now_s
+        self._advance = 0
+        self.rate_per_s = 0.0  # over the latest whole mean span; 0 before one
 
-    def arrived(self, now_s: float, span_s: float) -> None:
+    def arrived(self, now_s: float, counter: int, span_s: float, mean_span_s: float) -> None:
         """Record a packet accepted at ``now_s``."""
         interval_s = max(now_s - self.last_s, 0.0)
         self.last_s = now_s
+        step = counter - self.last_counter
+        if step > 0:
+            self._advance += min(step, ReplayWindow.SIZE)
+            self.last_counter = counter
         if now_s - self._span_start_s >= span_s:
             self._previous_s, self._current_s = self._current_s, interval_s
             self._span_start_s = now_s
         else:
             self._current_s = max(self._current_s, interval_s)
+        elapsed_s = now_s - self._mean_start_s
+        if elapsed_s >= mean_span_s:
+            self.rate_per_s = self._advance / elapsed_s
+            self._advance = 0
+            self._mean_start_s = now_s
 
     def longest_s(self, now_s: float) -> float:
         """The longest recent interval, counting the silence since the latest packet.
@@ -182,17 +233,29 @@ class Codec:
             self._next_counter = counter_store.load() + 1
             self._reserved_through = self._next_counter - 1  # reserve before the first use
         self._windows: dict[int, ReplayWindow] = {}
-        # sender -> the mark on disk, above every counter of it accepted; None: no store
-        self._reserved: dict[int, int] | None = None
         self._replay_store = replay_store if self._tagger is not None else None
         self._clock = clock
         # sender -> the pace of its accepted packets (with a replay store only)
         self._paces: dict[int, _Pace] = {}
-        if self._replay_store is not None and self._tagger is not None:
-            marks = self._replay_store.load(f"{mission_id} {self._tagger.fingerprint()}")
-            self._reserved = dict(marks)
+        # the marks kept on disk, live first (empty: no store)
+        self._tiers: list[_Tier] = []
+        store = self._replay_store
+        if store is not None and self._tagger is not None:
+            marks = store.load(f"{mission_id} {self._tagger.fingerprint()}")
             for sender, mark in marks.items():
                 self._windows[sender] = ReplayWindow.resumed(mark)
+            durable = _Tier(
+                store.write_durable,
+                store.durable_reserve_s,
+                dict(store.durable_marks),
+                by_mean=store.live,  # without live marks, the durable ones decide a restart
+            )
+            if store.live:
+                live_marks = dict(store.live_marks or {})
+                live = _Tier(store.write_live, store.reserve_s, live_marks, by_mean=False)
+                self._tiers = [live, durable]
+            else:
+                self._tiers = [durable]
 
     def __repr__(self) -> str:
         # Never the key: reprs end up in logs and tracebacks.
@@ -384,18 +447,19 @@ class Codec:
                     **ids,
                 )
             restart = True
-        reserved = self._reserved
-        if reserved is not None:
+        if self._tiers:
             now_s = self._clock()
-            mark = reserved.get(sender_id, -1)  # -1: even a counter 0 is written first
-            if counter > mark or self._slack_too_long(sender_id, mark - counter, now_s):
-                self._reserve(sender_id, counter, now_s)  # on disk before the packet is accepted
+            for tier in self._tiers:  # on disk before the packet is accepted
+                mark = tier.marks.get(sender_id, -1)  # -1: even a counter 0 is written first
+                if counter > mark or self._slack_too_long(sender_id, mark - counter, now_s, tier):
+                    marks = self._marks(sender_id, counter, now_s, tier)
+                    tier.write(marks)
+                    tier.marks = marks
             pace = self._paces.get(sender_id)
             if pace is None:
-                self._paces[sender_id] = _Pace(now_s)
+                self._paces[sender_id] = _Pace(now_s, counter)
             else:
-                assert self._replay_store is not None  # reserved is None without one
-                pace.arrived(now_s, 2.0 * self._replay_store.reserve_s)
+                pace.arrived(now_s, counter, _PACE_SPAN_S, _MEAN_SPAN_S)
         # Every check passed: only now does anything change.
         if window is None:
             window = self._windows[sender_id] = ReplayWindow()
@@ -405,60 +469,60 @@ class Codec:
             window.commit(counter)
         return packet
 
-    def _slack_too_long(self, sender_id: int, slack: int, now_s: float) -> bool:
+    def _slack_too_long(self, sender_id: int, slack: int, now_s: float, tier: _Tier) -> bool:
         """True when the sender's ``slack`` reserved counters now last too long.
 
-        That is, more than twice the reservation's time at its latest interval: it
-        slowed down since they were reserved, and a crash now would refuse its packets
-        for that long. Writing the marks again trims them to its new rate.
+        That is, more than twice the tier's ``reserve_s`` at its latest interval (with
+        ``by_mean``, at its counters' mean rate, when it has one): it slowed down since
+        they were reserved, and a crash now would refuse its packets for that long.
+        Writing the marks again trims them to its new rate.
         """
         if slack <= 0:
             return False
         pace = self._paces.get(sender_id)
         if pace is None:
             return False  # resumed from the store: nothing heard yet, nothing reserved since
-        assert self._replay_store is not None  # only called with a store
-        return slack * (now_s - pace.last_s) > 2.0 * self._replay_store.reserve_s
+        interval_s = now_s - pace.last_s
+        if tier.by_mean and pace.rate_per_s > 0.0:
+            interval_s = min(interval_s, 1.0 / pace.rate_per_s)
+        return slack * interval_s > 2.0 * tier.reserve_s
 
-    def _reservation(self, sender_id: int, now_s: float) -> int:
+    def _reservation(self, sender_id: int, now_s: float, tier: _Tier) -> int:
         """How many counters above its highest to reserve for a sender at ``now_s``.
 
-        What it sends in the store's ``reserve_s`` at its slowest recent interval (the
+        What it sends in the tier's ``reserve_s`` at its slowest recent interval (the
         time since its latest packet counts as one: a sender gone quiet reserves none),
-        rounded down and capped at the store's block size; none before its second
-        packet, or when its packets come all at once (no rate can be told).
+        rounded down; none before its second packet, or when its packets come all at
+        once (no rate can be told). With ``by_mean``, at least what its counters advance
+        in that time at their mean rate. Capped at the store's block size.
         """
         store = self._replay_store
         assert store is not None  # only called with a store
         pace = self._paces.get(sender_id)
-        longest_s = -1.0 if pace is None else pace.longest_s(now_s)
-        if longest_s <= 0.0:
+        if pace is None:
             return 0
-        return min(store.block_size, math.floor(store.reserve_s / longest_s))
+        longest_s = pace.longest_s(now_s)
+        reserved = math.floor(tier.reserve_s / longest_s) if longest_s > 0.0 else 0
+        if tier.by_mean:
+            reserved = max(reserved, math.floor(tier.reserve_s * pace.rate_per_s))
+        return min(store.block_size, reserved)
 
-    def _reserve(self, sender_id: int, counter: int, now_s: float) -> None:
-        """Write new marks: each sender's highest accepted counter plus its reservation.
+    def _marks(self, sender_id: int, counter: int, now_s: float, tier: _Tier) -> dict[int, int]:
+        """New marks: each sender's highest accepted counter plus its reservation.
 
         ``counter`` counts as ``sender_id``'s highest (it is being accepted). Every
-        mark is at or above everything accepted; a sender's mark may fall (to its
-        highest, when it went quiet), never below it.
-
-        Raises:
-            ReplayStoreError: The store cannot be written (nothing changes).
+        mark is at or above everything accepted from its sender; a mark may fall (to
+        the sender's highest, when it went quiet), never below it.
         """
-        store = self._replay_store
-        reserved = self._reserved
-        assert store is not None and reserved is not None  # only called with a store
         marks = {
-            sender: min(window.highest + self._reservation(sender, now_s), MAX_COUNTER)
+            sender: min(window.highest + self._reservation(sender, now_s, tier), MAX_COUNTER)
             for sender, window in self._windows.items()
-            if sender in reserved
         }
         window = self._windows.get(sender_id)
         highest = counter if window is None else max(counter, window.highest)
-        marks[sender_id] = min(highest + self._reservation(sender_id, now_s), MAX_COUNTER)
-        store.write(marks)
-        self._reserved = marks
+        reserved = highest + self._reservation(sender_id, now_s, tier)
+        marks[sender_id] = min(reserved, MAX_COUNTER)
+        return marks
 
     def save_replay_marks(self) -> None:
         """Write each sender's highest accepted counter as its exact mark (on a clean stop).
@@ -472,11 +536,12 @@ class Codec:
         Raises:
             ReplayStoreError: The store cannot be written.
         """
-        if self._replay_store is None or self._reserved is None:
+        if self._replay_store is None or not self._tiers:
             return
         marks = {sender: window.highest for sender, window in self._windows.items()}
-        self._replay_store.write(marks)
-        self._reserved = marks
+        for tier in self._tiers:  # each tier's marks follow its own file, write by write
+            tier.write(marks)
+            tier.marks = dict(marks)
 
 
 @functools.lru_cache(maxsize=512)
