@@ -14,6 +14,7 @@ time its events carry): no test sleeps or measures the wall clock.
 
 from __future__ import annotations
 
+import contextlib
 import random
 from collections.abc import Iterator
 from pathlib import Path
@@ -326,3 +327,36 @@ def test_without_a_boot_id_the_durable_marks_reserve_half_a_second(tmp_path: Pat
     again = Codec(MISSION, 2, KEY, replay_store=ReplayStore(path, boot_id=None), clock=clock)
     clock.now_s = 20.0
     assert again.decode(_packet(sender, 20.0)).counter == 21
+
+
+def test_live_marks_are_not_trusted_beside_a_durable_file_rewritten_without_them(
+    tmp_path: Path,
+) -> None:
+    """A live file names the durable file it was written with. If something rewrote the
+    durable file without updating the live one (a run without a boot id, an engine from
+    before live marks), the live marks may lag behind what was accepted: ignored."""
+    path = tmp_path / "cub.replay"
+    sender = Codec(MISSION, 1, KEY)
+    accepted = []
+
+    def receive(store: ReplayStore, times_s: range) -> None:
+        clock = Clock()
+        codec = Codec(MISSION, 2, KEY, replay_store=store, clock=clock)
+        for k in times_s:
+            clock.now_s = k / 10
+            data = _packet(sender, clock.now_s)
+            with contextlib.suppress(ReplayedPacket):  # after a restart: until past the marks
+                codec.decode(data)
+                accepted.append(data)
+
+    receive(ReplayStore(path, boot_id="b"), range(50))
+    live = path.with_name("cub.replay.live").read_bytes()
+    receive(ReplayStore(path, boot_id=None), range(50, 300))  # the live file not touched
+    assert len(accepted) > 100
+    assert path.with_name("cub.replay.live").read_bytes() == live
+    store = ReplayStore(path, boot_id="b")
+    again = Codec(MISSION, 2, KEY, replay_store=store, clock=Clock(20.0))
+    assert store.live_marks is None
+    for data in accepted:
+        with pytest.raises(ReplayedPacket):
+            again.decode(data)

@@ -329,8 +329,10 @@ class ReplayStore:
     agent; two codecs must never share its files.
 
     Format: ``clarklink-replay 1 <mission id> <fingerprint>`` (live:
-    ``clarklink-replay-live 1 <mission id> <fingerprint> <boot id>``), then one
-    ``<sender id> <mark>`` line per sender, decimal.
+    ``clarklink-replay-live 1 <mission id> <fingerprint> <boot id> <durable digest>``,
+    the last a digest of the durable file it goes with: a live file is trusted only
+    beside the durable file it was written with), then one ``<sender id> <mark>`` line
+    per sender, decimal.
 
     Attributes:
         durable_marks: The durable file's marks, as :meth:`load` found them.
@@ -379,6 +381,7 @@ class ReplayStore:
         self.durable_marks: dict[int, int] = {}
         self.live_marks: dict[int, int] | None = None
         self._binding = ""
+        self._durable_digest = _digest(b"")
 
     def __repr__(self) -> str:
         return (
@@ -409,14 +412,13 @@ class ReplayStore:
                 under another boot is ignored: the durable marks are safe alone.)
         """
         self._binding = binding
-        durable = self._read(self.path, f"{_REPLAY_MAGIC} {binding}")
+        durable, content = self._read(self.path, f"{_REPLAY_MAGIC} {binding}")
         self.durable_marks = {} if durable is None else durable
+        self._durable_digest = _digest(content)
         self.live_marks = None
         if self.boot_id is not None:
             try:
-                self.live_marks = self._read(
-                    self.live_path, f"{_REPLAY_LIVE_MAGIC} {binding} {self.boot_id}"
-                )
+                self.live_marks, _ = self._read(self.live_path, self._live_head())
             except ReplayStoreError:
                 self.live_marks = None
         marks = dict(self.durable_marks)
@@ -424,8 +426,20 @@ class ReplayStore:
             marks[sender] = min(mark, marks.get(sender, mark))
         return marks
 
-    def _read(self, path: Path, head: str) -> dict[int, int] | None:
-        """One file's marks; None without the file or when its first line is not ``head``.
+    def _live_head(self) -> str:
+        """The live file's first line: its binding, boot and the durable file it goes with.
+
+        The durable file's digest ties the live marks to the durable file as it was
+        when they were written: if anything rewrote the durable file since (this
+        store without a boot id, an engine from before live marks), the live marks
+        may lag behind what was accepted, and are not trusted.
+        """
+        return f"{_REPLAY_LIVE_MAGIC} {self._binding} {self.boot_id} {self._durable_digest}"
+
+    def _read(self, path: Path, head: str) -> tuple[dict[int, int] | None, bytes]:
+        """One file's marks, and its content (empty without the file).
+
+        The marks are None without the file or when its first line is not ``head``.
 
         Raises:
             ReplayStoreError: The file cannot be read or is damaged.
@@ -434,7 +448,7 @@ class ReplayStore:
             with path.open("rb") as source:
                 data = source.read(_MAX_REPLAY_FILE_BYTES + 1)
         except FileNotFoundError:
-            return None
+            return None, b""
         except OSError as exc:
             raise ReplayStoreError(
                 f"{path}: cannot read the replay store: {exc.strerror}"
@@ -454,7 +468,7 @@ class ReplayStore:
         if len(first) != len(head.split(" ")):
             raise damaged
         if lines[0] != head.encode("ascii"):
-            return None  # another mission, key or boot: its counters mean nothing here
+            return None, data  # another mission, key or boot: its counters mean nothing here
         marks: dict[int, int] = {}
         for line in lines[1:-1]:
             fields = line.split(b" ")
@@ -464,7 +478,7 @@ class ReplayStore:
             if not 1 <= sender <= 0xFFFF or mark > MAX_COUNTER or sender in marks:
                 raise damaged
             marks[sender] = mark
-        return marks
+        return marks, data
 
     def write(self, marks: dict[int, int]) -> None:
         """Replace both the durable and the live marks; on disk when this returns.
@@ -481,7 +495,8 @@ class ReplayStore:
         Raises:
             ReplayStoreError: The file cannot be written.
         """
-        self._write(self.path, f"{_REPLAY_MAGIC} {self._binding}", marks, durable=True)
+        content = self._write(self.path, f"{_REPLAY_MAGIC} {self._binding}", marks, durable=True)
+        self._durable_digest = _digest(content)
 
     def write_live(self, marks: dict[int, int]) -> None:
         """Replace the live marks, not fsynced: they survive a crash of this process.
@@ -493,17 +508,23 @@ class ReplayStore:
         """
         if self.boot_id is None:
             return
-        head = f"{_REPLAY_LIVE_MAGIC} {self._binding} {self.boot_id}"
-        self._write(self.live_path, head, marks, durable=False)
+        self._write(self.live_path, self._live_head(), marks, durable=False)
 
-    def _write(self, path: Path, head: str, marks: dict[int, int], *, durable: bool) -> None:
+    def _write(self, path: Path, head: str, marks: dict[int, int], *, durable: bool) -> bytes:
         text = "".join(f"{sender} {mark}\n" for sender, mark in sorted(marks.items()))
+        content = f"{head}\n{text}".encode("ascii")
         try:
-            _replace_file(path, f"{head}\n{text}".encode("ascii"), durable=durable)
+            _replace_file(path, content, durable=durable)
         except OSError as exc:
             raise ReplayStoreError(
                 f"{path}: cannot write the replay store: {exc.strerror}"
             ) from None
+        return content
+
+
+def _digest(content: bytes) -> str:
+    """A short digest of a durable replay file's content, which its live file names."""
+    return hashlib.blake2b(content, digest_size=8).hexdigest()
 
 
 def _replace_file(path: Path, data: bytes, *, durable: bool = True) -> None:

@@ -237,7 +237,7 @@ class Codec:
         self._clock = clock
         # sender -> the pace of its accepted packets (with a replay store only)
         self._paces: dict[int, _Pace] = {}
-        # the marks kept on disk, live first (empty: no store)
+        # the marks kept on disk, durable first (empty: no store)
         self._tiers: list[_Tier] = []
         store = self._replay_store
         if store is not None and self._tagger is not None:
@@ -253,7 +253,7 @@ class Codec:
             if store.live:
                 live_marks = dict(store.live_marks or {})
                 live = _Tier(store.write_live, store.reserve_s, live_marks, by_mean=False)
-                self._tiers = [live, durable]
+                self._tiers = [durable, live]  # live last: it names the durable file
             else:
                 self._tiers = [durable]
 
@@ -449,12 +449,19 @@ class Codec:
             restart = True
         if self._tiers:
             now_s = self._clock()
+            wrote = False
             for tier in self._tiers:  # on disk before the packet is accepted
                 mark = tier.marks.get(sender_id, -1)  # -1: even a counter 0 is written first
-                if counter > mark or self._slack_too_long(sender_id, mark - counter, now_s, tier):
+                # The live tier (last) follows every durable write: it names the durable file.
+                if (
+                    counter > mark
+                    or wrote
+                    or self._slack_too_long(sender_id, mark - counter, now_s, tier)
+                ):
                     marks = self._marks(sender_id, counter, now_s, tier)
                     tier.write(marks)
                     tier.marks = marks
+                    wrote = True
             pace = self._paces.get(sender_id)
             if pace is None:
                 self._paces[sender_id] = _Pace(now_s, counter)
