@@ -360,3 +360,41 @@ def test_live_marks_are_not_trusted_beside_a_durable_file_rewritten_without_them
     for data in accepted:
         with pytest.raises(ReplayedPacket):
             again.decode(data)
+
+
+def test_a_sender_gone_slow_has_its_live_marks_trimmed_before_its_next_packet(
+    tmp_path: Path,
+) -> None:
+    """100 packets a second for 10 s, then silence: a trim a second later (the runtime
+    calls it every tick) cuts the reservation made at the old pace, so a crash then
+    does not refuse the sender's next packets for minutes at its new pace."""
+    path = tmp_path / "cub.replay"
+    sender = Codec(MISSION, 1, KEY)
+    clock = Clock()
+    receiver = Codec(MISSION, 2, KEY, replay_store=ReplayStore(path, boot_id="b"), clock=clock)
+    for k in range(1000):
+        clock.now_s = k / 100
+        receiver.decode(_packet(sender, clock.now_s))
+    assert not receiver.trim_replay_marks(10.0)  # at its pace: nothing to trim
+    assert receiver.trim_replay_marks(11.0)
+    assert not receiver.trim_replay_marks(11.1)  # once
+    again = Codec(MISSION, 2, KEY, replay_store=ReplayStore(path, boot_id="b"), clock=Clock(12))
+    assert again.decode(_packet(sender, 15.0)).counter == 1001  # its next packet, 0.2 Hz on
+
+
+def test_the_runtime_trims_the_replay_marks_every_tick(tmp_path: Path) -> None:
+    config, key = _keyed_slash_b(tmp_path)
+    runtime = AgentRuntime(
+        config,  # type: ignore[arg-type]
+        key=key,
+        replay_store=ReplayStore(tmp_path / "b.replay", boot_id="b"),
+    )
+    station = Codec(MISSION, 1, key)
+    for k in range(200):  # 20 packets a second for 10 s
+        t = k / 20
+        (data,) = station.encode([Heartbeat(1, GPS0 + k * 50, MISSION, AgentType.MCS)], 0)
+        runtime.deliver(PacketReceived(data), t)
+    live = (tmp_path / "b.replay.live").read_text(encoding="ascii")
+    runtime.tick(11.0)  # the station gone quiet for a second
+    assert (tmp_path / "b.replay.live").read_text(encoding="ascii") != live
+    assert (tmp_path / "b.replay.live").read_text(encoding="ascii").endswith("\n1 200\n")

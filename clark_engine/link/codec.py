@@ -531,6 +531,42 @@ class Codec:
         marks[sender_id] = min(reserved, MAX_COUNTER)
         return marks
 
+    def trim_replay_marks(self, now_s: float | None = None) -> bool:
+        """Write the live marks again when a sender's reservation now lasts too long.
+
+        A sender that slowed down or went quiet keeps the reservation made at its
+        old pace until its next packet; a crash in between would make the receiver
+        refuse that many of its packets at its new pace (fifty counters of a sender
+        that went from 100 to 0.2 packets a second: minutes). Called every tick, this
+        trims them within about a second. Only the live marks are trimmed (a rename);
+        the fsynced ones are not, since their writes are what must stay rare.
+
+        Args:
+            now_s: The time on the codec's clock; read from it when None.
+
+        Returns:
+            True when the marks were written again.
+
+        Raises:
+            ReplayStoreError: The live marks cannot be written (those on disk stand,
+                above everything accepted: nothing unsafe).
+        """
+        store = self._replay_store
+        if store is None or not store.live or not self._tiers:
+            return False
+        tier = self._tiers[-1]
+        now = self._clock() if now_s is None else now_s
+        for sender, mark in tier.marks.items():
+            window = self._windows.get(sender)
+            if window is not None and self._slack_too_long(
+                sender, mark - window.highest, now, tier
+            ):
+                marks = self._marks(sender, window.highest, now, tier)
+                tier.write(marks)
+                tier.marks = marks
+                return True
+        return False
+
     def save_replay_marks(self) -> None:
         """Write each sender's highest accepted counter as its exact mark (on a clean stop).
 
