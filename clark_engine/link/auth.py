@@ -34,11 +34,28 @@ KEY_BYTES = 32
 #: tick), so it should be rare: at 100 packets per second a block of 65536 lasts
 #: 11 minutes. A restart skips at most one block, out of 2**48 counters.
 DEFAULT_COUNTER_BLOCK = 65_536
-#: Counters of each sender a receiver reserves per write of its replay store. After
-#: a crash the receiver refuses at most this many of each sender's packets that it
-#: had not seen (the reserved, unused rest); a write costs an fsync, made at most
-#: once per this many packets of the busiest sender (one write renews every sender).
-DEFAULT_REPLAY_BLOCK = 64
+#: How long of each sender's traffic a receiver's *live* replay marks reserve, in
+#: seconds. The live marks (see :class:`ReplayStore`) are written without an fsync, so
+#: their writes are cheap; they reserve, per sender, the counters it is expected to use
+#: in this long at its slowest recent rate, rounded down: none for a sender slower than
+#: one packet in this long, whose exact mark is written with each of its packets. After
+#: a crash of the agent's process, the receiver refuses at most about this long of a
+#: sender's genuine packets that it had never seen.
+DEFAULT_REPLAY_RESERVE_S = 0.5
+#: How long of each sender's traffic the *durable* replay marks reserve, in seconds:
+#: what counts after the computer itself restarts (power loss, kernel crash). Their
+#: writes cost an fsync (tens of milliseconds on a mission computer's SD card, enough
+#: to overrun a tick), made about once in this long for every sender faster than one
+#: packet in it (one write renews every sender), plus once per packet of each slower
+#: one. A computer's restart usually takes longer than this, so the senders' counters
+#: are past the marks when the agent is back.
+DEFAULT_REPLAY_DURABLE_RESERVE_S = 10.0
+#: The most counters of one sender reserved per write, whatever its rate (a sender
+#: faster than this many packets per reservation costs more writes): a bound on what a
+#: crash can make the receiver refuse if a sender's rate falls just before it.
+DEFAULT_REPLAY_BLOCK = 1024
+_BOOT_ID_FILE = Path("/proc/sys/kernel/random/boot_id")
+_REPLAY_LIVE_MAGIC = "clarklink-replay-live 1"
 _REPLAY_MAGIC = "clarklink-replay 1"
 _MAX_REPLAY_FILE_BYTES = 4 << 20  # 65535 senders at 31 bytes a line, with room
 _MAX_KEY_FILE_BYTES = 256  # a key file is 65 bytes; never read a large file whole
@@ -253,82 +270,205 @@ class CounterStore:
             ) from None
 
 
+def current_boot_id() -> str | None:
+    """This kernel's boot id (Linux: a new random one at every boot), or None elsewhere.
+
+    Files written without an fsync survive the crash of a process (they sit in the
+    kernel's page cache), never certainly a restart of the kernel: a file that holds
+    the boot id it was written under can be trusted after a crash while the id is the
+    same.
+    """
+    try:
+        text = _BOOT_ID_FILE.read_bytes()[:64].strip()
+    except OSError:
+        return None
+    if not text or not all(33 <= c < 127 for c in text):
+        return None
+    return text.decode("ascii")
+
+
 class ReplayStore:
-    """A file holding, per sender, a mark at or above every counter a receiver accepted.
+    """Files holding, per sender, a mark at or above every counter a receiver accepted.
 
     The receiver's half of :class:`CounterStore`. Before a codec accepts an
     authenticated packet whose counter is above its sender's mark, it writes new
-    marks here (atomically, as the counter store does): that sender's counter
-    plus a block, and every other sender's highest accepted counter plus a block
-    (so that one write serves every sender, and writes follow the busiest
-    sender's rate, not the sum). After a restart the codec starts each sender's
-    replay window at its mark, so nothing accepted before the restart is
-    accepted again, whatever the crash. The cost: after a crash, up to one
-    block of each sender's packets that it had never seen are refused as well;
-    :meth:`~clark_engine.link.codec.Codec.save_replay_marks` on a clean stop
-    writes the exact marks, and then nothing is refused but what was accepted.
+    marks (atomically: temporary file, rename): for that sender and every other
+    it has heard, its highest accepted counter plus a reservation of what it is
+    expected to send in a while (one write serves every sender, so writes
+    follow time, not the sum of the rates). A reservation is measured on the
+    sender's slowest recent packet interval, and is none for a sender too slow
+    to send in that while: its exact mark is written with each of its packets.
+    After a restart the codec starts each sender's replay window at its mark,
+    so nothing accepted before the restart is accepted after it.
 
-    The file is bound to its mission and key (its first line holds the mission
+    Marks are kept twice, each a valid bound on its own, and a restart takes the
+    lower of the two:
+
+    * **durable** (the file at ``path``): fsynced, so it survives a power loss; it
+      reserves ``durable_reserve_s`` (10 s) of each sender's traffic, so the fsyncs
+      are rare;
+    * **live** (``<path>.live``): not fsynced, so a write costs no wait for the disk;
+      it reserves ``reserve_s`` (0.5 s) and holds the kernel's boot id. It is
+      trusted only under the same boot id: after a crash of the agent's process,
+      where the kernel still holds every write, whatever the crash (kill -9
+      included). Without a boot id (not Linux) there is no live file, and the
+      durable marks reserve ``reserve_s``, at an fsync per write.
+
+    The cost: after a process crash a sender's packets that the receiver had never
+    seen are refused for at most about ``reserve_s`` of its traffic, then accepted
+    (so an agent hears a station sending once a second again at its next packet);
+    after the computer's restart, about ``durable_reserve_s`` of it, counted from
+    the last durable write. :meth:`~clark_engine.link.codec.Codec.save_replay_marks`
+    on a clean stop writes the exact marks, and then nothing is refused but what was
+    accepted.
+
+    The files are bound to their mission and key (the first line holds the mission
     id and a fingerprint of the key, an HMAC of a constant: the key cannot be
     recovered from it): marks written under another mission or key are ignored,
     since those counters mean nothing under this one. One store per receiving
-    agent; two codecs must never share a file.
+    agent; two codecs must never share its files.
 
-    Format: ``clarklink-replay 1 <mission id> <fingerprint>``, then one
-    ``<sender id> <mark>`` line per sender, decimal.
+    Format: ``clarklink-replay 1 <mission id> <fingerprint>`` (live:
+    ``clarklink-replay-live 1 <mission id> <fingerprint> <boot id> <durable digest>``,
+    the last a digest of the durable file it goes with: a live file is trusted only
+    beside the durable file it was written with), then one ``<sender id> <mark>`` line
+    per sender, decimal.
+
+    Attributes:
+        durable_marks: The durable file's marks, as :meth:`load` found them.
+        live_marks: The live file's, when :meth:`load` could trust them; else None.
     """
 
     def __init__(
-        self, path: str | os.PathLike[str], *, block_size: int = DEFAULT_REPLAY_BLOCK
+        self,
+        path: str | os.PathLike[str],
+        *,
+        block_size: int = DEFAULT_REPLAY_BLOCK,
+        reserve_s: float = DEFAULT_REPLAY_RESERVE_S,
+        durable_reserve_s: float = DEFAULT_REPLAY_DURABLE_RESERVE_S,
+        boot_id: str | None = "auto",
     ) -> None:
-        """Name the file; nothing is read or written until :meth:`load`.
+        """Name the files; nothing is read or written until :meth:`load`.
 
         Args:
-            path: The store's file; its folder must exist.
-            block_size: Counters reserved per sender per write (see DEFAULT_REPLAY_BLOCK).
+            path: The durable file; its folder must exist (the live file goes beside it).
+            block_size: The most counters reserved per sender per write (see
+                DEFAULT_REPLAY_BLOCK).
+            reserve_s: How long of each sender's traffic a live write reserves (see
+                DEFAULT_REPLAY_RESERVE_S); 0 writes every exact mark with each packet.
+            durable_reserve_s: How long a durable write reserves (see
+                DEFAULT_REPLAY_DURABLE_RESERVE_S).
+            boot_id: The kernel's boot id; ``"auto"`` reads it (:func:`current_boot_id`);
+                None keeps no live file. Tests pass one to play a computer's restart.
         """
         if block_size < 1:
             raise ValueError(f"block_size must be at least 1, not {block_size}")
+        for name, value in (("reserve_s", reserve_s), ("durable_reserve_s", durable_reserve_s)):
+            if not 0.0 <= value <= 3600.0:
+                raise ValueError(f"{name} must be within 0..3600 s, not {value}")
+        if boot_id == "auto":
+            boot_id = current_boot_id()
+        if boot_id is not None and (
+            not boot_id or len(boot_id) > 64 or not all(33 <= ord(c) < 127 for c in boot_id)
+        ):
+            raise ValueError("boot_id must be 1 to 64 printable ASCII characters without spaces")
         self.path = Path(path)
+        self.live_path = self.path.with_name(self.path.name + ".live")
         self.block_size = block_size
+        self.reserve_s = reserve_s
+        self.durable_reserve_s = durable_reserve_s if boot_id is not None else reserve_s
+        self.boot_id = boot_id
+        self.durable_marks: dict[int, int] = {}
+        self.live_marks: dict[int, int] | None = None
         self._binding = ""
+        self._durable_digest = _digest(b"")
 
     def __repr__(self) -> str:
-        return f"ReplayStore({str(self.path)!r}, block_size={self.block_size})"
+        return (
+            f"ReplayStore({str(self.path)!r}, block_size={self.block_size}, "
+            f"reserve_s={self.reserve_s}, durable_reserve_s={self.durable_reserve_s}, "
+            f"live={self.live})"
+        )
+
+    @property
+    def live(self) -> bool:
+        """True when this store keeps live marks (the kernel's boot id is known)."""
+        return self.boot_id is not None
 
     def load(self, binding: str) -> dict[int, int]:
-        """The stored marks, sender id -> mark; empty without a file or under another binding.
+        """The marks to resume at, sender id -> mark: the lower of the durable and live.
+
+        Both are at or above everything accepted under this binding, so the lower is
+        too. Empty without files or under another binding. Sets
+        :attr:`durable_marks` and :attr:`live_marks`.
 
         Args:
             binding: The mission id and key fingerprint the codec runs under; kept
-                for :meth:`write`.
+                for the writes.
 
         Raises:
-            ReplayStoreError: The file cannot be read or is damaged. Never quotes it.
+            ReplayStoreError: The durable file cannot be read or is damaged. Never
+                quotes it. (A live file that cannot be read, is damaged, or was written
+                under another boot is ignored: the durable marks are safe alone.)
         """
         self._binding = binding
+        durable, content = self._read(self.path, f"{_REPLAY_MAGIC} {binding}")
+        self.durable_marks = {} if durable is None else durable
+        self._durable_digest = _digest(content)
+        self.live_marks = None
+        if self.boot_id is not None:
+            try:
+                self.live_marks, _ = self._read(self.live_path, self._live_head())
+            except ReplayStoreError:
+                self.live_marks = None
+        marks = dict(self.durable_marks)
+        for sender, mark in (self.live_marks or {}).items():
+            marks[sender] = min(mark, marks.get(sender, mark))
+        return marks
+
+    def _live_head(self) -> str:
+        """The live file's first line: its binding, boot and the durable file it goes with.
+
+        The durable file's digest ties the live marks to the durable file as it was
+        when they were written: if anything rewrote the durable file since (this
+        store without a boot id, an engine from before live marks), the live marks
+        may lag behind what was accepted, and are not trusted.
+        """
+        return f"{_REPLAY_LIVE_MAGIC} {self._binding} {self.boot_id} {self._durable_digest}"
+
+    def _read(self, path: Path, head: str) -> tuple[dict[int, int] | None, bytes]:
+        """One file's marks, and its content (empty without the file).
+
+        The marks are None without the file or when its first line is not ``head``.
+
+        Raises:
+            ReplayStoreError: The file cannot be read or is damaged.
+        """
         try:
-            with self.path.open("rb") as source:
+            with path.open("rb") as source:
                 data = source.read(_MAX_REPLAY_FILE_BYTES + 1)
         except FileNotFoundError:
-            return {}
+            return None, b""
         except OSError as exc:
             raise ReplayStoreError(
-                f"{self.path}: cannot read the replay store: {exc.strerror}"
+                f"{path}: cannot read the replay store: {exc.strerror}"
             ) from None
         lines = data.split(b"\n")
-        head = lines[0].split(b" ")
         damaged = ReplayStoreError(
-            f"{self.path}: the replay store is damaged, so this agent cannot know which "
+            f"{path}: the replay store is damaged, so this agent cannot know which "
             "packets it accepted before; restore it, or delete it only where replayed "
             "commands are harmless (say, on the ground with the mission key replaced)"
         )
-        if len(data) > _MAX_REPLAY_FILE_BYTES or len(head) != 4 or lines[-1] != b"":
+        first = lines[0].split(b" ")
+        magic = head.split(" ")[:2]
+        if len(data) > _MAX_REPLAY_FILE_BYTES or len(lines) < 2 or lines[-1] != b"":
             raise damaged
-        if b" ".join(head[:2]).decode("ascii", "replace") != _REPLAY_MAGIC:
+        if [f.decode("ascii", "replace") for f in first[:2]] != magic:
             raise damaged
-        if b" ".join(head[2:]) != binding.encode("ascii"):
-            return {}  # another mission or key: its counters mean nothing here
+        if len(first) != len(head.split(" ")):
+            raise damaged
+        if lines[0] != head.encode("ascii"):
+            return None, data  # another mission, key or boot: its counters mean nothing here
         marks: dict[int, int] = {}
         for line in lines[1:-1]:
             fields = line.split(b" ")
@@ -338,27 +478,61 @@ class ReplayStore:
             if not 1 <= sender <= 0xFFFF or mark > MAX_COUNTER or sender in marks:
                 raise damaged
             marks[sender] = mark
-        return marks
+        return marks, data
 
     def write(self, marks: dict[int, int]) -> None:
-        """Replace the stored marks; they are on disk when this returns.
+        """Replace both the durable and the live marks; on disk when this returns.
+
+        Raises:
+            ReplayStoreError: A file cannot be written.
+        """
+        self.write_durable(marks)
+        self.write_live(marks)
+
+    def write_durable(self, marks: dict[int, int]) -> None:
+        """Replace the durable marks, fsynced: they survive a power loss.
 
         Raises:
             ReplayStoreError: The file cannot be written.
         """
+        content = self._write(self.path, f"{_REPLAY_MAGIC} {self._binding}", marks, durable=True)
+        self._durable_digest = _digest(content)
+
+    def write_live(self, marks: dict[int, int]) -> None:
+        """Replace the live marks, not fsynced: they survive a crash of this process.
+
+        A no-op without a boot id.
+
+        Raises:
+            ReplayStoreError: The file cannot be written.
+        """
+        if self.boot_id is None:
+            return
+        self._write(self.live_path, self._live_head(), marks, durable=False)
+
+    def _write(self, path: Path, head: str, marks: dict[int, int], *, durable: bool) -> bytes:
         text = "".join(f"{sender} {mark}\n" for sender, mark in sorted(marks.items()))
+        content = f"{head}\n{text}".encode("ascii")
         try:
-            _replace_file(self.path, f"{_REPLAY_MAGIC} {self._binding}\n{text}".encode("ascii"))
+            _replace_file(path, content, durable=durable)
         except OSError as exc:
             raise ReplayStoreError(
-                f"{self.path}: cannot write the replay store: {exc.strerror}"
+                f"{path}: cannot write the replay store: {exc.strerror}"
             ) from None
+        return content
 
 
-def _replace_file(path: Path, data: bytes) -> None:
-    """Replace ``path`` by ``data`` atomically and durably: temporary file, fsync, rename.
+def _digest(content: bytes) -> str:
+    """A short digest of a durable replay file's content, which its live file names."""
+    return hashlib.blake2b(content, digest_size=8).hexdigest()
 
-    A crash leaves the old content or the new, never a mix.
+
+def _replace_file(path: Path, data: bytes, *, durable: bool = True) -> None:
+    """Replace ``path`` by ``data`` atomically: temporary file, (fsync,) rename.
+
+    A crash leaves the old content or the new, never a mix. ``durable``: fsync the
+    file before the rename and the folder after it, so that the new content survives
+    a power loss too; without, it survives a crash of this process only.
 
     Raises:
         OSError: The file cannot be written (the temporary file is removed).
@@ -369,13 +543,15 @@ def _replace_file(path: Path, data: bytes) -> None:
         with os.fdopen(fd, "wb") as out:
             out.write(data)
             out.flush()
-            os.fsync(out.fileno())
+            if durable:
+                os.fsync(out.fileno())
         os.replace(tmp, path)
     except OSError:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
-    _fsync_folder(folder)
+    if durable:
+        _fsync_folder(folder)
 
 
 def _fsync_folder(folder: Path) -> None:

@@ -4,7 +4,8 @@ One :class:`Codec` per agent turns the messages due to one destination into
 packets (:meth:`Codec.encode`) and turns whatever bytes arrive into a
 :class:`~clark_engine.link.packet.Packet` or a
 :class:`~clark_engine.link.errors.ClarkLinkError` (:meth:`Codec.decode`). It is
-pure: no clock, no socket; the only I/O is the optional counter store.
+pure: no socket, and its only I/O is the optional counter and replay stores (its
+clock is read only with a replay store, to size the replay reservations).
 
 Decisions, each pinned by tests:
 
@@ -33,8 +34,10 @@ Decisions, each pinned by tests:
 from __future__ import annotations
 
 import functools
+import math
 import struct
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from clark_engine.link.auth import (
@@ -67,6 +70,95 @@ from clark_engine.link.wire import AGENT_ID_MAX, canonical_order, encode_entry, 
 # version, flags, mission id, sender, destination, counter high 16 bits, counter low 32 bits
 _HEADER = struct.Struct(">BBIHHHI")  # HEADER_BYTES long
 _MISSION_ID_MAX = (1 << 32) - 1
+#: The span over which a sender's slowest packet interval is kept (one to two of them).
+_PACE_SPAN_S = 1.0
+#: The span over which a sender's counters' mean advance is measured (the latest whole one).
+_MEAN_SPAN_S = 5.0
+
+
+class _Tier:
+    """One set of replay marks a codec keeps on disk: how it writes them, what it reserves."""
+
+    __slots__ = ("by_mean", "marks", "reserve_s", "write")
+
+    def __init__(
+        self,
+        write: Callable[[dict[int, int]], None],
+        reserve_s: float,
+        marks: dict[int, int],
+        *,
+        by_mean: bool,
+    ) -> None:
+        self.write = write
+        self.reserve_s = reserve_s
+        self.by_mean = by_mean  # also reserve at the counters' mean rate (see _Pace)
+        self.marks = marks  # sender -> the mark on disk, above every counter of it accepted
+
+
+class _Pace:
+    """How fast a sender's packets come, which sizes its replay reservations.
+
+    Two measures (kept per span: constant memory and time per packet):
+
+    * its slowest packet interval over the last one to two spans of ``span_s``,
+      for the reservations that decide how long a crash makes the receiver refuse
+      it: the longest, not the mean, so that a burst (a split bundle, packets
+      queued behind a radio) does not make a slow sender look fast;
+    * its counters' mean advance per second over the latest whole span of
+      ``mean_span_s``, bursts and packets to others included, for the
+      reservations that should rarely run out (the fsynced ones). A step above
+      the replay window's 64 (a sender that restarted and jumped its counter)
+      counts as 64.
+    """
+
+    __slots__ = (
+        "_advance",
+        "_current_s",
+        "_mean_start_s",
+        "_previous_s",
+        "_span_start_s",
+        "last_counter",
+        "last_s",
+        "rate_per_s",
+    )
+
+    def __init__(self, now_s: float, counter: int) -> None:
+        self.last_s = now_s
+        self.last_counter = counter
+        self._span_start_s = now_s
+        self._current_s = -1.0  # -1: no interval yet
+        self._previous_s = -1.0
+        self._mean_start_s = now_s
+        self._advance = 0
+        self.rate_per_s = 0.0  # over the latest whole mean span; 0 before one
+
+    def arrived(self, now_s: float, counter: int, span_s: float, mean_span_s: float) -> None:
+        """Record a packet accepted at ``now_s``."""
+        interval_s = max(now_s - self.last_s, 0.0)
+        self.last_s = now_s
+        step = counter - self.last_counter
+        if step > 0:
+            self._advance += min(step, ReplayWindow.SIZE)
+            self.last_counter = counter
+        if now_s - self._span_start_s >= span_s:
+            self._previous_s, self._current_s = self._current_s, interval_s
+            self._span_start_s = now_s
+        else:
+            self._current_s = max(self._current_s, interval_s)
+        elapsed_s = now_s - self._mean_start_s
+        if elapsed_s >= mean_span_s:
+            self.rate_per_s = self._advance / elapsed_s
+            self._advance = 0
+            self._mean_start_s = now_s
+
+    def longest_s(self, now_s: float) -> float:
+        """The longest recent interval, counting the silence since the latest packet.
+
+        -1 before a second packet.
+        """
+        if self._current_s < 0.0:
+            return -1.0
+        return max(self._previous_s, self._current_s, now_s - self.last_s)
 
 
 @dataclass(frozen=True, slots=True)
@@ -94,6 +186,7 @@ class Codec:
         counter_store: CounterStore | None = None,
         replay_store: ReplayStore | None = None,
         max_packet_bytes: int = 1400,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         """Set up a codec; reads the counter store, if any, to resume above its mark.
 
@@ -113,6 +206,9 @@ class Codec:
                 sender until that sender's first newer packet.
             max_packet_bytes: The largest packet decoded, and the default limit of
                 :meth:`encode` (the radio's packet size limit).
+            clock: Seconds on a clock that never goes back (the runtime's), read when a
+                packet is accepted with a replay store: packet intervals size each
+                sender's reservation (see :class:`~clark_engine.link.auth.ReplayStore`).
 
         Raises:
             ValueError: An id or size is out of range, or the key is too short.
@@ -137,14 +233,29 @@ class Codec:
             self._next_counter = counter_store.load() + 1
             self._reserved_through = self._next_counter - 1  # reserve before the first use
         self._windows: dict[int, ReplayWindow] = {}
-        # sender -> the mark on disk, above every counter of it accepted; None: no store
-        self._reserved: dict[int, int] | None = None
         self._replay_store = replay_store if self._tagger is not None else None
-        if self._replay_store is not None and self._tagger is not None:
-            marks = self._replay_store.load(f"{mission_id} {self._tagger.fingerprint()}")
-            self._reserved = dict(marks)
+        self._clock = clock
+        # sender -> the pace of its accepted packets (with a replay store only)
+        self._paces: dict[int, _Pace] = {}
+        # the marks kept on disk, durable first (empty: no store)
+        self._tiers: list[_Tier] = []
+        store = self._replay_store
+        if store is not None and self._tagger is not None:
+            marks = store.load(f"{mission_id} {self._tagger.fingerprint()}")
             for sender, mark in marks.items():
                 self._windows[sender] = ReplayWindow.resumed(mark)
+            durable = _Tier(
+                store.write_durable,
+                store.durable_reserve_s,
+                dict(store.durable_marks),
+                by_mean=store.live,  # without live marks, the durable ones decide a restart
+            )
+            if store.live:
+                live_marks = dict(store.live_marks or {})
+                live = _Tier(store.write_live, store.reserve_s, live_marks, by_mean=False)
+                self._tiers = [durable, live]  # live last: it names the durable file
+            else:
+                self._tiers = [durable]
 
     def __repr__(self) -> str:
         # Never the key: reprs end up in logs and tracebacks.
@@ -336,9 +447,26 @@ class Codec:
                     **ids,
                 )
             restart = True
-        reserved = self._reserved
-        if reserved is not None and counter > reserved.get(sender_id, 0):
-            self._reserve(sender_id, counter)  # on disk before the packet is accepted
+        if self._tiers:
+            now_s = self._clock()
+            wrote = False
+            for tier in self._tiers:  # on disk before the packet is accepted
+                mark = tier.marks.get(sender_id, -1)  # -1: even a counter 0 is written first
+                # The live tier (last) follows every durable write: it names the durable file.
+                if (
+                    counter > mark
+                    or wrote
+                    or self._slack_too_long(sender_id, mark - counter, now_s, tier)
+                ):
+                    marks = self._marks(sender_id, counter, now_s, tier)
+                    tier.write(marks)
+                    tier.marks = marks
+                    wrote = True
+            pace = self._paces.get(sender_id)
+            if pace is None:
+                self._paces[sender_id] = _Pace(now_s, counter)
+            else:
+                pace.arrived(now_s, counter, _PACE_SPAN_S, _MEAN_SPAN_S)
         # Every check passed: only now does anything change.
         if window is None:
             window = self._windows[sender_id] = ReplayWindow()
@@ -348,41 +476,115 @@ class Codec:
             window.commit(counter)
         return packet
 
-    def _reserve(self, sender_id: int, counter: int) -> None:
-        """Write marks one block above ``counter`` and every other sender's highest.
+    def _slack_too_long(self, sender_id: int, slack: int, now_s: float, tier: _Tier) -> bool:
+        """True when the sender's ``slack`` reserved counters now last too long.
 
-        Raises:
-            ReplayStoreError: The store cannot be written (nothing changes).
+        That is, more than twice the tier's ``reserve_s`` at its latest interval (with
+        ``by_mean``, at its counters' mean rate, when it has one): it slowed down since
+        they were reserved, and a crash now would refuse its packets for that long.
+        Writing the marks again trims them to its new rate.
+        """
+        if slack <= 0:
+            return False
+        pace = self._paces.get(sender_id)
+        if pace is None:
+            return False  # resumed from the store: nothing heard yet, nothing reserved since
+        interval_s = now_s - pace.last_s
+        if tier.by_mean and pace.rate_per_s > 0.0:
+            interval_s = min(interval_s, 1.0 / pace.rate_per_s)
+        return slack * interval_s > 2.0 * tier.reserve_s
+
+    def _reservation(self, sender_id: int, now_s: float, tier: _Tier) -> int:
+        """How many counters above its highest to reserve for a sender at ``now_s``.
+
+        What it sends in the tier's ``reserve_s`` at its slowest recent interval (the
+        time since its latest packet counts as one: a sender gone quiet reserves none),
+        rounded down; none before its second packet, or when its packets come all at
+        once (no rate can be told). With ``by_mean``, at least what its counters advance
+        in that time at their mean rate. Capped at the store's block size.
         """
         store = self._replay_store
-        reserved = self._reserved
-        assert store is not None and reserved is not None  # only called with a store
-        block = store.block_size
+        assert store is not None  # only called with a store
+        pace = self._paces.get(sender_id)
+        if pace is None:
+            return 0
+        longest_s = pace.longest_s(now_s)
+        reserved = math.floor(tier.reserve_s / longest_s) if longest_s > 0.0 else 0
+        if tier.by_mean:
+            reserved = max(reserved, math.floor(tier.reserve_s * pace.rate_per_s))
+        return min(store.block_size, reserved)
+
+    def _marks(self, sender_id: int, counter: int, now_s: float, tier: _Tier) -> dict[int, int]:
+        """New marks: each sender's highest accepted counter plus its reservation.
+
+        ``counter`` counts as ``sender_id``'s highest (it is being accepted). Every
+        mark is at or above everything accepted from its sender; a mark may fall (to
+        the sender's highest, when it went quiet), never below it.
+        """
         marks = {
-            sender: max(mark, min(self._windows[sender].highest + block, MAX_COUNTER))
-            for sender, mark in reserved.items()
-            if sender in self._windows
+            sender: min(window.highest + self._reservation(sender, now_s, tier), MAX_COUNTER)
+            for sender, window in self._windows.items()
         }
-        marks[sender_id] = max(reserved.get(sender_id, 0), min(counter + block - 1, MAX_COUNTER))
-        store.write(marks)
-        self._reserved = marks
+        window = self._windows.get(sender_id)
+        highest = counter if window is None else max(counter, window.highest)
+        reserved = highest + self._reservation(sender_id, now_s, tier)
+        marks[sender_id] = min(reserved, MAX_COUNTER)
+        return marks
+
+    def trim_replay_marks(self, now_s: float | None = None) -> bool:
+        """Write the live marks again when a sender's reservation now lasts too long.
+
+        A sender that slowed down or went quiet keeps the reservation made at its
+        old pace until its next packet; a crash in between would make the receiver
+        refuse that many of its packets at its new pace (fifty counters of a sender
+        that went from 100 to 0.2 packets a second: minutes). Called every tick, this
+        trims them within about a second. Only the live marks are trimmed (a rename);
+        the fsynced ones are not, since their writes are what must stay rare.
+
+        Args:
+            now_s: The time on the codec's clock; read from it when None.
+
+        Returns:
+            True when the marks were written again.
+
+        Raises:
+            ReplayStoreError: The live marks cannot be written (those on disk stand,
+                above everything accepted: nothing unsafe).
+        """
+        store = self._replay_store
+        if store is None or not store.live or not self._tiers:
+            return False
+        tier = self._tiers[-1]
+        now = self._clock() if now_s is None else now_s
+        for sender, mark in tier.marks.items():
+            window = self._windows.get(sender)
+            if window is not None and self._slack_too_long(
+                sender, mark - window.highest, now, tier
+            ):
+                marks = self._marks(sender, window.highest, now, tier)
+                tier.write(marks)
+                tier.marks = marks
+                return True
+        return False
 
     def save_replay_marks(self) -> None:
         """Write each sender's highest accepted counter as its exact mark (on a clean stop).
 
         After this, a restart refuses exactly what was accepted, and nothing of what
-        senders send next; without it (a crash), up to a block of each sender's
-        next packets is refused too. Accepting packets afterwards is still safe: it
-        reserves again. A no-op without a replay store.
+        senders send next; without it (a crash), each sender's next packets are
+        refused too for about the store's ``reserve_s`` (its reservation).
+        Accepting packets afterwards is still safe: it reserves again. A no-op
+        without a replay store.
 
         Raises:
             ReplayStoreError: The store cannot be written.
         """
-        if self._replay_store is None or self._reserved is None:
+        if self._replay_store is None or not self._tiers:
             return
         marks = {sender: window.highest for sender, window in self._windows.items()}
-        self._replay_store.write(marks)
-        self._reserved = marks
+        for tier in self._tiers:  # each tier's marks follow its own file, write by write
+            tier.write(marks)
+            tier.marks = dict(marks)
 
 
 @functools.lru_cache(maxsize=512)

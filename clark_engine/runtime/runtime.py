@@ -38,7 +38,7 @@ from typing import Any, Final
 
 from clark_engine.link.auth import CounterStore, ReplayStore
 from clark_engine.link.codec import Codec
-from clark_engine.link.errors import ClarkLinkError, MalformedPacket
+from clark_engine.link.errors import ClarkLinkError, MalformedPacket, ReplayStoreError
 from clark_engine.link.fleet import AgentFound, AgentLost, FleetTable, ForeignAgent
 from clark_engine.link.messages import (
     MAX_FAILSAFE_TEXT_BYTES,
@@ -236,6 +236,7 @@ class AgentRuntime:
             counter_store=counter_store,
             replay_store=replay_store,
             max_packet_bytes=max(self.max_packet_bytes, 64),
+            clock=self._link_now_s,
         )
         self.fleet = FleetTable(
             config.agent_id,
@@ -313,6 +314,7 @@ class AgentRuntime:
         # made while nobody heard them, so they are not carried out later.
         self._requests_void = False
         self._mcs_lost_raised = False
+        self._trim_failed = False  # the last trim of the replay marks failed (logged once)
         #: The runtime time of the first tick: every silence is counted from it at the
         #: earliest, whatever the shell's clock origin (a monotonic clock is not 0 at boot).
         self._first_tick_s: float | None = None
@@ -375,6 +377,28 @@ class AgentRuntime:
         )
 
     # -- time --------------------------------------------------------------------------
+
+    def _trim_replay_marks(self) -> None:
+        """Trim the live replay marks of peers that slowed down (Codec.trim_replay_marks).
+
+        A write that fails leaves the marks on disk, which stay safe; it is logged once
+        until a trim succeeds again, not every tick.
+        """
+        try:
+            self.codec.trim_replay_marks()
+        except ReplayStoreError as exc:
+            if not self._trim_failed:
+                self._trim_failed = True
+                self.logbook.interface.warning("replay marks not trimmed: %s", exc)
+        else:
+            self._trim_failed = False
+
+    def _link_now_s(self) -> float:
+        """The codec's clock: the runtime's, set before each packet is decoded.
+
+        Replay reservations follow the packets' pace on it, in simulated time too.
+        """
+        return self.context.now_s
 
     def _gps_now_ms(self, now_s: float) -> int | None:
         if self._vehicle_gps is not None:
@@ -867,6 +891,7 @@ class AgentRuntime:
                 self._stations_silent_since_s = now_s
         if not self._started and self._safety_state == "due":
             self._autopilot_safety(now_s)
+        self._trim_replay_marks()
         opening = (
             not self._started
             and self.failsafe is None

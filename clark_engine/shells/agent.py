@@ -10,10 +10,10 @@ disable any interface (testing mode, thesis 7.2.9) or override where it is
 the peers' ports for rehearsals on one machine).
 
 The state folder: the packet counter store (``<mission>.<agent>.counter``) and the
-replay store (``<mission>.<agent>.replay``) of an authenticated mission must outlive
-every run (a restarted agent must never reuse a counter, nor accept a packet again),
-so they live in one folder beside the run's logs folder, ``<logs>/../state`` by
-default, not in the logs folder a new run replaces.
+replay store (``<mission>.<agent>.replay`` and its ``.live`` beside it) of an
+authenticated mission must outlive every run (a restarted agent must never reuse a
+counter, nor accept a packet again), so they live in one folder beside the run's logs
+folder, ``<logs>/../state`` by default, not in the logs folder a new run replaces.
 """
 
 from __future__ import annotations
