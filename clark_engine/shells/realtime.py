@@ -79,7 +79,7 @@ from typing import Final, cast
 
 from clark_engine.io.autopilot import AutopilotAdapter, gps_time_ms_from_unix_us
 from clark_engine.io.payload import PayloadAdapter
-from clark_engine.io.radio import Radio, RadioError
+from clark_engine.io.radio import LinkEvent, Radio, RadioError
 from clark_engine.io.transports import Transport, TransportError
 from clark_engine.runtime.commands import (
     CloseInterfaces,
@@ -542,6 +542,9 @@ class RealtimeShell:
             return
         for frame in frames:
             self._carry_out(self.runtime.deliver(PacketReceived(frame.data), now), now)
+        if link.radio is not None:
+            for event in link.radio.link_events():
+                self._radio_link_event(link.radio, event, now)
         if link.radio is not None and link.radio.fileno() is None and "radio" in self._registered:
             self._radio_failed(now, "its descriptor closed")
 
@@ -713,6 +716,21 @@ class RealtimeShell:
             )
         link.reopen.succeeded()
         self.log.info("radio: %s open, address %s", radio.name, radio.address)
+
+    def _radio_link_event(self, radio: Radio, event: LinkEvent, now: float) -> None:
+        """One line in the interface log for a loss or a return the radio handled itself.
+
+        The radio reconnects on its own (an XBee's supervisor); the shell counts it
+        with the reopens it does itself, so the summary's figures hold both.
+        """
+        # The event's monotonic time in the runtime's time base: how long ago, from now.
+        at_s = now - max(0.0, time.monotonic() - event.monotonic_s)
+        if event.up:
+            self.stats.radio_reopens += 1
+            self.log.warning("radio: %s link back at t=%.3f %s", radio.name, at_s, event.detail)
+        else:
+            self.stats.radio_failures += 1
+            self.log.error("radio: %s link lost at t=%.3f: %s", radio.name, at_s, event.detail)
 
     def _radio_failed(self, now: float, error: str) -> None:
         link = self.radio
