@@ -243,9 +243,11 @@ def test_serial_error_is_detected_and_the_radio_reconnects(
     assert not lost.up and "serial error" in lost.detail
     assert back.up and "s down" in back.detail and back.monotonic_s >= lost.monotonic_s
     assert b.link_events() == []
-    # The library's reader spun on the dead port: one line written, the rest counted.
+    # The library's reader spun on the dead port: one line written at most, the rest
+    # counted (none at all when the supervisor saw the path go before the reader spun).
     spun = [r for r in written if r.getMessage().startswith("Serial exception while reading")]
-    assert len(spun) == 1
+    assert len(spun) <= 1
+    assert not spun or "digi-xbee logged" in lost.detail
     assert b.address == B
     a.send(b"welcome back", B)
     [frame] = collect(b, 1)

@@ -124,9 +124,9 @@ def test_an_unplug_is_logged_once_each_way_and_the_library_is_contained(
     # The library's noise: a few lines at most, the rest counted in the interface log.
     written = sum(library_lines.lines.values())
     assert written < 10, library_lines.lines.most_common(5)
+    # (None when the supervisor's own check saw the path go before the reader spun.)
     counted = re.search(r"digi-xbee logged (\d+) line\(s\)", lost[0])
-    assert counted is not None, lost[0]
-    assert int(counted.group(1)) >= written
+    assert (int(counted.group(1)) if counted else 0) >= written, lost[0]
 
 
 def _interface(shell: RealtimeShell) -> str:
