@@ -41,6 +41,9 @@ shell owns time and I/O around it, one process per agent, single-threaded around
 - An autopilot transport or a radio that fails is closed and opened again from the
   loop, with a growing back-off (:data:`REOPEN_BACKOFF_S`), counted and logged; the
   loop never stops for it (the runtime's ``autopilot_lost`` takes care of safety).
+  A radio that reconnects by itself (an XBee dongle pulled out and plugged back)
+  reports each loss and return (``Radio.link_events``, drained with its frames):
+  one interface-log line each, with its time, counted with the shell's own.
 - Testing mode (thesis 7.2.9): any interface may be left out (``None``): its commands
   are dropped and counted, and a payload command is answered with an ``error`` event
   at once so the runtime never waits for an answer that cannot come.
@@ -166,8 +169,10 @@ class ShellStats:
         wakeups: Selector waits that returned.
         autopilot_failures: Times the autopilot link failed or could not be opened.
         autopilot_reopens: Times it was opened again after a failure.
-        radio_failures: Times the radio failed or could not be opened.
-        radio_reopens: Times it was opened again after a failure.
+        radio_failures: Times the radio failed or could not be opened, and times it
+            reported its link lost (an XBee pulled out, :meth:`Radio.link_events`).
+        radio_reopens: Times it was opened again after a failure, or reported its
+            link back.
         dropped_commands: Commands for an interface that is disabled or down, per kind.
     """
 
