@@ -106,6 +106,9 @@ LIBRARY_LOGGER: Final = "digi.xbee"
 LIBRARY_KINDS_SHOWN: Final = 4
 """Kinds of library line written per connection; every further line is only counted."""
 
+MAX_LIBRARY_KINDS: Final = 32
+"""Kinds of library line counted apart per connection; the rest are counted together."""
+
 MAX_LINK_EVENTS: Final = 64
 """Link events held for the shell before the oldest is dropped (a flapping port)."""
 
@@ -136,11 +139,11 @@ class LibraryLogGate(logging.Filter):
         self.reader: threading.Thread | None = None
         """The reader thread watched (None: no record is judged)."""
         self.counts: Counter[str] = Counter()
-        """Records of the reader since :meth:`reset`, per kind."""
+        """Records of the reader since :meth:`watch` or :meth:`take`, per kind."""
         self.shown = 0
         """Of them, the ones written."""
         self.serial_error: str | None = None
-        """The first serial error the reader reported since :meth:`reset`."""
+        """The first serial error the reader reported since :meth:`watch` or :meth:`take`."""
         self.serial_error_s: float | None = None
         """When (:func:`time.monotonic`)."""
         self._lock = threading.Lock()
@@ -169,9 +172,11 @@ class LibraryLogGate(logging.Filter):
         reader = self.reader
         if reader is None or threading.current_thread() is not reader:
             return True
-        kind = f"{record.levelname} {record.msg}"[:120]
+        kind = f"{record.name} {record.levelname} {record.msg}"[:160]
         first_error: str | None = None
         with self._lock:
+            if kind not in self.counts and len(self.counts) >= MAX_LIBRARY_KINDS:
+                kind = "other kinds"  # a message that differs each time stays bounded
             seen = self.counts[kind]
             self.counts[kind] = seen + 1
             if self.serial_error is None and str(record.msg).startswith(_SERIAL_ERROR):
