@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import selectors
 import threading
 import time
@@ -11,7 +12,7 @@ import pytest
 
 from clark_engine.io import xbee as xbee_module
 from clark_engine.io.radio import RadioError, RadioFrame
-from clark_engine.io.xbee import XBeeRadio
+from clark_engine.io.xbee import LIBRARY_LOGGER, LibraryLogGate, XBeeRadio
 from clark_engine.sim.xbee_emulator import XBeeEmulator
 
 A = "0013A20041000001"
@@ -221,15 +222,32 @@ def test_an_exception_in_our_receive_handling_does_not_close_the_port(
 def test_serial_error_is_detected_and_the_radio_reconnects(
     emulator: XBeeEmulator, make_radio: Callable[..., XBeeRadio]
 ) -> None:
-    a, b = make_radio(A), make_radio(B)
-    emulated = emulator.radios[int(B, 16)]
-    emulated.unplug()
-    wait_for(lambda: not b.link_up)
-    b.send(b"nobody hears", A)
-    assert b.stats.send_failures.get("link down") == 1
-    emulated.plug()
-    wait_for(lambda: b.link_up)
+    written: list[logging.LogRecord] = []
+    handler = logging.Handler()
+    handler.emit = written.append  # type: ignore[method-assign]
+    logging.getLogger(LIBRARY_LOGGER).addHandler(handler)
+    try:
+        a, b = make_radio(A), make_radio(B)
+        emulated = emulator.radios[int(B, 16)]
+        emulated.unplug()
+        wait_for(lambda: not b.link_up)
+        b.send(b"nobody hears", A)
+        assert b.stats.send_failures.get("link down") == 1
+        emulated.plug()
+        wait_for(lambda: b.link_up)
+    finally:
+        logging.getLogger(LIBRARY_LOGGER).removeHandler(handler)
     assert b.stats.reconnects == 1
+    # The loss and the return, once each, for the shell's interface log.
+    [lost, back] = b.link_events()
+    assert not lost.up and "serial error" in lost.detail
+    assert back.up and "s down" in back.detail and back.monotonic_s >= lost.monotonic_s
+    assert b.link_events() == []
+    # The library's reader spun on the dead port: one line written at most, the rest
+    # counted (none at all when the supervisor saw the path go before the reader spun).
+    spun = [r for r in written if r.getMessage().startswith("Serial exception while reading")]
+    assert len(spun) <= 1
+    assert not spun or "digi-xbee logged" in lost.detail
     assert b.address == B
     a.send(b"welcome back", B)
     [frame] = collect(b, 1)
@@ -265,3 +283,45 @@ def test_close_is_idempotent_and_stops_every_thread(
     assert radio.fileno() is None
     assert not any(t.name.startswith("xbee-supervisor") for t in threading.enumerate())
     assert xbee_module.BROADCAST == "000000000000FFFF"
+
+
+def test_the_library_gate_writes_one_line_per_kind_and_counts_the_rest() -> None:
+    """digi-xbee's reader logger, on a thread the gate watches, as when a port dies."""
+    reader_log = logging.getLogger("digi.xbee.reader")
+    written: list[logging.LogRecord] = []
+    handler = logging.Handler()
+    handler.emit = written.append  # type: ignore[method-assign]
+    errors: list[str] = []
+    gate = LibraryLogGate(errors.append)
+
+    def spin() -> None:
+        for _ in range(1000):
+            reader_log.warning("Serial exception while reading: %s", "no data")
+        try:
+            raise OSError(5, "Input/output error")
+        except OSError as exc:
+            reader_log.exception(exc)
+        reader_log.exception("the same kind again")
+
+    reader = threading.Thread(target=spin)
+    gate.watch(reader)
+    reader_log.addFilter(gate)
+    reader_log.addHandler(handler)
+    try:
+        reader.start()
+        reader.join()
+        reader_log.warning("another thread's line passes untouched")
+    finally:
+        reader_log.removeFilter(gate)
+        reader_log.removeHandler(handler)
+    assert [r.getMessage() for r in written] == [
+        "Serial exception while reading: no data",
+        "[Errno 5] Input/output error (OSError)",  # its traceback folded into the line
+        "the same kind again",
+        "another thread's line passes untouched",
+    ]
+    assert all(r.exc_info is None for r in written[:-1])
+    assert errors == ["Serial exception while reading: no data"]
+    counts, shown, error, error_s = gate.take()
+    assert sum(counts.values()) == 1002 and shown == 3
+    assert error == errors[0] and error_s is not None

@@ -19,6 +19,10 @@ waits on any of them with ``selectors``:
 - ``fileno()``: a descriptor that becomes readable when frames are waiting, for
   the shell's selector (None: poll ``receive`` every tick).
 - ``close()``: release the device; idempotent.
+- ``link_events()``: the losses and returns of the link that the radio handled
+  itself since the last call (an XBee dongle pulled out and plugged back), for
+  the shell to write in the interface log with their times. Radios that never
+  reconnect on their own return none.
 
 Every byte that arrives is hostile until the codec has checked it: a radio
 hands frames up as they came, bounded in number (:data:`MAX_PENDING_FRAMES`),
@@ -58,6 +62,23 @@ class RadioFrame:
     broadcast: bool = False
 
 
+@dataclass(frozen=True, slots=True)
+class LinkEvent:
+    """The radio's link went down or came back, on the radio's own supervision.
+
+    Attributes:
+        up: True when the link came back, False when it was lost.
+        monotonic_s: When, on :func:`time.monotonic`'s clock (the shell converts it
+            to its own time base for the log line).
+        detail: What happened, in words: why it was lost, or how long it was down
+            and after how many attempts it came back.
+    """
+
+    up: bool
+    monotonic_s: float
+    detail: str
+
+
 @dataclass(slots=True)
 class RadioStats:
     """What a radio counted since it was opened.
@@ -70,6 +91,9 @@ class RadioStats:
         received: Frames handed to the loop.
         dropped: Frames lost before the loop read them (a full queue), per place.
         reconnects: Times the device was opened again after its link failed.
+        library_lines: Lines the radio's library logged that were counted
+            rather than written (a reader spinning on a dead port logs tens of
+            thousands a second).
     """
 
     sent: int = 0
@@ -78,6 +102,7 @@ class RadioStats:
     received: int = 0
     dropped: dict[str, int] = field(default_factory=dict)
     reconnects: int = 0
+    library_lines: int = 0
 
     def fail(self, reason: str) -> None:
         """Count one undelivered packet under ``reason``."""
@@ -125,6 +150,14 @@ class Radio(ABC):
     @abstractmethod
     def close(self) -> None:
         """Release the device (3.2.2); calling it again does nothing."""
+
+    def link_events(self) -> list[LinkEvent]:
+        """Losses and returns of the link the radio handled itself since the last call.
+
+        The default: none (the radio reports a failure by raising, and the shell
+        reopens it).
+        """
+        return []
 
     def __enter__(self) -> Radio:
         return self

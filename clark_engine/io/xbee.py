@@ -27,11 +27,22 @@ waits on the radio:
   our handling never reaches the library (caught, logged, counted as
   ``receive handler``). A serial error (the dongle pulled out) either kills the
   library's reader thread or leaves it spinning on "device reports readiness to
-  read but returned no data"; a supervisor thread notices (the reader stopped,
-  the port closed, or the port's path no longer leads to the device we hold),
-  closes the device and opens it again every ``health_interval_s`` until the
-  radio answers, counting ``stats.reconnects``. Meanwhile sends count as
-  ``link down``; the loop never blocks.
+  read but returned no data", logging a warning per turn (digi-xbee 1.5 goes
+  round its loop again on that error, tens of thousands of times a second); a
+  supervisor thread notices (the reader reported a serial error, stopped, the
+  port closed, or the port's path no longer leads to the device we hold),
+  closes the device, which stops the reader, and opens it again every
+  ``health_interval_s`` until the radio answers, counting ``stats.reconnects``.
+  Meanwhile sends count as ``link down``; the loop never blocks. Each loss and
+  each return is queued as a :class:`~clark_engine.io.radio.LinkEvent`
+  (:meth:`XBeeRadio.link_events`, with the wake-up pipe made readable) for the
+  shell to write once in the interface log with its time.
+- **The library's log is contained.** What digi-xbee logs on this radio's
+  reader thread goes through a filter of ours (:class:`LibraryLogGate`): the
+  first line of each kind per connection is written (without its traceback),
+  the rest are counted, in ``stats.library_lines`` and in the loss's line of
+  the interface log, and the first serial error wakes the supervisor at once
+  rather than at its next check.
 
 Changing parameters (:meth:`XBeeRadio.set_parameter`, :meth:`apply_changes`,
 :meth:`write_changes`), reading them and :meth:`verify` are synchronous AT
@@ -44,7 +55,8 @@ import contextlib
 import logging
 import os
 import threading
-from collections import deque
+import time
+from collections import Counter, deque
 from collections.abc import Callable
 from typing import Any, Final
 
@@ -61,7 +73,14 @@ from digi.xbee.packets.aft import ApiFrameType
 from digi.xbee.packets.common import TransmitPacket
 from serial import SerialException
 
-from clark_engine.io.radio import MAX_PENDING_FRAMES, Radio, RadioError, RadioFrame, RadioStats
+from clark_engine.io.radio import (
+    MAX_PENDING_FRAMES,
+    LinkEvent,
+    Radio,
+    RadioError,
+    RadioFrame,
+    RadioStats,
+)
 
 log = logging.getLogger(__name__)
 
@@ -80,6 +99,130 @@ FAILURE_REASONS: Final[dict[int, str]] = {
 """Transmit status codes as :attr:`RadioStats.send_failures` names them."""
 
 _DEVICE_ERRORS: Final = (XBeeException, SerialException, OSError, ValueError)
+
+LIBRARY_LOGGER: Final = "digi.xbee"
+"""The root of digi-xbee's loggers (one per module: ``digi.xbee.reader``...)."""
+
+LIBRARY_KINDS_SHOWN: Final = 4
+"""Kinds of library line written per connection; every further line is only counted."""
+
+MAX_LIBRARY_KINDS: Final = 32
+"""Kinds of library line counted apart per connection; the rest are counted together."""
+
+MAX_LINK_EVENTS: Final = 64
+"""Link events held for the shell before the oldest is dropped (a flapping port)."""
+
+_SERIAL_ERROR: Final = "Serial exception while reading"
+"""How digi-xbee's reader starts the warning it logs, and loops on, for a dead port."""
+
+
+class LibraryLogGate(logging.Filter):
+    """Judges what digi-xbee logs on one radio's reader thread: a few lines, the rest counted.
+
+    A logger's filters run on the thread that logs, for records logged on that
+    logger itself (not for its children's), so one gate is added to each of
+    digi-xbee's loggers and judges only the records of the reader thread it
+    watches (:attr:`reader`); records of other threads, and of other radios'
+    readers, pass untouched. Of this reader's records, the first of each kind
+    (logger, level and message template) is written, its traceback folded into
+    one line, up to :data:`LIBRARY_KINDS_SHOWN` kinds; the rest are counted per
+    kind. The first "Serial exception while reading" calls ``on_serial_error``.
+
+    Args:
+        on_serial_error: Called (on the reader's thread, once per connection)
+            with the error's text when the reader reports a serial error.
+    """
+
+    def __init__(self, on_serial_error: Callable[[str], None]) -> None:
+        super().__init__()
+        self.on_serial_error = on_serial_error
+        self.reader: threading.Thread | None = None
+        """The reader thread watched (None: no record is judged)."""
+        self.counts: Counter[str] = Counter()
+        """Records of the reader since :meth:`watch` or :meth:`take`, per kind."""
+        self.shown = 0
+        """Of them, the ones written."""
+        self.serial_error: str | None = None
+        """The first serial error the reader reported since :meth:`watch` or :meth:`take`."""
+        self.serial_error_s: float | None = None
+        """When (:func:`time.monotonic`)."""
+        self._lock = threading.Lock()
+
+    def watch(self, reader: threading.Thread | None) -> None:
+        """Judge the records of ``reader`` from now on, with fresh counts."""
+        with self._lock:
+            self.reader = reader
+            self.counts = Counter()
+            self.shown = 0
+            self.serial_error = None
+            self.serial_error_s = None
+
+    def take(self) -> tuple[Counter[str], int, str | None, float | None]:
+        """The counts, lines shown and first serial error (and its time), then reset."""
+        with self._lock:
+            taken = (self.counts, self.shown, self.serial_error, self.serial_error_s)
+            self.counts = Counter()
+            self.shown = 0
+            self.serial_error = None
+            self.serial_error_s = None
+        return taken
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        """True to write ``record``; False to count it only."""
+        reader = self.reader
+        if reader is None or threading.current_thread() is not reader:
+            return True
+        kind = f"{record.name} {record.levelname} {record.msg}"[:160]
+        first_error: str | None = None
+        with self._lock:
+            if kind not in self.counts and len(self.counts) >= MAX_LIBRARY_KINDS:
+                kind = "other kinds"  # a message that differs each time stays bounded
+            seen = self.counts[kind]
+            self.counts[kind] = seen + 1
+            if self.serial_error is None and str(record.msg).startswith(_SERIAL_ERROR):
+                first_error = self.serial_error = _library_text(record)
+                self.serial_error_s = time.monotonic()
+            show = seen == 0 and self.shown < LIBRARY_KINDS_SHOWN
+            if show:
+                self.shown += 1
+        if first_error is not None:
+            self.on_serial_error(first_error)
+        if show and record.exc_info:
+            # One line, not a traceback: the exception's type and text stay.
+            exc = record.exc_info[1]
+            text = _library_text(record)
+            record.msg = text if exc is None else f"{text} ({type(exc).__name__})"
+            record.args = ()
+            record.exc_info = None
+            record.exc_text = None
+        return show
+
+
+def _library_text(record: logging.LogRecord) -> str:
+    """A library record's message, formatted, on one line; never raises."""
+    try:
+        text = record.getMessage()
+    except Exception:  # a library's bad format arguments must not reach the reader
+        text = str(record.msg)
+    return " ".join(text.split())[:300]
+
+
+def _library_loggers() -> list[logging.Logger]:
+    """digi-xbee's loggers that exist (one per imported module, and their root)."""
+    names = [
+        name
+        for name in list(logging.root.manager.loggerDict)
+        if name == LIBRARY_LOGGER or name.startswith(LIBRARY_LOGGER + ".")
+    ]
+    return [logging.getLogger(name) for name in sorted({LIBRARY_LOGGER, *names})]
+
+
+def _kinds(counts: Counter[str]) -> str:
+    """The commonest kinds of library line, counted, for one log line."""
+    shown = [f'{n} x "{kind}"' for kind, n in counts.most_common(3)]
+    if len(counts) > 3:
+        shown.append(f"{len(counts) - 3} other kind(s)")
+    return ", ".join(shown)
 
 
 def _hex(value: bytes | bytearray) -> str:
@@ -139,7 +282,13 @@ class XBeeRadio(Radio):
         self._wake_r = -1
         self._wake_w = -1
         self._stop = threading.Event()
+        self._poke = threading.Event()
         self._supervisor: threading.Thread | None = None
+        self._events: deque[LinkEvent] = deque()
+        self._down_since_s: float | None = None
+        self._attempts = 0
+        self._gate = LibraryLogGate(self._on_serial_error)
+        self._gated: list[logging.Logger] = []
 
     # --- the Radio interface ------------------------------------------------------
 
@@ -169,6 +318,10 @@ class XBeeRadio(Radio):
         os.set_blocking(self._wake_w, False)
         self._closed = False
         self._stop.clear()
+        self._poke.clear()
+        self._gated = _library_loggers()
+        for logger in self._gated:
+            logger.addFilter(self._gate)
         try:
             self._connect()
         except RadioError:
@@ -266,8 +419,15 @@ class XBeeRadio(Radio):
         return frames
 
     def fileno(self) -> int | None:
-        """The read end of the wake-up pipe: readable while frames wait."""
+        """The read end of the wake-up pipe: readable while frames or link events wait."""
         return self._wake_r if self._wake_r >= 0 else None
+
+    def link_events(self) -> list[LinkEvent]:
+        """The link's losses and returns since the last call, oldest first; never blocks."""
+        with self._rx_lock:
+            events = list(self._events)
+            self._events.clear()
+        return events
 
     def close(self) -> None:
         """Stop the supervisor, close the device and the pipe; idempotent (3.2.7)."""
@@ -275,10 +435,16 @@ class XBeeRadio(Radio):
             return
         self._closed = True
         self._stop.set()
+        self._poke.set()
         if self._supervisor is not None:
             self._supervisor.join()
             self._supervisor = None
         self._disconnect()
+        counts, shown, _error, _error_s = self._gate.take()
+        self._count_library_lines(counts, shown)
+        for logger in self._gated:
+            logger.removeFilter(self._gate)
+        self._gated = []
         for fd in (self._wake_r, self._wake_w):
             if fd >= 0:
                 os.close(fd)
@@ -356,6 +522,7 @@ class XBeeRadio(Radio):
             self._called_back = 0
             self._taken = 0
             self._library_dropped = 0
+        self._gate.watch(getattr(device, "_packet_listener", None))  # no accessor either
         device.add_data_received_callback(self._make_data_callback(device, generation))
         device.add_packet_received_callback(self._make_packet_callback(generation))
         with self._device_lock:
@@ -450,38 +617,102 @@ class XBeeRadio(Radio):
 
     # --- supervision ------------------------------------------------------------------
 
-    def _healthy(self) -> bool:
+    def _on_serial_error(self, _error: str) -> None:
+        """The reader reported a serial error (on its thread): check the link now."""
+        self._poke.set()
+
+    def _trouble(self) -> str | None:
+        """Why the link is down, in words; None while it is healthy."""
         device = self._device
         if device is None:
-            return False
+            return "the device is gone"
+        error = self._gate.serial_error
+        if error is not None:
+            return f"the reader reported a serial error: {error}"
         try:
             if not device.is_open() or not device.serial_port.is_interface_open:
-                return False
+                return "the port closed"
             listener = device._packet_listener  # the library exposes no accessor
             if listener is None or not listener.is_running():
-                return False
+                return "the library's reader stopped"
             # A pulled dongle takes its device node with it (and pty emulation its
             # link); the library's reader may keep spinning on the dead descriptor.
-            return bool(os.stat(self.port).st_rdev == os.fstat(device.serial_port.fileno()).st_rdev)
-        except (OSError, ValueError, AttributeError, SerialException):
-            return False
+            if os.stat(self.port).st_rdev != os.fstat(device.serial_port.fileno()).st_rdev:
+                return "the port's path leads to another device"
+        except FileNotFoundError:
+            return "the port's path is gone"
+        except (OSError, ValueError, AttributeError, SerialException) as exc:
+            return f"the port cannot be checked ({exc})"
+        return None
+
+    def _count_library_lines(self, counts: Counter[str], shown: int) -> int:
+        """Add the library's lines that were counted, not written; return all it logged."""
+        logged = sum(counts.values())
+        self.stats.library_lines += logged - shown
+        return logged
+
+    def _queue_event(self, event: LinkEvent) -> None:
+        """Hold ``event`` for :meth:`link_events` and make the wake-up pipe readable."""
+        with self._rx_lock:
+            if len(self._events) >= MAX_LINK_EVENTS:
+                self._events.popleft()
+            self._events.append(event)
+            if not self._signalled and self._wake_w >= 0:
+                self._signalled = True
+                with contextlib.suppress(BlockingIOError):
+                    os.write(self._wake_w, b"\x01")
+
+    def _lost(self, trouble: str) -> None:
+        """Close the device (which stops its reader), then tell the shell once."""
+        self._disconnect()
+        counts, shown, _error, error_s = self._gate.take()
+        logged = self._count_library_lines(counts, shown)
+        at_s = error_s if error_s is not None else time.monotonic()
+        detail = f"{trouble}; reconnecting every {self.health_interval_s:g} s, sends dropped"
+        if logged:
+            detail += (
+                f"; digi-xbee logged {logged} line(s) on its reader, {shown} written,"
+                f" the rest counted: {_kinds(counts)}"
+            )
+        self._down_since_s = at_s
+        self._attempts = 0
+        log.warning("%s: serial link lost (%s); reconnecting", self.name, trouble)
+        self._queue_event(LinkEvent(up=False, monotonic_s=at_s, detail=detail))
+
+    def _back(self) -> None:
+        now_s = time.monotonic()
+        down_s = now_s - (self._down_since_s if self._down_since_s is not None else now_s)
+        self.stats.reconnects += 1
+        log.warning("%s: reconnected after %.1f s", self.name, down_s)
+        self._queue_event(
+            LinkEvent(
+                up=True,
+                monotonic_s=now_s,
+                detail=f"after {down_s:.1f} s down, {self._attempts} attempt(s)",
+            )
+        )
+        self._down_since_s = None
 
     def _supervise(self) -> None:
-        while not self._stop.wait(self.health_interval_s):
+        while True:
+            self._poke.wait(self.health_interval_s)
+            self._poke.clear()
+            if self._stop.is_set():
+                return
             try:
                 if self._link_up:
-                    if self._healthy():
+                    trouble = self._trouble()
+                    if trouble is None:
                         continue
-                    log.warning("%s: serial link lost; reconnecting", self.name)
-                    self._disconnect()
+                    self._lost(trouble)
                 if self._stop.is_set():
                     return
+                self._attempts += 1
                 try:
                     self._connect()
                 except RadioError as exc:
                     log.debug("%s: not back yet: %s", self.name, exc)
                     continue
-                self.stats.reconnects += 1
-                log.warning("%s: reconnected", self.name)
+                self._back()
             except Exception:
                 log.exception("%s: supervisor error", self.name)

@@ -41,6 +41,9 @@ shell owns time and I/O around it, one process per agent, single-threaded around
 - An autopilot transport or a radio that fails is closed and opened again from the
   loop, with a growing back-off (:data:`REOPEN_BACKOFF_S`), counted and logged; the
   loop never stops for it (the runtime's ``autopilot_lost`` takes care of safety).
+  A radio that reconnects by itself (an XBee dongle pulled out and plugged back)
+  reports each loss and return (``Radio.link_events``, drained with its frames):
+  one interface-log line each, with its time, counted with the shell's own.
 - Testing mode (thesis 7.2.9): any interface may be left out (``None``): its commands
   are dropped and counted, and a payload command is answered with an ``error`` event
   at once so the runtime never waits for an answer that cannot come.
@@ -79,7 +82,7 @@ from typing import Final, cast
 
 from clark_engine.io.autopilot import AutopilotAdapter, gps_time_ms_from_unix_us
 from clark_engine.io.payload import PayloadAdapter
-from clark_engine.io.radio import Radio, RadioError
+from clark_engine.io.radio import LinkEvent, Radio, RadioError
 from clark_engine.io.transports import Transport, TransportError
 from clark_engine.runtime.commands import (
     CloseInterfaces,
@@ -166,8 +169,10 @@ class ShellStats:
         wakeups: Selector waits that returned.
         autopilot_failures: Times the autopilot link failed or could not be opened.
         autopilot_reopens: Times it was opened again after a failure.
-        radio_failures: Times the radio failed or could not be opened.
-        radio_reopens: Times it was opened again after a failure.
+        radio_failures: Times the radio failed or could not be opened, and times it
+            reported its link lost (an XBee pulled out, :meth:`Radio.link_events`).
+        radio_reopens: Times it was opened again after a failure, or reported its
+            link back.
         dropped_commands: Commands for an interface that is disabled or down, per kind.
     """
 
@@ -542,6 +547,9 @@ class RealtimeShell:
             return
         for frame in frames:
             self._carry_out(self.runtime.deliver(PacketReceived(frame.data), now), now)
+        if link.radio is not None:
+            for event in link.radio.link_events():
+                self._radio_link_event(link.radio, event, now)
         if link.radio is not None and link.radio.fileno() is None and "radio" in self._registered:
             self._radio_failed(now, "its descriptor closed")
 
@@ -713,6 +721,21 @@ class RealtimeShell:
             )
         link.reopen.succeeded()
         self.log.info("radio: %s open, address %s", radio.name, radio.address)
+
+    def _radio_link_event(self, radio: Radio, event: LinkEvent, now: float) -> None:
+        """One line in the interface log for a loss or a return the radio handled itself.
+
+        The radio reconnects on its own (an XBee's supervisor); the shell counts it
+        with the reopens it does itself, so the summary's figures hold both.
+        """
+        # The event's monotonic time in the runtime's time base: how long ago, from now.
+        at_s = now - max(0.0, time.monotonic() - event.monotonic_s)
+        if event.up:
+            self.stats.radio_reopens += 1
+            self.log.warning("radio: %s link back at t=%.3f %s", radio.name, at_s, event.detail)
+        else:
+            self.stats.radio_failures += 1
+            self.log.error("radio: %s link lost at t=%.3f: %s", radio.name, at_s, event.detail)
 
     def _radio_failed(self, now: float, error: str) -> None:
         link = self.radio
