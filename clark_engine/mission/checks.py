@@ -85,11 +85,46 @@ def _named_agent(mission: Mission, name: str, where: Location) -> Iterator[Findi
         )
 
 
+def _listens_to(agent: Agent, event: str) -> bool:
+    """Whether any state of the agent's behaviour has a transition on ``event``."""
+    if agent.behavior is None:
+        return False
+    return any(t.event == event for state in agent.behavior.walk() for t in state.transitions)
+
+
 def check_operator(mission: Mission) -> Iterator[Finding]:
-    """The operator's actions name agents, modes and channels that exist, in time order."""
+    """The operator's actions are sound.
+
+    They name agents, modes and channels that exist, in time order, within the dry run,
+    and reach a behaviour that acts on them.
+    """
     last = -1.0
+    duration_s = mission.sim_duration_s
     for item, where in zip(mission.operator, mission.operator_locations, strict=True):
         at = float(item["at_s"])
+        if at >= duration_s:
+            yield warning(
+                "W-OPERATOR-AFTER-END",
+                where,
+                f"this action at {at:g} s comes at or after the dry run's end (sim.duration_s "
+                f"{duration_s:g} s), so the dry run never plays it; move it earlier or raise "
+                "sim.duration_s",
+            )
+        for event in ("activate", "deactivate"):
+            target = mission.agents.get(str(item.get(event, "")))
+            if (
+                target is not None
+                and target.behavior is not None
+                and not _listens_to(target, event)
+            ):
+                yield warning(
+                    "W-EVENT-IGNORED",
+                    where,
+                    f"no state of {target.name}'s behaviour has a transition on {event}, "
+                    f"so the {event} sent at {at:g} s arrives and is ignored (its log "
+                    f"says so); add `{event}: <state>` to the transitions of the state "
+                    "it should leave, or remove the action",
+                )
         if at < last:
             yield warning(
                 "W-OPERATOR-ORDER",
