@@ -153,6 +153,15 @@ def test_a_state_reached_late_says_so(tmp_path: Path) -> None:
     assert row.endswith("| **FAIL** |") and code == 1
 
 
+def test_operator_actions_after_the_end_are_said_not_played() -> None:
+    """cooperative_follow activates Slash B at 65 s: a run to 40 s says it never came."""
+    _, _, err = dry_run(FOLLOW, until_s=40.0)
+    assert "operator: 1 action(s) not played: the run ended at 40 s, before them (the " in err
+    assert "first at 65 s)" in err
+    _, _, err = dry_run(FOLLOW, until_s=70.0)
+    assert "not played" not in err
+
+
 def test_a_sequence_out_of_order_fails(tmp_path: Path) -> None:
     mission = tmp_path / "m.yaml"
     sysid = ROOT / "missions" / "supercub_sysid.yaml"

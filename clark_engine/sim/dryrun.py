@@ -406,6 +406,7 @@ def _run_live(
             file=err,
         )
     until = min(until, result.recording.end_s)  # earlier when Ctrl-C ended a real-time run
+    _say_unplayed(mission, until, err)
     planned_end_s = float(mission.sim.get("duration_s", DEFAULT_DURATION_S))
     results = evaluate(
         mission.checks, result.recording, result.configs, mission.origin, planned_end_s
@@ -577,6 +578,19 @@ def _simulate_with(
             print("real time: Ctrl-C ends the run early (the report is still written)", file=err)
             result = run.run()
     return result
+
+
+def _say_unplayed(mission: Mission, end_s: float, err: TextIO) -> None:
+    """One line for the operator's actions the run ended before: never played, said so."""
+    late = [item for item in mission.operator if float(item["at_s"]) > end_s + 1e-9]
+    if not late:
+        return
+    first = min(float(item["at_s"]) for item in late)
+    print(
+        f"operator: {len(late)} action(s) not played: the run ended at {end_s:g} s, before "
+        f"them (the first at {first:g} s)",
+        file=err,
+    )
 
 
 def _announce_view(view: LiveView, err: TextIO) -> None:
