@@ -44,7 +44,7 @@ from collections import defaultdict
 from collections.abc import Iterable, Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any, Final, TextIO
 
 from clark_engine.errors import ClarkError, UsageError
 from clark_engine.link.messages import MESSAGE_NAMES, PictureData
@@ -71,16 +71,18 @@ class Problem:
         file: The file, as found in the folder.
         line: 1-based line of the row, or None for the whole file.
         message: What is wrong.
+        clocks: A link between two time bases: its rows are read, its latency refused.
     """
 
     file: str
     line: int | None
     message: str
+    clocks: bool = False
 
     def format_text(self) -> str:
         """``file:line: message; skipped``, as the command prints it."""
         where = self.file if self.line is None else f"{self.file}:{self.line}"
-        return f"{where}: {self.message}; skipped"
+        return f"{where}: {self.message}" + ("" if self.clocks else "; skipped")
 
 
 @dataclass(frozen=True, slots=True)
@@ -175,9 +177,16 @@ class Analysis:
     problems: tuple[Problem, ...] = field(default=())
 
     def to_json(self) -> dict[str, Any]:
-        """A JSON-ready dict of every field (problems with file, line and message)."""
+        """A JSON-ready dict of every field.
+
+        Problems carry file, line and message, and ``clocks: true`` on a link between two
+        time bases.
+        """
         data = asdict(self)
         data["agents"] = list(self.agents)
+        for problem in data["problems"]:
+            if problem.pop("clocks"):
+                problem["clocks"] = True
         return data
 
 
@@ -441,6 +450,36 @@ def _hint(folder: Path) -> str:
     return "give the folder the agents wrote their logs to (a dry-run report's logs/)"
 
 
+CLOCKS_APART_S: Final = 60.0
+"""A link whose median latency is larger than this (either way) is between two clocks, not
+a radio: no radio holds a packet for a minute. The agents stamped their logs on different
+time bases (a simulated autopilot's GPS time against the system clock's), and its
+latencies would be garbage."""
+
+
+def _clocks_apart(sender: str, receiver: str, latencies_ms: list[float]) -> Problem | None:
+    """A problem when the link's latencies measure two clocks rather than the link."""
+    if not latencies_ms:
+        return None
+    median_s = statistics.median(latencies_ms) / 1000.0
+    if abs(median_s) <= CLOCKS_APART_S:
+        return None
+    apart = (
+        f"{abs(median_s) / 86_400:.0f} days"
+        if abs(median_s) >= 86_400
+        else f"{abs(median_s):.0f} s"
+    )
+    return Problem(
+        f"{receiver}{MESSAGE_LOG_SUFFIX}",
+        None,
+        f"{sender} -> {receiver}: the two agents' GPS clocks are {apart} apart (median "
+        f"latency {median_s:+.6g} s): their logs were stamped on different time bases, so "
+        "this link's latency is not computed (its loss is); run every agent on one time "
+        "base (docs/logs.md#time-bases)",
+        clocks=True,
+    )
+
+
 def analyze_folder(folder: Path, period_s: float | None = None) -> Analysis:
     """Read every ``*.messages.csv`` in ``folder`` and compute the latency and loss report.
 
@@ -501,6 +540,11 @@ def analyze_folder(folder: Path, period_s: float | None = None) -> Analysis:
                     tally.latencies_ms.append(row.latency_ms)
             elif row.peer:  # rejected, with a claimed sender
                 tallies[(row.peer, agent)].rejected += 1
+    for (sender, receiver), tally in sorted(tallies.items()):
+        problem = _clocks_apart(sender, receiver, tally.latencies_ms)
+        if problem is not None:
+            problems.append(problem)
+            tally.latencies_ms.clear()
     links = tuple(
         _link_report(sender, receiver, tally, logged)
         for (sender, receiver), tally in sorted(tallies.items())
@@ -571,6 +615,7 @@ def format_text(analysis: Analysis) -> str:
                 for link in analysis.links
             ],
         )
+    out += [f"  not computed: {p.message}" for p in analysis.problems if p.clocks]
     if analysis.pairs:
         out += ["", "Pairs (sum of means = mean A -> B + mean B -> A)"]
         out += _table(

@@ -461,3 +461,53 @@ def test_explain_deviation_without_a_period_says_how_to_get_one(tmp_path: Path) 
         (tmp_path / f"{agent}.mission.log").unlink()
     text = explain_deviation(analyze_folder(tmp_path))
     assert "not computed" in text and "--period-s" in text
+
+
+def test_links_between_clocks_days_apart_are_refused_not_averaged(tmp_path: Path) -> None:
+    """A station on the system clock and a vehicle on a simulated autopilot's GPS time
+    (331 days apart, as in a --realtime rehearsal): latencies of +-28 million seconds are
+    no latencies. The link's loss still counts; its latency is refused, saying why."""
+    days_331_ms = 331 * 86_400_000
+    write_log(
+        tmp_path,
+        "mcs",
+        [
+            *(row("sent", "*", n) for n in range(1, 4)),
+            *(row("received", "v", n, "agent_status", days_331_ms + 30) for n in range(1, 4)),
+        ],
+    )
+    write_log(
+        tmp_path,
+        "v",
+        [
+            *(row("sent", "*", n, "agent_status") for n in range(1, 4)),
+            *(row("received", "mcs", n, "heartbeat", -days_331_ms + 20) for n in range(1, 3)),
+        ],
+    )
+    analysis = analyze_folder(tmp_path)
+    links = {(link.sender, link.receiver): link for link in analysis.links}
+    assert links[("v", "mcs")].mean_s is None and links[("mcs", "v")].mean_s is None
+    assert links[("mcs", "v")].packets_lost == 1  # loss is by counter: it stands
+    assert analysis.mean_of_means_s is None
+    problems = [p for p in analysis.problems if "clocks" in p.message]
+    assert [p.file for p in problems] == ["v.messages.csv", "mcs.messages.csv"]
+    assert all("331 days apart" in p.message and "one time base" in p.message for p in problems)
+    assert "clocks are 331 days apart" in format_text(analysis)
+
+
+def test_a_wall_clock_dry_run_stamps_every_log_on_one_time_base(tmp_path: Path) -> None:
+    """--realtime with MAVLink ports: the simulated autopilots give the wall clock's GPS
+    time, and the station is anchored to it (before: the station stamped 2026-01-01 and
+    every latency between them read as +-days)."""
+    from clark_engine.sim.engine import DryRun
+
+    path = ROOT / "missions" / "cooperative_follow.yaml"
+    mission = validate_path(path).mission
+    assert mission is not None
+    logs = tmp_path / "logs"
+    run = DryRun(mission, path, seed=1, until_s=14.0, log_dir=logs, speed=1.0, wall_clock=True)
+    run.run()
+    analysis = analyze_folder(logs)
+    assert not [p for p in analysis.problems if p.clocks], analysis.problems
+    assert any(link.messages for link in analysis.links)
+    assert all(abs(link.mean_s or 0.0) < 1.0 for link in analysis.links)

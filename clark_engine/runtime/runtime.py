@@ -400,6 +400,16 @@ class AgentRuntime:
         """
         return self.context.now_s
 
+    def anchor_gps_time(self, gps_epoch_ms: int) -> None:
+        """Set the GPS time at runtime time 0, for a shell whose clock is known only later.
+
+        A real-time dry run whose simulated autopilots give the wall clock's GPS time
+        anchors every runtime to the wall clock when its clock starts, so that a station
+        (which has no autopilot) stamps its logs on the vehicles' time base: one time
+        base in every log, and latencies that mean something.
+        """
+        self._gps_epoch_ms = gps_epoch_ms
+
     def _gps_now_ms(self, now_s: float) -> int | None:
         if self._vehicle_gps is not None:
             gps_ms, at_s = self._vehicle_gps

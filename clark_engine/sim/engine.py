@@ -723,6 +723,12 @@ class DryRun:
             if self.sitl is not None:
                 self._open_sitl()
                 self._wall_start = time.perf_counter()  # the run, not the pre-flights
+            if self.wall_clock:
+                # The simulated autopilots' GPS time is the wall clock's: the stations'
+                # (no autopilot) is anchored to it, time 0 being now. One time base.
+                epoch_ms = gps_time_ms_from_unix_us(time.time_ns() // 1000)
+                for sim_agent in self.agents.values():
+                    sim_agent.runtime.anchor_gps_time(epoch_ms)
             if self.exchange is None:
                 self._advance(math.inf, last=True)
             else:
