@@ -522,6 +522,12 @@ def file_names(config: AgentConfig) -> dict[str, str]:
     return names
 
 
+CLOCKS_APART_S: Final = 6 * 3600.0
+"""Agents of one run start within minutes of each other: a GPS time further than this from
+the reference's is another time base (a simulated GPS clock against the system clock),
+not a late start, and aligning by it would spread the run over days."""
+
+
 def align_clocks(
     agents: Mapping[str, AgentLogs], roles: Mapping[str, str], notes: list[str]
 ) -> str:
@@ -561,7 +567,17 @@ def align_clocks(
         reference = 0.0
         origin = "each agent's own clock (no GPS time in any log)"
     for name, logs in agents.items():
-        if name in offsets:
+        if name in offsets and abs(offsets[name] - reference) / 1000 > CLOCKS_APART_S:
+            apart_s = abs(offsets[name] - reference) / 1000
+            shown = f"{apart_s / 86_400:.0f} days" if apart_s >= 86_400 else f"{apart_s:.0f} s"
+            logs.shift_s = 0.0
+            logs.clock = "its own clock (its GPS time is on another time base)"
+            notes.append(
+                f"{name}: its GPS time is {shown} from the reference's, more than agents of "
+                "one run start apart: its logs were stamped on another time base "
+                "(docs/logs.md#time-bases), so its own start is taken as t=0"
+            )
+        elif name in offsets:
             logs.shift_s = (offsets[name] - reference) / 1000
             source = "mission and interface logs" if logs.offsets_ms else "message log"
             logs.clock = f"{logs.shift_s:+.3f} s, by GPS time ({source})"

@@ -326,7 +326,9 @@ STATION_MS, SLASH_A_MS, SLASH_B_MS = 0, -3_000, 12_500  # GPS time at each one's
 CHANGE = "runtime._on_change"
 
 
-def write_run(folder: Path, *, station: bool = True, gps: bool = True) -> Path:
+def write_run(
+    folder: Path, *, station: bool = True, gps: bool = True, station_shift_ms: int = 0
+) -> Path:
     """Logs of cooperative_follow with three clocks: slash_a starts 3 s before the station,
     slash_b 12.5 s after it. The station sees slash_a only; slash_a sees slash_b."""
     folder.mkdir(exist_ok=True)
@@ -342,8 +344,13 @@ def write_run(folder: Path, *, station: bool = True, gps: bool = True) -> Path:
         log(
             "mcs",
             "mcs",
-            line(0.5, off(STATION_MS), "runtime._fleet_events", "found slash_a"),
-            line(30.0, off(STATION_MS), "runtime._station_command", "operator: activate slash_b"),
+            line(0.5, off(STATION_MS + station_shift_ms), "runtime._fleet_events", "found slash_a"),
+            line(
+                30.0,
+                off(STATION_MS + station_shift_ms),
+                "runtime._station_command",
+                "operator: activate slash_b",
+            ),
         )
         rows = [
             {"now_s": 0.1, "name": "slash_a"},  # heard, no Agent Status yet
@@ -397,6 +404,18 @@ def test_every_clock_is_mapped_onto_the_stations_through_gps_time(tmp_path: Path
     assert b[-1][1:3] == pytest.approx((-5.0, -5.0), abs=0.01)
     assert any("slash_b: positions from slash_a's fleet table" in n for n in run.notes)
     assert run.recording.end_s == pytest.approx(53.5)  # slash_b's last line, 41 + 12.5
+
+
+def test_a_station_on_another_time_base_is_not_aligned_by_it(tmp_path: Path) -> None:
+    """The station on the system clock, the vehicles on a simulated GPS clock 331 days
+    behind: aligned by GPS time the run would span 331 days; each such agent keeps its
+    own start instead, and a note says why."""
+    logs = write_run(tmp_path / "logs", station_shift_ms=331 * 86_400_000)
+    run = check_folder(logs, mission_at(COOPERATIVE)).run
+    shifts = {n: a.shift_s for n, a in run.agents.items()}
+    assert all(abs(s) < 60 for s in shifts.values()), shifts
+    assert sum("331 days from the reference's" in n for n in run.notes) == 2
+    assert run.recording.end_s < 3600
 
 
 def test_without_a_station_log_t0_is_the_first_agent_to_start(tmp_path: Path) -> None:
