@@ -44,6 +44,31 @@ def _no_network(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
     yield
 
 
+GROUND_STATION_PORT = 14550
+"""MAVLink's well-known UDP port, where a user's MAVProxy or QGroundControl listens."""
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _ground_station_port_held() -> Iterator[None]:
+    """Hold UDP 14550 for the whole session, as a user's ground station would.
+
+    Tests take free ports only: one that used the well-known port failed on a user's
+    machine with a ground station running. Holding it here makes any such test fail here
+    too. Already held (a ground station, another test worker): nothing to do.
+    """
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        sock.bind(("0.0.0.0", GROUND_STATION_PORT))
+    except OSError:
+        sock.close()
+        yield
+        return
+    try:
+        yield
+    finally:
+        sock.close()
+
+
 @pytest.fixture
 def root() -> Path:
     """The repository root."""
