@@ -216,6 +216,9 @@ class AgentRuntime:
             else None
         )
         self.terminated = False
+        self.close_logbook_on_terminate = True
+        """False when the owner closes the logbook after its own stop (the real-time shell
+        logs what the stop does, its links closed last, after the terminate)."""
         self.failsafe: str | None = None
         self.breach: Breach | None = None
         envelope = config.envelope if config.is_vehicle else None
@@ -1142,7 +1145,8 @@ class AgentRuntime:
             self._send([last], "", now_s)
         self._commands.append(CloseInterfaces())
         self.logbook.mission.warning("terminated%s", f"; vehicle to {terminal}" if terminal else "")
-        self.logbook.close()
+        if self.close_logbook_on_terminate:
+            self.logbook.close()
 
     # -- the autopilot's safety set-up -----------------------------------------------------
 
