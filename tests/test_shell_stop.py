@@ -216,3 +216,33 @@ def test_one_signal_waits_for_the_answers_at_most_stop_confirm_s_and_exits_0() -
     assert f"within {STOP_CONFIRM_S:g} s" in log
     assert "stop shortened" not in log
     assert "stop: links closed (autopilot)" in log
+
+
+def test_a_fault_in_the_loop_still_runs_the_stop() -> None:
+    """An exception from inside the loop is raised, after the stop left the vehicle safe."""
+    bench = Bench()
+
+    def fault(shell: RealtimeShell, now_s: float) -> None:
+        if shell.stats.ticks == 4:
+            bench.vehicle.receive()
+            raise RuntimeError("a bug in a hook")
+
+    bench.shell.on_tick.append(fault)
+    with pytest.raises(RuntimeError, match="a bug in a hook"):
+        bench.run()
+    sent = bench.to_autopilot()
+    assert _released(sent) and _to_hold(sent, bench.hold)
+    assert bench.runtime.terminated and bench.runtime.logbook.closed
+    assert "stop: links closed (autopilot)" in bench.interface_log()
+
+
+def test_the_shortened_line_names_only_what_was_done() -> None:
+    """An unkeyed mission has no replay marks: the line does not claim them."""
+    bench = Bench()
+    bench.first, bench.then = signal.SIGINT, [signal.SIGINT]
+    assert bench.run() == 130
+    (line,) = [line for line in bench.said if "stop shortened" in line]
+    assert line.endswith(
+        "still done: terminate sequence run (terminal mode, last heartbeat), "
+        "RC overrides released, links closed"
+    ), line

@@ -548,6 +548,8 @@ class AutopilotAdapter:
         # A clean stop began (stop_commanding): poll only keeps the heartbeat and the
         # stop's own requests going.
         self._stopping = False
+        self.left_on_purpose: tuple[str, ...] = ()
+        """The parameters :meth:`close` wrote back (the failsafe switched off)."""
 
         self.bad_frames = 0
         """Frames that failed their checksum or were not MAVLink (garbage on the link)."""
@@ -936,6 +938,7 @@ class AutopilotAdapter:
         for name, value in self._on_close:
             self._log.info("leaving on purpose: %s = %g", name, value)
             self._param_set(name, value, now_s, lambda _result, _at_s: None)
+        self.left_on_purpose = tuple(name for name, _value in self._on_close)
         self._on_close = ()
 
     def _param_silent(self, name: str, now_s: float) -> None:

@@ -782,30 +782,35 @@ class RealtimeShell:
         runtime = self.runtime
         link = self.autopilot
         self._stop_listening()
-        if not runtime.terminated and not runtime.logbook.closed:
+        done: list[str] = []
+        if not runtime.terminated:
             self._safely("log the loop's figures", self._log_summary)
-        self.log.info(
-            "stop (%s): overrides released, terminate, then the links closed",
-            self.stopped_by or "stop",
-        )
-        if link is not None and link.transport is not None:
+        self.log.info("stop began (%s)", self.stopped_by or "stop")
+        if link is not None and link.transport is not None and not runtime.terminated:
+            # (A runtime terminated in the loop already sent its terminal mode: kept.)
             self._safely(
                 "release the RC overrides",
                 lambda: self._to_autopilot(link.adapter.stop_commanding(self.now()), self.now()),
             )
-        self._safely("run the terminate sequence", self._terminate)
+        if self._safely("run the terminate sequence", self._terminate):
+            done.append("terminate sequence run (terminal mode, last heartbeat)")
         if link is not None and link.transport is not None:
-            self._safely(
-                "switch the failsafe off",
+            closed = self._safely(
+                "close the autopilot's session",
                 lambda: self._to_autopilot(link.adapter.close(self.now()), self.now()),
             )
+            if closed:
+                done.append("RC overrides released")
+                names = link.adapter.left_on_purpose
+                done.extend([f"failsafe off ({', '.join(names)})"] if names else [])
         self._safely("wait for the autopilot's answers", self._await_answers)
-        self._safely("save the replay marks", self._save_replay_marks)
+        saved = self._safely("save the replay marks", self._save_replay_marks)
+        done.extend(["replay marks saved"] if saved and runtime.codec.authenticated else [])
         if self.hurried_by is not None:
             skipped = "; ".join(self.skipped) or "nothing (nothing was left to wait for)"
             line = (
                 f"stop shortened by a second {self.hurried_by}: skipped {skipped}; "
-                "overrides released, terminal mode sent, replay marks saved, links closed"
+                f"still done: {', '.join([*done, 'links closed'])}"
             )
             self._safely("log the shortened stop", lambda: self.log.warning("%s", line))
             self._safely("announce the shortened stop", lambda: self._say(line))
@@ -819,13 +824,19 @@ class RealtimeShell:
         reason = f"real-time shell stopping ({self.stopped_by or 'stop'})"
         self._carry_out(self.runtime.terminate(now, reason), now)
 
-    def _safely(self, what: str, step: Callable[[], None]) -> None:
-        """Run one step of the stop; its failure is logged and the stop goes on."""
+    def _safely(self, what: str, step: Callable[[], None]) -> bool:
+        """Run one step of the stop; its failure is logged and the stop goes on.
+
+        Returns:
+            True when the step ran to its end.
+        """
         try:
             step()
         except Exception as exc:
             with contextlib.suppress(Exception):
                 self.log.error("stop: cannot %s: %s", what, exc)
+            return False
+        return True
 
     def _say(self, line: str) -> None:
         if self.announce is not None:
