@@ -180,15 +180,15 @@ def test_the_stop_waits_for_the_autopilots_answers_and_a_second_signal_cuts_the_
     bench.first = signal.SIGINT
     waits: list[float] = []
 
-    def second_after_three_waits() -> None:
+    def second_after_eight_waits() -> None:
         if bench.shell.stopped_by is not None and not bench.runtime.logbook.closed:
             waits.append(bench.clock.t)
-            if len(waits) == 3:
+            if len(waits) == 8:  # 0.8 s on the fake clock: past STOP_ANNOUNCE_S
                 signal.raise_signal(signal.SIGINT)
 
-    bench.selector.on_wait = second_after_three_waits
+    bench.selector.on_wait = second_after_eight_waits
     assert bench.run() == 130
-    assert len(waits) == 3  # the stop waited, then stopped waiting at once
+    assert len(waits) == 8  # the stop waited, then stopped waiting at once
     sent = bench.to_autopilot()
     assert _released(sent) and _to_hold(sent, bench.hold)
     log = bench.interface_log()
@@ -246,3 +246,37 @@ def test_the_shortened_line_names_only_what_was_done() -> None:
         "still done: terminate sequence run (terminal mode, last heartbeat), "
         "RC overrides released, links closed"
     ), line
+
+
+def test_the_stop_ends_its_wait_as_soon_as_the_autopilot_answers() -> None:
+    """An autopilot that answers: the wait ends at its COMMAND_ACK, nothing announced, 0."""
+    bench = Bench()
+    bench.first = signal.SIGINT
+    settings = AutopilotSettings.from_config(bench.runtime.config)
+    autopilot = mavlink2.MAVLink(
+        MemoryPipe("unused"), srcSystem=settings.system_id, srcComponent=settings.component_id
+    )
+    parser = mavlink2.MAVLink(None)
+    waits: list[float] = []
+
+    def answer() -> None:
+        if bench.shell.stopped_by is None or bench.runtime.logbook.closed:
+            return
+        waits.append(bench.clock.t)
+        for msg in parser.parse_buffer(bench.vehicle.receive()) or []:
+            if msg.get_type() == "COMMAND_LONG":
+                ack = autopilot.command_ack_encode(
+                    msg.command,
+                    mavlink2.MAV_RESULT_ACCEPTED,
+                    target_system=settings.source_system_id,
+                    target_component=settings.source_component_id,
+                )
+                bench.vehicle.send(ack.pack(autopilot))
+
+    bench.selector.on_wait = answer
+    assert bench.run() == 0
+    log = bench.interface_log()
+    assert "stop: waiting up to 3 s for the autopilot to answer SetMode HOLD (4)" in log
+    assert "stop: the autopilot answered in 0.100 s" in log  # one wait of the loop's 0.1 s
+    assert len(waits) == 1
+    assert not any("Ctrl-C again" in line for line in bench.said)

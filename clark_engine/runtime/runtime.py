@@ -338,6 +338,14 @@ class AgentRuntime:
         self.context.gps_time_ms = self._gps_now_ms(now_s)
         self.logbook.set_time(now_s, self.context.gps_time_ms)
 
+    def note_time(self, now_s: float) -> None:
+        """Stamp the lines logged from now on with ``now_s``, and do nothing else.
+
+        For a shell that logs its own stop after the terminate (no tick moves the
+        clock any more), so those lines carry the time they happened.
+        """
+        self._set_time(now_s)
+
     # -- events in -----------------------------------------------------------------------
 
     def deliver(self, event: Event, now_s: float) -> list[Command]:

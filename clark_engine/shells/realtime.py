@@ -119,6 +119,10 @@ STOP_CONFIRM_S: Final = 3.0
 failsafe switched off: a command's three sends, ``ACK_TIMEOUT_S`` apart. Skipped by a
 second signal; what it waits for has been sent at least once by then."""
 
+STOP_ANNOUNCE_S: Final = 0.5
+"""After this long without the autopilot's answers, the stop says on the terminal what it
+waits for and that Ctrl-C again skips it (a quick answer is not worth a line)."""
+
 _RUNTIME_EVENTS = (
     VehicleState,
     AutopilotHeartbeat,
@@ -831,6 +835,7 @@ class RealtimeShell:
             True when the step ran to its end.
         """
         try:
+            self.runtime.note_time(self.now())
             step()
         except Exception as exc:
             with contextlib.suppress(Exception):
@@ -864,19 +869,23 @@ class RealtimeShell:
         self.log.info(
             "stop: waiting up to %g s for the autopilot to answer %s", STOP_CONFIRM_S, what
         )
-        self._say(
-            f"stopping: waiting up to {STOP_CONFIRM_S:g} s for the autopilot to answer {what}; "
-            "Ctrl-C again skips the wait"
-        )
+        announced = False
         while True:
             left = link.adapter.unanswered if link.transport is not None else []
+            now = self.now()
+            self.runtime.note_time(now)
             if not left:
-                self.log.info("stop: the autopilot's answers waited for %.1f s", self.now() - begin)
+                self.log.info("stop: the autopilot answered in %.3f s", now - begin)
                 return
+            if not announced and now - begin >= STOP_ANNOUNCE_S:
+                announced = True  # a person waiting longer than a blink is told why
+                self._say(
+                    f"stopping: waiting up to {STOP_CONFIRM_S:g} s for the autopilot to answer "
+                    f"{', '.join(left)}; Ctrl-C again skips the wait"
+                )
             if self.hurried_by is not None:
                 self.skipped.append(f"waiting for the autopilot to answer {', '.join(left)}")
                 return
-            now = self.now()
             if now >= deadline:
                 self.log.warning(
                     "stop: no answer from the autopilot to %s within %g s",
@@ -884,7 +893,8 @@ class RealtimeShell:
                     STOP_CONFIRM_S,
                 )
                 return
-            self._listen_to_autopilot(min(deadline - now, 0.1))
+            wake = deadline if announced else min(deadline, begin + STOP_ANNOUNCE_S)
+            self._listen_to_autopilot(min(wake - now, 0.1))
 
     def _listen_to_autopilot(self, timeout_s: float) -> None:
         """Wait for the autopilot's bytes (or a signal) and hear its answers; resend due."""
