@@ -110,9 +110,9 @@ class Bench:
             self.engine.armed = list(self.then)  # the next signals land in the stop
             signal.raise_signal(self.first)
 
-    def run(self) -> int:
+    def run(self, max_ticks: int = 50) -> int:
         with self.shell.signals():
-            return self.shell.run(max_ticks=50)
+            return self.shell.run(max_ticks=max_ticks)
 
     def to_autopilot(self) -> list[Any]:
         """Every MAVLink message the stop sent the autopilot."""
@@ -280,3 +280,20 @@ def test_the_stop_ends_its_wait_as_soon_as_the_autopilot_answers() -> None:
     assert "stop: the autopilot answered in 0.100 s" in log  # one wait of the loop's 0.1 s
     assert len(waits) == 1
     assert not any("Ctrl-C again" in line for line in bench.said)
+
+
+def test_a_first_signal_during_a_stop_it_did_not_start_shortens_it() -> None:
+    """The loop ended by itself (max_ticks here, --until in clark run): Ctrl-C during the
+    stop's wait shortens it at once, rather than asking for a second one."""
+    bench = Bench()  # no first signal: the loop runs its 6 ticks
+
+    def once_in_the_stop() -> None:
+        if bench.shell.stopped_by is not None and bench.shell.hurried_by is None:
+            signal.raise_signal(signal.SIGINT)
+
+    bench.selector.on_wait = once_in_the_stop
+    assert bench.run(max_ticks=6) == 130
+    assert bench.shell.stopped_by == "max_ticks"
+    (line,) = [line for line in bench.said if "stop shortened" in line]
+    assert line.startswith("stop shortened by SIGINT: skipped waiting for the autopilot"), line
+    assert _released(bench.to_autopilot())

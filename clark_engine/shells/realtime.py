@@ -328,6 +328,7 @@ class RealtimeShell:
         self._registered: dict[str, int] = {}
         self._stop_reason: str | None = None
         self._signals = 0
+        self._in_stop = False
         self.hurried_by: str | None = None
         """The signal that shortened the stop (the second one), or None."""
         self.skipped: list[str] = []
@@ -386,6 +387,9 @@ class RealtimeShell:
     def signals(self) -> Iterator[None]:
         """Within the block, SIGINT and SIGTERM stop the loop; a second one shortens the stop.
 
+        A first one that arrives once a stop began by itself (``--until``, a terminate)
+        shortens it at once.
+
         The handler never raises: a signal may land anywhere, in the middle of the
         stop's safety steps too, and an exception there would skip the rest of them
         (the overrides left active, the replay marks unsaved). It only sets flags and
@@ -399,9 +403,9 @@ class RealtimeShell:
         def handler(signum: int, frame: FrameType | None) -> None:
             self._signals += 1
             name = signal.Signals(signum).name
-            if self._signals == 1:
+            if self._signals == 1 and not self._in_stop:
                 self.stop(name)
-            else:
+            else:  # a second signal, or a first one once a stop (--until...) began
                 self.hurry(name)
 
         for sig in previous:
@@ -785,6 +789,7 @@ class RealtimeShell:
             return
         runtime = self.runtime
         link = self.autopilot
+        self._in_stop = True
         self._stop_listening()
         done: list[str] = []
         if not runtime.terminated:
@@ -812,8 +817,9 @@ class RealtimeShell:
         done.extend(["replay marks saved"] if saved and runtime.codec.authenticated else [])
         if self.hurried_by is not None:
             skipped = "; ".join(self.skipped) or "nothing (nothing was left to wait for)"
+            which = "a second " if self._signals > 1 else ""
             line = (
-                f"stop shortened by a second {self.hurried_by}: skipped {skipped}; "
+                f"stop shortened by {which}{self.hurried_by}: skipped {skipped}; "
                 f"still done: {', '.join([*done, 'links closed'])}"
             )
             self._safely("log the shortened stop", lambda: self.log.warning("%s", line))
@@ -871,9 +877,11 @@ class RealtimeShell:
         )
         announced = False
         while True:
-            left = link.adapter.unanswered if link.transport is not None else []
             now = self.now()
             self.runtime.note_time(now)
+            if link.transport is None:  # failed while waiting (logged): nobody to wait for
+                return
+            left = link.adapter.unanswered
             if not left:
                 self.log.info("stop: the autopilot answered in %.3f s", now - begin)
                 return
