@@ -545,6 +545,11 @@ class AutopilotAdapter:
         self._safety: SafetySetup | None = None
         self._param_answers: dict[str, list[ParamAnswer]] = {}
         self._on_close: tuple[tuple[str, float], ...] = ()
+        # A clean stop began (stop_commanding): poll only keeps the heartbeat and the
+        # stop's own requests going.
+        self._stopping = False
+        self.left_on_purpose: tuple[str, ...] = ()
+        """The parameters :meth:`close` wrote back (the failsafe switched off)."""
 
         self.bad_frames = 0
         """Frames that failed their checksum or were not MAVLink (garbage on the link)."""
@@ -656,6 +661,13 @@ class AutopilotAdapter:
             return self.start(now_s)
         if now_s >= self._next_heartbeat_s:
             self._heartbeat_out(now_s)
+        if self._stopping:
+            # The stop's requests (the terminal mode, the failsafe switched off) are
+            # resent until answered; nothing else is asked or kept alive.
+            if self._requests:
+                self._send_due(now_s, heard=not self.lost(now_s))
+            self._release_refusals(now_s, self._late_events)
+            return self._outbox.take()
         if (
             self._overrides
             and now_s - self._override_sent_s >= OVERRIDE_REFRESH_S
@@ -697,19 +709,48 @@ class AutopilotAdapter:
         self._release_refusals(now_s, self._late_events)
         return self._outbox.take()
 
-    def close(self, now_s: float) -> bytes:
-        """Leave the autopilot as the pilot expects it (thesis 4.3.6); send, then close.
+    def stop_commanding(self, now_s: float) -> bytes:
+        """A clean stop begins: release the sticks at once and ask for nothing more.
 
-        Releases every active RC override at once (rather than letting ArduPilot
-        time them out 3 s later) and forgets pending requests. Closing the
-        transport is the shell's part.
+        Every active RC override is released now (rather than left for ArduPilot to
+        time out 3 s later), every pending request is forgotten (nothing the behaviour
+        asked for is sent again), the wanted speed and a safety set-up under way are
+        dropped. What the stop itself sends next (the terminal mode; :meth:`close`'s
+        parameters) is tracked as usual, and :meth:`poll` resends it until answered.
         """
+        self._stopping = True
         if self._overrides:
             self._override_out(dict.fromkeys(self._overrides, 0), now_s)
             self._overrides.clear()
         self._requests.clear()
-        self._safety_close()
+        self._param_answers.clear()
+        self._safety = None
+        self._speed_wanted = None
         return self._outbox.take()
+
+    def close(self, now_s: float) -> bytes:
+        """Leave the autopilot as the pilot expects it (thesis 4.3.6); send, then close.
+
+        Releases every active RC override at once (rather than letting ArduPilot
+        time them out 3 s later) and writes the safety set-up's ``on_close`` (the
+        failsafe switched off). Requests still unanswered (those, the terminal mode)
+        stay in :attr:`unanswered` for a shell that can wait for their answers
+        (:meth:`poll` resends them); closing the transport is the shell's part.
+        """
+        if self._overrides:
+            self._override_out(dict.fromkeys(self._overrides, 0), now_s)
+            self._overrides.clear()
+        self._stopping = True
+        self._safety_close(now_s)
+        return self._outbox.take()
+
+    @property
+    def unanswered(self) -> list[str]:
+        """The requests still waiting for the autopilot's answer, in words.
+
+        Stream set-up excluded: what a clean stop waits for before it closes the link.
+        """
+        return [r.request for r in self._requests if not r.setup]
 
     # -- commands ----------------------------------------------------------------------------
 
@@ -886,21 +927,18 @@ class AutopilotAdapter:
             self._log.error("safety set-up failed: %s", printable(result.problem))
         self._late_events.append(result)
 
-    def _safety_close(self) -> None:
-        """A clean stop: write the set-up's on_close (the failsafe switched off), unchecked.
+    def _safety_close(self, now_s: float) -> None:
+        """A clean stop: write the set-up's on_close (the failsafe switched off).
 
         Only what a set-up switched on (its value read back) is switched off, whether or
-        not the set-up as a whole took.
+        not the set-up as a whole took. Sent at once and tracked: the autopilot's echo
+        answers it, :meth:`poll` resends it meanwhile, and a shell that may wait does
+        (:attr:`unanswered`); one that may not has sent it once.
         """
-        s = self.settings
         for name, value in self._on_close:
             self._log.info("leaving on purpose: %s = %g", name, value)
-            known = self._param_types.get(name, mavlink2.MAV_PARAM_TYPE_REAL32)
-            self._mav.send(
-                self._mav.param_set_encode(
-                    s.system_id, s.component_id, _param_id(name), float(value), known
-                )
-            )
+            self._param_set(name, value, now_s, lambda _result, _at_s: None)
+        self.left_on_purpose = tuple(name for name, _value in self._on_close)
         self._on_close = ()
 
     def _param_silent(self, name: str, now_s: float) -> None:

@@ -252,6 +252,9 @@ class AgentRuntime:
             else None
         )
         self.terminated = False
+        self.close_logbook_on_terminate = True
+        """False when the owner closes the logbook after its own stop (the real-time shell
+        logs what the stop does, its links closed last, after the terminate)."""
         self.failsafe: str | None = None
         self.breach: Breach | None = None
         envelope = config.envelope if config.is_vehicle else None
@@ -422,6 +425,14 @@ class AgentRuntime:
         self.context.now_s = now_s
         self.context.gps_time_ms = self._gps_now_ms(now_s)
         self.logbook.set_time(now_s, self.context.gps_time_ms)
+
+    def note_time(self, now_s: float) -> None:
+        """Stamp the lines logged from now on with ``now_s``, and do nothing else.
+
+        For a shell that logs its own stop after the terminate (no tick moves the
+        clock any more), so those lines carry the time they happened.
+        """
+        self._set_time(now_s)
 
     # -- events in -----------------------------------------------------------------------
 
@@ -1374,7 +1385,8 @@ class AgentRuntime:
             self._send([last], "", now_s)
         self._commands.append(CloseInterfaces())
         self.logbook.mission.warning("terminated%s", f"; vehicle to {terminal}" if terminal else "")
-        self.logbook.close()
+        if self.close_logbook_on_terminate:
+            self.logbook.close()
 
     # -- the autopilot's safety set-up -----------------------------------------------------
 

@@ -28,10 +28,13 @@ from clark_engine.shells.agent import (
     radio_factory,
     radio_kind,
 )
+from clark_engine.shells.realtime import EXIT_ABORTED
 
 EXIT_OK = 0
 EXIT_FAILED = 1
 EXIT_USAGE = 2
+EXIT_SHORTENED = EXIT_ABORTED
+"""A second signal shortened the stop (130, as a shell's Ctrl-C; docs/run.md)."""
 
 
 def load_agent(path_text: str, agent: str | None) -> tuple[AgentConfig, list[dict[str, Any]], Path]:
@@ -195,15 +198,18 @@ def run(args: Any, out: TextIO | None = None) -> int:
         print(where, file=out, flush=True)
         if screen:
             view.messages.append(where)  # kept on the redrawn screen
-    try:
-        with shell.signals():
+    shell.announce = lambda line: print(f"clark run: {line}", file=out, flush=True)
+    # The handlers stay until the last line: a second Ctrl-C while the view closes, or
+    # as the summary prints, shortens what is left rather than raising out of it.
+    with shell.signals():
+        try:
             code = shell.run(until_s=args.until)
-    finally:
-        if served is not None and link is not None:
-            link.close(shell.now())  # the last state (terminated, stopped) to the page
-            served.stop()
-    print(f"clark run: stopped ({shell.stopped_by}): {shell.summary()}", file=out, flush=True)
-    return code
+        finally:
+            if served is not None and link is not None:
+                link.close(shell.now())  # the last state (terminated, stopped) to the page
+                served.stop()
+        print(f"clark run: stopped ({shell.stopped_by}): {shell.summary()}", file=out, flush=True)
+    return EXIT_SHORTENED if shell.hurried_by is not None else code
 
 
 # -- clark check ------------------------------------------------------------------------------

@@ -47,11 +47,16 @@ shell owns time and I/O around it, one process per agent, single-threaded around
 - Testing mode (thesis 7.2.9): any interface may be left out (``None``): its commands
   are dropped and counted, and a payload command is answered with an ``error`` event
   at once so the runtime never waits for an answer that cannot come.
-- SIGINT and SIGTERM stop it cleanly (:meth:`RealtimeShell.signals`): the runtime's
-  terminate sequence (the vehicle to its terminal mode, a last heartbeat, the logs
-  flushed and closed), the replay marks saved, the autopilot's overrides released,
-  and every link closed. A second signal aborts at once (links closed, logs flushed,
-  no terminate sequence); :meth:`RealtimeShell.run` then returns 130.
+- SIGINT and SIGTERM stop it cleanly (:meth:`RealtimeShell.signals`,
+  :meth:`RealtimeShell.shutdown`). The stop has parts that keep the vehicle safe and
+  always run, each bounded (nothing in them waits on anything but a local file): the
+  RC overrides released, the runtime's terminate sequence (its primitives stopped, the
+  vehicle to its terminal mode, a last heartbeat), the failsafe the set-up switched on
+  switched off, the replay marks saved, every link closed, the logs flushed and
+  closed. One part only waits: for the autopilot to confirm the terminal mode and the
+  failsafe (resent meanwhile), at most :data:`STOP_CONFIRM_S`. A second signal (and a
+  third) never raises: it cuts that wait short, one line says what was skipped, and
+  :meth:`RealtimeShell.run` returns 130. An exception in the loop still runs the stop.
 
 GPS time (thesis 7.2.11): a vehicle's log lines are stamped with the GPS time its
 autopilot reports (the runtime does this from ``VehicleState.gps_time_ms``); an agent
@@ -109,7 +114,17 @@ REOPEN_BACKOFF_S: Final = (0.5, 1.0, 2.0, 4.0, 8.0)
 """Waits before each successive attempt to reopen a failed link; the last one repeats."""
 
 EXIT_ABORTED: Final = 130
-"""What :meth:`RealtimeShell.run` returns after a second signal (as a shell's Ctrl-C)."""
+"""What :meth:`RealtimeShell.run` returns when a second signal shortened the stop (as a
+shell's Ctrl-C; the same for SIGTERM, as docs/run.md says)."""
+
+STOP_CONFIRM_S: Final = 3.0
+"""Longest a clean stop waits for the autopilot to answer the terminal mode and the
+failsafe switched off: a command's three sends, ``ACK_TIMEOUT_S`` apart. Skipped by a
+second signal; what it waits for has been sent at least once by then."""
+
+STOP_ANNOUNCE_S: Final = 0.5
+"""After this long without the autopilot's answers, the stop says on the terminal what it
+waits for and that Ctrl-C again skips it (a quick answer is not worth a line)."""
 
 _RUNTIME_EVENTS = (
     VehicleState,
@@ -141,10 +156,6 @@ def _precise_wait(selector: selectors.EpollSelector, timeout_s: float) -> _Selec
     """
     readable, _, _ = select.select([selector.fileno()], [], [], timeout_s)
     return selector.select(0) if readable else []
-
-
-class ShellAborted(Exception):
-    """A second stop signal arrived: leave the loop now, without the terminate sequence."""
 
 
 def gps_epoch_ms(unix_time_s: float) -> int:
@@ -293,6 +304,9 @@ class RealtimeShell:
         gc_freeze: bool = True,
     ) -> None:
         self.runtime = runtime
+        # The shell closes the logbook at the end of its stop, so that the stop's own
+        # lines (what the autopilot answered, the marks saved, the links closed) are kept.
+        runtime.close_logbook_on_terminate = False
         self.autopilot = autopilot
         self.radio = radio
         self.payloads: dict[str, PayloadAdapter] = dict(payloads or {})
@@ -319,6 +333,13 @@ class RealtimeShell:
         self._registered: dict[str, int] = {}
         self._stop_reason: str | None = None
         self._signals = 0
+        self._in_stop = False
+        self.hurried_by: str | None = None
+        """The signal that shortened the stop (the second one), or None."""
+        self.skipped: list[str] = []
+        """What a shortened stop skipped, in words (empty: nothing was left to skip)."""
+        #: Tells the person at the terminal how the stop goes (``clark run`` prints it).
+        self.announce: Callable[[str], None] | None = None
         self._closing = False
         self._closed = False
         self._wake_r, self._wake_w = socket.socketpair()
@@ -341,6 +362,16 @@ class RealtimeShell:
         with contextlib.suppress(OSError):
             self._wake_w.send(b"\0")
 
+    def hurry(self, reason: str = "stop") -> None:
+        """Shorten the stop: skip what only waits; safe from signal handlers and threads.
+
+        The parts that keep the vehicle safe still run (:meth:`shutdown`). Before the
+        stop began, it also stops the loop.
+        """
+        if self.hurried_by is None:
+            self.hurried_by = reason
+        self.stop(reason)
+
     def add_reader(self, fd: int, callback: Callable[[float], None]) -> None:
         """Call ``callback(now_s)`` whenever ``fd`` is readable (the station's terminal)."""
         self._readers[fd] = callback
@@ -359,9 +390,15 @@ class RealtimeShell:
 
     @contextlib.contextmanager
     def signals(self) -> Iterator[None]:
-        """Within the block, SIGINT and SIGTERM stop the loop; a second signal aborts it.
+        """Within the block, SIGINT and SIGTERM stop the loop; a second one shortens the stop.
 
-        Does nothing outside the main thread (signal handlers belong to it).
+        A first one that arrives once a stop began by itself (``--until``, a terminate)
+        shortens it at once.
+
+        The handler never raises: a signal may land anywhere, in the middle of the
+        stop's safety steps too, and an exception there would skip the rest of them
+        (the overrides left active, the replay marks unsaved). It only sets flags and
+        wakes the loop. Does nothing outside the main thread (handlers belong to it).
         """
         if threading.current_thread() is not threading.main_thread():
             yield
@@ -370,9 +407,11 @@ class RealtimeShell:
 
         def handler(signum: int, frame: FrameType | None) -> None:
             self._signals += 1
-            if self._signals > 1:
-                raise ShellAborted(signal.Signals(signum).name)
-            self.stop(signal.Signals(signum).name)
+            name = signal.Signals(signum).name
+            if self._signals == 1 and not self._in_stop:
+                self.stop(name)
+            else:  # a second signal, or a first one once a stop (--until...) began
+                self.hurry(name)
 
         for sig in previous:
             signal.signal(sig, handler)
@@ -388,7 +427,7 @@ class RealtimeShell:
         """Run until stopped, terminated, ``max_ticks`` ticks or ``until_s`` seconds.
 
         Returns:
-            0 after a clean stop, :data:`EXIT_ABORTED` after a second signal.
+            0 after a clean stop, :data:`EXIT_ABORTED` when a second signal shortened it.
         """
         with self._heap_frozen():
             start = self.now()
@@ -444,12 +483,14 @@ class RealtimeShell:
                     if until_s is not None and now - start >= until_s:
                         self.stopped_by = "until"
                         break
-            except ShellAborted as exc:
-                self.stopped_by = f"{exc} (aborted)"
-                self._abort()
-                return EXIT_ABORTED
+            except BaseException:
+                # A fault in the loop still leaves the vehicle as the stop does.
+                self.stopped_by = self.stopped_by or "an error in the loop"
+                with contextlib.suppress(Exception):
+                    self.shutdown()
+                raise
             self.shutdown()
-            return 0
+            return EXIT_ABORTED if self.hurried_by is not None else 0
 
     @contextlib.contextmanager
     def _heap_frozen(self) -> Iterator[None]:
@@ -752,61 +793,201 @@ class RealtimeShell:
     # -- the end ----------------------------------------------------------------------------
 
     def shutdown(self) -> None:
-        """The clean stop: terminate sequence, replay marks, links closed. Idempotent."""
+        """The clean stop; idempotent. A second signal shortens it, never skips its safety.
+
+        In order, each step guarded so that one failing never skips the next:
+
+        1. The RC overrides released and every pending request forgotten (the stick back
+           to the pilot at once; nothing the behaviour asked for is sent again).
+        2. The runtime's terminate sequence: its primitives stopped, the vehicle to its
+           terminal mode, a last heartbeat to the peers.
+        3. The failsafe the safety set-up switched on switched off (leaving on purpose).
+        4. Waiting for the autopilot to answer 2 and 3 (resent meanwhile), at most
+           :data:`STOP_CONFIRM_S`: the only part a second signal skips.
+        5. The replay marks saved (the counter store needs nothing: it is written
+           before a counter is used).
+        6. Every link closed, then the logs flushed and closed.
+        """
         if self._closed:
             return
-        now = self.now()
         runtime = self.runtime
-        if not runtime.terminated:
-            if not runtime.logbook.closed:
-                runtime.logbook.interface.info("real-time shell: %s", self.summary())
-            reason = f"real-time shell stopping ({self.stopped_by or 'stop'})"
-            self._carry_out(runtime.terminate(now, reason), now)
         link = self.autopilot
+        self._in_stop = True
+        self._stop_listening()
+        done: list[str] = []
+        if not runtime.terminated:
+            self._safely("log the loop's figures", self._log_summary)
+        self.log.info("stop began (%s)", self.stopped_by or "stop")
+        if link is not None and link.transport is not None and not runtime.terminated:
+            # (A runtime terminated in the loop already sent its terminal mode: kept.)
+            self._safely(
+                "release the RC overrides",
+                lambda: self._to_autopilot(link.adapter.stop_commanding(self.now()), self.now()),
+            )
+        if self._safely("run the terminate sequence", self._terminate):
+            done.append("terminate sequence run (terminal mode, last heartbeat)")
         if link is not None and link.transport is not None:
-            self._to_autopilot(link.adapter.close(now), now)
-        self._save_replay_marks()
+            closed = self._safely(
+                "close the autopilot's session",
+                lambda: self._to_autopilot(link.adapter.close(self.now()), self.now()),
+            )
+            if closed:
+                done.append("RC overrides released")
+                names = link.adapter.left_on_purpose
+                done.extend([f"failsafe off ({', '.join(names)})"] if names else [])
+        self._safely("wait for the autopilot's answers", self._await_answers)
+        saved = self._safely("save the replay marks", self._save_replay_marks)
+        done.extend(["replay marks saved"] if saved and runtime.codec.authenticated else [])
+        if self.hurried_by is not None:
+            skipped = "; ".join(self.skipped) or "nothing (nothing was left to wait for)"
+            which = "a second " if self._signals > 1 else ""
+            line = (
+                f"stop shortened by {which}{self.hurried_by}: skipped {skipped}; "
+                f"still done: {', '.join([*done, 'links closed'])}"
+            )
+            self._safely("log the shortened stop", lambda: self.log.warning("%s", line))
+            self._safely("announce the shortened stop", lambda: self._say(line))
         self._close_all()
 
-    def _abort(self) -> None:
-        """A second signal: no terminate sequence; flush the logs, close everything."""
-        self._save_replay_marks()
-        self._close_all()
+    def _log_summary(self) -> None:
+        self.runtime.logbook.interface.info("real-time shell: %s", self.summary())
+
+    def _terminate(self) -> None:
+        now = self.now()
+        reason = f"real-time shell stopping ({self.stopped_by or 'stop'})"
+        self._carry_out(self.runtime.terminate(now, reason), now)
+
+    def _safely(self, what: str, step: Callable[[], None]) -> bool:
+        """Run one step of the stop; its failure is logged and the stop goes on.
+
+        Returns:
+            True when the step ran to its end.
+        """
+        try:
+            self.runtime.note_time(self.now())
+            step()
+        except Exception as exc:
+            with contextlib.suppress(Exception):
+                self.log.error("stop: cannot %s: %s", what, exc)
+            return False
+        return True
+
+    def _say(self, line: str) -> None:
+        if self.announce is not None:
+            self.announce(line)
+
+    def _stop_listening(self) -> None:
+        """Unwatch everything but the autopilot and the wake-up: the stop reads nothing else."""
+        for what in list(self._registered):
+            if what != "autopilot":
+                self._unregister(what)
+        for fd in list(self._readers):
+            self.remove_reader(fd)
+
+    def _await_answers(self) -> None:
+        """Step 4 of :meth:`shutdown`: the autopilot's answers, until a second signal."""
+        link = self.autopilot
+        if link is None or link.transport is None or not link.adapter.unanswered:
+            return
+        what = ", ".join(link.adapter.unanswered)
+        if self.hurried_by is not None:
+            self.skipped.append(f"waiting for the autopilot to answer {what}")
+            return
+        begin = self.now()
+        deadline = begin + STOP_CONFIRM_S
+        self.log.info(
+            "stop: waiting up to %g s for the autopilot to answer %s", STOP_CONFIRM_S, what
+        )
+        announced = False
+        while True:
+            now = self.now()
+            self.runtime.note_time(now)
+            if link.transport is None:  # failed while waiting (logged): nobody to wait for
+                return
+            left = link.adapter.unanswered
+            if not left:
+                self.log.info("stop: the autopilot answered in %.3f s", now - begin)
+                return
+            if not announced and now - begin >= STOP_ANNOUNCE_S:
+                announced = True  # a person waiting longer than a blink is told why
+                self._say(
+                    f"stopping: waiting up to {STOP_CONFIRM_S:g} s for the autopilot to answer "
+                    f"{', '.join(left)}; Ctrl-C again skips the wait"
+                )
+            if self.hurried_by is not None:
+                self.skipped.append(f"waiting for the autopilot to answer {', '.join(left)}")
+                return
+            if now >= deadline:
+                self.log.warning(
+                    "stop: no answer from the autopilot to %s within %g s",
+                    ", ".join(left),
+                    STOP_CONFIRM_S,
+                )
+                return
+            wake = deadline if announced else min(deadline, begin + STOP_ANNOUNCE_S)
+            self._listen_to_autopilot(min(wake - now, 0.1))
+
+    def _listen_to_autopilot(self, timeout_s: float) -> None:
+        """Wait for the autopilot's bytes (or a signal) and hear its answers; resend due."""
+        link = self.autopilot
+        assert link is not None
+        ready = self._select(timeout_s)
+        now = self.now()
+        for key, _mask in ready:
+            if key.data == "wake":
+                with contextlib.suppress(OSError):
+                    self._wake_r.recv(4096)
+        if link.transport is None:
+            return
+        try:
+            data = link.transport.receive()
+        except TransportError as exc:
+            self._autopilot_failed(now, str(exc))
+            return
+        for event in link.adapter.receive(data, now) if data else []:
+            if isinstance(event, CommandRefused):
+                self.log.warning("stop: the autopilot refused %s: %s", event.request, event.result)
+        self._to_autopilot(link.adapter.flush(), now)
+        self._to_autopilot(link.adapter.poll(now), now)
 
     def _save_replay_marks(self) -> None:
-        try:
-            self.runtime.codec.save_replay_marks()
-        except Exception as exc:  # the store's failure must not keep the links open
-            with contextlib.suppress(Exception):
-                self.log.error("cannot save the replay marks: %s", exc)
+        self.runtime.codec.save_replay_marks()
+        if self.runtime.codec.authenticated:
+            self.log.info("stop: replay marks saved")
 
     def _close_all(self) -> None:
+        """Every link closed (each failure logged, never stopping the rest), then the logs."""
         if self._closed:
             return
         self._closed = True
-        self.runtime.logbook.close()
+        closed: list[str] = []
         link = self.autopilot
         if link is not None and link.transport is not None:
-            with contextlib.suppress(TransportError, OSError):
-                link.transport.close()
+            self._safely("close the autopilot link", link.transport.close)
             link.transport = None
+            closed.append("autopilot")
         radio = self.radio
         if radio is not None and radio.radio is not None:
-            with contextlib.suppress(RadioError, OSError):
-                radio.radio.close()
+            self._safely("close the radio", radio.radio.close)
             radio.radio = None
-        for adapter in self.payloads.values():
-            with contextlib.suppress(OSError):
-                adapter.close()
+            closed.append("radio")
+        for name, adapter in self.payloads.items():
+            self._safely(f"close the payload {name}", adapter.close)
+            closed.append(f"payload {name}")
         for what in list(self._registered):
             self._unregister(what)
         for fd in list(self._readers):
             self.remove_reader(fd)
         with contextlib.suppress(KeyError, ValueError):
             self.selector.unregister(self._wake_r)
-        self.selector.close()
+        self._safely("close the selector", self.selector.close)
         self._wake_r.close()
         self._wake_w.close()
+        self._safely(
+            "log the links closed",
+            lambda: self.log.info("stop: links closed (%s)", ", ".join(closed) or "none open"),
+        )
+        self._safely("close the logs", self.runtime.logbook.close)
 
     def summary(self) -> str:
         """The loop's figures in one line (for the logs and the end of ``clark run``)."""
