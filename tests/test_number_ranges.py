@@ -261,7 +261,9 @@ def test_every_path_a_mission_names_has_a_length_limit() -> None:
     schema = json.loads(schema_text("mission"))
     props = schema["properties"]
     key_file = props["mission"]["properties"]["key_file"]
-    folders = [props["include"]["properties"][k]["items"] for k in ("behaviors", "hardware_profiles")]
+    folders = [
+        props["include"]["properties"][k]["items"] for k in ("behaviors", "hardware_profiles")
+    ]
     for path_schema in (key_file, *folders):
         assert path_schema.get("maxLength", 10**9) <= 1024
 
@@ -359,3 +361,40 @@ FUZZ_EXAMPLES = int(os.environ.get("CLARK_FUZZ_EXAMPLES", "12"))
 @given(extreme_missions())
 def test_extreme_numbers_give_findings_not_crashes(case: tuple[str, str]) -> None:
     run_extreme(case[1])
+
+
+def test_the_widest_position_the_schema_accepts_packs_into_mavlink() -> None:
+    """The ranges are what keeps GLOBAL_POSITION_INT from overflowing: checked at their edges.
+
+    An altitude of 4294967295 m once validated and then broke the dry run's
+    ``global_position_int_encode`` ('i' format requires ... <= 2147483647). With the
+    ranges, the highest point a mission can name (the origin 9 km above sea level, 10 km
+    above it, 100 km from an origin at the pole and the antimeridian, and a follower's
+    offset of as much again) still packs, in the sim's units (1e-7 degrees, millimetres).
+    """
+    from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+    from clark_engine.mission.geo import LocalPoint, Origin, to_global
+    from clark_engine.mission.schema_source.common import (
+        ALTITUDE_RANGE_M,
+        ORIGIN_AMSL_RANGE_M,
+        POSITION_LIMIT_M,
+    )
+
+    mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+    for origin_lat, north_m in ((89.9, 2 * POSITION_LIMIT_M), (-89.9, -2 * POSITION_LIMIT_M)):
+        origin = Origin(origin_lat, 180.0, ORIGIN_AMSL_RANGE_M[1])
+        lat, lon, _up = to_global(LocalPoint(north_m, 2 * POSITION_LIMIT_M, 0.0), origin)
+        for up_m in (2 * ALTITUDE_RANGE_M[0], 2 * ALTITUDE_RANGE_M[1]):
+            amsl_m = ORIGIN_AMSL_RANGE_M[1] + up_m
+            mav.global_position_int_encode(
+                0,
+                round(lat * 1e7),
+                round(lon * 1e7),
+                round(amsl_m * 1000),
+                round(up_m * 1000),
+                0,
+                0,
+                0,
+                0,
+            ).pack(mav)

@@ -300,11 +300,11 @@ class _Builder:
             digits = len(value.lstrip("+-"))
             try:
                 if value[:2] in ("0o", "0x"):
-                    number = int(value, 0)
-                    if number.bit_length() > _MAX_INT_BITS:
-                        digits = int(number.bit_length() * math.log10(2)) + 1
+                    whole = int(value, 0)
+                    if whole.bit_length() > _MAX_INT_BITS:
+                        digits = int(whole.bit_length() * math.log10(2)) + 1
                         raise ValueError("too many digits")
-                    return number
+                    return whole
                 if digits > MAX_INT_DIGITS:
                     raise ValueError("too many digits")
                 return int(value, 10)

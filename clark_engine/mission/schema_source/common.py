@@ -187,6 +187,75 @@ MAX_PATH_CHARS = 1024
 MAX_NAME_BYTES = 255
 
 
+#: The limits of the language, for docs/reference.md (tools/gen_reference.py): quantity,
+#: the keys that carry it, its range, and why the range is what it is.
+LIMITS: tuple[tuple[str, str, str, str], ...] = (
+    (
+        "Altitude above the origin",
+        "`up_m`, `alt_m`, `altitude_m` checks and conditions, takeoff `alt_m`",
+        f"{ALTITUDE_RANGE_M[0]:,} to {ALTITUDE_RANGE_M[1]:,} m",
+        "Above any small vehicle's ceiling (the envelope's legal ceiling is lower still); "
+        "1 km below covers a valley under the field. Any altitude fits MAVLink's int32 "
+        "millimetres a hundred times over.",
+    ),
+    (
+        "Origin above sea level",
+        "`origin.alt_amsl_m`",
+        f"{ORIGIN_AMSL_RANGE_M[0]:,} to {ORIGIN_AMSL_RANGE_M[1]:,} m",
+        "The Dead Sea shore (-430 m) to above any field a small vehicle flies from.",
+    ),
+    (
+        "Position north or east",
+        "`north_m`, `east_m`, points' first two numbers, follow offsets",
+        f"±{POSITION_LIMIT_M:,} m",
+        "The flat local frame is exact enough within tens of kilometres, and 100 km is "
+        "beyond any radio the engine drives.",
+    ),
+    (
+        "Distance",
+        "tolerances, separations, radii, check distances, condition `distance_m`",
+        f"0 to {DISTANCE_MAX_M:,} m (many keys less)",
+        "The diagonal of the ±100 km square.",
+    ),
+    (
+        "Time and duration",
+        "`at_s`, `by_s`, `from_s`, `to_s`, `timeout_s`, `duration_s`, `in_state_s`",
+        f"0 to {TIME_MAX_S:,} s (many keys less)",
+        "11.6 days, longer than any run or battery; in milliseconds it still fits an int32.",
+    ),
+    (
+        "Rate and frequency",
+        "`loop_hz`, telemetry rates, `retarget_hz`, sweep frequencies",
+        f"0 to {RATE_MAX_HZ:,} Hz (many keys less)",
+        "Ten times the fastest loop an autopilot link carries.",
+    ),
+    (
+        "Speed",
+        "`speed_m_s`, airframe speeds and climb rates, condition `speed_m_s`",
+        f"0 to {SPEED_MAX_M_S} m/s (commanded speeds 100)",
+        "Twice the fastest small unmanned aircraft.",
+    ),
+    (
+        "Count",
+        "`photos` check, photo_trigger `count`",
+        f"0 to {COUNT_MAX:,}",
+        "Past any mission's.",
+    ),
+    (
+        "Whole number as written",
+        "any",
+        "at most 1,000 digits",
+        "Refused where it is written ([[E-YAML-VALUE]]): no setting takes more than ten.",
+    ),
+    (
+        "Path",
+        "`include` folders, `key_file`",
+        f"{MAX_PATH_CHARS:,} characters; {MAX_NAME_BYTES} bytes per file or folder name",
+        "What every common filesystem allows; checked before anything is opened.",
+    ),
+)
+
+
 def path_string(description: str, **kw: Any) -> Schema:
     """A file or folder a mission names: non-empty, at most :data:`MAX_PATH_CHARS` long."""
     out = string(description, min_length=1, **kw)

@@ -31,12 +31,11 @@ from typing import Any
 from clark_engine.mission.schema_source.common import (
     DIALECT,
     NAME_PATTERN,
-    Schema,
     SPEED_MAX_M_S,
+    Schema,
     altitude_m,
     array,
     boolean,
-    count,
     distance_m,
     integer,
     length_m,
@@ -329,9 +328,7 @@ def _airframe_properties() -> dict[str, Schema]:
             "Airframe class; selects the simulator's vehicle model and the controls it can have.",
             enum=list(CONTROLS_BY_CLASS),
         ),
-        "mass_kg": mass_kg(
-            "Empty flying mass without payload, in kilograms.", exclusive_minimum=0
-        ),
+        "mass_kg": mass_kg("Empty flying mass without payload, in kilograms.", exclusive_minimum=0),
         "wingspan_m": length_m("Wingspan, in metres.", exclusive_minimum=0),
         "wheelbase_m": length_m(
             "Diagonal motor-to-motor distance of a multirotor (or axle distance of a rover), "

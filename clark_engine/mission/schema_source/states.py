@@ -15,8 +15,8 @@ from clark_engine.mission.primitives._shared import AGENT_NAME_SCHEMA
 from clark_engine.mission.schema_source.common import (
     NAME_PATTERN,
     Schema,
-    array,
     altitude_m,
+    array,
     boolean,
     distance_m,
     obj,
