@@ -163,6 +163,32 @@ def test_a_hex_integer_longer_than_python_prints_is_refused(
     assert "about 6021 digits" in _finding(out, "E-YAML-VALUE")
 
 
+def test_fault_rules_take_a_huge_time_without_raising() -> None:
+    """The fuzzer's fault-time crash, where it was: float(10**400) in the fault rules."""
+    from clark_engine.mission.faults import fault_problems
+
+    problems = fault_problems({"kill": {"agent": "slash_a", "at_s": HUGE}})
+    assert [p.code for p in problems] == ["E-FAULT-WINDOW"]
+
+
+@pytest.mark.parametrize(
+    "args",
+    [("--fault", "kill:slash_a@99999999"), ("--until", "1e300")],
+    ids=["fault-time", "until"],
+)
+def test_dry_run_options_past_the_longest_run_are_usage_errors(
+    capsys: pytest.CaptureFixture[str], args: tuple[str, str]
+) -> None:
+    """The command line's times have the language's range: 1e300 s would never finish."""
+    try:
+        code = main(["dry-run", str(MISSIONS["fault_lost_peer.yaml"]), "--quiet", *args])
+    except SystemExit as stopped:  # argparse's own usage errors
+        code = int(stopped.code or 0)
+    _, err = capsys.readouterr()
+    assert code == 2 and "Traceback" not in err
+    assert "1000000" in err
+
+
 # --- clark dry-run: missions that validated, then raised ---------------------------------
 
 
