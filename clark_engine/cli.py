@@ -437,6 +437,18 @@ def _period_s(text: str) -> float:
     return _positive(text, "{text!r} is not a positive number of seconds")
 
 
+def _until_s(text: str) -> float:
+    """How long to simulate: seconds above 0, at most the language's longest time."""
+    from clark_engine.mission.schema_source.common import TIME_MAX_S
+
+    value = _period_s(text)
+    if value > TIME_MAX_S:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is longer than any run (at most {TIME_MAX_S} s, as sim.duration_s)"
+        )
+    return value
+
+
 def _speed(text: str) -> float:
     """A speed-up factor: a finite number above 0."""
     return _positive(text, "must be a number > 0, not {text!r}")
@@ -606,7 +618,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--until",
-        type=_period_s,
+        type=_until_s,
         metavar="SECONDS",
         help="simulated seconds to run (the mission's sim.duration_s by default)",
     )

@@ -54,14 +54,14 @@ def _rovers(target: str = "30", offset: str = ", offset: {north_m: -5}") -> str:
 
 
 def test_range_is_checked_without_a_station(tmp_path: Path) -> None:
-    # 500 km is beyond the radio's mile, and so outside the default geofence too.
+    # 50 km is beyond the radio's mile, and so outside the default geofence too.
     far = [("E-GEOFENCE-POINT", 8), ("E-RADIO-RANGE", 8), REACTIVE]
-    assert _codes(tmp_path, _rovers("500000")) == far
+    assert _codes(tmp_path, _rovers("50000")) == far
     assert _codes(tmp_path, _rovers("300")) == [REACTIVE]
 
 
 def test_lone_vehicle_is_measured_from_the_origin(tmp_path: Path) -> None:
-    text = HEAD + "\n".join(_rovers("500000").splitlines()[2:8]) + "\n"
+    text = HEAD + "\n".join(_rovers("50000").splitlines()[2:8]) + "\n"
     assert _codes(tmp_path, text) == [("E-GEOFENCE-POINT", 8), ("E-RADIO-RANGE", 8)]
 
 

@@ -367,10 +367,12 @@ def intro(sources: Sequence[str]) -> list[str]:
         "1.1 tools read those as booleans); times are plain numbers of seconds (`90`, never "
         "`1:30`); no key may appear twice in a mapping; no tags beyond YAML's standard ones "
         "(`!include` and `!!binary` are refused).",
-        "- **Ranges** read `> 0` (strictly above), `≥ 0` (at least), `≤ 500` (at most).",
+        "- **Ranges** read `> 0` (strictly above), `≥ 0` (at least), `≤ 500` (at most). "
+        "Every number has one, and every path a length limit ([Limits](#limits)).",
         "",
         "Contents:",
         "",
+        "- [Limits](#limits)",
         "- [File structure](#file-structure)",
         "- [The mission section](#the-mission-section)",
         "- [Include](#include)",
@@ -388,6 +390,32 @@ def intro(sources: Sequence[str]) -> list[str]:
         "- [Conditions](#conditions)",
         "- [Primitives](#primitives)",
         "- [Behaviour blocks](#behaviour-blocks)",
+        "",
+    ]
+
+
+def limits_section() -> list[str]:
+    """Every number's physical range and every path's length limit, with the reasons."""
+    from clark_engine.mission.schema_source.common import LIMITS
+
+    return [
+        "## Limits",
+        "",
+        "Every number in a mission, a behaviour block or a hardware profile has a range, "
+        "and every path a length limit. The ranges are physical: wide enough for any small "
+        "unmanned vehicle's mission, narrow enough that nothing `clark validate` accepts can "
+        "overflow the arithmetic and the MAVLink fields behind it. A value outside its range "
+        "is an [[E-RANGE]] finding with the file, the line and the allowed range; a path too "
+        "long, [[E-INCLUDE-PATH]] or [[E-VALUE]]. Each key's own range is in its table below "
+        "(many are narrower than their quantity's).",
+        "",
+        *table(
+            ["Quantity", "Keys", "Range", "Why"],
+            (
+                [md(q, cell=True), md(k, cell=True), md(r, cell=True), md(w, cell=True)]
+                for q, k, r, w in LIMITS
+            ),
+        ),
         "",
     ]
 
@@ -1300,6 +1328,7 @@ def generate() -> str:
     lines: list[str] = []
     for part in (
         intro(sources),
+        limits_section(),
         file_structure(mission),
         mission_section(mission),
         include_section(mission),

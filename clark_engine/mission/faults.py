@@ -17,7 +17,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Final
 
-from clark_engine.mission.schema_source.common import NAME_PATTERN
+from clark_engine.mission.schema_source.common import NAME_PATTERN, TIME_MAX_S
 
 FAULT_KINDS: Final = ("kill", "link_drop", "station_silent", "autopilot_disconnect", "corrupt")
 """Every kind of fault, as written in a mission and on the command line."""
@@ -66,7 +66,10 @@ class FaultProblem:
 def _number(value: Any) -> float | None:
     if isinstance(value, bool) or not isinstance(value, int | float):
         return None
-    return float(value)
+    try:
+        return float(value)
+    except OverflowError:  # a whole number past every float: no time, no share
+        return math.inf if value > 0 else -math.inf
 
 
 def fault_problems(fault: Mapping[str, Any]) -> list[FaultProblem]:
@@ -84,11 +87,12 @@ def fault_problems(fault: Mapping[str, Any]) -> list[FaultProblem]:
     problems: list[FaultProblem] = []
     for key in ("at_s", "from_s", "to_s"):
         value = _number(body.get(key))
-        if value is not None and not (math.isfinite(value) and value >= 0):
+        if value is not None and not (math.isfinite(value) and 0 <= value <= TIME_MAX_S):
             problems.append(
                 FaultProblem(
                     "E-FAULT-WINDOW",
-                    f"{key} {value:g} is not a time; give seconds from the start (0 or more)",
+                    f"{key} {value:g} is not a time of a run; give seconds from the start "
+                    f"(0 to {TIME_MAX_S})",
                 )
             )
     start, end = _number(body.get("from_s")), _number(body.get("to_s"))

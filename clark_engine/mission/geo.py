@@ -62,6 +62,10 @@ def to_global(point: LocalPoint, origin: Origin) -> tuple[float, float, float]:
     lon = origin.lon_deg + math.degrees(
         point.east_m / (EARTH_RADIUS_M * math.cos(math.radians(origin.lat_deg)))
     )
+    if not -180.0 <= lon <= 180.0:
+        # Across the antimeridian, or metres east of an origin a metre from a pole (where a
+        # degree of longitude is a few centimetres): the same meridian, in range.
+        lon = (lon + 180.0) % 360.0 - 180.0
     return lat, lon, point.up_m
 
 

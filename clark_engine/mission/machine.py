@@ -24,6 +24,7 @@ from clark_engine.mission.blocks import Block, BlockLibrary
 from clark_engine.mission.findings import DocPath, Finding, Location, error
 from clark_engine.mission.model import State, Transition
 from clark_engine.mission.primitives import PRIMITIVES
+from clark_engine.mission.schema_source.common import TIME_MAX_S
 from clark_engine.mission.schemas import validate_data
 from clark_engine.mission.yaml_loader import Document
 
@@ -119,7 +120,7 @@ class BehaviorResolver:
             location=loc,
             mission_use=frame.use_sites[0] if frame.use_sites else None,
             final=bool(raw.get("final", False)),
-            timeout_s=raw.get("timeout_s"),
+            timeout_s=_timeout_s(raw.get("timeout_s")),
             timeout_location=(
                 frame.locator.location((*src, "timeout_s")) if "timeout_s" in raw else None
             ),
@@ -483,6 +484,18 @@ class BehaviorResolver:
                 transition.target = resolved
         for child in state.children.values():
             self._resolve_targets(root, child)
+
+
+def _timeout_s(value: Any) -> float | None:
+    """A state's timeout when it is one the schema accepts; None otherwise.
+
+    The schema reports a timeout out of range (E-RANGE) and the state is still resolved,
+    so that the rest of its errors are found too: the checks that follow must not do
+    arithmetic on ``10**400`` (OverflowError) or a word.
+    """
+    if isinstance(value, int | float) and not isinstance(value, bool) and 0 < value <= TIME_MAX_S:
+        return float(value)
+    return None
 
 
 def _name_hint(written: str, names: list[str]) -> str:

@@ -6,12 +6,38 @@ back in findings, and its ``key_file`` could probe whether a file exists elsewhe
 what its mode is. So every path a mission writes is confined: relative, and inside the
 mission's own folder (symbolic links resolved) or one of the shipped data folders. A path
 that breaks the rule is refused before anything is opened.
+
+A path is also bounded in length before any filesystem call: a fuzzed mission's
+6,000-character include path raised ``OSError: File name too long`` out of
+``Path.resolve()``. The limits are the schema's (:data:`MAX_PATH_CHARS` in all,
+:data:`MAX_NAME_BYTES` per file or folder name, what every common filesystem allows).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path, PurePosixPath, PureWindowsPath
+
+from clark_engine.mission.schema_source.common import MAX_NAME_BYTES, MAX_PATH_CHARS
+
+
+def too_long(written: str, max_chars: int = MAX_PATH_CHARS) -> str | None:
+    """Why a path is too long to hand to the filesystem, or None when it is not.
+
+    Checked on the text alone (no filesystem call): at most ``max_chars`` characters, and
+    no file or folder name over :data:`MAX_NAME_BYTES` bytes of UTF-8. The reason quotes
+    neither the path nor the name whole.
+    """
+    if len(written) > max_chars:
+        return f"it is {len(written)} characters long, and a path may be at most {max_chars}"
+    for part in written.replace("\\", "/").split("/"):
+        size = len(part.encode("utf-8", "surrogatepass"))
+        if size > MAX_NAME_BYTES:
+            return (
+                f"its name {part[:20]!r}... is {size} bytes long, and a file or folder name "
+                f"may be at most {MAX_NAME_BYTES} bytes"
+            )
+    return None
 
 
 def confine(base: Path, written: str, allowed: Sequence[Path] = ()) -> tuple[Path | None, str]:
@@ -28,6 +54,9 @@ def confine(base: Path, written: str, allowed: Sequence[Path] = ()) -> tuple[Pat
     """
     if not written.strip() or "\x00" in written:
         return None, "it is empty" if not written.strip() else "it holds a NUL character"
+    long = too_long(written)
+    if long is not None:
+        return None, long
     if PurePosixPath(written).is_absolute() or PureWindowsPath(written).is_absolute():
         return None, "it is an absolute path"
     if written.startswith("~"):
@@ -35,7 +64,7 @@ def confine(base: Path, written: str, allowed: Sequence[Path] = ()) -> tuple[Pat
     home = base.resolve()
     try:
         full = (home / written).resolve()
-    except (OSError, RuntimeError):  # a symbolic link loop
+    except (OSError, RuntimeError):  # a symbolic link loop, or a mission folder near PATH_MAX
         return None, "it cannot be resolved"
     for folder in (home, *(a.resolve() for a in allowed)):
         if full == folder or full.is_relative_to(folder):

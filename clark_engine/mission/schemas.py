@@ -12,6 +12,7 @@ from __future__ import annotations
 import difflib
 import functools
 import json
+import math
 import re
 from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
@@ -66,9 +67,37 @@ def validator(name: str) -> Draft202012Validator:
     return Draft202012Validator(schema)
 
 
+def show_number(value: int | float) -> str:
+    """A number as a message quotes it: short, whatever its size.
+
+    ``repr`` would write out all 401 digits of ``10**400``, and raises ``ValueError``
+    past Python's 4300-digit limit (a hexadecimal ``0x`` literal has none); ``float()``
+    of it raises ``OverflowError``. A huge whole number is shown in scientific notation,
+    or by its count of digits when no float holds it.
+    """
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**15:
+        try:
+            return f"{float(value):.4g}"
+        except OverflowError:
+            digits = int(abs(value).bit_length() * math.log10(2)) + 1
+            return f"a {digits}-digit number"
+    return repr(value)
+
+
+def quote(value: Any) -> str:
+    """A value as a message quotes it: numbers by :func:`show_number`, long text cut short."""
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        return show_number(value)
+    if isinstance(value, str) and len(value) > 60:
+        return f"{value[:40]!r}... ({len(value)} characters)"
+    return repr(value)
+
+
 def _describe_type(value: Any) -> str:
     if isinstance(value, bool):
         return f"{str(value).lower()}"
+    if isinstance(value, int | float):
+        return show_number(value)
     if isinstance(value, dict):
         return "a mapping"
     if isinstance(value, list):
@@ -76,7 +105,7 @@ def _describe_type(value: Any) -> str:
     if value is None:
         return "nothing"
     if isinstance(value, str):
-        return f"the text {value!r}"
+        return f"the text {quote(value)}"
     return repr(value)
 
 
@@ -137,7 +166,7 @@ def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Fin
         yield error(
             "E-NAME",
             doc.location((*path, key), key=True),
-            f"{key!r} is not a valid name here; {_pattern_advice(err)}",
+            f"{quote(key)} is not a valid name here; {_pattern_advice(err)}",
         )
         return
     if kind == "not":
@@ -233,16 +262,17 @@ def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Fin
         yield error(
             "E-RANGE",
             doc.location(path),
-            f"{instance!r}{unit} is {relation}; give a value {allowed}",
+            f"{show_number(instance)}{unit} is {relation}; give a value {allowed}",
         )
         return
     if kind in ("enum", "const"):
         options = err.validator_value if kind == "enum" else [err.validator_value]
         listing = ", ".join(str(o) for o in options)
+        written = instance if isinstance(instance, str) else quote(instance)
         yield error(
             "E-VALUE",
             doc.location(path),
-            f"{instance!r} is not allowed here{_suggest(str(instance), map(str, options))}; "
+            f"{quote(instance)} is not allowed here{_suggest(written, map(str, options))}; "
             f"choose one of: {listing}",
         )
         return
@@ -251,7 +281,7 @@ def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Fin
         yield error(
             code,
             doc.location(path),
-            f"{instance!r} is not valid here; {_pattern_advice(err)}",
+            f"{quote(instance)} is not valid here; {_pattern_advice(err)}",
         )
         return
     if kind == "uniqueItems":
@@ -261,6 +291,14 @@ def _convert(err: ValidationError, doc: Document, base: DocPath) -> Iterator[Fin
         return
     if kind == "minLength":
         yield error("E-VALUE", doc.location(path), "this must not be empty; write a value")
+        return
+    if kind == "maxLength":
+        yield error(
+            "E-VALUE",
+            doc.location(path),
+            f"this is {len(instance)} characters long; write at most {err.validator_value} "
+            "characters here",
+        )
         return
     if kind in ("minItems", "maxItems", "minProperties", "maxProperties"):
         singular, plural = ("item", "items") if "Items" in kind else ("entry", "entries")

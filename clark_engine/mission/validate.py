@@ -32,7 +32,7 @@ from clark_engine.mission.model import (
     Mission,
     Telemetry,
 )
-from clark_engine.mission.paths import confine
+from clark_engine.mission.paths import confine, too_long
 from clark_engine.mission.profiles import HardwareResolver, ProfileLibrary
 from clark_engine.mission.schemas import validate_data
 from clark_engine.mission.yaml_loader import Document, YamlLoadError, decode_text, load_yaml
@@ -73,6 +73,10 @@ def display_path(path: Path) -> str:
         return str(path)
 
 
+#: Longest file path a command reads (characters): Linux's PATH_MAX.
+MAX_COMMAND_PATH_CHARS = 4096
+
+
 def read_source(path: Path) -> bytes:
     """Read a file the user named, turning OS errors into usage errors (exit code 2).
 
@@ -80,9 +84,15 @@ def read_source(path: Path) -> bytes:
         UsageError: Missing, a directory, or unreadable.
     """
     shown = str(path)
-    if path.is_dir():
-        raise UsageError(f"{shown} is a directory; give a mission file (e.g. {shown}/mission.yaml)")
+    # Before any filesystem call: Path.is_dir() raises on a name too long for the system.
+    long = too_long(shown, MAX_COMMAND_PATH_CHARS)
+    if long is not None:
+        raise UsageError(f"{shown[:60]}...: the path is too long ({long})")
     try:
+        if path.is_dir():
+            raise UsageError(
+                f"{shown} is a directory; give a mission file (e.g. {shown}/mission.yaml)"
+            )
         return path.read_bytes()
     except FileNotFoundError:
         raise UsageError(f"{shown}: no such file") from None
@@ -94,7 +104,14 @@ def read_source(path: Path) -> bytes:
 
 #: Findings that already explain a value, after which a schema type error there says nothing new.
 _EXPLAINING = frozenset(
-    {"E-YAML-BOOL-WORD", "E-YAML-VALUE", "E-YAML-TAG", "E-BLOCK-PARAM", "E-STATE-UNKNOWN"}
+    {
+        "E-YAML-BOOL-WORD",
+        "E-YAML-VALUE",
+        "E-YAML-TAG",
+        "E-BLOCK-PARAM",
+        "E-STATE-UNKNOWN",
+        "E-INCLUDE-PATH",
+    }
 )
 _GENERIC = frozenset({"E-TYPE", "E-VALUE", "E-FORMAT", "E-NAME"})
 
@@ -209,6 +226,17 @@ def _libraries(
     for key, dirs in (("hardware_profiles", profile_dirs), ("behaviors", block_dirs)):
         for i, folder in enumerate(include.get(key) or []):
             if not isinstance(folder, str):
+                continue
+            long = too_long(folder)
+            if long is not None:
+                findings.append(
+                    error(
+                        "E-INCLUDE-PATH",
+                        doc.location(("include", key, i)),
+                        f"this folder's path is too long: {long}; name a folder next to the "
+                        "mission, e.g. my_" + key,
+                    )
+                )
                 continue
             shipped = [data_dir("hardware_profiles"), data_dir("behaviors")]
             confined, why = confine(path.parent, folder, shipped)

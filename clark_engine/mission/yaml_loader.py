@@ -41,6 +41,13 @@ MAX_DEPTH = 64
 #: Values the loader may build beyond the ones written out in the file (alias expansion).
 MAX_ALIAS_EXPANSION = 10_000
 
+#: Most digits a whole number may have. No setting takes more than ten; past 4300, Python
+#: will not turn a number into text (a ``0x`` literal of 5,000 digits is read, then
+#: breaks every message that quotes it, jsonschema's own included).
+MAX_INT_DIGITS = 1000
+#: The same bound in bits, for ``0x`` and ``0o`` literals (10^1000 is about 2^3322).
+_MAX_INT_BITS = 3322
+
 BOOL_WORDS = frozenset({"yes", "no", "on", "off"})
 
 _STR = "tag:yaml.org,2002:str"
@@ -290,14 +297,25 @@ class _Builder:
                 return value
             return value.lower() == "true"
         if tag == _INT:
+            digits = len(value.lstrip("+-"))
             try:
                 if value[:2] in ("0o", "0x"):
-                    return int(value, 0)
+                    whole = int(value, 0)
+                    if whole.bit_length() > _MAX_INT_BITS:
+                        digits = int(whole.bit_length() * math.log10(2)) + 1
+                        raise ValueError("too many digits")
+                    return whole
+                if digits > MAX_INT_DIGITS:
+                    raise ValueError("too many digits")
                 return int(value, 10)
             except ValueError:
-                self.doc.findings.append(
-                    error("E-YAML-VALUE", self.loc(node, path), f"{value!r} is not an integer")
+                what = (
+                    f"this whole number has about {digits} digits, more than any setting "
+                    "takes; write a value in the setting's range"
+                    if digits > MAX_INT_DIGITS
+                    else f"{value!r} is not an integer"
                 )
+                self.doc.findings.append(error("E-YAML-VALUE", self.loc(node, path), what))
                 return value
         # float
         try:

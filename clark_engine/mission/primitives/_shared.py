@@ -19,7 +19,16 @@ from clark_engine.mission.findings import Finding, Location, error, warning
 from clark_engine.mission.geo import LocalPoint, Origin, parse_point, to_global
 from clark_engine.mission.model import Channel
 from clark_engine.mission.primitives.base import UseContext
-from clark_engine.mission.schema_source.common import NAME_PATTERN, Schema, number, string
+from clark_engine.mission.schema_source.common import (
+    NAME_PATTERN,
+    Schema,
+    altitude_m,
+    distance_m,
+    number,
+    position_m,
+    speed_m_s,
+    string,
+)
 
 POINT_SCHEMA: Schema = {
     "description": (
@@ -35,9 +44,9 @@ POINT_SCHEMA: Schema = {
         {
             "type": "array",
             "prefixItems": [
-                number("Metres north of the origin.", unit="m"),
-                number("Metres east of the origin.", unit="m"),
-                number("Metres above the origin.", unit="m"),
+                position_m("Metres north of the origin."),
+                position_m("Metres east of the origin."),
+                altitude_m("Metres above the origin."),
             ],
             "items": False,
             "minItems": 2,
@@ -45,9 +54,9 @@ POINT_SCHEMA: Schema = {
         {
             "type": "object",
             "properties": {
-                "north_m": number("Metres north of the origin.", unit="m"),
-                "east_m": number("Metres east of the origin.", unit="m"),
-                "up_m": number("Metres above the origin.", unit="m", default=0),
+                "north_m": position_m("Metres north of the origin."),
+                "east_m": position_m("Metres east of the origin."),
+                "up_m": altitude_m("Metres above the origin.", default=0),
             },
             "required": ["north_m", "east_m"],
             "additionalProperties": False,
@@ -57,7 +66,7 @@ POINT_SCHEMA: Schema = {
             "properties": {
                 "lat": number("Latitude.", unit="deg", minimum=-90, maximum=90),
                 "lon": number("Longitude.", unit="deg", minimum=-180, maximum=180),
-                "alt_m": number("Metres above the origin's altitude.", unit="m", default=0),
+                "alt_m": altitude_m("Metres above the origin's altitude.", default=0),
             },
             "required": ["lat", "lon"],
             "additionalProperties": False,
@@ -81,19 +90,17 @@ VIA_SCHEMA: Schema = string(
     default="rc_override",
 )
 
-TOLERANCE_SCHEMA: Schema = number(
+TOLERANCE_SCHEMA: Schema = distance_m(
     "Distance from the target at which it counts as reached.",
-    unit="m",
     exclusive_minimum=0,
     maximum=1000,
     default=5,
 )
 
-SPEED_SCHEMA: Schema = number(
+SPEED_SCHEMA: Schema = speed_m_s(
     "Speed to fly at (ground speed; airspeed on ArduPlane), asked of the autopilot with "
     "each target; when omitted none is asked, and the autopilot flies its own "
     "(WP_SPEED, WPNAV_SPEED, AIRSPEED_CRUISE).",
-    unit="m/s",
     exclusive_minimum=0,
     maximum=100,
 )

@@ -28,7 +28,7 @@ from clark_engine.mission.primitives._shared import (
     check_agents_exist,
 )
 from clark_engine.mission.primitives.base import PrimitiveSpec, UseContext
-from clark_engine.mission.schema_source.common import boolean, number, obj
+from clark_engine.mission.schema_source.common import altitude_m, boolean, number, obj, position_m
 
 
 def _events(params: Mapping[str, Any]) -> frozenset[str]:
@@ -227,9 +227,9 @@ SPEC = PrimitiveSpec(
             "offset": obj(
                 "Offset from the target's position, in metres north/east/up.",
                 {
-                    "north_m": number("Metres north of the target.", unit="m", default=0),
-                    "east_m": number("Metres east of the target.", unit="m", default=0),
-                    "up_m": number("Metres above the target.", unit="m", default=0),
+                    "north_m": position_m("Metres north of the target.", default=0),
+                    "east_m": position_m("Metres east of the target.", default=0),
+                    "up_m": altitude_m("Metres above the target.", default=0),
                 },
             ),
             "retarget_hz": number(

@@ -14,7 +14,7 @@ from typing import Any
 from clark_engine.mission.findings import Finding, error
 from clark_engine.mission.primitives._shared import AGENT_NAME_SCHEMA, check_agents_exist, suggest
 from clark_engine.mission.primitives.base import PrimitiveSpec, UseContext
-from clark_engine.mission.schema_source.common import array, integer, number, obj, string
+from clark_engine.mission.schema_source.common import array, count, number, obj, string
 
 
 def _events(params: Mapping[str, Any]) -> frozenset[str]:
@@ -79,9 +79,7 @@ SPEC = PrimitiveSpec(
             "interval_s": number(
                 "Time between capture requests.", unit="s", exclusive_minimum=0, maximum=3600
             ),
-            "count": integer(
-                "Pictures to take before finishing; unlimited when omitted.", minimum=1
-            ),
+            "count": count("Pictures to take before finishing; unlimited when omitted.", minimum=1),
             "to": array(
                 "Agents that receive Picture Data; every agent when omitted.", AGENT_NAME_SCHEMA
             ),

@@ -20,7 +20,7 @@ from clark_engine.mission.primitives._shared import (
     check_channel_swing,
 )
 from clark_engine.mission.primitives.base import PrimitiveSpec, UseContext, raises_done
-from clark_engine.mission.schema_source.common import number, obj, string
+from clark_engine.mission.schema_source.common import number, obj, string, time_s
 
 MIN_SAMPLES_PER_PERIOD = 2.0
 GOOD_SAMPLES_PER_PERIOD = 5.0
@@ -94,11 +94,11 @@ SPEC = PrimitiveSpec(
                 enum=["linear", "exponential"],
                 default="linear",
             ),
-            "fade_in_s": number(
-                "Time over which the amplitude ramps up from zero.", unit="s", minimum=0, default=0
+            "fade_in_s": time_s(
+                "Time over which the amplitude ramps up from zero.", maximum=3600, default=0
             ),
-            "fade_out_s": number(
-                "Time over which the amplitude ramps down to zero.", unit="s", minimum=0, default=0
+            "fade_out_s": time_s(
+                "Time over which the amplitude ramps down to zero.", maximum=3600, default=0
             ),
             "via": VIA_SCHEMA,
         },

@@ -22,7 +22,7 @@ from clark_engine.mission.primitives._shared import (
     check_height_margin,
 )
 from clark_engine.mission.primitives.base import PrimitiveSpec, UseContext, raises_done
-from clark_engine.mission.schema_source.common import number, obj
+from clark_engine.mission.schema_source.common import altitude_m, distance_m, obj
 
 
 def _check(ctx: UseContext) -> Iterator[Finding]:
@@ -49,17 +49,13 @@ SPEC = PrimitiveSpec(
     params=obj(
         "Parameters of takeoff.",
         {
-            "alt_m": number(
+            "alt_m": altitude_m(
                 "Altitude above the mission origin to climb to; at most the vehicle's "
                 "envelope ceiling.",
-                unit="m",
                 exclusive_minimum=0,
             ),
-            "tolerance_m": number(
-                "How far below alt_m counts as there.",
-                unit="m",
-                minimum=0,
-                default=1,
+            "tolerance_m": distance_m(
+                "How far below alt_m counts as there.", maximum=1000, default=1
             ),
         },
         required=["alt_m"],

@@ -18,7 +18,15 @@ from clark_engine.mission.envelope import (
     OUTSIDE_ACTIONS,
 )
 from clark_engine.mission.primitives._shared import AGENT_NAME_SCHEMA, POINT_SCHEMA
-from clark_engine.mission.schema_source.common import Schema, array, number, obj, string
+from clark_engine.mission.schema_source.common import (
+    Schema,
+    array,
+    distance_m,
+    number,
+    obj,
+    string,
+    time_s,
+)
 
 
 def _zone() -> Schema:
@@ -32,7 +40,7 @@ def _zone() -> Schema:
         "A circle on the ground.",
         {
             "center": POINT_SCHEMA | {"description": "Its centre; a height is ignored."},
-            "radius_m": number("Its radius.", unit="m", exclusive_minimum=0, maximum=100_000),
+            "radius_m": distance_m("Its radius.", exclusive_minimum=0, maximum=100_000),
         },
         required=["center", "radius_m"],
     )
@@ -161,11 +169,10 @@ def agent_envelope_schema() -> Schema:
         "zones of its own added to the mission's), and sets its own actions and endurance.",
         {
             **_shared_keys(),
-            "endurance_s": number(
+            "endurance_s": time_s(
                 "How long the vehicle may be armed (its battery, with a reserve): past it "
                 "the on_breach action brings it back. The airframe's endurance_s when "
                 "omitted.",
-                unit="s",
                 exclusive_minimum=0,
                 maximum=86400,
             ),

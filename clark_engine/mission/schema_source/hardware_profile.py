@@ -31,15 +31,26 @@ from typing import Any
 from clark_engine.mission.schema_source.common import (
     DIALECT,
     NAME_PATTERN,
+    SPEED_MAX_M_S,
     Schema,
+    altitude_m,
     array,
     boolean,
+    distance_m,
     integer,
+    length_m,
+    mass_kg,
     number,
     obj,
+    rate_hz,
     schema_id,
     string,
+    time_s,
 )
+
+#: Largest magnitude of an ArduPilot parameter a profile sets: 2^24, the largest whole
+#: number a 32-bit float (how ArduPilot stores parameters) holds exactly.
+PARAMETER_LIMIT = 2**24
 
 #: The six kinds of profile, in the order the guide presents them.
 KINDS: tuple[str, ...] = ("airframe", "autopilot", "radio", "computer", "payload", "platform")
@@ -311,26 +322,21 @@ def _common_properties(*, kind: str | None = None) -> dict[str, Schema]:
 
 
 def _airframe_properties() -> dict[str, Schema]:
-    speed: dict[str, Any] = {"unit": "m/s", "minimum": 0}
+    speed: dict[str, Any] = {"unit": "m/s", "minimum": 0, "maximum": SPEED_MAX_M_S}
     return {
         "class": string(
             "Airframe class; selects the simulator's vehicle model and the controls it can have.",
             enum=list(CONTROLS_BY_CLASS),
         ),
-        "mass_kg": number(
-            "Empty flying mass without payload, in kilograms.", unit="kg", exclusive_minimum=0
-        ),
-        "wingspan_m": number("Wingspan, in metres.", unit="m", exclusive_minimum=0),
-        "wheelbase_m": number(
+        "mass_kg": mass_kg("Empty flying mass without payload, in kilograms.", exclusive_minimum=0),
+        "wingspan_m": length_m("Wingspan, in metres.", exclusive_minimum=0),
+        "wheelbase_m": length_m(
             "Diagonal motor-to-motor distance of a multirotor (or axle distance of a rover), "
             "in metres.",
-            unit="m",
             exclusive_minimum=0,
         ),
-        "length_m": number("Overall length, in metres.", unit="m", exclusive_minimum=0),
-        "max_payload_kg": number(
-            "Largest payload mass the airframe carries, in kilograms.", unit="kg", minimum=0
-        ),
+        "length_m": length_m("Overall length, in metres.", exclusive_minimum=0),
+        "max_payload_kg": mass_kg("Largest payload mass the airframe carries, in kilograms."),
         "cruise_speed_m_s": number(
             "The speed the vehicle is normally flown or driven at, in metres per second. "
             "Never asked of the autopilot (guided legs fly the mission's speed_m_s or the "
@@ -363,16 +369,15 @@ def _airframe_properties() -> dict[str, Schema]:
             exclusive_minimum=0,
             maximum=80,
         ),
-        "max_altitude_m": number(
+        "max_altitude_m": altitude_m(
             "Service ceiling above ground that a simulator may let the vehicle reach, in metres "
             "(0 for a rover). A mission's own ceiling is set in the mission.",
-            unit="m",
             minimum=0,
         ),
-        "endurance_s": number(
+        "endurance_s": time_s(
             "Typical flight or drive time on one battery, in seconds.",
-            unit="s",
             exclusive_minimum=0,
+            maximum=86400,
         ),
         "controls": {
             **array(
@@ -594,7 +599,12 @@ def _autopilot_properties() -> dict[str, Schema]:
                 "pattern": "^[A-Z][A-Z0-9_]{0,15}$",
                 "description": "An ArduPilot parameter name (upper case, at most 16 characters).",
             },
-            "additionalProperties": {"type": "number", "description": "Its value."},
+            "additionalProperties": number(
+                "Its value. ArduPilot keeps parameters as 32-bit floats, which hold every "
+                "whole number up to 2^24 exactly; no parameter a profile sets goes beyond.",
+                minimum=-PARAMETER_LIMIT,
+                maximum=PARAMETER_LIMIT,
+            ),
         },
         "rc_channel_count": integer(
             "Number of RC input channels the autopilot reports.",
@@ -655,9 +665,10 @@ def _radio_properties() -> dict[str, Schema]:
         },
         "throughput_bps": number(
             "Measured application throughput, in bits per second; the link budget check "
-            "compares all agents' telemetry against it.",
+            "compares all agents' telemetry against it. At most 10 Gbit/s.",
             unit="bit/s",
             exclusive_minimum=0,
+            maximum=10**10,
         ),
         "max_packet_bytes": integer(
             "Largest payload one packet may carry, in bytes; no ClarkLink bundle may exceed it.",
@@ -670,11 +681,11 @@ def _radio_properties() -> dict[str, Schema]:
             "transmit request: 18; IPv4 + UDP headers: 28), in bytes.",
             unit="byte",
             minimum=0,
+            maximum=65535,
         ),
         "range_m": _nullable(
-            number(
+            distance_m(
                 "Range the mission's waypoints must stay within, from the station, in metres.",
-                unit="m",
                 exclusive_minimum=0,
             ),
             "null or absent: unlimited.",
@@ -718,15 +729,16 @@ def _radio_rules() -> list[Schema]:
 
 def _computer_properties() -> dict[str, Schema]:
     return {
-        "max_loop_hz": number(
+        "max_loop_hz": rate_hz(
             "Measured highest loop rate the engine holds on this computer, in hertz; a "
             "mission's loop_hz must not exceed it.",
-            unit="Hz",
             exclusive_minimum=0,
         ),
         "cpu": string("Processor, e.g. '900 MHz quad-core ARM Cortex-A7'.", min_length=1),
         "os": string("Operating system, e.g. 'Raspbian Lite'.", min_length=1),
-        "ram_mb": integer("Memory, in mebibytes.", unit="MB", minimum=1),
+        "ram_mb": integer(
+            "Memory, in mebibytes (at most 1 TiB).", unit="MB", minimum=1, maximum=2**20
+        ),
     }
 
 
@@ -762,17 +774,19 @@ def _payload_properties() -> dict[str, Schema]:
             enum=["ascii"],
             default="ascii",
         ),
-        "min_interval_s": number(
+        "min_interval_s": time_s(
             "Shortest time between two capture requests, in seconds; photo_trigger may not ask "
             "more often.",
-            unit="s",
-            minimum=0,
+            maximum=3600,
         ),
-        "capture_delay_s": number(
-            "Time from a capture request to its confirmation, in seconds.", unit="s", minimum=0
+        "capture_delay_s": time_s(
+            "Time from a capture request to its confirmation, in seconds.", maximum=3600
         ),
         "resolution_mp": number(
-            "Sensor resolution, in megapixels (cameras).", unit="MP", exclusive_minimum=0
+            "Sensor resolution, in megapixels (cameras).",
+            unit="MP",
+            exclusive_minimum=0,
+            maximum=10_000,
         ),
     }
 
@@ -786,10 +800,10 @@ def _gui_schema() -> Schema:
                 "host:port the station serves the operator's view on.",
                 default="127.0.0.1:5600",
             ),
-            "timeout_s": number(
+            "timeout_s": time_s(
                 "The view counts as disconnected after this long without contact, in seconds.",
-                unit="s",
                 exclusive_minimum=0,
+                maximum=86400,
                 default=5,
             ),
         },

@@ -16,13 +16,21 @@ from clark_engine.mission.schema_source.common import (
     DIALECT,
     NAME_PATTERN,
     Schema,
+    altitude_m,
     array,
     boolean,
+    count,
+    distance_m,
     integer,
     number,
     obj,
+    origin_amsl_m,
+    path_string,
+    rate_hz,
     schema_id,
+    share,
     string,
+    time_s,
 )
 from clark_engine.mission.schema_source.envelope import (
     agent_envelope_schema,
@@ -38,6 +46,9 @@ from clark_engine.mission.schema_source.states import STATE_PATH_PATTERN, state_
 
 #: Highest telemetry rate a mission may ask for; far above any radio's budget.
 MAX_TELEMETRY_HZ = 100
+#: Largest random seed: 2^32 seeds are more runs than anyone makes, and a bound keeps a
+#: pasted 400-digit number out of the report's command line.
+SEED_MAX = 2**32 - 1
 
 _MESSAGE_DESCRIPTIONS = {
     "heartbeat": "Heartbeat: mission id, agent type, ClarkLink version, condition; peers add "
@@ -172,17 +183,15 @@ def _check() -> Schema:
         "An expectation the dry run evaluates; exactly one kind per item.",
         {
             "name": string("A label for the report."),
-            "by_s": number(
-                "Simulated time by which the expectation must hold.", unit="s", minimum=0
-            ),
+            "by_s": time_s("Simulated time by which the expectation must hold."),
             "distance_m": obj(
                 "Distance between two agents: with max, they come within max of each other "
                 "by by_s; with min, they are at least min apart at by_s. 3-D when either is "
                 "an aircraft (any airframe but a rover); on the ground between two rovers.",
                 {
                     "between": agents2,
-                    "max": number("Largest allowed distance.", unit="m", minimum=0),
-                    "min": number("Smallest allowed distance.", unit="m", minimum=0),
+                    "max": distance_m("Largest allowed distance."),
+                    "min": distance_m("Smallest allowed distance."),
                 },
                 required=["between"],
             ),
@@ -192,8 +201,8 @@ def _check() -> Schema:
                 {
                     "agent": AGENT_NAME_SCHEMA,
                     "to": POINT_SCHEMA,
-                    "tolerance_m": number(
-                        "Distance that counts as reached.", unit="m", exclusive_minimum=0, default=5
+                    "tolerance_m": distance_m(
+                        "Distance that counts as reached.", exclusive_minimum=0, default=5
                     ),
                 },
                 required=["agent", "to"],
@@ -202,7 +211,7 @@ def _check() -> Schema:
                 "Minimum distance between any two of the vehicles at every moment: 3-D for "
                 "a pair with an aircraft, on the ground between two rovers.",
                 {
-                    "min": number("Smallest allowed separation.", unit="m", minimum=0),
+                    "min": distance_m("Smallest allowed separation."),
                     "agents": array(
                         "Vehicles to consider; all when omitted.", AGENT_NAME_SCHEMA, min_items=2
                     ),
@@ -215,8 +224,8 @@ def _check() -> Schema:
                 "min, max or both.",
                 {
                     "agent": AGENT_NAME_SCHEMA,
-                    "min": number("Lowest allowed altitude above the origin.", unit="m"),
-                    "max": number("Highest allowed altitude above the origin.", unit="m"),
+                    "min": altitude_m("Lowest allowed altitude above the origin."),
+                    "max": altitude_m("Highest allowed altitude above the origin."),
                 },
                 required=["agent"],
             ),
@@ -227,8 +236,8 @@ def _check() -> Schema:
                 {
                     "agent": AGENT_NAME_SCHEMA,
                     "to": POINT_SCHEMA,
-                    "within_m": number(
-                        "Largest distance from the point.", unit="m", exclusive_minimum=0, default=5
+                    "within_m": distance_m(
+                        "Largest distance from the point.", exclusive_minimum=0, default=5
                     ),
                 },
                 required=["agent", "to"],
@@ -258,8 +267,8 @@ def _check() -> Schema:
                 "Number of pictures an agent takes over the run.",
                 {
                     "agent": AGENT_NAME_SCHEMA,
-                    "min": integer("Fewest pictures.", minimum=0),
-                    "max": integer("Most pictures.", minimum=0),
+                    "min": count("Fewest pictures."),
+                    "max": count("Most pictures."),
                 },
                 required=["agent"],
             ),
@@ -297,8 +306,8 @@ def _check() -> Schema:
 
 def _window() -> dict[str, Schema]:
     return {
-        "from_s": number("Start of the fault, simulated time.", unit="s", minimum=0),
-        "to_s": number("End of the fault, simulated time.", unit="s", exclusive_minimum=0),
+        "from_s": time_s("Start of the fault, simulated time."),
+        "to_s": time_s("End of the fault, simulated time.", exclusive_minimum=0),
     }
 
 
@@ -308,7 +317,7 @@ def _operator() -> Schema:
         "Something the station operator or a pilot does during a dry run, at a time; "
         "exactly one action per item.",
         {
-            "at_s": number("When, in simulated seconds from the start.", unit="s", minimum=0),
+            "at_s": time_s("When, in simulated seconds from the start."),
             "activate": target | {"description": "Activate Controller to this agent (or all)."},
             "deactivate": target
             | {"description": "Deactivate the controller of this agent (or all)."},
@@ -339,7 +348,7 @@ def _fault() -> Schema:
             "kill": obj(
                 "An agent's mission computer dies: its runtime stops and its radio goes "
                 "silent; the autopilot flies on in its last mode.",
-                {"agent": AGENT_NAME_SCHEMA, "at_s": number("When.", unit="s", minimum=0)},
+                {"agent": AGENT_NAME_SCHEMA, "at_s": time_s("When.")},
                 required=["agent", "at_s"],
             ),
             "link_drop": obj(
@@ -364,7 +373,7 @@ def _fault() -> Schema:
             "corrupt": obj(
                 "A share of the radio packets delivered arrive with bytes flipped.",
                 {
-                    "share": number("Share of packets corrupted.", minimum=0, maximum=1),
+                    "share": share("Share of packets corrupted."),
                     **_window(),
                 },
                 required=["share"],
@@ -377,27 +386,27 @@ def _sim() -> Schema:
     return obj(
         "How the dry run simulates this mission (clark dry-run).",
         {
-            "duration_s": number(
+            "duration_s": time_s(
                 "How long to simulate when --until is not given.",
-                unit="s",
                 exclusive_minimum=0,
                 maximum=86400,
                 default=300,
             ),
-            "seed": integer("Random seed when --seed is not given.", minimum=0, default=0),
-            "radio_loss": number(
-                "Share of packets lost at random, before range losses.",
+            "seed": integer(
+                "Random seed when --seed is not given (up to 2^32 - 1).",
                 minimum=0,
-                maximum=1,
-                default=0.0,
+                maximum=SEED_MAX,
+                default=0,
             ),
-            "radio_latency_s": number(
-                "Latency of the radio beyond serialisation.", unit="s", minimum=0, default=0.005
+            "radio_loss": share(
+                "Share of packets lost at random, before range losses.", default=0.0
             ),
-            "gps_noise_m": number(
+            "radio_latency_s": time_s(
+                "Latency of the radio beyond serialisation.", maximum=60, default=0.005
+            ),
+            "gps_noise_m": distance_m(
                 "Standard deviation of simulated GPS error (thesis 5.1.5: 0.62 m mean error).",
-                unit="m",
-                minimum=0,
+                maximum=1000,
                 default=0.5,
             ),
             "autopilot_ready_s": number(
@@ -489,12 +498,10 @@ def build() -> dict[str, Any]:
                         pattern=r"^[a-z0-9][a-z0-9_-]*$",
                     ),
                     "description": string("What the mission is for, in your words."),
-                    "loop_hz": number(
+                    "loop_hz": rate_hz(
                         "Rate of every agent's loop: one tick steps behaviour, commands and "
                         "telemetry.",
-                        unit="Hz",
                         exclusive_minimum=0,
-                        maximum=1000,
                     ),
                     "heartbeat_timeout_s": number(
                         "Silence after which a peer counts as lost.",
@@ -511,25 +518,21 @@ def build() -> dict[str, Any]:
                         {
                             "lat": number("Latitude.", unit="deg", minimum=-90, maximum=90),
                             "lon": number("Longitude.", unit="deg", minimum=-180, maximum=180),
-                            "alt_amsl_m": number(
+                            "alt_amsl_m": origin_amsl_m(
                                 "Height of the ground at the origin above mean sea level "
                                 "(a survey, a map, or the autopilot's home on the field). "
                                 "Altitudes above the origin are worked out from it, so a "
                                 "vehicle on the ground that reads more than 10 m above or "
-                                "below the origin does not start its behaviour.",
-                                unit="m",
-                                minimum=-500,
-                                maximum=9000,
+                                "below the origin does not start its behaviour."
                             ),
                         },
                         required=["lat", "lon", "alt_amsl_m"],
                     ),
-                    "key_file": string(
+                    "key_file": path_string(
                         "File holding the mission's 32-byte ClarkLink key (made by clark "
                         "keygen), relative to this file and inside its folder (no absolute "
                         "path, no ..). With a key every packet is authenticated; without one, "
-                        "commands from the station are not.",
-                        min_length=1,
+                        "commands from the station are not."
                     ),
                     "log_level": string(
                         "Level of the mission and interface logs.",
@@ -543,9 +546,11 @@ def build() -> dict[str, Any]:
                 "Extra folders of your own, relative to this file and inside its folder "
                 "(no absolute path, no ..), searched besides the shipped ones.",
                 {
-                    "behaviors": array("Folders of behaviour block files.", string("A folder.")),
+                    "behaviors": array(
+                        "Folders of behaviour block files.", path_string("A folder.")
+                    ),
                     "hardware_profiles": array(
-                        "Folders of hardware profile files.", string("A folder.")
+                        "Folders of hardware profile files.", path_string("A folder.")
                     ),
                 },
             ),

@@ -8,16 +8,21 @@ each primitive is checked against that primitive's own parameter schema.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from clark_engine.mission.primitives import PRIMITIVES
 from clark_engine.mission.primitives._shared import AGENT_NAME_SCHEMA
 from clark_engine.mission.schema_source.common import (
     NAME_PATTERN,
     Schema,
+    altitude_m,
     array,
     boolean,
-    number,
+    distance_m,
     obj,
+    speed_m_s,
     string,
+    time_s,
 )
 
 STATE_PATH_PATTERN = r"^[a-z][a-z0-9_]*(\.[a-z][a-z0-9_]*)*$"
@@ -29,12 +34,13 @@ EVENT_DESCRIPTION = (
 )
 
 
-def _bounds(description: str, unit: str) -> Schema:
+def _bounds(description: str, quantity: Callable[..., Schema]) -> Schema:
+    """``{lt, gt}`` of one quantity, each in that quantity's range."""
     return obj(
         description,
         {
-            "lt": number("Holds while the value is below this.", unit=unit),
-            "gt": number("Holds while the value is above this.", unit=unit),
+            "lt": quantity("Holds while the value is below this."),
+            "gt": quantity("Holds while the value is above this."),
         },
     ) | {"minProperties": 1}
 
@@ -53,14 +59,14 @@ def condition_schema() -> Schema:
                 "Ground distance from this agent to another agent's last reported position.",
                 {
                     "to": AGENT_NAME_SCHEMA,
-                    "lt": number("Holds while the distance is below this.", unit="m", minimum=0),
-                    "gt": number("Holds while the distance is above this.", unit="m", minimum=0),
+                    "lt": distance_m("Holds while the distance is below this."),
+                    "gt": distance_m("Holds while the distance is above this."),
                 },
                 required=["to"],
             ),
-            "altitude_m": _bounds("This agent's altitude above the origin.", "m"),
-            "speed_m_s": _bounds("This agent's ground speed.", "m/s"),
-            "in_state_s": _bounds("Time since the current state was entered.", "s"),
+            "altitude_m": _bounds("This agent's altitude above the origin.", altitude_m),
+            "speed_m_s": _bounds("This agent's ground speed.", speed_m_s),
+            "in_state_s": _bounds("Time since the current state was entered.", time_s),
             "mode": obj(
                 "This agent's autopilot mode.",
                 {"is": string("Mode name of the agent's autopilot firmware.")},
@@ -148,9 +154,8 @@ def state_schema(*, check_params: bool = True) -> Schema:
             "final": boolean(
                 "Reaching this state finishes its parent, raising done on it.", default=False
             ),
-            "timeout_s": number(
+            "timeout_s": time_s(
                 "Raise the timeout event this long after entering the state.",
-                unit="s",
                 exclusive_minimum=0,
                 maximum=86400,
             ),
