@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ipaddress
+import signal
 import socket
 from collections.abc import Iterator
 from pathlib import Path
@@ -15,6 +16,18 @@ from clark_engine.sim.sitl import SitlInstall
 
 ROOT = Path(__file__).resolve().parent.parent
 MISSIONS = sorted((ROOT / "missions").glob("*.yaml"))
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Give Ctrl-C back to a suite started as a background job.
+
+    A shell without job control starts `make test &` with SIGINT ignored, and every child
+    inherits that: the tests that stop a `clark` child with SIGINT, as a person's Ctrl-C,
+    then wait in vain. A Python handler is reset to the default when a child starts, an
+    ignored signal is not.
+    """
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def _is_loopback(address: Any) -> bool:
