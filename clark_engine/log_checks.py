@@ -522,7 +522,7 @@ def file_names(config: AgentConfig) -> dict[str, str]:
     return names
 
 
-CLOCKS_APART_S: Final = 6 * 3600.0
+OTHER_TIME_BASE_S: Final = 6 * 3600.0
 """Agents of one run start within minutes of each other: a GPS time further than this from
 the reference's is another time base (a simulated GPS clock against the system clock),
 not a late start, and aligning by it would spread the run over days."""
@@ -567,7 +567,7 @@ def align_clocks(
         reference = 0.0
         origin = "each agent's own clock (no GPS time in any log)"
     for name, logs in agents.items():
-        if name in offsets and abs(offsets[name] - reference) / 1000 > CLOCKS_APART_S:
+        if name in offsets and abs(offsets[name] - reference) / 1000 > OTHER_TIME_BASE_S:
             apart_s = abs(offsets[name] - reference) / 1000
             shown = f"{apart_s / 86_400:.0f} days" if apart_s >= 86_400 else f"{apart_s:.0f} s"
             logs.shift_s = 0.0

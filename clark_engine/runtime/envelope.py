@@ -236,15 +236,18 @@ def _velocity(status: AgentStatus) -> _Velocity | None:
     )
 
 
+def largest_pair_separation_m(envelope: EnvelopeSpec) -> float:
+    """The largest separation the envelope keeps from any peer (mission-wide or a pair's)."""
+    return max(envelope.min_separation_m, *envelope.separation.values(), 0.0)
+
+
 def largest_separation_m(envelope: EnvelopeSpec) -> float:
     """The farthest from any peer that the watch or the guard acts on.
 
     That is the largest separation, the margin and a breach's clearance (a plane's loiter
     circle is left to :data:`PREDICT_NEAR_M`).
     """
-    return max(envelope.min_separation_m, *envelope.separation.values(), 0.0) + (
-        envelope.margin_m + BREACH_CLEAR_M
-    )
+    return largest_pair_separation_m(envelope) + envelope.margin_m + BREACH_CLEAR_M
 
 
 def _origin(config: AgentConfig) -> Origin:
@@ -801,9 +804,7 @@ class EnvelopeWatch:
         self._last_armed = False
         self._floor_watched = False
         self._active: dict[str, Breach] = {}
-        self._reach_m = (
-            max(envelope.min_separation_m, *envelope.separation.values(), 0.0) + BREACH_CLEAR_M
-        )
+        self._reach_m = largest_pair_separation_m(envelope) + BREACH_CLEAR_M
         """No peer farther than this can be in breach of any pair's separation."""
         self._measured: tuple[float, float, float] | None = None
         """Where the fence margin was last measured: (north, east, margin)."""
