@@ -129,4 +129,6 @@ def test_on_arducopter_and_ardurover_sitl(tmp_path: Path, sitl_install: SitlInst
         tmp_path, origin_amsl_m=90, up_m=12, duration_s=120, sitl=sitl_install
     )
     assert rover_top < 2.0
-    assert 9.0 < copter_top < 15.0
+    # 12 m over a rover whose reported height wanders by a metre or two: ArduCopter SITL's
+    # highest was 15.09 m in one run of a loaded machine (the bug: 102 m).
+    assert 9.0 < copter_top < 18.0
