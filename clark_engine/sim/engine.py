@@ -78,6 +78,7 @@ from clark_engine.sim.recording import FlightEntry, Photo, Recording, StateEntry
 from clark_engine.sim.sitl import Home, SitlInstall, SitlProcess, vehicle_for_firmware
 from clark_engine.sim.sitl_backend import SitlBackend
 from clark_engine.sim.vehicles import make_vehicle
+from clark_engine.sim.wind import sitl_wind_params, wind_field
 
 #: Vehicle physics and autopilot telemetry step.
 PHYSICS_STEP_S = 0.02
@@ -342,6 +343,7 @@ def build_vehicle(
         mode=start_mode,
         rc_override_timeout_s=None,  # the simulated autopilot's RC_OVERRIDE_TIME applies
     )
+    model.set_wind(wind_field(sim, seed))  # sim.wind: one air mass, the same in every copy
     # An aircraft the pilot flew up was powered on long before: ready, home set.
     boot_s = -(max(boot.position_s, boot.prearm_s) + AIRBORNE_BOOTED_S) if airborne else 0.0
     simulated = SimAutopilot.from_profile(
@@ -411,6 +413,7 @@ def build_sitl_vehicle(
             if name in firmware.flight_params
         }
     )
+    params.update(sitl_wind_params(mission.sim))  # sim.wind as SITL's own SIM_WIND_*
     mav = autopilot.get("mavlink") or {}
     process.start()
     backend = SitlBackend(

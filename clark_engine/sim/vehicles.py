@@ -6,8 +6,15 @@ as ArduPilot flies it, with no knowledge of MAVLink. They are point masses with
 first-order attitude dynamics: enough to make a behaviour's commands visible (a
 guided leg flies to its point, an aileron doublet rolls the aircraft, a rover
 stops at its waypoint) and cheap enough that a 50-vehicle dry run at 50 Hz runs
-far faster than real time. They are not flight-dynamics models: no wind, no
-aerodynamic coefficients, no motor or battery model.
+far faster than real time. They are not flight-dynamics models: no
+aerodynamic coefficients, no motor or battery model. A declared wind
+(:mod:`clark_engine.sim.wind`, :meth:`SimulatedVehicle.set_wind`) enters where the
+air's velocity enters each model: a multirotor's drag is on its velocity through
+the air and its position controller leans into the wind it has learnt, within its
+lean limit (a wind stronger than it can lean into carries it away); a fixed wing
+flies its airspeed through the air and steers its track over the ground, banking
+within its limit (a loiter circle drifts downwind where the bank cannot hold it);
+a rover takes none, as SITL's rover takes none.
 
 The project's promise is that what passes the dry run flies on real ArduPilot,
 so a model must never be kinder than ArduPilot: it flies ArduPilot's parameters
@@ -116,6 +123,7 @@ from typing import Any, ClassVar, Final, NamedTuple, Protocol
 from clark_engine.errors import ClarkError
 from clark_engine.mission.geo import EARTH_RADIUS_M, Origin
 from clark_engine.sim.model import LandedState, Truth, VehicleModel
+from clark_engine.sim.wind import WindField
 
 #: Standard gravity, m/s^2.
 G_M_S2 = 9.80665
@@ -244,6 +252,10 @@ COPTER_RTL_SETTLE_S: Final = 2.5
 began the final descent 7.5 s after RTL was set directly above home (no climb, no leg,
 no turn) and 7.15 s after passing over home on a 50 m return, with RTL_LOIT_TIME 5 s."""
 COPTER_RTL_YAW_TOLERANCE_RAD: Final = math.radians(2.0)
+#: Time constant over which a copter's position controller learns a changed wind (the
+#: velocity controller's integrator, ArduCopter PSC_VELXY_I 1.0 / s with P 2.0): a steady
+#: wind is held off after a few seconds, a gust or turbulence pushes it before that.
+COPTER_WIND_LEARN_S: Final = 1.0
 """RTL's loiter above home ends only with the nose within 2 degrees of its heading at
 arming (ArduCopter's RESET_TO_ARMED_YAW): SITL hovered 5-7 s for a 5 s RTL_LOIT_TIME."""
 
@@ -589,6 +601,9 @@ class SimulatedVehicle(VehicleModel):
         self._params: dict[str, float] = dict(self.PARAM_DEFAULTS)
         self._configured = False
         self._command = _CMD_NONE
+        # The air mass (sim.wind): None in still air, which every model flies unchanged.
+        self._wind: WindField | None = None
+        self._air_n = self._air_e = 0.0  # its velocity now, m/s (where it blows to)
 
         # State (subclasses add their own).
         up = start_m[2] if self.airframe_class != "rover" else 0.0
@@ -739,14 +754,37 @@ class SimulatedVehicle(VehicleModel):
             self._refresh_rc()
         advance = self._advance
         now = self.time_s
+        wind = self._wind
         for _ in range(count):
             self._now_s = now
+            if wind is not None:
+                self._air_n, self._air_e = wind.air_velocity(
+                    now, self._u - self.home_m[2], self.airborne
+                )
             advance(h)
             now += h
         self.time_s += dt_s
         self._now_s = self.time_s
         if self.time_s >= self._next_fix_s:
             self._take_fix()
+
+    def set_wind(self, wind: WindField | None) -> None:
+        """Fly in this air mass from now on (None: still air, the default).
+
+        The wind enters each model where the air's velocity enters its dynamics (see
+        each class); a rover ignores it, as ArduPilot SITL's rover does.
+        """
+        self._wind = wind
+        if wind is None:
+            self._air_n = self._air_e = 0.0
+        else:
+            self._air_n, self._air_e = wind.air_velocity(
+                self.time_s, self._u - self.home_m[2], self.airborne
+            )
+        self._wind_changed()
+
+    def _wind_changed(self) -> None:
+        """A new air mass was set (a model that estimates the wind starts from it)."""
 
     def truth(self) -> Truth:
         """The true state now (lat/lon by the engine's equirectangular projection)."""
@@ -1288,6 +1326,7 @@ class Multirotor(SimulatedVehicle):
         self._circle_n = self._circle_e = self._circle_angle = 0.0
         self._circle_radius = self._circle_rate = self._circle_rate_max = 0.0
         self._circle_accel = 0.0
+        self._wind_est_n = self._wind_est_e = 0.0  # the wind the controller leans into
         self._capture()
         self._leg_speed = self._wp_speed
         if not self._landed:
@@ -1585,8 +1624,12 @@ class Multirotor(SimulatedVehicle):
         vu = self._vu
         vu += (-G_M_S2 - self._fall_drag_1_m * vu * abs(vu)) * h
         decay = 1.0 - self._drag_1_s * h
-        self._vn *= decay
-        self._ve *= decay
+        if self._wind is None:
+            self._vn *= decay
+            self._ve *= decay
+        else:  # drifting toward the air's velocity
+            self._vn = self._air_n + (self._vn - self._air_n) * decay
+            self._ve = self._air_e + (self._ve - self._air_e) * decay
         self._vu = vu
         self._n += self._vn * h
         self._e += self._ve * h
@@ -1711,6 +1754,8 @@ class Multirotor(SimulatedVehicle):
             dvu = _clamp(want_u - vu, -step, step)
             self._vu = vu + dvu
             accel_up = dvu / h
+        if self._wind is not None:
+            dvn, dve = self._push(h, vn, ve, dvn, dve)
         vn += dvn
         ve += dve
         n += vn * h
@@ -1798,11 +1843,47 @@ class Multirotor(SimulatedVehicle):
             self._sub = sub
         return sub
 
-    def _attitude(self, h: float, accel_n: float, accel_e: float, accel_up: float) -> None:
-        """Lean into the commanded acceleration (and hold off drag); throttle pays for it."""
+    def _wind_changed(self) -> None:
+        # A copter already flying has trimmed for the air it flies in; one on the
+        # ground learns it after takeoff.
+        if self.airborne:
+            self._wind_est_n, self._wind_est_e = self._air_n, self._air_e
+        else:
+            self._wind_est_n = self._wind_est_e = 0.0
+
+    def _push(self, h: float, vn: float, ve: float, dvn: float, dve: float) -> tuple[float, float]:
+        """The velocity change the wind leaves of the one commanded, within the lean limit.
+
+        The position controller tilts for the acceleration it wants plus the drag of the
+        air it believes it flies through (its estimate, learnt over
+        :data:`COPTER_WIND_LEARN_S`), never beyond the lean limit (ANGLE_MAX); the air
+        then drags on the true relative velocity. So a steady wind is held off, a change
+        of wind pushes the copter until learnt, and a wind it cannot lean into (drag at
+        full lean, ``max_speed_m_s`` of airspeed) carries it away.
+        """
         drag = self._drag_1_s
-        accel_n += drag * self._vn
-        accel_e += drag * self._ve
+        air_n, air_e = self._air_n, self._air_e
+        learn = h / COPTER_WIND_LEARN_S if h < COPTER_WIND_LEARN_S else 1.0
+        est_n = self._wind_est_n + (air_n - self._wind_est_n) * learn
+        est_e = self._wind_est_e + (air_e - self._wind_est_e) * learn
+        self._wind_est_n, self._wind_est_e = est_n, est_e
+        thrust_n = dvn / h + drag * (vn - est_n)
+        thrust_e = dve / h + drag * (ve - est_e)
+        thrust = math.sqrt(thrust_n * thrust_n + thrust_e * thrust_e)
+        limit = G_M_S2 * math.tan(self._max_lean_rad)
+        if thrust > limit:
+            thrust_n *= limit / thrust
+            thrust_e *= limit / thrust
+        return (
+            (thrust_n - drag * (vn - air_n)) * h,
+            (thrust_e - drag * (ve - air_e)) * h,
+        )
+
+    def _attitude(self, h: float, accel_n: float, accel_e: float, accel_up: float) -> None:
+        """Lean into the acceleration and hold off the air's drag; throttle pays for it."""
+        drag = self._drag_1_s
+        accel_n += drag * (self._vn - self._air_n)
+        accel_e += drag * (self._ve - self._air_e)
         yaw = self._yaw
         cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
         forward = accel_n * cos_yaw + accel_e * sin_yaw
@@ -1831,12 +1912,14 @@ class Multirotor(SimulatedVehicle):
         right = G_M_S2 * math.tan(self._roll)
         cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
         drag = self._drag_1_s
-        vn = self._vn + (forward * cos_yaw - right * sin_yaw - drag * self._vn) * h
-        ve = self._ve + (forward * sin_yaw + right * cos_yaw - drag * self._ve) * h
-        speed = math.sqrt(vn * vn + ve * ve)
-        if speed > self._max_speed:
-            vn *= self._max_speed / speed
-            ve *= self._max_speed / speed
+        air_n, air_e = self._air_n, self._air_e  # the wind's drag: on the relative velocity
+        vn = self._vn + (forward * cos_yaw - right * sin_yaw - drag * (self._vn - air_n)) * h
+        ve = self._ve + (forward * sin_yaw + right * cos_yaw - drag * (self._ve - air_e)) * h
+        rel_n, rel_e = vn - air_n, ve - air_e
+        speed = math.sqrt(rel_n * rel_n + rel_e * rel_e)
+        if speed > self._max_speed:  # through the air
+            vn = air_n + rel_n * self._max_speed / speed
+            ve = air_e + rel_e * self._max_speed / speed
         if self._pilot_climb:
             accel_up = self._pilot_vertical(h)
             thrust = self.hover_throttle * (1.0 + accel_up / G_M_S2)
@@ -2313,15 +2396,35 @@ class FixedWing(SimulatedVehicle):
         radius = self._radius
         bearing = math.atan2(de, dn)
         course = bearing + _HALF_PI + math.atan(self.orbit_gain * (distance - radius) / radius)
+        if self._wind is not None:
+            # In wind the autopilot steers its track over the ground (ArduPlane's L1
+            # loiter), banking for the ground speed's turn: more downwind, where the bank
+            # limit may not let it hold the circle.
+            ground, track = self._ground_track()
+            error = _wrap_pi(course - track)
+            feed_forward = ground / (distance if distance > radius else radius)
+            limit = self._max_turn_rad_s
+            turn = _clamp(self.course_gain_1_s * error + feed_forward, -limit, limit)
+            return math.atan(turn * ground / G_M_S2)
         error = _wrap_pi(course - self._yaw)
         feed_forward = speed / (distance if distance > radius else radius)
         limit = self._max_turn_rad_s
         turn = _clamp(self.course_gain_1_s * error + feed_forward, -limit, limit)
         return math.atan(turn * speed / G_M_S2)
 
+    def _ground_track(self) -> tuple[float, float]:
+        """Ground speed and track (the velocity over the ground's direction), in wind."""
+        vn, ve = self._vn, self._ve
+        ground = math.sqrt(vn * vn + ve * ve)
+        return ground, (math.atan2(ve, vn) if ground > 0.5 else self._yaw)
+
     def _course_roll(self, speed: float, course: float) -> float:
         """Roll command that holds a course."""
         limit = self._max_turn_rad_s
+        if self._wind is not None:  # hold the track over the ground, crabbing into the wind
+            ground, track = self._ground_track()
+            turn = _clamp(self.course_gain_1_s * _wrap_pi(course - track), -limit, limit)
+            return math.atan(turn * ground / G_M_S2)
         turn = _clamp(self.course_gain_1_s * _wrap_pi(course - self._yaw), -limit, limit)
         return math.atan(turn * speed / G_M_S2)
 
@@ -2373,8 +2476,9 @@ class FixedWing(SimulatedVehicle):
         elif yaw < -math.pi:
             yaw += _TAU
         horizontal = math.sqrt(max(new_speed * new_speed - climb * climb, 0.0))
-        vn = horizontal * math.cos(yaw)
-        ve = horizontal * math.sin(yaw)
+        # It flies its airspeed through the air; the air carries it (0 in still air).
+        vn = horizontal * math.cos(yaw) + self._air_n
+        ve = horizontal * math.sin(yaw) + self._air_e
         self._n += vn * h
         self._e += ve * h
         up = self._u + climb * h
@@ -2460,6 +2564,9 @@ class Rover(SimulatedVehicle):
     heading_gain_1_s: float = 2.0
     #: Lowest speed while turning toward a target behind the rover.
     crawl_speed_m_s: float = 0.5
+
+    def set_wind(self, wind: WindField | None) -> None:
+        """Ignored: ArduPilot SITL's rover (SIM_Rover) takes no wind, and neither does this."""
 
     def _default_mode(self, autopilot: Mapping[str, Any]) -> str:
         """The mission schema's default start mode: manual for rovers."""

@@ -29,6 +29,7 @@ from clark_engine.mission.schema_source.common import (
     rate_hz,
     schema_id,
     share,
+    speed_m_s,
     string,
     time_s,
 )
@@ -447,6 +448,100 @@ def _sim() -> Schema:
                 exclusive_minimum=0,
                 maximum=3600,
                 default=10.0,
+            ),
+            "wind": _wind(),
+        },
+    )
+
+
+def _wind() -> Schema:
+    return obj(
+        "The wind every simulated aircraft flies in: one air mass for the whole fleet, "
+        "ArduPilot SITL's own wind model, and under --autopilot sitl given to SITL as its "
+        "SIM_WIND_* parameters (docs/dry-run.md, Wind). Still air when omitted.",
+        {
+            "speed_mps": varied(
+                speed_m_s(
+                    "Mean wind speed at and above the profile's full_alt_m (SIM_WIND_SPD).",
+                    maximum=100,
+                    default=0,
+                )
+            ),
+            "from_deg": varied(
+                number(
+                    "True direction the wind blows from, degrees clockwise from north "
+                    "(SIM_WIND_DIR; 270 is a west wind, blowing toward the east).",
+                    unit="deg",
+                    minimum=0,
+                    maximum=360,
+                    default=180,
+                )
+            ),
+            "turbulence_mps": varied(
+                speed_m_s(
+                    "Standard deviation of the wind's random variation in flight "
+                    "(SIM_WIND_TURB): SITL's fast, direction-less turbulence, about 0.04 s "
+                    "correlated.",
+                    maximum=50,
+                    default=0,
+                )
+            ),
+            "profile": obj(
+                "How the mean wind changes with height above home (SIM_WIND_T and its parameters).",
+                {
+                    "type": string(
+                        "sqrt: the mean times sqrt(height / full_alt_m) below full_alt_m, no "
+                        "wind on the ground (SITL's default); linear: the mean plus "
+                        "(height - full_alt_m) * linear_mps_per_m, never below 0; none: the "
+                        "mean at every height.",
+                        enum=["sqrt", "linear", "none"],
+                        default="sqrt",
+                    ),
+                    "full_alt_m": varied(
+                        altitude_m(
+                            "Height above home where the mean wind blows in full (SIM_WIND_T_ALT).",
+                            minimum=0,
+                            maximum=10000,
+                            default=60,
+                        )
+                    ),
+                    "linear_mps_per_m": varied(
+                        number(
+                            "The linear profile's change of wind speed per metre of height "
+                            "(SIM_WIND_T_COEF).",
+                            unit="1/s",
+                            minimum=-1,
+                            maximum=1,
+                            default=0.01,
+                        )
+                    ),
+                },
+            ),
+            "gusts": obj(
+                "Gusts along the mean wind, at random times (exponential intervals), each a "
+                "smooth rise and fall scaled by the profile. Simulated only: SITL has no "
+                "gust model, so --autopilot sitl flies without them.",
+                {
+                    "speed_mps": varied(
+                        speed_m_s("A gust's peak, added to the mean.", maximum=100, default=0)
+                    ),
+                    "every_s": varied(
+                        time_s(
+                            "Mean time between gusts.",
+                            exclusive_minimum=0,
+                            maximum=86400,
+                            default=60,
+                        )
+                    ),
+                    "duration_s": varied(
+                        time_s(
+                            "How long one gust lasts, rise and fall.",
+                            exclusive_minimum=0,
+                            maximum=600,
+                            default=4,
+                        )
+                    ),
+                },
             ),
         },
     )
