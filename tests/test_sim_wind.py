@@ -11,6 +11,7 @@ tests/conformance/test_wind.py.
 
 from __future__ import annotations
 
+import io
 import math
 import random
 from pathlib import Path
@@ -20,6 +21,7 @@ import pytest
 import yaml
 
 from clark_engine.mission.geo import LocalPoint, Origin, to_global
+from clark_engine.sim.dryrun import run_dry_run
 from clark_engine.sim.model import Truth, VehicleModel
 from clark_engine.sim.vehicles import SimulatedVehicle, make_vehicle
 from clark_engine.sim.wind import (
@@ -308,3 +310,76 @@ def test_a_calm_declared_wind_is_still_air_for_a_plane() -> None:
     for one, other in zip(run(calm, 60.0), run(windless, 60.0), strict=True):
         assert one.north_m == pytest.approx(other.north_m, abs=0.05)
         assert one.east_m == pytest.approx(other.east_m, abs=0.05)
+
+
+# --- a dry run in wind -------------------------------------------------------------------
+
+COPTER_MISSION = ROOT / "missions" / "copter_takeoff_land.yaml"
+
+
+def windy_mission(tmp_path: Path, wind: dict[str, Any] | None) -> Path:
+    """copter_takeoff_land with ``sim.wind`` (None: still air), its autopilot ready at 5 s."""
+    data = yaml.safe_load(COPTER_MISSION.read_text(encoding="utf-8"))
+    data["sim"]["autopilot_ready_s"] = 5
+    data["sim"]["duration_s"] = 42
+    data["operator"] = [{"at_s": 6, "activate": "f450"}]
+    data["checks"] = [
+        {
+            "name": "lands",
+            "by_s": 42,
+            "sequence": {"agent": "f450", "states": ["climb", "out", "back", "down"]},
+        }
+    ]
+    if wind is not None:
+        data["sim"]["wind"] = wind
+    path = tmp_path / f"copter_{len(list(tmp_path.iterdir()))}.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    return path
+
+
+def state_times(path: Path, seed: int) -> tuple[dict[str, float], bytes]:
+    """First entry of each state of the F450, and its track's bytes."""
+    outcome = run_dry_run(
+        path,
+        seed=seed,
+        until_s=None,
+        report=None,
+        speed=None,
+        out=io.StringIO(),
+        err=(err := io.StringIO()),
+    )
+    assert outcome.result is not None, err.getvalue()
+    times: dict[str, float] = {}
+    for entry in outcome.result.recording.states["f450"]:
+        for state in entry.entered:
+            times.setdefault(state, entry.time_s)
+    track = outcome.result.recording.tracks["f450"]
+    return times, repr(track).encode()
+
+
+def test_a_declared_wind_slows_the_upwind_leg_and_is_reproducible_by_seed(
+    tmp_path: Path,
+) -> None:
+    # The out leg heads 34 degrees (30 m north, 20 m east) at 5 m/s; a 9 m/s wind from
+    # there at every height leaves the F450 (12 m/s through the air) 3 m/s over the ground
+    # out and 5 m/s back; the mean is drawn once per run from its distribution.
+    wind = {
+        "speed_mps": {"uniform": [8.5, 9.5]},
+        "from_deg": 34,
+        "turbulence_mps": 0.5,
+        "profile": {"type": "none"},
+        "gusts": {"speed_mps": 1.0, "every_s": 15, "duration_s": 3},
+    }
+    calm, _ = state_times(windy_mission(tmp_path, None), seed=1)
+    windy_path = windy_mission(tmp_path, wind)
+    windy, track = state_times(windy_path, seed=1)
+    out_calm = calm["back"] - calm["out"]
+    out_windy = windy["back"] - windy["out"]
+    back_calm = calm["down"] - calm["back"]
+    back_windy = windy["down"] - windy["back"]
+    assert out_windy > out_calm * 1.4  # 36 m at 3 m/s instead of 5
+    assert back_windy == pytest.approx(back_calm, abs=2.5)  # downwind: still 5 m/s
+    again, track_again = state_times(windy_path, seed=1)
+    assert (again, track_again) == (windy, track)
+    _other, track_other = state_times(windy_path, seed=2)
+    assert track_other != track
