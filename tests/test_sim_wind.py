@@ -19,10 +19,16 @@ from typing import Any
 
 import pytest
 import yaml
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.geo import LocalPoint, Origin, to_global
+from clark_engine.mission.variation import resolve_mission
+from clark_engine.runtime.config import config_from_dict
 from clark_engine.sim.dryrun import run_dry_run
+from clark_engine.sim.engine import build_sitl_vehicle
 from clark_engine.sim.model import Truth, VehicleModel
+from clark_engine.sim.sitl import SitlInstall
 from clark_engine.sim.vehicles import SimulatedVehicle, make_vehicle
 from clark_engine.sim.wind import (
     SITL_WIND_PARAMS,
@@ -31,6 +37,7 @@ from clark_engine.sim.wind import (
     sitl_wind_params,
     wind_field,
 )
+from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent
 PROFILES = ROOT / "hardware_profiles"
@@ -383,3 +390,56 @@ def test_a_declared_wind_slows_the_upwind_leg_and_is_reproducible_by_seed(
     assert (again, track_again) == (windy, track)
     _other, track_other = state_times(windy_path, seed=2)
     assert track_other != track
+
+
+# --- ArduPilot SITL gets the same wind ----------------------------------------------------
+
+
+@pytest.mark.sitl
+def test_sitl_gets_the_declared_wind_as_its_own_parameters(
+    sitl_install: SitlInstall, tmp_path: Path
+) -> None:
+    """build_sitl_vehicle (clark dry-run --autopilot sitl) gives SITL sim.wind as SIM_WIND_*."""
+    wind = {
+        "speed_mps": {"uniform": [6.0, 7.0]},
+        "from_deg": 250,
+        "turbulence_mps": 1.5,
+        "profile": {"type": "linear", "full_alt_m": 30, "linear_mps_per_m": 0.02},
+    }
+    validation = validate_file(windy_mission(tmp_path, wind))
+    assert validation.mission is not None, validation
+    mission, drawn = resolve_mission(validation.mission, seed=3)
+    speed = drawn["sim.wind.speed_mps"]
+    assert 6.0 <= speed <= 7.0
+    agent = mission.agents["f450"]
+    config = config_from_dict(agent_config(mission, agent))
+    backend, _pilot, _plan = build_sitl_vehicle(mission, agent, config, sitl_install, 5.0)
+    mav = mavlink2.MAVLink(None, srcSystem=255, srcComponent=190)
+    parser = mavlink2.MAVLink(None)
+    parser.robust_parsing = True
+    want = {
+        "SIM_WIND_SPD": speed,
+        "SIM_WIND_DIR": 250.0,
+        "SIM_WIND_TURB": 1.5,
+        "SIM_WIND_T": 2.0,
+        "SIM_WIND_T_ALT": 30.0,
+        "SIM_WIND_T_COEF": 0.02,
+    }
+    seen: dict[str, float] = {}
+    try:
+        backend.connect()
+        t_s = 0.0
+        while t_s < 20.0 and len(seen) < len(want):
+            t_s += 0.5
+            for msg in parser.parse_buffer(backend.step(t_s, 0.5)) or []:
+                if msg.get_type() == "PARAM_VALUE" and msg.param_id in want:
+                    seen[msg.param_id] = msg.param_value
+            if t_s >= 5.0:  # SITL has taken them by now: ask what it holds
+                for name in want:
+                    request = mav.param_request_read_encode(
+                        backend.system_id, 1, name.encode("ascii"), -1
+                    )
+                    backend.send(request.pack(mav), t_s)
+    finally:
+        backend.close()
+    assert seen == pytest.approx(want, abs=1e-4)
