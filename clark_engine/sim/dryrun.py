@@ -665,6 +665,13 @@ def _fly_sitl(
             "and ArduCopter, 23 s for ArduPlane), so the runs' timelines will differ",
             file=err,
         )
+    gusts = (mission.sim.get("wind") or {}).get("gusts") or {}
+    if float(gusts.get("speed_mps", 0.0)) > 0.0:
+        print(
+            "  note: sim.wind.gusts are simulated only: SITL has no gust model and flies the "
+            "rest of sim.wind (its SIM_WIND_* parameters), so the runs' timelines may differ",
+            file=err,
+        )
     print(
         f"dry run of {mission.name}: {len(mission.agents)} agents, {until_s:g} s, seed {seed}, "
         f"on ArduPilot SITL at {speedup:g}x ({install.folder})",
