@@ -87,8 +87,6 @@ class Param:
 
     value: float
     param_type: int
-    listed: bool = True
-    """Whether the firmware lists it (False: ArduPilot answers it by name only)."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -298,7 +298,8 @@ _DATA_STREAM_PARAMS: Final[Mapping[int, str]] = {
     mavlink2.MAV_DATA_STREAM_EXTRA3: "MAV1_EXTRA3",
 }
 STREAM_RATES: Final = frozenset(_DATA_STREAM_PARAMS.values())
-"""The stream-rate parameters that start at the firmware's default rate (not MAV1_PARAMS)."""
+"""The stream-rate parameters REQUEST_DATA_STREAM sets (those of the groups it streams start
+at the firmware's default rate)."""
 _MAV_OPTION_GCS_ONLY: Final = 1
 """MAV_OPTIONS bit 0: accept MAVLink only from MAV_GCS_SYSID (and our own system)."""
 
@@ -634,8 +635,8 @@ class SimAutopilot:
 
     def param(self, name: str) -> float | None:
         """A parameter's value, None if it has no such parameter."""
-        entry = self._params.get(name)
-        return None if entry is None else entry.value
+        found = self.params.get(name)
+        return None if found is None else found[0]
 
     def _param_value(self, name: str) -> float:
         return self._params[name].value
