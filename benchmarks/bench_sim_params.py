@@ -79,9 +79,14 @@ print((time.perf_counter() - start) * 1e3)
 
 def run(code: str, *args: str) -> float:
     """Run ``code`` in a fresh interpreter (the caller's PYTHONPATH); the float it prints."""
-    done = subprocess.run(
-        [sys.executable, "-c", code, *args], capture_output=True, text=True, check=False
-    )
+    with tempfile.TemporaryDirectory() as elsewhere:  # not the current directory's engine
+        done = subprocess.run(
+            [sys.executable, "-c", code, *args],
+            capture_output=True,
+            text=True,
+            check=False,
+            cwd=elsewhere,
+        )
     if done.returncode != 0:
         raise RuntimeError(done.stderr.strip().splitlines()[-1])
     return float(done.stdout.strip().splitlines()[-1])

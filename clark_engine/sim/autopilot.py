@@ -28,8 +28,9 @@ What it does, in ArduPilot's order:
   is (one after it is kept, and starts with the streams). No position (0, 0) and
   GPS fix 0 until the fix; SYSTEM_TIME's Unix time 0 until then; home set when the
   firmware sets it (HOME_POSITION sent then); the EKF's flags step from
-  uninitialised to attitude to an absolute position; the pre-arm check bit of
-  SYS_STATUS set once arming would pass in the current mode.
+  uninitialised to attitude to an absolute position; SYS_STATUS's sensor bits as
+  ArduPilot sets them (:mod:`clark_engine.sim.ap_sys_status`), its pre-arm check bit
+  set once arming would pass in the current mode.
 - **Arming** (MAV_CMD_COMPONENT_ARM_DISARM): refused with CRITICAL ``Arm: ...``
   texts and FAILED while a check fails (the boot phase, a mode that is not armable,
   a mode that needs a position before the EKF has one); while checks fail a
@@ -67,7 +68,9 @@ What it does, in ArduPilot's order:
   and velocity, which ArduCopter extrapolates; ArduPlane takes only the altitude);
   RC_CHANNELS_OVERRIDE from MAV_GCS_SYSID, lapsing after RC_OVERRIDE_TIME; the
   guided-mode MISSION_ITEM(_INT) of MAVProxy's ``guided``; PARAM_* as ArduPilot 4.7
-  answers them (a PARAM_VALUE answering a read by name or a set carries index 65535;
+  answers them, over its whole list (:mod:`clark_engine.sim.ap_params`: SITL's names,
+  types, values and order; a list paced at PARAM_LIST_RATE_HZ; a PARAM_VALUE
+  answering a read by name or a set carries index 65535;
   a set is echoed with the stored value in the parameter's own type, integers
   truncated and clamped to their C type, never clamped to the documented range;
   unknown names, NaN and infinities get no answer);
