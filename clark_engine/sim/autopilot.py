@@ -595,11 +595,11 @@ class SimAutopilot:
             zero = channel.get("pwm_trim_us" if firmware == "ardurover" else "pwm_min_us")
             throttle = (int(channel["rc"]), int(zero if zero is not None else 1100))
         known = {"MAV_SYSID", *COMMON_PARAMS, *FIRMWARES[firmware].params}
-        known.update(sitl_table(firmware).types)
+        listed = sitl_table(firmware).types
         params = {
             str(name): float(value)
             for name, value in (autopilot.get("parameters") or {}).items()
-            if name in known
+            if name in known or name in listed
         }
         return cls(
             model,
