@@ -260,7 +260,7 @@ def test_the_tolerance_comes_from_the_mission() -> None:
 def test_the_old_key_says_what_to_write(tmp_path: Path) -> None:
     source = (ROOT / "missions" / "single_vehicle_mode_change.yaml").read_text(encoding="utf-8")
     old = tmp_path / "old.yaml"
-    old.write_text(source.replace("sitl_tolerance: {}", "sitl_tolerance_s: 10"), encoding="utf-8")
+    old.write_text(source.replace("sim: {", "sim: {sitl_tolerance_s: 10, "), encoding="utf-8")
     assert "sitl_tolerance_s: 10" in old.read_text(encoding="utf-8")
     (finding,) = [f for f in validate_file(old, "old.yaml").findings if f.is_error]
     assert finding.code == "E-KEY-RENAMED"

@@ -31,6 +31,7 @@ single process, byte for byte, whatever the number of processes.
 
 from __future__ import annotations
 
+import functools
 import heapq
 import math
 import random
@@ -391,6 +392,7 @@ def build_sitl_vehicle(
             "modes": dict(autopilot["modes"]),
             "hold_mode": str(autopilot.get("hold_mode")),
             "throttle": throttle_at,
+            "heading_deg": heading,
         }
         if airborne
         else None
@@ -627,13 +629,23 @@ class DryRun:
 
         A vehicle flown up before the run has its own clock well past 0 when the run
         starts; one on the ground is connected (its clock starts) just before it.
+        Planes are flown up last: a copter waits on its position, hovering, for the
+        others; a plane handed over as it crosses its position is on it at time 0 only
+        if the run starts at once (with several planes, the earlier ones circle their
+        positions meanwhile).
         """
-        for name, plan in self._preflights.items():
+        planes_last = sorted(
+            self._preflights.items(),
+            key=lambda item: getattr(self.agents[item[0]].backend, "firmware", "") == "arduplane",
+        )
+        flown: list[SitlBackend] = []
+        for name, plan in planes_last:
             backend = self.agents[name].backend
             assert isinstance(backend, SitlBackend)
             started = time.perf_counter()
             backend.connect()
-            backend.fly_up(**plan)
+            backend.fly_up(**plan, meanwhile=functools.partial(_drain, tuple(flown)))
+            flown.append(backend)
             self.preflight_wall_s[name] = time.perf_counter() - started
         backends: list[SitlBackend] = []
         for sim_agent in self._vehicles:
@@ -1093,3 +1105,9 @@ class DryRun:
     def _to_autopilot(self, sim_agent: SimAgent, data: bytes, t_s: float) -> None:
         if data and sim_agent.backend is not None and sim_agent.link_up(t_s):
             sim_agent.backend.send(data, t_s)
+
+
+def _drain(backends: Sequence[SitlBackend]) -> None:
+    """Keep SITL vehicles already flown up current while another is (their clock, truth)."""
+    for backend in backends:
+        backend.drain()

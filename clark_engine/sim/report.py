@@ -730,7 +730,7 @@ def write_summary(
                 "against a share of SITL's leg; how far apart the vehicle was then (and at "
                 "the end of the run) and its altitude on SITL minus simulated; then each "
                 "check's verdict and figures in both runs "
-                "(docs/autopilot-fidelity.md, \"The same mission both ways\").",
+                '(docs/autopilot-fidelity.md, "The same mission both ways").',
                 "",
                 comparison,
             ]
