@@ -146,12 +146,12 @@ def test_positions_at_each_state_change_and_at_the_end() -> None:
     states = {"f450": [(10.0, ("climb",)), (20.0, ("out",))]}
     sim = recording(
         50.0,
-        {"f450": [(0.0, 0, 0, 0), (10.0, 0, 0, 0), (20.0, 0, 0, 14.0), (50.0, 30, 20, 14.0)]},
+        {"f450": [(0.0, 0, 0, 0), (10.0, 0, 0, 0), (20.0, 0, 0, 14.0), (49.0, 30, 20, 14.0)]},
         **states,
     )
     sitl = recording(
         50.0,
-        {"f450": [(0.0, 0, 0, 0), (10.0, 1, 0, 0), (20.0, 0, 4, 12.0), (50.0, 30, 40, 10.0)]},
+        {"f450": [(0.0, 0, 0, 0), (10.0, 1, 0, 0), (20.0, 0, 4, 12.0), (49.0, 30, 40, 10.0)]},
         **states,
     )
     result = compare(sim, sitl, ["f450"], aircraft=["f450"])
@@ -160,14 +160,25 @@ def test_positions_at_each_state_change_and_at_the_end() -> None:
     assert (out.horizontal_m, out.altitude_m) == (4.0, -2.0)
     assert end.path == END_ROW and (end.horizontal_m, end.altitude_m) == (20.0, -4.0)
     assert (climb.holds, out.holds, end.holds) == (True, True, False)
-    assert (
-        result.check().observed
-        == "f450 (end of run) 20.0 m apart; f450 (end of run) altitude -4.0 m"
+    assert result.check().observed == (
+        "f450 (end of run) 20.0 m apart (allowed 10.0 m); f450 (end of run) altitude -4.0 m"
     )
     # a rover's altitude is the ground's: not compared
     rover = compare(sim, sitl, ["f450"], Tolerance(position_m=25.0)).rows
     assert [r.altitude_m for r in rover] == [None, None, None]
     assert compare(sim, sitl, ["f450"], Tolerance(position_m=25.0)).holds
+
+
+def test_a_moving_vehicle_is_allowed_the_way_it_covers_in_the_time_difference() -> None:
+    # a plane at 18 m/s enters its survey 1.9 s later on SITL: 34 m further on
+    sim = recording(10.0, {"cub": [(0.0, 0, 0, 60), (1.0, 18, 0, 60)]}, cub=[(1.0, ("go",))])
+    sitl_track = [(0.0, 0, 0, 60), (1.9, 34.2, 0, 60), (2.9, 52.2, 0, 60)]
+    sitl = recording(10.0, {"cub": sitl_track}, cub=[(2.9, ("go",))])
+    (go, end) = compare(sim, sitl, ["cub"], aircraft=["cub"]).rows
+    assert go.horizontal_m == pytest.approx(34.2)
+    assert go.allowed_m == pytest.approx(10.0 + 18.0 * 3.0)  # the floor's 3 s at 18 m/s
+    assert go.holds
+    assert end.allowed_m == pytest.approx(10.0)  # at rest at the end (no sample moved)
 
 
 def test_the_report_table_shows_each_agent_state_times_allowance_and_distances() -> None:
@@ -183,10 +194,12 @@ def test_the_report_table_shows_each_agent_state_times_allowance_and_distances()
     assert "| state | simulated | SITL | leg (SITL) | difference (entry / leg) | allowed |" in table
     assert "| (the whole behaviour) | 10.0 s | 10.0 s | 10.0 s | +0.0 s / +0.0 s | 3.0 s |" in table
     assert (
-        "| out | 20.0 s | 29.0 s | 19.0 s | +9.0 s / +9.0 s | 3.0 s | 0.0 m | +0.0 m "
+        "| out | 20.0 s | 29.0 s | 19.0 s | +9.0 s / +9.0 s | 3.0 s | 0.0 m (10.0 m) | +0.0 m "
         "| **FAIL**: +9.0 s (allowed 3.0 s) |"
     ) in table
-    assert "| (end of run) | 30.0 s | 30.0 s | - | - | - | 0.0 m | +0.0 m | pass |" in table
+    assert (
+        "| (end of run) | 30.0 s | 30.0 s | - | - | - | 0.0 m (10.0 m) | +0.0 m | pass |" in table
+    )
 
 
 # -- the mission's checks ----------------------------------------------------------------------

@@ -149,6 +149,7 @@ class SimAgent:
     autopilot_down: list[Window] = field(default_factory=list)
     signal_keys: list[tuple[str, str, int]] = field(default_factory=list)  # (label, via, number)
     signal_due_s: float | None = None  # the tick whose signals are recorded at the next
+    signal_paths: set[str] = field(default_factory=set)  # its doublet and sweep states
     failsafe_seen: bool = False
     autopilot_lost_seen: bool = False
 
@@ -704,6 +705,7 @@ class DryRun:
             for state in machine.walk():
                 if state.primitive not in ("doublet", "sine_sweep"):
                     continue
+                sim_agent.signal_paths.add(state.path)
                 channel = state.params["channel"]
                 via = state.params.get("via", "rc_override")
                 number = channel["rc"] if via == "rc_override" else channel["servo"]
@@ -1015,6 +1017,7 @@ class DryRun:
 
     def _tick(self, sim_agent: SimAgent, t_s: float) -> None:
         self._record_signals(sim_agent)
+        signalling = self._signalling(sim_agent)
         out = sim_agent.runtime.tick(t_s)
         sim_agent.ticks += 1
         self._route(sim_agent, out, t_s)
@@ -1029,8 +1032,23 @@ class DryRun:
         if runtime.autopilot_lost and not sim_agent.autopilot_lost_seen:
             sim_agent.autopilot_lost_seen = True
             self.recording.safety.setdefault(sim_agent.name, []).append((t_s, "autopilot_lost"))
-        if sim_agent.signal_keys:
+        if sim_agent.signal_keys and (
+            self.sitl is None or signalling or self._signalling(sim_agent)
+        ):
             sim_agent.signal_due_s = t_s
+
+    def _signalling(self, sim_agent: SimAgent) -> bool:
+        """Whether one of the agent's doublet or sweep states is active.
+
+        On SITL the signals are recorded only then (this tick, or the one that enters or
+        leaves such a state): each reading waits for a report SITL made after the
+        tick's commands (:data:`~clark_engine.sim.sitl_backend.REPORT_AFTER_S`), and a
+        run reading at every tick fell 0.15 s further behind SITL at each one.
+        """
+        states = self.recording.states.get(sim_agent.name)
+        if not states or not sim_agent.signal_paths:
+            return False
+        return any(path in sim_agent.signal_paths for path in states[-1].active)
 
     def _record_signals(self, sim_agent: SimAgent) -> None:
         """What the autopilot received from the previous tick, recorded at that tick's time.

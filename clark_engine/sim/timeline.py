@@ -17,8 +17,10 @@ same times and places, and the mission's checks see about the same figures.
   clock-driven change keeps (the operator's action at 20 s comes at 20 s even after
   a state that was a little late).
 - **Where it was.** At each state's entry, and at the end of the run, the vehicle's
-  horizontal position in the two runs may be :attr:`Tolerance.position_m` apart and an
-  aircraft's altitude :attr:`Tolerance.altitude_m`.
+  horizontal position in the two runs may be :attr:`Tolerance.position_m` apart, plus
+  the way it covers (at its speed on SITL) in the entry times' difference, at least in
+  :attr:`Tolerance.time_floor_s` (what the time judgement accepts as the same moment);
+  an aircraft's altitude :attr:`Tolerance.altitude_m`.
 - **The mission's checks.** Each check's verdict must be the same in both runs, and
   each figure it observed (:class:`~clark_engine.sim.checks.Figure`) within its
   tolerance: a moment like a state's entry (the leg it falls in being its agent's),
@@ -47,6 +49,8 @@ END_ROW: Final = "(end of run)"
 """The path shown for an agent's row at the end of the run (position only)."""
 WHOLE_BEHAVIOUR: Final = "(the whole behaviour)"
 """How the root state (the empty path) is shown."""
+SPEED_WINDOW_S: Final = 1.0
+"""A vehicle's speed at a moment: over the second before it, on SITL."""
 ERROR_US_TOLERANCE: Final = 1.0
 """A signal check's error may differ by this much: the check's own bound."""
 
@@ -110,6 +114,9 @@ class StateTimes:
     altitude_m: float | None = None
     """An aircraft's altitude on SITL minus in the simulation (None: a rover, no track)."""
     tolerance: Tolerance = field(default_factory=Tolerance)
+    allowed_m: float | None = None
+    """The horizontal distance allowed: :attr:`Tolerance.position_m`, plus what the vehicle
+    covers (at its speed on SITL) in the entry-time difference, at least the time floor's."""
 
     @property
     def difference_s(self) -> float | None:
@@ -143,8 +150,9 @@ class StateTimes:
         error = self.time_error_s
         if error is not None and self.allowed_s is not None and abs(error) > self.allowed_s:
             out.append(f"{error:+.1f} s (allowed {self.allowed_s:.1f} s)")
-        if self.horizontal_m is not None and self.horizontal_m > self.tolerance.position_m:
-            out.append(f"{self.horizontal_m:.1f} m apart")
+        allowed_m = self.tolerance.position_m if self.allowed_m is None else self.allowed_m
+        if self.horizontal_m is not None and self.horizontal_m > allowed_m + 1e-9:
+            out.append(f"{self.horizontal_m:.1f} m apart (allowed {allowed_m:.1f} m)")
         if self.altitude_m is not None and abs(self.altitude_m) > self.tolerance.altitude_m:
             out.append(f"altitude {self.altitude_m:+.1f} m")
         return out
@@ -334,7 +342,7 @@ class Comparison:
                 f"### {agent}{order}",
                 "",
                 "| state | simulated | SITL | leg (SITL) | difference (entry / leg) | allowed "
-                "| apart | altitude | verdict |",
+                "| apart (allowed) | altitude | verdict |",
                 "|---|---|---|---|---|---|---|---|---|",
             ]
             for r in self.rows:
@@ -342,7 +350,7 @@ class Comparison:
                     continue
                 lines.append(
                     f"| {_path(r.path)} | {_s(r.simulated_s)} | {_s(r.sitl_s)} | {_s(r.leg_s)} "
-                    f"| {_diff(r)} | {_s(r.allowed_s)} | {_m(r.horizontal_m)} "
+                    f"| {_diff(r)} | {_s(r.allowed_s)} | {_apart_text(r)} "
                     f"| {_m(r.altitude_m, signed=True)} "
                     f"| {'pass' if r.holds else '**FAIL**: ' + '; '.join(r.problems)} |"
                 )
@@ -443,6 +451,7 @@ def compare(
                     horizontal,
                     altitude,
                     tol,
+                    _allowed_m(sitl, agent, sitl_s, abs(entry_difference_s), tol),
                 )
             )
         if agent in simulated.tracks and agent in sitl.tracks:
@@ -458,6 +467,7 @@ def compare(
                     horizontal_m=horizontal,
                     altitude_m=altitude,
                     tolerance=tol,
+                    allowed_m=_allowed_m(sitl, agent, sitl_end, 0.0, tol),
                 )
             )
     verdicts: list[VerdictRow] = []
@@ -511,6 +521,24 @@ def _figure_allowed(ours: Figure, theirs: Figure, sitl: Recording, tol: Toleranc
     return ERROR_US_TOLERANCE
 
 
+def _allowed_m(
+    sitl: Recording, agent: str, sitl_s: float, difference_s: float, tol: Tolerance
+) -> float:
+    """The horizontal distance allowed at a moment: the tolerance, plus the way covered.
+
+    The way the vehicle covers, at its speed on SITL, in the time the two runs differ by
+    there (at least the time floor). Two runs the time judgement accepts as the same may
+    put a moving vehicle that far apart: a plane at 18 m/s, 1.9 s later, is 34 m on.
+    """
+    track = sitl.tracks.get(agent)
+    now = track.at(sitl_s) if track is not None else None
+    before = track.at(sitl_s - SPEED_WINDOW_S) if track is not None else None
+    if now is None or before is None:
+        return tol.position_m
+    speed_m_s = math.hypot(now[0] - before[0], now[1] - before[1]) / SPEED_WINDOW_S
+    return tol.position_m + speed_m_s * max(difference_s, tol.time_floor_s)
+
+
 def _apart(
     simulated: Recording, sitl: Recording, agent: str, sim_s: float, sitl_s: float, three_d: bool
 ) -> tuple[float | None, float | None]:
@@ -542,6 +570,13 @@ def _m(value: float | None, signed: bool = False) -> str:
     if value is None:
         return "-"
     return f"{value:+.1f} m" if signed else f"{value:.1f} m"
+
+
+def _apart_text(row: StateTimes) -> str:
+    if row.horizontal_m is None:
+        return "-"
+    allowed = row.tolerance.position_m if row.allowed_m is None else row.allowed_m
+    return f"{row.horizontal_m:.1f} m ({allowed:.1f} m)"
 
 
 def _diff(row: StateTimes) -> str:
