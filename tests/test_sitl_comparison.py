@@ -8,6 +8,7 @@ here: the recordings are written by hand, so each rule is seen to hold and to fa
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
@@ -179,6 +180,40 @@ def test_a_moving_vehicle_is_allowed_the_way_it_covers_in_the_time_difference() 
     assert go.allowed_m == pytest.approx(10.0 + 18.0 * 3.0)  # the floor's 3 s at 18 m/s
     assert go.holds
     assert end.allowed_m == pytest.approx(10.0)  # at rest at the end (no sample moved)
+
+
+def circle(
+    centre: tuple[float, float], phase_rad: float, until_s: float = 60.0
+) -> list[tuple[float, float, float, float]]:
+    """A plane circling ``centre`` at 18 m/s on a 60 m radius, sampled at 10 Hz."""
+    rate = 18.0 / 60.0
+    out = []
+    for k in range(int(until_s * 10) + 1):
+        t = k / 10
+        angle = phase_rad + rate * t
+        out.append((t, centre[0] + 60 * math.cos(angle), centre[1] + 60 * math.sin(angle), 60.0))
+    return out
+
+
+def test_a_plane_circling_at_the_end_is_judged_by_its_circle() -> None:
+    # the same loiter, half a circle apart: 120 m apart, the same circle
+    sim = recording(60.0, {"cub": circle((0.0, 0.0), 0.0)})
+    sitl = recording(60.0, {"cub": circle((3.0, 4.0), math.pi)})
+    (end,) = compare(sim, sitl, ["cub"], aircraft=["cub"]).rows
+    assert end.circles and end.horizontal_m == pytest.approx(5.0, abs=0.01)
+    assert end.holds
+    assert (
+        "| (end of run: its circle's centre) |"
+        in compare(sim, sitl, ["cub"], aircraft=["cub"]).table()
+    )
+    # another circle 40 m away fails
+    elsewhere = recording(60.0, {"cub": circle((40.0, 0.0), 0.0)})
+    (far,) = compare(sim, elsewhere, ["cub"], aircraft=["cub"]).rows
+    assert far.horizontal_m == pytest.approx(40.0, abs=0.01) and not far.holds
+    # flying straight: its position, not a circle
+    line = [(k / 10, 18.0 * k / 10, 0.0, 60.0) for k in range(601)]
+    (straight,) = compare(sim, recording(60.0, {"cub": line}), ["cub"], aircraft=["cub"]).rows
+    assert not straight.circles
 
 
 def test_the_report_table_shows_each_agent_state_times_allowance_and_distances() -> None:

@@ -16,7 +16,8 @@ same times and places, and the mission's checks see about the same figures.
   flown 0.62x as fast fails however late it started); the entry time is what a
   clock-driven change keeps (the operator's action at 20 s comes at 20 s even after
   a state that was a little late).
-- **Where it was.** At each state's entry, and at the end of the run, the vehicle's
+- **Where it was.** At each state's entry, and at the end of the run (an aircraft that
+  circles in both runs then: the centres of its circles), the vehicle's
   horizontal position in the two runs may be :attr:`Tolerance.position_m` apart, plus
   the way it covers (at its speed on SITL) in the entry times' difference, at least in
   :attr:`Tolerance.time_floor_s` (what the time judgement accepts as the same moment);
@@ -43,12 +44,16 @@ from dataclasses import dataclass, field
 from typing import Any, Final
 
 from clark_engine.sim.checks import CheckResult, Figure
-from clark_engine.sim.recording import Recording
+from clark_engine.sim.recording import Recording, Track
 
 END_ROW: Final = "(end of run)"
 """The path shown for an agent's row at the end of the run (position only)."""
 WHOLE_BEHAVIOUR: Final = "(the whole behaviour)"
 """How the root state (the empty path) is shown."""
+CIRCLE_STEP_S: Final = 2.0
+"""Seconds between the positions that find the circle an aircraft flies at the end."""
+CIRCLE_MAX_M: Final = 500.0
+"""A circle wider than this is not a loiter."""
 SPEED_WINDOW_S: Final = 1.0
 """A vehicle's speed at a moment: over the second before it, on SITL."""
 ERROR_US_TOLERANCE: Final = 1.0
@@ -117,6 +122,9 @@ class StateTimes:
     allowed_m: float | None = None
     """The horizontal distance allowed: :attr:`Tolerance.position_m`, plus what the vehicle
     covers (at its speed on SITL) in the entry-time difference, at least the time floor's."""
+    circles: bool = False
+    """The end row of an aircraft circling in both runs: its circles' centres compared
+    (where on the circle it is says when it got there, which the states judge)."""
 
     @property
     def difference_s(self) -> float | None:
@@ -349,7 +357,7 @@ class Comparison:
                 if r.agent != agent:
                     continue
                 lines.append(
-                    f"| {_path(r.path)} | {_s(r.simulated_s)} | {_s(r.sitl_s)} | {_s(r.leg_s)} "
+                    f"| {_row_name(r)} | {_s(r.simulated_s)} | {_s(r.sitl_s)} | {_s(r.leg_s)} "
                     f"| {_diff(r)} | {_s(r.allowed_s)} | {_apart_text(r)} "
                     f"| {_m(r.altitude_m, signed=True)} "
                     f"| {'pass' if r.holds else '**FAIL**: ' + '; '.join(r.problems)} |"
@@ -458,6 +466,11 @@ def compare(
             sim_end = min(end_s, simulated.end_s)
             sitl_end = min(end_s, sitl.end_s)
             horizontal, altitude = _apart(simulated, sitl, agent, sim_end, sitl_end, three_d)
+            ours_c = _circling(simulated.tracks[agent], sim_end) if three_d else None
+            theirs_c = _circling(sitl.tracks[agent], sitl_end) if three_d else None
+            if ours_c is not None and theirs_c is not None:
+                # Both circle at the end: where is the circle, not where on it.
+                horizontal = math.dist(ours_c, theirs_c)
             rows.append(
                 StateTimes(
                     agent,
@@ -467,7 +480,10 @@ def compare(
                     horizontal_m=horizontal,
                     altitude_m=altitude,
                     tolerance=tol,
-                    allowed_m=_allowed_m(sitl, agent, sitl_end, 0.0, tol),
+                    allowed_m=tol.position_m
+                    if ours_c is not None and theirs_c is not None
+                    else _allowed_m(sitl, agent, sitl_end, 0.0, tol),
+                    circles=ours_c is not None and theirs_c is not None,
                 )
             )
     verdicts: list[VerdictRow] = []
@@ -521,6 +537,29 @@ def _figure_allowed(ours: Figure, theirs: Figure, sitl: Recording, tol: Toleranc
     return ERROR_US_TOLERANCE
 
 
+def _circling(track: Track, end_s: float) -> tuple[float, float] | None:
+    """The centre of the circle an aircraft flies at ``end_s``; None when it does not circle.
+
+    Three positions :data:`CIRCLE_STEP_S` apart give a circle; a fourth one step before
+    must lie on it (within a fifth of its radius), and the radius be under
+    :data:`CIRCLE_MAX_M`: a loiter, not a straight line or a turn.
+    """
+    points = [track.at(end_s - k * CIRCLE_STEP_S) for k in range(4)]
+    if any(p is None for p in points):
+        return None
+    (ax, ay, _), (bx, by, _), (cx, cy, _), (dx, dy, _) = points  # type: ignore[misc]
+    det = 2.0 * (ax * (by - cy) + bx * (cy - ay) + cx * (ay - by))
+    if abs(det) < 1e-6:
+        return None
+    a2, b2, c2 = ax * ax + ay * ay, bx * bx + by * by, cx * cx + cy * cy
+    ux = (a2 * (by - cy) + b2 * (cy - ay) + c2 * (ay - by)) / det
+    uy = (a2 * (cx - bx) + b2 * (ax - cx) + c2 * (bx - ax)) / det
+    radius = math.hypot(ax - ux, ay - uy)
+    if radius > CIRCLE_MAX_M or abs(math.hypot(dx - ux, dy - uy) - radius) > radius / 5.0:
+        return None
+    return ux, uy
+
+
 def _allowed_m(
     sitl: Recording, agent: str, sitl_s: float, difference_s: float, tol: Tolerance
 ) -> float:
@@ -560,6 +599,10 @@ def _order(first: Mapping[str, float], other: Mapping[str, float]) -> list[str]:
 
 def _path(path: str) -> str:
     return path or WHOLE_BEHAVIOUR
+
+
+def _row_name(row: StateTimes) -> str:
+    return "(end of run: its circle's centre)" if row.circles else _path(row.path)
 
 
 def _s(value: float | None) -> str:
