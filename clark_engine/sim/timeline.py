@@ -19,9 +19,8 @@ same times and places, and the mission's checks see about the same figures.
 - **Where it was.** At each state's entry, and at the end of the run (an aircraft that
   circles in both runs then: the centres of its circles), the vehicle's
   horizontal position in the two runs may be :attr:`Tolerance.position_m` apart, plus
-  the way it covers (at its speed on SITL) in the entry times' difference, at least in
-  :attr:`Tolerance.time_floor_s` (what the time judgement accepts as the same moment);
-  an aircraft's altitude :attr:`Tolerance.altitude_m`.
+  the way it covers (at its speed on SITL) in the entry times' difference; an
+  aircraft's altitude :attr:`Tolerance.altitude_m`.
 - **The mission's checks.** Each check's verdict must be the same in both runs, and
   each figure it observed (:class:`~clark_engine.sim.checks.Figure`) within its
   tolerance: a moment like a state's entry (the leg it falls in being its agent's),
@@ -121,7 +120,7 @@ class StateTimes:
     tolerance: Tolerance = field(default_factory=Tolerance)
     allowed_m: float | None = None
     """The horizontal distance allowed: :attr:`Tolerance.position_m`, plus what the vehicle
-    covers (at its speed on SITL) in the entry-time difference, at least the time floor's."""
+    covers (at its speed on SITL) in the entry-time difference."""
     circles: bool = False
     """The end row of an aircraft circling in both runs: its circles' centres compared
     (where on the circle it is says when it got there, which the states judge)."""
@@ -566,8 +565,8 @@ def _allowed_m(
     """The horizontal distance allowed at a moment: the tolerance, plus the way covered.
 
     The way the vehicle covers, at its speed on SITL, in the time the two runs differ by
-    there (at least the time floor). Two runs the time judgement accepts as the same may
-    put a moving vehicle that far apart: a plane at 18 m/s, 1.9 s later, is 34 m on.
+    there: a plane at 18 m/s that begins its survey 1.9 s later is 34 m on. (Not the
+    time floor's way: a plane whose path strayed 35 m would pass.)
     """
     track = sitl.tracks.get(agent)
     now = track.at(sitl_s) if track is not None else None
@@ -575,7 +574,7 @@ def _allowed_m(
     if now is None or before is None:
         return tol.position_m
     speed_m_s = math.hypot(now[0] - before[0], now[1] - before[1]) / SPEED_WINDOW_S
-    return tol.position_m + speed_m_s * max(difference_s, tol.time_floor_s)
+    return tol.position_m + speed_m_s * difference_s
 
 
 def _apart(
