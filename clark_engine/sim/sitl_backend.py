@@ -44,7 +44,6 @@ import math
 import select
 import socket
 import time
-from collections import deque
 from collections.abc import Callable, Mapping
 from typing import Any, Final
 
@@ -102,8 +101,6 @@ PLANE_LEAD_S: Final = 0.05
 """LOITER is asked for this long before the plane reaches its position: SIM_STATE's
 interval (its position is up to that old) against the command's way to SITL."""
 
-TRUTH_HISTORY: Final = 400
-"""SIM_STATE samples kept (20 s at 20 Hz) for the truth at the run's time."""
 _SYSTEM, _COMPONENT = 255, 26
 _M_PER_DEG_LAT: Final = math.radians(1.0) * EARTH_RADIUS_M
 
@@ -166,9 +163,6 @@ class SitlBackend(VehicleBackend):
         self._reported_s = {"RC_CHANNELS": -math.inf, "SERVO_OUTPUT_RAW": -math.inf}
         self._sent_clock_s: float | None = None
         self._pilot_us = [0] * 16
-        # SIM_STATE by SITL's clock when it came, for :meth:`truth` at the run's time.
-        self._history: deque[tuple[float, Truth]] = deque(maxlen=TRUTH_HISTORY)
-        self._run_clock_s: float | None = None
 
     # -- the interface ----------------------------------------------------------------------
 
@@ -237,7 +231,6 @@ class SitlBackend(VehicleBackend):
             SitlError: SITL exited, or sent nothing for :data:`STALL_WALL_S`.
         """
         want_s = t_s + self._offset_s
-        self._run_clock_s = want_s
         while (clock_s := self.clock_s) is None or clock_s < want_s:
             self._duties()
             wait_wall_s = 0.05 if clock_s is None else (want_s - clock_s) / self.process.speedup
@@ -264,19 +257,12 @@ class SitlBackend(VehicleBackend):
     def truth(self) -> Truth:
         """The simulator's true state (SIM_STATE), with VFR_HUD's airspeed and throttle.
 
-        During the run, the latest SITL sent by the run's time (the clock of its last
-        step): a SITL ahead of a lagging run has flown on, and the tracks, the checks
-        and the comparison are about the run's time. The latest one outside a run.
+        SITL's latest: what the engine hears comes from SITL's present too, so a state
+        entered on what SITL said is recorded where SITL then was (a run lagging behind
+        SITL has both a little late; a copter's "landed" was recorded 9 m up when the
+        truth was taken at the run's own clock instead).
         """
-        want_s = self._run_clock_s
-        if want_s is None or not self._history:
-            return self._truth
-        best = self._history[0][1]
-        for clock_s, truth in reversed(self._history):
-            if clock_s <= want_s + 1e-6:
-                best = truth
-                break
-        return best
+        return self._truth
 
     def flight_status(self) -> tuple[bool, str]:
         """Arming and mode from SITL's latest HEARTBEAT on the backend's own link.
@@ -425,8 +411,6 @@ class SitlBackend(VehicleBackend):
             self._reported_s[kind] = boot_ms / 1000.0
         if kind == "SIM_STATE":
             self._truth = self._truth_from(msg)
-            if self._clock_s is not None:
-                self._history.append((self._clock_s, self._truth))
         elif kind == "RC_CHANNELS":
             self._rc = tuple(
                 0 if v == 65535 else int(v)
