@@ -440,16 +440,59 @@ def _sim() -> Schema:
             "gps_error": _gps_error(),
             "radio_bursts": _radio_bursts(),
             "jitter": _jitter(),
-            "sitl_tolerance_s": number(
-                "With clark dry-run --autopilot sitl: how far apart each state's first entry "
-                "may be on ArduPilot SITL and on the simulated autopilot for the comparison "
-                "to pass.",
-                unit="s",
+            "wind": _wind(),
+            "sitl_tolerance": _sitl_tolerance(),
+        },
+    )
+
+
+def _sitl_tolerance() -> Schema:
+    # The defaults and their reasons: docs/autopilot-fidelity.md, "The same mission both
+    # ways"; clark_engine/sim/timeline.py applies them.
+    return obj(
+        "With clark dry-run --autopilot sitl: how close the mission on ArduPilot SITL must "
+        "come to the same mission on the simulated autopilot for the comparison to pass. "
+        "Each state's first entry is allowed a share of its leg (the time since the agent's "
+        "previous state change on SITL), never less than time_floor_s; positions and "
+        "altitudes at each state change and at the end, and every check's verdict and "
+        "figures, are compared too.",
+        {
+            "time_floor_s": time_s(
+                "The least a state's entry time may differ whatever its leg: the jitter of "
+                "two runs' messages and ticks.",
                 exclusive_minimum=0,
                 maximum=3600,
+                default=3.0,
+            ),
+            "sim_sooner_share": share(
+                "How much sooner than on SITL the simulated run may get through a leg, as a "
+                "share of SITL's leg: the simulation must not be kinder than ArduPilot "
+                "(0.9x SITL's time at the quickest, as the conformance suite holds it).",
+                default=0.1,
+            ),
+            "sim_later_share": share(
+                "How much later than on SITL the simulated run may get through a leg, as a "
+                "share of SITL's leg (up to 1.3x SITL's time, as the conformance suite "
+                "allows).",
+                default=0.3,
+            ),
+            "position_m": distance_m(
+                "How far apart (horizontally) the vehicle may be in the two runs when it "
+                "enters each state, at the end of the run, and in a check's distances.",
+                maximum=10000,
                 default=10.0,
             ),
-            "wind": _wind(),
+            "altitude_m": distance_m(
+                "How far apart an aircraft's altitudes may be in the two runs when it "
+                "enters each state, at the end of the run, and in a check's altitudes.",
+                maximum=10000,
+                default=3.0,
+            ),
+            "count_share": share(
+                "How far apart a check's counts (photos) may be, as a share of SITL's "
+                "count, never less than one.",
+                default=0.1,
+            ),
         },
     )
 
