@@ -278,17 +278,17 @@ ROVER_STOP_SPEED_M_S: Final = 0.1
 """ArduRover's ATC_STOP_SPEED: at a target, below this it is stopped."""
 ROVER_MIN_SPEED_M_S: Final = 0.05
 """AR_WPNav's lowest waypoint speed (SITL with WP_SPEED 0 crawled at 0.04 m/s)."""
-ROVER_REDIRECT_DONE_M_S: Final = 0.5
-"""A GUIDED target that reaches a rover driving to another brakes it first, at its full
-deceleration limit, down to this speed, steering toward the new target only if it lies
-ahead (within 90 degrees; one behind it, it brakes straight to a stop and sets off again
-as from rest, :data:`ROVER_START_DELAY_S` later); then it drives on as to any target. ArduRover starts the new
-leg at its stopping point (AR_WPNav::set_desired_location: origin and destination reset
-to the point ahead at which it could stop, when the last leg was not finished), so it
-cannot turn round at speed. Measured on SITL at WP_SPEED 3, ATC_ACCEL_MAX 1: a target
-30 m behind, sent at 3 m/s, took 20.5 s to reach and stop (it stopped 7 m further on,
-then looped round at 2 m/s); one 20 m to the side 13.8 s (turning while braking to
-0.9 m/s)."""
+ROVER_REVERSAL_SPEED_M_S: Final = 0.5
+"""A GUIDED target behind a rover driving faster than this (more than 90 degrees off its
+heading) brakes it straight to a stop, at its deceleration limit ramped up at WP_JERK,
+before it turns round and sets off again as from rest (:data:`ROVER_START_DELAY_S`).
+ArduRover's GUIDED feeds a position target to its position controller's input shaping
+(AR_WPNav::set_desired_location_expect_fast_update, GUID_OPTIONS 0): the shaped target
+keeps the vehicle's velocity and decelerates to reverse, so a car-like rover runs on to
+where it can stop and only then loops round. Measured on SITL at WP_SPEED 3,
+ATC_ACCEL_MAX 1, a target sent at 3 m/s: 10 m behind, it stopped 6.5 m further on and
+was within 3 m of the target after 14.8 s; 30 m behind, 19.4 s. A target ahead or to
+the side is driven to at once, turning while slowing (20 m to the right: 10.8 s)."""
 ROVER_START_DELAY_S: Final = 0.84
 """From a new target to the first motion of a rover at rest (SITL: 0.84 s, in every run,
 at speedup 1 and 10): its speed controller winding up."""
@@ -2532,13 +2532,14 @@ class Rover(SimulatedVehicle):
         # ArduRover takes new parameters only on entering a mode, not with a target.
         if speed_m_s is not None:
             self._set_speed(speed_m_s)
-        # A GUIDED target while still driving to the last one: ArduRover starts the new
-        # leg from its stopping point, so it brakes first (ROVER_REDIRECT_DONE_M_S).
+        # A GUIDED target behind a rover at speed: it runs on to a stop before turning
+        # round (ROVER_REVERSAL_SPEED_M_S).
         self._redirect_s = 0.0
+        bearing = math.atan2(east_m - self._e, north_m - self._n)
         self._redirect = (
             self._behaviour is ModeBehaviour.GUIDED
-            and not self._arrived
-            and self._speed > ROVER_REDIRECT_DONE_M_S
+            and self._speed > ROVER_REVERSAL_SPEED_M_S
+            and abs(_wrap_pi(bearing - self._yaw)) > _HALF_PI
         )
         self._tn, self._te = north_m, east_m
         self._arrived = False
@@ -2573,18 +2574,13 @@ class Rover(SimulatedVehicle):
                 approach = sqrt_controller(
                     distance, ROVER_APPROACH_GAIN_1_S, self._approach_decel, h
                 )
-                ahead = abs(error) <= _HALF_PI
-                if self._redirect and speed <= (ROVER_REDIRECT_DONE_M_S if ahead else 0.0):
+                if self._redirect and speed <= 0.0:
                     self._redirect = False
                 if self._redirect:
-                    # Braking toward the stopping point, turning only toward a target ahead,
-                    # the deceleration ramping up at WP_JERK (0: the acceleration limit's
-                    # value per second, AR_WPNav's S-curve).
+                    # Braking straight to a stop, the deceleration ramping up at WP_JERK
+                    # (0: the acceleration limit's value per second, as AR_WPNav's).
                     self._redirect_s += h
                     down = min(down, self._jerk * self._redirect_s)
-                    limit = self._max_turn_rad_s
-                    rate = _clamp(self.heading_gain_1_s * error, -limit, limit) if ahead else 0.0
-                    steer_cmd = rate / limit if limit > 0 else 0.0
                 elif approach < ROVER_STOP_SPEED_M_S or (
                     distance <= self._wp_radius and abs(error) > _HALF_PI
                 ):
