@@ -2368,8 +2368,9 @@ class SimAutopilot:
         """Latitude, longitude and height above the origin as the GPS reports them.
 
         Before the GPS has a fix ArduPilot reports 0, 0 (ArduPlane: its dead reckoning
-        from there, :meth:`_dead_reckoned_m`), and a height from its barometer (taken here as the height with the receiver's vertical error: a little
-        noise around the truth). A model with a GPS (``gps_fix``: seeded noise at the
+        from there, :meth:`_dead_reckoned_m`), and a height from its barometer (taken
+        here as the height with the receiver's vertical error: a little noise around
+        the truth). A model with a GPS (``gps_fix``: seeded noise at the
         receiver's rate) is read through it, as ArduPilot reads its receiver; otherwise
         the truth is reported.
         """

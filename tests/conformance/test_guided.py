@@ -275,37 +275,41 @@ def test_rover_redirected_while_driving_brakes_before_it_turns(rover: Peer) -> N
     assert peer.set_mode("GUIDED").result == mavlink2.MAV_RESULT_ACCEPTED
     assert peer.arm().result == mavlink2.MAV_RESULT_ACCEPTED
     for case, (north_m, east_m) in REDIRECT_TARGETS_M.items():
-        origin = here(peer)
-        base = (origin.lat_deg, origin.lon_deg)
-        goto(peer, *moved(*base, 60.0, 0.0), 0.0)
+        redirect(peer, case, north_m, east_m)
 
-        def along(msg: object) -> bool:
-            """20 m along the leg north"""
-            f = fix_of(msg)
-            return offset_m(*base, f.lat_deg, f.lon_deg)[0] >= 20.0
 
-        sending = fix_of(peer.wait_for("GLOBAL_POSITION_INT", 30.0, where=along))
-        assert sending.ground_speed_m_s >= ROVER_SPEED_M_S - 0.2, "not at speed"
-        target = moved(*base, 20.0 + north_m, east_m)
-        mark = peer.mark()
-        sent_s = peer.now_s
-        goto(peer, *target, 0.0)
+def redirect(peer: Peer, case: str, north_m: float, east_m: float) -> None:
+    """Drive north at WP_SPEED; 20 m on, send a target (north_m, east_m) from there."""
+    origin = here(peer)
+    base = (origin.lat_deg, origin.lon_deg)
+    goto(peer, *moved(*base, 60.0, 0.0), 0.0)
 
-        def there(msg: object) -> bool:
-            """within 3 m of the new target"""
-            f = fix_of(msg)
-            return distance_m((f.lat_deg, f.lon_deg), target) < 3.0
+    def along(msg: object) -> bool:
+        """20 m along the leg north"""
+        f = fix_of(msg)
+        return offset_m(*base, f.lat_deg, f.lon_deg)[0] >= 20.0
 
-        arrived = fix_of(peer.wait_for("GLOBAL_POSITION_INT", 40.0, where=there))
-        fixes = track(peer, mark)
-        assert within(arrived.t_s - sent_s, REDIRECT_S[case]), (case, arrived.t_s - sent_s)
-        if case == "behind":  # straight on, braking, before turning round
-            furthest = max(offset_m(*base, f.lat_deg, f.lon_deg)[0] for f in fixes)
-            assert furthest - 20.0 >= 4.0, furthest
-        # It stops there (SITL within 1.2 m; a rover that turned round may stop at WP_RADIUS).
-        peer.wait_for(
-            "GLOBAL_POSITION_INT",
-            15.0,
-            where=lambda m: fix_of(m).ground_speed_m_s < 0.05
-            and distance_m((fix_of(m).lat_deg, fix_of(m).lon_deg), target) < 3.5,
-        )
+    sending = fix_of(peer.wait_for("GLOBAL_POSITION_INT", 30.0, where=along))
+    assert sending.ground_speed_m_s >= ROVER_SPEED_M_S - 0.2, "not at speed"
+    target = moved(*base, 20.0 + north_m, east_m)
+    mark = peer.mark()
+    sent_s = peer.now_s
+    goto(peer, *target, 0.0)
+
+    def there(msg: object, within_m: float = 3.0) -> bool:
+        """within 3 m of the new target"""
+        f = fix_of(msg)
+        return distance_m((f.lat_deg, f.lon_deg), target) < within_m
+
+    arrived = fix_of(peer.wait_for("GLOBAL_POSITION_INT", 40.0, where=there))
+    fixes = track(peer, mark)
+    assert within(arrived.t_s - sent_s, REDIRECT_S[case]), (case, arrived.t_s - sent_s)
+    if case == "behind":  # straight on, braking, before turning round
+        furthest = max(offset_m(*base, f.lat_deg, f.lon_deg)[0] for f in fixes)
+        assert furthest - 20.0 >= 4.0, furthest
+
+    def stopped(msg: object) -> bool:
+        """stopped there (SITL within 1.2 m; after turning round, maybe at WP_RADIUS)"""
+        return fix_of(msg).ground_speed_m_s < 0.05 and there(msg, 3.5)
+
+    peer.wait_for("GLOBAL_POSITION_INT", 15.0, where=stopped)
