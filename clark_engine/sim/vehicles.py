@@ -2437,7 +2437,9 @@ class Rover(SimulatedVehicle):
     over about 8.7 s. It stops at the target and stays stopped (RTL and AUTO stay in
     their mode, as ArduRover's do); the target counts as reached within WP_RADIUS
     (ArduRover's), where a mission executor moves on. A target behind it within
-    WP_RADIUS is reached where it is. Hold (and a guided mode entered with no
+    WP_RADIUS is reached where it is. A GUIDED target behind a rover at speed
+    (:data:`ROVER_REVERSAL_SPEED_M_S`) brakes it straight to a stop before it turns
+    round, as ArduRover's shaped target does. Hold (and a guided mode entered with no
     target) stops where it is, braking at the deceleration limit. Manual modes: the
     steering channel steers, the throttle channel (centred) drives forward above
     trim and reverses below it, full stick meaning ``max_speed_m_s`` reached at up
