@@ -182,6 +182,8 @@ PLANE_DEFAULT_PARAMS: Final[Mapping[str, float]] = {
     "RTL_ALTITUDE": 100.0,  # m above home
     "RTL_RADIUS": 0.0,  # m; 0: WP_LOITER_RAD
     "ROLL_LIMIT_DEG": 45.0,  # deg, never above the airframe's max_bank_deg
+    "NAVL1_PERIOD": 17.0,  # s, the L1 navigation period (SITL's plane.parm: 15)
+    "NAVL1_DAMPING": 0.75,  # the L1 damping ratio
     "LAND_FLARE_ALT": 3.0,  # m
     "TECS_LAND_SINK": 0.25,  # m/s in the flare
 }
@@ -2039,6 +2041,9 @@ class FixedWing(SimulatedVehicle):
         self._cruise = _clamp(p["AIRSPEED_CRUISE"], self._speed_low, self._speed_high)
         self._loiter_rad = abs(p["WP_LOITER_RAD"])
         self._wp_radius = max(p["WP_RADIUS"], 1.0)
+        l1_period = max(p["NAVL1_PERIOD"], 1.0) * max(p["NAVL1_DAMPING"], 0.1)
+        self._l1_gain = _TAU / l1_period
+        self._l1_distance_s = l1_period / math.pi  # times the speed: L1's distance, m
         limit = math.radians(p["ROLL_LIMIT_DEG"]) if p["ROLL_LIMIT_DEG"] > 0.0 else _INF
         self._max_bank = min(self._airframe_bank, limit)
         self._level_below = max(p["TKOFF_LVL_ALT"], 0.0)
@@ -2314,17 +2319,32 @@ class FixedWing(SimulatedVehicle):
         distance = math.sqrt(dn * dn + de * de)
         radius = self._radius
         bearing = math.atan2(de, dn)
-        course = bearing + _HALF_PI + math.atan(self.orbit_gain * (distance - radius) / radius)
+        # Outside the circle the bend is sized by L1's distance (V NAVL1_PERIOD
+        # NAVL1_DAMPING / pi), not the radius: ArduPlane's L1 loiter flies straight at the
+        # centre until it is about that close to the circle, then captures it.
+        excess = distance - radius
+        scale = radius if excess <= 0.0 else min(radius, self._l1_distance_s * speed)
+        course = bearing + _HALF_PI + math.atan(self.orbit_gain * excess / scale)
         error = _wrap_pi(course - self._yaw)
         feed_forward = speed / (distance if distance > radius else radius)
         limit = self._max_turn_rad_s
-        turn = _clamp(self.course_gain_1_s * error + feed_forward, -limit, limit)
+        turn = _clamp(self._l1_turn(error) + feed_forward, -limit, limit)
         return math.atan(turn * speed / G_M_S2)
+
+    def _l1_turn(self, error: float) -> float:
+        """Turn rate (rad/s) toward a course ``error`` radians away, as ArduPlane's L1 turns.
+
+        L1's lateral acceleration is 2 V^2 / L1 sin(eta) with L1 = V NAVL1_PERIOD
+        NAVL1_DAMPING / pi, so the turn rate is 2 pi / (NAVL1_PERIOD NAVL1_DAMPING)
+        sin(eta), eta capped at 90 degrees: a course error of 30 degrees turns at half
+        the rate of one of 90 or more (0.49 rad/s with ArduPlane's defaults).
+        """
+        return self._l1_gain * math.sin(_clamp(error, -_HALF_PI, _HALF_PI))
 
     def _course_roll(self, speed: float, course: float) -> float:
         """Roll command that holds a course."""
         limit = self._max_turn_rad_s
-        turn = _clamp(self.course_gain_1_s * _wrap_pi(course - self._yaw), -limit, limit)
+        turn = _clamp(self._l1_turn(_wrap_pi(course - self._yaw)), -limit, limit)
         return math.atan(turn * speed / G_M_S2)
 
     def _pitch_for(self, h: float, speed: float, climb_m_s: float) -> float:
