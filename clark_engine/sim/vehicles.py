@@ -1906,7 +1906,9 @@ class FixedWing(SimulatedVehicle):
     RTL_RADIUS when set), never tighter than ``loiter_radius_factor`` times the
     tightest turn at the loiter speed (``V^2 / (g tan(max bank))`` or
     ``V / max turn rate``, whichever is larger), with a vector-field course law that
-    flies straight at a far centre and settles on the circle near it. So a guided
+    flies straight at a far centre and settles on the circle near it (bending onto it
+    from L1's distance out, ``V NAVL1_PERIOD NAVL1_DAMPING / pi``), turning toward its
+    course as ArduPlane's L1 controller does (:meth:`FixedWing._l1_turn`). So a guided
     goto flies to the point and then circles it, as ArduPlane's GUIDED does; RTL
     flies home and circles it at RTL_ALTITUDE above home indefinitely (RTL_AUTOLAND
     0). Airspeed: AIRSPEED_CRUISE (or DO_CHANGE_SPEED's) within AIRSPEED_MIN..MAX and
