@@ -95,7 +95,9 @@ What it does, in ArduPilot's order:
   timeouts, actions and texts.
 - **Altitudes** as each firmware fills GLOBAL_POSITION_INT while it boots: ArduCopter
   all zero before its fix; ArduRover and ArduPlane their barometer's height until their
-  estimate has one above sea level (ArduRover's home set at that height).
+  estimate has one above sea level (ArduRover's home set at that height). Positions
+  before the fix are 0, 0, but ArduPlane's, which drift away from there as its DCM
+  dead-reckons (SITL: 35 m in 6 s) while GPS_RAW_INT says no fix.
 
 Not simulated (docs/autopilot-fidelity.md): flying by rally points (they are kept,
 never used), mission DO items other than DO_CHANGE_SPEED, DO_SET_SERVO and
@@ -323,6 +325,23 @@ _EKF_ATTITUDE_ONLY: Final = 0xA7  # attitude, velocities, vertical position, con
 _EKF_POSITION: Final = 0x33F  # ... and absolute and relative horizontal position
 _EKF_UNINITIALISED_S: Final = 3.6
 """EKF_STATUS_REPORT says uninitialised until this long after power-on (measured 3.6-4 s)."""
+
+PLANE_PRE_FIX_DRIFT_START: Final = 0.37
+"""ArduPlane's dead reckoning before its GPS fix starts at this share of the time to the
+fix (SITL: 3.5 s of 9.3 s, once "Airspeed 1 calibrated"): its DCM integrates the airspeed
+sensor's reading along the heading from 0, 0, so GLOBAL_POSITION_INT drifts away from
+(0, 0) while GPS_RAW_INT says no fix. Measured (4.7.0-dev, on the ground): 11.6 m after
+0.2 s, 24.4 m after 0.6 s, 33.2 m after 1.6 s, 35.7 m at the fix (at up to 58 m/s between
+reports, 3-26 m/s averaged over a second), velocities 0. The shape below reproduces it."""
+PLANE_PRE_FIX_DRIFT_M: Final = 33.3
+"""The fast part of that drift, m: it covers 1 - exp(-t / tau) of it."""
+PLANE_PRE_FIX_DRIFT_TAU_S: Final = 0.47
+"""Its time constant, s (fitted: 0.46-0.48 over the first 0.6 s)."""
+PLANE_PRE_FIX_CREEP_M_S: Final = 0.55
+"""The slow drift that follows, until the fix, m/s (2.3 m over the last 4 s)."""
+GPS_DETECTED_BEFORE_FIX_S: Final = 0.3
+"""GPS_RAW_INT says NO_GPS (0) until the receiver is detected ("GPS 1: detected u-blox"),
+this long before its fix, then NO_FIX (1) until the fix (SITL, every firmware)."""
 
 _BOOT_TEXTS: Final[tuple[tuple[str, float, int, str], ...]] = (
     ("streams_s", 0.0, _INFO, "ArduPilot Ready"),
@@ -2301,9 +2320,10 @@ class SimAutopilot:
     def _position(self, now_s: float) -> tuple[float, float, float]:
         """Latitude, longitude and height above the origin as the GPS reports them.
 
-        Before the GPS has a fix ArduPilot reports 0, 0, and a height from its
-        barometer (taken here as the height with the receiver's vertical error: a little
-        noise around the truth). A model with a GPS (``gps_fix``: seeded noise at the
+        Before the GPS has a fix ArduPilot reports 0, 0 (ArduPlane: its dead reckoning
+        from there, :meth:`_dead_reckoned_m`), and a height from its barometer (taken
+        here as the height with the receiver's vertical error: a little noise around
+        the truth). A model with a GPS (``gps_fix``: seeded noise at the
         receiver's rate) is read through it, as ArduPilot reads its receiver; otherwise
         the truth is reported.
         """
@@ -2314,8 +2334,27 @@ class SimAutopilot:
             t = self._truth()
             lat, lon, alt = t.lat_deg, t.lon_deg, t.up_m
         if not self._gps_fix(now_s):
-            return 0.0, 0.0, float(alt)
+            north_m, east_m = self._dead_reckoned_m(now_s)
+            return north_m / _M_PER_DEG_LAT, east_m / _M_PER_DEG_LAT, float(alt)
         return float(lat), float(lon), float(alt)
+
+    def _dead_reckoned_m(self, now_s: float) -> tuple[float, float]:
+        """North and east of (0, 0), m, where ArduPlane's DCM puts itself before a fix.
+
+        ArduPlane integrates its airspeed sensor from 0, 0 along its heading (SITL:
+        :data:`PLANE_PRE_FIX_DRIFT_START`); the other firmwares stay at 0, 0. An engine
+        must not take these for the vehicle's position (GPS_RAW_INT says no fix).
+        """
+        if self.firmware != "arduplane":
+            return 0.0, 0.0
+        fix_s = self.boot_times.gps_fix_s
+        since_s = self._age_s(now_s) - PLANE_PRE_FIX_DRIFT_START * fix_s
+        if since_s <= 0.0:
+            return 0.0, 0.0
+        drift_m = PLANE_PRE_FIX_DRIFT_M * -math.expm1(-since_s / PLANE_PRE_FIX_DRIFT_TAU_S)
+        drift_m += PLANE_PRE_FIX_CREEP_M_S * since_s
+        yaw = math.radians(self._truth().yaw_deg)
+        return drift_m * math.cos(yaw), drift_m * math.sin(yaw)
 
     def _home_alt_m(self) -> float:
         return self._home[2] if self._home is not None else self.origin_alt_amsl_m
@@ -2324,10 +2363,16 @@ class SimAutopilot:
         t = self._truth()
         lat, lon, up = self._position(now_s)
         fixed = self._gps_fix(now_s)
+        if not fixed:
+            lat = lon = 0.0  # the receiver's own report: nothing (the DCM's is not its)
         unix_us = self._unix_us(now_s)
         return self._mav.gps_raw_int_encode(
             unix_us if unix_us else round((now_s - self.boot_s) * 1e6),
-            mavlink2.GPS_FIX_TYPE_3D_FIX if fixed else mavlink2.GPS_FIX_TYPE_NO_FIX,
+            mavlink2.GPS_FIX_TYPE_3D_FIX
+            if fixed
+            else mavlink2.GPS_FIX_TYPE_NO_FIX
+            if self._age_s(now_s) >= self.boot_times.gps_fix_s - GPS_DETECTED_BEFORE_FIX_S
+            else mavlink2.GPS_FIX_TYPE_NO_GPS,
             round(lat * 1e7),
             round(lon * 1e7),
             round((self.origin_alt_amsl_m + up) * 1000) if fixed else 0,

@@ -190,6 +190,8 @@ PLANE_DEFAULT_PARAMS: Final[Mapping[str, float]] = {
     "RTL_ALTITUDE": 100.0,  # m above home
     "RTL_RADIUS": 0.0,  # m; 0: WP_LOITER_RAD
     "ROLL_LIMIT_DEG": 45.0,  # deg, never above the airframe's max_bank_deg
+    "NAVL1_PERIOD": 17.0,  # s, the L1 navigation period (SITL's plane.parm: 15)
+    "NAVL1_DAMPING": 0.75,  # the L1 damping ratio
     "LAND_FLARE_ALT": 3.0,  # m
     "TECS_LAND_SINK": 0.25,  # m/s in the flare
 }
@@ -205,6 +207,7 @@ ROVER_DEFAULT_PARAMS: Final[Mapping[str, float]] = {
     "ATC_DECEL_MAX": 0.0,  # m/s^2; 0: ATC_ACCEL_MAX
     "ATC_TURN_MAX_G": 0.6,  # lateral acceleration limit, g
     "TURN_RADIUS": 0.9,  # m, tightest turn
+    "WP_JERK": 0.0,  # m/s^3; 0: the acceleration limit's value (AR_WPNav)
 }
 """ArduRover's defaults (AR_WPNav, AR_AttitudeControl, Rover Parameters.cpp). SITL's
 rover.parm differs (WP_SPEED 5, CRUISE_SPEED 5, WP_RADIUS 3). CRUISE_SPEED is not read:
@@ -289,6 +292,17 @@ ROVER_STOP_SPEED_M_S: Final = 0.1
 """ArduRover's ATC_STOP_SPEED: at a target, below this it is stopped."""
 ROVER_MIN_SPEED_M_S: Final = 0.05
 """AR_WPNav's lowest waypoint speed (SITL with WP_SPEED 0 crawled at 0.04 m/s)."""
+ROVER_REVERSAL_SPEED_M_S: Final = 0.5
+"""A GUIDED target behind a rover driving faster than this (more than 90 degrees off its
+heading) brakes it straight to a stop, at its deceleration limit ramped up at WP_JERK,
+before it turns round and sets off again as from rest (:data:`ROVER_START_DELAY_S`).
+ArduRover's GUIDED feeds a position target to its position controller's input shaping
+(AR_WPNav::set_desired_location_expect_fast_update, GUID_OPTIONS 0): the shaped target
+keeps the vehicle's velocity and decelerates to reverse, so a car-like rover runs on to
+where it can stop and only then loops round. Measured on SITL at WP_SPEED 3,
+ATC_ACCEL_MAX 1, a target sent at 3 m/s: 10 m behind, it stopped 6.5 m further on and
+was within 3 m of the target after 14.8 s; 30 m behind, 19.4 s. A target ahead or to
+the side is driven to at once, turning while slowing (20 m to the right: 10.8 s)."""
 ROVER_START_DELAY_S: Final = 0.84
 """From a new target to the first motion of a rover at rest (SITL: 0.84 s, in every run,
 at speedup 1 and 10): its speed controller winding up."""
@@ -1985,7 +1999,9 @@ class FixedWing(SimulatedVehicle):
     RTL_RADIUS when set), never tighter than ``loiter_radius_factor`` times the
     tightest turn at the loiter speed (``V^2 / (g tan(max bank))`` or
     ``V / max turn rate``, whichever is larger), with a vector-field course law that
-    flies straight at a far centre and settles on the circle near it. So a guided
+    flies straight at a far centre and settles on the circle near it (bending onto it
+    from L1's distance out, ``V NAVL1_PERIOD NAVL1_DAMPING / pi``), turning toward its
+    course as ArduPlane's L1 controller does (:meth:`FixedWing._l1_turn`). So a guided
     goto flies to the point and then circles it, as ArduPlane's GUIDED does; RTL
     flies home and circles it at RTL_ALTITUDE above home indefinitely (RTL_AUTOLAND
     0). Airspeed: AIRSPEED_CRUISE (or DO_CHANGE_SPEED's) within AIRSPEED_MIN..MAX and
@@ -2120,6 +2136,9 @@ class FixedWing(SimulatedVehicle):
         self._cruise = _clamp(p["AIRSPEED_CRUISE"], self._speed_low, self._speed_high)
         self._loiter_rad = abs(p["WP_LOITER_RAD"])
         self._wp_radius = max(p["WP_RADIUS"], 1.0)
+        l1_period = max(p["NAVL1_PERIOD"], 1.0) * max(p["NAVL1_DAMPING"], 0.1)
+        self._l1_gain = _TAU / l1_period
+        self._l1_distance_s = l1_period / math.pi  # times the speed: L1's distance, m
         limit = math.radians(p["ROLL_LIMIT_DEG"]) if p["ROLL_LIMIT_DEG"] > 0.0 else _INF
         self._max_bank = min(self._airframe_bank, limit)
         self._level_below = max(p["TKOFF_LVL_ALT"], 0.0)
@@ -2395,7 +2414,12 @@ class FixedWing(SimulatedVehicle):
         distance = math.sqrt(dn * dn + de * de)
         radius = self._radius
         bearing = math.atan2(de, dn)
-        course = bearing + _HALF_PI + math.atan(self.orbit_gain * (distance - radius) / radius)
+        # Outside the circle the bend is sized by L1's distance (V NAVL1_PERIOD
+        # NAVL1_DAMPING / pi), not the radius: ArduPlane's L1 loiter flies straight at the
+        # centre until it is about that close to the circle, then captures it.
+        excess = distance - radius
+        scale = radius if excess <= 0.0 else min(radius, self._l1_distance_s * speed)
+        course = bearing + _HALF_PI + math.atan(self.orbit_gain * excess / scale)
         if self._wind is not None:
             # In wind the autopilot steers its track over the ground (ArduPlane's L1
             # loiter), banking for the ground speed's turn: more downwind, where the bank
@@ -2404,12 +2428,12 @@ class FixedWing(SimulatedVehicle):
             error = _wrap_pi(course - track)
             feed_forward = ground / (distance if distance > radius else radius)
             limit = self._max_turn_rad_s
-            turn = _clamp(self.course_gain_1_s * error + feed_forward, -limit, limit)
+            turn = _clamp(self._l1_turn(error) + feed_forward, -limit, limit)
             return math.atan(turn * ground / G_M_S2)
         error = _wrap_pi(course - self._yaw)
         feed_forward = speed / (distance if distance > radius else radius)
         limit = self._max_turn_rad_s
-        turn = _clamp(self.course_gain_1_s * error + feed_forward, -limit, limit)
+        turn = _clamp(self._l1_turn(error) + feed_forward, -limit, limit)
         return math.atan(turn * speed / G_M_S2)
 
     def _ground_track(self) -> tuple[float, float]:
@@ -2418,14 +2442,24 @@ class FixedWing(SimulatedVehicle):
         ground = math.sqrt(vn * vn + ve * ve)
         return ground, (math.atan2(ve, vn) if ground > 0.5 else self._yaw)
 
+    def _l1_turn(self, error: float) -> float:
+        """Turn rate (rad/s) toward a course ``error`` radians away, as ArduPlane's L1 turns.
+
+        L1's lateral acceleration is 2 V^2 / L1 sin(eta) with L1 = V NAVL1_PERIOD
+        NAVL1_DAMPING / pi, so the turn rate is 2 pi / (NAVL1_PERIOD NAVL1_DAMPING)
+        sin(eta), eta capped at 90 degrees: a course error of 30 degrees turns at half
+        the rate of one of 90 or more (0.49 rad/s with ArduPlane's defaults).
+        """
+        return self._l1_gain * math.sin(_clamp(error, -_HALF_PI, _HALF_PI))
+
     def _course_roll(self, speed: float, course: float) -> float:
         """Roll command that holds a course."""
         limit = self._max_turn_rad_s
         if self._wind is not None:  # hold the track over the ground, crabbing into the wind
             ground, track = self._ground_track()
-            turn = _clamp(self.course_gain_1_s * _wrap_pi(course - track), -limit, limit)
+            turn = _clamp(self._l1_turn(_wrap_pi(course - track)), -limit, limit)
             return math.atan(turn * ground / G_M_S2)
-        turn = _clamp(self.course_gain_1_s * _wrap_pi(course - self._yaw), -limit, limit)
+        turn = _clamp(self._l1_turn(_wrap_pi(course - self._yaw)), -limit, limit)
         return math.atan(turn * speed / G_M_S2)
 
     def _pitch_for(self, h: float, speed: float, climb_m_s: float) -> float:
@@ -2539,7 +2573,9 @@ class Rover(SimulatedVehicle):
     over about 8.7 s. It stops at the target and stays stopped (RTL and AUTO stay in
     their mode, as ArduRover's do); the target counts as reached within WP_RADIUS
     (ArduRover's), where a mission executor moves on. A target behind it within
-    WP_RADIUS is reached where it is. Hold (and a guided mode entered with no
+    WP_RADIUS is reached where it is. A GUIDED target behind a rover at speed
+    (:data:`ROVER_REVERSAL_SPEED_M_S`) brakes it straight to a stop before it turns
+    round, as ArduRover's shaped target does. Hold (and a guided mode entered with no
     target) stops where it is, braking at the deceleration limit. Manual modes: the
     steering channel steers, the throttle channel (centred) drives forward above
     trim and reverses below it, full stick meaning ``max_speed_m_s`` reached at up
@@ -2579,6 +2615,8 @@ class Rover(SimulatedVehicle):
         self._arrived = True
         self._speed_set = False
         self._wind_up_s = 0.0
+        self._redirect = False
+        self._redirect_s = 0.0
         self._capture()
         self._leg_speed = self._default_speed()
 
@@ -2591,6 +2629,7 @@ class Rover(SimulatedVehicle):
         self._wp_radius = max(p["WP_RADIUS"], 0.1)
         self._lateral_accel = max(p["ATC_TURN_MAX_G"], 0.05) * G_M_S2
         self._turn_radius = max(p["TURN_RADIUS"], 0.0)
+        self._jerk = max(p["WP_JERK"], 0.0) or min(self._accel, self._decel)
 
     def _default_speed(self) -> float:
         p = self._params
@@ -2619,6 +2658,7 @@ class Rover(SimulatedVehicle):
         self._speed_set = False
         self._leg_speed = self._default_speed()
         self._command = _CMD_NONE
+        self._redirect = False
         if behaviour is ModeBehaviour.RTL:
             self._tn, self._te = self.home_m[0], self.home_m[1]
             self._arrived = False
@@ -2633,6 +2673,15 @@ class Rover(SimulatedVehicle):
         # ArduRover takes new parameters only on entering a mode, not with a target.
         if speed_m_s is not None:
             self._set_speed(speed_m_s)
+        # A GUIDED target behind a rover at speed: it runs on to a stop before turning
+        # round (ROVER_REVERSAL_SPEED_M_S).
+        self._redirect_s = 0.0
+        bearing = math.atan2(east_m - self._e, north_m - self._n)
+        self._redirect = (
+            self._behaviour is ModeBehaviour.GUIDED
+            and self._speed > ROVER_REVERSAL_SPEED_M_S
+            and abs(_wrap_pi(bearing - self._yaw)) > _HALF_PI
+        )
         self._tn, self._te = north_m, east_m
         self._arrived = False
         self._command = _CMD_TARGET
@@ -2666,7 +2715,14 @@ class Rover(SimulatedVehicle):
                 approach = sqrt_controller(
                     distance, ROVER_APPROACH_GAIN_1_S, self._approach_decel, h
                 )
-                if approach < ROVER_STOP_SPEED_M_S or (
+                if self._redirect and speed <= 0.0:
+                    self._redirect = False
+                if self._redirect:
+                    # Braking straight to a stop, the deceleration ramping up at WP_JERK
+                    # (0: the acceleration limit's value per second, as AR_WPNav's).
+                    self._redirect_s += h
+                    down = min(down, self._jerk * self._redirect_s)
+                elif approach < ROVER_STOP_SPEED_M_S or (
                     distance <= self._wp_radius and abs(error) > _HALF_PI
                 ):
                     self._arrived = True
