@@ -37,6 +37,8 @@ FIRMWARE_WINS: dict[str, dict[str, tuple[float, float]]] = {
         "AIRSPEED_MAX": (22.0, 30.0),
         "WP_RADIUS": (90.0, 50.0),
         "WP_LOITER_RAD": (60.0, 80.0),
+        "NAVL1_PERIOD": (17.0, 15.0),
+        "ROLL_LIMIT_DEG": (45.0, 65.0),
     },
 }
 """Where SITL's default-parameter file (rover.parm, copter.parm, plane.parm) gives a

@@ -576,6 +576,11 @@ PLANE: Final = Firmware(
         "WP_RADIUS": (90, _INT16),
         "WP_LOITER_RAD": (60, _INT16),
         "RTL_ALTITUDE": (100.0, _REAL32),
+        # The L1 navigation and the bank limit the simulated plane turns by (SITL's
+        # plane.parm: NAVL1_PERIOD 15, ROLL_LIMIT_DEG 65).
+        "NAVL1_PERIOD": (17.0, _REAL32),
+        "NAVL1_DAMPING": (0.75, _REAL32),
+        "ROLL_LIMIT_DEG": (45.0, _REAL32),
         "LAND_DISARMDELAY": (20, _INT8),
         # The fence: uploaded polygons only by default, and no mode change while breached.
         "FENCE_TYPE": (4, _INT8),
@@ -597,6 +602,9 @@ PLANE: Final = Firmware(
         "WP_RADIUS",
         "WP_LOITER_RAD",
         "RTL_ALTITUDE",
+        "NAVL1_PERIOD",
+        "NAVL1_DAMPING",
+        "ROLL_LIMIT_DEG",
     ),
 )
 
