@@ -379,13 +379,22 @@ def build_vehicle(
 
 
 def build_sitl_vehicle(
-    mission: Mission, agent: Agent, config: AgentConfig, install: SitlInstall, speedup: float
+    mission: Mission,
+    agent: Agent,
+    config: AgentConfig,
+    install: SitlInstall,
+    speedup: float,
+    seed: int = 0,
 ) -> tuple[SitlBackend, SimPilot, dict[str, Any] | None]:
     """One vehicle of a dry run on real ArduPilot SITL, started (listening, not connected).
 
     SITL boots at the ground point below the agent's ``position`` (its home), heading
     its ``sim.heading_deg``, with the firmware's flight parameters as the simulated
     autopilot has them (its defaults and the profile's ``parameters``).
+
+    ``seed`` draws the vehicle's GPS error (``sim.gps_error``), the same error as the
+    simulated run's, played through SITL's own GPS offset, and its pilot's reaction
+    (``sim.jitter.pilot_s``).
 
     Returns:
         The backend, its pilot, and for a vehicle the pilot hands over in flight the
@@ -426,6 +435,9 @@ def build_sitl_vehicle(
         component_id=int(mav.get("component_id", 1)),
         params=params,
         modes=dict(autopilot["modes"]),
+        gps_error=GpsError(settings, seed, agent.name)
+        if (settings := GpsErrorSettings.from_sim(mission.sim)) is not None
+        else None,
     )
     throttle = config.channels.get("throttle")
     copter_throttle = throttle if airframe.get("class") == "multirotor" else None
@@ -440,6 +452,7 @@ def build_sitl_vehicle(
         arms=not airborne and (launch is None or launch.armed_by == "pilot"),
         throttle_rc=throttle_at[0] if throttle_at is not None else None,
         throttle_mid_us=throttle_at[1] if throttle_at is not None else 1500,
+        reaction_s=pilot_reaction_s(mission, agent.name, seed),
     )
     plan = (
         {
@@ -665,7 +678,7 @@ class DryRun:
         """The vehicle's autopilot and physics (simulated, or SITL), its pilot, its adapter."""
         if self.sitl is not None:
             backend, pilot, plan = build_sitl_vehicle(
-                self.mission, agent, sim_agent.config, self.sitl, self.sitl_speedup
+                self.mission, agent, sim_agent.config, self.sitl, self.sitl_speedup, self.seed
             )
             sim_agent.backend, sim_agent.pilot = backend, pilot
             if plan is not None:

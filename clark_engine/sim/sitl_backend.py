@@ -51,6 +51,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.mission.geo import EARTH_RADIUS_M, Origin
 from clark_engine.sim.backend import VehicleBackend
+from clark_engine.sim.gps_error import GpsError
 from clark_engine.sim.model import Truth
 from clark_engine.sim.sitl import SitlError, SitlProcess
 
@@ -101,6 +102,13 @@ PLANE_LEAD_S: Final = 0.05
 """LOITER is asked for this long before the plane reaches its position: SIM_STATE's
 interval (its position is up to that old) against the command's way to SITL."""
 
+GPS_ERROR_EVERY_S: Final = 0.5
+"""Simulated seconds between two updates of SITL's GPS offset (``sim.gps_error``): a
+walk with a time constant of minutes moves millimetres in that time, and a glitch starts
+at most this late."""
+GPS_ERROR_STEP_M: Final = 0.05
+"""A change of the GPS error smaller than this is not sent (it would only load the link)."""
+
 _SYSTEM, _COMPONENT = 255, 26
 _M_PER_DEG_LAT: Final = math.radians(1.0) * EARTH_RADIUS_M
 
@@ -117,6 +125,11 @@ class SitlBackend(VehicleBackend):
         params: Parameters to set before the run (ArduPilot names and units).
         modes: Mode name -> ArduPilot custom_mode number (the autopilot profile's), to
             name the mode its HEARTBEAT reports.
+        gps_error: The vehicle's GPS error over the run (``sim.gps_error``), played
+            through SITL's own GPS offset (SIM_GPS1_GLTCH_X and _Y, in degrees of
+            latitude and longitude): SITL's EKF fuses the offset position and the
+            vehicle flies it, so its true track (SIM_STATE) is displaced, as in the
+            simulated run. None: SITL's GPS as it is.
     """
 
     def __init__(
@@ -129,8 +142,12 @@ class SitlBackend(VehicleBackend):
         component_id: int = 1,
         params: Mapping[str, float] | None = None,
         modes: Mapping[str, int] | None = None,
+        gps_error: GpsError | None = None,
     ) -> None:
         self.process = process
+        self.gps_error = gps_error
+        self._gps_sent_m = (0.0, 0.0)
+        self._next_gps_s = 0.0
         self._mode_names = {int(number): name for name, number in (modes or {}).items()}
         self.origin = origin
         self.firmware = firmware
@@ -230,6 +247,9 @@ class SitlBackend(VehicleBackend):
         Raises:
             SitlError: SITL exited, or sent nothing for :data:`STALL_WALL_S`.
         """
+        if self.gps_error is not None and t_s >= self._next_gps_s:
+            self._next_gps_s = t_s + GPS_ERROR_EVERY_S
+            self._send_gps_error(t_s)
         want_s = t_s + self._offset_s
         while (clock_s := self.clock_s) is None or clock_s < want_s:
             self._duties()
@@ -241,6 +261,27 @@ class SitlBackend(VehicleBackend):
             pass
         data, self._inbox = bytes(self._inbox), bytearray()
         return data
+
+    def _send_gps_error(self, t_s: float) -> None:
+        """Give SITL's GPS the error at ``t_s``, when it moved by :data:`GPS_ERROR_STEP_M`."""
+        assert self.gps_error is not None
+        north_m, east_m = self.gps_error.offset_m(t_s)
+        sent_n, sent_e = self._gps_sent_m
+        if math.hypot(north_m - sent_n, east_m - sent_e) < GPS_ERROR_STEP_M and t_s > 0.0:
+            return
+        self._gps_sent_m = (north_m, east_m)
+        per_deg_lon = _M_PER_DEG_LAT * math.cos(math.radians(self.origin.lat_deg))
+        for name, value in (
+            ("SIM_GPS1_GLTCH_X", north_m / _M_PER_DEG_LAT),
+            ("SIM_GPS1_GLTCH_Y", east_m / per_deg_lon),
+        ):
+            # Sent at once, not queued with the set-up's parameters (those are retried
+            # once a wall second, too slow for a glitch); the next update repeats it.
+            self._mav.param_set_send(
+                self._target[0], self._target[1], name.encode("ascii"), float(value),
+                mavlink2.MAV_PARAM_TYPE_REAL32,
+            )  # fmt: skip
+        self._flush()
 
     def send(self, data: bytes, t_s: float) -> None:
         """Bytes to SITL (the engine's adapter, or the simulated pilot)."""
