@@ -164,6 +164,7 @@ COPTER_DEFAULT_PARAMS: Final[Mapping[str, float]] = {
     "PILOT_SPEED_DN": 0.0,  # cm/s; 0: PILOT_SPEED_UP
     "PILOT_ACCEL_Z": 250.0,  # cm/s^2
     "THR_DZ": 100.0,  # dead band around mid stick, in 1/1000 of the throttle range
+    "PSC_JERK_Z": 5.0,  # m/s^3, how fast the vertical acceleration target may change
     "CIRCLE_RADIUS": 1000.0,  # cm
     "CIRCLE_RATE": 20.0,  # deg/s, positive clockwise
 }
@@ -1163,8 +1164,8 @@ class Multirotor(SimulatedVehicle):
     (guided, auto, a takeoff, RTL's legs) is flown as a straight 3-D line, as
     ArduCopter's waypoint navigation flies it: the speed along the line is the
     square-root braking profile toward the target, capped so that its horizontal
-    part stays within the leg speed (WPNAV_SPEED, or DO_CHANGE_SPEED's, never
-    above WPNAV_SPEED or the airframe's ``max_speed_m_s``) and its vertical part
+    part stays within the leg speed (WPNAV_SPEED, or DO_CHANGE_SPEED's, which may be
+    above WPNAV_SPEED but never above the airframe's ``max_speed_m_s``) and its vertical part
     within WPNAV_SPEED_UP (and the airframe's climb limit) or WPNAV_SPEED_DN; it
     ramps up at :data:`COPTER_RAMP_FRACTION` of WPNAV_ACCEL (and WPNAV_ACCEL_Z) and
     brakes at WPNAV_ACCEL (and :data:`COPTER_Z_BRAKE_FRACTION` of WPNAV_ACCEL_Z). So
@@ -1272,6 +1273,7 @@ class Multirotor(SimulatedVehicle):
         self._landing = False
         self._speed_set = False
         self._pilot_climb = False
+        self._pilot_az = 0.0  # the vertical acceleration the stick's climb rate is shaped with
         self._alt_hold = self._u
         self._rtl_alt = self._u
         self._phase_since_s = 0.0
@@ -1308,6 +1310,7 @@ class Multirotor(SimulatedVehicle):
         self._pilot_up = min(up, limits.max_climb_rate_m_s)
         self._pilot_down = abs(p["PILOT_SPEED_DN"]) / 100.0 or up
         self._pilot_accel = max(p["PILOT_ACCEL_Z"] / 100.0, 0.5)
+        self._pilot_jerk = _clamp(p["PSC_JERK_Z"], 1.0, 50.0)
         self._thr_dz = _clamp(p["THR_DZ"] / 1000.0, 0.0, 0.3)
 
     def _default_speed(self) -> float:
@@ -1445,6 +1448,7 @@ class Multirotor(SimulatedVehicle):
         self._command = _CMD_NONE
         self._face_target = False
         self._pilot_climb = self.mode in self.PILOT_CLIMB_MODES
+        self._pilot_az = 0.0
         self._alt_hold = self._u
         # Automatic modes start by holding where the copter stops, as ArduCopter's do.
         stop_n, stop_e = self._stopping_point(self._brake_xy)
@@ -1521,9 +1525,10 @@ class Multirotor(SimulatedVehicle):
         self._taking_off = False
 
     def _set_speed(self, speed_m_s: float) -> None:
-        # ArduCopter flies no faster than WPNAV_SPEED (SITL: 20 m/s requested, 10 flown).
-        cap = min(max(self._params["WPNAV_SPEED"] / 100.0, 0.2), self._max_speed)
-        self._leg_speed = min(speed_m_s, cap)
+        # AC_WPNav::set_speed_xy takes any speed from WPNAV_WP_SPEED_MIN (20 cm/s) up:
+        # WPNAV_SPEED is only the default (SITL flew 10.02 m/s asked with WPNAV_SPEED 5).
+        # What caps it is the airframe: its lean limit against drag, max_speed_m_s here.
+        self._leg_speed = _clamp(speed_m_s, 0.2, self._max_speed)
         self._speed_set = True
 
     # --- physics ----------------------------------------------------------------------
@@ -1607,12 +1612,24 @@ class Multirotor(SimulatedVehicle):
                 -self._pilot_down,
                 self._pilot_up,
             )
+            step = self._pilot_accel * h
+            change = _clamp(want - self._vu, -step, step)
         else:
-            want = rate
+            # AC_PosControl shapes the climb rate's change: at most PILOT_ACCEL_Z, that
+            # acceleration itself changing at most PSC_JERK_Z (an S-curve), easing into
+            # the stick's rate without overshooting it.
             self._alt_hold = self._u + self._vu * h
-        step = self._pilot_accel * h
-        change = _clamp(want - self._vu, -step, step)
+            error = rate - self._vu
+            jerk = self._pilot_jerk
+            accel_want = math.copysign(
+                min(self._pilot_accel, math.sqrt(2.0 * jerk * abs(error))), error
+            )
+            accel = self._pilot_az + _clamp(accel_want - self._pilot_az, -jerk * h, jerk * h)
+            change = accel * h
+            if (error >= 0.0 and change > error) or (error <= 0.0 and change < error):
+                change = error
         self._vu += change
+        self._pilot_az = change / h
         return change / h
 
     def _advance_auto(self, h: float) -> None:
