@@ -1274,6 +1274,7 @@ class Multirotor(SimulatedVehicle):
         self._speed_set = False
         self._pilot_climb = False
         self._pilot_az = 0.0  # the vertical acceleration the stick's climb rate is shaped with
+        self._z_braking = False  # stopping a climb or sink before holding a height
         self._alt_hold = self._u
         self._rtl_alt = self._u
         self._phase_since_s = 0.0
@@ -1449,6 +1450,7 @@ class Multirotor(SimulatedVehicle):
         self._face_target = False
         self._pilot_climb = self.mode in self.PILOT_CLIMB_MODES
         self._pilot_az = 0.0
+        self._z_braking = True  # a climb-rate mode first stops where it is going
         self._alt_hold = self._u
         # Automatic modes start by holding where the copter stops, as ArduCopter's do.
         stop_n, stop_e = self._stopping_point(self._brake_xy)
@@ -1604,9 +1606,17 @@ class Multirotor(SimulatedVehicle):
         return None
 
     def _pilot_vertical(self, h: float) -> float:
-        """Climb at the stick's rate, or hold the height where the stick was centred."""
+        """Climb at the stick's rate, or hold the height where the copter stopped.
+
+        AC_PosControl shapes the climb rate's change: at most PILOT_ACCEL_Z, that
+        acceleration itself changing at most PSC_JERK_Z (an S-curve), easing into the
+        stick's rate without overshooting it. With the stick in the dead band the rate
+        is zero: a copter still climbing or sinking (the stick just centred, the mode
+        just entered) is brought to a stop the same way, and holds the height where it
+        stopped (SITL, entering LOITER at 14.0 m climbing 1.1 m/s: 14.48 m after 0.7 s).
+        """
         rate = self._pilot_rate()
-        if rate is None:
+        if rate is None and not self._z_braking:
             want = _clamp(
                 sqrt_controller(self._alt_hold - self._u, COPTER_Z_GAIN_1_S, self._brake_z, h),
                 -self._pilot_down,
@@ -1615,11 +1625,8 @@ class Multirotor(SimulatedVehicle):
             step = self._pilot_accel * h
             change = _clamp(want - self._vu, -step, step)
         else:
-            # AC_PosControl shapes the climb rate's change: at most PILOT_ACCEL_Z, that
-            # acceleration itself changing at most PSC_JERK_Z (an S-curve), easing into
-            # the stick's rate without overshooting it.
             self._alt_hold = self._u + self._vu * h
-            error = rate - self._vu
+            error = (rate or 0.0) - self._vu
             jerk = self._pilot_jerk
             accel_want = math.copysign(
                 min(self._pilot_accel, math.sqrt(2.0 * jerk * abs(error))), error
@@ -1628,6 +1635,8 @@ class Multirotor(SimulatedVehicle):
             change = accel * h
             if (error >= 0.0 and change > error) or (error <= 0.0 and change < error):
                 change = error
+            # Braking to a hold ends once stopped; a rate asked for brakes again after it.
+            self._z_braking = rate is not None or abs(self._vu + change) > 0.02
         self._vu += change
         self._pilot_az = change / h
         return change / h
