@@ -112,6 +112,6 @@ def test_the_pilot_never_arms_a_vehicle_the_engine_arms() -> None:
     run = _run(ENGINE_ARMED, 49.0)
     agent = run.agents["f450"]
     assert agent.pilot is not None and agent.autopilot is not None
-    assert agent.pilot.sees_ready is False  # it never even read the ready light
+    assert agent.pilot.sees_ready  # ready, and left alone
     assert not agent.backend.flight_status()[0]  # type: ignore[union-attr]
     assert agent.pilot.armed_at_s is None

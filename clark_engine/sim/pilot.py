@@ -123,9 +123,11 @@ class SimPilot:
     def done(self) -> bool:
         """The pilot has nothing left to do (the engine stops feeding it).
 
-        A multirotor's pilot never is: it keeps watching to move the throttle stick.
+        It watches the ready light and the arming until the vehicle is armed (whoever
+        arms it: the bench's announcements say when), and a multirotor's pilot never is
+        done: it keeps watching to move the throttle stick.
         """
-        return (not self.arms or self._ever_armed) and self._throttle is None
+        return self._ever_armed and self._throttle is None
 
     @property
     def sees_ready(self) -> bool:
@@ -143,10 +145,11 @@ class SimPilot:
     def hear(self, data: bytes, now_s: float) -> None:
         """What the autopilot sent; then act on it.
 
-        Only a pilot who still has to arm reads the messages (the ready light); the
-        sticks follow what the pilot sees of the vehicle, read from the backend.
+        The messages are read until the vehicle is first armed (the ready light, the
+        arming); the sticks follow what the pilot sees of the vehicle, read from the
+        backend.
         """
-        if self.arms and not self._ever_armed:
+        if not self._ever_armed:
             for msg in self._parser.parse_buffer(data) or []:
                 self._note(msg, now_s)
         self._act(now_s)
