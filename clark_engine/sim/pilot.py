@@ -26,8 +26,9 @@ station would (a stick-arming pilot goes through the same arming checks):
   before an automatic or altitude-holding mode: ArduCopter's LOITER and ALT_HOLD
   climb or sink with that stick (at its bottom LOITER sinks at 2.5 m/s and lands),
   and lowers it again once the copter is down or disarmed. The pilot reacts to what
-  it sees, the vehicle itself (the backend's true height and the motors armed), not
-  to a once-a-second status message, after :data:`REACTION_S`: a pilot who centred
+  it sees, the vehicle itself (the backend's true height and the motors armed; the
+  autopilot's land detector too, as a fallback), after :data:`REACTION_S`, not only
+  to a once-a-second status message: a pilot who centred
   the stick only when EXTENDED_SYS_STATE said IN_AIR left it low through the first
   second or two of a mission's hold, and the three-vehicle example's F450 hovered at
   14 m simulated and 12 m on SITL instead of at its 15 m takeoff height.
@@ -66,6 +67,14 @@ PILOT_COMPONENT_ID: Final = 25
 
 _PREARM_BIT: Final = mavlink2.MAV_SYS_STATUS_PREARM_CHECK
 _POSITION_FLAGS: Final = mavlink2.EKF_POS_HORIZ_ABS
+_FLYING_STATES: Final = frozenset(
+    {
+        mavlink2.MAV_LANDED_STATE_IN_AIR,
+        mavlink2.MAV_LANDED_STATE_TAKEOFF,
+        mavlink2.MAV_LANDED_STATE_LANDING,
+    }
+)
+"""What the autopilot's land detector says of a copter off the ground."""
 _CONST_POS_FLAG: Final = mavlink2.EKF_CONST_POS_MODE
 """An EKF in constant-position mode has no position source: not ready, whatever else it sets."""
 
@@ -115,6 +124,7 @@ class SimPilot:
         self._stick_centred: bool | None = None  # where the throttle is; None: not yet seen
         self._ground_m: float | None = None  # the height the copter stood at
         self._moving: tuple[bool, float] | None = None  # (to centre, since when it saw why)
+        self._landed_state = mavlink2.MAV_LANDED_STATE_UNDEFINED  # the autopilot's, last heard
         self._next_arm_s = 0.0
         self.armed_at_s: float | None = None
         """When the pilot saw the vehicle armed the first time (for the report)."""
@@ -146,10 +156,12 @@ class SimPilot:
         """What the autopilot sent; then act on it.
 
         The messages are read until the vehicle is first armed (the ready light, the
-        arming); the sticks follow what the pilot sees of the vehicle, read from the
-        backend.
+        arming), and for a copter all along: the sticks follow what the pilot sees of
+        the vehicle (the backend's true height), and what the autopilot's land detector
+        says (EXTENDED_SYS_STATE) where the eye cannot tell (ArduPilot SITL's true
+        height can stall).
         """
-        if not self._ever_armed:
+        if not self._ever_armed or self._throttle is not None:
             for msg in self._parser.parse_buffer(data) or []:
                 self._note(msg, now_s)
         self._act(now_s)
@@ -170,6 +182,8 @@ class SimPilot:
             self._position_ok = bool(flags & _POSITION_FLAGS) and not flags & _CONST_POS_FLAG
         elif kind == "HOME_POSITION":
             self._home = True
+        elif kind == "EXTENDED_SYS_STATE":
+            self._landed_state = int(msg.landed_state)
 
     def _act(self, now_s: float) -> None:
         if self._throttle is not None:
@@ -203,11 +217,13 @@ class SimPilot:
             self._ground_m = None if flying else up_m
         if self._ground_m is None:
             self._ground_m = 0.0
-        if not armed or up_m <= self._ground_m + SEES_DOWN_M:
+        said = self._landed_state
+        said_flying = said in _FLYING_STATES
+        if not armed or (up_m <= self._ground_m + SEES_DOWN_M and not said_flying):
             want = False
             if not armed and up_m <= self._ground_m + SEES_DOWN_M:
                 self._ground_m = up_m  # where it stands now (the next takeoff's ground)
-        elif up_m > self._ground_m + SEES_FLYING_M:
+        elif up_m > self._ground_m + SEES_FLYING_M or said_flying:
             want = True
         else:
             want = self._stick_centred
