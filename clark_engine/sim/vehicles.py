@@ -73,7 +73,10 @@ ground at 14.4 m/s from 20 m). ALT_HOLD, SPORT, FLOWHOLD, LOITER, POSHOLD and
 CIRCLE take the stick as a climb rate: above and below a dead band around mid
 stick (THR_DZ) it climbs at up to PILOT_SPEED_UP and descends at up to
 PILOT_SPEED_DN (PILOT_SPEED_UP when 0), so at the minimum they descend at
-2.5 m/s until they land (SITL: 2.44 m/s). GUIDED, AUTO, RTL, LAND and BRAKE
+2.5 m/s until they land (SITL: 2.44 m/s). The rate's change is shaped as
+AC_PosControl shapes it (PILOT_ACCEL_Z, PSC_JERK_Z), and with the stick centred a
+copter still climbing or sinking (a mode entered during a takeoff's climb) stops
+first and holds the height where it stopped. GUIDED, AUTO, RTL, LAND and BRAKE
 hold or control their height themselves.
 
 Arming: a vehicle on the ground starts disarmed or armed as its builder says;
