@@ -478,6 +478,7 @@ class SimAutopilot:
         self._auto_until_s = 0.0
         self._auto_go = False  # ArduCopter on the ground: MISSION_START came
         self._auto_landing = False  # the item flown is a landing (ArduCopter disarms after)
+        self._throttle_up_s: float | None = None  # last seen off zero (holds the idle disarm)
         self._auto_land_there = False  # a land item with a place: flying there first
         self._started_seen: tuple[MissionItem, ...] = ()  # DO items already carried out
         self._mission_changes = 0  # MissionProtocol.changed when last looked at
@@ -1013,14 +1014,29 @@ class SimAutopilot:
         if delay_s is None or not model.armed or flying or self._ground_since_s is None:
             return
         landed_in = self._touchdown_s is not None and self._touchdown_s >= self._ground_since_s
-        landing_mode = model.mode in ("LAND", "RTL", "SMART_RTL") or (
-            model.mode == "AUTO" and self._auto_landing
-        )
-        wait_s = LAND_DISARM_DELAY_S if landed_in and landing_mode else delay_s
-        if "DISARM_DELAY" in self._params and not (landed_in and landing_mode):
-            wait_s = self._params["DISARM_DELAY"].value  # 0 turns the idle disarm off
-        if wait_s > 0 and now_s - self._ground_since_s >= wait_s:
+        landing_mode = self._landing_mode()
+        if landed_in and landing_mode:
+            if now_s - self._ground_since_s >= LAND_DISARM_DELAY_S:
+                self._disarm(now_s)
+            return
+        # The idle disarm (Copter::auto_disarm_check): DISARM_DELAY after the land
+        # detector says landed (LANDED_REPORT_DELAY_S after a touchdown), counted only
+        # while the throttle stick is at zero: a pilot holding it up keeps it armed.
+        if "DISARM_DELAY" in self._params:
+            delay_s = self._params["DISARM_DELAY"].value  # 0 turns the idle disarm off
+        if not self._throttle_at_zero():
+            self._throttle_up_s = now_s
+            return
+        since_s = self._ground_since_s + (LANDED_REPORT_DELAY_S if landed_in else 0.0)
+        if self._throttle_up_s is not None and self._throttle_up_s > since_s:
+            since_s = self._throttle_up_s
+        if delay_s > 0 and now_s - since_s >= delay_s:
             self._disarm(now_s)
+
+    def _landing_mode(self) -> bool:
+        """The mode lands the copter (LAND, RTL's descent, AUTO's land item)."""
+        mode = self.model.mode
+        return mode in ("LAND", "RTL", "SMART_RTL") or (mode == "AUTO" and self._auto_landing)
 
     def _text(self, severity: int, text: str) -> None:
         """A STATUSTEXT, as ArduPilot's gcs().send_text.
@@ -1078,14 +1094,23 @@ class SimAutopilot:
         return reasons
 
     def _throttle_at_zero(self) -> bool:
-        """The throttle input is within its dead zone of zero (RC3_DZ, 30 us in SITL)."""
+        """The throttle input is within its dead zone of zero (RC3_DZ, 30 us in SITL).
+
+        ArduPilot constrains a pulse to RC3_MIN..RC3_MAX before reading it, so on a
+        throttle whose zero is its minimum (copter, plane) anything below the minimum
+        is zero too: an RC override of 1000 us arms where the minimum is 1100 us, as
+        ArduCopter SITL arms with it. A rover's zero is its trim (a centred throttle).
+        """
         if self._throttle is None:
             return True
         rc, zero_us = self._throttle
         inputs = self.model.rc_inputs()
         if not 1 <= rc <= len(inputs):
             return True
-        return abs(inputs[rc - 1] - zero_us) <= THROTTLE_DEAD_ZONE_US
+        pwm_us = inputs[rc - 1]
+        if self.firmware != "ardurover" and pwm_us < zero_us:
+            return True
+        return abs(pwm_us - zero_us) <= THROTTLE_DEAD_ZONE_US
 
     def _prearm_healthy(self, now_s: float) -> bool:
         return not self._arm_refusals(now_s, self.model.mode)
@@ -2238,7 +2263,9 @@ class SimAutopilot:
             and now_s - self._touchdown_s < LANDED_REPORT_DELAY_S
             and self.model.armed
         ):
-            state = "landing"
+            # Until the land detector says landed: LANDING in a mode that lands, IN_AIR in
+            # any other (a copter sunk to the ground in LOITER, measured on SITL).
+            state = "landing" if self._landing_mode() else "in_air"
         return _LANDED[state]
 
     def _msg_heartbeat(self, now_s: float) -> Any:

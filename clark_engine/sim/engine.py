@@ -87,6 +87,8 @@ PHYSICS_STEP_S = 0.02
 SAMPLE_PERIOD_S = 0.1
 #: The simulated GPS time at t = 0: 2026-01-01 00:00:00 UTC, fixed for reproducible logs.
 START_UNIX_US = 1_767_225_600_000_000
+#: The bottom of the throttle stick on ArduPilot SITL's RC input (its RC3_MIN).
+SITL_THROTTLE_BOTTOM_US = 1000
 #: How long before the run an aircraft the pilot hands over in flight was powered on,
 #: beyond its autopilot's boot: it is ready, and its pilot took off, before time 0.
 AIRBORNE_BOOTED_S = 60.0
@@ -374,6 +376,7 @@ def build_vehicle(
         if copter_throttle is not None
         else 1500,
         reaction_s=pilot_reaction_s(mission, agent.name, seed),
+        throttle_bottom_us=copter_throttle.pwm_min_us if copter_throttle is not None else 1100,
     )
     return backend, pilot
 
@@ -453,6 +456,9 @@ def build_sitl_vehicle(
         throttle_rc=throttle_at[0] if throttle_at is not None else None,
         throttle_mid_us=throttle_at[1] if throttle_at is not None else 1500,
         reaction_s=pilot_reaction_s(mission, agent.name, seed),
+        # SITL's RC input is calibrated 1000-2000 us (RC3_MIN 1000 in its copter.parm): the
+        # profile's 1100 us minimum would read as throttle above zero there.
+        throttle_bottom_us=SITL_THROTTLE_BOTTOM_US,
     )
     plan = (
         {

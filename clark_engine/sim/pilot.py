@@ -19,9 +19,19 @@ station would (a stick-arming pilot goes through the same arming checks):
   :data:`ARM_RETRY_S` until the vehicle is armed, and never again after that: a
   vehicle disarmed later (its pilot's business, a copter's auto-disarm after
   landing) stays disarmed.
-- A multirotor's pilot centres the throttle stick once the copter flies, as a
-  safety pilot does before an automatic mode: ArduCopter's LOITER and ALT_HOLD
-  climb or sink with that stick, and at its minimum a copter in LOITER lands.
+- Its sticks rest where a pilot leaves them. The throttle is at the bottom on the
+  ground and while disarmed (ArduPilot refuses to arm otherwise: "Throttle too
+  high", "Throttle (RC3) is not neutral"; and ArduCopter's idle disarm waits for it).
+  A multirotor's pilot centres it once the copter flies, as a safety pilot does
+  before an automatic or altitude-holding mode: ArduCopter's LOITER and ALT_HOLD
+  climb or sink with that stick (at its bottom LOITER sinks at 2.5 m/s and lands),
+  and lowers it again once the copter is down or disarmed. The pilot reacts to what
+  it sees, the vehicle itself (the backend's true height and the motors armed; the
+  autopilot's land detector too, as a fallback), after :data:`REACTION_S`, not only
+  to a once-a-second status message: a pilot who centred
+  the stick only when EXTENDED_SYS_STATE said IN_AIR left it low through the first
+  second or two of a mission's hold, and the three-vehicle example's F450 hovered at
+  14 m simulated and 12 m on SITL instead of at its 15 m takeoff height.
 
 The pilot sends from system 255, component 25 (MAV_COMP_ID_USER1), so neither the
 engine's adapter (component 191) nor a ground station (usually 190) takes the
@@ -43,12 +53,28 @@ from clark_engine.sim.backend import VehicleBackend
 ARM_RETRY_S: Final = 2.0
 """Time between two arm commands while the vehicle stays disarmed."""
 
+REACTION_S: Final = 0.5
+"""How long the pilot takes to move a stick after seeing the vehicle leave the ground
+or come down: a choice reaction to a visual cue (a simple one is 0.2-0.3 s)."""
+SEES_FLYING_M: Final = 1.0
+"""The pilot sees an armed copter flying once it is this high above where it stood."""
+SEES_DOWN_M: Final = 0.2
+"""... and down again once it is this close to it (or disarmed)."""
+
 PILOT_SYSTEM_ID: Final = 255
 PILOT_COMPONENT_ID: Final = 25
 """The pilot's MAVLink ids: the ground-station system, a component of its own (USER1)."""
 
 _PREARM_BIT: Final = mavlink2.MAV_SYS_STATUS_PREARM_CHECK
 _POSITION_FLAGS: Final = mavlink2.EKF_POS_HORIZ_ABS
+_FLYING_STATES: Final = frozenset(
+    {
+        mavlink2.MAV_LANDED_STATE_IN_AIR,
+        mavlink2.MAV_LANDED_STATE_TAKEOFF,
+        mavlink2.MAV_LANDED_STATE_LANDING,
+    }
+)
+"""What the autopilot's land detector says of a copter off the ground."""
 _CONST_POS_FLAG: Final = mavlink2.EKF_CONST_POS_MODE
 """An EKF in constant-position mode has no position source: not ready, whatever else it sets."""
 
@@ -61,11 +87,12 @@ class SimPilot:
         system_id: The autopilot's system id.
         component_id: The autopilot's component id.
         arms: The mission says the pilot arms this vehicle.
-        throttle_rc: A multirotor's throttle RC input channel, centred once it flies;
-            None for other vehicles.
+        throttle_rc: A multirotor's throttle RC input channel, centred once it flies and
+            lowered once it is down; None for other vehicles.
         throttle_mid_us: The throttle stick's middle, in microseconds.
         reaction_s: Seconds the pilot takes to arm after the ready light first shows
             (``sim.jitter.pilot_s``); 0 arms at once.
+        throttle_bottom_us: The throttle stick's bottom (its minimum), in microseconds.
     """
 
     def __init__(
@@ -78,11 +105,14 @@ class SimPilot:
         throttle_rc: int | None = None,
         throttle_mid_us: int = 1500,
         reaction_s: float = 0.0,
+        throttle_bottom_us: int = 1100,
     ) -> None:
         self.backend = backend
         self._target = (system_id, component_id)
         self.arms = arms
-        self._throttle = (throttle_rc, throttle_mid_us) if throttle_rc is not None else None
+        self._throttle = (
+            (throttle_rc, throttle_mid_us, throttle_bottom_us) if throttle_rc is not None else None
+        )
         self._out = bytearray()
         self._mav = mavlink2.MAVLink(
             self, srcSystem=PILOT_SYSTEM_ID, srcComponent=PILOT_COMPONENT_ID
@@ -94,8 +124,10 @@ class SimPilot:
         self._prearm_ok = False
         self._position_ok = False
         self._home = False
-        self._flying = False
-        self._throttle_centred = False
+        self._stick_centred: bool | None = None  # where the throttle is; None: not yet seen
+        self._ground_m: float | None = None  # the height the copter stood at
+        self._moving: tuple[bool, float] | None = None  # (to centre, since when it saw why)
+        self._landed_state = mavlink2.MAV_LANDED_STATE_UNDEFINED  # the autopilot's, last heard
         self._next_arm_s = 0.0
         self.armed_at_s: float | None = None
         """When the pilot saw the vehicle armed the first time (for the report)."""
@@ -105,10 +137,13 @@ class SimPilot:
 
     @property
     def done(self) -> bool:
-        """The pilot has nothing left to do (the engine stops feeding it)."""
-        return (not self.arms or self._ever_armed) and (
-            self._throttle is None or self._throttle_centred
-        )
+        """The pilot has nothing left to do (the engine stops feeding it).
+
+        It watches the ready light and the arming until the vehicle is armed (whoever
+        arms it: the bench's announcements say when), and a multirotor's pilot never is
+        done: it keeps watching to move the throttle stick.
+        """
+        return self._ever_armed and self._throttle is None
 
     @property
     def sees_ready(self) -> bool:
@@ -124,9 +159,17 @@ class SimPilot:
         self._out += data
 
     def hear(self, data: bytes, now_s: float) -> None:
-        """What the autopilot sent; then act on it."""
-        for msg in self._parser.parse_buffer(data) or []:
-            self._note(msg, now_s)
+        """What the autopilot sent; then act on it.
+
+        The messages are read until the vehicle is first armed (the ready light, the
+        arming), and for a copter all along: the sticks follow what the pilot sees of
+        the vehicle (the backend's true height), and what the autopilot's land detector
+        says (EXTENDED_SYS_STATE) where the eye cannot tell (ArduPilot SITL's true
+        height can stall).
+        """
+        if not self._ever_armed or self._throttle is not None:
+            for msg in self._parser.parse_buffer(data) or []:
+                self._note(msg, now_s)
         self._act(now_s)
 
     def _note(self, msg: Any, now_s: float) -> None:
@@ -146,16 +189,21 @@ class SimPilot:
         elif kind == "HOME_POSITION":
             self._home = True
         elif kind == "EXTENDED_SYS_STATE":
-            self._flying = msg.landed_state in (
-                mavlink2.MAV_LANDED_STATE_IN_AIR,
-                mavlink2.MAV_LANDED_STATE_LANDING,
-            )
+            self._landed_state = int(msg.landed_state)
 
     def _act(self, now_s: float) -> None:
         if self._ready_since_s is None and self.sees_ready:  # the reaction hook
             self._ready_since_s = now_s
             self._next_arm_s = max(self._next_arm_s, now_s + self.reaction_s)
-        if self.arms and not self._ever_armed and self.sees_ready and now_s >= self._next_arm_s:
+        if self._throttle is not None:
+            self._move_throttle(now_s)
+        if (
+            self.arms
+            and not self._ever_armed
+            and self.sees_ready
+            and now_s >= self._next_arm_s
+            and not self._stick_centred  # a pilot arms with the throttle at the bottom
+        ):
             self._next_arm_s = now_s + ARM_RETRY_S
             system, component = self._target
             self._mav.command_long_send(
@@ -163,7 +211,38 @@ class SimPilot:
             )
             data, self._out = bytes(self._out), bytearray()
             self.backend.send(data, now_s)
-        if self._throttle is not None and self._flying and not self._throttle_centred:
-            self._throttle_centred = True
-            channel, mid_us = self._throttle
-            self.backend.set_pilot({channel: mid_us})
+
+    def _move_throttle(self, now_s: float) -> None:
+        """Centre a copter's throttle once it flies; lower it once it is down or disarmed."""
+        assert self._throttle is not None
+        channel, mid_us, bottom_us = self._throttle
+        armed = self.backend.flight_status()[0]
+        up_m = self.backend.truth().up_m
+        if self._stick_centred is None:
+            # Where the pilot found it: an aircraft handed over in flight is being flown
+            # (its stick at hover), one on the ground rests at the bottom.
+            flying = armed and up_m > SEES_FLYING_M
+            self._stick_centred = flying
+            self._ground_m = None if flying else up_m
+        if self._ground_m is None:
+            self._ground_m = 0.0
+        said = self._landed_state
+        said_flying = said in _FLYING_STATES
+        if not armed or (up_m <= self._ground_m + SEES_DOWN_M and not said_flying):
+            want = False
+            if not armed and up_m <= self._ground_m + SEES_DOWN_M:
+                self._ground_m = up_m  # where it stands now (the next takeoff's ground)
+        elif up_m > self._ground_m + SEES_FLYING_M or said_flying:
+            want = True
+        else:
+            want = self._stick_centred
+        if want == self._stick_centred:
+            self._moving = None
+            return
+        if self._moving is None or self._moving[0] != want:
+            self._moving = (want, now_s)  # seen now; the hand follows after the reaction
+            return
+        if now_s - self._moving[1] >= REACTION_S:
+            self._moving = None
+            self._stick_centred = want
+            self.backend.set_pilot({channel: mid_us if want else bottom_us})

@@ -80,7 +80,10 @@ ground at 14.4 m/s from 20 m). ALT_HOLD, SPORT, FLOWHOLD, LOITER, POSHOLD and
 CIRCLE take the stick as a climb rate: above and below a dead band around mid
 stick (THR_DZ) it climbs at up to PILOT_SPEED_UP and descends at up to
 PILOT_SPEED_DN (PILOT_SPEED_UP when 0), so at the minimum they descend at
-2.5 m/s until they land (SITL: 2.44 m/s). GUIDED, AUTO, RTL, LAND and BRAKE
+2.5 m/s until they land (SITL: 2.44 m/s). The rate's change is shaped as
+AC_PosControl shapes it (PILOT_ACCEL_Z, PSC_JERK_Z), and with the stick centred a
+copter still climbing or sinking (a mode entered during a takeoff's climb) stops
+first and holds the height where it stopped. GUIDED, AUTO, RTL, LAND and BRAKE
 hold or control their height themselves.
 
 Arming: a vehicle on the ground starts disarmed or armed as its builder says;
@@ -172,6 +175,7 @@ COPTER_DEFAULT_PARAMS: Final[Mapping[str, float]] = {
     "PILOT_SPEED_DN": 0.0,  # cm/s; 0: PILOT_SPEED_UP
     "PILOT_ACCEL_Z": 250.0,  # cm/s^2
     "THR_DZ": 100.0,  # dead band around mid stick, in 1/1000 of the throttle range
+    "PSC_JERK_Z": 5.0,  # m/s^3, how fast the vertical acceleration target may change
     "CIRCLE_RADIUS": 1000.0,  # cm
     "CIRCLE_RATE": 20.0,  # deg/s, positive clockwise
 }
@@ -1225,8 +1229,8 @@ class Multirotor(SimulatedVehicle):
     (guided, auto, a takeoff, RTL's legs) is flown as a straight 3-D line, as
     ArduCopter's waypoint navigation flies it: the speed along the line is the
     square-root braking profile toward the target, capped so that its horizontal
-    part stays within the leg speed (WPNAV_SPEED, or DO_CHANGE_SPEED's, never
-    above WPNAV_SPEED or the airframe's ``max_speed_m_s``) and its vertical part
+    part stays within the leg speed (WPNAV_SPEED, or DO_CHANGE_SPEED's, which may be
+    above WPNAV_SPEED but never above the airframe's ``max_speed_m_s``) and its vertical part
     within WPNAV_SPEED_UP (and the airframe's climb limit) or WPNAV_SPEED_DN; it
     ramps up at :data:`COPTER_RAMP_FRACTION` of WPNAV_ACCEL (and WPNAV_ACCEL_Z) and
     brakes at WPNAV_ACCEL (and :data:`COPTER_Z_BRAKE_FRACTION` of WPNAV_ACCEL_Z). So
@@ -1334,6 +1338,8 @@ class Multirotor(SimulatedVehicle):
         self._landing = False
         self._speed_set = False
         self._pilot_climb = False
+        self._pilot_az = 0.0  # the vertical acceleration the stick's climb rate is shaped with
+        self._z_braking = False  # stopping a climb or sink before holding a height
         self._alt_hold = self._u
         self._rtl_alt = self._u
         self._phase_since_s = 0.0
@@ -1371,6 +1377,7 @@ class Multirotor(SimulatedVehicle):
         self._pilot_up = min(up, limits.max_climb_rate_m_s)
         self._pilot_down = abs(p["PILOT_SPEED_DN"]) / 100.0 or up
         self._pilot_accel = max(p["PILOT_ACCEL_Z"] / 100.0, 0.5)
+        self._pilot_jerk = _clamp(p["PSC_JERK_Z"], 1.0, 50.0)
         self._thr_dz = _clamp(p["THR_DZ"] / 1000.0, 0.0, 0.3)
 
     def _default_speed(self) -> float:
@@ -1508,6 +1515,8 @@ class Multirotor(SimulatedVehicle):
         self._command = _CMD_NONE
         self._face_target = False
         self._pilot_climb = self.mode in self.PILOT_CLIMB_MODES
+        self._pilot_az = 0.0
+        self._z_braking = True  # a climb-rate mode first stops where it is going
         self._alt_hold = self._u
         # Automatic modes start by holding where the copter stops, as ArduCopter's do.
         stop_n, stop_e = self._stopping_point(self._brake_xy)
@@ -1584,9 +1593,10 @@ class Multirotor(SimulatedVehicle):
         self._taking_off = False
 
     def _set_speed(self, speed_m_s: float) -> None:
-        # ArduCopter flies no faster than WPNAV_SPEED (SITL: 20 m/s requested, 10 flown).
-        cap = min(max(self._params["WPNAV_SPEED"] / 100.0, 0.2), self._max_speed)
-        self._leg_speed = min(speed_m_s, cap)
+        # AC_WPNav::set_speed_xy takes any speed from WPNAV_WP_SPEED_MIN (20 cm/s) up:
+        # WPNAV_SPEED is only the default (SITL flew 10.02 m/s asked with WPNAV_SPEED 5).
+        # What caps it is the airframe: its lean limit against drag, max_speed_m_s here.
+        self._leg_speed = _clamp(speed_m_s, 0.2, self._max_speed)
         self._speed_set = True
 
     # --- physics ----------------------------------------------------------------------
@@ -1666,20 +1676,39 @@ class Multirotor(SimulatedVehicle):
         return None
 
     def _pilot_vertical(self, h: float) -> float:
-        """Climb at the stick's rate, or hold the height where the stick was centred."""
+        """Climb at the stick's rate, or hold the height where the copter stopped.
+
+        AC_PosControl shapes the climb rate's change: at most PILOT_ACCEL_Z, that
+        acceleration itself changing at most PSC_JERK_Z (an S-curve), easing into the
+        stick's rate without overshooting it. With the stick in the dead band the rate
+        is zero: a copter still climbing or sinking (the stick just centred, the mode
+        just entered) is brought to a stop the same way, and holds the height where it
+        stopped (SITL, entering LOITER at 14.0 m climbing 1.1 m/s: 14.48 m after 0.7 s).
+        """
         rate = self._pilot_rate()
-        if rate is None:
+        if rate is None and not self._z_braking:
             want = _clamp(
                 sqrt_controller(self._alt_hold - self._u, COPTER_Z_GAIN_1_S, self._brake_z, h),
                 -self._pilot_down,
                 self._pilot_up,
             )
+            step = self._pilot_accel * h
+            change = _clamp(want - self._vu, -step, step)
         else:
-            want = rate
             self._alt_hold = self._u + self._vu * h
-        step = self._pilot_accel * h
-        change = _clamp(want - self._vu, -step, step)
+            error = (rate or 0.0) - self._vu
+            jerk = self._pilot_jerk
+            accel_want = math.copysign(
+                min(self._pilot_accel, math.sqrt(2.0 * jerk * abs(error))), error
+            )
+            accel = self._pilot_az + _clamp(accel_want - self._pilot_az, -jerk * h, jerk * h)
+            change = accel * h
+            if (error >= 0.0 and change > error) or (error <= 0.0 and change < error):
+                change = error
+            # Braking to a hold ends once stopped; a rate asked for brakes again after it.
+            self._z_braking = rate is not None or abs(self._vu + change) > 0.02
         self._vu += change
+        self._pilot_az = change / h
         return change / h
 
     def _advance_auto(self, h: float) -> None:
