@@ -639,7 +639,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     parser = _Parser(
         prog="clark",
-        description="Clark Engine: validate, explain, dry-run (on a simulated fleet), "
+        description="Clark Engine: validate, explain, dry-run (on a simulated fleet), campaign (many runs), "
         "compile and analyze multi-vehicle missions. `clark COMMAND --help` for each.",
         epilog="Exit codes: 0 good, 1 invalid input or failed check, 2 usage or I/O error.",
     )
