@@ -639,8 +639,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     parser = _Parser(
         prog="clark",
-        description="Clark Engine: validate, explain, dry-run (on a simulated fleet), campaign (many runs), "
-        "compile and analyze multi-vehicle missions. `clark COMMAND --help` for each.",
+        description="Clark Engine: validate, explain, dry-run (on a simulated fleet), "
+        "campaign (many dry runs), compile and analyze multi-vehicle missions. "
+        "`clark COMMAND --help` for each.",
         epilog="Exit codes: 0 good, 1 invalid input or failed check, 2 usage or I/O error.",
     )
     parser.add_argument("--version", action="version", version=f"clark-engine {_version()}")
