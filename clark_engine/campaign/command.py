@@ -283,7 +283,7 @@ def run_campaign(
     import clark_engine.sim.dryrun  # noqa: F401
 
     backend = backend_for(
-        options.scheduler, options.workers, sitl_spec is not None, options.sitl_per_worker
+        options.scheduler, options.workers, sitl_spec is not None, options.sitl_per_worker, runs
     )
     autopilot = (
         f"ArduPilot SITL at {options.sitl_speedup:g}x"

@@ -304,16 +304,16 @@ def _collect(
 
 
 def backend_for(
-    scheduler: str | None, workers: int | None, sitl: bool, sitl_per_worker: int
+    scheduler: str | None, workers: int | None, sitl: bool, sitl_per_worker: int, runs: int
 ) -> Backend:
     """The backend the options name: a Dask cluster, this process, or a local pool.
 
     Locally, SITL runs are capped by the pool's size: at most ``sitl_per_worker``
-    processes (each flies one SITL stack at a time).
+    processes (each flies one SITL stack at a time); never more processes than runs.
     """
     if scheduler is not None:
         return DaskCluster(scheduler, sitl)
-    processes = workers if workers is not None else usable_cores()
+    processes = min(workers if workers is not None else usable_cores(), runs)
     if sitl:
         processes = min(processes, sitl_per_worker)
     if processes <= 1:
