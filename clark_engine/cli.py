@@ -371,6 +371,7 @@ def cmd_dry_run(args: argparse.Namespace) -> int:
         command_line=["clark", *args.argv],
         station_view=station_view,
         operator_script=not args.no_operator_script,
+        vary=args.vary or (),
     )
     return outcome.exit_code
 
@@ -735,6 +736,14 @@ def build_parser() -> argparse.ArgumentParser:
         action="append",
         metavar="FAULT",
         help=f"inject a fault (repeatable): {FAULT_HELP}",
+    )
+    p.add_argument(
+        "--vary",
+        action="append",
+        metavar="PATH=VALUE",
+        help="fix a value the mission varies instead of drawing it (repeatable): "
+        "sim.radio_loss=0.05, faults.0.kill.at_s=52, faults.0.kill.injected=false "
+        "(docs/reference.md#varied-values)",
     )
     p.add_argument(
         "--realtime",

@@ -33,6 +33,8 @@ from typing import Any
 
 import docgen  # tools/docgen.py, beside this script
 
+from clark_engine.mission.variation import MAX_CHOICES, NORMAL_TAIL_SD
+
 ROOT = Path(__file__).resolve().parents[1]
 OUTPUT = ROOT / "docs" / "reference.md"
 
@@ -180,6 +182,8 @@ def type_text(schema: Schema) -> str:
         }.get(name, name)
     if is_point(schema):
         return "point ([Points](#points))"
+    if schema.get("x-varied"):
+        return type_text(schema["anyOf"][0]) + " or distribution ([Varied values](#varied-values))"
     if "const" in schema:
         return code(schema["const"])
     if "enum" in schema:
@@ -885,6 +889,29 @@ def dry_run_inputs_section(schema: Schema) -> list[str]:
         "its simulated vehicle starts.",
         "",
         *property_table(sim, prefix=""),
+        "",
+        "### Varied values",
+        "",
+        "A number marked *or distribution* above may instead be left to chance: each run "
+        "draws it once, from a generator seeded by the run's seed and the value's path, so "
+        "that a run is reproduced by its seed (`clark dry-run --seed S`) and declaring one "
+        "more varied value leaves the others' draws as they were. `clark dry-run --vary "
+        "PATH=VALUE` fixes a value instead (`--vary sim.radio_loss=0.05`, `--vary "
+        "faults.0.kill.at_s=52`, `--vary faults.0.kill.injected=false`); every `sim:` value "
+        "that may vary can be given that way, drawn or not. The field's range applies to "
+        "every number of a distribution.",
+        "",
+        "| Form | Drawn |",
+        "|---|---|",
+        "| `{uniform: [LOW, HIGH]}` | evenly between LOW and HIGH (LOW first) |",
+        "| `{normal: {mean: M, sd: S}}` | from a normal distribution, kept within "
+        f"{NORMAL_TAIL_SD:g} S of M and within the field's range |",
+        "| `{choice: [A, B, ...]}` | one of the values, each as likely (at most "
+        f"{MAX_CHOICES}) |",
+        "",
+        "A fault's `chance` (a share) injects it in that share of runs; the drawn outcome is "
+        "the path `faults.N.KIND.injected`. A fault window written with distributions must "
+        "keep every draw of `from_s` before every draw of `to_s` ([[E-FAULT-WINDOW]]).",
         "",
     ]
     return lines

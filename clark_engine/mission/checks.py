@@ -22,6 +22,8 @@ from clark_engine.mission.flow import entry_leaves
 from clark_engine.mission.model import Agent, Mission, State, Transition
 from clark_engine.mission.primitives import PRIMITIVES, UseContext
 from clark_engine.mission.primitives._shared import off_the_globe
+from clark_engine.mission.variation import sim_schema as mission_varied_fields_schema
+from clark_engine.mission.variation import variation_problems
 
 SIMPLE_EVENTS = frozenset(
     {"done", "timeout", "activate", "deactivate", "terminate", "mcs_lost", "autopilot_lost"}
@@ -73,6 +75,7 @@ def run_all(mission: Mission, bad_states: set[tuple[str, tuple[str, ...]]]) -> l
     findings.extend(check_expectations(mission))
     findings.extend(check_operator(mission))
     findings.extend(check_faults(mission))
+    findings.extend(check_variations(mission))
     return findings
 
 
@@ -181,6 +184,23 @@ def check_faults(mission: Mission) -> Iterator[Finding]:
             yield error(problem.code, where, problem.message)
         if kind == "station_silent" and not mission.stations:
             yield error("E-NO-STATION", where, "there is no station to silence; remove the fault")
+
+
+def check_variations(mission: Mission) -> Iterator[Finding]:
+    """Varied values keep the rules their schema cannot state.
+
+    A uniform written high to low, a fault window a draw could reverse:
+    :func:`~clark_engine.mission.variation.variation_problems`.
+    """
+    for path, code, message in variation_problems(
+        mission_varied_fields_schema(), mission.sim, mission.faults
+    ):
+        parts = path.split(".")
+        if parts[0] == "faults":
+            where = mission.fault_locations[int(parts[1])]
+        else:
+            where = mission.sim_locations[parts[1]]
+        yield error(code, where, message)
 
 
 def check_ids(mission: Mission) -> Iterator[Finding]:

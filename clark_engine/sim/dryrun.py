@@ -24,7 +24,7 @@ import dataclasses
 import shlex
 import sys
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final, Protocol, TextIO
 
@@ -32,6 +32,13 @@ from clark_engine.errors import UsageError
 from clark_engine.mission.faults import FAULT_HELP as FAULT_FORMS
 from clark_engine.mission.faults import MAX_FAULT_TEXT, FaultError, parse_fault_text
 from clark_engine.mission.model import Mission
+from clark_engine.mission.variation import (
+    Drawn,
+    VaryError,
+    mission_varied_fields,
+    parse_vary,
+    resolve_mission,
+)
 from clark_engine.sim.checks import CheckResult, evaluate
 from clark_engine.sim.engine import DryRun, DryRunResult
 from clark_engine.sim.parallel import choose_workers, run_split
@@ -52,6 +59,7 @@ from clark_engine.sim.report import (
     plot_inputs,
     plot_timeline,
     plot_tracks,
+    vary_value_text,
     write_summary,
 )
 from clark_engine.sim.safety import SafetyJudgement, count_breaches
@@ -135,6 +143,9 @@ class Outcome:
     """With SITL: its states against the simulated autopilot's."""
     safety: SafetyJudgement | None = None
     """Every vehicle against its envelope and every pair against its separation."""
+    drawn: Drawn = field(default_factory=dict)
+    """The mission's varied values as this run drew them (or ``vary`` fixed them), by path
+    (:mod:`clark_engine.mission.variation`)."""
 
 
 class _Progress:
@@ -197,6 +208,7 @@ def run_dry_run(
     command_line: Sequence[str] | None = None,
     station_view: LiveViewOpener | None = None,
     operator_script: bool = True,
+    vary: Sequence[str] = (),
 ) -> Outcome:
     """Validate the mission, simulate it, evaluate its checks and write the report.
 
@@ -236,9 +248,12 @@ def run_dry_run(
         operator_script: Play the mission's operator actions for the station; False
             leaves them to the person at the station's view (the pilots' ``rc``
             actions still play).
+        vary: ``PATH=VALUE`` texts (``--vary``) that fix varied values of the mission
+            instead of drawing them (:mod:`clark_engine.mission.variation`).
 
     Raises:
-        UsageError: Unreadable mission, bad fault, a report folder that cannot be made
+        UsageError: Unreadable mission, bad fault, a ``--vary`` naming no value of the
+            mission or out of its range, a report folder that cannot be made
             or holds files the engine did not write,
             (in real time) no vehicle or a port that cannot be bound, or a SITL that
             cannot be started or stops answering.
@@ -267,13 +282,22 @@ def run_dry_run(
     until = float(
         until_s if until_s is not None else mission.sim.get("duration_s", DEFAULT_DURATION_S)
     )
+    try:
+        fixed = parse_vary(vary, mission_varied_fields(mission))
+    except VaryError as exc:
+        raise UsageError(str(exc)) from None
+    mission, drawn = resolve_mission(mission, seed, fixed)
+    if drawn:
+        shown = ", ".join(f"{path}={vary_value_text(value)}" for path, value in drawn.items())
+        print(f"drawn for seed {seed}: {shown}", file=err)
     origin = RunOrigin(
         shlex.join(command_line)
         if command_line is not None
-        else equivalent_command(mission_path, seed, until, faults, report),
+        else equivalent_command(mission_path, seed, until, faults, report, vary),
         command_line is not None,
         tuple(InjectedFault(f, "mission") for f in mission.faults)
         + tuple(InjectedFault(f, f"--fault {t}") for f, t in zip(extra, faults, strict=True)),
+        tuple(drawn.items()),
     )
     folder = ReportFolder(report) if report is not None else None
     if folder is not None:
@@ -451,7 +475,7 @@ def _run_live(
         for breach in breaches:
             print(f"  {breach}", file=err)
     code = 1 if failed or breaches else 0
-    return Outcome(code, results, result, comparison, safety)
+    return Outcome(code, results, result, comparison, safety, dict(origin.drawn))
 
 
 def _simulate(

@@ -46,6 +46,7 @@ from clark_engine.link.auth import load_key
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.geo import parse_point
 from clark_engine.mission.model import Agent, Mission
+from clark_engine.mission.variation import resolve_mission
 from clark_engine.runtime.commands import (
     Arm,
     CloseInterfaces,
@@ -449,6 +450,9 @@ class DryRun:
         sitl_speedup: float = 10.0,
         operator_script: bool = True,
     ) -> None:
+        # A mission straight from validation may still hold distributions: this run's draw
+        # (run_dry_run draws first, and reports what it drew; drawing again is a no-op).
+        mission, _ = resolve_mission(mission, seed)
         self.mission = mission
         self.wall_clock = wall_clock
         self.sitl = sitl

@@ -245,6 +245,8 @@ class RunOrigin:
     command: str
     command_given: bool
     faults: tuple[InjectedFault, ...] = ()
+    drawn: tuple[tuple[str, float | bool], ...] = ()
+    """The mission's varied values as this run drew them (or ``--vary`` fixed them)."""
 
 
 def faults_table(faults: Sequence[InjectedFault]) -> str:
@@ -256,13 +258,37 @@ def faults_table(faults: Sequence[InjectedFault]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def drawn_table(drawn: Sequence[tuple[str, float | bool]]) -> str:
+    """The varied values one run drew, as a Markdown table (nothing when none varies)."""
+    if not drawn:
+        return ""
+    lines = ["| value | drawn |", "|---|---|"]
+    lines += [f"| `{path}` | {vary_value_text(value)} |" for path, value in drawn]
+    return "\n".join(lines) + "\n"
+
+
+def vary_value_text(value: float | bool) -> str:
+    """A drawn value as ``--vary`` takes it back: ``true``, or the number exactly (shortest)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    number = float(value)
+    return f"{number:g}" if number.is_integer() and abs(number) < 1e15 else repr(number)
+
+
 def equivalent_command(
-    mission_path: Path, seed: int, until_s: float, fault_texts: Sequence[str], report: Path | None
+    mission_path: Path,
+    seed: int,
+    until_s: float,
+    fault_texts: Sequence[str],
+    report: Path | None,
+    vary_texts: Sequence[str] = (),
 ) -> str:
     """The ``clark dry-run`` command line that repeats a run made in process."""
     words = ["clark", "dry-run", str(mission_path), "--seed", str(seed), "--until", f"{until_s:g}"]
     for text in fault_texts:
         words += ["--fault", text]
+    for text in vary_texts:
+        words += ["--vary", text]
     if report is not None:
         words += ["--report", str(report)]
     return shlex.join(words)
@@ -705,6 +731,11 @@ def write_summary(
         f"({end_s / wall_s if wall_s > 0 else float('inf'):.0f}x real time); "
         f"{passed} of {len(results)} checks pass ({verdict}).",
         "",
+        *(
+            ["## Drawn values", "", drawn_table(origin.drawn)]
+            if origin is not None and origin.drawn
+            else []
+        ),
         "## Injected faults",
         "",
         faults_table(origin.faults if origin is not None else ()),

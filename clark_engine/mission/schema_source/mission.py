@@ -43,6 +43,7 @@ from clark_engine.mission.schema_source.hardware_profile import (
     part_reference_schema,
 )
 from clark_engine.mission.schema_source.states import STATE_PATH_PATTERN, state_defs
+from clark_engine.mission.variation import varied
 
 #: Highest telemetry rate a mission may ask for; far above any radio's budget.
 MAX_TELEMETRY_HZ = 100
@@ -306,9 +307,18 @@ def _check() -> Schema:
 
 def _window() -> dict[str, Schema]:
     return {
-        "from_s": time_s("Start of the fault, simulated time."),
-        "to_s": time_s("End of the fault, simulated time.", exclusive_minimum=0),
+        "from_s": varied(time_s("Start of the fault, simulated time.")),
+        "to_s": varied(time_s("End of the fault, simulated time.", exclusive_minimum=0)),
+        "chance": _chance(),
     }
+
+
+def _chance() -> Schema:
+    return share(
+        "The share of runs in which this fault is injected (drawn once per run from the "
+        "run's seed; clark dry-run --vary faults.N.KIND.injected=true fixes it). Always "
+        "when omitted."
+    )
 
 
 def _operator() -> Schema:
@@ -348,7 +358,11 @@ def _fault() -> Schema:
             "kill": obj(
                 "An agent's mission computer dies: its runtime stops and its radio goes "
                 "silent; the autopilot flies on in its last mode.",
-                {"agent": AGENT_NAME_SCHEMA, "at_s": time_s("When.")},
+                {
+                    "agent": AGENT_NAME_SCHEMA,
+                    "at_s": varied(time_s("When.")),
+                    "chance": _chance(),
+                },
                 required=["agent", "at_s"],
             ),
             "link_drop": obj(
@@ -373,7 +387,7 @@ def _fault() -> Schema:
             "corrupt": obj(
                 "A share of the radio packets delivered arrive with bytes flipped.",
                 {
-                    "share": share("Share of packets corrupted."),
+                    "share": varied(share("Share of packets corrupted.")),
                     **_window(),
                 },
                 required=["share"],
@@ -398,25 +412,29 @@ def _sim() -> Schema:
                 maximum=SEED_MAX,
                 default=0,
             ),
-            "radio_loss": share(
-                "Share of packets lost at random, before range losses.", default=0.0
+            "radio_loss": varied(
+                share("Share of packets lost at random, before range losses.", default=0.0)
             ),
-            "radio_latency_s": time_s(
-                "Latency of the radio beyond serialisation.", maximum=60, default=0.005
+            "radio_latency_s": varied(
+                time_s("Latency of the radio beyond serialisation.", maximum=60, default=0.005)
             ),
-            "gps_noise_m": distance_m(
-                "Standard deviation of simulated GPS error (thesis 5.1.5: 0.62 m mean error).",
-                maximum=1000,
-                default=0.5,
+            "gps_noise_m": varied(
+                distance_m(
+                    "Standard deviation of simulated GPS error (thesis 5.1.5: 0.62 m mean error).",
+                    maximum=1000,
+                    default=0.5,
+                )
             ),
-            "autopilot_ready_s": number(
-                "Seconds from power-on until a simulated autopilot can arm and fly: its GPS "
-                "fix, EKF position and pre-arm checks come in ArduPilot's order, sooner or "
-                "later. Each firmware's own timing measured on ArduPilot SITL when omitted "
-                "(about 42 s for ArduRover and ArduCopter, 23 s for ArduPlane).",
-                unit="s",
-                exclusive_minimum=0,
-                maximum=600,
+            "autopilot_ready_s": varied(
+                number(
+                    "Seconds from power-on until a simulated autopilot can arm and fly: its GPS "
+                    "fix, EKF position and pre-arm checks come in ArduPilot's order, sooner or "
+                    "later. Each firmware's own timing measured on ArduPilot SITL when omitted "
+                    "(about 42 s for ArduRover and ArduCopter, 23 s for ArduPlane).",
+                    unit="s",
+                    exclusive_minimum=0,
+                    maximum=600,
+                )
             ),
             "sitl_tolerance_s": number(
                 "With clark dry-run --autopilot sitl: how far apart each state's first entry "
