@@ -10,6 +10,7 @@ from __future__ import annotations
 import io
 import os
 import re
+import shlex
 import signal
 import subprocess
 import sys
@@ -22,7 +23,6 @@ from sitl_here import NO_SITL, real_install
 from clark_engine.campaign.command import CampaignOptions, run_campaign
 from clark_engine.campaign.runs import run_in_group
 from clark_engine.cli import main
-from clark_engine.sim.dryrun import run_dry_run
 
 ROOT = Path(__file__).resolve().parent.parent
 DRIVE = ROOT / "tests" / "campaign" / "short_drive.yaml"
@@ -76,28 +76,24 @@ def test_the_table_is_the_same_with_one_or_two_workers_and_through_dask(tmp_path
     assert "## Failing runs" in one and "Reproduce: `clark dry-run" in one
 
 
-def test_a_failing_run_is_reproduced_by_its_printed_command(tmp_path: Path) -> None:
+def test_a_failing_run_is_reproduced_by_its_printed_command(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     code, out, _ = campaign(DRIVE, runs=4, workers=1, report=tmp_path / "r", failure_reports=True)
     assert code == 0
     commands = re.findall(r"^  run (\d+): (clark dry-run .*)$", out, re.MULTILINE)
-    assert commands, out
+    assert len(commands) == 2, out
     index, command = commands[0]
-    words = command.split()
-    seed = int(words[words.index("--seed") + 1])
-    rerun_out, rerun_err = io.StringIO(), io.StringIO()
-    outcome = run_dry_run(
-        ROOT / words[2],
-        seed=seed,
-        until_s=None,
-        report=None,
-        speed=None,
-        out=rerun_out,
-        err=rerun_err,
-        quiet=True,
-    )
-    assert outcome.exit_code == 1
-    failed = [r.name for r in outcome.results if r.evaluated and not r.passed]
-    assert failed == ["stops near the point"]
+    # Every value drawn for the run is in the command, to be fixed with --vary.
+    assert "--vary sim.gps_noise_m=" in command
+    assert "--vary faults.0.corrupt.injected=" in command
+    monkeypatch.chdir(ROOT)
+    capsys.readouterr()
+    assert main(shlex.split(command)[1:]) == 1
+    table = capsys.readouterr().out
+    assert "| stops near the point |" in table
+    rows = [line for line in table.splitlines() if "**FAIL**" in line]
+    assert len(rows) == 1 and rows[0].startswith("| stops near the point |")
     # The failing run's own dry-run report, and the campaign's lists it.
     run_summary = tmp_path / "r" / "runs" / index / "summary.md"
     assert run_summary.read_text().startswith("# Dry run of short-drive")

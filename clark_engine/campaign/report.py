@@ -312,10 +312,7 @@ def plot_factor(target: Path, factor: Factor) -> None:
         below.append(100 * (rate - low))
         above.append(100 * (high - rate))
     ax.bar(xs, heights, color="#4c72b0", yerr=[below, above], capsize=4)
-    for x, b, h in zip(xs, factor.bins, heights, strict=True):
-        ax.annotate(f"n={b.runs}", (x, h), ha="center", va="bottom", fontsize=8,
-                    xytext=(0, 2), textcoords="offset points")  # fmt: skip
-    ax.set_xticks(xs, [b.label for b in factor.bins], fontsize=8)
+    ax.set_xticks(xs, [f"{b.label}\n{b.runs} runs" for b in factor.bins], fontsize=8)
     ax.set_ylim(0, 105)
     ax.set_ylabel("runs passing (%)")
     ax.set_xlabel(factor.path)
