@@ -26,8 +26,14 @@ import tempfile
 import time
 from pathlib import Path
 
-from clark_engine.campaign.pool import Backend, DaskCluster, InProcess, LocalPool, fly_all
-from clark_engine.campaign.pool import usable_cores
+from clark_engine.campaign.pool import (
+    Backend,
+    DaskCluster,
+    InProcess,
+    LocalPool,
+    fly_all,
+    usable_cores,
+)
 from clark_engine.campaign.runs import RunSpec, mission_sha256, run_seed
 
 ROOT = Path(__file__).resolve().parent.parent
