@@ -21,8 +21,10 @@ import pytest
 from sitl_here import NO_SITL, real_install
 
 from clark_engine.campaign.command import CampaignOptions, run_campaign
+from clark_engine.campaign.pool import DaskCluster
 from clark_engine.campaign.runs import run_in_group
 from clark_engine.cli import main
+from clark_engine.errors import UsageError
 
 ROOT = Path(__file__).resolve().parent.parent
 DRIVE = ROOT / "tests" / "campaign" / "short_drive.yaml"
@@ -65,6 +67,9 @@ def test_the_table_is_the_same_with_one_or_two_workers_and_through_dask(tmp_path
         code_d, out_d, err_d = campaign(
             DRIVE, runs=4, scheduler=cluster.scheduler_address, report=tmp_path / "dask"
         )
+        # SITL runs each take a `sitl` resource: workers that offer none are refused.
+        with pytest.raises(UsageError, match="no worker offers the resource 'sitl'"):
+            DaskCluster(cluster.scheduler_address, sitl=True)
     assert "Dask cluster at tcp://127.0.0.1:" in err_d
     assert code_1 == code_2 == code_d == 0
     assert out_1 == out_2 == out_d
