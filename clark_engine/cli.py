@@ -398,6 +398,11 @@ def cmd_campaign(args: argparse.Namespace) -> int:
             "--workers is for the local pool; with --scheduler the cluster's workers fly "
             "the runs (start them with --nthreads 1)"
         )
+    if args.scheduler is not None and args.sitl_per_worker is not None:
+        raise UsageError(
+            "--sitl-per-worker is for the local pool; on a cluster each worker's "
+            "--resources sitl=K caps its SITL runs (docs/campaigns.md)"
+        )
     install = None
     if on_sitl:
         try:
