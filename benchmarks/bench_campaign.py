@@ -66,11 +66,11 @@ def campaign(runs: int, backend: Backend, slots: int) -> str:
     )
 
 
-def fleet_run_s(mission: Path, workers: int) -> float:
-    """Wall seconds of one 60 s dry run of the fleet with ``workers`` processes."""
+def fleet_run_s(mission: Path, workers: int, until_s: float) -> float:
+    """Wall seconds of one dry run of the fleet with ``workers`` processes."""
     start = time.perf_counter()
     subprocess.run(
-        [sys.executable, "-m", "clark_engine", "dry-run", str(mission), "--until", "60",
+        [sys.executable, "-m", "clark_engine", "dry-run", str(mission), "--until", f"{until_s:g}",
          "--workers", str(workers), "-q"],
         cwd=ROOT, capture_output=True, check=False,
     )  # fmt: skip
@@ -83,6 +83,9 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=20, help="runs per campaign (20)")
     parser.add_argument("--skip-dask", action="store_true")
     parser.add_argument("--skip-split", action="store_true")
+    parser.add_argument("--skip-pool", action="store_true")
+    parser.add_argument("--fleet-until", type=float, default=20.0, help="fleet run's s (20)")
+    parser.add_argument("--repeat", type=int, default=2, help="fleet runs of each kind (2)")
     args = parser.parse_args()
     cores = usable_cores()
     runs = args.runs
