@@ -92,10 +92,10 @@ def main() -> None:
     print(f"cooperative_follow, {runs} runs, {cores} usable cores")
     import clark_engine.sim.dryrun  # noqa: F401  (before the pool forks)
 
-    print(f"  1 worker (this process): {campaign(runs, InProcess(), 1)}; load {load()}")
-    print(
-        f"  {cores} workers (local pool): {campaign(runs, LocalPool(cores), cores)}; load {load()}"
-    )
+    if not args.skip_pool:
+        print(f"  1 worker (this process): {campaign(runs, InProcess(), 1)}; load {load()}")
+        pool = campaign(runs, LocalPool(cores), cores)
+        print(f"  {cores} workers (local pool): {pool}; load {load()}")
     if not args.skip_dask:
         import distributed
 
@@ -123,10 +123,12 @@ def main() -> None:
             capture_output=True, text=True, check=True,
         ).stdout  # fmt: skip
         mission.write_text(text)
-        print("fleet of 50, one 60 s run:")
-        for workers in (1, 2):
-            print(f"  alone, --workers {workers}: {fleet_run_s(mission, workers):.1f} s; "
-                  f"load {load()}")  # fmt: skip
+        until = args.fleet_until
+        print(f"fleet of 50, one {until:g} s run, one process and two alternating:")
+        for _ in range(args.repeat):
+            for workers in (1, 2):
+                seconds = fleet_run_s(mission, workers, until)
+                print(f"  alone, --workers {workers}: {seconds:.1f} s; load {load()}")
         busy = subprocess.Popen(
             [sys.executable, "-m", "clark_engine", "campaign", str(FOLLOW), "--runs",
              "100000", "--workers", "1", "-q"],
@@ -134,11 +136,13 @@ def main() -> None:
         )  # fmt: skip
         try:
             time.sleep(3)
-            for workers in (1, 2):
-                print(
-                    f"  beside a 1-worker campaign, --workers {workers}: "
-                    f"{fleet_run_s(mission, workers):.1f} s; load {load()}"
-                )
+            for _ in range(args.repeat):
+                for workers in (1, 2):
+                    seconds = fleet_run_s(mission, workers, until)
+                    print(
+                        f"  beside a 1-worker campaign, --workers {workers}: {seconds:.1f} s; "
+                        f"load {load()}"
+                    )
         finally:
             busy.terminate()
             busy.wait()
