@@ -59,10 +59,12 @@ def campaign(runs: int, backend: Backend, slots: int) -> str:
     flown = fly_all(specs, backend, retries=0)
     wall = time.perf_counter() - start
     inside = sum(r.wall_s for r in flown.results)
+    cpu = sum(r.cpu_s for r in flown.results)
     overhead_ms = (wall * slots - inside) / runs * 1000
     return (
         f"{runs / wall * 60:.1f} runs/min ({wall:.1f} s for {runs} runs; a run "
-        f"{inside / runs:.2f} s in its worker; overhead {overhead_ms:.0f} ms per run)"
+        f"{inside / runs:.2f} s in its worker, {cpu / runs:.2f} s of CPU; overhead "
+        f"{overhead_ms:.0f} ms per run)"
     )
 
 

@@ -156,6 +156,8 @@ class RunResult:
         worker: Which process flew it (``host:pid``), for infrastructure failures.
         report_tar: With failure reports: the failing run's report folder as a
             gzipped tar (None for a passing run, or without failure reports).
+        cpu_s: CPU seconds the run took in its process (its share of a busy machine
+            aside: what a campaign's throughput per core comes from).
     """
 
     index: int
@@ -169,6 +171,7 @@ class RunResult:
     attempt: int = 0
     worker: str = ""
     report_tar: bytes | None = None
+    cpu_s: float = 0.0
 
     @property
     def passed(self) -> bool:
@@ -281,6 +284,7 @@ def fly_here(spec: RunSpec) -> RunResult:
     from clark_engine.sim.sitl import SitlInstall
 
     start = time.perf_counter()
+    cpu_start = time.process_time()
     path = Path(spec.mission_path)
 
     def failed(message: str) -> RunResult:
@@ -355,6 +359,7 @@ def fly_here(spec: RunSpec) -> RunResult:
             spec.attempt,
             worker_name(),
             packed,
+            time.process_time() - cpu_start,
         )
     finally:
         if staging is not None:
