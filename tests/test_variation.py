@@ -49,8 +49,6 @@ def varied(tmp_path: Path) -> object:
     path.unlink()
 
 
-
-
 def test_draws_are_seeded_per_value_and_do_not_shift_when_one_is_added() -> None:
     schema = sim_schema()
     one = {"radio_loss": {"uniform": [0, 0.2]}}
@@ -185,6 +183,4 @@ def test_cli_vary_errors_are_usage_errors(varied: Path, capsys: pytest.CaptureFi
     assert code == 2
     assert "--vary 'sim.nothing': the mission has no such value" in capsys.readouterr().err
     with pytest.raises(UsageError):
-        run_dry_run(
-            varied, seed=1, until_s=1.0, report=None, speed=None, vary=["sim.radio_loss=x"]
-        )
+        run_dry_run(varied, seed=1, until_s=1.0, report=None, speed=None, vary=["sim.radio_loss=x"])

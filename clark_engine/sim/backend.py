@@ -18,11 +18,17 @@ MAVLink adapter, the radio, the checks) is the same whichever autopilot flies.
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 
+from clark_engine.mission.geo import EARTH_RADIUS_M
 from clark_engine.sim.autopilot import SimAutopilot
+from clark_engine.sim.gps_error import GpsError
 from clark_engine.sim.model import Truth, VehicleModel
+
+#: Metres per degree of latitude on the engine's sphere (the models' projection).
+_M_PER_DEG_LAT = math.radians(1.0) * EARTH_RADIUS_M
 
 
 class VehicleBackend(ABC):
@@ -77,14 +83,43 @@ class VehicleBackend(ABC):
 class SimulatedBackend(VehicleBackend):
     """The simulated ArduPilot and its vehicle model, on the dry run's virtual clock.
 
+    The model's position is the autopilot's estimate, what it reports and flies by.
+    With a GPS error (``sim.gps_error``) the backend keeps the truth apart: the
+    truth is the estimate minus the error, and each step moves the estimate by the
+    error's change (:meth:`VehicleModel.shift_estimate`), so the vehicle truly
+    wanders as the autopilot flies its estimate onto its targets.
+
     Args:
         model: The vehicle's physics and flight modes.
         autopilot: The simulated autopilot flying it.
+        gps_error: The vehicle's GPS error over time; None: the estimate is the truth.
+            The model must start at the true start plus ``gps_error.offset_m(0.0)``.
+        origin_lat_deg: The mission origin's latitude (the models' projection), with
+            ``gps_error``.
     """
 
-    def __init__(self, model: VehicleModel, autopilot: SimAutopilot) -> None:
+    def __init__(
+        self,
+        model: VehicleModel,
+        autopilot: SimAutopilot,
+        gps_error: GpsError | None = None,
+        origin_lat_deg: float = 0.0,
+    ) -> None:
         self.model = model
         self.autopilot = autopilot
+        self.gps_error = gps_error
+        self._error_m = (0.0, 0.0)
+        self._m_per_deg_lon = _M_PER_DEG_LAT * math.cos(math.radians(origin_lat_deg))
+        if gps_error is not None:
+            # The model was built where the autopilot believes it starts (build_vehicle):
+            # the true start plus this error, so that a hold point set at power-on (an
+            # aircraft handed over in flight) is in the estimate's frame too.
+            self._error_m = gps_error.offset_m(0.0)
+
+    @property
+    def gps_error_m(self) -> tuple[float, float]:
+        """The GPS error (north, east) now: the estimate minus the truth, in metres."""
+        return self._error_m
 
     @property
     def system_id(self) -> int:
@@ -95,6 +130,12 @@ class SimulatedBackend(VehicleBackend):
         """Step the physics by ``dt_s`` and collect what the autopilot has due by ``t_s``."""
         if dt_s > 0:
             self.model.step(dt_s)
+            if self.gps_error is not None:
+                north_m, east_m = self.gps_error.offset_m(t_s)
+                old_n, old_e = self._error_m
+                if north_m != old_n or east_m != old_e:
+                    self.model.shift_estimate(north_m - old_n, east_m - old_e)
+                    self._error_m = (north_m, east_m)
         return self.autopilot.advance(t_s)
 
     def send(self, data: bytes, t_s: float) -> None:
@@ -103,8 +144,17 @@ class SimulatedBackend(VehicleBackend):
             self.autopilot.receive(data, t_s)
 
     def truth(self) -> Truth:
-        """The model's true state."""
-        return self.model.truth()
+        """The vehicle's true state: the model's, less the GPS error when there is one."""
+        truth = self.model.truth()
+        if self.gps_error is None:
+            return truth
+        north_m, east_m = self._error_m
+        return truth._replace(
+            north_m=truth.north_m - north_m,
+            east_m=truth.east_m - east_m,
+            lat_deg=truth.lat_deg - north_m / _M_PER_DEG_LAT,
+            lon_deg=truth.lon_deg - east_m / self._m_per_deg_lon,
+        )
 
     def flight_status(self) -> tuple[bool, str]:
         """The model's arming and flight mode."""

@@ -70,9 +70,10 @@ from clark_engine.sim.autopilot import SimAutopilot
 from clark_engine.sim.backend import SimulatedBackend, VehicleBackend
 from clark_engine.sim.camera import SimCamera
 from clark_engine.sim.firmware import FIRMWARES
+from clark_engine.sim.gps_error import GpsError, GpsErrorSettings
 from clark_engine.sim.model import VehicleModel
 from clark_engine.sim.pilot import SimPilot
-from clark_engine.sim.radio import LinkStats, Position, RadioMesh
+from clark_engine.sim.radio import BurstSettings, LinkStats, Position, RadioMesh
 from clark_engine.sim.recording import FlightEntry, Photo, Recording, StateEntry, Track
 from clark_engine.sim.sitl import Home, SitlInstall, SitlProcess, vehicle_for_firmware
 from clark_engine.sim.sitl_backend import SitlBackend
@@ -228,6 +229,8 @@ def build_mesh(mission: Mission, seed: int) -> RadioMesh:
         random.Random(f"{seed}:radio"),
         latency_s=float(mission.sim.get("radio_latency_s", 0.005)),
         loss_rate=float(mission.sim.get("radio_loss", 0.0)),
+        bursts=BurstSettings.from_sim(mission.sim),
+        burst_seed=seed,
     )
     for name, agent in mission.agents.items():
         profile = agent.hardware.part("radio")
@@ -243,6 +246,42 @@ def split_window_s(radio: RadioMesh) -> float:
     time + latency) from ever landing a packet inside the window it was sent in.
     """
     return radio.lookahead_s - WINDOW_MARGIN_S
+
+
+def pilot_reaction_s(mission: Mission, agent: str, seed: int) -> float:
+    """How long the agent's simulated pilot takes to arm once the vehicle shows ready.
+
+    ``sim.jitter.pilot_s``: a uniform draw in [0, pilot_s] per vehicle, from its own
+    generator; 0 when not declared (no draw).
+    """
+    pilot_s = float((mission.sim.get("jitter") or {}).get("pilot_s", 0.0))
+    if pilot_s <= 0:
+        return 0.0
+    return random.Random(f"{seed}:jitter:pilot:{agent}").uniform(0.0, pilot_s)
+
+
+def jittered_operator(mission: Mission, seed: int) -> list[tuple[float, int, Mapping[str, Any]]]:
+    """The operator script as (time, index, action), in the order it plays.
+
+    With ``sim.jitter.operator_s`` each action moves by a uniform draw within
+    +-operator_s (never before 0), drawn in the order the actions are written from
+    the run's own generator; an action that would then come before one it followed
+    in the script waits for it, so the script's order is kept.
+    """
+    operator: list[tuple[float, int, Mapping[str, Any]]] = sorted(
+        (float(item["at_s"]), index, item) for index, item in enumerate(mission.operator)
+    )
+    operator_s = float((mission.sim.get("jitter") or {}).get("operator_s", 0.0))
+    if operator_s <= 0 or not operator:
+        return operator
+    rng = random.Random(f"{seed}:jitter:operator")
+    shifts = [rng.uniform(-operator_s, operator_s) for _ in mission.operator]
+    played: list[tuple[float, int, Mapping[str, Any]]] = []
+    last_s = 0.0
+    for at_s, index, item in operator:
+        last_s = max(last_s, at_s + shifts[index])
+        played.append((last_s, index, item))
+    return played
 
 
 def build_vehicle(
@@ -275,15 +314,27 @@ def build_vehicle(
     firmware = FIRMWARES[str(autopilot["firmware"])]
     ready_s = sim.get("autopilot_ready_s")
     boot = firmware.boot if ready_s is None else firmware.boot.scaled(float(ready_s))
+    jitter = sim.get("jitter") or {}
+    ready_jitter_s = float(jitter.get("ready_s", 0.0))
+    if ready_jitter_s > 0 and not airborne:
+        boot = boot.shifted(
+            random.Random(f"{seed}:jitter:ready:{agent.name}").uniform(
+                -ready_jitter_s, ready_jitter_s
+            )
+        )
     start_mode = setup.get("mode") or (
         autopilot.get("hold_mode") if airborne else firmware.boot_mode
     )
+    gps_error_settings = GpsErrorSettings.from_sim(sim)
+    gps_error = GpsError(gps_error_settings, seed, agent.name) if gps_error_settings else None
+    # The model is the autopilot's estimate: it starts where the GPS says (the truth + error).
+    error_n, error_e = gps_error.offset_m(0.0) if gps_error is not None else (0.0, 0.0)
     model = make_vehicle(
         airframe,
         autopilot,
         config.channels,
         mission.origin,
-        (north, east, up if airborne else 0.0),
+        (north + error_n, east + error_e, up if airborne else 0.0),
         random.Random(f"{seed}:vehicle:{agent.name}"),
         gps_noise_m=float(sim.get("gps_noise_m", 0.5)),
         heading_deg=float(setup.get("heading_deg", 0.0)),
@@ -307,7 +358,7 @@ def build_vehicle(
     if airborne:
         takeoff_point = offset_position(mission.origin.lat_deg, mission.origin.lon_deg, north, east)
         simulated.set_home(*takeoff_point, mission.origin.alt_amsl_m, 0.0)
-    backend = SimulatedBackend(model, simulated)
+    backend = SimulatedBackend(model, simulated, gps_error, mission.origin.lat_deg)
     throttle = config.channels.get("throttle")
     copter_throttle = throttle if airframe.get("class") == "multirotor" else None
     pilot = SimPilot(
@@ -318,6 +369,7 @@ def build_vehicle(
         throttle_mid_us=(copter_throttle.pwm_min_us + copter_throttle.pwm_max_us) // 2
         if copter_throttle is not None
         else 1500,
+        reaction_s=pilot_reaction_s(mission, agent.name, seed),
     )
     return backend, pilot
 
@@ -504,9 +556,7 @@ class DryRun:
         }
         self._apply_faults([*mission.faults, *extra_faults])
         station = next((a.name for a in mission.agents.values() if not a.is_vehicle), None)
-        operator = sorted(
-            (float(item["at_s"]), index, item) for index, item in enumerate(mission.operator)
-        )
+        operator = jittered_operator(mission, seed)
         # Each operator action goes to the process of the agent it acts on: a pilot's stick
         # to the vehicle's, every other action to the (first) station's.
         self._operator = [

@@ -76,6 +76,17 @@ class BootTimes:
         k = ready_s / last if last > 0 else 1.0
         return BootTimes(*(getattr(self, name) * k for name in self.__dataclass_fields__))
 
+    def shifted(self, by_s: float) -> BootTimes:
+        """The same sequence ``by_s`` seconds later (earlier when negative), never before 0.
+
+        For ``sim.jitter.ready_s``: one autopilot boots a little sooner or later than
+        another. A step an earlier shift would put before power-on happens at power-on;
+        the order of the steps is kept.
+        """
+        return BootTimes(
+            *(max(0.0, getattr(self, name) + by_s) for name in self.__dataclass_fields__)
+        )
+
 
 @dataclass(frozen=True, slots=True)
 class Firmware:

@@ -185,3 +185,13 @@ class VehicleModel(ABC):
     @abstractmethod
     def set_pilot(self, pwm_us: Mapping[int, int]) -> None:
         """The pilot's transmitter: RC inputs before any override (a switch for rc events)."""
+
+    def shift_estimate(self, north_m: float, east_m: float) -> None:
+        """Move the position the autopilot believes by (north, east) metres; the truth stays.
+
+        The model's position is the autopilot's estimate: a change of the GPS error
+        (:mod:`clark_engine.sim.gps_error`) moves the estimate, never the vehicle, and
+        the autopilot then flies the estimate back where it wants it. Models that
+        cannot be told (none here) refuse.
+        """
+        raise NotImplementedError(f"{type(self).__name__} cannot shift its position estimate")

@@ -64,6 +64,8 @@ class SimPilot:
         throttle_rc: A multirotor's throttle RC input channel, centred once it flies;
             None for other vehicles.
         throttle_mid_us: The throttle stick's middle, in microseconds.
+        reaction_s: Seconds the pilot takes to arm after the ready light first shows
+            (``sim.jitter.pilot_s``); 0 arms at once.
     """
 
     def __init__(
@@ -75,6 +77,7 @@ class SimPilot:
         arms: bool,
         throttle_rc: int | None = None,
         throttle_mid_us: int = 1500,
+        reaction_s: float = 0.0,
     ) -> None:
         self.backend = backend
         self._target = (system_id, component_id)
@@ -96,6 +99,9 @@ class SimPilot:
         self._next_arm_s = 0.0
         self.armed_at_s: float | None = None
         """When the pilot saw the vehicle armed the first time (for the report)."""
+        # The reaction hook (sim.jitter.pilot_s): when the ready light first showed.
+        self.reaction_s = reaction_s
+        self._ready_since_s: float | None = None
 
     @property
     def done(self) -> bool:
@@ -146,6 +152,9 @@ class SimPilot:
             )
 
     def _act(self, now_s: float) -> None:
+        if self._ready_since_s is None and self.sees_ready:  # the reaction hook
+            self._ready_since_s = now_s
+            self._next_arm_s = max(self._next_arm_s, now_s + self.reaction_s)
         if self.arms and not self._ever_armed and self.sees_ready and now_s >= self._next_arm_s:
             self._next_arm_s = now_s + ARM_RETRY_S
             system, component = self._target

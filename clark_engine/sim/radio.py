@@ -35,7 +35,12 @@ Models, in the order a packet meets them:
    one uniform draw ``u`` made at the send: ``u < loss_rate`` is a random loss
    (``lost_random``); otherwise ``u < p(d)`` is a range loss (``lost_range``),
    where ``p(d)`` is the distance law below at the send-time positions;
-   otherwise the packet survives.
+   otherwise, with bursts declared, ``u < 1 - (1 - p(d)) (1 - b)`` is a burst loss
+   (``lost_burst``), where ``b`` is the loss of the link's Gilbert-Elliott state at the
+   send time (below); otherwise the packet survives. The same uniform serves all three,
+   so a burst loses a packet the distance law spared with probability ``b`` exactly,
+   as an independent draw would, and the mesh's draws are the same with or without
+   bursts.
 7. Corruption: a delivered packet inside a corruption window is corrupted with
    the window's probability; 1 to :data:`MAX_FLIPPED_BYTES` distinct bytes are
    XORed with a random non-zero value, so a corrupted packet always differs.
@@ -55,6 +60,19 @@ a smoothstep to 1 at ``k * R`` and stays there::
 The smoothstep has zero slope at both ends, so loss neither jumps at the range
 nor kinks at the fade's end. Taking the smaller range makes every link
 symmetric: the weaker radio limits both directions.
+
+Bursts (``sim.radio_bursts``). Real links lose packets in runs (a fade, a body in
+the way, another transmitter), not one by one. Each link (pair of agents, both
+directions) has its own two-state Gilbert-Elliott chain in simulated time: it stays
+in its good state for an exponentially distributed time of mean ``good_s`` and in
+its bad state for one of mean ``bad_s``, losing ``loss_good`` and ``loss_bad`` of the
+packets in each. It starts in the bad state with the stationary probability
+``bad_s / (good_s + bad_s)``, so the long-run loss share of a link within range is
+``radio_loss + (1 - radio_loss) * (good_s * loss_good + bad_s * loss_bad) / (good_s +
+bad_s)``. Each chain draws its sojourns from its own generator, seeded from the run's
+seed and the link's two names (``{seed}:radio-burst:{a}:{b}``), lazily as simulated
+time reaches them: its state at a time depends on nothing but that time, so every
+copy of a split run's mesh sees the same state.
 
 Not modelled: DigiMesh relaying (every agent is assumed to hear every other
 directly, and a relayed packet would cost the channel air time twice), MAC
@@ -187,6 +205,87 @@ class Delivery(NamedTuple):
     corrupted: bool = False
 
 
+@dataclass(frozen=True, slots=True)
+class BurstSettings:
+    """The mission's ``sim.radio_bursts``: a Gilbert-Elliott chain on every link.
+
+    Attributes:
+        good_s: Mean time a link stays in its good state.
+        bad_s: Mean time a link stays in its bad state (a burst).
+        loss_good: Share of packets the good state loses.
+        loss_bad: Share of packets the bad state loses.
+    """
+
+    good_s: float = 60.0
+    bad_s: float = 2.0
+    loss_good: float = 0.0
+    loss_bad: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not (self.good_s > 0 and self.bad_s > 0):
+            raise ValueError("radio bursts: good_s and bad_s must be above 0")
+        if not (0.0 <= self.loss_good <= 1.0 and 0.0 <= self.loss_bad <= 1.0):
+            raise ValueError("radio bursts: loss_good and loss_bad must be within 0..1")
+
+    @classmethod
+    def from_sim(cls, sim: Mapping[str, Any]) -> BurstSettings | None:
+        """Read ``sim.radio_bursts``; None when the mission does not declare it."""
+        raw = sim.get("radio_bursts")
+        if raw is None:
+            return None
+        defaults = cls()
+        return cls(
+            good_s=float(raw.get("good_s", defaults.good_s)),
+            bad_s=float(raw.get("bad_s", defaults.bad_s)),
+            loss_good=float(raw.get("loss_good", defaults.loss_good)),
+            loss_bad=float(raw.get("loss_bad", defaults.loss_bad)),
+        )
+
+    @property
+    def bad_share(self) -> float:
+        """Long-run share of the time a link spends in its bad state."""
+        return self.bad_s / (self.good_s + self.bad_s)
+
+    @property
+    def mean_loss(self) -> float:
+        """Long-run share of packets the chain alone loses."""
+        bad = self.bad_share
+        return (1.0 - bad) * self.loss_good + bad * self.loss_bad
+
+
+class BurstChain:
+    """One link's Gilbert-Elliott chain in simulated time (see the module docstring).
+
+    Args:
+        settings: The chain's means and losses.
+        rng: The link's own generator; the chain alone draws from it.
+    """
+
+    __slots__ = ("_last_s", "_rng", "_settings", "_until_s", "bad")
+
+    def __init__(self, settings: BurstSettings, rng: random.Random) -> None:
+        self._settings = settings
+        self._rng = rng
+        self.bad = rng.random() < settings.bad_share
+        self._until_s = self._sojourn_s()
+        self._last_s = -math.inf
+
+    def _sojourn_s(self) -> float:
+        mean_s = self._settings.bad_s if self.bad else self._settings.good_s
+        return self._rng.expovariate(1.0 / mean_s)
+
+    def loss_at(self, t_s: float) -> float:
+        """The share of packets the link loses at ``t_s`` (times must not go back)."""
+        if t_s < self._last_s:
+            raise ValueError(f"time went back: a burst state at {t_s} s after {self._last_s} s")
+        self._last_s = t_s
+        while t_s >= self._until_s:
+            self.bad = not self.bad
+            self._until_s += self._sojourn_s()
+        settings = self._settings
+        return settings.loss_bad if self.bad else settings.loss_good
+
+
 @dataclass(slots=True)
 class LinkStats:
     """Counts for one directed link (sender -> receiver).
@@ -201,6 +300,7 @@ class LinkStats:
         delivered: Packets that arrived (corrupted or not).
         lost_random: Lost to the mesh's base loss rate.
         lost_range: Lost to distance beyond range.
+        lost_burst: Lost to the link's bad (or good) Gilbert-Elliott state (``sim.radio_bursts``).
         lost_fault: Lost to an injected fault (dropped link, silenced sender or receiver).
         corrupted: Delivered with bytes flipped.
         refused_oversize: Longer than the sender's packet limit; never sent.
@@ -212,6 +312,7 @@ class LinkStats:
     lost_random: int = 0
     lost_range: int = 0
     lost_fault: int = 0
+    lost_burst: int = 0
     corrupted: int = 0
     refused_oversize: int = 0
     dropped_queue: int = 0
@@ -258,12 +359,12 @@ class _Window:
 
 
 #: A packet in flight to one receiver: (at_s, sender, receiver, sequence, packet, sent_s,
-#: loss_probability, loss_draw, corrupt_draw, flip_seed, link). The mesh keeps these in
-#: a heap, so they come out as deliveries do: the first four fields are unique per item
-#: (one receiver per send sequence), so comparisons never reach the rest. Plain tuples,
-#: built and compared in C: a broadcast to 49 receivers makes 49 of them and costs
+#: loss_probability, loss_draw, corrupt_draw, flip_seed, link, loss_with_bursts). The mesh
+#: keeps these in a heap, so they come out as deliveries do: the first four fields are
+#: unique per item (one receiver per send sequence), so comparisons never reach the rest.
+#: Plain tuples, built and compared in C: a broadcast to 49 receivers makes 49 of them and costs
 #: hundreds of comparisons. ``link`` is the link's statistics, counted on arrival.
-_Pending = tuple[float, str, str, int, bytes, float, float, float, float, int, LinkStats]
+_Pending = tuple[float, str, str, int, bytes, float, float, float, float, int, LinkStats, float]
 
 
 @dataclass(slots=True)
@@ -305,6 +406,9 @@ class RadioMesh:
         range_fade_factor: Loss reaches 1 at this multiple of the link's range (> 1).
         max_queue_s: Longest a packet may wait for the channel before it is dropped;
             None for an unbounded queue.
+        bursts: A Gilbert-Elliott chain on every link (``sim.radio_bursts``); None: none.
+        burst_seed: The run's seed, with ``bursts``: each link's chain is seeded from it
+            and the link's names, never from ``rng``.
     """
 
     def __init__(
@@ -315,6 +419,8 @@ class RadioMesh:
         loss_rate: float = 0.0,
         range_fade_factor: float = DEFAULT_RANGE_FADE_FACTOR,
         max_queue_s: float | None = None,
+        bursts: BurstSettings | None = None,
+        burst_seed: int | str = 0,
     ) -> None:
         if not latency_s >= 0 or not math.isfinite(latency_s):
             raise ValueError(f"latency_s must be >= 0, got {latency_s}")
@@ -329,6 +435,9 @@ class RadioMesh:
         self.loss_rate = loss_rate
         self.range_fade_factor = range_fade_factor
         self.max_queue_s = max_queue_s
+        self.bursts = bursts
+        self._burst_seed = burst_seed
+        self._chains: dict[tuple[str, str], BurstChain] = {}
         self._agents: dict[str, _Agent] = {}
         self._names: tuple[str, ...] = ()  # sorted: the receivers of a broadcast, in order
         self._ranged = False  # some radio has a range
@@ -530,6 +639,7 @@ class RadioMesh:
         self._queue_by_sender[sender].add(queue_s, air_s)
         at_s = start_s + air_s + self.latency_s
         local = self._local
+        bursts = self.bursts is not None
         for receiver, link, loss_draw, corrupt_draw, flip_seed in targets:
             if local is not None and receiver not in local:
                 continue  # another process's copy of the mesh keeps it
@@ -545,6 +655,12 @@ class RadioMesh:
                     self.range_fade_factor,
                 )
             )
+            # With bursts, the link's state adds its loss on top (the same uniform decides).
+            p_total = (
+                1.0 - (1.0 - p_loss) * (1.0 - self._chain(sender, receiver).loss_at(now_s))
+                if bursts
+                else p_loss
+            )
             pending: _Pending = (
                 at_s,
                 sender,
@@ -557,6 +673,7 @@ class RadioMesh:
                 corrupt_draw,
                 flip_seed,
                 link,
+                p_total,
             )
             heapq.heappush(self._pending, pending)
 
@@ -630,6 +747,16 @@ class RadioMesh:
             stats = self._links[(sender, receiver)] = LinkStats()
         return stats
 
+    def _chain(self, a: str, b: str) -> BurstChain:
+        """The Gilbert-Elliott chain of the link between ``a`` and ``b`` (either way)."""
+        key = (a, b) if a < b else (b, a)
+        chain = self._chains.get(key)
+        if chain is None:
+            assert self.bursts is not None
+            rng = random.Random(f"{self._burst_seed}:radio-burst:{key[0]}:{key[1]}")
+            chain = self._chains[key] = BurstChain(self.bursts, rng)
+        return chain
+
     def _link_range_m(self, sender: str, receiver: str) -> float | None:
         """The smaller range of the two radios; None when neither has one."""
         a, b = self._agents[sender].radio.range_m, self._agents[receiver].radio.range_m
@@ -647,7 +774,20 @@ class RadioMesh:
         return max((share for w, share in self._corruption if w.covers(t_s)), default=0.0)
 
     def _resolve(self, item: _Pending) -> Delivery | None:
-        at_s, sender, receiver, sequence, packet, sent_s, p_loss, loss, corrupt, seed, link = item
+        (
+            at_s,
+            sender,
+            receiver,
+            sequence,
+            packet,
+            sent_s,
+            p_loss,
+            loss,
+            corrupt,
+            seed,
+            link,
+            p_all,
+        ) = item
         # (Each fault look-up is skipped while no fault of its kind was ever injected.)
         if (self._dropped_links and self._is_dropped(sender, receiver, at_s)) or (
             self._silenced and self._is_silenced(receiver, at_s)
@@ -659,6 +799,9 @@ class RadioMesh:
             return None
         if loss < p_loss:
             link.lost_range += 1
+            return None
+        if loss < p_all:
+            link.lost_burst += 1
             return None
         corrupted = False
         if packet and self._corruption and corrupt < self._corruption_share(at_s):

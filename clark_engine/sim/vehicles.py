@@ -1015,6 +1015,16 @@ class SimulatedVehicle(VehicleModel):
             return None
         return self._servo_functions[servo - 1]
 
+    def shift_estimate(self, north_m: float, east_m: float) -> None:
+        """Move the estimate (the model's position) by a change of the GPS error.
+
+        The model's position is what the autopilot believes; the backend keeps the
+        truth apart (:mod:`clark_engine.sim.gps_error`). Targets stay where they are,
+        so the vehicle flies the estimate back onto them, and truly moves.
+        """
+        self._n += north_m
+        self._e += east_m
+
     def gps_fix(self) -> GpsFix:
         """The latest GPS fix: the true position at the fix time plus Gaussian error.
 

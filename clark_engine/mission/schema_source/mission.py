@@ -436,6 +436,9 @@ def _sim() -> Schema:
                     maximum=600,
                 )
             ),
+            "gps_error": _gps_error(),
+            "radio_bursts": _radio_bursts(),
+            "jitter": _jitter(),
             "sitl_tolerance_s": number(
                 "With clark dry-run --autopilot sitl: how far apart each state's first entry "
                 "may be on ArduPilot SITL and on the simulated autopilot for the comparison "
@@ -482,6 +485,126 @@ def _campaign() -> Schema:
                 "propertyNames": {"minLength": 1, "maxLength": 200},
                 "additionalProperties": share("The check's minimum pass rate."),
             },
+        },
+    )
+
+
+def _gps_error() -> Schema:
+    return obj(
+        "Each vehicle's slowly wandering GPS error, beyond the white gps_noise_m of each fix "
+        "(docs/dry-run.md, A world with errors). The simulated autopilot reports and flies "
+        "by its estimate (truth plus this error), so a vehicle holding a point truly "
+        "wanders with it. Nothing when omitted.",
+        {
+            "walk_m": varied(
+                distance_m(
+                    "Steady-state standard deviation of the horizontal random walk (a "
+                    "first-order Gauss-Markov error), per axis. A standalone GPS: about 1-2 m.",
+                    maximum=1000,
+                    default=0.0,
+                )
+            ),
+            "walk_time_constant_s": varied(
+                time_s(
+                    "The walk's correlation time: errors this far apart are correlated by "
+                    "1/e (0.37). Minutes for a GPS (the atmosphere and the satellites move "
+                    "slowly).",
+                    exclusive_minimum=0,
+                    maximum=86400,
+                    default=300.0,
+                )
+            ),
+            "common_share": varied(
+                share(
+                    "Share of the walk's variance common to the whole fleet (vehicles under "
+                    "the same sky): two vehicles' errors are correlated by this much.",
+                    default=0.0,
+                )
+            ),
+            "glitch_rate_per_h": varied(
+                number(
+                    "Glitches per hour of simulated time, per vehicle (a Poisson process).",
+                    unit="1/h",
+                    minimum=0,
+                    maximum=3600,
+                    default=0.0,
+                )
+            ),
+            "glitch_m": varied(
+                distance_m(
+                    "How far a glitch moves the reported position, in a random direction.",
+                    maximum=10000,
+                    default=0.0,
+                )
+            ),
+            "glitch_s": varied(
+                time_s(
+                    "How long a glitch lasts before the position comes back.",
+                    maximum=3600,
+                    default=0.0,
+                )
+            ),
+        },
+    )
+
+
+def _radio_bursts() -> Schema:
+    return obj(
+        "Bursty radio loss on every link (pair of agents): a two-state Gilbert-Elliott chain "
+        "in simulated time, one per link, on top of radio_loss and the distance law "
+        "(docs/radios.md). Nothing when omitted.",
+        {
+            "good_s": varied(
+                time_s(
+                    "Mean time a link stays in its good state (exponentially distributed).",
+                    exclusive_minimum=0,
+                    maximum=86400,
+                    default=60.0,
+                )
+            ),
+            "bad_s": varied(
+                time_s(
+                    "Mean time a link stays in its bad state, a burst (exponentially distributed).",
+                    exclusive_minimum=0,
+                    maximum=86400,
+                    default=2.0,
+                )
+            ),
+            "loss_good": varied(share("Share of packets the good state loses.", default=0.0)),
+            "loss_bad": varied(share("Share of packets the bad state loses.", default=1.0)),
+        },
+    )
+
+
+def _jitter() -> Schema:
+    return obj(
+        "Seeded jitter on times a real run never keeps exactly (docs/dry-run.md). Nothing "
+        "when omitted.",
+        {
+            "operator_s": varied(
+                time_s(
+                    "Each operator action happens up to this many seconds before or after its "
+                    "at_s (uniform); actions keep the order they are written in.",
+                    maximum=3600,
+                    default=0.0,
+                )
+            ),
+            "ready_s": varied(
+                time_s(
+                    "Each simulated autopilot's boot timeline is shifted by up to this many "
+                    "seconds earlier or later (uniform, per vehicle; never before power-on).",
+                    maximum=600,
+                    default=0.0,
+                )
+            ),
+            "pilot_s": varied(
+                time_s(
+                    "The simulated pilot arms up to this many seconds after the vehicle "
+                    "shows ready (uniform, per vehicle): a person's reaction.",
+                    maximum=600,
+                    default=0.0,
+                )
+            ),
         },
     )
 
