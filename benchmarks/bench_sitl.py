@@ -5,9 +5,9 @@ process, as the command runs it): the mission on the simulated autopilot, then o
 ArduPilot SITL process per vehicle at the given speed-up. Printed per mission: the
 firmwares flown, simulated seconds, wall seconds of the SITL run (SITL sets the pace:
 about the mission's duration over the speed-up, plus the pre-flight of aircraft handed
-over in flight), its checks passed, and the comparison of the two runs: how many
-states were matched and the largest difference between a state's first entry on SITL
-and on the simulated autopilot (negative: SITL entered it sooner).
+over in flight), its own checks passed, and the comparison of the two runs
+(:mod:`clark_engine.sim.timeline`): states compared, its verdict, and the worst time
+(against what its leg allowed), position, altitude and check figure; what failed.
 
 Needs SITL: ``--sitl PATH`` or ``$CLARK_SITL`` (the folder with the ``sitl`` launcher).
 
@@ -34,6 +34,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sitl", help="the SITL folder ($CLARK_SITL by default)")
     parser.add_argument("--speedup", type=float, default=DEFAULT_SITL_SPEEDUP)
+    parser.add_argument("--tables", action="store_true", help="print each comparison's tables")
     parser.add_argument("missions", nargs="*", type=Path)
     args = parser.parse_args()
     try:
@@ -45,7 +46,7 @@ def main() -> int:
     print(f"ArduPilot SITL from {install.folder}, speed-up {args.speedup:g}")
     header = (
         f"{'mission':<28} {'firmwares':<24} {'sim s':>6} {'wall s':>7} {'checks':>7} "
-        f"{'states':>6} {'largest diff s':>14}"
+        f"{'states':>6} {'comparison':>10}"
     )
     print(header)
     failures = 0
@@ -77,19 +78,19 @@ def main() -> int:
         total_s = time.perf_counter() - started
         result, comparison = outcome.result, outcome.comparison
         assert result is not None and comparison is not None
-        passed = sum(r.passed for r in outcome.results)
-        worst = max(
-            (r.difference_s for r in comparison.rows if r.difference_s is not None),
-            key=abs,
-            default=0.0,
-        )
+        passed = sum(r.passed for r in outcome.results[:-1])
         print(
             f"{path.stem:<28} {','.join(firmwares):<24} {result.recording.end_s:>6.0f} "
-            f"{result.wall_s:>7.1f} {passed:>3}/{len(outcome.results):<3} "
-            f"{len(comparison.rows):>6} {worst:>+14.1f}"
-            + ("" if outcome.exit_code == 0 else "   FAILED")
+            f"{result.wall_s:>7.1f} {passed:>3}/{len(outcome.results) - 1:<3} "
+            f"{len(comparison.states):>6} {'pass' if comparison.holds else 'FAIL':>10}"
+            + ("" if outcome.exit_code == 0 else "   (exit 1)")
             + f"   ({total_s:.1f} s in all)"
         )
+        print(f"    worst: {'; '.join(comparison.worst())}")
+        if not comparison.holds:
+            print(f"    failed: {comparison.check().observed}")
+        if args.tables:
+            print(comparison.table())
         failures += outcome.exit_code != 0
     return 1 if failures else 0
 

@@ -149,8 +149,13 @@ def test_no_vehicle_state_before_the_first_fix() -> None:
     ap.say(ap.heartbeat(), ap.mav.attitude_encode(0, 0, 0, 0, 0, 0, 0))
     nowhere = ap.mav.global_position_int_encode(3000, 0, 0, 150, 305, 0, 0, 0, 0)
     assert of(ap.say(nowhere), VehicleState) == []
+    # ArduPlane's dead reckoning from 0, 0 before its fix is no position either.
+    drifting = ap.mav.global_position_int_encode(4000, 1047, -45, 150, 305, 0, 0, 0, 0)
+    no_fix = ap.mav.gps_raw_int_encode(0, 1, 0, 0, 0, 65535, 65535, 0, 0, 0)
+    assert of(ap.say(no_fix, drifting), VehicleState) == []
+    fix = ap.mav.gps_raw_int_encode(0, 6, 306372000, -964787000, 90000, 121, 200, 0, 0, 10)
     here = ap.mav.global_position_int_encode(10000, 306372000, -964787000, 90000, 0, 0, 0, 0, 0)
-    (state,) = of(ap.say(here), VehicleState)
+    (state,) = of(ap.say(fix, here), VehicleState)
     assert (state.lat_deg, state.lon_deg) == (30.6372, -96.4787)
 
 
@@ -269,7 +274,8 @@ def test_altitudes_are_above_the_origin_from_the_amsl_altitude() -> None:
     position = ap.mav.global_position_int_encode(
         1000, 306372000, -964787000, 90_400, 90_210, 0, 0, 0, 0
     )
-    (state,) = of(ap.say(ap.heartbeat(), attitude, position), VehicleState)
+    ekf = ap.mav.ekf_status_report_encode(0x33F, 0, 0, 0, 0, 0)  # a position: it is taken
+    (state,) = of(ap.say(ap.heartbeat(), attitude, ekf, position), VehicleState)
     assert state.alt_m == pytest.approx(0.4)
 
 

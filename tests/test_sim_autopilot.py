@@ -482,20 +482,29 @@ def test_rc_override_never_times_out_with_minus_one() -> None:
     assert model.overrides == {1: 1600}
 
 
+def download(sim: SimAutopilot, gcs: Gcs, now_s: float = 1.0) -> list[Any]:
+    """PARAM_REQUEST_LIST at ``now_s``; every PARAM_VALUE of the paced answer, in order."""
+    values = ask(sim, gcs, gcs.frame(gcs.mav.param_request_list_encode(1, 1)), now_s)
+    values += [m for _, m in run(sim, gcs, now_s, now_s + 3.0) if m.get_type() == "PARAM_VALUE"]
+    return values
+
+
 def test_parameters() -> None:
     sim, _ = make_sim()
     gcs = Gcs()
-    values = ask(sim, gcs, gcs.frame(gcs.mav.param_request_list_encode(1, 1)))
+    values = download(sim, gcs)
     names = [v.param_id for v in values]
-    assert names[0] == "MAV_SYSID"
-    assert {"MAV_GCS_SYSID", "RC_OVERRIDE_TIME", "MAV1_POSITION", "WP_RADIUS"} <= set(names)
+    assert (names[0], names[-1], len(names)) == ("FORMAT_VERSION", "MAV3_OPTIONS", 1406)
+    assert {"MAV_SYSID", "MAV_GCS_SYSID", "RC_OVERRIDE_TIME", "MAV1_POSITION", "WP_RADIUS"} <= set(
+        names
+    )
     assert not {"SYSID_THISMAV", "SYSID_MYGCS", "SR0_POSITION"} & set(names)  # 4.5's names
     assert [v.param_index for v in values] == list(range(len(values)))
     assert {v.param_count for v in values} == {len(values)}
     (read,) = ask(sim, gcs, gcs.frame(gcs.mav.param_request_read_encode(1, 1, b"WP_RADIUS", -1)))
     assert (read.param_id, read.param_value, read.param_type) == ("WP_RADIUS", 90.0, 4)
     (by_index,) = ask(sim, gcs, gcs.frame(gcs.mav.param_request_read_encode(1, 1, b"", 0)))
-    assert by_index.param_id == "MAV_SYSID"
+    assert by_index.param_id == "FORMAT_VERSION"
     (echo,) = ask(sim, gcs, gcs.frame(gcs.mav.param_set_encode(1, 1, b"MAV1_POSITION", 10.2, 9)))
     assert echo.param_value == 10.0  # an integer parameter truncates
     assert sim.param("MAV1_POSITION") == 10.0
@@ -560,7 +569,7 @@ def test_frame_limited_parameters_answer_by_name_but_are_not_listed() -> None:
     # the list and its count, read and set by name (measured).
     sim, _ = make_sim(firmware="ardurover")
     gcs = Gcs()
-    listed = ask(sim, gcs, gcs.frame(gcs.mav.param_request_list_encode(1, 1)))
+    listed = download(sim, gcs)
     names = {m.param_id for m in listed}
     assert "FENCE_ALT_MAX" not in names and "FENCE_RADIUS" in names
     (read,) = ask(

@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 FOLLOW = ROOT / "missions" / "cooperative_follow.yaml"
 
 VARIED_SIM = (
-    "sim: {duration_s: 170, seed: 1, sitl_tolerance_s: 10, radio_loss: {uniform: [0, 0.2]}, "
+    "sim: {duration_s: 170, seed: 1, radio_loss: {uniform: [0, 0.2]}, "
     "gps_noise_m: {normal: {mean: 1, sd: 0.5}}}\n"
     "faults:\n"
     "  - link_drop: {between: [slash_a, slash_b], from_s: {uniform: [10, 20]}, "

@@ -51,6 +51,10 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> Path:
         "clark_engine/gcs/static/vendor/leaflet/leaflet.css",
         "clark_engine/gcs/static/vendor/leaflet/LICENSE",
         "clark_engine/gcs/static/vendor/leaflet/images/marker-icon.png",
+        # ArduPilot's parameter lists the simulated autopilot reports (sim/ap_params.py).
+        "clark_engine/sim/sitl_params/ardurover.csv.gz",
+        "clark_engine/sim/sitl_params/arducopter.csv.gz",
+        "clark_engine/sim/sitl_params/arduplane.csv.gz",
     ):
         assert page_file in shipped, f"{page_file} is not in the wheel"
     env_dir = work / "venv"

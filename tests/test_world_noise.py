@@ -17,17 +17,26 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.mission.compiler import agent_config
+from clark_engine.mission.geo import EARTH_RADIUS_M
 from clark_engine.mission.model import Mission
 from clark_engine.runtime.config import config_from_dict
 from clark_engine.sim import parallel
 from clark_engine.sim.backend import SimulatedBackend
-from clark_engine.sim.engine import DryRun, DryRunResult, build_vehicle, jittered_operator
+from clark_engine.sim.engine import (
+    DryRun,
+    DryRunResult,
+    build_sitl_vehicle,
+    build_vehicle,
+    jittered_operator,
+)
 from clark_engine.sim.firmware import FIRMWARES
 from clark_engine.sim.gps_error import WALK_STEP_S, GpsError, GpsErrorSettings
 from clark_engine.sim.parallel import run_split
 from clark_engine.sim.radio import BurstChain, BurstSettings, RadioMesh
+from clark_engine.sim.sitl import SitlInstall
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -348,3 +357,45 @@ def test_readiness_and_pilot_jitter_are_per_vehicle() -> None:
         assert 0.0 <= pilot.reaction_s <= 5.0
     assert len(set(prearm.values())) == len(prearm) > 1
     assert len(set(reactions.values())) == len(reactions)
+
+
+@pytest.mark.sitl
+def test_sitl_flies_the_same_gps_error_through_its_own_gps_offset(
+    sitl_install: SitlInstall, tmp_path: Path
+) -> None:
+    """--autopilot sitl plays sim.gps_error through SIM_GPS1_GLTCH_X/_Y, as it goes."""
+    path = with_sim(
+        tmp_path, "copter_takeoff_land", "gps_error: {walk_m: 4, walk_time_constant_s: 60}"
+    )
+    mission = load(path)
+    agent = mission.agents["f450"]
+    config = config_from_dict(agent_config(mission, agent))
+    backend, _pilot, _plan = build_sitl_vehicle(mission, agent, config, sitl_install, 5.0, 7)
+    assert backend.gps_error is not None
+    mav = mavlink2.MAVLink(None, srcSystem=255, srcComponent=190)
+    parser = mavlink2.MAVLink(None)
+    parser.robust_parsing = True
+    held: dict[str, float] = {}
+    try:
+        backend.connect()
+        t_s = 0.0
+        while t_s < 12.0:
+            t_s += 0.5
+            for msg in parser.parse_buffer(backend.step(t_s, 0.5)) or []:
+                if msg.get_type() == "PARAM_VALUE" and msg.param_id.startswith("SIM_GPS1_GLTCH"):
+                    held[msg.param_id] = msg.param_value
+            if t_s >= 10.0:  # ask what SITL holds now
+                for name in ("SIM_GPS1_GLTCH_X", "SIM_GPS1_GLTCH_Y"):
+                    request = mav.param_request_read_encode(
+                        backend.system_id, 1, name.encode("ascii"), -1
+                    )
+                    backend.send(request.pack(mav), t_s)
+    finally:
+        backend.close()
+    north_m, east_m = backend.gps_error.offset_m(t_s)
+    per_deg_lat = math.radians(1.0) * EARTH_RADIUS_M
+    per_deg_lon = per_deg_lat * math.cos(math.radians(mission.origin.lat_deg))
+    assert math.hypot(north_m, east_m) > 0.5  # a walk of 4 m has moved it: not a no-op
+    # Within 0.2 m of the error now: the last update was at most half a second ago.
+    assert held["SIM_GPS1_GLTCH_X"] * per_deg_lat == pytest.approx(north_m, abs=0.2)
+    assert held["SIM_GPS1_GLTCH_Y"] * per_deg_lon == pytest.approx(east_m, abs=0.2)

@@ -44,6 +44,11 @@ Decisions a reader would otherwise have to reverse-engineer:
   on any field: ArduRover for some 30 s after its GPS fix); while a 3-D fix's
   GPS_RAW_INT ``alt`` disagrees with it by more than :data:`FALLBACK_ALT_GAP_M`, the
   GPS's is used instead.
+- A GLOBAL_POSITION_INT is a position only with a 3-D fix (GPS_RAW_INT) or an EKF
+  absolute position (EKF_STATUS_REPORT). Before its fix ArduPlane sends positions that
+  start at 0, 0 and drift from there (dead reckoning: 35 m in 6 s on SITL), and every
+  firmware sends 0, 0; neither becomes a :class:`VehicleState`. A fix lost in flight
+  while the EKF still has a position does not blind the engine.
 - Everything the autopilot must acknowledge (COMMAND_LONG / COMMAND_INT,
   PARAM_SET, PARAM_REQUEST_READ) is tracked: resent by :meth:`poll` after
   :data:`ACK_TIMEOUT_S` (COMMAND_LONG with the ``confirmation`` field counting
@@ -1314,6 +1319,11 @@ class AutopilotAdapter:
             return None
         if msg.lat == 0 and msg.lon == 0:
             return None  # ArduPilot's "no position yet" (before its first GPS fix)
+        status = self._status
+        if status.gps_fix_type < mavlink2.GPS_FIX_TYPE_3D_FIX and not status.position_ok:
+            # Not a position yet: ArduPlane dead-reckons from 0, 0 before its fix (SITL
+            # drifted 35 m from there, at up to 26 m/s), with no fix and no EKF position.
+            return None
         vx_m_s, vy_m_s = msg.vx / 100.0, msg.vy / 100.0
         speed_m_s = math.hypot(vx_m_s, vy_m_s)
         yaw_deg = math.degrees(self._attitude.yaw) % 360.0

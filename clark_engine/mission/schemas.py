@@ -146,6 +146,13 @@ RENAMED_KEYS: dict[tuple[DocPath, str], tuple[str, str]] = {
         "mission.ceiling_m moved to the safety envelope: write it as ceiling_m under a "
         "top-level envelope: section (envelope: {ceiling_m: ...}), beside mission:",
     ),
+    (("sim",), "sitl_tolerance_s"): (
+        "sitl_tolerance.time_floor_s",
+        "sim.sitl_tolerance_s is now sim.sitl_tolerance, which also compares positions, "
+        "altitudes and the checks' figures: each state's entry may differ by a share of its "
+        "leg, never less than time_floor_s (3 s by default); to keep your floor write "
+        "sitl_tolerance: {time_floor_s: ...} in sim:",
+    ),
 }
 
 

@@ -28,8 +28,9 @@ What it does, in ArduPilot's order:
   is (one after it is kept, and starts with the streams). No position (0, 0) and
   GPS fix 0 until the fix; SYSTEM_TIME's Unix time 0 until then; home set when the
   firmware sets it (HOME_POSITION sent then); the EKF's flags step from
-  uninitialised to attitude to an absolute position; the pre-arm check bit of
-  SYS_STATUS set once arming would pass in the current mode.
+  uninitialised to attitude to an absolute position; SYS_STATUS's sensor bits as
+  ArduPilot sets them (:mod:`clark_engine.sim.ap_sys_status`), its pre-arm check bit
+  set once arming would pass in the current mode.
 - **Arming** (MAV_CMD_COMPONENT_ARM_DISARM): refused with CRITICAL ``Arm: ...``
   texts and FAILED while a check fails (the boot phase, a mode that is not armable,
   a mode that needs a position before the EKF has one); while checks fail a
@@ -67,7 +68,9 @@ What it does, in ArduPilot's order:
   and velocity, which ArduCopter extrapolates; ArduPlane takes only the altitude);
   RC_CHANNELS_OVERRIDE from MAV_GCS_SYSID, lapsing after RC_OVERRIDE_TIME; the
   guided-mode MISSION_ITEM(_INT) of MAVProxy's ``guided``; PARAM_* as ArduPilot 4.7
-  answers them (a PARAM_VALUE answering a read by name or a set carries index 65535;
+  answers them, over its whole list (:mod:`clark_engine.sim.ap_params`: SITL's names,
+  types, values and order; a list paced at PARAM_LIST_RATE_HZ; a PARAM_VALUE
+  answering a read by name or a set carries index 65535;
   a set is echoed with the stored value in the parameter's own type, integers
   truncated and clamped to their C type, never clamped to the documented range;
   unknown names, NaN and infinities get no answer);
@@ -92,7 +95,9 @@ What it does, in ArduPilot's order:
   timeouts, actions and texts.
 - **Altitudes** as each firmware fills GLOBAL_POSITION_INT while it boots: ArduCopter
   all zero before its fix; ArduRover and ArduPlane their barometer's height until their
-  estimate has one above sea level (ArduRover's home set at that height).
+  estimate has one above sea level (ArduRover's home set at that height). Positions
+  before the fix are 0, 0, but ArduPlane's, which drift away from there as its DCM
+  dead-reckons (SITL: 35 m in 6 s) while GPS_RAW_INT says no fix.
 
 Not simulated (docs/autopilot-fidelity.md): flying by rally points (they are kept,
 never used), mission DO items other than DO_CHANGE_SPEED, DO_SET_SERVO and
@@ -114,6 +119,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.mission.fence import Fence, Zone
 from clark_engine.mission.geo import EARTH_RADIUS_M
+from clark_engine.sim import ap_sys_status
 from clark_engine.sim.ap_fence import (
     ALL_FENCES,
     ALT_MIN,
@@ -126,6 +132,7 @@ from clark_engine.sim.ap_fence import (
     Point2,
     react,
 )
+from clark_engine.sim.ap_params import INT16, Param, ParamStore, sitl_table
 from clark_engine.sim.ap_vehicle import ModeReason
 from clark_engine.sim.firmware import (
     COMMON_PARAMS,
@@ -250,6 +257,8 @@ _FTP_ERR_UNKNOWN_COMMAND: Final = 7
 _FTP_HEADER: Final = struct.Struct("<HBBBBBBI")
 _FTP_PAYLOAD_BYTES: Final = 251
 _PARAM_INDEX_BY_NAME: Final = 65535
+PARAM_LIST_RATE_HZ: Final = 1000.0
+"""PARAM_VALUEs a second in answer to PARAM_REQUEST_LIST (see _send_param_list)."""
 
 _INFO, _NOTICE, _WARNING, _CRITICAL = (
     mavlink2.MAV_SEVERITY_INFO,
@@ -294,20 +303,10 @@ _DATA_STREAM_PARAMS: Final[Mapping[int, str]] = {
     mavlink2.MAV_DATA_STREAM_EXTRA3: "MAV1_EXTRA3",
 }
 STREAM_RATES: Final = frozenset(_DATA_STREAM_PARAMS.values())
-"""The stream-rate parameters that start at the firmware's default rate (not MAV1_PARAMS)."""
+"""The stream-rate parameters REQUEST_DATA_STREAM sets (those of the groups it streams start
+at the firmware's default rate)."""
 _MAV_OPTION_GCS_ONLY: Final = 1
 """MAV_OPTIONS bit 0: accept MAVLink only from MAV_GCS_SYSID (and our own system)."""
-
-_INT8, _INT16, _INT32 = (
-    mavlink2.MAV_PARAM_TYPE_INT8,
-    mavlink2.MAV_PARAM_TYPE_INT16,
-    mavlink2.MAV_PARAM_TYPE_INT32,
-)
-_INT_RANGES: Final[Mapping[int, tuple[int, int]]] = {
-    _INT8: (-128, 127),
-    _INT16: (-32768, 32767),
-    _INT32: (-(2**31), 2**31 - 1),
-}
 
 _AUTO_MODES: Final = frozenset({"AUTO", "RTL", "SMART_RTL", "LAND", "LOITER", "TAKEOFF"})
 """Modes that fly themselves (HEARTBEAT's GUIDED_ENABLED flag)."""
@@ -319,50 +318,30 @@ _LANDED: Final[Mapping[str, int]] = {
     "landing": mavlink2.MAV_LANDED_STATE_LANDING,
 }
 
-_SENSORS: Final = {
-    name: int(getattr(mavlink2, f"MAV_SYS_STATUS_{name}"))
-    for name in (
-        "SENSOR_3D_GYRO",
-        "SENSOR_3D_ACCEL",
-        "SENSOR_3D_MAG",
-        "SENSOR_ABSOLUTE_PRESSURE",
-        "SENSOR_DIFFERENTIAL_PRESSURE",
-        "SENSOR_GPS",
-        "SENSOR_ANGULAR_RATE_CONTROL",
-        "SENSOR_ATTITUDE_STABILIZATION",
-        "SENSOR_YAW_POSITION",
-        "SENSOR_Z_ALTITUDE_CONTROL",
-        "SENSOR_XY_POSITION_CONTROL",
-        "SENSOR_MOTOR_OUTPUTS",
-        "SENSOR_RC_RECEIVER",
-        "AHRS",
-        "SENSOR_BATTERY",
-        "PREARM_CHECK",
-    )
-}
-_PREARM_BIT: Final = _SENSORS["PREARM_CHECK"]
-_GEOFENCE_BIT: Final = int(mavlink2.MAV_SYS_STATUS_GEOFENCE)
-_GPS_BIT: Final = _SENSORS["SENSOR_GPS"]
-_AHRS_BIT: Final = _SENSORS["AHRS"]
-_CONTROL_BITS: Final = (
-    _SENSORS["SENSOR_Z_ALTITUDE_CONTROL"] | _SENSORS["SENSOR_XY_POSITION_CONTROL"]
-)
-_BASE_SENSORS: Final = (
-    _SENSORS["SENSOR_3D_GYRO"]
-    | _SENSORS["SENSOR_3D_ACCEL"]
-    | _SENSORS["SENSOR_3D_MAG"]
-    | _SENSORS["SENSOR_ABSOLUTE_PRESSURE"]
-    | _SENSORS["SENSOR_MOTOR_OUTPUTS"]
-    | _SENSORS["SENSOR_RC_RECEIVER"]
-    | _SENSORS["SENSOR_BATTERY"]
-)
-"""Sensors present, enabled and healthy on every firmware from power-on (SITL's)."""
+_PREARM_BIT: Final = ap_sys_status.PREARM
 
 _EKF_UNINITIALISED: Final = 0x400
 _EKF_ATTITUDE_ONLY: Final = 0xA7  # attitude, velocities, vertical position, constant position
 _EKF_POSITION: Final = 0x33F  # ... and absolute and relative horizontal position
 _EKF_UNINITIALISED_S: Final = 3.6
 """EKF_STATUS_REPORT says uninitialised until this long after power-on (measured 3.6-4 s)."""
+
+PLANE_PRE_FIX_DRIFT_START: Final = 0.37
+"""ArduPlane's dead reckoning before its GPS fix starts at this share of the time to the
+fix (SITL: 3.5 s of 9.3 s, once "Airspeed 1 calibrated"): its DCM integrates the airspeed
+sensor's reading along the heading from 0, 0, so GLOBAL_POSITION_INT drifts away from
+(0, 0) while GPS_RAW_INT says no fix. Measured (4.7.0-dev, on the ground): 11.6 m after
+0.2 s, 24.4 m after 0.6 s, 33.2 m after 1.6 s, 35.7 m at the fix (at up to 58 m/s between
+reports, 3-26 m/s averaged over a second), velocities 0. The shape below reproduces it."""
+PLANE_PRE_FIX_DRIFT_M: Final = 33.3
+"""The fast part of that drift, m: it covers 1 - exp(-t / tau) of it."""
+PLANE_PRE_FIX_DRIFT_TAU_S: Final = 0.47
+"""Its time constant, s (fitted: 0.46-0.48 over the first 0.6 s)."""
+PLANE_PRE_FIX_CREEP_M_S: Final = 0.55
+"""The slow drift that follows, until the fix, m/s (2.3 m over the last 4 s)."""
+GPS_DETECTED_BEFORE_FIX_S: Final = 0.3
+"""GPS_RAW_INT says NO_GPS (0) until the receiver is detected ("GPS 1: detected u-blox"),
+this long before its fix, then NO_FIX (1) until the fix (SITL, every firmware)."""
 
 _BOOT_TEXTS: Final[tuple[tuple[str, float, int, str], ...]] = (
     ("streams_s", 0.0, _INFO, "ArduPilot Ready"),
@@ -375,13 +354,6 @@ _BOOT_TEXTS: Final[tuple[tuple[str, float, int, str], ...]] = (
     ("position_s", 0.0, _INFO, "AHRS: EKF3 active"),
 )
 """STATUSTEXTs ArduPilot prints as it boots: (step of BootTimes, offset s, severity, text)."""
-
-
-@dataclass(slots=True)
-class _Param:
-    value: float
-    param_type: int
-    listed: bool = True  # in PARAM_REQUEST_LIST (False: read and set by name only)
 
 
 @dataclass(frozen=True, slots=True)
@@ -402,15 +374,6 @@ class _Outbox:
 
 def _msg_id(name: str) -> int:
     return int(getattr(mavlink2, f"MAVLINK_MSG_ID_{name}"))
-
-
-_FLOAT32_MAX: Final = 3.4028234663852886e38
-
-
-def _float32(value: float) -> float:
-    """``value`` as a C float holds it (rounded to 24 bits; beyond the range, the largest)."""
-    bounded = min(max(value, -_FLOAT32_MAX), _FLOAT32_MAX)
-    return float(struct.unpack("<f", struct.pack("<f", bounded))[0])
 
 
 def _clamp(value: float, low: int, high: int) -> int:
@@ -555,17 +518,23 @@ class SimAutopilot:
         self._takeoff_starts_s = -math.inf  # ArduPlane's takeoff proper starts then
         self._guided_wp_active = False  # ArduCopter flies guided position targets now
         self._text_id = 0  # id of the last STATUSTEXT sent in chunks
-        self._params: dict[str, _Param] = {"MAV_SYSID": _Param(system_id, _INT16)}
+        # The parameters the simulation acts on (read on hot paths by name), and the whole
+        # list ArduPilot's firmware reports, over them (ap_params: the firmware's values
+        # win over SITL's default-parameter file; a profile's over both).
+        self._params: dict[str, Param] = {"MAV_SYSID": Param(system_id, INT16)}
         for name, (value, kind) in {**COMMON_PARAMS, **self.fw.params}.items():
             if name in STREAM_RATES:
                 value = self.fw.default_stream_hz if value else 0.0
-            self._params[name] = _Param(float(value), kind, name not in self.fw.hidden_params)
-        # What PARAM_REQUEST_LIST lists, and the count every PARAM_VALUE carries.
-        self._listed = [name for name, entry in self._params.items() if entry.listed]
+            self._params[name] = Param(float(value), kind)
+        self.params = ParamStore(firmware, self._params)
+        """Every parameter a ground station can read and set, in ArduPilot's order."""
+        self._param_list_from_s: float | None = None  # PARAM_REQUEST_LIST being answered since
+        self._param_list_sent = 0  # how many of the list were sent
         for name, value in (params or {}).items():
-            if name not in self._params:
+            if name not in self.params:
                 raise ValueError(f"no parameter {name!r} in the simulated {firmware}")
             self._set_param(name, value)
+        self._logging_until_s = -math.inf  # AP_Logger logs on this long after a disarm
         self.model.configure(self.param_values())
 
         self._mode_reason: ModeReason = "autopilot"  # why the current mode was entered
@@ -633,8 +602,9 @@ class SimAutopilot:
 
         Firmware, ids, modes, guided mode and parameters come from the profile, so the
         engine's adapter, built from the same profile, finds it where it expects it.
-        Profile parameters this simulation does not have are left out (a real
-        autopilot has hundreds; they change nothing here).
+        Profile parameters ArduPilot's list has are stored (a ground station reads them
+        back) even where the simulation does not act on them; names the firmware does not
+        have are left out.
         """
         mav = autopilot.get("mavlink") or {}
         firmware = str(autopilot["firmware"])
@@ -644,10 +614,11 @@ class SimAutopilot:
             zero = channel.get("pwm_trim_us" if firmware == "ardurover" else "pwm_min_us")
             throttle = (int(channel["rc"]), int(zero if zero is not None else 1100))
         known = {"MAV_SYSID", *COMMON_PARAMS, *FIRMWARES[firmware].params}
+        listed = sitl_table(firmware).types
         params = {
             str(name): float(value)
             for name, value in (autopilot.get("parameters") or {}).items()
-            if name in known
+            if name in known or name in listed
         }
         return cls(
             model,
@@ -686,8 +657,8 @@ class SimAutopilot:
 
     def param(self, name: str) -> float | None:
         """A parameter's value, None if it has no such parameter."""
-        entry = self._params.get(name)
-        return None if entry is None else entry.value
+        found = self.params.get(name)
+        return None if found is None else found[0]
 
     def _param_value(self, name: str) -> float:
         return self._params[name].value
@@ -739,6 +710,8 @@ class SimAutopilot:
         self._supervise(now_s)
         if self._deferred:
             self._send_deferred(now_s)
+        if self._param_list_from_s is not None:
+            self._send_param_list(now_s)
         now_us = round(now_s * 1e6)
         if now_us < self._next_due_us and not self._outbox.data:
             return b""  # nothing due and no answer queued: the common case, kept cheap
@@ -1136,6 +1109,7 @@ class SimAutopilot:
             if refusals:
                 for reason in refusals:
                     self._text(_CRITICAL, reason)
+                self._logging_until_s = now_s + ap_sys_status.LOG_PERSIST_S
                 return _FAILED
         if not model.arm(True):
             return _FAILED
@@ -1181,6 +1155,7 @@ class SimAutopilot:
     def _disarm(self, now_s: float, *, force: bool = False) -> None:
         if self.model.arm(False, force=force):
             self._armed_s = None
+            self._logging_until_s = now_s + ap_sys_status.LOG_PERSIST_S
             self._ground_since_s = None
             self._text(_INFO, self.fw.disarmed_text)
             self._fence_quiet = False
@@ -1442,9 +1417,8 @@ class SimAutopilot:
             self._position_target(msg, now_s)
         elif kind == "RC_CHANNELS_OVERRIDE":
             self._rc_override(msg, now_s)
-        elif kind == "PARAM_REQUEST_LIST":
-            for index, name in enumerate(self._listed):
-                self._send_param(name, index)
+        elif kind == "PARAM_REQUEST_LIST":  # (a second one starts the list again)
+            self._param_list_from_s, self._param_list_sent = now_s, 0
         elif kind == "PARAM_REQUEST_READ":
             self._param_read(msg)
         elif kind == "PARAM_SET":
@@ -2059,32 +2033,22 @@ class SimAutopilot:
         """
         name = str(msg.param_id)
         value = float(msg.param_value)
-        if name not in self._params or not math.isfinite(value):
+        if name not in self.params or not math.isfinite(value):
             return
         self._set_param(name, value)
         self._send_param(name, _PARAM_INDEX_BY_NAME)
 
     def _set_param(self, name: str, value: float) -> None:
-        """Store a value as AP_Param::set_float does.
+        """Store a value as AP_Param::set_float does (:func:`ap_params.stored`).
 
-        The stored type decides, whatever type the sender said: a float is kept as a
-        32-bit float; an integer gets 0.01 added away from zero, is clamped to its C
-        type's range and truncated (2.7 -> 2, -2.7 -> -2, 300 in an int8 -> 127). The
-        documented @Range is never enforced (FENCE_RADIUS 5 is kept).
+        The stored type decides, whatever type the sender said. A parameter the
+        simulation acts on takes effect at once (stream rates, the fence, the model).
         """
-        if not math.isfinite(value):
-            return
+        if not math.isfinite(value) or not self.params.set(name, value):
+            return  # (a parameter only listed: stored, nothing acts on it)
         self._next_due_us = 0  # a stream-rate parameter may have changed
         self._schedule = None
         self._fence_quiet = False  # a fence parameter may have changed
-        entry = self._params[name]
-        single = _float32(value)
-        if entry.param_type in _INT_RANGES:
-            low, high = _INT_RANGES[entry.param_type]
-            nudged = _float32(single + (0.01 if single >= 0 else -0.01))
-            entry.value = float(math.trunc(min(max(nudged, low), high)))
-        else:
-            entry.value = single
         if name in STREAM_RATES:  # a new group rate replaces the per-message intervals
             for stream, group in STREAM_GROUPS.items():
                 if group == name:
@@ -2094,21 +2058,42 @@ class SimAutopilot:
             self.model.configure(self.param_values())  # the whole table, as configure wants
 
     def _send_param(self, name: str, index: int) -> None:
-        entry = self._params[name]
+        found = self.params.get(name)
+        if found is None:
+            return
+        value, param_type = found
         self._mav.send(
             self._mav.param_value_encode(
-                name.encode("ascii"), entry.value, entry.param_type, len(self._listed), index
+                name.encode("ascii"), value, param_type, self.params.count, index
             )
         )
 
+    def _send_param_list(self, now_s: float) -> None:
+        """The next part of the list a PARAM_REQUEST_LIST asked for, PARAM_LIST_RATE_HZ paced.
+
+        ArduPilot sends the list a few at a time from its main loop (SITL's TCP link took
+        0.4 s for 1,354); sent in one go it would be one 50 kB burst, more than a ground
+        station's UDP socket takes at once.
+        """
+        start_s = self._param_list_from_s
+        assert start_s is not None
+        due = min(self.params.count, 1 + int((now_s - start_s) * PARAM_LIST_RATE_HZ))
+        for index in range(self._param_list_sent, due):
+            name = self.params.name_at(index)
+            if name is not None:
+                self._send_param(name, index)
+        self._param_list_sent = due
+        if due >= self.params.count:
+            self._param_list_from_s = None
+
     def _param_read(self, msg: Any) -> None:
-        names = self._listed
         if msg.param_index >= 0:
-            if msg.param_index < len(names):
-                self._send_param(names[msg.param_index], msg.param_index)
+            name = self.params.name_at(msg.param_index)
+            if name is not None:
+                self._send_param(name, msg.param_index)
             return
         name = str(msg.param_id)
-        if name in self._params:
+        if name in self.params:
             self._send_param(name, _PARAM_INDEX_BY_NAME)
 
     def _request_data_stream(self, msg: Any) -> None:
@@ -2301,34 +2286,21 @@ class SimAutopilot:
         )
 
     def _msg_sys_status(self, now_s: float) -> Any:
-        fixed = self._gps_fix(now_s)
-        present = _BASE_SENSORS | _CONTROL_BITS | _AHRS_BIT | _PREARM_BIT
-        present |= (
-            _SENSORS["SENSOR_ANGULAR_RATE_CONTROL"]
-            | _SENSORS["SENSOR_ATTITUDE_STABILIZATION"]
-            | _SENSORS["SENSOR_YAW_POSITION"]
-        )
-        if self.firmware == "arduplane":
-            present |= _SENSORS["SENSOR_DIFFERENTIAL_PRESSURE"]
-        if fixed:
-            present |= _GPS_BIT
-        enabled = _BASE_SENSORS | _PREARM_BIT | (_GPS_BIT if fixed else 0)
-        if self.model.airborne:
-            enabled |= _CONTROL_BITS
-        if self._origin_set(now_s):
-            enabled |= _AHRS_BIT
-        health = enabled & ~(_PREARM_BIT | _AHRS_BIT)
-        if self._position_ok(now_s):
-            health |= _AHRS_BIT
-        if self.model.armed or self._prearm_healthy(now_s):
-            health |= _PREARM_BIT
+        """SYS_STATUS, its sensor bits as ArduPilot sets them (``ap_sys_status``)."""
         # The geofence: present with any fence configured that exists, enabled with a
         # fence on and an action, healthy unless breached (AC_Fence::sys_status_*).
         self._fence_zones()
-        fence_present, fence_enabled, fence_healthy = self.fence.sys_status()
-        present |= _GEOFENCE_BIT if fence_present else 0
-        enabled |= _GEOFENCE_BIT if fence_enabled else 0
-        health |= _GEOFENCE_BIT if fence_healthy else 0
+        now = ap_sys_status.Inputs(
+            since_boot_s=now_s - self.boot_s,
+            mode=self.model.mode,
+            gps_fixed=self._gps_fix(now_s),
+            ekf_origin=self._origin_set(now_s),
+            ekf_position=self._position_ok(now_s),
+            prearm_ok=self.model.armed or self._prearm_healthy(now_s),
+            logging=self.model.armed or now_s < self._logging_until_s,
+            fence=self.fence.sys_status(),
+        )
+        present, enabled, health = ap_sys_status.sensor_bits(self.firmware, now)
         current_ca, remaining = self._battery(now_s)
         return self._mav.sys_status_encode(
             present, enabled, health, 0, BATTERY_VOLTAGE_MV, current_ca, remaining, 0, 0, 0, 0, 0, 0
@@ -2348,9 +2320,10 @@ class SimAutopilot:
     def _position(self, now_s: float) -> tuple[float, float, float]:
         """Latitude, longitude and height above the origin as the GPS reports them.
 
-        Before the GPS has a fix ArduPilot reports 0, 0, and a height from its
-        barometer (taken here as the height with the receiver's vertical error: a little
-        noise around the truth). A model with a GPS (``gps_fix``: seeded noise at the
+        Before the GPS has a fix ArduPilot reports 0, 0 (ArduPlane: its dead reckoning
+        from there, :meth:`_dead_reckoned_m`), and a height from its barometer (taken
+        here as the height with the receiver's vertical error: a little noise around
+        the truth). A model with a GPS (``gps_fix``: seeded noise at the
         receiver's rate) is read through it, as ArduPilot reads its receiver; otherwise
         the truth is reported.
         """
@@ -2361,8 +2334,27 @@ class SimAutopilot:
             t = self._truth()
             lat, lon, alt = t.lat_deg, t.lon_deg, t.up_m
         if not self._gps_fix(now_s):
-            return 0.0, 0.0, float(alt)
+            north_m, east_m = self._dead_reckoned_m(now_s)
+            return north_m / _M_PER_DEG_LAT, east_m / _M_PER_DEG_LAT, float(alt)
         return float(lat), float(lon), float(alt)
+
+    def _dead_reckoned_m(self, now_s: float) -> tuple[float, float]:
+        """North and east of (0, 0), m, where ArduPlane's DCM puts itself before a fix.
+
+        ArduPlane integrates its airspeed sensor from 0, 0 along its heading (SITL:
+        :data:`PLANE_PRE_FIX_DRIFT_START`); the other firmwares stay at 0, 0. An engine
+        must not take these for the vehicle's position (GPS_RAW_INT says no fix).
+        """
+        if self.firmware != "arduplane":
+            return 0.0, 0.0
+        fix_s = self.boot_times.gps_fix_s
+        since_s = self._age_s(now_s) - PLANE_PRE_FIX_DRIFT_START * fix_s
+        if since_s <= 0.0:
+            return 0.0, 0.0
+        drift_m = PLANE_PRE_FIX_DRIFT_M * -math.expm1(-since_s / PLANE_PRE_FIX_DRIFT_TAU_S)
+        drift_m += PLANE_PRE_FIX_CREEP_M_S * since_s
+        yaw = math.radians(self._truth().yaw_deg)
+        return drift_m * math.cos(yaw), drift_m * math.sin(yaw)
 
     def _home_alt_m(self) -> float:
         return self._home[2] if self._home is not None else self.origin_alt_amsl_m
@@ -2371,10 +2363,16 @@ class SimAutopilot:
         t = self._truth()
         lat, lon, up = self._position(now_s)
         fixed = self._gps_fix(now_s)
+        if not fixed:
+            lat = lon = 0.0  # the receiver's own report: nothing (the DCM's is not its)
         unix_us = self._unix_us(now_s)
         return self._mav.gps_raw_int_encode(
             unix_us if unix_us else round((now_s - self.boot_s) * 1e6),
-            mavlink2.GPS_FIX_TYPE_3D_FIX if fixed else mavlink2.GPS_FIX_TYPE_NO_FIX,
+            mavlink2.GPS_FIX_TYPE_3D_FIX
+            if fixed
+            else mavlink2.GPS_FIX_TYPE_NO_FIX
+            if self._age_s(now_s) >= self.boot_times.gps_fix_s - GPS_DETECTED_BEFORE_FIX_S
+            else mavlink2.GPS_FIX_TYPE_NO_GPS,
             round(lat * 1e7),
             round(lon * 1e7),
             round((self.origin_alt_amsl_m + up) * 1000) if fixed else 0,

@@ -22,11 +22,26 @@ import itertools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Final
+from typing import Any, Final, NamedTuple
 
 from clark_engine.mission.geo import Origin, parse_point
 from clark_engine.runtime.config import AgentConfig, StateSpec
 from clark_engine.sim.recording import Recording
+
+
+class Figure(NamedTuple):
+    """One number a check observed, for comparing two runs of a mission.
+
+    ``kind`` says how the number is compared (the mission's ``sim.sitl_tolerance``):
+    ``time_s`` (a moment of the run), ``distance_m``, ``altitude_m``, ``count`` or
+    ``error_us`` (a pulse width's error). ``agent``: whose figure a moment is (the leg it
+    falls in is that agent's), or None.
+    """
+
+    name: str
+    value: float
+    kind: str
+    agent: str | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -40,6 +55,9 @@ class CheckResult:
     evaluated: bool = True
     """False when the run ended before the check's ``by_s`` and it had not yet held: it
     was not judged (``passed`` is then False too; it did not pass)."""
+    figures: tuple[Figure, ...] = ()
+    """The numbers behind ``observed`` (closest approach, time reached, photos...), for
+    comparing this run with another of the same mission (:mod:`clark_engine.sim.timeline`)."""
 
     @property
     def verdict(self) -> str:
@@ -131,6 +149,7 @@ def evaluate(
                 f"not evaluated: the run ended at {end_s:g} s, {due} (so far: {result.observed})",
                 passed=False,
                 evaluated=False,
+                figures=result.figures,
             )
         results.append(result)
     return results
@@ -151,6 +170,7 @@ def _distance(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Che
         return CheckResult(label, expected, "no position recorded", False)
     passed = True
     observed = []
+    figures: list[Figure] = []
     if "max" in body:
         closest, when = math.inf, 0.0
         # Every sample, read back from disk (the tracks' lists are decimated for plots).
@@ -162,6 +182,7 @@ def _distance(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Che
                 closest, when = d, t
         passed = passed and closest <= float(body["max"])
         observed.append(f"closest {closest:.1f} m at {when:.1f} s")
+        figures.append(Figure("closest", closest, "distance_m"))
     if "min" in body:
         pa, pb = ta.at(by_s), tb.at(by_s)
         if pa is None or pb is None:
@@ -169,7 +190,8 @@ def _distance(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Che
         d = _gap_m(pa, pb, three_d)
         passed = passed and d >= float(body["min"])
         observed.append(f"{d:.1f} m at {by_s:g} s")
-    return CheckResult(label, expected, "; ".join(observed), passed)
+        figures.append(Figure(f"apart at {by_s:g} s", d, "distance_m"))
+    return CheckResult(label, expected, "; ".join(observed), passed, figures=tuple(figures))
 
 
 def _reached(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> CheckResult:
@@ -193,8 +215,10 @@ def _reached(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Chec
         if d <= tolerance and when is None:
             when = t
     if when is not None:
-        return CheckResult(label, expected, f"reached at {when:.1f} s", True)
-    return CheckResult(label, expected, f"closest {best:.1f} m", False)
+        reached = (Figure("reached at", when, "time_s", agent),)
+        return CheckResult(label, expected, f"reached at {when:.1f} s", True, figures=reached)
+    closest = (Figure("closest", best, "distance_m"),)
+    return CheckResult(label, expected, f"closest {best:.1f} m", False, figures=closest)
 
 
 def _separation(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> CheckResult:
@@ -226,7 +250,8 @@ def _separation(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> 
     if math.isinf(closest):
         return CheckResult(label, expected, "fewer than two vehicles", True)
     observed = f"closest {closest:.1f} m ({pair[0]}-{pair[1]} at {when:.1f} s)"
-    return CheckResult(label, expected, observed, closest >= minimum)
+    figures = (Figure("closest", closest, "distance_m"),)
+    return CheckResult(label, expected, observed, closest >= minimum, figures=figures)
 
 
 def _state(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> CheckResult:
@@ -239,11 +264,13 @@ def _state(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> CheckR
         late_s = run.rec.entered_by(agent, path, math.inf)
         if late_s is not None:
             observed = f"reached late, at {late_s:.1f} s (by {by_s:g} s: {where})"
-            return CheckResult(label, expected, observed, False)
+            late = (Figure("entered at", late_s, "time_s", agent),)
+            return CheckResult(label, expected, observed, False, figures=late)
         why = why_not_entered(run.rec, agent, by_s)
         observed = f"not reached (last: {where})" + (f": {why}" if why else "")
         return CheckResult(label, expected, observed, False)
-    return CheckResult(label, expected, f"entered at {when:.1f} s", True)
+    entered = (Figure("entered at", when, "time_s", agent),)
+    return CheckResult(label, expected, f"entered at {when:.1f} s", True, figures=entered)
 
 
 def _sequence(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> CheckResult:
@@ -251,6 +278,7 @@ def _sequence(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Che
     paths = [str(p) for p in body["states"]]
     expected = f"{agent} enters {' then '.join(paths)}, the last by {by_s:g} s"
     seen: list[str] = []
+    figures: list[Figure] = []
     for entry in run.rec.states.get(agent, []):
         if entry.time_s > by_s + 1e-9:
             break
@@ -258,13 +286,15 @@ def _sequence(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Che
         while len(seen) < len(paths) and any(
             p == paths[len(seen)] or p.startswith(paths[len(seen)] + ".") for p in entry.entered
         ):
+            figures.append(Figure(f"{paths[len(seen)]} at", entry.time_s, "time_s", agent))
             seen.append(f"{paths[len(seen)]} at {entry.time_s:.1f} s")
     if len(seen) == len(paths):
-        return CheckResult(label, expected, ", ".join(seen), True)
+        return CheckResult(label, expected, ", ".join(seen), True, figures=tuple(figures))
     missing = paths[len(seen)]
     observed = ", ".join(seen) + ("; then " if seen else "") + f"never {missing}"
     why = why_not_entered(run.rec, agent, by_s)
-    return CheckResult(label, expected, observed + (f": {why}" if why else ""), False)
+    observed += f": {why}" if why else ""
+    return CheckResult(label, expected, observed, False, figures=tuple(figures))
 
 
 def _photos(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> CheckResult:
@@ -278,7 +308,8 @@ def _photos(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> Chec
         parts.append(f"<= {high}")
     expected = f"{agent} photos " + (" and ".join(parts) or "any number")
     passed = (low is None or count >= int(low)) and (high is None or count <= int(high))
-    return CheckResult(label, expected, f"{count} photos", passed)
+    figures = (Figure("photos", count, "count"),)
+    return CheckResult(label, expected, f"{count} photos", passed, figures=figures)
 
 
 def _no_failsafe(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> CheckResult:
@@ -438,6 +469,10 @@ def _signal(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> Chec
             f"{len(received)} of {len(want)} samples (state left early)",
             False,
         )
+    figures = (
+        Figure("samples", len(want), "count"),
+        Figure("largest error", worst, "error_us"),
+    )
     shape = "doublet" if state.primitive == "doublet" else "sweep"
     observed = f"{len(want)} samples, largest error {worst:g} us ({shape} on {key})"
     if state.primitive == "sine_sweep":
@@ -450,8 +485,12 @@ def _signal(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> Chec
                 f"the intended waveform's swing (sampled at loop_hz {config.loop_hz:g}, "
                 "too slow for its frequency)"
             )
-            return CheckResult(label, expected_text + " (within 1 us)", observed, False)
-    return CheckResult(label, expected_text + " (within 1 us)", observed, worst <= 1)
+            return CheckResult(
+                label, expected_text + " (within 1 us)", observed, False, figures=figures
+            )
+    return CheckResult(
+        label, expected_text + " (within 1 us)", observed, worst <= 1, figures=figures
+    )
 
 
 def _failsafe(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> CheckResult:
@@ -463,7 +502,8 @@ def _failsafe(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Che
     ]
     if matching:
         t, what = matching[0]
-        return CheckResult(label, expected, f"{what} at {t:.1f} s", True)
+        figures = (Figure(f"{what} at", t, "time_s", agent),)
+        return CheckResult(label, expected, f"{what} at {t:.1f} s", True, figures=figures)
     observed = ", ".join(f"{w} at {t:.1f} s" for t, w in seen) or "none"
     return CheckResult(label, expected, observed, False)
 
@@ -509,7 +549,11 @@ def _altitude(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Che
     )
     if first_out is not None:
         observed += f"; first outside at {first_out[1]:.1f} s ({first_out[0]:.1f} m)"
-    return CheckResult(label, expected, observed, first_out is None)
+    figures = (
+        Figure("lowest", lowest[0], "altitude_m"),
+        Figure("highest", highest[0], "altitude_m"),
+    )
+    return CheckResult(label, expected, observed, first_out is None, figures=figures)
 
 
 def _ends_at(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> CheckResult:
@@ -527,7 +571,8 @@ def _ends_at(label: str, body: Mapping[str, Any], by_s: float, run: Run) -> Chec
     d = _gap_m(here, point, three_d)
     place = ", ".join(f"{v:.1f}" for v in (here if three_d else here[:2]))
     observed = f"{d:.1f} m away, at ({place})"
-    return CheckResult(label, expected, observed, d <= within + 1e-9)
+    figures = (Figure("away", d, "distance_m"),)
+    return CheckResult(label, expected, observed, d <= within + 1e-9, figures=figures)
 
 
 def why_not_entered(rec: Recording, agent: str, by_s: float) -> str:

@@ -9,8 +9,9 @@ SITL that cannot be started).
 
 With ``--autopilot sitl`` every vehicle's autopilot is real ArduPilot SITL
 (:mod:`clark_engine.sim.sitl_backend`); the mission is then also simulated on the
-simulated autopilot, and the two runs' state timelines are compared
-(:mod:`clark_engine.sim.timeline`): one more row in the checks table.
+simulated autopilot, and the two runs are compared (:mod:`clark_engine.sim.timeline`):
+each state's entry time, where each vehicle was then and at the end, and the checks'
+verdicts and figures; one more row in the checks table.
 
 With ``--realtime --station`` the station agent's live web view is served over the run
 (a :class:`LiveView`, :mod:`clark_engine.gcs.rehearsal`, handed in by the command line so
@@ -66,7 +67,7 @@ from clark_engine.sim.safety import SafetyJudgement, count_breaches
 from clark_engine.sim.safety import judge as judge_safety
 from clark_engine.sim.sitl import SitlError, SitlInstall
 from clark_engine.sim.sitl_backend import SitlBackend
-from clark_engine.sim.timeline import DEFAULT_TOLERANCE_S, Comparison, compare
+from clark_engine.sim.timeline import Comparison, Tolerance, compare
 from clark_engine.validation import validate_file
 
 DEFAULT_DURATION_S: Final = 300.0
@@ -438,9 +439,20 @@ def _run_live(
     safety = judge_safety(result.recording, result.configs)
     comparison = None
     if simulated is not None:
-        tolerance = float(mission.sim.get("sitl_tolerance_s", DEFAULT_TOLERANCE_S))
+        # The mission's checks on the simulated run too, their verdicts and figures compared;
+        # not when a SITL run was ended early (the simulated one went on to its end).
+        whole = until >= simulated.recording.end_s - 1e-9
+        ours = evaluate(
+            mission.checks, simulated.recording, simulated.configs, mission.origin, planned_end_s
+        )
         comparison = compare(
-            simulated.recording, result.recording, vehicle_names(mission), tolerance, end_s=until
+            simulated.recording,
+            result.recording,
+            vehicle_names(mission),
+            Tolerance.from_sim(mission.sim),
+            end_s=until,
+            aircraft=[n for n, c in result.configs.items() if c.is_aircraft],
+            checks=(ours, results) if whole else None,
         )
         results.append(comparison.check())
     if view is not None:
@@ -663,6 +675,13 @@ def _fly_sitl(
             f"  note: sim.autopilot_ready_s ({mission.sim['autopilot_ready_s']:g} s) speeds up "
             "the simulated autopilot only; SITL takes its own time (about 42 s for ArduRover "
             "and ArduCopter, 23 s for ArduPlane), so the runs' timelines will differ",
+            file=err,
+        )
+    gusts = (mission.sim.get("wind") or {}).get("gusts") or {}
+    if float(gusts.get("speed_mps", 0.0)) > 0.0:
+        print(
+            "  note: sim.wind.gusts are simulated only: SITL has no gust model and flies the "
+            "rest of sim.wind (its SIM_WIND_* parameters), so the runs' timelines may differ",
             file=err,
         )
     print(

@@ -31,6 +31,7 @@ single process, byte for byte, whatever the number of processes.
 
 from __future__ import annotations
 
+import functools
 import heapq
 import math
 import random
@@ -78,6 +79,7 @@ from clark_engine.sim.recording import FlightEntry, Photo, Recording, StateEntry
 from clark_engine.sim.sitl import Home, SitlInstall, SitlProcess, vehicle_for_firmware
 from clark_engine.sim.sitl_backend import SitlBackend
 from clark_engine.sim.vehicles import make_vehicle
+from clark_engine.sim.wind import sitl_wind_params, wind_field
 
 #: Vehicle physics and autopilot telemetry step.
 PHYSICS_STEP_S = 0.02
@@ -150,6 +152,7 @@ class SimAgent:
     autopilot_down: list[Window] = field(default_factory=list)
     signal_keys: list[tuple[str, str, int]] = field(default_factory=list)  # (label, via, number)
     signal_due_s: float | None = None  # the tick whose signals are recorded at the next
+    signal_paths: set[str] = field(default_factory=set)  # its doublet and sweep states
     failsafe_seen: bool = False
     autopilot_lost_seen: bool = False
 
@@ -342,6 +345,7 @@ def build_vehicle(
         mode=start_mode,
         rc_override_timeout_s=None,  # the simulated autopilot's RC_OVERRIDE_TIME applies
     )
+    model.set_wind(wind_field(sim, seed))  # sim.wind: one air mass, the same in every copy
     # An aircraft the pilot flew up was powered on long before: ready, home set.
     boot_s = -(max(boot.position_s, boot.prearm_s) + AIRBORNE_BOOTED_S) if airborne else 0.0
     simulated = SimAutopilot.from_profile(
@@ -375,13 +379,22 @@ def build_vehicle(
 
 
 def build_sitl_vehicle(
-    mission: Mission, agent: Agent, config: AgentConfig, install: SitlInstall, speedup: float
+    mission: Mission,
+    agent: Agent,
+    config: AgentConfig,
+    install: SitlInstall,
+    speedup: float,
+    seed: int = 0,
 ) -> tuple[SitlBackend, SimPilot, dict[str, Any] | None]:
     """One vehicle of a dry run on real ArduPilot SITL, started (listening, not connected).
 
     SITL boots at the ground point below the agent's ``position`` (its home), heading
     its ``sim.heading_deg``, with the firmware's flight parameters as the simulated
     autopilot has them (its defaults and the profile's ``parameters``).
+
+    ``seed`` draws the vehicle's GPS error (``sim.gps_error``), the same error as the
+    simulated run's, played through SITL's own GPS offset, and its pilot's reaction
+    (``sim.jitter.pilot_s``).
 
     Returns:
         The backend, its pilot, and for a vehicle the pilot hands over in flight the
@@ -411,6 +424,7 @@ def build_sitl_vehicle(
             if name in firmware.flight_params
         }
     )
+    params.update(sitl_wind_params(mission.sim))  # sim.wind as SITL's own SIM_WIND_*
     mav = autopilot.get("mavlink") or {}
     process.start()
     backend = SitlBackend(
@@ -421,6 +435,9 @@ def build_sitl_vehicle(
         component_id=int(mav.get("component_id", 1)),
         params=params,
         modes=dict(autopilot["modes"]),
+        gps_error=GpsError(settings, seed, agent.name)
+        if (settings := GpsErrorSettings.from_sim(mission.sim)) is not None
+        else None,
     )
     throttle = config.channels.get("throttle")
     copter_throttle = throttle if airframe.get("class") == "multirotor" else None
@@ -435,6 +452,7 @@ def build_sitl_vehicle(
         arms=not airborne and (launch is None or launch.armed_by == "pilot"),
         throttle_rc=throttle_at[0] if throttle_at is not None else None,
         throttle_mid_us=throttle_at[1] if throttle_at is not None else 1500,
+        reaction_s=pilot_reaction_s(mission, agent.name, seed),
     )
     plan = (
         {
@@ -444,6 +462,7 @@ def build_sitl_vehicle(
             "modes": dict(autopilot["modes"]),
             "hold_mode": str(autopilot.get("hold_mode")),
             "throttle": throttle_at,
+            "heading_deg": heading,
         }
         if airborne
         else None
@@ -659,7 +678,7 @@ class DryRun:
         """The vehicle's autopilot and physics (simulated, or SITL), its pilot, its adapter."""
         if self.sitl is not None:
             backend, pilot, plan = build_sitl_vehicle(
-                self.mission, agent, sim_agent.config, self.sitl, self.sitl_speedup
+                self.mission, agent, sim_agent.config, self.sitl, self.sitl_speedup, self.seed
             )
             sim_agent.backend, sim_agent.pilot = backend, pilot
             if plan is not None:
@@ -681,13 +700,23 @@ class DryRun:
 
         A vehicle flown up before the run has its own clock well past 0 when the run
         starts; one on the ground is connected (its clock starts) just before it.
+        Planes are flown up last: a copter waits on its position, hovering, for the
+        others; a plane handed over as it crosses its position is on it at time 0 only
+        if the run starts at once (with several planes, the earlier ones circle their
+        positions meanwhile).
         """
-        for name, plan in self._preflights.items():
+        planes_last = sorted(
+            self._preflights.items(),
+            key=lambda item: getattr(self.agents[item[0]].backend, "firmware", "") == "arduplane",
+        )
+        flown: list[SitlBackend] = []
+        for name, plan in planes_last:
             backend = self.agents[name].backend
             assert isinstance(backend, SitlBackend)
             started = time.perf_counter()
             backend.connect()
-            backend.fly_up(**plan)
+            backend.fly_up(**plan, meanwhile=functools.partial(_drain, tuple(flown)))
+            flown.append(backend)
             self.preflight_wall_s[name] = time.perf_counter() - started
         backends: list[SitlBackend] = []
         for sim_agent in self._vehicles:
@@ -746,6 +775,7 @@ class DryRun:
             for state in machine.walk():
                 if state.primitive not in ("doublet", "sine_sweep"):
                     continue
+                sim_agent.signal_paths.add(state.path)
                 channel = state.params["channel"]
                 via = state.params.get("via", "rc_override")
                 number = channel["rc"] if via == "rc_override" else channel["servo"]
@@ -1057,6 +1087,7 @@ class DryRun:
 
     def _tick(self, sim_agent: SimAgent, t_s: float) -> None:
         self._record_signals(sim_agent)
+        signalling = self._signalling(sim_agent)
         out = sim_agent.runtime.tick(t_s)
         sim_agent.ticks += 1
         self._route(sim_agent, out, t_s)
@@ -1071,8 +1102,23 @@ class DryRun:
         if runtime.autopilot_lost and not sim_agent.autopilot_lost_seen:
             sim_agent.autopilot_lost_seen = True
             self.recording.safety.setdefault(sim_agent.name, []).append((t_s, "autopilot_lost"))
-        if sim_agent.signal_keys:
+        if sim_agent.signal_keys and (
+            self.sitl is None or signalling or self._signalling(sim_agent)
+        ):
             sim_agent.signal_due_s = t_s
+
+    def _signalling(self, sim_agent: SimAgent) -> bool:
+        """Whether one of the agent's doublet or sweep states is active.
+
+        On SITL the signals are recorded only then (this tick, or the one that enters or
+        leaves such a state): each reading waits for a report SITL made after the
+        tick's commands (:data:`~clark_engine.sim.sitl_backend.REPORT_AFTER_S`), and a
+        run reading at every tick fell 0.15 s further behind SITL at each one.
+        """
+        states = self.recording.states.get(sim_agent.name)
+        if not states or not sim_agent.signal_paths:
+            return False
+        return any(path in sim_agent.signal_paths for path in states[-1].active)
 
     def _record_signals(self, sim_agent: SimAgent) -> None:
         """What the autopilot received from the previous tick, recorded at that tick's time.
@@ -1147,3 +1193,9 @@ class DryRun:
     def _to_autopilot(self, sim_agent: SimAgent, data: bytes, t_s: float) -> None:
         if data and sim_agent.backend is not None and sim_agent.link_up(t_s):
             sim_agent.backend.send(data, t_s)
+
+
+def _drain(backends: Sequence[SitlBackend]) -> None:
+    """Keep SITL vehicles already flown up current while another is (their clock, truth)."""
+    for backend in backends:
+        backend.drain()

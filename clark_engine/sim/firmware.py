@@ -208,15 +208,12 @@ COMMON_PARAMS: Final[Mapping[str, tuple[float, int]]] = {
     "MAV_OPTIONS": (0, _INT16),
     "RC_OVERRIDE_TIME": (3.0, _REAL32),
     "BATT_CAPACITY": (3300, _INT32),
-    "MAV1_RAW_SENS": (0, _INT16),
     "MAV1_EXT_STAT": (1, _INT16),
     "MAV1_RC_CHAN": (1, _INT16),
-    "MAV1_RAW_CTRL": (0, _INT16),
     "MAV1_POSITION": (1, _INT16),
     "MAV1_EXTRA1": (1, _INT16),
     "MAV1_EXTRA2": (1, _INT16),
     "MAV1_EXTRA3": (1, _INT16),
-    "MAV1_PARAMS": (10, _INT16),
     # The fence (AC_Fence), on every firmware; the per-firmware defaults are below.
     "FENCE_ENABLE": (0, _INT8),
     "FENCE_ACTION": (1, _INT8),
@@ -234,9 +231,11 @@ defaults as each SITL build reads them back (docs/sitl-measurements.md, sections
 MAV_GCS_SYSID is the one system whose HEARTBEAT, RC_CHANNELS_OVERRIDE and MANUAL_CONTROL
 count as the ground station's (ArduPilot 4.5 called it SYSID_MYGCS, and MAV_SYSID
 SYSID_THISMAV; those names are unknown here as in 4.7). MAV_OPTIONS bit 0 accepts MAVLink
-only from MAV_GCS_SYSID. The MAV1_* stream rates are the firmware's own
-(Firmware.default_stream_hz) at start. FENCE_* are metres above home (ALT_MAX, ALT_MIN) and
-from home (RADIUS); FENCE_TYPE is per firmware."""
+only from MAV_GCS_SYSID. The MAV1_* stream rates of the groups it streams are the
+firmware's own (Firmware.default_stream_hz) at start; the others (MAV1_RAW_SENS,
+MAV1_RAW_CTRL, MAV1_PARAMS) it does not act on, and lists with SITL's values
+(sim/ap_params.py). FENCE_* are metres above home (ALT_MAX, ALT_MIN) and from home
+(RADIUS); FENCE_TYPE is per firmware."""
 
 RETURN_ALTITUDE_PARAMS: Final[Mapping[str, tuple[str, float]]] = {
     "arducopter": ("RTL_ALT", 0.01),
@@ -577,6 +576,11 @@ PLANE: Final = Firmware(
         "WP_RADIUS": (90, _INT16),
         "WP_LOITER_RAD": (60, _INT16),
         "RTL_ALTITUDE": (100.0, _REAL32),
+        # The L1 navigation and the bank limit the simulated plane turns by (SITL's
+        # plane.parm: NAVL1_PERIOD 15, ROLL_LIMIT_DEG 65).
+        "NAVL1_PERIOD": (17.0, _REAL32),
+        "NAVL1_DAMPING": (0.75, _REAL32),
+        "ROLL_LIMIT_DEG": (45.0, _REAL32),
         "LAND_DISARMDELAY": (20, _INT8),
         # The fence: uploaded polygons only by default, and no mode change while breached.
         "FENCE_TYPE": (4, _INT8),
@@ -598,6 +602,9 @@ PLANE: Final = Firmware(
         "WP_RADIUS",
         "WP_LOITER_RAD",
         "RTL_ALTITUDE",
+        "NAVL1_PERIOD",
+        "NAVL1_DAMPING",
+        "ROLL_LIMIT_DEG",
     ),
 )
 

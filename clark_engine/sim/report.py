@@ -708,8 +708,9 @@ def write_summary(
     ``origin``: the command line and the injected faults (none shown when None).
     ``links_note``: Markdown under the link tables: what "deviation from ideal" means
     (:func:`clark_engine.analyze.explain_deviation`).
-    ``comparison``: with ``--autopilot sitl``, the table of each state's first entry on
-    SITL and on the simulated autopilot (:meth:`~clark_engine.sim.timeline.Comparison.table`).
+    ``comparison``: with ``--autopilot sitl``, the tables of each agent's states and each
+    check's figures on SITL and on the simulated autopilot
+    (:meth:`~clark_engine.sim.timeline.Comparison.table`).
     ``safety``: the run's safety judgement, in a section of its own after the checks.
     """
     passed = sum(r.passed for r in results)
@@ -754,8 +755,13 @@ def write_summary(
             [
                 "## ArduPilot SITL against the simulated autopilot",
                 "",
-                "When each state was first entered in this run (SITL) and in the same "
-                "mission on the simulated autopilot.",
+                "Each state's first entry in this run (SITL) and in the same mission on the "
+                "simulated autopilot: the difference judged is the entry's or the leg's "
+                "(the time since the agent's previous state change), whichever is smaller, "
+                "against a share of SITL's leg; how far apart the vehicle was then (and at "
+                "the end of the run) and its altitude on SITL minus simulated; then each "
+                "check's verdict and figures in both runs "
+                '(docs/autopilot-fidelity.md, "The same mission both ways").',
                 "",
                 comparison,
             ]

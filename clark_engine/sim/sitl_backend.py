@@ -44,13 +44,14 @@ import math
 import select
 import socket
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, Final
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.mission.geo import EARTH_RADIUS_M, Origin
 from clark_engine.sim.backend import VehicleBackend
+from clark_engine.sim.gps_error import GpsError
 from clark_engine.sim.model import Truth
 from clark_engine.sim.sitl import SitlError, SitlProcess
 
@@ -83,6 +84,31 @@ waiting longer costs only a fixed lag behind SITL."""
 PARAM_RETRY_WALL_S: Final = 1.0
 """A parameter not echoed is set again this often; one SITL lacks is given up after 5."""
 
+COPTER_HANDOVER_M: Final = 1.0
+"""A copter is handed over within this of its position (metres, horizontally and in
+height), :data:`COPTER_STILL_M_S` at most: where the simulation starts it, hovering."""
+COPTER_STILL_M_S: Final = 0.5
+"""A copter's speed at most when it is handed over (m/s)."""
+PLANE_APPROACH_M: Final = 500.0
+"""A plane's approach line: its waypoints this far before and after its position."""
+PLANE_LEAD_IN_M: Final = 800.0
+"""...and a lead-in leg of this length before the approach, on the same line."""
+PLANE_LINE_M: Final = 5.0
+"""A plane is handed over when it crosses its position at most this far off the line."""
+PLANE_ALIGNED: Final = 0.95
+"""...flying along the line: its speed along the heading at least this share of its
+ground speed (within 18 degrees)."""
+PLANE_LEAD_S: Final = 0.05
+"""LOITER is asked for this long before the plane reaches its position: SIM_STATE's
+interval (its position is up to that old) against the command's way to SITL."""
+
+GPS_ERROR_EVERY_S: Final = 0.5
+"""Simulated seconds between two updates of SITL's GPS offset (``sim.gps_error``): a
+walk with a time constant of minutes moves millimetres in that time, and a glitch starts
+at most this late."""
+GPS_ERROR_STEP_M: Final = 0.05
+"""A change of the GPS error smaller than this is not sent (it would only load the link)."""
+
 _SYSTEM, _COMPONENT = 255, 26
 _M_PER_DEG_LAT: Final = math.radians(1.0) * EARTH_RADIUS_M
 
@@ -99,6 +125,11 @@ class SitlBackend(VehicleBackend):
         params: Parameters to set before the run (ArduPilot names and units).
         modes: Mode name -> ArduPilot custom_mode number (the autopilot profile's), to
             name the mode its HEARTBEAT reports.
+        gps_error: The vehicle's GPS error over the run (``sim.gps_error``), played
+            through SITL's own GPS offset (SIM_GPS1_GLTCH_X and _Y, in degrees of
+            latitude and longitude): SITL's EKF fuses the offset position and the
+            vehicle flies it, so its true track (SIM_STATE) is displaced, as in the
+            simulated run. None: SITL's GPS as it is.
     """
 
     def __init__(
@@ -111,8 +142,12 @@ class SitlBackend(VehicleBackend):
         component_id: int = 1,
         params: Mapping[str, float] | None = None,
         modes: Mapping[str, int] | None = None,
+        gps_error: GpsError | None = None,
     ) -> None:
         self.process = process
+        self.gps_error = gps_error
+        self._gps_sent_m = (0.0, 0.0)
+        self._next_gps_s = 0.0
         self._mode_names = {int(number): name for name, number in (modes or {}).items()}
         self.origin = origin
         self.firmware = firmware
@@ -175,8 +210,31 @@ class SitlBackend(VehicleBackend):
         self._own.setblocking(False)
         self._duties()
 
+    def drain(self) -> None:
+        """Read what SITL sent meanwhile, before the run: while another vehicle is flown up.
+
+        Its own streams keep the clock and truth current (reading a backlog of minutes
+        later would take the run's first wall second, while the last vehicle flown up
+        flies on); what came on the engine's link is dropped: the engine's adapter starts
+        with the run.
+        """
+        while self._read(0.0):
+            pass
+        self._duties()
+        self._inbox.clear()
+
     def start_run_here(self) -> None:
-        """Make the SITL vehicle's current time the run's time 0 (after a pre-flight)."""
+        """Make the SITL vehicle's current time the run's time 0 (after a pre-flight).
+
+        What SITL sent the engine's link before is dropped, not handed to the engine's
+        adapter at its first step: after a pre-flight that is minutes of SITL's own
+        streams, which took the adapter 0.7 s of wall time to parse (7 s of SITL's, a
+        plane handed over 130 m on) before the run's first step was over.
+        """
+        if self._sock is not None and self._own is not None:
+            while self._read(0.0):
+                pass
+        self._inbox.clear()
         self._offset_s = self.clock_s or 0.0
 
     def step(self, t_s: float, dt_s: float) -> bytes:
@@ -189,6 +247,9 @@ class SitlBackend(VehicleBackend):
         Raises:
             SitlError: SITL exited, or sent nothing for :data:`STALL_WALL_S`.
         """
+        if self.gps_error is not None and t_s >= self._next_gps_s:
+            self._next_gps_s = t_s + GPS_ERROR_EVERY_S
+            self._send_gps_error(t_s)
         want_s = t_s + self._offset_s
         while (clock_s := self.clock_s) is None or clock_s < want_s:
             self._duties()
@@ -200,6 +261,27 @@ class SitlBackend(VehicleBackend):
             pass
         data, self._inbox = bytes(self._inbox), bytearray()
         return data
+
+    def _send_gps_error(self, t_s: float) -> None:
+        """Give SITL's GPS the error at ``t_s``, when it moved by :data:`GPS_ERROR_STEP_M`."""
+        assert self.gps_error is not None
+        north_m, east_m = self.gps_error.offset_m(t_s)
+        sent_n, sent_e = self._gps_sent_m
+        if math.hypot(north_m - sent_n, east_m - sent_e) < GPS_ERROR_STEP_M and t_s > 0.0:
+            return
+        self._gps_sent_m = (north_m, east_m)
+        per_deg_lon = _M_PER_DEG_LAT * math.cos(math.radians(self.origin.lat_deg))
+        for name, value in (
+            ("SIM_GPS1_GLTCH_X", north_m / _M_PER_DEG_LAT),
+            ("SIM_GPS1_GLTCH_Y", east_m / per_deg_lon),
+        ):
+            # Sent at once, not queued with the set-up's parameters (those are retried
+            # once a wall second, too slow for a glitch); the next update repeats it.
+            self._mav.param_set_send(
+                self._target[0], self._target[1], name.encode("ascii"), float(value),
+                mavlink2.MAV_PARAM_TYPE_REAL32,
+            )  # fmt: skip
+        self._flush()
 
     def send(self, data: bytes, t_s: float) -> None:
         """Bytes to SITL (the engine's adapter, or the simulated pilot)."""
@@ -214,7 +296,13 @@ class SitlBackend(VehicleBackend):
                 self._sock.setblocking(False)
 
     def truth(self) -> Truth:
-        """The simulator's true state (SIM_STATE), with VFR_HUD's airspeed and throttle."""
+        """The simulator's true state (SIM_STATE), with VFR_HUD's airspeed and throttle.
+
+        SITL's latest: what the engine hears comes from SITL's present too, so a state
+        entered on what SITL said is recorded where SITL then was (a run lagging behind
+        SITL has both a little late; a copter's "landed" was recorded 9 m up when the
+        truth was taken at the run's own clock instead).
+        """
         return self._truth
 
     def flight_status(self) -> tuple[bool, str]:
@@ -430,15 +518,18 @@ class SitlBackend(VehicleBackend):
         modes: Mapping[str, int],
         hold_mode: str,
         throttle: tuple[int, int] | None = None,
+        heading_deg: float = 0.0,
         within_s: float = 600.0,
+        meanwhile: Callable[[], None] | None = None,
     ) -> None:
         """Fly the vehicle up to its start point, as its pilot does before the run.
 
         Waits until the autopilot is ready (pre-arm checks, an EKF position); arms;
         takes off to ``up_m`` (ArduCopter: guided and NAV_TAKEOFF; ArduPlane: TKOFF_ALT
-        and its TAKEOFF mode); flies in guided to ``north_m``/``east_m``; centres a
-        copter's throttle stick (``throttle``: its RC channel and middle width) and
-        leaves it in ``hold_mode``. Then the run's time 0 is now.
+        and its TAKEOFF mode); then puts the vehicle where the simulation starts it
+        (:data:`COPTER_HANDOVER_M`, :meth:`_plane_over`) and leaves it in ``hold_mode``,
+        a copter's throttle stick (``throttle``: its RC channel and middle width)
+        centred. Then the run's time 0 is now.
 
         Args:
             up_m: Height above home to hand over at.
@@ -447,7 +538,10 @@ class SitlBackend(VehicleBackend):
             modes: The autopilot's mode numbers by name.
             hold_mode: The mode to hand over in (LOITER).
             throttle: A copter's throttle RC channel and mid-stick width.
+            heading_deg: A plane's heading as it passes over its position (its
+                ``sim.heading_deg``, as the simulation starts it).
             within_s: SITL seconds the whole pre-flight may take.
+            meanwhile: Called as it waits (the vehicles flown up before it drained).
 
         Raises:
             SitlError: SITL exited, stalled, or did not get there in time.
@@ -471,6 +565,8 @@ class SitlBackend(VehicleBackend):
                     self._flush()
                 self._duties()
                 self._read(0.05)
+                if meanwhile is not None:
+                    meanwhile()
 
         def prearm_ok() -> bool:
             status, ekf = self._latest.get("SYS_STATUS"), self._latest.get("EKF_STATUS_REPORT")
@@ -524,37 +620,170 @@ class SitlBackend(VehicleBackend):
                 lambda: command(mavlink2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, 0, 0, up_m),
                 every_s=5.0,
             )
+        if self.firmware == "arduplane":
+            self._plane_over(north_m, east_m, up_m, heading_deg, modes, hold_mode, wait)
+        else:
+            self._copter_over(north_m, east_m, up_m, hold_mode, throttle, wait, in_mode, set_mode)
+        for name in ("SYS_STATUS", "EKF_STATUS_REPORT", "EXTENDED_SYS_STATE", "HEARTBEAT"):
+            self._streams_wanted.pop(name, None)
+        self._streams_wanted.pop("GLOBAL_POSITION_INT", None)
+        self.start_run_here()
+
+    def _copter_over(
+        self,
+        north_m: float,
+        east_m: float,
+        up_m: float,
+        hold_mode: str,
+        throttle: tuple[int, int] | None,
+        wait: Any,
+        in_mode: Any,
+        set_mode: Any,
+    ) -> None:
+        """A copter to its position in guided, stopped there, then in ``hold_mode``."""
         wait("enter GUIDED", in_mode("GUIDED"), lambda: set_mode("GUIDED"))
-        lat = self.origin.lat_deg + north_m / _M_PER_DEG_LAT
-        lon = self.origin.lon_deg + east_m / (
-            _M_PER_DEG_LAT * math.cos(math.radians(self.origin.lat_deg))
-        )
+        lat, lon = self._global(north_m, east_m)
 
         def go() -> None:
-            frame = mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
-            if self.firmware == "arduplane":
-                self._mav.command_int_send(
-                    *self._target, frame, mavlink2.MAV_CMD_DO_REPOSITION, 0, 0,
-                    -1, 0, 0, 0, round(lat * 1e7), round(lon * 1e7), up_m,
-                )  # fmt: skip
-            else:
-                self._mav.set_position_target_global_int_send(
-                    0, *self._target, frame, 0x0DF8, round(lat * 1e7), round(lon * 1e7), up_m,
-                    0, 0, 0, 0, 0, 0, 0, 0,
-                )  # fmt: skip
-
-        arrival_m = 150.0 if self.firmware == "arduplane" else 2.0
+            self._mav.set_position_target_global_int_send(
+                0, *self._target, mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, 0x0DF8,
+                round(lat * 1e7), round(lon * 1e7), up_m, 0, 0, 0, 0, 0, 0, 0, 0,
+            )  # fmt: skip
 
         def there() -> bool:
             truth = self._truth
-            return math.hypot(truth.north_m - north_m, truth.east_m - east_m) <= arrival_m
+            return (
+                math.hypot(truth.north_m - north_m, truth.east_m - east_m) <= COPTER_HANDOVER_M
+                and abs(truth.up_m - up_m) <= COPTER_HANDOVER_M
+                and math.hypot(truth.ground_speed_m_s, truth.climb_rate_m_s) <= COPTER_STILL_M_S
+            )
 
         wait("reach its start point", there, go, every_s=5.0)
         if throttle is not None:
             channel, mid_us = throttle
             self.set_pilot({channel: mid_us})
         wait(f"enter {hold_mode}", in_mode(hold_mode), lambda: set_mode(hold_mode))
-        for name in ("SYS_STATUS", "EKF_STATUS_REPORT", "EXTENDED_SYS_STATE", "HEARTBEAT"):
-            self._streams_wanted.pop(name, None)
-        self._streams_wanted.pop("GLOBAL_POSITION_INT", None)
-        self.start_run_here()
+
+    def _plane_over(
+        self,
+        north_m: float,
+        east_m: float,
+        up_m: float,
+        heading_deg: float,
+        modes: Mapping[str, int],
+        hold_mode: str,
+        wait: Any,
+    ) -> None:
+        """A plane over its position on its heading, then in ``hold_mode`` (LOITER).
+
+        As the simulation starts it: at the position, at its height, flying its
+        heading, circling the position (ArduPlane's LOITER circles where it was
+        entered). A plane cannot stop there, so it flies a line through the position:
+        an AUTO mission of waypoints on the heading, :data:`PLANE_LEAD_IN_M` and
+        :data:`PLANE_APPROACH_M` before it (a plane turned round at a waypoint came out
+        of the turn 94 m off the next line and was still 57 m off it 500 m on: the
+        lead-in leg takes that turn, and the approach starts on the line) and
+        :data:`PLANE_APPROACH_M` after it; LOITER is entered as it crosses the position
+        (a plane that missed it goes round again, from the first waypoint).
+        """
+        heading = math.radians(heading_deg)
+        unit_n, unit_e = math.cos(heading), math.sin(heading)
+
+        def on_line(along_m: float) -> tuple[float, float]:
+            return self._global(north_m + unit_n * along_m, east_m + unit_e * along_m)
+
+        relative = mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+        waypoint = mavlink2.MAV_CMD_NAV_WAYPOINT
+        items = [
+            (mavlink2.MAV_FRAME_GLOBAL, waypoint, on_line(0.0), 0.0),  # home (ignored)
+            (relative, waypoint, on_line(-PLANE_LEAD_IN_M - PLANE_APPROACH_M), up_m),
+            (relative, waypoint, on_line(-PLANE_APPROACH_M), up_m),
+            (relative, waypoint, on_line(PLANE_APPROACH_M), up_m),
+            (relative, mavlink2.MAV_CMD_NAV_LOITER_UNLIM, on_line(PLANE_APPROACH_M), up_m),
+        ]
+        self._upload(items, wait)
+        wait(
+            "enter AUTO",
+            lambda: self._mode_is(modes["AUTO"]),
+            lambda: self._set_mode(modes["AUTO"]),
+        )
+
+        def along_m() -> tuple[float, float, float]:
+            """(past the position along the heading, off the line, speed along it)."""
+            truth = self._truth
+            dn, de = truth.north_m - north_m, truth.east_m - east_m
+            speed = truth.velocity_north_m_s * unit_n + truth.velocity_east_m_s * unit_e
+            return dn * unit_n + de * unit_e, -dn * unit_e + de * unit_n, speed
+
+        def crossing() -> bool:
+            past, off, speed = along_m()
+            aligned = speed > PLANE_ALIGNED * max(self._truth.ground_speed_m_s, 1.0)
+            return aligned and abs(off) <= PLANE_LINE_M and past >= -speed * PLANE_LEAD_S
+
+        def round_again() -> None:
+            past, _, speed = along_m()
+            if speed > 0.0 and past > PLANE_LINE_M:  # missed: back to the first waypoint
+                self._command(mavlink2.MAV_CMD_DO_SET_MISSION_CURRENT, 1)
+
+        wait("line up on its position", crossing, round_again, every_s=5.0)
+        # Confirmed by its COMMAND_ACK, at once: a HEARTBEAT may come a second (18 m) later.
+        ack_before = self._latest.get("COMMAND_ACK")
+
+        def accepted() -> bool:
+            ack = self._latest.get("COMMAND_ACK")
+            return (
+                ack is not None
+                and ack is not ack_before
+                and int(ack.command) == mavlink2.MAV_CMD_DO_SET_MODE
+                and int(ack.result) == mavlink2.MAV_RESULT_ACCEPTED
+            ) or self._mode_is(modes[hold_mode])
+
+        wait(f"enter {hold_mode}", accepted, lambda: self._set_mode(modes[hold_mode]))
+
+    def _upload(self, items: list[tuple[int, int, tuple[float, float], float]], wait: Any) -> None:
+        """Upload a mission (frame, command, (lat, lon), altitude) by MAVLink's protocol."""
+        answered: dict[str, Any] = {}
+
+        def done() -> bool:
+            for kind in ("MISSION_REQUEST_INT", "MISSION_REQUEST"):
+                request = self._latest.get(kind)
+                if request is not None and answered.get(kind) is not request:
+                    answered[kind] = request
+                    seq = int(request.seq)
+                    if 0 <= seq < len(items):
+                        frame, command, (lat, lon), alt_m = items[seq]
+                        self._mav.mission_item_int_send(
+                            *self._target, seq, frame, command, 0, 1, 0, 0, 0, 0,
+                            round(lat * 1e7), round(lon * 1e7), alt_m,
+                        )  # fmt: skip
+                        self._flush()
+            ack = self._latest.get("MISSION_ACK")
+            return ack is not None and ack is not answered.get("ack_before") and ack.type == 0
+
+        answered["ack_before"] = self._latest.get("MISSION_ACK")
+        wait(
+            "take its approach",
+            done,
+            lambda: self._mav.mission_count_send(*self._target, len(items)),
+        )
+
+    def _global(self, north_m: float, east_m: float) -> tuple[float, float]:
+        """A local point's latitude and longitude (flat earth around the origin)."""
+        lat = self.origin.lat_deg + north_m / _M_PER_DEG_LAT
+        lon = self.origin.lon_deg + east_m / (
+            _M_PER_DEG_LAT * math.cos(math.radians(self.origin.lat_deg))
+        )
+        return lat, lon
+
+    def _mode_is(self, number: int) -> bool:
+        beat = self._latest.get("HEARTBEAT")
+        return beat is not None and int(beat.custom_mode) == number
+
+    def _set_mode(self, number: int) -> None:
+        self._command(
+            mavlink2.MAV_CMD_DO_SET_MODE, mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, number
+        )
+
+    def _command(self, cmd: int, *params: float) -> None:
+        values = (*params, *(0.0,) * (7 - len(params)))
+        self._mav.command_long_send(*self._target, cmd, 0, *values)

@@ -6,8 +6,15 @@ as ArduPilot flies it, with no knowledge of MAVLink. They are point masses with
 first-order attitude dynamics: enough to make a behaviour's commands visible (a
 guided leg flies to its point, an aileron doublet rolls the aircraft, a rover
 stops at its waypoint) and cheap enough that a 50-vehicle dry run at 50 Hz runs
-far faster than real time. They are not flight-dynamics models: no wind, no
-aerodynamic coefficients, no motor or battery model.
+far faster than real time. They are not flight-dynamics models: no
+aerodynamic coefficients, no motor or battery model. A declared wind
+(:mod:`clark_engine.sim.wind`, :meth:`SimulatedVehicle.set_wind`) enters where the
+air's velocity enters each model: a multirotor's drag is on its velocity through
+the air and its position controller leans into the wind it has learnt, within its
+lean limit (a wind stronger than it can lean into carries it away); a fixed wing
+flies its airspeed through the air and steers its track over the ground, banking
+within its limit (a loiter circle drifts downwind where the bank cannot hold it);
+a rover takes none, as SITL's rover takes none.
 
 The project's promise is that what passes the dry run flies on real ArduPilot,
 so a model must never be kinder than ArduPilot: it flies ArduPilot's parameters
@@ -116,6 +123,7 @@ from typing import Any, ClassVar, Final, NamedTuple, Protocol
 from clark_engine.errors import ClarkError
 from clark_engine.mission.geo import EARTH_RADIUS_M, Origin
 from clark_engine.sim.model import LandedState, Truth, VehicleModel
+from clark_engine.sim.wind import WindField
 
 #: Standard gravity, m/s^2.
 G_M_S2 = 9.80665
@@ -182,6 +190,8 @@ PLANE_DEFAULT_PARAMS: Final[Mapping[str, float]] = {
     "RTL_ALTITUDE": 100.0,  # m above home
     "RTL_RADIUS": 0.0,  # m; 0: WP_LOITER_RAD
     "ROLL_LIMIT_DEG": 45.0,  # deg, never above the airframe's max_bank_deg
+    "NAVL1_PERIOD": 17.0,  # s, the L1 navigation period (SITL's plane.parm: 15)
+    "NAVL1_DAMPING": 0.75,  # the L1 damping ratio
     "LAND_FLARE_ALT": 3.0,  # m
     "TECS_LAND_SINK": 0.25,  # m/s in the flare
 }
@@ -197,6 +207,7 @@ ROVER_DEFAULT_PARAMS: Final[Mapping[str, float]] = {
     "ATC_DECEL_MAX": 0.0,  # m/s^2; 0: ATC_ACCEL_MAX
     "ATC_TURN_MAX_G": 0.6,  # lateral acceleration limit, g
     "TURN_RADIUS": 0.9,  # m, tightest turn
+    "WP_JERK": 0.0,  # m/s^3; 0: the acceleration limit's value (AR_WPNav)
 }
 """ArduRover's defaults (AR_WPNav, AR_AttitudeControl, Rover Parameters.cpp). SITL's
 rover.parm differs (WP_SPEED 5, CRUISE_SPEED 5, WP_RADIUS 3). CRUISE_SPEED is not read:
@@ -244,6 +255,10 @@ COPTER_RTL_SETTLE_S: Final = 2.5
 began the final descent 7.5 s after RTL was set directly above home (no climb, no leg,
 no turn) and 7.15 s after passing over home on a 50 m return, with RTL_LOIT_TIME 5 s."""
 COPTER_RTL_YAW_TOLERANCE_RAD: Final = math.radians(2.0)
+#: Time constant over which a copter's position controller learns a changed wind (the
+#: velocity controller's integrator, ArduCopter PSC_VELXY_I 1.0 / s with P 2.0): a steady
+#: wind is held off after a few seconds, a gust or turbulence pushes it before that.
+COPTER_WIND_LEARN_S: Final = 1.0
 """RTL's loiter above home ends only with the nose within 2 degrees of its heading at
 arming (ArduCopter's RESET_TO_ARMED_YAW): SITL hovered 5-7 s for a 5 s RTL_LOIT_TIME."""
 
@@ -277,6 +292,17 @@ ROVER_STOP_SPEED_M_S: Final = 0.1
 """ArduRover's ATC_STOP_SPEED: at a target, below this it is stopped."""
 ROVER_MIN_SPEED_M_S: Final = 0.05
 """AR_WPNav's lowest waypoint speed (SITL with WP_SPEED 0 crawled at 0.04 m/s)."""
+ROVER_REVERSAL_SPEED_M_S: Final = 0.5
+"""A GUIDED target behind a rover driving faster than this (more than 90 degrees off its
+heading) brakes it straight to a stop, at its deceleration limit ramped up at WP_JERK,
+before it turns round and sets off again as from rest (:data:`ROVER_START_DELAY_S`).
+ArduRover's GUIDED feeds a position target to its position controller's input shaping
+(AR_WPNav::set_desired_location_expect_fast_update, GUID_OPTIONS 0): the shaped target
+keeps the vehicle's velocity and decelerates to reverse, so a car-like rover runs on to
+where it can stop and only then loops round. Measured on SITL at WP_SPEED 3,
+ATC_ACCEL_MAX 1, a target sent at 3 m/s: 10 m behind, it stopped 6.5 m further on and
+was within 3 m of the target after 14.8 s; 30 m behind, 19.4 s. A target ahead or to
+the side is driven to at once, turning while slowing (20 m to the right: 10.8 s)."""
 ROVER_START_DELAY_S: Final = 0.84
 """From a new target to the first motion of a rover at rest (SITL: 0.84 s, in every run,
 at speedup 1 and 10): its speed controller winding up."""
@@ -589,6 +615,9 @@ class SimulatedVehicle(VehicleModel):
         self._params: dict[str, float] = dict(self.PARAM_DEFAULTS)
         self._configured = False
         self._command = _CMD_NONE
+        # The air mass (sim.wind): None in still air, which every model flies unchanged.
+        self._wind: WindField | None = None
+        self._air_n = self._air_e = 0.0  # its velocity now, m/s (where it blows to)
 
         # State (subclasses add their own).
         up = start_m[2] if self.airframe_class != "rover" else 0.0
@@ -739,14 +768,37 @@ class SimulatedVehicle(VehicleModel):
             self._refresh_rc()
         advance = self._advance
         now = self.time_s
+        wind = self._wind
         for _ in range(count):
             self._now_s = now
+            if wind is not None:
+                self._air_n, self._air_e = wind.air_velocity(
+                    now, self._u - self.home_m[2], self.airborne
+                )
             advance(h)
             now += h
         self.time_s += dt_s
         self._now_s = self.time_s
         if self.time_s >= self._next_fix_s:
             self._take_fix()
+
+    def set_wind(self, wind: WindField | None) -> None:
+        """Fly in this air mass from now on (None: still air, the default).
+
+        The wind enters each model where the air's velocity enters its dynamics (see
+        each class); a rover ignores it, as ArduPilot SITL's rover does.
+        """
+        self._wind = wind
+        if wind is None:
+            self._air_n = self._air_e = 0.0
+        else:
+            self._air_n, self._air_e = wind.air_velocity(
+                self.time_s, self._u - self.home_m[2], self.airborne
+            )
+        self._wind_changed()
+
+    def _wind_changed(self) -> None:
+        """A new air mass was set (a model that estimates the wind starts from it)."""
 
     def truth(self) -> Truth:
         """The true state now (lat/lon by the engine's equirectangular projection)."""
@@ -1288,6 +1340,7 @@ class Multirotor(SimulatedVehicle):
         self._circle_n = self._circle_e = self._circle_angle = 0.0
         self._circle_radius = self._circle_rate = self._circle_rate_max = 0.0
         self._circle_accel = 0.0
+        self._wind_est_n = self._wind_est_e = 0.0  # the wind the controller leans into
         self._capture()
         self._leg_speed = self._wp_speed
         if not self._landed:
@@ -1585,8 +1638,12 @@ class Multirotor(SimulatedVehicle):
         vu = self._vu
         vu += (-G_M_S2 - self._fall_drag_1_m * vu * abs(vu)) * h
         decay = 1.0 - self._drag_1_s * h
-        self._vn *= decay
-        self._ve *= decay
+        if self._wind is None:
+            self._vn *= decay
+            self._ve *= decay
+        else:  # drifting toward the air's velocity
+            self._vn = self._air_n + (self._vn - self._air_n) * decay
+            self._ve = self._air_e + (self._ve - self._air_e) * decay
         self._vu = vu
         self._n += self._vn * h
         self._e += self._ve * h
@@ -1711,6 +1768,8 @@ class Multirotor(SimulatedVehicle):
             dvu = _clamp(want_u - vu, -step, step)
             self._vu = vu + dvu
             accel_up = dvu / h
+        if self._wind is not None:
+            dvn, dve = self._push(h, vn, ve, dvn, dve)
         vn += dvn
         ve += dve
         n += vn * h
@@ -1798,11 +1857,47 @@ class Multirotor(SimulatedVehicle):
             self._sub = sub
         return sub
 
-    def _attitude(self, h: float, accel_n: float, accel_e: float, accel_up: float) -> None:
-        """Lean into the commanded acceleration (and hold off drag); throttle pays for it."""
+    def _wind_changed(self) -> None:
+        # A copter already flying has trimmed for the air it flies in; one on the
+        # ground learns it after takeoff.
+        if self.airborne:
+            self._wind_est_n, self._wind_est_e = self._air_n, self._air_e
+        else:
+            self._wind_est_n = self._wind_est_e = 0.0
+
+    def _push(self, h: float, vn: float, ve: float, dvn: float, dve: float) -> tuple[float, float]:
+        """The velocity change the wind leaves of the one commanded, within the lean limit.
+
+        The position controller tilts for the acceleration it wants plus the drag of the
+        air it believes it flies through (its estimate, learnt over
+        :data:`COPTER_WIND_LEARN_S`), never beyond the lean limit (ANGLE_MAX); the air
+        then drags on the true relative velocity. So a steady wind is held off, a change
+        of wind pushes the copter until learnt, and a wind it cannot lean into (drag at
+        full lean, ``max_speed_m_s`` of airspeed) carries it away.
+        """
         drag = self._drag_1_s
-        accel_n += drag * self._vn
-        accel_e += drag * self._ve
+        air_n, air_e = self._air_n, self._air_e
+        learn = h / COPTER_WIND_LEARN_S if h < COPTER_WIND_LEARN_S else 1.0
+        est_n = self._wind_est_n + (air_n - self._wind_est_n) * learn
+        est_e = self._wind_est_e + (air_e - self._wind_est_e) * learn
+        self._wind_est_n, self._wind_est_e = est_n, est_e
+        thrust_n = dvn / h + drag * (vn - est_n)
+        thrust_e = dve / h + drag * (ve - est_e)
+        thrust = math.sqrt(thrust_n * thrust_n + thrust_e * thrust_e)
+        limit = G_M_S2 * math.tan(self._max_lean_rad)
+        if thrust > limit:
+            thrust_n *= limit / thrust
+            thrust_e *= limit / thrust
+        return (
+            (thrust_n - drag * (vn - air_n)) * h,
+            (thrust_e - drag * (ve - air_e)) * h,
+        )
+
+    def _attitude(self, h: float, accel_n: float, accel_e: float, accel_up: float) -> None:
+        """Lean into the acceleration and hold off the air's drag; throttle pays for it."""
+        drag = self._drag_1_s
+        accel_n += drag * (self._vn - self._air_n)
+        accel_e += drag * (self._ve - self._air_e)
         yaw = self._yaw
         cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
         forward = accel_n * cos_yaw + accel_e * sin_yaw
@@ -1831,12 +1926,14 @@ class Multirotor(SimulatedVehicle):
         right = G_M_S2 * math.tan(self._roll)
         cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
         drag = self._drag_1_s
-        vn = self._vn + (forward * cos_yaw - right * sin_yaw - drag * self._vn) * h
-        ve = self._ve + (forward * sin_yaw + right * cos_yaw - drag * self._ve) * h
-        speed = math.sqrt(vn * vn + ve * ve)
-        if speed > self._max_speed:
-            vn *= self._max_speed / speed
-            ve *= self._max_speed / speed
+        air_n, air_e = self._air_n, self._air_e  # the wind's drag: on the relative velocity
+        vn = self._vn + (forward * cos_yaw - right * sin_yaw - drag * (self._vn - air_n)) * h
+        ve = self._ve + (forward * sin_yaw + right * cos_yaw - drag * (self._ve - air_e)) * h
+        rel_n, rel_e = vn - air_n, ve - air_e
+        speed = math.sqrt(rel_n * rel_n + rel_e * rel_e)
+        if speed > self._max_speed:  # through the air
+            vn = air_n + rel_n * self._max_speed / speed
+            ve = air_e + rel_e * self._max_speed / speed
         if self._pilot_climb:
             accel_up = self._pilot_vertical(h)
             thrust = self.hover_throttle * (1.0 + accel_up / G_M_S2)
@@ -1902,7 +1999,9 @@ class FixedWing(SimulatedVehicle):
     RTL_RADIUS when set), never tighter than ``loiter_radius_factor`` times the
     tightest turn at the loiter speed (``V^2 / (g tan(max bank))`` or
     ``V / max turn rate``, whichever is larger), with a vector-field course law that
-    flies straight at a far centre and settles on the circle near it. So a guided
+    flies straight at a far centre and settles on the circle near it (bending onto it
+    from L1's distance out, ``V NAVL1_PERIOD NAVL1_DAMPING / pi``), turning toward its
+    course as ArduPlane's L1 controller does (:meth:`FixedWing._l1_turn`). So a guided
     goto flies to the point and then circles it, as ArduPlane's GUIDED does; RTL
     flies home and circles it at RTL_ALTITUDE above home indefinitely (RTL_AUTOLAND
     0). Airspeed: AIRSPEED_CRUISE (or DO_CHANGE_SPEED's) within AIRSPEED_MIN..MAX and
@@ -2037,6 +2136,9 @@ class FixedWing(SimulatedVehicle):
         self._cruise = _clamp(p["AIRSPEED_CRUISE"], self._speed_low, self._speed_high)
         self._loiter_rad = abs(p["WP_LOITER_RAD"])
         self._wp_radius = max(p["WP_RADIUS"], 1.0)
+        l1_period = max(p["NAVL1_PERIOD"], 1.0) * max(p["NAVL1_DAMPING"], 0.1)
+        self._l1_gain = _TAU / l1_period
+        self._l1_distance_s = l1_period / math.pi  # times the speed: L1's distance, m
         limit = math.radians(p["ROLL_LIMIT_DEG"]) if p["ROLL_LIMIT_DEG"] > 0.0 else _INF
         self._max_bank = min(self._airframe_bank, limit)
         self._level_below = max(p["TKOFF_LVL_ALT"], 0.0)
@@ -2312,17 +2414,52 @@ class FixedWing(SimulatedVehicle):
         distance = math.sqrt(dn * dn + de * de)
         radius = self._radius
         bearing = math.atan2(de, dn)
-        course = bearing + _HALF_PI + math.atan(self.orbit_gain * (distance - radius) / radius)
+        # Outside the circle the bend is sized by L1's distance (V NAVL1_PERIOD
+        # NAVL1_DAMPING / pi), not the radius: ArduPlane's L1 loiter flies straight at the
+        # centre until it is about that close to the circle, then captures it.
+        excess = distance - radius
+        scale = radius if excess <= 0.0 else min(radius, self._l1_distance_s * speed)
+        course = bearing + _HALF_PI + math.atan(self.orbit_gain * excess / scale)
+        if self._wind is not None:
+            # In wind the autopilot steers its track over the ground (ArduPlane's L1
+            # loiter), banking for the ground speed's turn: more downwind, where the bank
+            # limit may not let it hold the circle.
+            ground, track = self._ground_track()
+            error = _wrap_pi(course - track)
+            feed_forward = ground / (distance if distance > radius else radius)
+            limit = self._max_turn_rad_s
+            turn = _clamp(self._l1_turn(error) + feed_forward, -limit, limit)
+            return math.atan(turn * ground / G_M_S2)
         error = _wrap_pi(course - self._yaw)
         feed_forward = speed / (distance if distance > radius else radius)
         limit = self._max_turn_rad_s
-        turn = _clamp(self.course_gain_1_s * error + feed_forward, -limit, limit)
+        turn = _clamp(self._l1_turn(error) + feed_forward, -limit, limit)
         return math.atan(turn * speed / G_M_S2)
+
+    def _ground_track(self) -> tuple[float, float]:
+        """Ground speed and track (the velocity over the ground's direction), in wind."""
+        vn, ve = self._vn, self._ve
+        ground = math.sqrt(vn * vn + ve * ve)
+        return ground, (math.atan2(ve, vn) if ground > 0.5 else self._yaw)
+
+    def _l1_turn(self, error: float) -> float:
+        """Turn rate (rad/s) toward a course ``error`` radians away, as ArduPlane's L1 turns.
+
+        L1's lateral acceleration is 2 V^2 / L1 sin(eta) with L1 = V NAVL1_PERIOD
+        NAVL1_DAMPING / pi, so the turn rate is 2 pi / (NAVL1_PERIOD NAVL1_DAMPING)
+        sin(eta), eta capped at 90 degrees: a course error of 30 degrees turns at half
+        the rate of one of 90 or more (0.49 rad/s with ArduPlane's defaults).
+        """
+        return self._l1_gain * math.sin(_clamp(error, -_HALF_PI, _HALF_PI))
 
     def _course_roll(self, speed: float, course: float) -> float:
         """Roll command that holds a course."""
         limit = self._max_turn_rad_s
-        turn = _clamp(self.course_gain_1_s * _wrap_pi(course - self._yaw), -limit, limit)
+        if self._wind is not None:  # hold the track over the ground, crabbing into the wind
+            ground, track = self._ground_track()
+            turn = _clamp(self._l1_turn(_wrap_pi(course - track)), -limit, limit)
+            return math.atan(turn * ground / G_M_S2)
+        turn = _clamp(self._l1_turn(_wrap_pi(course - self._yaw)), -limit, limit)
         return math.atan(turn * speed / G_M_S2)
 
     def _pitch_for(self, h: float, speed: float, climb_m_s: float) -> float:
@@ -2373,8 +2510,9 @@ class FixedWing(SimulatedVehicle):
         elif yaw < -math.pi:
             yaw += _TAU
         horizontal = math.sqrt(max(new_speed * new_speed - climb * climb, 0.0))
-        vn = horizontal * math.cos(yaw)
-        ve = horizontal * math.sin(yaw)
+        # It flies its airspeed through the air; the air carries it (0 in still air).
+        vn = horizontal * math.cos(yaw) + self._air_n
+        ve = horizontal * math.sin(yaw) + self._air_e
         self._n += vn * h
         self._e += ve * h
         up = self._u + climb * h
@@ -2435,7 +2573,9 @@ class Rover(SimulatedVehicle):
     over about 8.7 s. It stops at the target and stays stopped (RTL and AUTO stay in
     their mode, as ArduRover's do); the target counts as reached within WP_RADIUS
     (ArduRover's), where a mission executor moves on. A target behind it within
-    WP_RADIUS is reached where it is. Hold (and a guided mode entered with no
+    WP_RADIUS is reached where it is. A GUIDED target behind a rover at speed
+    (:data:`ROVER_REVERSAL_SPEED_M_S`) brakes it straight to a stop before it turns
+    round, as ArduRover's shaped target does. Hold (and a guided mode entered with no
     target) stops where it is, braking at the deceleration limit. Manual modes: the
     steering channel steers, the throttle channel (centred) drives forward above
     trim and reverses below it, full stick meaning ``max_speed_m_s`` reached at up
@@ -2461,6 +2601,9 @@ class Rover(SimulatedVehicle):
     #: Lowest speed while turning toward a target behind the rover.
     crawl_speed_m_s: float = 0.5
 
+    def set_wind(self, wind: WindField | None) -> None:
+        """Ignored: ArduPilot SITL's rover (SIM_Rover) takes no wind, and neither does this."""
+
     def _default_mode(self, autopilot: Mapping[str, Any]) -> str:
         """The mission schema's default start mode: manual for rovers."""
         return str(autopilot.get("manual_mode") or "")
@@ -2472,6 +2615,8 @@ class Rover(SimulatedVehicle):
         self._arrived = True
         self._speed_set = False
         self._wind_up_s = 0.0
+        self._redirect = False
+        self._redirect_s = 0.0
         self._capture()
         self._leg_speed = self._default_speed()
 
@@ -2484,6 +2629,7 @@ class Rover(SimulatedVehicle):
         self._wp_radius = max(p["WP_RADIUS"], 0.1)
         self._lateral_accel = max(p["ATC_TURN_MAX_G"], 0.05) * G_M_S2
         self._turn_radius = max(p["TURN_RADIUS"], 0.0)
+        self._jerk = max(p["WP_JERK"], 0.0) or min(self._accel, self._decel)
 
     def _default_speed(self) -> float:
         p = self._params
@@ -2512,6 +2658,7 @@ class Rover(SimulatedVehicle):
         self._speed_set = False
         self._leg_speed = self._default_speed()
         self._command = _CMD_NONE
+        self._redirect = False
         if behaviour is ModeBehaviour.RTL:
             self._tn, self._te = self.home_m[0], self.home_m[1]
             self._arrived = False
@@ -2526,6 +2673,15 @@ class Rover(SimulatedVehicle):
         # ArduRover takes new parameters only on entering a mode, not with a target.
         if speed_m_s is not None:
             self._set_speed(speed_m_s)
+        # A GUIDED target behind a rover at speed: it runs on to a stop before turning
+        # round (ROVER_REVERSAL_SPEED_M_S).
+        self._redirect_s = 0.0
+        bearing = math.atan2(east_m - self._e, north_m - self._n)
+        self._redirect = (
+            self._behaviour is ModeBehaviour.GUIDED
+            and self._speed > ROVER_REVERSAL_SPEED_M_S
+            and abs(_wrap_pi(bearing - self._yaw)) > _HALF_PI
+        )
         self._tn, self._te = north_m, east_m
         self._arrived = False
         self._command = _CMD_TARGET
@@ -2559,7 +2715,14 @@ class Rover(SimulatedVehicle):
                 approach = sqrt_controller(
                     distance, ROVER_APPROACH_GAIN_1_S, self._approach_decel, h
                 )
-                if approach < ROVER_STOP_SPEED_M_S or (
+                if self._redirect and speed <= 0.0:
+                    self._redirect = False
+                if self._redirect:
+                    # Braking straight to a stop, the deceleration ramping up at WP_JERK
+                    # (0: the acceleration limit's value per second, as AR_WPNav's).
+                    self._redirect_s += h
+                    down = min(down, self._jerk * self._redirect_s)
+                elif approach < ROVER_STOP_SPEED_M_S or (
                     distance <= self._wp_radius and abs(error) > _HALF_PI
                 ):
                     self._arrived = True

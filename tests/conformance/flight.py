@@ -15,6 +15,8 @@ from typing import Any, NamedTuple
 from harness import Peer
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from clark_engine.sim.wind import WindConfig, WindField
+
 EARTH_M_PER_DEG = 111_194.93
 """Metres per degree of latitude (the sphere of radius 6 371 km)."""
 
@@ -182,3 +184,24 @@ def flight_params(peer: Peer, params: Mapping[str, float]) -> Iterator[Peer]:
     finally:
         for name, value in before.items():
             peer.param_set(name, value)
+
+
+@contextmanager
+def sim_wind(peer: Peer, params: Mapping[str, float]) -> Iterator[Peer]:
+    """The peer's vehicle in the wind ArduPilot SITL's SIM_WIND_* ``params`` describe.
+
+    On SITL the parameters themselves (put back afterwards); on the simulated autopilot
+    the same air as the dry run gives it for the equivalent ``sim.wind``
+    (:meth:`WindConfig.from_sitl_params`), still air again afterwards.
+    """
+    model = getattr(peer.link, "model", None)
+    if model is None:
+        with flight_params(peer, params):
+            yield peer
+        return
+    seed = int(peer.spec.mission.sim.get("seed", 0))
+    model.set_wind(WindField(WindConfig.from_sitl_params(params), seed))
+    try:
+        yield peer
+    finally:
+        model.set_wind(None)

@@ -18,6 +18,7 @@ fields more kindly would hide what the engine has to cope with.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from harness import Peer, backends
@@ -88,3 +89,41 @@ def test_altitude_fields_over_boot(fresh_peer: Peer) -> None:
     steady = [(t, m) for t, m in after if t < moved_s - 1.0]
     assert all(abs(m.relative_alt / 1000 - (m.alt / 1000 - home_alt_m)) < 0.5 for _, m in steady)
     assert all(abs(m.relative_alt / 1000 - FIELD_AMSL_M) < 1.5 for t, m in amsl if t < moved_s - 1)
+
+
+PLANE_FIX_S = 9.3
+"""ArduPlane SITL's first 3-D fix after power-on (9.26 s measured)."""
+
+
+@backends("fresh_peer", kinds=("plane",))
+def test_plane_positions_before_the_gps_fix_drift_from_zero(fresh_peer: Peer) -> None:
+    """ArduPlane dead-reckons from 0, 0 before its fix; GPS_RAW_INT says there is none.
+
+    SITL (4.7.0-dev, on the ground): GLOBAL_POSITION_INT at 0, 0 until 3.5 s, then
+    drifting north-ish along the heading, 11.6 m after 0.2 s, 33 m after 1.6 s, 35.7 m
+    at the fix (9.26 s), its velocities 0; GPS_RAW_INT fix_type 0 (1 once the receiver
+    is detected, 0.2 s before the fix), lat and lon 0. An engine must not take these for
+    the aircraft's position (tests/test_io_autopilot_prefix.py).
+    """
+    peer = fresh_peer
+    peer.message_interval("GLOBAL_POSITION_INT", 200_000)
+    peer.message_interval("GPS_RAW_INT", 200_000)
+    peer.run_for(PLANE_FIX_S + 3.0 - peer.now_s)
+    raws = [(t, m) for t, m in peer.history if m.get_type() == "GPS_RAW_INT"]
+    fixed_s = next(t for t, m in raws if m.fix_type >= 3)
+    assert abs(fixed_s - PLANE_FIX_S) <= 1.5
+    early_raws = [m for t, m in raws if t < fixed_s]
+    assert early_raws and all((m.lat, m.lon) == (0, 0) for m in early_raws)
+    assert all(m.fix_type in (0, 1) for m in early_raws)
+    assert early_raws[0].fix_type == 0
+    early = [(t, m) for t, m in positions(peer) if not has_position(m)]
+    # near (0, 0): within 100 m of it, ...
+    away_m = [(t, math.hypot(m.lat, m.lon) * 1e-7 * 111_195) for t, m in early]
+    assert all(d < 100.0 for _, d in away_m)
+    # ... moving away from it before the fix, quickly at first (SITL: 24 m within 0.6 s).
+    assert max(d for _, d in away_m) > 20.0
+    moving = [(t, d) for t, d in away_m if d > 1.0]
+    assert moving and moving[0][0] < fixed_s - 3.0
+    quick = [d for t, d in moving if t <= moving[0][0] + 1.0]
+    assert max(quick) > 15.0
+    assert all((m.vx, m.vy) == (0, 0) for _, m in early)

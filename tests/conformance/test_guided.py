@@ -256,3 +256,60 @@ def test_copter_speed_change_holds_in_guided_until_it_is_left(copter: Peer) -> N
     assert change_speed(peer, 3.0).result == mavlink2.MAV_RESULT_FAILED
     assert peer.set_mode("GUIDED").result == mavlink2.MAV_RESULT_ACCEPTED
     assert leg_peak_m_s(peer, home, TAKEOFF_M, 40.0) >= 4.0
+
+
+# SITL (WP_SPEED 3, ATC_ACCEL_MAX 1, its rover.parm's WP_RADIUS 3), a new target sent while
+# driving north at 3 m/s, 20 m from the start of the leg: from the new target to within 3 m
+# of it. ArduRover starts the new leg at its stopping point (AR_WPNav), so it brakes
+# first: 10 m behind, it stopped 6.5 m further on, waited, looped round at 2 m/s and came
+# back (14.8 s; stopped, 1.2 m off, after 20.0 s); 20 m to the right it turned while
+# braking to 0.9 m/s (10.8 s; stopped 13.8 s). Before the simulation braked like this it
+# took 5.1 s and 8.7 s (0.34x and 0.8x).
+REDIRECT_S = {"behind": 14.8, "right": 10.8}
+REDIRECT_TARGETS_M = {"behind": (-10.0, 0.0), "right": (0.0, 20.0)}
+
+
+@backends(kinds=("rover",))
+def test_rover_redirected_while_driving_brakes_before_it_turns(rover: Peer) -> None:
+    peer = rover
+    assert peer.set_mode("GUIDED").result == mavlink2.MAV_RESULT_ACCEPTED
+    assert peer.arm().result == mavlink2.MAV_RESULT_ACCEPTED
+    for case, (north_m, east_m) in REDIRECT_TARGETS_M.items():
+        redirect(peer, case, north_m, east_m)
+
+
+def redirect(peer: Peer, case: str, north_m: float, east_m: float) -> None:
+    """Drive north at WP_SPEED; 20 m on, send a target (north_m, east_m) from there."""
+    origin = here(peer)
+    base = (origin.lat_deg, origin.lon_deg)
+    goto(peer, *moved(*base, 60.0, 0.0), 0.0)
+
+    def along(msg: object) -> bool:
+        """20 m along the leg north"""
+        f = fix_of(msg)
+        return offset_m(*base, f.lat_deg, f.lon_deg)[0] >= 20.0
+
+    sending = fix_of(peer.wait_for("GLOBAL_POSITION_INT", 30.0, where=along))
+    assert sending.ground_speed_m_s >= ROVER_SPEED_M_S - 0.2, "not at speed"
+    target = moved(*base, 20.0 + north_m, east_m)
+    mark = peer.mark()
+    sent_s = peer.now_s
+    goto(peer, *target, 0.0)
+
+    def there(msg: object, within_m: float = 3.0) -> bool:
+        """within 3 m of the new target"""
+        f = fix_of(msg)
+        return distance_m((f.lat_deg, f.lon_deg), target) < within_m
+
+    arrived = fix_of(peer.wait_for("GLOBAL_POSITION_INT", 40.0, where=there))
+    fixes = track(peer, mark)
+    assert within(arrived.t_s - sent_s, REDIRECT_S[case]), (case, arrived.t_s - sent_s)
+    if case == "behind":  # straight on, braking, before turning round
+        furthest = max(offset_m(*base, f.lat_deg, f.lon_deg)[0] for f in fixes)
+        assert furthest - 20.0 >= 4.0, furthest
+
+    def stopped(msg: object) -> bool:
+        """stopped there (SITL within 1.2 m; after turning round, maybe at WP_RADIUS)"""
+        return fix_of(msg).ground_speed_m_s < 0.05 and there(msg, 3.5)
+
+    peer.wait_for("GLOBAL_POSITION_INT", 15.0, where=stopped)

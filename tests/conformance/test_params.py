@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import pytest
 from harness import Peer
@@ -240,3 +241,120 @@ def test_no_range_is_enforced_and_nan_is_ignored(peer: Peer) -> None:
         assert peer.param_get("FENCE_RADIUS").param_value == 5
     finally:
         peer.param_set("FENCE_RADIUS", before)
+
+
+# -- the whole list ------------------------------------------------------------------------
+
+WHOLE_LIST: dict[str, tuple[int, str, str]] = {
+    "rover": (1240, "FORMAT_VERSION", "MAV3_OPTIONS"),
+    "copter": (1354, "FORMAT_VERSION", "MAV3_OPTIONS"),
+    "plane": (1406, "FORMAT_VERSION", "MAV3_OPTIONS"),
+}
+"""Each SITL build's parameter count and its first and last names in index order
+(tools/gen_sitl_params.py downloaded them; the simulation ships that list)."""
+
+LIST_SAMPLES: dict[str, dict[str, tuple[int, float]]] = {
+    "rover": {
+        "ARMING_CHECK": (_I32, 1),
+        "LOG_BITMASK": (_I32, 65535),
+        "SCHED_LOOP_RATE": (_I16, 50),
+        "SERVO1_FUNCTION": (_I16, 26),
+        "AHRS_EKF_TYPE": (_I8, 3),
+        "SERIAL0_BAUD": (_I32, 115),
+    },
+    "copter": {
+        "ARMING_CHECK": (_I32, 1),
+        "LOG_BITMASK": (_I32, 180222),
+        "ANGLE_MAX": (_I16, 3000),
+        "SCHED_LOOP_RATE": (_I16, 400),
+        "ATC_RAT_RLL_P": (_F, 0.135),
+        "SERVO1_FUNCTION": (_I16, 33),
+    },
+    "plane": {
+        "ARMING_CHECK": (_I32, 1),
+        "ROLL_LIMIT_DEG": (_F, 65),
+        "TRIM_THROTTLE": (_I8, 50),
+        "TECS_CLMB_MAX": (_F, 5),
+        "ARSPD_TYPE": (_I8, 2),
+        "SERVO1_FUNCTION": (_I16, 4),
+    },
+}
+"""Parameters the simulation does not act on, with SITL's type and value: a download must
+show them as SITL does (ARMING_CHECK 1: MAVProxy says "Arming checks disabled" otherwise)."""
+
+
+def download_list(peer: Peer, within_s: float = 30.0) -> dict[int, Any]:
+    """PARAM_REQUEST_LIST as a ground station sends it: every PARAM_VALUE by its index.
+
+    ArduPilot also sends PARAM_VALUEs unasked (index 65535): those are left out.
+    """
+    mark = peer.mark()
+    peer.send(mavlink2.MAVLink_param_request_list_message(peer.spec.system_id, 1))
+    got: dict[int, Any] = {}
+    count = WHOLE_LIST[peer.kind][0]
+
+    def complete(msg: Any) -> bool:
+        """the whole list"""
+        if msg.param_index != NO_PARAM_INDEX:
+            got[msg.param_index] = msg
+        return len(got) >= count
+
+    peer.wait_for("PARAM_VALUE", within_s, where=complete, since=mark)
+    return got
+
+
+def test_a_download_lists_every_parameter_in_ardupilots_order(peer: Peer) -> None:
+    count, first, last = WHOLE_LIST[peer.kind]
+    got = download_list(peer)
+    assert sorted(got) == list(range(count))
+    assert {m.param_count for m in got.values()} == {count}
+    names = [str(got[i].param_id) for i in range(count)]
+    assert len(set(names)) == count, "a name is listed twice"
+    assert (names[0], names[-1]) == (first, last)
+    by_name = {str(m.param_id): m for m in got.values()}
+    for name, (param_type, value) in LIST_SAMPLES[peer.kind].items():
+        assert (by_name[name].param_type, by_name[name].param_value) == (
+            param_type,
+            pytest.approx(value),
+        ), name
+    # The parameters the engine and the simulation use are in the list, with their types.
+    for name, (param_type, _default) in SAFETY_PARAMETERS[peer.kind].items():
+        if peer.kind == "rover" and name in ("FENCE_ALT_MAX", "FENCE_ALT_MIN", "FENCE_AUTOENABLE"):
+            continue
+        assert by_name[name].param_type == param_type, name
+
+
+def read_index(peer: Peer, index: int) -> Any:
+    """PARAM_REQUEST_READ by index; the indexed answer, or None within 1.5 s."""
+    mark = peer.mark()
+    peer.send(mavlink2.MAVLink_param_request_read_message(peer.spec.system_id, 1, b"", index))
+    peer.run_for(1.5)
+    answers = [
+        m
+        for _, m in peer.history[mark:]
+        if m.get_type() == "PARAM_VALUE" and m.param_index != NO_PARAM_INDEX
+    ]
+    assert len(answers) <= 1, answers
+    return answers[0] if answers else None
+
+
+def test_read_by_index_reaches_the_whole_list(peer: Peer) -> None:
+    count, first, last = WHOLE_LIST[peer.kind]
+    assert read_index(peer, 0).param_id == first
+    assert read_index(peer, count - 1).param_id == last
+    middle = read_index(peer, count // 2)
+    assert (middle.param_index, middle.param_count) == (count // 2, count)
+    assert peer.param_get(str(middle.param_id)).param_value == middle.param_value
+    assert read_index(peer, count) is None
+
+
+def test_any_listed_parameter_is_set_and_kept(peer: Peer) -> None:
+    # One the simulation does not act on: stored, echoed in its own type, read back.
+    name = "SCHED_LOOP_RATE"
+    before = peer.param_get(name).param_value
+    try:
+        echo = peer.param_set(name, 123.7)
+        assert (echo.param_value, echo.param_type) == (123, _I16)
+        assert peer.param_get(name).param_value == 123
+    finally:
+        peer.param_set(name, before, _I16)

@@ -10,11 +10,13 @@ the same values on both autopilots (SITL's plane is not a Super Cub).
 from __future__ import annotations
 
 import re
+from typing import Any
 
 import pytest
 from flight import (
     distance_m,
     first,
+    fix_of,
     flight_params,
     here,
     landed_states,
@@ -141,3 +143,76 @@ def fly(peer: Peer) -> None:
     assert radius == pytest.approx(LOITER_RADIUS_M, abs=RADIUS_TOLERANCE_M)
     assert all(abs(f.up_m - RTL_ALTITUDE_M) <= 3.0 for f in track(peer, mark))
     assert peer.mode_name(peer.heartbeat().custom_mode) == "RTL"
+
+
+SURVEY_PARAMS = {
+    "AIRSPEED_CRUISE": 15.0,
+    "WP_LOITER_RAD": 60.0,
+    "WP_RADIUS": 90.0,
+    "TKOFF_ALT": 60.0,
+    "TKOFF_DIST": 200.0,
+}
+"""The survey example's plane (ArduPlane's defaults but its airspeed, 60 m up)."""
+SITL_SURVEY_PARAMS = {"NAVL1_PERIOD": 17.0, "ROLL_LIMIT_DEG": 45.0}
+"""SITL's plane.parm sets NAVL1_PERIOD 15 and ROLL_LIMIT_DEG 65; the simulation flies
+ArduPlane's default L1 period (17 s) and the Super Cub banks at most 45 degrees."""
+SURVEY_M = ((-250.0, 0.0), (0.0, 0.0), (400.0, 0.0), (400.0, 150.0), (0.0, 150.0), (0.0, 300.0))
+"""A lawn-mower pattern (north, east from 250 m north of home): a lead-in onto the first
+lane, then four lanes and turns, each waypoint "there" within 75 m (as the survey
+primitive's tolerance), the next target sent at once."""
+SURVEY_TOLERANCE_M = 75.0
+SURVEY_LEGS_S = (26.7, 10.5, 27.5, 5.7)
+"""SITL (4.7.0-dev, NAVL1_PERIOD 17, ROLL_LIMIT_DEG 45, 15.1-15.2 m/s airspeed): the
+legs from (0, 0) to each of the next four waypoints (92.8 s with a fifth lane of 22.4 s;
+with plane.parm's NAVL1_PERIOD 15: 26.6, 9.6, 26.6 and 5.7 s). The simulation flew 27.6,
+12.4, 29.0 and 3.4 s before it turned as L1 does (the fourth leg at 0.59x); now 26.6,
+10.0, 26.2 and 5.2 s."""
+
+
+def reposition(peer: Peer, lat: float, lon: float, up_m: float) -> Any:
+    """DO_REPOSITION (COMMAND_INT, above home, into GUIDED); returns the COMMAND_ACK."""
+    peer.send(
+        mavlink2.MAVLink_command_int_message(
+            peer.spec.system_id, 1, mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            mavlink2.MAV_CMD_DO_REPOSITION, 0, 0, -1,
+            mavlink2.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE, 0, 0,
+            round(lat * 1e7), round(lon * 1e7), up_m,
+        )
+    )  # fmt: skip
+    return peer.wait_for(
+        "COMMAND_ACK", 3.0, where=lambda m: m.command == mavlink2.MAV_CMD_DO_REPOSITION
+    )
+
+
+@backends(kinds=("plane",))
+def test_plane_survey_legs_take_sitls_time(peer: Peer) -> None:
+    peer.wait_ready()
+    params = dict(SURVEY_PARAMS)
+    if peer.backend.startswith("sitl"):
+        params.update(SITL_SURVEY_PARAMS)
+    with flight_params(peer, params), streaming(peer):
+        home = peer.wait_for("HOME_POSITION", 5.0, since=0)
+        base = moved(home.latitude / 1e7, home.longitude / 1e7, 250.0, 0.0)
+        if peer.wait_for("EXTENDED_SYS_STATE", 2.0).landed_state != 2:
+            assert peer.set_mode("TAKEOFF").result == mavlink2.MAV_RESULT_ACCEPTED
+            assert peer.arm().result == mavlink2.MAV_RESULT_ACCEPTED
+            peer.wait_for("EXTENDED_SYS_STATE", 60.0, where=lambda m: m.landed_state == 2)
+        legs_s = [survey_leg(peer, moved(*base, *point)) for point in SURVEY_M]
+        for leg_s, sitl_s in zip(legs_s[2:], SURVEY_LEGS_S, strict=True):
+            assert within(leg_s, sitl_s, slower=1.2), (legs_s, SURVEY_LEGS_S)
+        assert within(sum(legs_s[2:]), sum(SURVEY_LEGS_S), faster=0.93, slower=1.1), legs_s
+        assert peer.set_mode("RTL").result == mavlink2.MAV_RESULT_ACCEPTED
+
+
+def survey_leg(peer: Peer, target: tuple[float, float]) -> float:
+    """Reposition to ``target`` at 60 m; the time until within SURVEY_TOLERANCE_M of it."""
+    ack = reposition(peer, *target, SURVEY_PARAMS["TKOFF_ALT"])
+    assert ack.result == mavlink2.MAV_RESULT_ACCEPTED
+    sent_s = peer.time_of(ack)
+
+    def there(msg: Any) -> bool:
+        """within the survey's tolerance of the waypoint"""
+        f = fix_of(msg)
+        return distance_m((f.lat_deg, f.lon_deg), target) < SURVEY_TOLERANCE_M
+
+    return float(fix_of(peer.wait_for("GLOBAL_POSITION_INT", 120.0, where=there)).t_s - sent_s)

@@ -29,6 +29,7 @@ from clark_engine.mission.schema_source.common import (
     rate_hz,
     schema_id,
     share,
+    speed_m_s,
     string,
     time_s,
 )
@@ -439,14 +440,151 @@ def _sim() -> Schema:
             "gps_error": _gps_error(),
             "radio_bursts": _radio_bursts(),
             "jitter": _jitter(),
-            "sitl_tolerance_s": number(
-                "With clark dry-run --autopilot sitl: how far apart each state's first entry "
-                "may be on ArduPilot SITL and on the simulated autopilot for the comparison "
-                "to pass.",
-                unit="s",
+            "wind": _wind(),
+            "sitl_tolerance": _sitl_tolerance(),
+        },
+    )
+
+
+def _sitl_tolerance() -> Schema:
+    # The defaults and their reasons: docs/autopilot-fidelity.md, "The same mission both
+    # ways"; clark_engine/sim/timeline.py applies them.
+    return obj(
+        "With clark dry-run --autopilot sitl: how close the mission on ArduPilot SITL must "
+        "come to the same mission on the simulated autopilot for the comparison to pass. "
+        "Each state's first entry is allowed a share of its leg (the time since the agent's "
+        "previous state change on SITL), never less than time_floor_s; positions and "
+        "altitudes at each state change and at the end, and every check's verdict and "
+        "figures, are compared too.",
+        {
+            "time_floor_s": time_s(
+                "The least a state's entry time may differ whatever its leg: the jitter of "
+                "two runs' messages and ticks.",
                 exclusive_minimum=0,
                 maximum=3600,
+                default=3.0,
+            ),
+            "sim_sooner_share": share(
+                "How much sooner than on SITL the simulated run may get through a leg, as a "
+                "share of SITL's leg: the simulation must not be kinder than ArduPilot "
+                "(0.9x SITL's time at the quickest, as the conformance suite holds it).",
+                default=0.1,
+            ),
+            "sim_later_share": share(
+                "How much later than on SITL the simulated run may get through a leg, as a "
+                "share of SITL's leg (up to 1.3x SITL's time, as the conformance suite "
+                "allows).",
+                default=0.3,
+            ),
+            "position_m": distance_m(
+                "How far apart (horizontally) the vehicle may be in the two runs when it "
+                "enters each state, at the end of the run, and in a check's distances.",
+                maximum=10000,
                 default=10.0,
+            ),
+            "altitude_m": distance_m(
+                "How far apart an aircraft's altitudes may be in the two runs when it "
+                "enters each state, at the end of the run, and in a check's altitudes.",
+                maximum=10000,
+                default=3.0,
+            ),
+            "count_share": share(
+                "How far apart a check's counts (photos) may be, as a share of SITL's "
+                "count, never less than one.",
+                default=0.1,
+            ),
+        },
+    )
+
+
+def _wind() -> Schema:
+    return obj(
+        "The wind every simulated aircraft flies in: one air mass for the whole fleet, "
+        "ArduPilot SITL's own wind model, and under --autopilot sitl given to SITL as its "
+        "SIM_WIND_* parameters (docs/dry-run.md, Wind). Still air when omitted.",
+        {
+            "speed_mps": varied(
+                speed_m_s(
+                    "Mean wind speed at and above the profile's full_alt_m (SIM_WIND_SPD).",
+                    maximum=100,
+                    default=0,
+                )
+            ),
+            "from_deg": varied(
+                number(
+                    "True direction the wind blows from, degrees clockwise from north "
+                    "(SIM_WIND_DIR; 270 is a west wind, blowing toward the east).",
+                    unit="deg",
+                    minimum=0,
+                    maximum=360,
+                    default=180,
+                )
+            ),
+            "turbulence_mps": varied(
+                speed_m_s(
+                    "Standard deviation of the wind's random variation in flight "
+                    "(SIM_WIND_TURB): SITL's fast, direction-less turbulence, about 0.04 s "
+                    "correlated.",
+                    maximum=50,
+                    default=0,
+                )
+            ),
+            "profile": obj(
+                "How the mean wind changes with height above home (SIM_WIND_T and its parameters).",
+                {
+                    "type": string(
+                        "sqrt: the mean times sqrt(height / full_alt_m) below full_alt_m, no "
+                        "wind on the ground (SITL's default); linear: the mean plus "
+                        "(height - full_alt_m) * linear_mps_per_m, never below 0; none: the "
+                        "mean at every height.",
+                        enum=["sqrt", "linear", "none"],
+                        default="sqrt",
+                    ),
+                    "full_alt_m": varied(
+                        altitude_m(
+                            "Height above home where the mean wind blows in full (SIM_WIND_T_ALT).",
+                            minimum=0,
+                            maximum=10000,
+                            default=60,
+                        )
+                    ),
+                    "linear_mps_per_m": varied(
+                        number(
+                            "The linear profile's change of wind speed per metre of height "
+                            "(SIM_WIND_T_COEF).",
+                            unit="1/s",
+                            minimum=-1,
+                            maximum=1,
+                            default=0.01,
+                        )
+                    ),
+                },
+            ),
+            "gusts": obj(
+                "Gusts along the mean wind, at random times (exponential intervals), each a "
+                "smooth rise and fall scaled by the profile. Simulated only: SITL has no "
+                "gust model, so --autopilot sitl flies without them.",
+                {
+                    "speed_mps": varied(
+                        speed_m_s("A gust's peak, added to the mean.", maximum=100, default=0)
+                    ),
+                    "every_s": varied(
+                        time_s(
+                            "Mean time between gusts.",
+                            exclusive_minimum=0,
+                            maximum=86400,
+                            default=60,
+                        )
+                    ),
+                    "duration_s": varied(
+                        time_s(
+                            "How long one gust lasts, rise and fall.",
+                            exclusive_minimum=0,
+                            maximum=600,
+                            default=4,
+                        )
+                    ),
+                },
             ),
         },
     )
