@@ -376,6 +376,103 @@ def cmd_dry_run(args: argparse.Namespace) -> int:
     return outcome.exit_code
 
 
+def cmd_campaign(args: argparse.Namespace) -> int:
+    """Fly the mission many times, each run its own seed and draw; report the pass rates."""
+    from clark_engine.campaign.command import CampaignOptions, run_campaign
+    from clark_engine.sim.sitl import SitlError, SitlInstall
+
+    on_sitl = args.autopilot == "sitl"
+    if not on_sitl:
+        for given, option in (
+            (args.sitl is not None, "--sitl"),
+            (args.sitl_speedup is not None, "--sitl-speedup"),
+            (args.sitl_instances is not None, "--sitl-instances"),
+            (args.sitl_per_worker is not None, "--sitl-per-worker"),
+        ):
+            if given:
+                raise UsageError(f"{option} only applies with --autopilot sitl")
+    if args.failure_reports and args.report is None:
+        raise UsageError("--failure-reports goes with --report DIR (they go to DIR/runs/<i>/)")
+    if args.scheduler is not None and args.workers is not None:
+        raise UsageError(
+            "--workers is for the local pool; with --scheduler the cluster's workers fly "
+            "the runs (start them with --nthreads 1)"
+        )
+    if args.scheduler is not None and args.sitl_per_worker is not None:
+        raise UsageError(
+            "--sitl-per-worker is for the local pool; on a cluster each worker's "
+            "--resources sitl=K caps its SITL runs (docs/campaigns.md)"
+        )
+    install = None
+    if on_sitl:
+        try:
+            install = SitlInstall.find(args.sitl, instances=args.sitl_instances)
+        except SitlError as exc:
+            raise UsageError(str(exc)) from None
+    options = CampaignOptions(
+        runs=args.runs,
+        seed=args.seed,
+        until_s=args.until,
+        faults=tuple(args.fault or ()),
+        vary=tuple(args.vary or ()),
+        workers=args.workers,
+        scheduler=args.scheduler,
+        sitl=install,
+        sitl_speedup=args.sitl_speedup or 10.0,
+        sitl_per_worker=args.sitl_per_worker or 2,
+        run_timeout_s=args.run_timeout_s,
+        retries=args.retries,
+        report=Path(args.report) if args.report else None,
+        failure_reports=args.failure_reports,
+        min_pass_rate=args.min_pass_rate,
+        quiet=args.quiet,
+    )
+    return run_campaign(Path(args.mission), options, command_line=["clark", *args.argv])
+
+
+def _count(text: str) -> int:
+    """A whole number >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a whole number >= 1, not {text!r}")
+    return value
+
+
+def _runs(text: str) -> int:
+    """A number of runs: 1 to the most a campaign may fly."""
+    from clark_engine.mission.schema_source.mission import MAX_CAMPAIGN_RUNS
+
+    value = _count(text)
+    if value > MAX_CAMPAIGN_RUNS:
+        raise argparse.ArgumentTypeError(f"at most {MAX_CAMPAIGN_RUNS} runs, not {text!r}")
+    return value
+
+
+def _retries(text: str) -> int:
+    """A number of retries: a whole number 0 to 100."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if not 0 <= value <= 100:
+        raise argparse.ArgumentTypeError(f"must be a whole number 0..100, not {text!r}")
+    return value
+
+
+def _share(text: str) -> float:
+    """A share: a number from 0 to 1."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0 <= value <= 1:
+        raise argparse.ArgumentTypeError(f"must be a number from 0 to 1, not {text!r}")
+    return value
+
+
 def _station_view(args: argparse.Namespace) -> LiveViewOpener | None:
     """``--station`` and its view options checked (usage errors, exit 2); None without it.
 
@@ -549,7 +646,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="clark",
         description="Clark Engine: validate, explain, dry-run (on a simulated fleet), "
-        "compile and analyze multi-vehicle missions. `clark COMMAND --help` for each.",
+        "campaign (many dry runs), compile and analyze multi-vehicle missions. "
+        "`clark COMMAND --help` for each.",
         epilog="Exit codes: 0 good, 1 invalid input or failed check, 2 usage or I/O error.",
     )
     parser.add_argument("--version", action="version", version=f"clark-engine {_version()}")
@@ -732,6 +830,109 @@ def build_parser() -> argparse.ArgumentParser:
         "pilots' rc actions still play",
     )
     p.set_defaults(func=cmd_dry_run)
+
+    p = sub.add_parser(
+        "campaign",
+        parents=[quiet],
+        help="fly the mission many times, each run with its own seed and draw of its "
+        "variations, and report each check's pass rate",
+    )
+    p.add_argument("mission", metavar="MISSION")
+    p.add_argument(
+        "--runs",
+        type=_runs,
+        metavar="N",
+        help="how many runs (the mission's campaign.runs by default, else 100)",
+    )
+    p.add_argument(
+        "--seed",
+        type=_seed,
+        metavar="N",
+        help="the campaign's seed: run i's seed is derived from it and i (the mission's "
+        "campaign.seed, else sim.seed, by default)",
+    )
+    p.add_argument(
+        "--until",
+        type=_until_s,
+        metavar="SECONDS",
+        help="simulated seconds of each run (the mission's sim.duration_s by default)",
+    )
+    p.add_argument(
+        "--fault", action="append", metavar="FAULT", help=f"inject in every run: {FAULT_HELP}"
+    )
+    p.add_argument(
+        "--vary",
+        action="append",
+        metavar="PATH=VALUE",
+        help="fix a varied value in every run instead of drawing it (repeatable)",
+    )
+    p.add_argument(
+        "--workers",
+        type=_count,
+        metavar="N",
+        help="local processes flying runs at once (every usable core by default; 1: in "
+        "this process)",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="send the runs to the Dask cluster whose scheduler is at ADDRESS "
+        "(tcp://host:8786); needs the cluster extra (pip install 'clark-engine[cluster]')",
+    )
+    p.add_argument(
+        "--autopilot",
+        choices=("sim", "sitl"),
+        default="sim",
+        help="sim: the simulated autopilot (the default); sitl: every run on ArduPilot SITL",
+    )
+    p.add_argument("--sitl", metavar="PATH", help="with --autopilot sitl: as for clark dry-run")
+    p.add_argument(
+        "--sitl-speedup", type=_speed, metavar="X", help="with --autopilot sitl: (10 by default)"
+    )
+    p.add_argument(
+        "--sitl-instances",
+        metavar="FIRST-LAST",
+        help="with --autopilot sitl: the instance numbers runs may take ($CLARK_SITL_INSTANCES)",
+    )
+    p.add_argument(
+        "--sitl-per-worker",
+        type=_count,
+        metavar="K",
+        help="with --autopilot sitl, locally: at most K runs (SITL stacks) at once (2 by "
+        "default); on a cluster, each worker's --resources sitl=K says it",
+    )
+    p.add_argument(
+        "--run-timeout-s",
+        type=_period_s,
+        metavar="SECONDS",
+        help="stop a run (its whole process group) after this much wall time and retry it "
+        "(1800 s by default on SITL; none on the simulated autopilot)",
+    )
+    p.add_argument(
+        "--retries",
+        type=_retries,
+        default=2,
+        metavar="N",
+        help="retries of a run that failed for want of infrastructure (2 by default)",
+    )
+    p.add_argument(
+        "--report",
+        metavar="DIR",
+        help="write summary.md, runs.csv and the plots here (replacing an earlier report)",
+    )
+    p.add_argument(
+        "--failure-reports",
+        action="store_true",
+        help="with --report: each failing run's dry-run report under DIR/runs/<i>/",
+    )
+    p.add_argument(
+        "--min-pass-rate",
+        type=_share,
+        metavar="SHARE",
+        help="exit 1 unless this share of runs passes (the mission's "
+        "campaign.min_pass_rate by default)",
+    )
+    p.set_defaults(func=cmd_campaign)
 
     p = sub.add_parser(
         "examples",

@@ -388,6 +388,7 @@ def intro(sources: Sequence[str]) -> list[str]:
         "- [Points](#points)",
         "- [Dry-run checks](#dry-run-checks)",
         "- [Dry-run operator, faults and settings](#dry-run-operator-faults-and-settings)",
+        "- [Campaigns](#campaigns)",
         "- [States](#states)",
         "- [Transitions](#transitions)",
         "- [Events](#events)",
@@ -916,6 +917,27 @@ def dry_run_inputs_section(schema: Schema) -> list[str]:
     return lines
 
 
+def campaign_section(schema: Schema) -> list[str]:
+    """The mission's ``campaign:``: what clark campaign flies and the pass rates it needs."""
+    campaign = schema["properties"]["campaign"]
+    return [
+        "## Campaigns",
+        "",
+        "`campaign:` " + md(str(campaign["description"])) + " See [campaigns.md](campaigns.md); "
+        "ignored by every other command.",
+        "",
+        "```yaml",
+        "campaign:",
+        "  runs: 200",
+        "  min_pass_rate: 0.95",
+        "  min_pass_rates: {Slash B parks: 0.99, 'safety: slash_a - slash_b': 1.0}",
+        "```",
+        "",
+        *property_table(campaign, prefix=""),
+        "",
+    ]
+
+
 def states_section(schema: Schema) -> list[str]:
     """The keys of a behaviour state."""
     state = schema["$defs"]["state"]
@@ -1367,6 +1389,7 @@ def generate() -> str:
         points_section(mission),
         checks_section(mission),
         dry_run_inputs_section(mission),
+        campaign_section(mission),
         states_section(mission),
         transitions_section(mission),
         events_section(),

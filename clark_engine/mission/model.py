@@ -376,6 +376,9 @@ class Mission:
             not reported again.
         envelope: The mission's ``envelope:`` as written (every vehicle's resolved
             envelope is on the vehicle); None when the schema rejected it.
+        campaign: How ``clark campaign`` flies it (``runs``, ``seed``, ``min_pass_rate``,
+            ``min_pass_rates``), as written; empty when absent or rejected.
+        campaign_locations: Where each campaign setting was written.
     """
 
     file: str
@@ -400,6 +403,8 @@ class Mission:
     check_locations: list[Location] = field(default_factory=list)
     unresolved: set[str] = field(default_factory=set)
     envelope: EnvelopeDecl | None = None
+    campaign: dict[str, Any] = field(default_factory=dict)
+    campaign_locations: dict[str, Location] = field(default_factory=dict)
 
     @property
     def sim_duration_s(self) -> float:

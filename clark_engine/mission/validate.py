@@ -299,6 +299,19 @@ def _validate_mission(path: Path, doc: Document, raw: bytes) -> Validation:
     return result
 
 
+def _campaign_section(
+    doc: Document, data: dict[str, Any], schema_findings: list[Finding]
+) -> dict[str, Any]:
+    """The mission's ``campaign:`` (clark campaign) and where each key was written."""
+    declared = data.get("campaign")
+    if not isinstance(declared, dict) or _dirty(schema_findings, ("campaign",)):
+        return {}
+    locations = {key: doc.location(("campaign", key)) for key in declared}
+    for name in declared.get("min_pass_rates") or {}:
+        locations[f"min_pass_rates.{name}"] = doc.location(("campaign", "min_pass_rates", name))
+    return {"campaign": dict(declared), "campaign_locations": locations}
+
+
 def _build_mission(
     doc: Document,
     data: dict[str, Any],
@@ -350,6 +363,7 @@ def _build_mission(
         locations={key: doc.location(("mission", key)) for key in section},
         checks=checks,
         check_locations=[doc.location(("checks", i)) for i in range(len(checks))],
+        **_campaign_section(doc, data, schema_findings),
     )
     hardware = HardwareResolver(profiles)
     resolver = BehaviorResolver(blocks)

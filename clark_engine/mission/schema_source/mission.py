@@ -590,6 +590,43 @@ def _wind() -> Schema:
     )
 
 
+MAX_CAMPAIGN_RUNS = 100_000
+"""Most runs a mission's campaign may declare (and ``clark campaign --runs`` take)."""
+
+
+def _campaign() -> Schema:
+    return obj(
+        "How clark campaign flies this mission many times, each run with its own seed and "
+        "its own draw of the mission's variations, and what share of runs must pass.",
+        {
+            "runs": integer(
+                "How many runs when --runs is not given.",
+                minimum=1,
+                maximum=MAX_CAMPAIGN_RUNS,
+                default=100,
+            ),
+            "seed": integer(
+                "The campaign's seed when --seed is not given (run i's seed is derived from "
+                "it and i); sim.seed when omitted.",
+                minimum=0,
+                maximum=SEED_MAX,
+            ),
+            "min_pass_rate": share(
+                "Share of runs that must pass every check and their safety judgement, or "
+                "clark campaign exits 1 (--min-pass-rate overrides it)."
+            ),
+            "min_pass_rates": {
+                "type": "object",
+                "description": "Per check, by its name (or a safety row's, `safety: cub`): "
+                "the share of the runs that judged it in which it must hold, or clark "
+                "campaign exits 1.",
+                "propertyNames": {"minLength": 1, "maxLength": 200},
+                "additionalProperties": share("The check's minimum pass rate."),
+            },
+        },
+    )
+
+
 def _gps_error() -> Schema:
     return obj(
         "Each vehicle's slowly wandering GPS error, beyond the white gps_noise_m of each fix "
@@ -848,6 +885,7 @@ def build() -> dict[str, Any]:
             ),
             "faults": array("Faults the dry run injects.", {"$ref": "#/$defs/fault"}),
             "sim": _sim(),
+            "campaign": _campaign(),
         },
         "$defs": {
             "agent": _agent(),
