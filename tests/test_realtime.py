@@ -10,6 +10,7 @@ it needs.
 from __future__ import annotations
 
 import math
+import re
 import signal
 import socket
 import subprocess
@@ -89,11 +90,11 @@ def quick_mission(folder: Path) -> Path:
     """The cooperative-follow example with autopilots ready after :data:`READY_S`."""
     path = folder / MISSION.name
     text = MISSION.read_text(encoding="utf-8")
-    quick = text.replace(
-        "sim: {duration_s: 170, seed: 1,",
-        f"sim: {{duration_s: 170, seed: 1, autopilot_ready_s: {READY_S},",
+    # Into its one-line sim mapping, whatever else it holds.
+    quick, count = re.subn(
+        r"^sim: \{(.*)\}$", rf"sim: {{\1, autopilot_ready_s: {READY_S}}}", text, flags=re.M
     )
-    assert quick != text
+    assert count == 1, "the example keeps its sim: settings on one line"
     path.write_text(quick, encoding="utf-8")
     return path
 
