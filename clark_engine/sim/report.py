@@ -113,7 +113,7 @@ class ReportFolder:
             if len(foreign) > 5:
                 shown += f" and {len(foreign) - 5} more"
             raise UsageError(
-                f"--report {self.target} holds files clark dry-run did not write ({shown}); "
+                f"--report {self.target} holds files clark did not write ({shown}); "
                 "a report replaces its folder, so give a new or empty folder, or move them"
             )
 
