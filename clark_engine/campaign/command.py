@@ -27,7 +27,6 @@ from clark_engine.campaign.report import (
     plot_name,
     rates,
     reproduce_command,
-    value_text,
 )
 from clark_engine.campaign.runs import (
     FIGURE_KINDS,
@@ -40,7 +39,7 @@ from clark_engine.campaign.runs import (
 )
 from clark_engine.errors import ClarkError, UsageError
 from clark_engine.mission.model import Mission
-from clark_engine.sim.report import REPORT_MARKER, ReportFolder
+from clark_engine.sim.report import REPORT_MARKER, ReportFolder, vary_value_text
 
 DEFAULT_RUNS: Final = 100
 """Runs when neither ``--runs`` nor the mission's ``campaign.runs`` says."""
@@ -423,7 +422,7 @@ def runs_csv(results: Sequence[RunResult]) -> str:
         verdict = "infrastructure" if r.infrastructure_failure else ("pass" if r.passed else "FAIL")
         by_name = {c.name: c for c in r.checks}
         row: list[str] = [str(r.index), str(r.seed), verdict]
-        row += [value_text(r.drawn[p]) if p in r.drawn else "" for p in drawn]
+        row += [vary_value_text(r.drawn[p]) if p in r.drawn else "" for p in drawn]
         row += [
             (("pass" if by_name[c].passed else "FAIL") if by_name[c].evaluated else "not evaluated")
             if c in by_name

@@ -17,6 +17,7 @@ from typing import Final
 
 from clark_engine.campaign.runs import FIGURE_KINDS, Figure, RunResult
 from clark_engine.campaign.stats import spread, wilson_interval
+from clark_engine.sim.report import vary_value_text as value_text
 
 RUN_VERDICT: Final = "every check (the run's verdict)"
 """The first row of the checks table: runs that held every check and their safety."""
@@ -154,14 +155,6 @@ def figures_table(spreads: Sequence[FigureSpread], judged: int) -> str:
         runs = f"{item.runs}" if item.runs == judged else f"{item.runs} of {judged}"
         lines.append(f"| {kind}, {subject} ({unit}) | {runs} | {cells} |")
     return "\n".join(lines) + "\n"
-
-
-def value_text(value: float | bool) -> str:
-    """A drawn value as ``--vary`` takes it back: ``true``, or the number exactly (shortest)."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    number = float(value)
-    return f"{number:g}" if number.is_integer() and abs(number) < 1e15 else repr(number)
 
 
 def reproduce_command(
