@@ -251,8 +251,10 @@ def test_plane_ground_speed_is_its_airspeed_plus_or_minus_the_wind() -> None:
     for state in states:
         track = math.degrees(math.atan2(state.velocity_east_m_s, state.velocity_north_m_s))
         assert abs(((track - 180.0) + 180.0) % 360.0 - 180.0) < 3.0
-    crab = ((states[-1].heading_deg - 180.0) + 180.0) % 360.0 - 180.0
-    # Nose west of south, into the west wind.
+    last = states[-1]
+    track = math.degrees(math.atan2(last.velocity_east_m_s, last.velocity_north_m_s))
+    crab = ((last.heading_deg - track) + 180.0) % 360.0 - 180.0
+    # Nose west of its track, into the west wind.
     assert crab == pytest.approx(math.degrees(math.asin(6.0 / 15.0)), abs=2.0)
 
 

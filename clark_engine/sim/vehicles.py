@@ -268,9 +268,15 @@ arming (ArduCopter's RESET_TO_ARMED_YAW): SITL hovered 5-7 s for a 5 s RTL_LOIT_
 
 # --- fixed-wing constants --------------------------------------------------------------
 
-PLANE_LOITER_RADIUS_FACTOR: Final = 1.15
-"""The radius SITL flies over WP_LOITER_RAD: 92-93 m for 80 m at 22 m/s. It grows with
-airspeed (86.6 m at 15 m/s, 98.5 m at 28, 101 m at 30); the model keeps the 22 m/s ratio."""
+PLANE_TURN_EFFICIENCY: Final = 0.71
+"""The share of a coordinated turn's rate (``g tan(bank) / V``) SITL's plane turns at for
+its bank in the automatic modes. Measured in its LOITER (NAVL1_PERIOD 17, 15.2 m/s,
+WP_LOITER_RAD 60): ATTITUDE's roll equal to NAV_CONTROLLER_OUTPUT's nav_roll, 25.0
+degrees, on a 69.1-69.8 m circle, where 25 degrees would turn a 50.5 m one. ArduPlane's L1
+loiter asks for the shortfall back in proportion to the distance outside the circle (its
+PD term), so the circle settles outside WP_LOITER_RAD where the two balance: 92-93 m for
+80 m at 22 m/s with NAVL1_PERIOD 15 (86.6 m at 15 m/s, 98.5 at 28, 101 at 30), 69-70 m
+for 60 m at 15 m/s with 17 (:meth:`FixedWing.loiter_radius_m`)."""
 PLANE_LAUNCH_DELAY_S: Final = 0.2
 """From arming in TAKEOFF (or AUTO with a takeoff) to the launch: ArduPlane's "Armed
 AUTO, xaccel = ..., waiting 0.2 sec" then "Triggered AUTO"."""
@@ -2110,8 +2116,6 @@ class FixedWing(SimulatedVehicle):
     altitude_gain_1_s: float = 0.4
     #: Turn rate per radian of course error, 1/s.
     course_gain_1_s: float = 1.0
-    #: Vector-field gain: how sharply the course bends onto the loiter circle.
-    orbit_gain: float = 2.0
     #: Braking on the ground, m/s^2.
     ground_decel_m_s2: float = 2.0
 
@@ -2141,6 +2145,7 @@ class FixedWing(SimulatedVehicle):
         self._launch_n, self._launch_e, self._launch_yaw = self._n, self._e, self._yaw
         self._course = self._yaw
         self._takeoff_alt = 0.0
+        self._last_nu = 0.0
         self._capture()
         self._cn, self._ce, self._ch = self._n, self._e, self._u
         self._target_speed = self._auto_speed()
@@ -2165,9 +2170,19 @@ class FixedWing(SimulatedVehicle):
         self._cruise = _clamp(p["AIRSPEED_CRUISE"], self._speed_low, self._speed_high)
         self._loiter_rad = abs(p["WP_LOITER_RAD"])
         self._wp_radius = max(p["WP_RADIUS"], 1.0)
-        l1_period = max(p["NAVL1_PERIOD"], 1.0) * max(p["NAVL1_DAMPING"], 0.1)
+        period = max(p["NAVL1_PERIOD"], 1.0)
+        damping = max(p["NAVL1_DAMPING"], 0.1)
+        l1_period = period * damping
         self._l1_gain = _TAU / l1_period
         self._l1_distance_s = l1_period / math.pi  # times the speed: L1's distance, m
+        # AP_L1_Control::update_loiter's gains: the circle's PD (omega = 2 pi / period)
+        # and the capture's L1 gain.
+        omega = _TAU / period
+        self._loiter_kx = omega * omega
+        self._loiter_kv = 2.0 * damping * omega
+        self._capture_k = 4.0 * damping * damping
+        # WP_LOITER_RAD's sign: clockwise (1) or counter-clockwise (-1), as ArduPlane's.
+        self._direction = -1.0 if p["WP_LOITER_RAD"] < 0.0 else 1.0
         limit = math.radians(p["ROLL_LIMIT_DEG"]) if p["ROLL_LIMIT_DEG"] > 0.0 else _INF
         self._max_bank = min(self._airframe_bank, limit)
         self._level_below = max(p["TKOFF_LVL_ALT"], 0.0)
@@ -2220,18 +2235,32 @@ class FixedWing(SimulatedVehicle):
 
     @property
     def loiter_radius_m(self) -> float:
-        """Radius of the current loiter circle."""
-        return self._radius
+        """Radius of the circle flown round the current loiter centre, in still air.
+
+        ArduPlane's L1 loiter asks for the circle's turn plus ``Kx`` (``(2 pi /
+        NAVL1_PERIOD)^2``) per metre outside it; turning at :data:`PLANE_TURN_EFFICIENCY`
+        of what it asks, the aircraft settles at the radius ``R`` where ``(1 - c) V^2 / R
+        = c Kx (R - r)``, ``r`` being the radius asked for (WP_LOITER_RAD or RTL_RADIUS,
+        never tighter than the airframe turns) and ``V`` the loiter airspeed.
+        """
+        c = PLANE_TURN_EFFICIENCY
+        r = self._radius
+        speed = self._target_speed
+        gain = c * self._loiter_kx
+        return 0.5 * (r + math.sqrt(r * r + 4.0 * (1.0 - c) * speed * speed / gain))
 
     def _airspeed(self, ground_speed_m_s: float) -> float:
         return self._speed
 
     def _loiter_radius(self, speed_m_s: float) -> float:
-        """WP_LOITER_RAD as SITL flies it, never tighter than the airframe can turn."""
+        """The radius the L1 loiter is asked for, never tighter than the airframe turns.
+
+        WP_LOITER_RAD (or RTL_RADIUS); what it flies is :attr:`loiter_radius_m`.
+        """
         by_bank = speed_m_s * speed_m_s / (G_M_S2 * math.tan(self._max_bank))
         by_rate = speed_m_s / self._max_turn_rad_s if self._max_turn_rad_s > 0 else by_bank
         tightest = self.loiter_radius_factor * max(by_bank, by_rate)
-        return max(PLANE_LOITER_RADIUS_FACTOR * self._radius_param, tightest)
+        return max(self._radius_param, tightest)
 
     def _clamp_altitude(self, alt_m: float) -> float:
         return _clamp(alt_m, 0.0, self.limits.max_altitude_m)
@@ -2421,7 +2450,9 @@ class FixedWing(SimulatedVehicle):
         self._act_thr = throttle
         self._thr = throttle
         if self._flying:
-            self._fly(h, speed, roll_cmd, pitch_cmd, yaw_rate_cmd, throttle)
+            # SITL's plane turns short of its bank in the automatic modes (where measured).
+            efficiency = 1.0 if sub == _P_MANUAL else PLANE_TURN_EFFICIENCY
+            self._fly(h, speed, roll_cmd, pitch_cmd, yaw_rate_cmd, throttle, efficiency)
             if not self._flying and self._sub == _P_CLIMB:
                 self._sub = _P_LOITER
         else:
@@ -2438,32 +2469,56 @@ class FixedWing(SimulatedVehicle):
             self._radius = self._loiter_radius(self._target_speed)
 
     def _loiter_roll(self, speed: float) -> float:
-        """Roll command that loiters clockwise around the centre (a vector field)."""
-        dn, de = self._n - self._cn, self._e - self._ce
-        distance = math.sqrt(dn * dn + de * de)
+        """Roll command of ArduPlane's L1 loiter round the centre (AP_L1_Control::update_loiter).
+
+        From outside the circle it flies at the centre by the L1 law (``K_L1 V^2 / L1
+        sin(Nu)``, Nu the angle between the ground velocity and the line to the centre)
+        until the circle's own demand (a PD on the distance outside the circle and the
+        speed away from the centre, plus the centripetal ``V_t^2 / R``) asks for less
+        turn; inside it, the circle's demand only. Entered at the centre (LOITER entered
+        where the aircraft is), it flies on along its course while the PD's two terms
+        cancel, then turns out onto the circle. Everything is over the ground (the
+        ground velocity), so in wind the circle is the ground's. Roll = atan(a / (g cos
+        pitch)), as ArduPlane's nav_roll_cd; the bank limit clamps it afterwards.
+        """
+        vn, ve = self._vn, self._ve
+        ground = math.sqrt(vn * vn + ve * ve)
+        an, ae = self._n - self._cn, self._e - self._ce
+        distance = math.sqrt(an * an + ae * ae)
+        if distance > 0.1:
+            un, ue = an / distance, ae / distance
+        elif ground >= 0.1:
+            un, ue = vn / ground, ve / ground
+        else:
+            un, ue = math.cos(self._yaw), math.sin(self._yaw)
+        ground = max(ground, 1.0)
+        xtrack_vel = un * ve - ue * vn  # across the line to the centre
+        ltrack_vel = -(vn * un + ve * ue)  # along it, toward the centre
+        nu = math.atan2(xtrack_vel, ltrack_vel)
+        last, self._last_nu = self._last_nu, nu
+        limit = 0.9 * math.pi
+        if abs(nu) > limit and abs(last) > limit and nu * last < 0.0:
+            # ArduPlane's _prevent_indecision: flying away from the centre, keep the
+            # side it chose to turn to.
+            bearing = math.atan2(-ae, -an)
+            if abs(_wrap_pi(bearing - self._yaw)) > math.radians(120.0):
+                nu = last
+        nu = _clamp(nu, -_HALF_PI, _HALF_PI)
+        capture = self._capture_k * ground / self._l1_distance_s * math.sin(nu)
         radius = self._radius
-        bearing = math.atan2(de, dn)
-        # Outside the circle the bend is sized by L1's distance (V NAVL1_PERIOD
-        # NAVL1_DAMPING / pi), not the radius: ArduPlane's L1 loiter flies straight at the
-        # centre until it is about that close to the circle, then captures it.
         excess = distance - radius
-        scale = radius if excess <= 0.0 else min(radius, self._l1_distance_s * speed)
-        course = bearing + _HALF_PI + math.atan(self.orbit_gain * excess / scale)
-        if self._wind is not None:
-            # In wind the autopilot steers its track over the ground (ArduPlane's L1
-            # loiter), banking for the ground speed's turn: more downwind, where the bank
-            # limit may not let it hold the circle.
-            ground, track = self._ground_track()
-            error = _wrap_pi(course - track)
-            feed_forward = ground / (distance if distance > radius else radius)
-            limit = self._max_turn_rad_s
-            turn = _clamp(self._l1_turn(error) + feed_forward, -limit, limit)
-            return math.atan(turn * ground / G_M_S2)
-        error = _wrap_pi(course - self._yaw)
-        feed_forward = speed / (distance if distance > radius else radius)
-        limit = self._max_turn_rad_s
-        turn = _clamp(self._l1_turn(error) + feed_forward, -limit, limit)
-        return math.atan(turn * speed / G_M_S2)
+        pd = excess * self._loiter_kx - ltrack_vel * self._loiter_kv
+        direction = self._direction
+        tangent = xtrack_vel * direction
+        if ltrack_vel < 0.0 and tangent < 0.0:
+            pd = max(pd, 0.0)
+        centripetal = tangent * tangent / max(0.5 * radius, radius + excess)
+        circle = direction * (pd + centripetal)
+        # Capture only from outside the circle, while it asks for less than the circle.
+        captured = excess <= 0.0 or direction * capture >= direction * circle
+        accel = circle if captured else capture
+        pitch = _clamp(self._pitch, -math.radians(60.0), math.radians(60.0))
+        return math.atan(accel / (G_M_S2 * math.cos(pitch)))
 
     def _ground_track(self) -> tuple[float, float]:
         """Ground speed and track (the velocity over the ground's direction), in wind."""
@@ -2514,7 +2569,9 @@ class FixedWing(SimulatedVehicle):
         pitch_cmd: float,
         yaw_rate_cmd: float,
         throttle: float,
+        efficiency: float = 1.0,
     ) -> None:
+        """One step in the air; the bank turns at ``efficiency`` of a coordinated turn."""
         roll = self._roll + (roll_cmd - self._roll) * self._roll_alpha
         pitch = self._pitch + (pitch_cmd - self._pitch) * self._pitch_alpha
         self._yaw_rate += (yaw_rate_cmd - self._yaw_rate) * self._yaw_alpha
@@ -2532,7 +2589,8 @@ class FixedWing(SimulatedVehicle):
         elif new_speed > self._v_max:
             new_speed = self._v_max
         limit = self._max_turn_rad_s
-        turn = _clamp(G_M_S2 * math.tan(roll) / new_speed + self._yaw_rate, -limit, limit)
+        bank_turn = efficiency * G_M_S2 * math.tan(roll) / new_speed
+        turn = _clamp(bank_turn + self._yaw_rate, -limit, limit)
         yaw = self._yaw + turn * h
         if yaw >= math.pi:
             yaw -= _TAU

@@ -9,6 +9,7 @@ the same values on both autopilots (SITL's plane is not a Super Cub).
 
 from __future__ import annotations
 
+import math
 import re
 from typing import Any
 
@@ -21,6 +22,7 @@ from flight import (
     here,
     landed_states,
     moved,
+    offset_m,
     streaming,
     track,
     within,
@@ -216,3 +218,83 @@ def survey_leg(peer: Peer, target: tuple[float, float]) -> float:
         return distance_m((f.lat_deg, f.lon_deg), target) < SURVEY_TOLERANCE_M
 
     return float(fix_of(peer.wait_for("GLOBAL_POSITION_INT", 120.0, where=there)).t_s - sent_s)
+
+
+LOITER_PARAMS = {
+    "AIRSPEED_CRUISE": 15.0,
+    "AIRSPEED_MIN": 9.0,
+    "AIRSPEED_MAX": 22.0,
+    "WP_LOITER_RAD": 60.0,
+    "NAVL1_PERIOD": 17.0,
+    "NAVL1_DAMPING": 0.75,
+    "ROLL_LIMIT_DEG": 45.0,
+    "TKOFF_ALT": 60.0,
+}
+"""A dry run's Super Cub (ArduPlane's defaults but TKOFF_ALT; SITL's plane.parm differs)."""
+LOITER_ENTRY_TRACK_M = {
+    5.0: (66.9, 27.5),
+    10.0: (31.4, 85.0),
+    15.0: (-38.5, 62.9),
+    20.0: (-68.6, -4.2),
+    25.0: (-27.8, -63.9),
+    30.0: (43.8, -54.0),
+    35.0: (67.6, 14.3),
+}
+"""SITL (4.7.0-dev, two runs within 0.2 m of each other): seconds after LOITER was set,
+flying straight and level north at 15.2 m/s, -> (metres along the course it entered on,
+metres to its right). ArduPlane loiters round the point where LOITER was entered
+(do_loiter_at_location), clockwise for a positive WP_LOITER_RAD: on for 2 s (the L1
+circle's PD terms cancel at the centre), out to 92.7 m at 9 s, settling on a 69-70 m circle
+by 20 s. The simulation before: turning at once, a 69 m circle round the entry point
+reached by 8 s, 60 m ahead of SITL on it at 10 s and 4 s (60 m) ahead from then on."""
+LOITER_TRACK_TOLERANCE_M = 12.0
+LOITER_RADIUS_FLOWN_M = 69.5
+"""SITL's circle for WP_LOITER_RAD 60 at 15.2 m/s (69.1-69.8 m from 20 s on)."""
+
+
+@backends(kinds=("plane",))
+def test_plane_loiter_entered_in_straight_flight_circles_as_arduplane(peer: Peer) -> None:
+    """LOITER from straight and level flight: ArduPlane's L1 loiter, where and when."""
+    peer.wait_ready()
+    params = dict(LOITER_PARAMS)
+    with flight_params(peer, params), streaming(peer):
+        home = peer.wait_for("HOME_POSITION", 5.0, since=0)
+        if peer.wait_for("EXTENDED_SYS_STATE", 2.0).landed_state != 2:
+            assert peer.set_mode("TAKEOFF").result == mavlink2.MAV_RESULT_ACCEPTED
+            assert peer.arm().result == mavlink2.MAV_RESULT_ACCEPTED
+            peer.wait_for("EXTENDED_SYS_STATE", 60.0, where=lambda m: m.landed_state == 2)
+        # Straight and level north, at 60 m, for long enough to settle on the line.
+        far = moved(home.latitude / 1e7, home.longitude / 1e7, 3000.0, 0.0)
+        assert reposition(peer, *far, 60.0).result == mavlink2.MAV_RESULT_ACCEPTED
+        peer.run_for(35.0)
+        mark = peer.mark()
+        ack = peer.set_mode("LOITER")
+        assert ack.result == mavlink2.MAV_RESULT_ACCEPTED
+        entered_s = peer.time_of(ack)
+        peer.run_for(40.0)
+        fixes = track(peer, mark)
+        entry = min(fixes, key=lambda f: abs(f.t_s - entered_s))
+        assert entry.ground_speed_m_s == pytest.approx(15.0, abs=0.7)
+        course = math.atan2(entry.east_m_s, entry.north_m_s)
+        assert abs(math.degrees(course)) < 5.0
+        assert abs(entry.up_m - 60.0) < 3.0
+        for after_s, (along_m, right_m) in LOITER_ENTRY_TRACK_M.items():
+            fix = min(fixes, key=lambda f: abs(f.t_s - entry.t_s - after_s))
+            north_m, east_m = offset_m(entry.lat_deg, entry.lon_deg, fix.lat_deg, fix.lon_deg)
+            at = (
+                north_m * math.cos(course) + east_m * math.sin(course),
+                -north_m * math.sin(course) + east_m * math.cos(course),
+            )
+            off_m = math.dist(at, (along_m, right_m))
+            assert off_m <= LOITER_TRACK_TOLERANCE_M, (after_s, at, (along_m, right_m))
+        settled = [f for f in fixes if f.t_s - entry.t_s >= 20.0]
+        radius, _spread = circle_of_fixes(settled, (entry.lat_deg, entry.lon_deg))
+        assert radius == pytest.approx(LOITER_RADIUS_FLOWN_M, abs=3.0)
+        assert peer.mode_name(peer.heartbeat().custom_mode) == "LOITER"
+        assert peer.set_mode("RTL").result == mavlink2.MAV_RESULT_ACCEPTED
+
+
+def circle_of_fixes(fixes: list[Any], centre: tuple[float, float]) -> tuple[float, float]:
+    """(mean, spread) of the distance of ``fixes`` from ``centre``."""
+    radii = [distance_m((f.lat_deg, f.lon_deg), centre) for f in fixes]
+    return sum(radii) / len(radii), max(radii) - min(radii)
