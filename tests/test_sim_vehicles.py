@@ -1204,6 +1204,21 @@ def test_plane_loiter_radius_is_wp_loiter_rad_as_sitl_flies_it() -> None:
     assert distance(tight.truth(), 0.0, 0.0) == pytest.approx(flown, abs=1.0)
 
 
+def test_plane_loiter_direction_is_wp_loiter_rads_sign() -> None:
+    # ArduPlane: clockwise for a positive WP_LOITER_RAD, counter-clockwise for a negative
+    # one (do_loiter_at_location), at its magnitude.
+    for radius_m, clockwise in ((60.0, True), (-60.0, False)):
+        plane = build(PLANE, (0.0, 0.0, 80.0), mode="GUIDED")
+        assert isinstance(plane, FixedWing)
+        plane.configure({"WP_LOITER_RAD": radius_m})
+        assert plane.set_mode("LOITER")
+        run(plane, 60.0)
+        for state in run(plane, 20.0):
+            turn = state.north_m * state.velocity_east_m_s - state.east_m * state.velocity_north_m_s
+            assert (turn > 0.0) is clockwise
+            assert distance(state, 0.0, 0.0) == pytest.approx(plane.loiter_radius_m, abs=1.5)
+
+
 def test_plane_guided_airspeed_is_airspeed_cruise_and_changes_apply_on_entry() -> None:
     plane = build(PLANE, (0.0, 0.0, 80.0), mode="LOITER")
     plane.configure({})  # ArduPlane's defaults: AIRSPEED_CRUISE 15

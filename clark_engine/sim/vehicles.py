@@ -2028,15 +2028,17 @@ class FixedWing(SimulatedVehicle):
     cannot pay for a climb at minimum speed the climb is cut (the nose drops), so
     the aircraft never flies below ``min_speed_m_s``.
 
-    Automatic modes fly one controller: loiter clockwise around a centre (the
-    guided or auto target, the point where GUIDED, AUTO or LOITER was entered,
-    home for RTL) at WP_LOITER_RAD times :data:`PLANE_LOITER_RADIUS_FACTOR` (RTL:
-    RTL_RADIUS when set), never tighter than ``loiter_radius_factor`` times the
-    tightest turn at the loiter speed (``V^2 / (g tan(max bank))`` or
-    ``V / max turn rate``, whichever is larger), with a vector-field course law that
-    flies straight at a far centre and settles on the circle near it (bending onto it
-    from L1's distance out, ``V NAVL1_PERIOD NAVL1_DAMPING / pi``), turning toward its
-    course as ArduPlane's L1 controller does (:meth:`FixedWing._l1_turn`). So a guided
+    Automatic modes fly one controller, ArduPlane's L1 loiter
+    (:meth:`FixedWing._loiter_roll`): round a centre (the guided or auto target, the
+    point where GUIDED, AUTO or LOITER was entered, home for RTL), clockwise for a
+    positive WP_LOITER_RAD and counter-clockwise for a negative one, asked for a radius
+    of WP_LOITER_RAD (RTL: RTL_RADIUS when set), never tighter than
+    ``loiter_radius_factor`` times the tightest turn at the loiter speed (``V^2 / (g
+    tan(max bank))`` or ``V / max turn rate``, whichever is larger). In these modes the
+    aircraft turns at :data:`PLANE_TURN_EFFICIENCY` of a coordinated turn for its bank,
+    as SITL's plane does, so the circle it flies is a little wider
+    (:attr:`FixedWing.loiter_radius_m`). From afar it flies straight at the centre
+    (L1's capture) and turns onto the circle where the circle's demand takes over. So a guided
     goto flies to the point and then circles it, as ArduPlane's GUIDED does; RTL
     flies home and circles it at RTL_ALTITUDE above home indefinitely (RTL_AUTOLAND
     0). Airspeed: AIRSPEED_CRUISE (or DO_CHANGE_SPEED's) within AIRSPEED_MIN..MAX and

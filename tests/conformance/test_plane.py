@@ -167,8 +167,9 @@ SURVEY_LEGS_S = (26.7, 10.5, 27.5, 5.7)
 """SITL (4.7.0-dev, NAVL1_PERIOD 17, ROLL_LIMIT_DEG 45, 15.1-15.2 m/s airspeed): the
 legs from (0, 0) to each of the next four waypoints (92.8 s with a fifth lane of 22.4 s;
 with plane.parm's NAVL1_PERIOD 15: 26.6, 9.6, 26.6 and 5.7 s). The simulation flew 27.6,
-12.4, 29.0 and 3.4 s before it turned as L1 does (the fourth leg at 0.59x); now 26.6,
-10.0, 26.2 and 5.2 s."""
+12.4, 29.0 and 3.4 s before it turned as L1 does (the fourth leg at 0.59x); 26.6, 10.0,
+26.2 and 5.2 s with a vector field round the centre; now, by ArduPlane's L1 loiter law and
+SITL's turn shortfall, 26.2, 9.8, 27.4 and 6.2 s (69.5 s, 0.99x)."""
 
 
 def reposition(peer: Peer, lat: float, lon: float, up_m: float) -> Any:
