@@ -237,8 +237,13 @@ def _velocity(status: AgentStatus) -> _Velocity | None:
 
 
 def largest_pair_separation_m(envelope: EnvelopeSpec) -> float:
-    """The largest separation the envelope keeps from any peer (mission-wide or a pair's)."""
-    return max(envelope.min_separation_m, *envelope.separation.values(), 0.0)
+    """The largest distance the envelope keeps from any peer on reported positions.
+
+    The largest separation (mission-wide or a pair's), widened by this vehicle's position
+    error and the largest of its peers' (an upper bound of every pair's figure).
+    """
+    errors_m = envelope.position_error_m + max(envelope.peer_position_error_m.values(), default=0.0)
+    return max(envelope.min_separation_m, *envelope.separation.values(), 0.0) + errors_m
 
 
 def largest_separation_m(envelope: EnvelopeSpec) -> float:
@@ -613,7 +618,7 @@ class EnvelopeGuard:
 
     def _separation_text(self, peer: str) -> str:
         env = self.envelope
-        return f"{env.separation_from_m(peer):g} m separation and the {env.margin_m:g} m margin"
+        return f"{_separation_words(env, peer)} and the {env.margin_m:g} m margin"
 
     def _intruded(
         self,
@@ -628,15 +633,18 @@ class EnvelopeGuard:
         A peer's bubble is its separation, the margin and, for a plane, its loiter circle.
         """
         env = self.envelope
-        extra_m = env.margin_m + self._loiter(speed_m_s)
+        extra_m = env.margin_m + self._loiter(speed_m_s) + env.position_error_m
         default_m = env.min_separation_m + extra_m
         pairs = env.separation
+        errors = env.peer_position_error_m
         worst: tuple[PeerFix, float, float] | None = None
         depth = 1e-6
         for peer in peers:
             dn, de, du = north_m - peer.north_m, east_m - peer.east_m, up_m - peer.up_m
             apart2 = dn * dn + de * de + du * du
             need_m = pairs[peer.name] + extra_m if peer.name in pairs else default_m
+            if peer.name in errors:
+                need_m += errors[peer.name]
             if apart2 >= (need_m - depth) ** 2:
                 continue  # the usual case: far outside this bubble
             apart_m = math.sqrt(apart2)
@@ -727,6 +735,19 @@ class EnvelopeGuard:
             episode.last_s,
             episode.count - 1,
         )
+
+
+def _separation_words(envelope: EnvelopeSpec, peer: str) -> str:
+    """What is kept from ``peer`` on reported positions, in words.
+
+    ``5 m separation``, or with position errors ``1 m separation and the 7.4 m of the two
+    vehicles' position errors``.
+    """
+    text = f"{envelope.separation_from_m(peer):g} m separation"
+    errors_m = envelope.position_errors_m(peer)
+    if errors_m > 0:
+        text += f" and the {errors_m:g} m of the two vehicles' position errors"
+    return text
 
 
 @dataclass(frozen=True, slots=True)
@@ -899,7 +920,7 @@ class EnvelopeWatch:
                 if apart2 >= reach2:
                     continue
                 key = f"separation:{peer.name}"
-                need_m = env.separation_from_m(peer.name)
+                need_m = env.reported_separation_from_m(peer.name)
                 limit_m = need_m + (BREACH_CLEAR_M if key in self._active else 0.0)
                 if apart2 < limit_m * limit_m:
                     apart_m = math.sqrt(apart2)
@@ -910,7 +931,7 @@ class EnvelopeWatch:
                     found[key] = (
                         "separation",
                         f"{peer.name} {apart_m:.1f} m away (3-D){where}, inside the "
-                        f"{need_m:g} m separation",
+                        f"{_separation_words(env, peer.name)}",
                         peer.name,
                     )
 
