@@ -13,7 +13,9 @@ the runtime holds the envelope itself, in three pieces, each pure (no clock, no 
   by ``margin_m`` along the straight line from where the vehicle is
   (:meth:`clark_engine.mission.fence.Fence.clamp`), a fixed-wing aircraft's by its
   loiter radius more, since it circles its target; and outside every other
-  vehicle's separation bubble around its latest reported position. With
+  vehicle's separation bubble around its latest reported position (the separation
+  widened by both vehicles' ``position_error_m``, so that it holds on the truth
+  whichever way each GPS is off). With
   ``outside: clamp`` the moved target goes out, as a fixed point (its velocity
   dropped: a moving target's velocity would carry the vehicle back out); with
   ``outside: refuse`` nothing goes out and the vehicle keeps its last target. A
@@ -803,7 +805,8 @@ class EnvelopeWatch:
       guided mode (landing, returning home, the pilot's mode) stops watching it;
     - **endurance**: time armed, summed over the run, over ``endurance_s``;
     - **separation**: another vehicle's fresh report (no older than the mission's
-      heartbeat timeout) within the separation of the vehicle's position, in 3-D,
+      heartbeat timeout) within the separation, widened by both vehicles'
+      ``position_error_m``, of the vehicle's position, in 3-D,
       while the vehicle is armed (two vehicles parked side by side are no danger).
 
     A breach is over when the vehicle is :data:`BREACH_CLEAR_M` back inside the limit;
