@@ -117,47 +117,17 @@ def _fields(spec: object) -> dict[str, object]:
 
 # ------------------------------------------------------------------ validate and dry run
 
-#: Slash B drives to 2.5 m behind Slash A, which holds; the pair keeps 1 m. The dry run's
-#: GPS walks 1.5 m per axis, each vehicle on its own, and barely changes in a minute.
-PARK_BESIDE = """\
-clark: 1
-mission:
-  id: 904
-  name: park-beside-under-gps-error
-  loop_hz: 10
-  heartbeat_timeout_s: 3
-  origin: {lat: 30.6372, lon: -96.4787, alt_amsl_m: 90}
-envelope:
-  separation: [{between: [slash_a, slash_b], min_m: 1}]
-  margin_m: 1%s
-agents:
-  mcs: {id: 1, profile: mcs_laptop, hardware: {radio: {address: "0013A20040A1B201"}},
-        telemetry: {heartbeat: 1}}
-  slash_a:
-    id: 2
-    profile: traxxas_slash
-    hardware: {radio: {address: "0013A20040A1B202"}}
-    telemetry: {heartbeat: 1, agent_status: 2}
-    behavior: {use: hold}
-  slash_b:
-    id: 3
-    profile: traxxas_slash
-    hardware: {radio: {address: "0013A20040A1B203"}}
-    position: [-15, 0]
-    telemetry: {heartbeat: 1, agent_status: 2}
-    behavior:
-      use: follow_agent
-      with: {target: slash_a, offset: {north_m: -2.5}, tolerance_m: 0.5, retarget_hz: 2}
-sim:
-  duration_s: 56
-  seed: 109
-  gps_error: {walk_m: %s, walk_time_constant_s: 3000}
-"""
+PARK_BESIDE = Path(__file__).resolve().parent / "dryrun" / "park_beside.yaml"
+"""Slash B parks 2.5 m behind Slash A's report; 1 m separation; a GPS walk of 1.5 m."""
 
 
 def _park_beside(tmp_path: Path, position_error: str = "", walk: str = "1.5") -> Path:
+    """The mission, with ``envelope.position_error_m`` declared (or not) and the walk set."""
+    text = PARK_BESIDE.read_text(encoding="utf-8")
+    text = text.replace("  margin_m: 1\n", "  margin_m: 1\n" + position_error)
+    text = text.replace("{walk_m: 1.5,", f"{{walk_m: {walk},")
     path = tmp_path / "park_beside.yaml"
-    path.write_text(PARK_BESIDE % (position_error, walk), encoding="utf-8")
+    path.write_text(text, encoding="utf-8")
     return path
 
 
@@ -169,7 +139,7 @@ def _warnings(path: Path) -> list[str]:
 
 def test_validate_warns_when_the_dry_runs_gps_error_is_larger(tmp_path: Path) -> None:
     (warned,) = _warnings(_park_beside(tmp_path))
-    assert warned.startswith(f"{tmp_path / 'park_beside.yaml'}:32:14: warning: sim.gps_error:")
+    assert warned.startswith(f"{tmp_path / 'park_beside.yaml'}:40:14: warning: sim.gps_error:")
     assert "walks 1.5 m on each axis, so a reported position is up to 3.7 m from the truth" in (
         warned
     )
@@ -179,14 +149,14 @@ def test_validate_warns_when_the_dry_runs_gps_error_is_larger(tmp_path: Path) ->
 
 
 def test_validate_takes_a_distributions_largest_walk(tmp_path: Path) -> None:
-    path = _park_beside(tmp_path, "\n  position_error_m: 3.7", "{uniform: [0.5, 2]}")
+    path = _park_beside(tmp_path, "  position_error_m: 3.7\n", "{uniform: [0.5, 2]}")
     (warned,) = _warnings(path)
-    assert ":11:21: warning: envelope.position_error_m:" in warned  # where the figure is
+    assert ":19:21: warning: envelope.position_error_m:" in warned  # where the figure is
     assert "walks up to 2 m on each axis" in warned and "position_error_m: 4.9" in warned
 
 
 def test_validate_is_quiet_when_the_figure_covers_it(tmp_path: Path) -> None:
-    assert _warnings(_park_beside(tmp_path, "\n  position_error_m: 3.7")) == []
+    assert _warnings(_park_beside(tmp_path, "  position_error_m: 3.7\n")) == []
 
 
 def test_the_separation_holds_on_the_truth_under_gps_error(tmp_path: Path) -> None:
@@ -195,7 +165,7 @@ def test_the_separation_holds_on_the_truth_under_gps_error(tmp_path: Path) -> No
     from Slash A, inside the 1 m separation, and the dry run's safety judgement, which
     measures the true tracks, fails the run. With each vehicle's 3.7 m declared the
     runtime keeps B 1 + 1 + 7.4 m from A's report, and the pair keeps its metre."""
-    path = _park_beside(tmp_path, "\n  position_error_m: 3.7")
+    path = _park_beside(tmp_path, "  position_error_m: 3.7\n")
     out, err = io.StringIO(), io.StringIO()
     outcome = run_dry_run(path, seed=None, until_s=None, report=None, speed=None, out=out, err=err)
     assert outcome.safety is not None, err.getvalue()
