@@ -16,6 +16,7 @@ from __future__ import annotations
 import io
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -95,12 +96,10 @@ def test_without_a_figure_the_reports_are_the_truth(tmp_path: Path) -> None:
 
 
 def test_the_station_counts_both_position_errors() -> None:
-    cub = alarm_envelope()
-    f450 = alarm_envelope()
     w = AlarmWatch(
         {
-            "cub": type(cub)(**{**_fields(cub), "position_error_m": 1.0}),
-            "f450": type(f450)(**{**_fields(f450), "position_error_m": 2.0}),
+            "cub": replace(alarm_envelope(), position_error_m=1.0),
+            "f450": replace(alarm_envelope(), position_error_m=2.0),
         },
         stale_after_s=3.0,
     )
@@ -109,10 +108,6 @@ def test_the_station_counts_both_position_errors() -> None:
     assert kinds(w.evaluate(0.0)) == [(NEAR_MISS, ("cub", "f450"), True)]
     (alarm,) = w.active
     assert "inside their 5 m separation and the 3 m of their position errors" in alarm.text
-
-
-def _fields(spec: object) -> dict[str, object]:
-    return {name: getattr(spec, name) for name in type(spec).__dataclass_fields__}  # type: ignore[attr-defined]
 
 
 # ------------------------------------------------------------------ validate and dry run
