@@ -168,3 +168,16 @@ def test_the_separation_holds_on_the_truth_under_gps_error(tmp_path: Path) -> No
     assert pair.limit_m == 1.0 and pair.distance_m is not None  # the truth's
     assert pair.distance_m > 5.0, pair.distance_m
     assert outcome.safety.passed and outcome.exit_code == 0, out.getvalue()
+
+
+def test_validate_names_the_vehicle_whose_own_figure_is_short(tmp_path: Path) -> None:
+    """An RTK figure on one truck, where the dry run gives it a plain GPS's walk."""
+    path = _park_beside(tmp_path, "  position_error_m: 3.7\n")
+    text = path.read_text(encoding="utf-8").replace(
+        "    position: [-15, 0]\n",
+        "    position: [-15, 0]\n    envelope: {position_error_m: 0.05}\n",
+    )
+    path.write_text(text, encoding="utf-8")
+    (warned,) = _warnings(path)
+    assert ": warning: agents.slash_b.envelope.position_error_m:" in warned
+    assert "and slash_b declares a position error of 0.05 m" in warned
