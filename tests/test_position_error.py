@@ -181,3 +181,11 @@ def test_validate_names_the_vehicle_whose_own_figure_is_short(tmp_path: Path) ->
     (warned,) = _warnings(path)
     assert ": warning: agents.slash_b.envelope.position_error_m:" in warned
     assert "and slash_b declares a position error of 0.05 m" in warned
+
+
+def test_validate_is_quiet_for_a_lone_vehicle(tmp_path: Path) -> None:
+    path = _park_beside(tmp_path)
+    text = path.read_text(encoding="utf-8")
+    text = text[: text.index("  slash_b:\n")] + text[text.index("sim:\n") :]
+    path.write_text(text.replace("  separation: [{between: [slash_a, slash_b], min_m: 1}]\n", ""))
+    assert _warnings(path) == []

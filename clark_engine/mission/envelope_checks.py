@@ -466,8 +466,8 @@ def _check_position_error(mission: Mission, vehicles: list[Agent]) -> Iterator[F
     (or, when no vehicle declares one, at ``sim.gps_error``), naming its vehicles.
     """
     raw = mission.sim.get("gps_error")
-    if not isinstance(raw, Mapping):
-        return
+    if not isinstance(raw, Mapping) or len(vehicles) < 2:
+        return  # no error simulated, or no pair to keep apart
     walk = value_range(raw.get("walk_m", 0.0))
     if walk is None or walk[1] <= 0.0:
         return
