@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import io
 import math
-import random
 from pathlib import Path
 from typing import Any
 
@@ -21,15 +20,16 @@ import pytest
 import yaml
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+# The vehicles are built and flown as the point-mass models' own tests build and fly them.
+from test_sim_vehicles import COPTER, CUB, DT_S, ROOT, ROVER, build, goto, run
+
 from clark_engine.mission.compiler import agent_config
-from clark_engine.mission.geo import LocalPoint, Origin, to_global
 from clark_engine.mission.variation import resolve_mission
 from clark_engine.runtime.config import config_from_dict
 from clark_engine.sim.dryrun import run_dry_run
 from clark_engine.sim.engine import build_sitl_vehicle
 from clark_engine.sim.model import Truth, VehicleModel
 from clark_engine.sim.sitl import SitlInstall
-from clark_engine.sim.vehicles import SimulatedVehicle, make_vehicle
 from clark_engine.sim.wind import (
     SITL_WIND_PARAMS,
     WindConfig,
@@ -39,49 +39,10 @@ from clark_engine.sim.wind import (
 )
 from clark_engine.validation import validate_file
 
-ROOT = Path(__file__).resolve().parent.parent
-PROFILES = ROOT / "hardware_profiles"
-ORIGIN = Origin(30.6372, -96.4787, 90.0)
-DT_S = 0.02
-COPTER = ("dji_f450_airframe", "pixhawk_arducopter")
-CUB = ("super_cub_airframe", "pixhawk_arduplane")
-ROVER = ("traxxas_slash_airframe", "pixhawk_ardurover")
-
-
-def profile(kind: str, name: str) -> dict[str, Any]:
-    data = yaml.safe_load((PROFILES / kind / f"{name}.yaml").read_text(encoding="utf-8"))
-    assert isinstance(data, dict)
-    return data
-
-
-def build(pair: tuple[str, str], start: tuple[float, ...], **options: Any) -> SimulatedVehicle:
-    return make_vehicle(
-        profile("airframes", pair[0]),
-        profile("autopilots", pair[1]),
-        None,
-        ORIGIN,
-        start,
-        random.Random(1),
-        **options,
-    )
-
 
 def steady(speed_mps: float, from_deg: float, **more: Any) -> WindField:
     """A wind the same at every height (SIM_WIND_T 1), no turbulence, no gusts."""
     return WindField(WindConfig(speed_mps=speed_mps, from_deg=from_deg, profile="none", **more), 7)
-
-
-def goto(vehicle: VehicleModel, north_m: float, east_m: float, up_m: float) -> bool:
-    lat, lon, alt = to_global(LocalPoint(north_m, east_m, up_m), ORIGIN)
-    return vehicle.goto(lat, lon, alt, None)
-
-
-def run(vehicle: VehicleModel, seconds: float) -> list[Truth]:
-    states = []
-    for _ in range(round(seconds / DT_S)):
-        vehicle.step(DT_S)
-        states.append(vehicle.truth())
-    return states
 
 
 def leg_time_s(vehicle: VehicleModel, north_m: float, up_m: float) -> float:

@@ -9,7 +9,6 @@ failures, which depend on the machines) differ.
 from __future__ import annotations
 
 import math
-import shlex
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,6 +16,7 @@ from typing import Final
 
 from clark_engine.campaign.runs import FIGURE_KINDS, Figure, RunResult
 from clark_engine.campaign.stats import spread, wilson_interval
+from clark_engine.sim.report import equivalent_command
 from clark_engine.sim.report import vary_value_text as value_text
 
 RUN_VERDICT: Final = "every check (the run's verdict)"
@@ -172,20 +172,10 @@ def reproduce_command(
     as ``--vary PATH=VALUE`` (the seed alone would draw them again; written out, the
     command says what the run met, and a value can be changed to see what it does).
     """
-    words = ["clark", "dry-run", mission, "--seed", str(result.seed)]
-    if until_s is not None:
-        words += ["--until", f"{until_s:g}"]
-    for text in faults:
-        words += ["--fault", text]
     drawn = dict(result.drawn)
-    for text in vary:
-        path = text.partition("=")[0].strip()
-        if path not in drawn:
-            words += ["--vary", text]
-    for path, value in drawn.items():
-        words += ["--vary", f"{path}={value_text(value)}"]
-    words += list(sitl)
-    return shlex.join(words)
+    vary_texts = [text for text in vary if text.partition("=")[0].strip() not in drawn]
+    vary_texts += [f"{path}={value_text(value)}" for path, value in drawn.items()]
+    return equivalent_command(mission, result.seed, until_s, faults, None, vary_texts, sitl)
 
 
 @dataclass(frozen=True, slots=True)

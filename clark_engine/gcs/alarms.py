@@ -6,7 +6,8 @@ station's compiled config carries (:attr:`~clark_engine.runtime.config.PeerSpec.
 
 - **breach**: a vehicle's reported position outside its geofence, or above its ceiling;
 - **near miss**: two vehicles closer (3-D, by their reported positions) than the
-  separation they must keep (the larger of the two envelopes' figures for the pair);
+  separation they must keep (the larger of the two envelopes' figures for the pair),
+  widened by both vehicles' ``position_error_m`` (what their reports may be off by);
 - **failsafe**: a vehicle whose heartbeat's condition is ``failsafe``, or whose Vehicle
   Health names a failsafe in force; it ends when neither says so (a terminated vehicle
   has ended its failsafe too).
@@ -102,6 +103,15 @@ def pair_separation_m(a: EnvelopeSpec, b: EnvelopeSpec, name_a: str, name_b: str
     return max(a.separation_from_m(name_b), b.separation_from_m(name_a))
 
 
+def pair_position_errors_m(a: EnvelopeSpec, b: EnvelopeSpec) -> float:
+    """How far two vehicles' reports may together be off: their two position errors.
+
+    Two reports farther apart than the separation and this are two vehicles the
+    separation apart on the truth.
+    """
+    return a.position_error_m + b.position_error_m
+
+
 class AlarmWatch:
     """Every vehicle's reported state against every envelope; alarms raised and cleared.
 
@@ -122,7 +132,7 @@ class AlarmWatch:
         widest = max(
             (max([e.min_separation_m, *e.separation.values()]) for e in self.envelopes.values()),
             default=0.0,
-        )
+        ) + 2.0 * max((e.position_error_m for e in self.envelopes.values()), default=0.0)
         self._cell_m = max(widest + HYSTERESIS_M, 1.0)
         self._cells: dict[tuple[int, int], set[str]] = {}
         self._cell_of: dict[str, tuple[int, int]] = {}
@@ -132,7 +142,8 @@ class AlarmWatch:
         self._moved: set[str] = set()
         self._changed: set[str] = set()
         self._active: dict[tuple[str, ...], Alarm] = {}
-        self._keep: dict[tuple[str, str], float] = {}  # a pair's separation, worked out once
+        # a pair's separation and position errors, worked out once
+        self._keep: dict[tuple[str, str], tuple[float, float]] = {}
         self._cleared: deque[Alarm] = deque(maxlen=MAX_CLEARED_KEPT)
         self._next_id = 1
 
@@ -260,10 +271,16 @@ class AlarmWatch:
         # O(vehicles) per position received: kept to a distance and a comparison unless
         # the pair is, or becomes, a near miss.
         first, second = (a, b) if a < b else (b, a)
-        keep_m = self._keep.get((first, second))
-        if keep_m is None:
-            keep_m = pair_separation_m(self.envelopes[first], self.envelopes[second], first, second)
-            self._keep[(first, second)] = keep_m
+        kept = self._keep.get((first, second))
+        if kept is None:
+            env_a, env_b = self.envelopes[first], self.envelopes[second]
+            kept = (
+                pair_separation_m(env_a, env_b, first, second),
+                pair_position_errors_m(env_a, env_b),
+            )
+            self._keep[(first, second)] = kept
+        separation_m, errors_m = kept
+        keep_m = separation_m + errors_m
         apart_m = math.dist(pa[:3], pb[:3])
         key = (NEAR_MISS, first, second)
         if apart_m >= keep_m and key not in self._active:
@@ -274,8 +291,9 @@ class AlarmWatch:
             apart_m >= keep_m + HYSTERESIS_M,
             -apart_m,
             lambda: (
-                f"{first} and {second} {apart_m:.1f} m apart, inside their {keep_m:g} m "
-                f"separation, near {_where((pa[0] + pb[0]) / 2, (pa[1] + pb[1]) / 2)}"
+                f"{first} and {second} {apart_m:.1f} m apart, inside their {separation_m:g} m "
+                f"separation{_errors_words(errors_m)}, "
+                f"near {_where((pa[0] + pb[0]) / 2, (pa[1] + pb[1]) / 2)}"
             ),
             now_s,
             changes,
@@ -339,6 +357,11 @@ class AlarmWatch:
         return {name for alarm in self._active.values() for name in alarm.agents}
 
 
+def _errors_words(errors_m: float) -> str:
+    """`` and the 7.4 m of their position errors``, or nothing when they have none."""
+    return f" and the {errors_m:g} m of their position errors" if errors_m > 0 else ""
+
+
 def _where(north_m: float, east_m: float) -> str:
     return f"N {north_m:.1f} E {east_m:.1f} m"
 
@@ -376,5 +399,6 @@ __all__ = [
     "AlarmChange",
     "AlarmWatch",
     "failsafe_words",
+    "pair_position_errors_m",
     "pair_separation_m",
 ]

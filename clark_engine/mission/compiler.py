@@ -144,7 +144,7 @@ def _envelope(agent: Agent, mission: Mission) -> dict[str, Any] | None:
     envelope = agent.envelope
     if envelope is None:
         return None
-    return {
+    compiled: dict[str, Any] = {
         "ceiling_m": float(envelope.ceiling_m),
         "floor_m": float(envelope.floor_m),
         "legal_ceiling_m": float(envelope.legal_ceiling_m),
@@ -164,6 +164,20 @@ def _envelope(agent: Agent, mission: Mission) -> dict[str, Any] | None:
         "outside": envelope.outside,
         "endurance_s": float(envelope.endurance_s) if envelope.endurance_s is not None else None,
     }
+    # Written only when not 0, so that a mission that declares no position error compiles
+    # to the config it compiled to before the figure existed, byte for byte.
+    if envelope.position_error_m > 0:
+        compiled["position_error_m"] = float(envelope.position_error_m)
+    peers = {
+        other.name: float(other.envelope.position_error_m)
+        for other in mission.agents.values()
+        if other.name != agent.name
+        and other.envelope is not None
+        and other.envelope.position_error_m > 0
+    }
+    if peers:
+        compiled["peer_position_error_m"] = dict(sorted(peers.items()))
+    return compiled
 
 
 def _peers(agent: Agent, mission: Mission) -> list[dict[str, Any]]:

@@ -34,6 +34,12 @@ MAX_LEGAL_CEILING_M = 500.0
 DEFAULT_MIN_SEPARATION_M = 5.0
 #: Default distance inside the envelope at which the runtime keeps the targets it sends.
 DEFAULT_MARGIN_M = 2.0
+#: Default expected horizontal position error of a vehicle (``position_error_m``): none,
+#: so that a mission that declares none flies as it did before the figure existed; a
+#: mission whose dry run simulates a GPS error is warned to declare one (W-POSITION-ERROR).
+DEFAULT_POSITION_ERROR_M = 0.0
+#: The largest ``position_error_m`` a mission may declare.
+MAX_POSITION_ERROR_M = 100.0
 #: Radius of the default geofence around home for a radio that declares no range (UDP).
 DEFAULT_FENCE_RADIUS_M = 1000.0
 #: What a vehicle does on a breach, and on a near miss.
@@ -114,6 +120,9 @@ class Envelope:
         endurance_s: Time armed allowed; None when nothing declares one.
         sources: Limit name -> where it was set (absent for built-in defaults).
         ceiling_by: What set the ceiling: ``mission``, ``agent``, ``airframe`` or ``legal``.
+        position_error_m: How far the vehicle's reported horizontal position may be from
+            the truth (its own figure, else the mission's, else 0): the runtime keeps
+            this, and each peer's figure, on top of the separation.
     """
 
     ceiling_m: float
@@ -132,6 +141,7 @@ class Envelope:
     endurance_s: float | None
     sources: dict[str, Location] = field(default_factory=dict)
     ceiling_by: str = "legal"
+    position_error_m: float = DEFAULT_POSITION_ERROR_M
 
     def fence(self) -> Fence:
         """The geofence on the local plane (the default circle around home included)."""
@@ -254,6 +264,7 @@ def resolve(
     if "min_separation_m" in mission_decl.values:
         sources["min_separation_m"] = mission_decl.locate("min_separation_m")
     endurance = pick("endurance_s", (airframe or {}).get("endurance_s"))
+    position_error = float(pick("position_error_m", DEFAULT_POSITION_ERROR_M))
     return Envelope(
         ceiling_m=ceiling,
         floor_m=floor,
@@ -273,6 +284,7 @@ def resolve(
         endurance_s=float(endurance) if endurance is not None else None,
         sources=sources,
         ceiling_by=ceiling_by,
+        position_error_m=position_error,
     )
 
 

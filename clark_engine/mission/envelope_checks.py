@@ -30,8 +30,9 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
+from typing import Final
 
 from clark_engine.mission.envelope import Envelope
 from clark_engine.mission.fence import Fence, Zone
@@ -48,6 +49,7 @@ from clark_engine.mission.flow import (
 )
 from clark_engine.mission.geo import LocalPoint
 from clark_engine.mission.model import Agent, Mission, State
+from clark_engine.mission.variation import value_range
 
 #: Primitives that keep a vehicle moving, so armed, while they run (a hold too, for an
 #: aircraft: it hovers or circles).
@@ -442,6 +444,57 @@ def check_mission(mission: Mission) -> Iterator[Finding]:
         plans[agent.name] = _plan(mission, agent, entries)
     yield from _check_duration(mission, vehicles)
     yield from _check_plans(mission, vehicles, plans)
+    yield from _check_position_error(mission, vehicles)
+
+
+WALK_95_FACTOR: Final = math.sqrt(-2.0 * math.log(0.05))
+"""A GPS walk of standard deviation ``walk_m`` on each horizontal axis puts a vehicle's
+horizontal error (a Rayleigh distribution) within this many ``walk_m`` 95 % of the time:
+2.45."""
+
+
+def _check_position_error(mission: Mission, vehicles: list[Agent]) -> Iterator[Finding]:
+    """W-POSITION-ERROR: a dry run whose GPS error is larger than the vehicles declare.
+
+    The runtime keeps each pair's separation plus both vehicles' ``position_error_m`` on
+    the positions they report; the dry run judges the separation on the truth, which the
+    simulated GPS error (``sim.gps_error``) moves. A vehicle whose figure is smaller than
+    the walk's 95 % horizontal error (at the walk's largest draw) may then break its
+    separation in a run while its reports keep it. Glitches are not counted: a jump of
+    ``glitch_m`` is a fault (ArduPilot's EKF rejects it for a while), not a figure to fly
+    every pair that much further apart for. Said once per place where the figure is set
+    (or, when no vehicle declares one, at ``sim.gps_error``), naming its vehicles.
+    """
+    raw = mission.sim.get("gps_error")
+    if not isinstance(raw, Mapping) or len(vehicles) < 2:
+        return  # no error simulated, or no pair to keep apart
+    walk = value_range(raw.get("walk_m", 0.0))
+    if walk is None or walk[1] <= 0.0:
+        return
+    walk_m = walk[1]
+    needed_m = math.ceil(WALK_95_FACTOR * walk_m * 10.0) / 10.0
+    short: dict[Location | None, list[Agent]] = {}
+    for agent in vehicles:
+        assert agent.envelope is not None
+        if agent.envelope.position_error_m < needed_m:
+            short.setdefault(agent.envelope.sources.get("position_error_m"), []).append(agent)
+    gps_where = mission.sim_locations.get("gps_error", Location(mission.file))
+    drawn = "up to " if walk[0] != walk[1] else ""
+    for where, agents in short.items():
+        names = ", ".join(a.name for a in agents)
+        figures = sorted({a.envelope.position_error_m for a in agents if a.envelope is not None})
+        declared = " or ".join(f"{f:g} m" for f in figures)
+        yield warning(
+            "W-POSITION-ERROR",
+            where if where is not None else gps_where,
+            f"the dry run's GPS error (sim.gps_error) walks {drawn}{walk_m:g} m on each axis, "
+            f"so a reported position is up to {needed_m:g} m from the truth 95 % of the time, "
+            f"and {names} declare{'s' if len(agents) == 1 else ''} a position error of {declared} "
+            "(envelope.position_error_m): the runtime keeps the separation on reported "
+            "positions, and the dry run judges it on the true ones, which may come closer; "
+            f"declare envelope.position_error_m: {needed_m:g} (or more)",
+            *((gps_where,) if where is not None else ()),
+        )
 
 
 def _position_location(agent: Agent) -> Location:

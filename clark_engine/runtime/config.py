@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -105,6 +105,9 @@ class EnvelopeSpec:
         outside: clamp or refuse a target outside the envelope.
         endurance_s: Time armed allowed; None when none is declared.
         raw: The envelope as the config holds it.
+        position_error_m: How far this vehicle's reported horizontal position may be
+            from the truth (``envelope.position_error_m``; 0: its reports are the truth).
+        peer_position_error_m: Other vehicle -> the same figure for it, where not 0.
     """
 
     ceiling_m: float
@@ -122,10 +125,29 @@ class EnvelopeSpec:
     outside: str
     endurance_s: float | None
     raw: Mapping[str, Any]
+    position_error_m: float = 0.0
+    peer_position_error_m: Mapping[str, float] = field(default_factory=dict)
 
     def separation_from_m(self, peer: str) -> float:
-        """The smallest distance this vehicle keeps from ``peer``."""
+        """The smallest distance this vehicle keeps from ``peer`` (the truth's)."""
         return float(self.separation.get(peer, self.min_separation_m))
+
+    def position_errors_m(self, peer: str) -> float:
+        """How far the two reported positions may together be off: both vehicles' figures.
+
+        Two reports this much farther apart than the separation are two vehicles at least
+        the separation apart, whichever way each GPS is off (the error is horizontal, so a
+        3-D distance shrinks by at most its length).
+        """
+        return self.position_error_m + float(self.peer_position_error_m.get(peer, 0.0))
+
+    def reported_separation_from_m(self, peer: str) -> float:
+        """The distance kept from ``peer`` on reported positions.
+
+        The separation, widened by both vehicles' position errors so that it holds on the
+        truth.
+        """
+        return self.separation_from_m(peer) + self.position_errors_m(peer)
 
 
 def _zone(data: Mapping[str, Any]) -> Zone:
@@ -159,6 +181,10 @@ def envelope_from_dict(data: Mapping[str, Any]) -> EnvelopeSpec:
         outside=str(data["outside"]),
         endurance_s=float(data["endurance_s"]) if data["endurance_s"] is not None else None,
         raw=data,
+        position_error_m=float(data.get("position_error_m", 0.0)),
+        peer_position_error_m={
+            str(k): float(v) for k, v in data.get("peer_position_error_m", {}).items()
+        },
     )
 
 

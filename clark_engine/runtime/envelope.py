@@ -13,7 +13,9 @@ the runtime holds the envelope itself, in three pieces, each pure (no clock, no 
   by ``margin_m`` along the straight line from where the vehicle is
   (:meth:`clark_engine.mission.fence.Fence.clamp`), a fixed-wing aircraft's by its
   loiter radius more, since it circles its target; and outside every other
-  vehicle's separation bubble around its latest reported position. With
+  vehicle's separation bubble around its latest reported position (the separation
+  widened by both vehicles' ``position_error_m``, so that it holds on the truth
+  whichever way each GPS is off). With
   ``outside: clamp`` the moved target goes out, as a fixed point (its velocity
   dropped: a moving target's velocity would carry the vehicle back out); with
   ``outside: refuse`` nothing goes out and the vehicle keeps its last target. A
@@ -237,8 +239,13 @@ def _velocity(status: AgentStatus) -> _Velocity | None:
 
 
 def largest_pair_separation_m(envelope: EnvelopeSpec) -> float:
-    """The largest separation the envelope keeps from any peer (mission-wide or a pair's)."""
-    return max(envelope.min_separation_m, *envelope.separation.values(), 0.0)
+    """The largest distance the envelope keeps from any peer on reported positions.
+
+    The largest separation (mission-wide or a pair's), widened by this vehicle's position
+    error and the largest of its peers' (an upper bound of every pair's figure).
+    """
+    errors_m = envelope.position_error_m + max(envelope.peer_position_error_m.values(), default=0.0)
+    return max(envelope.min_separation_m, *envelope.separation.values(), 0.0) + errors_m
 
 
 def largest_separation_m(envelope: EnvelopeSpec) -> float:
@@ -613,7 +620,7 @@ class EnvelopeGuard:
 
     def _separation_text(self, peer: str) -> str:
         env = self.envelope
-        return f"{env.separation_from_m(peer):g} m separation and the {env.margin_m:g} m margin"
+        return f"{_separation_words(env, peer)} and the {env.margin_m:g} m margin"
 
     def _intruded(
         self,
@@ -628,15 +635,18 @@ class EnvelopeGuard:
         A peer's bubble is its separation, the margin and, for a plane, its loiter circle.
         """
         env = self.envelope
-        extra_m = env.margin_m + self._loiter(speed_m_s)
+        extra_m = env.margin_m + self._loiter(speed_m_s) + env.position_error_m
         default_m = env.min_separation_m + extra_m
         pairs = env.separation
+        errors = env.peer_position_error_m
         worst: tuple[PeerFix, float, float] | None = None
         depth = 1e-6
         for peer in peers:
             dn, de, du = north_m - peer.north_m, east_m - peer.east_m, up_m - peer.up_m
             apart2 = dn * dn + de * de + du * du
             need_m = pairs[peer.name] + extra_m if peer.name in pairs else default_m
+            if peer.name in errors:
+                need_m += errors[peer.name]
             if apart2 >= (need_m - depth) ** 2:
                 continue  # the usual case: far outside this bubble
             apart_m = math.sqrt(apart2)
@@ -729,6 +739,19 @@ class EnvelopeGuard:
         )
 
 
+def _separation_words(envelope: EnvelopeSpec, peer: str) -> str:
+    """What is kept from ``peer`` on reported positions, in words.
+
+    ``5 m separation``, or with position errors ``1 m separation and the 7.4 m of the two
+    vehicles' position errors``.
+    """
+    text = f"{envelope.separation_from_m(peer):g} m separation"
+    errors_m = envelope.position_errors_m(peer)
+    if errors_m > 0:
+        text += f" and the {errors_m:g} m of the two vehicles' position errors"
+    return text
+
+
 @dataclass(frozen=True, slots=True)
 class Breach:
     """One limit of the envelope the vehicle is outside of.
@@ -782,7 +805,8 @@ class EnvelopeWatch:
       guided mode (landing, returning home, the pilot's mode) stops watching it;
     - **endurance**: time armed, summed over the run, over ``endurance_s``;
     - **separation**: another vehicle's fresh report (no older than the mission's
-      heartbeat timeout) within the separation of the vehicle's position, in 3-D,
+      heartbeat timeout) within the separation, widened by both vehicles'
+      ``position_error_m``, of the vehicle's position, in 3-D,
       while the vehicle is armed (two vehicles parked side by side are no danger).
 
     A breach is over when the vehicle is :data:`BREACH_CLEAR_M` back inside the limit;
@@ -899,7 +923,7 @@ class EnvelopeWatch:
                 if apart2 >= reach2:
                     continue
                 key = f"separation:{peer.name}"
-                need_m = env.separation_from_m(peer.name)
+                need_m = env.reported_separation_from_m(peer.name)
                 limit_m = need_m + (BREACH_CLEAR_M if key in self._active else 0.0)
                 if apart2 < limit_m * limit_m:
                     apart_m = math.sqrt(apart2)
@@ -910,7 +934,7 @@ class EnvelopeWatch:
                     found[key] = (
                         "separation",
                         f"{peer.name} {apart_m:.1f} m away (3-D){where}, inside the "
-                        f"{need_m:g} m separation",
+                        f"{_separation_words(env, peer.name)}",
                         peer.name,
                     )
 

@@ -276,21 +276,39 @@ def vary_value_text(value: float | bool) -> str:
 
 
 def equivalent_command(
-    mission_path: Path,
+    mission_path: Path | str,
     seed: int,
-    until_s: float,
+    until_s: float | None,
     fault_texts: Sequence[str],
     report: Path | None,
     vary_texts: Sequence[str] = (),
+    more: Sequence[str] = (),
 ) -> str:
-    """The ``clark dry-run`` command line that repeats a run made in process."""
-    words = ["clark", "dry-run", str(mission_path), "--seed", str(seed), "--until", f"{until_s:g}"]
+    """The ``clark dry-run`` command line that repeats a run made in process.
+
+    The one place such a line is written: a dry run's own (its report's ``Command
+    line``) and each failing run of a campaign
+    (:func:`clark_engine.campaign.report.reproduce_command`) are both this.
+
+    Args:
+        mission_path: The mission file, as the user named it (written as given).
+        seed: The run's seed.
+        until_s: ``--until``; None leaves it out (the mission's own duration).
+        fault_texts: Each ``--fault``, in order.
+        report: ``--report``; None leaves it out.
+        vary_texts: Each ``--vary PATH=VALUE``, in order.
+        more: Words put last as they are (a campaign's ``--autopilot sitl ...``).
+    """
+    words = ["clark", "dry-run", str(mission_path), "--seed", str(seed)]
+    if until_s is not None:
+        words += ["--until", f"{until_s:g}"]
     for text in fault_texts:
         words += ["--fault", text]
     for text in vary_texts:
         words += ["--vary", text]
     if report is not None:
         words += ["--report", str(report)]
+    words += list(more)
     return shlex.join(words)
 
 

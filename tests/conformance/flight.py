@@ -116,6 +116,21 @@ def goto(peer: Peer, lat: float, lon: float, up_m: float, mask: int = POSITION_M
     )
 
 
+def reposition(peer: Peer, lat: float, lon: float, up_m: float) -> Any:
+    """DO_REPOSITION (COMMAND_INT, above home, into GUIDED); returns the COMMAND_ACK."""
+    peer.send(
+        mavlink2.MAVLink_command_int_message(
+            peer.spec.system_id, 1, mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            mavlink2.MAV_CMD_DO_REPOSITION, 0, 0, -1,
+            mavlink2.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE, 0, 0,
+            round(lat * 1e7), round(lon * 1e7), up_m,
+        )
+    )  # fmt: skip
+    return peer.wait_for(
+        "COMMAND_ACK", 3.0, where=lambda m: m.command == mavlink2.MAV_CMD_DO_REPOSITION
+    )
+
+
 @contextmanager
 def streaming(peer: Peer, streams: Mapping[str, int] = FLIGHT_STREAMS) -> Iterator[Peer]:
     """The peer with ``streams`` at their intervals; the defaults again afterwards."""

@@ -23,6 +23,7 @@ from flight import (
     landed_states,
     moved,
     offset_m,
+    reposition,
     streaming,
     track,
     within,
@@ -170,21 +171,6 @@ with plane.parm's NAVL1_PERIOD 15: 26.6, 9.6, 26.6 and 5.7 s). The simulation fl
 12.4, 29.0 and 3.4 s before it turned as L1 does (the fourth leg at 0.59x); 26.6, 10.0,
 26.2 and 5.2 s with a vector field round the centre; now, by ArduPlane's L1 loiter law and
 SITL's turn shortfall, 26.2, 9.8, 27.4 and 6.2 s (69.5 s, 0.99x)."""
-
-
-def reposition(peer: Peer, lat: float, lon: float, up_m: float) -> Any:
-    """DO_REPOSITION (COMMAND_INT, above home, into GUIDED); returns the COMMAND_ACK."""
-    peer.send(
-        mavlink2.MAVLink_command_int_message(
-            peer.spec.system_id, 1, mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
-            mavlink2.MAV_CMD_DO_REPOSITION, 0, 0, -1,
-            mavlink2.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE, 0, 0,
-            round(lat * 1e7), round(lon * 1e7), up_m,
-        )
-    )  # fmt: skip
-    return peer.wait_for(
-        "COMMAND_ACK", 3.0, where=lambda m: m.command == mavlink2.MAV_CMD_DO_REPOSITION
-    )
 
 
 @backends(kinds=("plane",))

@@ -18,7 +18,6 @@ loiter circle stays over the point it circles while its bank allows.
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import pytest
 from flight import (
@@ -29,6 +28,7 @@ from flight import (
     here,
     moved,
     offset_m,
+    reposition,
     sim_wind,
     streaming,
     takeoff,
@@ -125,21 +125,6 @@ def test_copter_holds_its_point_in_wind_and_is_slower_upwind(copter: Peer) -> No
 PLANE_PARAMS = {"AIRSPEED_CRUISE": 18.0, "WP_LOITER_RAD": 80.0, "TKOFF_ALT": 60.0}
 PLANE_WIND = {"SIM_WIND_SPD": 6.0, "SIM_WIND_DIR": 0.0, "SIM_WIND_T": 1.0, "SIM_WIND_TURB": 0.0}
 PLANE_ALT_M = 60.0
-
-
-def reposition(peer: Peer, lat: float, lon: float, up_m: float) -> Any:
-    """DO_REPOSITION (COMMAND_INT, above home, into GUIDED); returns the COMMAND_ACK."""
-    peer.send(
-        mavlink2.MAVLink_command_int_message(
-            peer.spec.system_id, 1, mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
-            mavlink2.MAV_CMD_DO_REPOSITION, 0, 0, -1,
-            mavlink2.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE, 0, 0,
-            round(lat * 1e7), round(lon * 1e7), up_m,
-        )
-    )  # fmt: skip
-    return peer.wait_for(
-        "COMMAND_ACK", 3.0, where=lambda m: m.command == mavlink2.MAV_CMD_DO_REPOSITION
-    )
 
 
 def speeds(peer: Peer, seconds: float) -> tuple[float, float, float]:

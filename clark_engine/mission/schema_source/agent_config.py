@@ -127,6 +127,21 @@ def _envelope() -> Schema:
                 "x-unit": "s",
                 "description": "Time armed allowed; null when none is declared.",
             },
+            "position_error_m": number(
+                "How far the vehicle's reported horizontal position may be from the truth "
+                "(95 % of the time); absent when 0.",
+                unit="m",
+                minimum=0,
+            ),
+            "peer_position_error_m": {
+                "type": "object",
+                "description": "Other vehicle -> how far its reported horizontal position "
+                "may be from the truth, for the vehicles whose figure is not 0. The runtime "
+                "keeps this vehicle's figure and the other's on top of the pair's "
+                "separation, on the reported positions; absent when every other vehicle's "
+                "figure is 0.",
+                "additionalProperties": {"type": "number", "minimum": 0},
+            },
         },
         required=[
             "ceiling_m",

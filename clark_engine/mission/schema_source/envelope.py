@@ -14,7 +14,9 @@ from clark_engine.mission.envelope import (
     DEFAULT_LEGAL_CEILING_M,
     DEFAULT_MARGIN_M,
     DEFAULT_MIN_SEPARATION_M,
+    DEFAULT_POSITION_ERROR_M,
     MAX_LEGAL_CEILING_M,
+    MAX_POSITION_ERROR_M,
     OUTSIDE_ACTIONS,
 )
 from clark_engine.mission.primitives._shared import AGENT_NAME_SCHEMA, POINT_SCHEMA
@@ -99,6 +101,17 @@ def _shared_keys() -> dict[str, Schema]:
         "on_near_miss": _action(
             "another vehicle coming inside the minimum separation", "hold when omitted"
         ),
+        "position_error_m": number(
+            "How far a vehicle's reported horizontal position may be from where it truly "
+            "is (its GPS's error, 95 % of the time: 1-4 m for a standalone GPS, a few "
+            "centimetres with RTK). The runtime keeps every pair the sum of their two "
+            "figures further apart than their separation, on the positions they report, so "
+            "that the separation holds on the truth. The mission's applies to every vehicle "
+            "that declares none of its own; 0 when omitted (the reports taken as the truth).",
+            unit="m",
+            minimum=0,
+            maximum=MAX_POSITION_ERROR_M,
+        ),
         "outside": string(
             "What the runtime does with a target outside the envelope: clamp it to the "
             "nearest point inside (margin_m in), or refuse it (the vehicle keeps its last "
@@ -115,6 +128,7 @@ def mission_envelope_schema() -> Schema:
     keys["floor_m"]["default"] = 0
     keys["outside"]["default"] = OUTSIDE_ACTIONS[0]
     keys["on_near_miss"]["default"] = "hold"
+    keys["position_error_m"]["default"] = DEFAULT_POSITION_ERROR_M
     return obj(
         "Where every vehicle may fly, held before flight (clark validate), in flight (the "
         "runtime), by the autopilot's own fence and failsafe, and judged in every dry run. "
