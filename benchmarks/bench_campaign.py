@@ -109,6 +109,10 @@ def main() -> None:
             host="127.0.0.1",
             scheduler_port=0,
             dashboard_address=None,
+            # The scheduler's HTTP server (metrics, health) on a free port: by default it
+            # binds Dask's well-known 8787 even without a dashboard, and warns when a
+            # user's own cluster holds it.
+            scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
         ) as cluster:
             up = time.perf_counter() - start
             text = campaign(runs, DaskCluster(cluster.scheduler_address, sitl=False), cores)

@@ -63,6 +63,10 @@ def test_the_table_is_the_same_with_one_or_two_workers_and_through_dask(tmp_path
         host="127.0.0.1",
         scheduler_port=0,
         dashboard_address=None,
+        # The scheduler's HTTP server (metrics, health) on a free port: by default it
+        # binds Dask's well-known 8787 even without a dashboard, and warns when a
+        # user's own cluster holds it.
+        scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
     ) as cluster:
         code_d, out_d, err_d = campaign(
             DRIVE, runs=4, scheduler=cluster.scheduler_address, report=tmp_path / "dask"

@@ -23,6 +23,7 @@ from typing import Any
 
 import aiohttp
 import pytest
+from mission_text import with_sim_keys
 from sitl_here import real_install
 
 from clark_engine.cli import main
@@ -49,11 +50,7 @@ READY_S = 2
 def quick_mission(folder: Path) -> Path:
     """cooperative_follow with its autopilots ready after READY_S seconds."""
     text = MISSION.read_text(encoding="utf-8")
-    # Into its one-line sim mapping, whatever else it holds.
-    quick, count = re.subn(
-        r"^sim: \{(.*)\}$", rf"sim: {{\1, autopilot_ready_s: {READY_S}}}", text, flags=re.M
-    )
-    assert count == 1, "the example keeps its sim: settings on one line"
+    quick = with_sim_keys(text, f"autopilot_ready_s: {READY_S}")
     path = folder / MISSION.name
     path.write_text(quick, encoding="utf-8")
     return path

@@ -10,7 +10,6 @@ it needs.
 from __future__ import annotations
 
 import math
-import re
 import signal
 import socket
 import subprocess
@@ -23,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from mission_text import with_sim_keys
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.cli import main
@@ -90,11 +90,7 @@ def quick_mission(folder: Path) -> Path:
     """The cooperative-follow example with autopilots ready after :data:`READY_S`."""
     path = folder / MISSION.name
     text = MISSION.read_text(encoding="utf-8")
-    # Into its one-line sim mapping, whatever else it holds.
-    quick, count = re.subn(
-        r"^sim: \{(.*)\}$", rf"sim: {{\1, autopilot_ready_s: {READY_S}}}", text, flags=re.M
-    )
-    assert count == 1, "the example keeps its sim: settings on one line"
+    quick = with_sim_keys(text, f"autopilot_ready_s: {READY_S}")
     path.write_text(quick, encoding="utf-8")
     return path
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import re
 from pathlib import Path
 
 import pytest
@@ -34,11 +35,13 @@ VARIED_SIM = (
 
 
 def _mission(tmp_path: Path, sim_text: str = VARIED_SIM) -> Path:
-    """cooperative_follow with its ``sim:`` line replaced (its includes resolve beside it)."""
+    """cooperative_follow with its ``sim:`` mapping (one line or a block) replaced by
+    ``sim_text`` (its includes resolve beside it)."""
     text = FOLLOW.read_text()
-    line = next(x for x in text.splitlines() if x.startswith("sim:"))
+    block = re.search(r"^sim:.*\n(?:[ \t]+.*\n)*", text, flags=re.M)
+    assert block is not None, "the example has a sim: mapping"
     path = FOLLOW.parent / f"_test_variation_{tmp_path.name}.yaml"
-    path.write_text(text.replace(line + "\n", sim_text))
+    path.write_text(text[: block.start()] + sim_text + text[block.end() :])
     return path
 
 
@@ -86,7 +89,8 @@ def test_a_chance_injects_the_fault_in_about_that_share_of_runs() -> None:
 
 
 def test_a_mission_without_variation_is_flown_as_it_is() -> None:
-    mission = validate_file(FOLLOW, str(FOLLOW)).mission
+    plain = ROOT / "missions" / "single_vehicle_mode_change.yaml"
+    mission = validate_file(plain, str(plain)).mission
     assert mission is not None
     same, drawn = resolve_mission(mission, seed=5)
     assert same is mission and drawn == {}

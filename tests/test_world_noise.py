@@ -11,12 +11,12 @@ from __future__ import annotations
 import dataclasses
 import math
 import random
-import re
 import statistics
 from pathlib import Path
 from typing import Any
 
 import pytest
+from mission_text import with_sim_keys
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.mission.compiler import agent_config
@@ -51,14 +51,9 @@ def load(path: Path) -> Mission:
 
 
 def with_sim(tmp_path: Path, name: str, extra: str) -> Path:
-    """Mission ``name`` with ``extra`` added inside its one-line ``sim: {...}`` mapping."""
-    text = (MISSIONS / f"{name}.yaml").read_text()
-    changed, n = re.subn(
-        r"^sim: \{(.*)\}$", lambda m: f"sim: {{{m[1]}, {extra}}}", text, flags=re.M
-    )
-    assert n == 1, "the mission has a one-line sim mapping"
+    """Mission ``name`` with ``extra`` added to its ``sim:`` mapping."""
     path = tmp_path / f"{name}.yaml"
-    path.write_text(changed)
+    path.write_text(with_sim_keys((MISSIONS / f"{name}.yaml").read_text(), extra))
     return path
 
 

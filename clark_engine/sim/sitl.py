@@ -95,8 +95,10 @@ ENV_SITL_INSTANCES: Final = "CLARK_SITL_INSTANCES"
 """The instance numbers this user's runs may take, ``FIRST-LAST`` (``--sitl-instances``):
 on a lab machine shared by several people or CI jobs, each keeps to its own range."""
 
-MAX_INSTANCE: Final = 5000
-"""The highest instance number: its ports (up to 9005 + 10 * I) must stay below 65536."""
+MAX_INSTANCE: Final = 255
+"""The highest instance number ArduPilot takes: SITL keeps ``-I`` in a ``uint8_t``
+(``SITL_State::_instance``), so instance 300 listens on instance 44's ports (5760 + 440)
+while the engine connects to 8760: the range is refused rather than wrapped."""
 
 
 def parse_instances(text: str, how: str = "--sitl-instances") -> range:
@@ -115,7 +117,8 @@ def parse_instances(text: str, how: str = "--sitl-instances") -> range:
     if not (0 <= low <= high <= MAX_INSTANCE) or len(text) > 32:
         raise SitlError(
             f"{how} {text[:32]!r}: give the SITL instance numbers to use as FIRST-LAST, "
-            f"each 0..{MAX_INSTANCE}, FIRST not above LAST (e.g. 20-39: ports 5960-6153)"
+            f"each 0..{MAX_INSTANCE} (ArduPilot's limit), FIRST not above LAST "
+            "(e.g. 20-39: ports 5960-6153)"
         )
     return range(low, high + 1)
 

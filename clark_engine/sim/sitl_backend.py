@@ -113,6 +113,14 @@ _SYSTEM, _COMPONENT = 255, 26
 _M_PER_DEG_LAT: Final = math.radians(1.0) * EARTH_RADIUS_M
 
 
+def _same_float32(reported: float, wanted: float) -> bool:
+    """True when ``reported`` is ``wanted`` as PARAM_VALUE's float32 carries it.
+
+    A float32 keeps about 7 significant digits.
+    """
+    return math.isclose(reported, wanted, rel_tol=1e-6, abs_tol=1e-6)
+
+
 class SitlBackend(VehicleBackend):
     """One vehicle's autopilot and physics as a real ArduPilot SITL process.
 
@@ -460,7 +468,12 @@ class SitlBackend(VehicleBackend):
         elif kind == "SERVO_OUTPUT_RAW":
             self._servos = tuple(int(getattr(msg, f"servo{i}_raw")) for i in range(1, 17))
         elif kind == "PARAM_VALUE":
-            self._params_due.pop(str(msg.param_id), None)
+            name = str(msg.param_id)
+            due = self._params_due.get(name)
+            # Echoed only with the value set: an answer with the old value (a request of
+            # ours answered before SITL took the set) is not an echo, and set again.
+            if due is not None and _same_float32(float(msg.param_value), due):
+                del self._params_due[name]
 
     def _truth_from(self, msg: Any) -> Truth:
         return self._truth_at(
