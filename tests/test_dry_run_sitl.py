@@ -245,7 +245,9 @@ def test_the_engine_keeps_sitls_pace_through_a_sweep() -> None:
     assert intervals, "the sweep never started (the rover was not ready and armed in time)"
     sweep_from_s, sweep_to_s = intervals[0]
     late_s, at_s = max((lag, t) for t, lag in behind if sweep_from_s <= t <= sweep_to_s + 1.0)
-    # Waiting for each report cost at least 0.15 s per tick: 15 s over this 10 s sweep.
-    assert late_s < 1.0, f"the engine fell {late_s:.2f} s behind SITL at {at_s:.1f} s"
+    # Waiting for each report cost at least 0.15 s per tick: 15 s or more over this 10 s
+    # sweep (91.9 s on this machine under load). On time it is a few physics steps; a
+    # busy machine adds a second or so (measured), whatever the fix.
+    assert late_s < 5.0, f"the engine fell {late_s:.2f} s behind SITL at {at_s:.1f} s"
     results = evaluate(mission.checks, result.recording, result.configs, mission.origin)
     assert all(r.passed for r in results), [(r.name, r.observed) for r in results]
