@@ -117,11 +117,6 @@ at most this late."""
 GPS_ERROR_STEP_M: Final = 0.05
 """A change of the GPS error smaller than this is not sent (it would only load the link)."""
 
-SHOWN_WITHIN_S: Final = 0.1
-"""The longest (SITL's clock) a tick waits for the previous tick's RC override or servo
-output to show in SITL's reports (:meth:`SitlBackend.wait_shown`): the worst measured
-(100 ms), and no longer than a tick at 10 Hz, so that waiting never puts a run on time
-behind."""
 REPORT_KINDS: Final[Mapping[str, str]] = {
     "rc_override": "RC_CHANNELS",
     "servo": "SERVO_OUTPUT_RAW",
@@ -235,6 +230,7 @@ class SitlBackend(VehicleBackend):
         self._rc: tuple[int, ...] = ()
         self._servos: tuple[int, ...] = ()
         self._later: list[LaterReport] = []  # asked for and not yet reported, in order
+        self._shows: dict[tuple[str, int], bool] = {}  # SITL showed the last value asked for
         self._sent_clock_s: float | None = None
         self._pilot_us = [0] * 16
         self.pace = Pace()
@@ -408,28 +404,40 @@ class SitlBackend(VehicleBackend):
             want_us: What the engine asked for on it and still holds (its RC override, the
                 last DO_SET_SERVO), None when it asks for nothing there.
         """
+        if self._sock is not None and self._own is not None:
+            while self._read(0.0):  # SITL's clock now, not when the engine last read it
+                pass
         report = LaterReport(REPORT_KINDS[via], number - 1, self.clock_s or 0.0, want_us)
         self._later.append(report)
         return report
 
     def wait_shown(self) -> None:
-        """Before a tick: let SITL show what the last one asked for (:data:`SHOWN_WITHIN_S`).
+        """Before a tick: let SITL show what the last tick asked for, if it has not yet.
 
-        A run on time finds it shown already (40 ms after the command at the median).
-        A run late by more than a tick would send two ticks' commands at once, and
-        ArduPilot takes only the second: the first would never reach the autopilot's
-        inputs, and the check comparing every pulse width would fail for the engine's
-        lateness rather than the mission's. This short wait spaces them as the ticks were.
+        A run on time finds it shown already (40 ms after the command at the median,
+        100 ms at worst, against a tick of 100 ms at 10 Hz). A run late by more than a
+        tick would send two ticks' commands at once, and ArduPilot takes only the second:
+        the first would never reach the autopilot's inputs, and the check comparing every
+        pulse width would fail for the engine's lateness rather than the mission's. So the
+        tick waits until the value shows, :data:`REPORT_AFTER_S` at most, and not at all on
+        a channel where SITL's last report did not show what was asked (an override
+        ArduPilot refuses: waiting would only put the run behind, as it did before).
         """
         if not self._later:
             return
         last_s = self._later[-1].after_s
-        until_s = last_s + SHOWN_WITHIN_S
-        while (self._clock_s or 0.0) < until_s and any(
-            r.want_us is not None and r.after_s >= last_s for r in self._later
-        ):
+        waiting = [
+            r
+            for r in self._later
+            if r.want_us is not None
+            and r.after_s >= last_s
+            and self._shows.get((r.kind, r.index), True)
+        ]
+        until_s = last_s + REPORT_AFTER_S
+        while waiting and (self._clock_s or 0.0) < until_s:
             self._duties()
             self._read(0.01)
+            waiting = [r for r in waiting if r.pwm_us is None]
 
     def settle_reports(self) -> None:
         """Read SITL until every :meth:`report_later` is resolved (the run's end).
@@ -590,7 +598,14 @@ class SitlBackend(VehicleBackend):
         if not self._later or not isinstance(boot_ms, int):
             return
         boot_s = boot_ms / 1000.0
-        self._later = [r for r in self._later if not (r.kind == kind and r.take(boot_s, values))]
+        pending = []
+        for r in self._later:
+            if r.kind == kind and r.take(boot_s, values):
+                if r.want_us is not None:
+                    self._shows[(kind, r.index)] = r.pwm_us == r.want_us
+            else:
+                pending.append(r)
+        self._later = pending
 
     def _truth_from(self, msg: Any) -> Truth:
         return self._truth_at(
