@@ -222,7 +222,9 @@ def test_the_engine_keeps_sitls_pace_through_a_sweep() -> None:
     path = ROOT / "tests" / "dryrun" / "rover_sweep_pace.yaml"
     mission = validate_file(path, str(path)).mission
     assert mission is not None
-    run = DryRun(mission, path, seed=1, until_s=60.0, sitl=REAL, sitl_speedup=float(SPEEDUP))
+    # At 5x: at 10x on a loaded 2-core machine the engine's own work can be more than a
+    # tick's share of the wall clock (docs/performance.md), and this test is not about that.
+    run = DryRun(mission, path, seed=1, until_s=60.0, sitl=REAL, sitl_speedup=5.0)
     backend = run.agents["slash"].backend
     assert backend is not None
     behind: list[tuple[float, float]] = []  # (run's time, how far SITL's clock is past it)
@@ -246,8 +248,8 @@ def test_the_engine_keeps_sitls_pace_through_a_sweep() -> None:
     sweep_from_s, sweep_to_s = intervals[0]
     late_s, at_s = max((lag, t) for t, lag in behind if sweep_from_s <= t <= sweep_to_s + 1.0)
     # Waiting for each report cost at least 0.15 s per tick: 15 s or more over this 10 s
-    # sweep (91.9 s on this machine under load). On time it is a few physics steps; a
-    # busy machine adds a second or so (measured), whatever the fix.
+    # sweep (91.9 s at 10x and 16.7 s at 5x on this machine, loaded). On time it is a
+    # few physics steps; a busy machine adds a second or so (measured), whatever the fix.
     assert late_s < 5.0, f"the engine fell {late_s:.2f} s behind SITL at {at_s:.1f} s"
     results = evaluate(mission.checks, result.recording, result.configs, mission.origin)
     assert all(r.passed for r in results), [(r.name, r.observed) for r in results]

@@ -1,7 +1,8 @@
 """How a SITL run keeps SITL's pace (issue 19), without SITL: the rules on SITL's messages.
 
 The run on real SITL: test_the_engine_keeps_sitls_pace_through_a_sweep in
-tests/test_dry_run_sitl.py. Here the backend is given ArduPilot's own messages, encoded by pymavlink, as SITL sends them.
+tests/test_dry_run_sitl.py. Here the backend is given ArduPilot's own messages, encoded by
+pymavlink, as SITL sends them.
 """
 
 from __future__ import annotations
