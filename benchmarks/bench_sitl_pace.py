@@ -2,7 +2,7 @@
 
 SITL runs on its own clock and cannot be paused; the engine must keep up with it, or it
 hears SITL late and its heartbeats and commands reach SITL late (issue 19: during
-supercub_sysid's sine sweep the run fell 30-290 s behind, and ArduPlane's ground-station
+supercub_sysid's sine sweep the run fell 56-289 s behind, and ArduPlane's ground-station
 failsafe flew RTL in such runs). For each mission and speed-up, one ``clark dry-run
 --autopilot sitl`` in this process; printed per SITL vehicle: the most SITL's clock was
 past the run's time (and when), the longest silence of the engine's link to the

@@ -213,7 +213,7 @@ def test_the_engine_keeps_sitls_pace_through_a_sweep() -> None:
 
     During a doublet or a sweep the run read each tick's RC inputs from a report SITL made
     0.25 s (its clock) after the tick's commands, waiting for it: 0.15 s further behind
-    SITL at every tick of 0.1 s, 30-290 s behind after supercub_sysid's 38 s of
+    SITL at every tick of 0.1 s, 56-289 s behind after supercub_sysid's 38 s of
     excitation. The reports are now taken as they stream and matched to the ticks after
     them: the engine keeps SITL's clock (it is never ahead of it, and should not be more
     than a few physics steps behind), and every pulse width is still compared.

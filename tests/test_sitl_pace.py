@@ -97,3 +97,11 @@ def test_the_report_says_whether_the_engine_kept_the_pace() -> None:
     assert kept.startswith("slash: the engine kept ArduPilot SITL's pace (0.2 s behind")
     assert late.startswith("warning: cub: the engine fell 31.0 s behind ArduPilot SITL's clock")
     assert "(at 58.4 s of the run)" in late and late.endswith("lower --sitl-speedup")
+
+
+def test_the_runs_end_takes_sitls_last_report_for_what_it_never_reported() -> None:
+    sitl = backend()
+    feed(sitl, pressure(5.0), rc(5.0, 1520))
+    report = sitl.report_later("rc_override", 1, 1600)
+    sitl.settle_reports()  # SITL gone: nothing more will come
+    assert report.pwm_us == 1520 and not sitl._later

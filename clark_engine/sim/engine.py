@@ -1157,8 +1157,8 @@ class DryRun:
 
         ArduPlane shows an RC override in its RC_CHANNELS 40-100 ms after it was sent, and
         SITL cannot be paused: the run used to wait for a report after every tick of a
-        doublet or sweep, fell 0.15 s further behind SITL at each (30-290 s behind after
-        supercub_sysid's excitation), and ArduPlane's GCS failsafe took the aircraft. The
+        doublet or sweep, fell 0.15 s further behind SITL at each (56-289 s behind after
+        supercub_sysid's excitation), and ArduPlane's GCS failsafe flew RTL in such runs. The
         reports are matched to the ticks as they stream in instead
         (:meth:`~clark_engine.sim.sitl_backend.SitlBackend.report_later`), at every tick
         as in a simulated run, and recorded in order once known (:meth:`_take_reports`).

@@ -442,12 +442,20 @@ class SitlBackend(VehicleBackend):
     def settle_reports(self) -> None:
         """Read SITL until every :meth:`report_later` is resolved (the run's end).
 
-        Each is resolved at the latest by a report :data:`REPORT_AFTER_S` after its tick,
-        a fraction of a wall second; SITL silent for :data:`STALL_WALL_S` raises.
+        Each is resolved by a report :data:`REPORT_AFTER_S` after its tick at the latest,
+        a fraction of a wall second. Should SITL stop sending that report, those still
+        open a second of its clock later take its last one, so that the run ends.
         """
-        while self._later and self._sock is not None:
+        if not self._later:
+            return
+        until_s = self._later[-1].after_s + REPORT_AFTER_S + 1.0
+        while self._later and self._sock is not None and (self._clock_s or 0.0) < until_s:
             self._duties()
             self._read(0.05)
+        for report in self._later:
+            values = self._rc if report.kind == "RC_CHANNELS" else self._servos
+            report.pwm_us = values[report.index] if report.index < len(values) else 0
+        self._later.clear()
 
     def set_pilot(self, pwm_us: Mapping[int, int]) -> None:
         """The pilot's sticks and switches, to SITL's RC input (its radio receiver)."""
