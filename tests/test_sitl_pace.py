@@ -105,3 +105,19 @@ def test_the_runs_end_takes_sitls_last_report_for_what_it_never_reported() -> No
     report = sitl.report_later("rc_override", 1, 1600)
     sitl.settle_reports()  # SITL gone: nothing more will come
     assert report.pwm_us == 1520 and not sitl._later
+
+
+def test_servo_outputs_are_matched_by_their_microsecond_stamp() -> None:
+    """SERVO_OUTPUT_RAW has no time_boot_ms: its time_usec, wrapped every 71.6 minutes."""
+    sitl = backend()
+    wrap_s = 2**32 / 1e6
+    feed(sitl, pressure(wrap_s + 10.0))  # SITL past its first wrap of time_usec
+    report = sitl.report_later("servo", 6, 1234)
+    feed(
+        sitl,
+        mavlink2.MAVLink_servo_output_raw_message(round(9.99e6), 0, *[1100] * 16),
+        mavlink2.MAVLink_servo_output_raw_message(
+            round(10.04e6), 0, *[1500] * 5, 1234, *[1100] * 10
+        ),
+    )
+    assert report.pwm_us == 1234

@@ -23,10 +23,12 @@ so the engine is never ahead of any autopilot. ArduCopter streams nothing with a
 first seconds (it loses stream requests until about 2.5 s, and its heartbeats
 carry no time), so until the first time stamp the clock is the wall time since
 the connection times the speed-up: what SITL sends in those seconds reaches the
-engine when it was sent, and the adapter hears the heartbeats come. Nothing else
-waits for SITL: the RC inputs and servo outputs a tick commanded are matched to SITL's
-reports as they stream in (:meth:`SitlBackend.report_later`), and :attr:`SitlBackend.pace`
-records how far behind SITL the run fell (a machine too busy for the speed-up).
+engine when it was sent, and the adapter hears the heartbeats come. The run must
+not fall behind SITL either: the RC inputs and servo outputs a tick commanded are
+matched to SITL's reports as they stream in (:meth:`SitlBackend.report_later`), a tick
+waiting only for the previous one's value to show when it has not yet
+(:meth:`SitlBackend.wait_shown`), and :attr:`SitlBackend.pace` records how far behind SITL
+the run fell (a machine too busy for the speed-up).
 
 Set-up. Before the run, each SITL autopilot is given the parameters the simulated
 autopilot flies with (the firmware's defaults the simulation uses, and the
@@ -87,8 +89,9 @@ REPORT_AFTER_S: Final = 0.25
 SITL's reports: ArduPlane's RC_CHANNELS showed an RC override 40 ms after it was sent at
 the median and 100 ms at worst (60 overrides at speed-up 10, measured). A tick's value is
 the first report after the tick that shows what the tick asked for, or else the first
-report this long after it (what SITL made of it: the check then fails). Nothing waits for
-it: the reports are matched as they stream in (:class:`LaterReport`)."""
+report this long after it (what SITL made of it: the check then fails). The reports are
+matched as they stream in (:class:`LaterReport`); a tick waits for the previous tick's
+value to show this long at most (:meth:`SitlBackend.wait_shown`)."""
 PARAM_RETRY_WALL_S: Final = 1.0
 """A parameter not echoed is set again this often; one SITL lacks is given up after 5."""
 
@@ -130,7 +133,7 @@ class LaterReport:
 
     SITL runs on while the engine works and cannot be paused: waiting after each tick
     for a report (as the run did) put the engine 0.15 s further behind SITL at every
-    tick of a sweep, until ArduPlane's GCS failsafe took the aircraft. The report is
+    tick of a sweep (ArduPlane's GCS failsafe flew RTL in such runs). The report is
     matched as it streams in instead (:meth:`SitlBackend.report_later`).
     """
 
@@ -160,6 +163,7 @@ class LaterReport:
         return False
 
 
+_USEC_WRAP_S: Final = 2**32 / 1e6
 _SYSTEM, _COMPONENT = 255, 26
 _M_PER_DEG_LAT: Final = math.radians(1.0) * EARTH_RADIUS_M
 
@@ -569,10 +573,15 @@ class SitlBackend(VehicleBackend):
                 0 if v == 65535 else int(v)
                 for v in (getattr(msg, f"chan{i}_raw") for i in range(1, 19))
             )
-            self._match(kind, boot_ms, self._rc)
+            if isinstance(boot_ms, int):
+                self._match(kind, boot_ms / 1000.0, self._rc)
         elif kind == "SERVO_OUTPUT_RAW":
             self._servos = tuple(int(getattr(msg, f"servo{i}_raw")) for i in range(1, 17))
-            self._match(kind, boot_ms, self._servos)
+            # Stamped in microseconds since boot (uint32: it wraps every 71.6 minutes),
+            # not time_boot_ms: unwrapped to the one nearest SITL's clock.
+            usec_s = int(msg.time_usec) / 1e6
+            turns = round(((self._clock_s or 0.0) - usec_s) / _USEC_WRAP_S)
+            self._match(kind, usec_s + turns * _USEC_WRAP_S, self._servos)
         elif kind == "PARAM_VALUE":
             self._params_due.pop(str(msg.param_id), None)
 
@@ -601,11 +610,10 @@ class SitlBackend(VehicleBackend):
         else:  # too slow: count again (the request is repeated meanwhile)
             self._stream_counts[kind] = (clock_s, 1)
 
-    def _match(self, kind: str, boot_ms: Any, values: tuple[int, ...]) -> None:
-        """Resolve the :meth:`report_later` requests this report answers."""
-        if not self._later or not isinstance(boot_ms, int):
+    def _match(self, kind: str, boot_s: float, values: tuple[int, ...]) -> None:
+        """Resolve the :meth:`report_later` requests this report (made at ``boot_s``) answers."""
+        if not self._later:
             return
-        boot_s = boot_ms / 1000.0
         pending = []
         for r in self._later:
             if r.kind == kind and r.take(boot_s, values):
