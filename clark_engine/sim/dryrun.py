@@ -56,6 +56,7 @@ from clark_engine.sim.report import (
     RunOrigin,
     checks_table,
     equivalent_command,
+    pace_lines,
     plot_altitude,
     plot_inputs,
     plot_timeline,
@@ -460,6 +461,8 @@ def _run_live(
         view.finish([*results, *safety.results()], until)
     rate = until / result.wall_s if result.wall_s > 0 else float("inf")
     print(f"simulated {until:g} s in {result.wall_s:.1f} s ({rate:.0f}x real time)", file=err)
+    for line in pace_lines(result.recording.pace):
+        print(f"  {line}", file=err)
     if results:
         out.write(checks_table(results))
     else:

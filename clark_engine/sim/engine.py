@@ -77,7 +77,7 @@ from clark_engine.sim.pilot import SimPilot
 from clark_engine.sim.radio import BurstSettings, LinkStats, Position, RadioMesh
 from clark_engine.sim.recording import FlightEntry, Photo, Recording, StateEntry, Track
 from clark_engine.sim.sitl import Home, SitlInstall, SitlProcess, vehicle_for_firmware
-from clark_engine.sim.sitl_backend import SitlBackend
+from clark_engine.sim.sitl_backend import LaterReport, SitlBackend
 from clark_engine.sim.vehicles import make_vehicle
 from clark_engine.sim.wind import sitl_wind_params, wind_field
 
@@ -154,7 +154,10 @@ class SimAgent:
     autopilot_down: list[Window] = field(default_factory=list)
     signal_keys: list[tuple[str, str, int]] = field(default_factory=list)  # (label, via, number)
     signal_due_s: float | None = None  # the tick whose signals are recorded at the next
-    signal_paths: set[str] = field(default_factory=set)  # its doublet and sweep states
+    # On SITL: (label, tick's time, its report to come), in tick order; and the last
+    # DO_SET_SERVO pulse width asked for per output, what the autopilot should report.
+    signal_later: list[tuple[str, float, LaterReport]] = field(default_factory=list)
+    servo_asked_us: dict[int, int] = field(default_factory=dict)
     failsafe_seen: bool = False
     autopilot_lost_seen: bool = False
 
@@ -739,6 +742,14 @@ class DryRun:
             assert sim_agent.adapter is not None
             self._to_autopilot(sim_agent, sim_agent.adapter.start(0.0), 0.0)
 
+    def _settle_sitl(self) -> None:
+        """At the run's end: the last ticks' signals from SITL's reports, and the pace kept."""
+        for sim_agent in self._vehicles:
+            backend = sim_agent.backend
+            if isinstance(backend, SitlBackend):
+                self._take_reports(sim_agent, settle=True)
+                self.recording.pace[sim_agent.name] = backend.pace
+
     def close(self) -> None:
         """Stop what the run started outside this process (SITL); safe to call twice."""
         for sim_agent in self._vehicles:
@@ -781,7 +792,6 @@ class DryRun:
             for state in machine.walk():
                 if state.primitive not in ("doublet", "sine_sweep"):
                     continue
-                sim_agent.signal_paths.add(state.path)
                 channel = state.params["channel"]
                 via = state.params.get("via", "rc_override")
                 number = channel["rc"] if via == "rc_override" else channel["servo"]
@@ -829,6 +839,8 @@ class DryRun:
                     window += 1
                 self._advance(math.inf, last=True)
                 self._swap()  # the last window's sends, for the links' statistics
+            if self.sitl is not None:
+                self._settle_sitl()
         finally:  # the logs so far are complete rows, even when the run failed
             for sim_agent in self.agents.values():
                 sim_agent.logbook.close()
@@ -1092,8 +1104,12 @@ class DryRun:
             self._route(station, station.runtime.deliver(command, t_s), t_s)
 
     def _tick(self, sim_agent: SimAgent, t_s: float) -> None:
-        self._record_signals(sim_agent)
-        signalling = self._signalling(sim_agent)
+        if self.sitl is None:
+            self._record_signals(sim_agent)
+        elif sim_agent.signal_later:
+            if isinstance(sim_agent.backend, SitlBackend):
+                sim_agent.backend.wait_shown()
+            self._take_reports(sim_agent)
         out = sim_agent.runtime.tick(t_s)
         sim_agent.ticks += 1
         self._route(sim_agent, out, t_s)
@@ -1108,31 +1124,19 @@ class DryRun:
         if runtime.autopilot_lost and not sim_agent.autopilot_lost_seen:
             sim_agent.autopilot_lost_seen = True
             self.recording.safety.setdefault(sim_agent.name, []).append((t_s, "autopilot_lost"))
-        if sim_agent.signal_keys and (
-            self.sitl is None or signalling or self._signalling(sim_agent)
-        ):
-            sim_agent.signal_due_s = t_s
-
-    def _signalling(self, sim_agent: SimAgent) -> bool:
-        """Whether one of the agent's doublet or sweep states is active.
-
-        On SITL the signals are recorded only then (this tick, or the one that enters or
-        leaves such a state): each reading waits for a report SITL made after the
-        tick's commands (:data:`~clark_engine.sim.sitl_backend.REPORT_AFTER_S`), and a
-        run reading at every tick fell 0.15 s further behind SITL at each one.
-        """
-        states = self.recording.states.get(sim_agent.name)
-        if not states or not sim_agent.signal_paths:
-            return False
-        return any(path in sim_agent.signal_paths for path in states[-1].active)
+        if sim_agent.signal_keys:
+            if self.sitl is None:
+                sim_agent.signal_due_s = t_s
+            else:
+                self._report_later(sim_agent, out, t_s)
 
     def _record_signals(self, sim_agent: SimAgent) -> None:
         """What the autopilot received from the previous tick, recorded at that tick's time.
 
-        Read just before the next tick commands anything: a simulated autopilot takes
-        a command at once, but ArduPilot SITL reports it in its next RC_CHANNELS or
-        SERVO_OUTPUT_RAW, so reading right after the tick would see the one before.
-        RC inputs and servo outputs are each read only if a recorded signal is on them.
+        Read just before the next tick commands anything: the simulated autopilot takes
+        a command at once. RC inputs and servo outputs are each read only if a recorded
+        signal is on them. (ArduPilot SITL reports a command later:
+        :meth:`_report_later`.)
         """
         backend, t_s = sim_agent.backend, sim_agent.signal_due_s
         if backend is None or t_s is None:
@@ -1147,6 +1151,43 @@ class DryRun:
                 values = outputs = backend.servo_outputs() if outputs is None else outputs
             pwm = values[number - 1] if number - 1 < len(values) else 0
             self.recording.signals[(sim_agent.name, label)].append((t_s, int(pwm)))
+
+    def _report_later(self, sim_agent: SimAgent, out: Sequence[Command], t_s: float) -> None:
+        """On SITL: what the autopilot receives from this tick, read from a later report.
+
+        ArduPlane shows an RC override in its RC_CHANNELS 40-100 ms after it was sent, and
+        SITL cannot be paused: the run used to wait for a report after every tick of a
+        doublet or sweep, fell 0.15 s further behind SITL at each (56-289 s behind after
+        supercub_sysid's excitation), and ArduPlane's GCS failsafe flew RTL in such runs. The
+        reports are matched to the ticks as they stream in instead
+        (:meth:`~clark_engine.sim.sitl_backend.SitlBackend.report_later`), at every tick
+        as in a simulated run, and recorded in order once known (:meth:`_take_reports`).
+        """
+        backend = sim_agent.backend
+        if not isinstance(backend, SitlBackend):
+            return
+        for command in out:
+            if isinstance(command, SetServo):
+                sim_agent.servo_asked_us[command.servo] = command.pwm_us
+        adapter = sim_agent.adapter
+        overrides = adapter.active_overrides if adapter is not None else {}
+        for label, via, number in sim_agent.signal_keys:
+            asked = overrides if via == "rc_override" else sim_agent.servo_asked_us
+            want = asked.get(number)
+            sim_agent.signal_later.append((label, t_s, backend.report_later(via, number, want)))
+
+    def _take_reports(self, sim_agent: SimAgent, *, settle: bool = False) -> None:
+        """Record the ticks' reports SITL has made, in tick order; all of them when ``settle``."""
+        later = sim_agent.signal_later
+        if settle and later and isinstance(sim_agent.backend, SitlBackend):
+            sim_agent.backend.settle_reports()
+        done = 0
+        for label, t_s, report in later:
+            if report.pwm_us is None:
+                break
+            self.recording.signals[(sim_agent.name, label)].append((t_s, report.pwm_us))
+            done += 1
+        del later[:done]
 
     def _route(self, sim_agent: SimAgent, commands: Sequence[Command], t_s: float) -> None:
         for command in commands:

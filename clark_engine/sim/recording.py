@@ -228,6 +228,27 @@ class Photo:
 
 
 @dataclass(slots=True)
+class Pace:
+    """How well the engine kept ArduPilot SITL's pace over a run (SITL's clock, seconds).
+
+    SITL cannot be paused: an engine that falls behind it hears what SITL said late, and
+    its commands and heartbeats reach SITL late and far apart (ArduPlane's ground-station
+    failsafe flew RTL in a run that fell behind during a sweep). Set by
+    :class:`~clark_engine.sim.sitl_backend.SitlBackend`.
+    """
+
+    behind_s: float = 0.0
+    """The most SITL's clock was past the run's time when the run got there."""
+    behind_at_s: float = 0.0
+    """The run's time when it was."""
+    silent_s: float = 0.0
+    """The longest the engine's link to the autopilot went without a byte from the engine
+    (heartbeats, RC overrides, commands): what ArduPilot's ground-station failsafe counts."""
+    silent_at_s: float = 0.0
+    """The run's time at the end of that silence."""
+
+
+@dataclass(slots=True)
 class Recording:
     """Everything a dry run observed.
 
@@ -243,6 +264,8 @@ class Recording:
             (or its mission computer died), for an agent whose behaviour never started;
             absent for one whose behaviour started.
         killed: Agent name -> when a fault killed its mission computer.
+        pace: Vehicle name -> how well the engine kept its ArduPilot SITL's pace
+            (``--autopilot sitl`` only).
         end_s: Simulated time at which the run ended.
     """
 
@@ -254,6 +277,7 @@ class Recording:
     flight: dict[str, list[FlightEntry]] = field(default_factory=dict)
     waiting: dict[str, tuple[str, ...]] = field(default_factory=dict)
     killed: dict[str, float] = field(default_factory=dict)
+    pace: dict[str, Pace] = field(default_factory=dict)
     end_s: float = 0.0
 
     def entered_by(self, agent: str, path: str, by_s: float) -> float | None:

@@ -42,7 +42,7 @@ from clark_engine.errors import UsageError
 from clark_engine.mission.compiler import foreign_files, swap_in, write_marker
 from clark_engine.runtime.config import AgentConfig
 from clark_engine.sim.checks import CheckResult
-from clark_engine.sim.recording import Recording
+from clark_engine.sim.recording import Pace, Recording
 from clark_engine.sim.safety import PairSafety, SafetyJudgement, count_breaches
 
 #: PNG metadata without the matplotlib version or a date, for reproducible files.
@@ -687,6 +687,38 @@ def timeline_text(recording: Recording) -> str:
     return "\n".join(lines) + "\n"
 
 
+PACE_LATE_S: Final = 2.0
+"""A SITL run whose engine fell further behind SITL's clock than this says so plainly: it
+heard SITL that late, and its commands and heartbeats reached SITL late (two heartbeat
+periods, twenty ticks at 10 Hz; ArduPlane's ground-station failsafe acts after 5 s of
+silence). A busy machine puts a run on time about a second behind now and then."""
+
+
+def pace_lines(pace: Mapping[str, Pace]) -> list[str]:
+    """One line per SITL vehicle: how far behind SITL's clock the engine fell.
+
+    For the run's output and its summary: a run that could not keep SITL's pace is not
+    the mission's flight on ArduPilot, and must not pass for one.
+    """
+    lines = []
+    for name, kept in pace.items():
+        silence = f"its link to the autopilot silent {kept.silent_s:.1f} s at most"
+        if kept.behind_s > PACE_LATE_S:
+            lines.append(
+                f"warning: {name}: the engine fell {kept.behind_s:.1f} s behind ArduPilot "
+                f"SITL's clock (at {kept.behind_at_s:.1f} s of the run), too busy for this "
+                f"speed-up: it heard SITL late and its commands and heartbeats reached it late "
+                f"({silence}; ArduPilot's ground-station failsafe acts after its timeout), so "
+                "this is not the mission's flight on ArduPilot; lower --sitl-speedup"
+            )
+        else:
+            lines.append(
+                f"{name}: the engine kept ArduPilot SITL's pace ({kept.behind_s:.1f} s behind "
+                f"its clock at most; {silence})"
+            )
+    return lines
+
+
 def safety_section(safety: SafetyJudgement) -> list[str]:
     """``summary.md``'s Safety section: what was judged, each breach, the two tables."""
     breaches = safety.breaches
@@ -781,6 +813,8 @@ def write_summary(
                 "check's verdict and figures in both runs "
                 '(docs/autopilot-fidelity.md, "The same mission both ways").',
                 "",
+                *[f"- {line}" for line in pace_lines(recording.pace)],
+                *([""] if recording.pace else []),
                 comparison,
             ]
             if comparison is not None

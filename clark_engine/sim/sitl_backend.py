@@ -23,7 +23,12 @@ so the engine is never ahead of any autopilot. ArduCopter streams nothing with a
 first seconds (it loses stream requests until about 2.5 s, and its heartbeats
 carry no time), so until the first time stamp the clock is the wall time since
 the connection times the speed-up: what SITL sends in those seconds reaches the
-engine when it was sent, and the adapter hears the heartbeats come.
+engine when it was sent, and the adapter hears the heartbeats come. The run must
+not fall behind SITL either: the RC inputs and servo outputs a tick commanded are
+matched to SITL's reports as they stream in (:meth:`SitlBackend.report_later`), a tick
+waiting only for the previous one's value to show when it has not yet
+(:meth:`SitlBackend.wait_shown`), and :attr:`SitlBackend.pace` records how far behind SITL
+the run fell (a machine too busy for the speed-up).
 
 Set-up. Before the run, each SITL autopilot is given the parameters the simulated
 autopilot flies with (the firmware's defaults the simulation uses, and the
@@ -45,6 +50,7 @@ import select
 import socket
 import time
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any, Final
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -53,6 +59,7 @@ from clark_engine.mission.geo import EARTH_RADIUS_M, Origin
 from clark_engine.sim.backend import VehicleBackend
 from clark_engine.sim.gps_error import GpsError
 from clark_engine.sim.model import Truth
+from clark_engine.sim.recording import Pace
 from clark_engine.sim.sitl import SitlError, SitlProcess
 
 CLOCK_MESSAGE: Final = "SCALED_PRESSURE"
@@ -72,15 +79,19 @@ OWN_STREAMS: Final[Mapping[str, int]] = {
 REQUEST_RETRY_WALL_S: Final = 0.3
 """Stream requests are repeated this often (wall clock) until the stream arrives:
 ArduPilot acknowledges and loses those sent before it is ready (measured)."""
+STREAM_CHECK_S: Final = 0.5
+"""A stream asked for is counted over this much of SITL's clock before it is taken as
+arriving at its interval (at least half its messages must have come)."""
 STALL_WALL_S: Final = 60.0
 """Wall seconds without a byte from SITL after which the run gives up on it."""
 REPORT_AFTER_S: Final = 0.25
-"""RC inputs and servo outputs are read from a report SITL made at least this long (its
-clock) after the engine's last bytes were sent: ArduPlane's RC_CHANNELS showed an RC
-override 40 ms after it was sent at the median and 100 ms at worst (60 overrides at
-speed-up 10, measured), so the report shows what those bytes did even when the engine
-sent them in a hurry. The engine waits for it, and no command leaves meanwhile, so
-waiting longer costs only a fixed lag behind SITL."""
+"""How long (SITL's clock) after a tick an RC input or servo output it commanded must show in
+SITL's reports: ArduPlane's RC_CHANNELS showed an RC override 40 ms after it was sent at
+the median and 100 ms at worst (60 overrides at speed-up 10, measured). A tick's value is
+the first report after the tick that shows what the tick asked for, or else the first
+report this long after it (what SITL made of it: the check then fails). The reports are
+matched as they stream in (:class:`LaterReport`); a tick waits for the previous tick's
+value to show this long at most (:meth:`SitlBackend.wait_shown`)."""
 PARAM_RETRY_WALL_S: Final = 1.0
 """A parameter not echoed is set again this often; one SITL lacks is given up after 5."""
 
@@ -109,6 +120,50 @@ at most this late."""
 GPS_ERROR_STEP_M: Final = 0.05
 """A change of the GPS error smaller than this is not sent (it would only load the link)."""
 
+REPORT_KINDS: Final[Mapping[str, str]] = {
+    "rc_override": "RC_CHANNELS",
+    "servo": "SERVO_OUTPUT_RAW",
+}
+"""A signal's ``via`` -> the report that shows what the autopilot made of it."""
+
+
+@dataclass(slots=True)
+class LaterReport:
+    """One tick's RC input or servo output, read from a report SITL makes after the tick.
+
+    SITL runs on while the engine works and cannot be paused: waiting after each tick
+    for a report (as the run did) put the engine 0.15 s further behind SITL at every
+    tick of a sweep (ArduPlane's GCS failsafe flew RTL in such runs). The report is
+    matched as it streams in instead (:meth:`SitlBackend.report_later`).
+    """
+
+    kind: str
+    """RC_CHANNELS or SERVO_OUTPUT_RAW."""
+    index: int
+    """The channel or output, from 0."""
+    after_s: float
+    """SITL's clock when the tick's commands had been sent: only a later report counts."""
+    want_us: int | None
+    """What the tick asked for (an RC override or a DO_SET_SERVO still in force); None: nothing."""
+    pwm_us: int | None = None
+    """What SITL reported; None until it did."""
+
+    def take(self, boot_s: float, values: tuple[int, ...]) -> bool:
+        """Consider one report made at ``boot_s`` (SITL's clock); True once resolved.
+
+        The first report after the tick showing the value asked for, within
+        :data:`REPORT_AFTER_S`; or else the first report that long after the tick.
+        """
+        if boot_s <= self.after_s:
+            return False
+        value = values[self.index] if self.index < len(values) else 0
+        if value == self.want_us or boot_s >= self.after_s + REPORT_AFTER_S:
+            self.pwm_us = value
+            return True
+        return False
+
+
+_USEC_WRAP_S: Final = 2**32 / 1e6
 _SYSTEM, _COMPONENT = 255, 26
 _M_PER_DEG_LAT: Final = math.radians(1.0) * EARTH_RADIUS_M
 
@@ -174,7 +229,8 @@ class SitlBackend(VehicleBackend):
         self._connected_wall: float | None = None
         self._offset_s = 0.0
         self._streams_wanted = dict(OWN_STREAMS)
-        self._streams_seen: set[str] = set()
+        self._streams_seen: set[str] = set()  # arriving at their interval (at least half)
+        self._stream_counts: dict[str, tuple[float, int]] = {}  # since (clock), messages
         self._next_request_wall = 0.0
         self._last_byte_wall = time.monotonic()
         self._latest: dict[str, Any] = {}
@@ -185,9 +241,12 @@ class SitlBackend(VehicleBackend):
         )  # fmt: skip
         self._rc: tuple[int, ...] = ()
         self._servos: tuple[int, ...] = ()
-        self._reported_s = {"RC_CHANNELS": -math.inf, "SERVO_OUTPUT_RAW": -math.inf}
+        self._later: list[LaterReport] = []  # asked for and not yet reported, in order
+        self._shows: dict[tuple[str, int], bool] = {}  # SITL showed the last value asked for
         self._sent_clock_s: float | None = None
         self._pilot_us = [0] * 16
+        self.pace = Pace()
+        """How far behind SITL the run fell, and the engine link's longest silence."""
 
     # -- the interface ----------------------------------------------------------------------
 
@@ -244,6 +303,7 @@ class SitlBackend(VehicleBackend):
                 pass
         self._inbox.clear()
         self._offset_s = self.clock_s or 0.0
+        self._sent_clock_s = None  # the engine's link is silent until the run starts
 
     def step(self, t_s: float, dt_s: float) -> bytes:
         """Wait until SITL has passed the run's time ``t_s``; what it sent since the last step.
@@ -259,12 +319,17 @@ class SitlBackend(VehicleBackend):
             self._next_gps_s = t_s + GPS_ERROR_EVERY_S
             self._send_gps_error(t_s)
         want_s = t_s + self._offset_s
+        # What SITL sent while the engine worked: how far past the run's time it is now.
+        while self._read(0.0):
+            pass
+        if self._clock_s is not None and self._clock_s - want_s > self.pace.behind_s:
+            self.pace.behind_s, self.pace.behind_at_s = self._clock_s - want_s, t_s
         while (clock_s := self.clock_s) is None or clock_s < want_s:
             self._duties()
             wait_wall_s = 0.05 if clock_s is None else (want_s - clock_s) / self.process.speedup
             self._read(min(0.05, max(0.001, wait_wall_s)))
         # A SITL ahead of the run (the engine waited for a slower one) has sent more:
-        # take it, so the RC inputs and servo outputs read next are SITL's latest.
+        # take it, so that the engine hears SITL's latest.
         while self._read(0.0):
             pass
         data, self._inbox = bytes(self._inbox), bytearray()
@@ -294,7 +359,11 @@ class SitlBackend(VehicleBackend):
     def send(self, data: bytes, t_s: float) -> None:
         """Bytes to SITL (the engine's adapter, or the simulated pilot)."""
         if data and self._sock is not None:
-            self._sent_clock_s = self._clock_s
+            now_s = self._clock_s
+            last_s = self._sent_clock_s
+            if now_s is not None and last_s is not None and now_s - last_s > self.pace.silent_s:
+                self.pace.silent_s, self.pace.silent_at_s = now_s - last_s, t_s
+            self._sent_clock_s = now_s
             self._sock.setblocking(True)
             try:
                 self._sock.sendall(data)
@@ -328,28 +397,77 @@ class SitlBackend(VehicleBackend):
         return armed, self._mode_names.get(number, f"mode {number}")
 
     def rc_inputs(self) -> tuple[int, ...]:
-        """RC_CHANNELS as SITL reported them after the engine's last bytes reached it."""
-        self._await_report("RC_CHANNELS")
+        """SITL's latest RC_CHANNELS (it does not wait: a tick's are :meth:`report_later`'s)."""
         return self._rc
 
     def servo_outputs(self) -> tuple[int, ...]:
-        """SERVO_OUTPUT_RAW as SITL reported them after the engine's last bytes reached it."""
-        self._await_report("SERVO_OUTPUT_RAW")
+        """SITL's latest SERVO_OUTPUT_RAW (it does not wait, as :meth:`rc_inputs`)."""
         return self._servos
 
-    def _await_report(self, kind: str) -> None:
-        """Read until SITL's latest ``kind`` is from :data:`REPORT_AFTER_S` after the last send.
+    def report_later(self, via: str, number: int, want_us: int | None) -> LaterReport:
+        """This tick's RC input or servo output, as SITL will report it: call after the tick.
 
-        SITL runs on while the engine works, and the engine may send two ticks' commands
-        a moment apart (catching up with a SITL ahead of it): the report read then must
-        be one SITL made after the last command, not the one before it.
+        Returned at once and resolved (its ``pwm_us`` set) as SITL's reports arrive, while
+        the run goes on (:meth:`step`), or at the end by :meth:`settle_reports`.
+
+        Args:
+            via: ``rc_override`` (RC_CHANNELS) or ``servo`` (SERVO_OUTPUT_RAW).
+            number: The RC channel or servo output, from 1.
+            want_us: What the engine asked for on it and still holds (its RC override, the
+                last DO_SET_SERVO), None when it asks for nothing there.
         """
-        if self._sent_clock_s is None:
+        if self._sock is not None and self._own is not None:
+            while self._read(0.0):  # SITL's clock now, not when the engine last read it
+                pass
+        report = LaterReport(REPORT_KINDS[via], number - 1, self.clock_s or 0.0, want_us)
+        self._later.append(report)
+        return report
+
+    def wait_shown(self) -> None:
+        """Before a tick: let SITL show what the last tick asked for, if it has not yet.
+
+        A run on time finds it shown already (40 ms after the command at the median,
+        100 ms at worst, against a tick of 100 ms at 10 Hz). A run late by more than a
+        tick would send two ticks' commands at once, and ArduPilot takes only the second:
+        the first would never reach the autopilot's inputs, and the check comparing every
+        pulse width would fail for the engine's lateness rather than the mission's. So the
+        tick waits until the value shows, :data:`REPORT_AFTER_S` at most, and not at all on
+        a channel where SITL's last report did not show what was asked (an override
+        ArduPilot refuses: waiting would only put the run behind, as it did before).
+        """
+        if not self._later:
             return
-        due_s = self._sent_clock_s + REPORT_AFTER_S
-        while self._reported_s[kind] < due_s:
+        last_s = self._later[-1].after_s
+        waiting = [
+            r
+            for r in self._later
+            if r.want_us is not None
+            and r.after_s >= last_s
+            and self._shows.get((r.kind, r.index), True)
+        ]
+        until_s = last_s + REPORT_AFTER_S
+        while waiting and (self._clock_s or 0.0) < until_s:
+            self._duties()
+            self._read(0.01)
+            waiting = [r for r in waiting if r.pwm_us is None]
+
+    def settle_reports(self) -> None:
+        """Read SITL until every :meth:`report_later` is resolved (the run's end).
+
+        Each is resolved by a report :data:`REPORT_AFTER_S` after its tick at the latest,
+        a fraction of a wall second. Should SITL stop sending that report, those still
+        open a second of its clock later take its last one, so that the run ends.
+        """
+        if not self._later:
+            return
+        until_s = self._later[-1].after_s + REPORT_AFTER_S + 1.0
+        while self._later and self._sock is not None and (self._clock_s or 0.0) < until_s:
             self._duties()
             self._read(0.05)
+        for report in self._later:
+            values = self._rc if report.kind == "RC_CHANNELS" else self._servos
+            report.pwm_us = values[report.index] if report.index < len(values) else 0
+        self._later.clear()
 
     def set_pilot(self, pwm_us: Mapping[int, int]) -> None:
         """The pilot's sticks and switches, to SITL's RC input (its radio receiver)."""
@@ -454,10 +572,8 @@ class SitlBackend(VehicleBackend):
             clock_s = boot_ms / 1000.0
             if self._clock_s is None or clock_s > self._clock_s:
                 self._clock_s = clock_s
-        if kind in self._streams_wanted:
-            self._streams_seen.add(kind)
-        if kind in self._reported_s and isinstance(boot_ms, int):
-            self._reported_s[kind] = boot_ms / 1000.0
+        if kind in self._streams_wanted and kind not in self._streams_seen:
+            self._stream_arrived(kind)
         if kind == "SIM_STATE":
             self._truth = self._truth_from(msg)
         elif kind == "RC_CHANNELS":
@@ -465,8 +581,15 @@ class SitlBackend(VehicleBackend):
                 0 if v == 65535 else int(v)
                 for v in (getattr(msg, f"chan{i}_raw") for i in range(1, 19))
             )
+            if isinstance(boot_ms, int):
+                self._match(kind, boot_ms / 1000.0, self._rc)
         elif kind == "SERVO_OUTPUT_RAW":
             self._servos = tuple(int(getattr(msg, f"servo{i}_raw")) for i in range(1, 17))
+            # Stamped in microseconds since boot (uint32: it wraps every 71.6 minutes),
+            # not time_boot_ms: unwrapped to the one nearest SITL's clock.
+            usec_s = int(msg.time_usec) / 1e6
+            turns = round(((self._clock_s or 0.0) - usec_s) / _USEC_WRAP_S)
+            self._match(kind, usec_s + turns * _USEC_WRAP_S, self._servos)
         elif kind == "PARAM_VALUE":
             name = str(msg.param_id)
             due = self._params_due.get(name)
@@ -474,6 +597,44 @@ class SitlBackend(VehicleBackend):
             # ours answered before SITL took the set) is not an echo, and set again.
             if due is not None and _same_float32(float(msg.param_value), due):
                 del self._params_due[name]
+
+    def _stream_arrived(self, kind: str) -> None:
+        """Count a wanted stream's message; it is seen once it comes at its interval.
+
+        Not at its first message: ArduPilot sends some of them at its own default rate
+        (SRn_*, once a second) until it takes the request, and it loses requests made
+        before it is ready. A stream taken as seen at its first message was never asked
+        again, and in one run in three the clock came once a second: the run then
+        advanced in jumps of a second of SITL's time, every tick's commands sent at once.
+        """
+        clock_s = self._clock_s
+        if clock_s is None:
+            return
+        since_s, count = self._stream_counts.get(kind, (clock_s, 0))
+        count += 1
+        span_s = clock_s - since_s
+        if span_s < STREAM_CHECK_S:
+            self._stream_counts[kind] = (since_s, count)
+            return
+        interval_s = self._streams_wanted[kind] / 1e6
+        if count - 1 >= 0.5 * span_s / interval_s:
+            self._streams_seen.add(kind)
+            self._stream_counts.pop(kind, None)
+        else:  # too slow: count again (the request is repeated meanwhile)
+            self._stream_counts[kind] = (clock_s, 1)
+
+    def _match(self, kind: str, boot_s: float, values: tuple[int, ...]) -> None:
+        """Resolve the :meth:`report_later` requests this report (made at ``boot_s``) answers."""
+        if not self._later:
+            return
+        pending = []
+        for r in self._later:
+            if r.kind == kind and r.take(boot_s, values):
+                if r.want_us is not None:
+                    self._shows[(kind, r.index)] = r.pwm_us == r.want_us
+            else:
+                pending.append(r)
+        self._later = pending
 
     def _truth_from(self, msg: Any) -> Truth:
         return self._truth_at(

@@ -1,0 +1,91 @@
+"""Does the engine keep ArduPilot SITL's pace? How far behind SITL's clock a SITL run falls.
+
+SITL runs on its own clock and cannot be paused; the engine must keep up with it, or it
+hears SITL late and its heartbeats and commands reach SITL late (issue 19: during
+supercub_sysid's sine sweep the run fell 56-289 s behind, and ArduPlane's ground-station
+failsafe flew RTL in such runs). For each mission and speed-up, one ``clark dry-run
+--autopilot sitl`` in this process; printed per SITL vehicle: the most SITL's clock was
+past the run's time (and when), the longest silence of the engine's link to the
+autopilot (SITL's clock), the run's wall time, and the mission's signal and failsafe
+checks on SITL. The machine's load average is printed with each run: the figures depend
+on it.
+
+Needs SITL: ``--sitl PATH`` or ``$CLARK_SITL``.
+
+Run: python benchmarks/bench_sitl_pace.py [--sitl PATH] [--speedup X]... [MISSION...]
+(default: missions/supercub_sysid.yaml at 5 and 10)
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import os
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def main() -> int:
+    from clark_engine.errors import ClarkError
+    from clark_engine.sim.dryrun import run_dry_run
+    from clark_engine.sim.sitl import SitlInstall
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sitl", help="the SITL folder ($CLARK_SITL by default)")
+    parser.add_argument(
+        "--speedup", type=float, action="append", help="SITL's speed-up (repeat it: 5 and 10)"
+    )
+    parser.add_argument("missions", nargs="*", type=Path)
+    args = parser.parse_args()
+    try:
+        install = SitlInstall.find(args.sitl)
+    except ClarkError as exc:
+        print(f"bench_sitl_pace: {exc}", file=sys.stderr)
+        return 2
+    missions = args.missions or [ROOT / "missions" / "supercub_sysid.yaml"]
+    speedups = args.speedup or [5.0, 10.0]
+    print(f"ArduPilot SITL from {install.folder}")
+    print(
+        f"{'mission':<26} {'x':>4} {'vehicle':<8} {'behind s':>8} {'at s':>6} {'silent s':>8} "
+        f"{'wall s':>7} {'load':>5}  checks on SITL"
+    )
+    for path in missions:
+        for speedup in speedups:
+            started = time.perf_counter()
+            outcome = run_dry_run(
+                path,
+                seed=None,
+                until_s=None,
+                report=None,
+                speed=None,
+                sitl=install,
+                sitl_speedup=speedup,
+                out=io.StringIO(),
+                err=io.StringIO(),
+                quiet=True,
+            )
+            total_s = time.perf_counter() - started
+            result = outcome.result
+            if result is None:
+                print(f"{path.stem}: the run failed (exit {outcome.exit_code})", file=sys.stderr)
+                continue
+            checks = "; ".join(
+                f"{r.name}: {'pass' if r.passed else 'FAIL'}"
+                for r in outcome.results[:-1]
+                if "failsafe" in r.name or "shape" in r.name or "law" in r.name
+            )
+            load = os.getloadavg()[0]
+            for name, pace in result.recording.pace.items():
+                print(
+                    f"{path.stem:<26} {speedup:>4g} {name:<8} {pace.behind_s:>8.2f} "
+                    f"{pace.behind_at_s:>6.1f} {pace.silent_s:>8.2f} {result.wall_s:>7.1f} "
+                    f"{load:>5.1f}  {checks}   ({total_s:.0f} s in all)"
+                )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,123 @@
+"""How a SITL run keeps SITL's pace (issue 19), without SITL: the rules on SITL's messages.
+
+The run on real SITL: test_the_engine_keeps_sitls_pace_through_a_sweep in
+tests/test_dry_run_sitl.py. Here the backend is given ArduPilot's own messages, encoded by
+pymavlink, as SITL sends them.
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+from typing import Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from clark_engine.mission.geo import Origin
+from clark_engine.sim.recording import Pace
+from clark_engine.sim.report import pace_lines
+from clark_engine.sim.sitl import Home
+from clark_engine.sim.sitl_backend import REPORT_AFTER_S, LaterReport, SitlBackend
+
+ORIGIN = Origin(30.6372, -96.4787, 90.0)
+
+
+def backend() -> SitlBackend:
+    """A backend not connected to anything: only its handling of SITL's messages is used."""
+    process: Any = SimpleNamespace(home=Home(30.6372, -96.4787, 90.0), speedup=10.0)
+    return SitlBackend(process, origin=ORIGIN, firmware="arduplane")
+
+
+def feed(sitl: SitlBackend, *messages: Any) -> None:
+    """Messages as SITL's SERIAL2 sends them, parsed by the backend's own parser."""
+    sender = mavlink2.MAVLink(None, 1, 1)
+    for msg in messages:
+        for parsed in sitl._parser.parse_buffer(msg.pack(sender)) or []:
+            sitl._note(parsed)
+
+
+def rc(boot_s: float, chan1_us: int) -> Any:
+    return mavlink2.MAVLink_rc_channels_message(
+        round(boot_s * 1000), 16, chan1_us, *[1500] * 17, 255
+    )
+
+
+def pressure(boot_s: float) -> Any:
+    return mavlink2.MAVLink_scaled_pressure_message(round(boot_s * 1000), 1013.0, 0.0, 2000)
+
+
+def test_a_tick_takes_the_first_report_showing_what_it_asked_for() -> None:
+    report = LaterReport("RC_CHANNELS", 0, after_s=10.0, want_us=1650)
+    assert not report.take(9.99, (1650,))  # made before the tick's commands
+    assert not report.take(10.02, (1500,))  # not yet applied
+    assert report.take(10.04, (1650,))
+    assert report.pwm_us == 1650
+
+
+def test_a_value_never_shown_is_what_sitl_reported_after_the_wait() -> None:
+    """An override ArduPilot refused, or overwritten by the next before it was applied."""
+    report = LaterReport("RC_CHANNELS", 0, after_s=10.0, want_us=1650)
+    assert not report.take(10.1, (1500,))
+    assert report.take(10.0 + REPORT_AFTER_S, (1500,))
+    assert report.pwm_us == 1500  # the signal check then fails, as it should
+    nothing_asked = LaterReport("RC_CHANNELS", 0, after_s=10.0, want_us=None)
+    assert not nothing_asked.take(10.2, (1500,))
+    assert nothing_asked.take(10.3, (1490,)) and nothing_asked.pwm_us == 1490
+
+
+def test_reports_resolve_the_ticks_as_they_stream_in() -> None:
+    sitl = backend()
+    feed(sitl, pressure(5.0))
+    first = sitl.report_later("rc_override", 1, 1600)
+    feed(sitl, rc(5.02, 1500), rc(5.04, 1600))
+    assert first.pwm_us == 1600
+    feed(sitl, pressure(5.1))
+    second = sitl.report_later("rc_override", 1, 1700)
+    third = sitl.report_later("servo", 2, None)
+    feed(sitl, rc(5.12, 1700))
+    assert second.pwm_us == 1700 and third.pwm_us is None  # a servo output: another report
+    assert sitl._later == [third]
+
+
+def test_a_stream_at_ardupilots_default_rate_is_asked_for_again() -> None:
+    """ArduPilot sent SCALED_PRESSURE once a second before it took the request for 40 Hz."""
+    sitl = backend()
+    feed(sitl, *(pressure(3.0 + k) for k in range(4)))
+    assert "SCALED_PRESSURE" not in sitl._streams_seen  # so it is requested again
+    feed(sitl, *(pressure(7.0 + k * 0.025) for k in range(25)))
+    assert "SCALED_PRESSURE" in sitl._streams_seen
+
+
+def test_the_report_says_whether_the_engine_kept_the_pace() -> None:
+    kept, late = pace_lines(
+        {
+            "slash": Pace(behind_s=0.2, behind_at_s=3.0, silent_s=1.1, silent_at_s=20.0),
+            "cub": Pace(behind_s=31.0, behind_at_s=58.4, silent_s=1.0, silent_at_s=40.0),
+        }
+    )
+    assert kept.startswith("slash: the engine kept ArduPilot SITL's pace (0.2 s behind")
+    assert late.startswith("warning: cub: the engine fell 31.0 s behind ArduPilot SITL's clock")
+    assert "(at 58.4 s of the run)" in late and late.endswith("lower --sitl-speedup")
+
+
+def test_the_runs_end_takes_sitls_last_report_for_what_it_never_reported() -> None:
+    sitl = backend()
+    feed(sitl, pressure(5.0), rc(5.0, 1520))
+    report = sitl.report_later("rc_override", 1, 1600)
+    sitl.settle_reports()  # SITL gone: nothing more will come
+    assert report.pwm_us == 1520 and not sitl._later
+
+
+def test_servo_outputs_are_matched_by_their_microsecond_stamp() -> None:
+    """SERVO_OUTPUT_RAW has no time_boot_ms: its time_usec, wrapped every 71.6 minutes."""
+    sitl = backend()
+    wrap_s = 2**32 / 1e6
+    feed(sitl, pressure(wrap_s + 10.0))  # SITL past its first wrap of time_usec
+    report = sitl.report_later("servo", 6, 1234)
+    feed(
+        sitl,
+        mavlink2.MAVLink_servo_output_raw_message(round(9.99e6), 0, *[1100] * 16),
+        mavlink2.MAVLink_servo_output_raw_message(
+            round(10.04e6), 0, *[1500] * 5, 1234, *[1100] * 10
+        ),
+    )
+    assert report.pwm_us == 1234
