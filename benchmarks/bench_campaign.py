@@ -1,4 +1,4 @@
-"""Campaign throughput: runs per minute on one core and on all, Dask's overhead, the split.
+"""Campaign throughput: runs per minute on one core and on all, Dask's overhead, one big run.
 
 Prints, for ``missions/cooperative_follow.yaml`` on the simulated autopilot:
 
@@ -6,11 +6,12 @@ Prints, for ``missions/cooperative_follow.yaml`` on the simulated autopilot:
    (the local process pool);
 2. the same campaign through a Dask cluster on this machine (a ``LocalCluster`` of one
    single-threaded worker process per core, on loopback), against the local pool;
-3. whether the dry run's own process split (``clark dry-run --workers 2``,
-   :mod:`clark_engine.sim.parallel`) beats one process for one large run
-   (``benchmarks/fleet.py 50``, 60 s) while the other core is busy with independent
-   runs (a campaign of cooperative_follow in a second process, as a campaign would
-   keep it), and alone.
+3. one large run (``benchmarks/fleet.py 50``) in one process, alone and while another
+   core is busy with independent runs (a campaign of cooperative_follow in a second
+   process, as a campaign would keep it): its real-time factor, from the dry run's own
+   "simulated S s in W s" line (the loop alone, not start-up or the report). The dry
+   run's own process split, which this once compared, was removed (issue 19:
+   docs/performance.md, "The dry run's split removed").
 
 Every figure is a wall time on this machine with whatever else runs on it: the load
 average is printed beside them. Run: python benchmarks/bench_campaign.py [--runs N]
@@ -20,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -68,15 +70,18 @@ def campaign(runs: int, backend: Backend, slots: int) -> str:
     )
 
 
-def fleet_run_s(mission: Path, workers: int, until_s: float) -> float:
-    """Wall seconds of one dry run of the fleet with ``workers`` processes."""
-    start = time.perf_counter()
-    subprocess.run(
+def fleet_run(mission: Path, until_s: float) -> tuple[float, float]:
+    """One dry run of the fleet: (wall seconds of its loop, real-time factor)."""
+    done = subprocess.run(
         [sys.executable, "-m", "clark_engine", "dry-run", str(mission), "--until", f"{until_s:g}",
-         "--workers", str(workers), "-q"],
-        cwd=ROOT, capture_output=True, check=False,
+         "-q"],
+        cwd=ROOT, capture_output=True, text=True, check=False,
     )  # fmt: skip
-    return time.perf_counter() - start
+    found = re.search(r"simulated ([0-9.]+) s in ([0-9.]+) s", done.stderr)
+    if found is None:
+        raise SystemExit(f"the fleet's dry run said nothing of its speed:\n{done.stderr}")
+    simulated_s, wall_s = float(found[1]), float(found[2])
+    return wall_s, simulated_s / wall_s
 
 
 def main() -> None:
@@ -84,10 +89,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=20, help="runs per campaign (20)")
     parser.add_argument("--skip-dask", action="store_true")
-    parser.add_argument("--skip-split", action="store_true")
+    parser.add_argument("--skip-fleet", action="store_true")
     parser.add_argument("--skip-pool", action="store_true")
     parser.add_argument("--fleet-until", type=float, default=20.0, help="fleet run's s (20)")
-    parser.add_argument("--repeat", type=int, default=2, help="fleet runs of each kind (2)")
+    parser.add_argument("--repeat", type=int, default=2, help="fleet runs, alone and busy (2)")
     args = parser.parse_args()
     cores = usable_cores()
     runs = args.runs
@@ -120,7 +125,7 @@ def main() -> None:
             f"  Dask LocalCluster, {cores} workers x 1 thread: {text} (cluster start "
             f"{up:.1f} s, not counted); load {load()}"
         )
-    if args.skip_split:
+    if args.skip_fleet:
         return
     with tempfile.TemporaryDirectory() as folder:
         mission = Path(folder) / "fleet-50.yaml"
@@ -130,11 +135,10 @@ def main() -> None:
         ).stdout  # fmt: skip
         mission.write_text(text)
         until = args.fleet_until
-        print(f"fleet of 50, one {until:g} s run, one process and two alternating:")
+        print(f"fleet of 50 at 10 Hz, one {until:g} s run in one process:")
         for _ in range(args.repeat):
-            for workers in (1, 2):
-                seconds = fleet_run_s(mission, workers, until)
-                print(f"  alone, --workers {workers}: {seconds:.1f} s; load {load()}")
+            seconds, factor = fleet_run(mission, until)
+            print(f"  alone: {seconds:.1f} s, {factor:.1f}x real time; load {load()}")
         busy = subprocess.Popen(
             [sys.executable, "-m", "clark_engine", "campaign", str(FOLLOW), "--runs",
              "100000", "--workers", "1", "-q"],
@@ -143,12 +147,11 @@ def main() -> None:
         try:
             time.sleep(3)
             for _ in range(args.repeat):
-                for workers in (1, 2):
-                    seconds = fleet_run_s(mission, workers, until)
-                    print(
-                        f"  beside a 1-worker campaign, --workers {workers}: {seconds:.1f} s; "
-                        f"load {load()}"
-                    )
+                seconds, factor = fleet_run(mission, until)
+                print(
+                    f"  beside a 1-worker campaign: {seconds:.1f} s, {factor:.1f}x real time; "
+                    f"load {load()}"
+                )
         finally:
             busy.terminate()
             busy.wait()

@@ -47,7 +47,7 @@ with tempfile.TemporaryDirectory() as tmp:
     out = io.StringIO()
     run_dry_run(
         mission, seed=None, until_s=until_s, report=Path(tmp) / "r" if report else None,
-        speed=None, workers=1, out=out, err=io.StringIO(),
+        speed=None, out=out, err=io.StringIO(),
     )
 held["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 held["checks"] = out.getvalue()

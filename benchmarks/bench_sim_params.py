@@ -43,7 +43,7 @@ from pathlib import Path
 from clark_engine.sim.dryrun import run_dry_run
 start = time.process_time()
 run_dry_run(Path(sys.argv[1]), seed=None, until_s=0.1, report=None, speed=None,
-            workers=None, out=io.StringIO(), err=io.StringIO())
+            out=io.StringIO(), err=io.StringIO())
 print(time.process_time() - start)
 """
 

@@ -19,7 +19,7 @@ crossed: twelve near misses in a minute)."""
 XBEE_SPACING_M = 140
 """The grid on an XBee mesh: fifty agents within the radio's mile of the station
 (E-RADIO-RANGE), closer than a safe fleet would fly. Those fleets load the link (its
-budget, the split run's byte-identical logs); their dry runs report near misses."""
+budget, the dry run's reproducibility under faults); their dry runs report near misses."""
 
 #: Aircraft start in flight, handed over by their pilots at this height (``launch.airborne``);
 #: rovers start on the ground.

@@ -16,7 +16,7 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from clark_engine import __version__
 from clark_engine.errors import ClarkError, UsageError
@@ -363,7 +363,6 @@ def cmd_dry_run(args: argparse.Namespace) -> int:
         faults=args.fault or (),
         realtime_base_port=args.mavlink_port if args.realtime and not on_sitl else None,
         realtime_host=args.mavlink_host or DEFAULT_HOST,
-        workers=args.workers,
         sitl=install,
         sitl_speedup=args.sitl_speedup or DEFAULT_SITL_SPEEDUP,
         realtime=args.realtime,
@@ -506,17 +505,29 @@ def _station_view(args: argparse.Namespace) -> LiveViewOpener | None:
     return opener
 
 
-def _workers(text: str) -> int | None:
-    """``auto`` (None) or a number of processes of at least 1; anything else exits 2."""
-    if text == "auto":
-        return None
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be auto or a whole number >= 1, not {text!r}")
-    return value
+#: What ``clark dry-run --workers`` answers since the dry run's own split was removed.
+WORKERS_REMOVED = (
+    "--workers was removed: one dry run no longer splits across processes (beside other "
+    "runs it was never faster; docs/performance.md); to use several cores, fly many runs "
+    "with clark campaign MISSION --runs N --workers N"
+)
+
+
+class _Removed(argparse.Action):
+    """An option that is gone: taking it (with or without a value) is a usage error saying why.
+
+    Kept hidden in the parser so that a user's old command line gets the reason and the
+    way forward (exit 2), not argparse's "unrecognized arguments".
+    """
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: str | Sequence[Any] | None,
+        option_string: str | None = None,
+    ) -> None:
+        parser.error(str(self.const))
 
 
 def _positive(text: str, refusal: str) -> float:
@@ -729,12 +740,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="pace the run at X times real time, X > 0 (as fast as possible by default)",
     )
     p.add_argument(
-        "--workers",
-        type=_workers,
-        default=None,
-        metavar="N",
-        help="split the agents across N processes (same results, faster on several cores); "
-        "auto (the default) splits missions of 12 agents or more over the usable cores on Linux",
+        "--workers", nargs="?", action=_Removed, const=WORKERS_REMOVED, help=argparse.SUPPRESS
     )
     p.add_argument(
         "--fault",

@@ -16,6 +16,8 @@ import pytest
 
 from clark_engine.errors import UsageError
 from clark_engine.sim.dryrun import parse_fault, run_dry_run
+from clark_engine.sim.engine import DryRun
+from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent
 MISSIONS = sorted((ROOT / "missions").glob("*.yaml"))
@@ -73,6 +75,67 @@ def test_same_seed_gives_byte_identical_logs(tmp_path: Path) -> None:
     for name in a:
         assert a[name] == b[name], name
     assert report_files(other) != a, "the seed changes the noise"
+
+
+#: One fault of every kind the dry run injects, in a seven-agent fleet (below).
+EVERY_FAULT = [
+    {"kill": {"agent": "v003", "at_s": 6.0}},
+    {"link_drop": {"between": ["v002", "v005"], "from_s": 2.0, "to_s": 8.0}},
+    {"corrupt": {"share": 0.3, "from_s": 1.0, "to_s": 12.0}},
+    {"station_silent": {"from_s": 9.0, "to_s": 12.0}},
+    {"autopilot_disconnect": {"agent": "v004", "from_s": 3.0, "to_s": 7.0}},
+]
+
+
+def xbee_fleet(tmp_path: Path) -> Path:
+    """Seven agents of benchmarks/fleet.py on one XBee mesh (aircraft handed over in flight)."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        from fleet import fleet_mission
+    finally:
+        sys.path.pop(0)
+    path = tmp_path / "fleet.yaml"
+    path.write_text(fleet_mission(7, radio="xbee"))
+    return path
+
+
+def test_every_fault_kind_is_reproduced_byte_for_byte(tmp_path: Path) -> None:
+    """The same seed and faults give the same logs, recording and link counts.
+
+    Each kind of fault changes what crosses the radio (a dead radio, a dropped link,
+    flipped bytes, a silent station, an autopilot out of reach): none of it may depend
+    on anything but the seed. (The removed process split's tests checked this across
+    processes.)
+    """
+    path = xbee_fleet(tmp_path)
+    validation = validate_file(path, str(path))
+    assert validation.mission is not None, [f.format_text() for f in validation.findings]
+    runs = []
+    for name in ("a", "b"):
+        (tmp_path / name).mkdir()
+        run = DryRun(
+            validation.mission,
+            path,
+            seed=11,
+            until_s=14.0,
+            log_dir=tmp_path / name,
+            extra_faults=EVERY_FAULT,
+        )
+        runs.append(run.run())
+    first, again = runs
+    files = [
+        {str(p.relative_to(d)): p.read_bytes() for p in sorted(d.rglob("*")) if p.is_file()}
+        for d in (tmp_path / "a", tmp_path / "b")
+    ]
+    assert files[0] and files[0] == files[1]
+    assert first.recording == again.recording
+    assert first.radio.links() == again.radio.links()
+    assert first.ticks == again.ticks
+    # Not vacuous: the faults acted on packets.
+    totals = first.radio.totals()
+    assert totals.delivered > 100
+    assert totals.corrupted > 0 and totals.lost_fault > 0
+    assert first.recording.killed == {"v003": 6.0}
 
 
 def test_report_has_summary_plots_and_logs(tmp_path: Path) -> None:
@@ -273,3 +336,26 @@ def test_cli_applies_a_station_loss() -> None:
     assert result.returncode == 1
     failsafe_row = next(line for line in result.stdout.splitlines() if "| no failsafe" in line)
     assert "slash_b failsafe hold" in failsafe_row and "**FAIL**" in failsafe_row
+
+
+@pytest.mark.parametrize("given", [["--workers", "2"], ["--workers=auto"], ["--workers"]])
+def test_workers_is_refused_with_the_reason_and_where_to_go(
+    given: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The dry run's own process split is gone (issue 19): one line says so, exit 2.
+
+    It points to what uses several cores now: a campaign's runs, one per core.
+    """
+    from clark_engine import cli as clark
+
+    with pytest.raises(SystemExit) as exit_info:
+        clark.main(["dry-run", str(FOLLOW), "--until", "1", *given])
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 2, err
+    message = err.strip().splitlines()[-1]
+    assert message.startswith("clark dry-run: error: --workers was removed"), err
+    assert "clark campaign" in message and "--workers" in message
+    assert "Traceback" not in err
+    with pytest.raises(SystemExit):
+        clark.main(["dry-run", "--help"])
+    assert "--workers" not in capsys.readouterr().out  # not offered any more

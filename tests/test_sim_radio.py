@@ -93,9 +93,9 @@ def test_time_never_goes_back() -> None:
 
 
 def test_a_late_send_is_fine_when_it_cannot_arrive_in_the_past() -> None:
-    """A split run hands sends over after its window: allowed while the lookahead holds."""
+    """Only an arrival in the past is refused: the least time to arrive is latency plus framing."""
     radio = mesh(latency_s=0.005)
-    lookahead_s = radio.lookahead_s
+    lookahead_s = radio.latency_s + radio.air_time_s("a", 0)
     assert lookahead_s == pytest.approx(0.005 + 18 * 8 / 33000)
     radio.deliveries_until(1.0)
     radio.send("a", b"", "b", 1.0 - lookahead_s + 1e-9)  # arrives at 1.0 at the earliest
@@ -104,31 +104,6 @@ def test_a_late_send_is_fine_when_it_cannot_arrive_in_the_past() -> None:
     late.deliveries_until(1.0)
     with pytest.raises(ValueError, match="would arrive"):
         late.send("a", b"", "b", 1.0 - lookahead_s - 1e-6)
-
-
-def test_copies_keeping_their_own_receivers_add_up_to_the_whole_mesh() -> None:
-    """What a split run relies on: every copy takes every send, keeps its receivers' packets."""
-    names = ("a", "b", "c", "d")
-    whole = mesh(names, seed=5, loss_rate=0.3)
-    left, right = mesh(names, seed=5, loss_rate=0.3), mesh(names, seed=5, loss_rate=0.3)
-    left.keep_receivers(("a", "b"))
-    right.keep_receivers(("c", "d"))
-    rng = random.Random(9)
-    for step in range(200):
-        sender = rng.choice(names)
-        destination = rng.choice(["", *[n for n in names if n != sender]])
-        packet = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 40)))
-        for copy in (whole, left, right):
-            copy.send(sender, packet, destination, step * 0.1)
-    everything = whole.deliveries_until(math.inf)
-    halves = left.deliveries_until(math.inf) + right.deliveries_until(math.inf)
-    assert sorted(halves) == everything
-    assert {d.receiver for d in left.deliveries_until(math.inf)} <= {"a", "b"}
-    merged = mesh(names)
-    merged.adopt_links({k: v for k, v in left.links().items() if k[1] in ("a", "b")})
-    merged.adopt_links({k: v for k, v in right.links().items() if k[1] in ("c", "d")})
-    assert merged.links() == whole.links()
-    assert left.queue_stats() == whole.queue_stats()
 
 
 # -- serialisation ------------------------------------------------------------

@@ -23,7 +23,6 @@ from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.geo import EARTH_RADIUS_M
 from clark_engine.mission.model import Mission
 from clark_engine.runtime.config import config_from_dict
-from clark_engine.sim import parallel
 from clark_engine.sim.backend import SimulatedBackend
 from clark_engine.sim.engine import (
     DryRun,
@@ -34,7 +33,6 @@ from clark_engine.sim.engine import (
 )
 from clark_engine.sim.firmware import FIRMWARES
 from clark_engine.sim.gps_error import WALK_STEP_S, GpsError, GpsErrorSettings
-from clark_engine.sim.parallel import run_split
 from clark_engine.sim.radio import BurstChain, BurstSettings, RadioMesh
 from clark_engine.sim.sitl import SitlInstall
 from clark_engine.validation import validate_file
@@ -282,33 +280,6 @@ def test_bursts_keep_the_mesh_draws_and_are_seeded_per_link() -> None:
     assert deliveries(1, bursty) == deliveries(1, bursty)
     assert deliveries(1, bursty) != deliveries(2, bursty)
     assert set(map(id, deliveries(1, bursty))) and len(deliveries(1, bursty)) < len(plain)
-
-
-@pytest.mark.skipif(not parallel.can_split(), reason="no fork on this platform")
-def test_a_split_run_with_bursts_is_byte_identical(tmp_path: Path) -> None:
-    path = with_sim(
-        tmp_path,
-        "cooperative_follow",
-        "radio_bursts: {good_s: 4, bad_s: 1.5, loss_good: 0.05}, jitter: {operator_s: 3}",
-    )
-    mission = load(path)
-    one = run(path, 45.0, tmp_path / "one")
-    (tmp_path / "split").mkdir()
-    split = run_split(
-        mission,
-        path,
-        workers=2,
-        seed=1,
-        until_s=45.0,
-        log_dir=tmp_path / "split",
-        extra_faults=(),
-        progress=None,
-    )
-    assert split.workers == 2
-    assert files(tmp_path / "split") == files(tmp_path / "one")
-    assert split.recording == one.recording
-    assert split.radio.links() == one.radio.links()
-    assert sum(s.lost_burst for s in one.radio.links().values()) > 0
 
 
 # -- jitter ------------------------------------------------------------------------------------

@@ -328,7 +328,6 @@ def fly_here(spec: RunSpec) -> RunResult:
                 report=report,
                 speed=None,
                 faults=spec.faults,
-                workers=1,
                 sitl=install,
                 sitl_speedup=spec.sitl.speedup if spec.sitl is not None else 10.0,
                 out=out,

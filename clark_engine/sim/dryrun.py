@@ -42,7 +42,6 @@ from clark_engine.mission.variation import (
 )
 from clark_engine.sim.checks import CheckResult, evaluate
 from clark_engine.sim.engine import DryRun, DryRunResult
-from clark_engine.sim.parallel import choose_workers, run_split
 from clark_engine.sim.realtime import (
     DEFAULT_HOST,
     MavlinkBridge,
@@ -200,7 +199,6 @@ def run_dry_run(
     faults: Sequence[str] = (),
     realtime_base_port: int | None = None,
     realtime_host: str = DEFAULT_HOST,
-    workers: int | None = None,
     sitl: SitlInstall | None = None,
     sitl_speedup: float = DEFAULT_SITL_SPEEDUP,
     realtime: bool = False,
@@ -229,9 +227,6 @@ def run_dry_run(
             BASE + k (:mod:`clark_engine.sim.realtime`); Ctrl-C ends the run early
             and the report is still written. Off when None.
         realtime_host: The address those ports are bound to (loopback by default).
-        workers: Split the agents across this many processes (:mod:`clark_engine.sim.parallel`:
-            the same results, sooner); automatic when None. Paced, real-time and SITL
-            runs stay in one process.
         sitl: Fly every vehicle's autopilot as ArduPilot SITL from this install, and
             compare the states with a simulated run's; the simulated autopilot when None.
         sitl_speedup: SITL's speed-up (``speed`` does not apply: SITL sets the pace).
@@ -307,7 +302,7 @@ def run_dry_run(
     try:
         return _run_and_report(
             mission, mission_path, seed, until, folder, speed, extra, realtime_base_port,
-            realtime_host, workers, sitl, sitl_speedup, realtime, out, err, origin,
+            realtime_host, sitl, sitl_speedup, realtime, out, err, origin,
             station_view, operator_script,
         )  # fmt: skip
     except KeyboardInterrupt:
@@ -329,7 +324,6 @@ def _run_and_report(
     extra: Sequence[Mapping[str, Any]],
     realtime_base_port: int | None,
     realtime_host: str,
-    workers: int | None,
     sitl: SitlInstall | None,
     sitl_speedup: float,
     realtime: bool,
@@ -355,8 +349,8 @@ def _run_and_report(
         raise
     try:
         return _run_live(
-            mission, mission_path, seed, until, folder, speed, extra, bridge, view, workers,
-            sitl, sitl_speedup, realtime, out, err, origin, operator_script,
+            mission, mission_path, seed, until, folder, speed, extra, bridge, view, sitl,
+            sitl_speedup, realtime, out, err, origin, operator_script,
         )  # fmt: skip
     finally:
         if view is not None:
@@ -373,7 +367,6 @@ def _run_live(
     extra: Sequence[Mapping[str, Any]],
     bridge: MavlinkBridge | None,
     view: LiveView | None,
-    workers: int | None,
     sitl: SitlInstall | None,
     sitl_speedup: float,
     realtime: bool,
@@ -391,12 +384,10 @@ def _run_live(
         log_dir = folder.open() if folder is not None else None
         if sitl is None:
             result = _simulate(
-                mission, mission_path, seed, until, log_dir, speed, extra, bridge, workers, err,
+                mission, mission_path, seed, until, log_dir, speed, extra, bridge, err,
                 view=view, switch=switch, operator_script=operator_script,
             )  # fmt: skip
         else:
-            if workers is not None and workers > 1:
-                print(f"  note: --workers {workers} ignored: SITL sets the pace", file=err)
             # The simulated autopilot first (seconds), so a SITL run has something to meet.
             simulated = DryRun(
                 mission,
@@ -502,7 +493,6 @@ def _simulate(
     speed: float | None,
     faults: Sequence[Mapping[str, Any]],
     bridge: MavlinkBridge | None,
-    workers: int | None,
     err: TextIO,
     *,
     view: LiveView | None = None,
@@ -517,8 +507,8 @@ def _simulate(
     progress = _progress_for(err, until_s)
     try:
         return _simulate_with(
-            mission, mission_path, seed, until_s, log_dir, speed, faults, bridge, workers, err,
-            progress, view, switch, operator_script,
+            mission, mission_path, seed, until_s, log_dir, speed, faults, bridge, err, progress,
+            view, switch, operator_script,
         )  # fmt: skip
     finally:
         if progress is not None:
@@ -534,7 +524,6 @@ def _simulate_with(
     speed: float | None,
     faults: Sequence[Mapping[str, Any]],
     bridge: MavlinkBridge | None,
-    workers: int | None,
     err: TextIO,
     progress: _Progress | None,
     view: LiveView | None,
@@ -542,34 +531,10 @@ def _simulate_with(
     operator_script: bool,
 ) -> DryRunResult:
     realtime = bridge is not None or view is not None
-    paced = realtime or speed is not None
-    processes = 1 if paced else choose_workers(workers, mission)
-    if workers is not None and workers > 1 and processes == 1:
-        why = (
-            "a paced or real-time run follows the wall clock"
-            if paced
-            else "processes cannot be forked here, or the radio's lookahead (latency plus "
-            "framing air time) is under 1 ms"
-        )
-        print(f"  note: --workers {workers} ignored: {why}; the run stays in one process", file=err)
-    split = f", {processes} processes" if processes > 1 else ""
     print(
-        f"dry run of {mission.name}: {len(mission.agents)} agents, {until_s:g} s, "
-        f"seed {seed}{split}",
+        f"dry run of {mission.name}: {len(mission.agents)} agents, {until_s:g} s, seed {seed}",
         file=err,
     )
-    if processes > 1:
-        result = run_split(
-            mission,
-            mission_path,
-            workers=processes,
-            seed=seed,
-            until_s=until_s,
-            log_dir=log_dir,
-            extra_faults=faults,
-            progress=progress,
-        )
-        return result
     run = DryRun(
         mission,
         mission_path,

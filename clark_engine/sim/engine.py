@@ -17,16 +17,9 @@ at the same time are processed in a fixed order: physics (every vehicle steps,
 then each agent hears its autopilot's telemetry), radio deliveries, camera
 answers, scenario, then agent ticks in the mission's agent order.
 
-Agents meet only through the radio: what one agent does at a time depends on
-its own events and on packets, and a packet arrives at least the mesh's
-lookahead (latency plus the shortest air time) after it was sent. So the agents
-can be split across processes (:mod:`clark_engine.sim.parallel`): each process
-simulates its share for one lookahead, then the processes swap what their
-agents handed to the radio, and every process replays all of it, in one global
-order, into its copy of the mesh. That order is the one a single process sends
-in, carried by a key on every send (time, visit of that time, phase, agent, a
-count), so a split run gives the same logs, CSV files and recording as a
-single process, byte for byte, whatever the number of processes.
+A run is one process. (It could once be split across processes; beside other
+runs it was never faster, so it was removed: docs/performance.md, "The dry run's
+split removed". ``clark campaign --workers`` uses several cores on many runs.)
 """
 
 from __future__ import annotations
@@ -36,11 +29,10 @@ import heapq
 import math
 import random
 import time
-from collections.abc import Callable, Collection, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from operator import itemgetter
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 from clark_engine.io.autopilot import AutopilotAdapter, AutopilotSettings, gps_time_ms_from_unix_us
 from clark_engine.link.auth import load_key
@@ -74,7 +66,7 @@ from clark_engine.sim.firmware import FIRMWARES
 from clark_engine.sim.gps_error import GpsError, GpsErrorSettings
 from clark_engine.sim.model import VehicleModel
 from clark_engine.sim.pilot import SimPilot
-from clark_engine.sim.radio import BurstSettings, LinkStats, Position, RadioMesh
+from clark_engine.sim.radio import BurstSettings, Position, RadioMesh
 from clark_engine.sim.recording import FlightEntry, Photo, Recording, StateEntry, Track
 from clark_engine.sim.sitl import Home, SitlInstall, SitlProcess, vehicle_for_firmware
 from clark_engine.sim.sitl_backend import LaterReport, SitlBackend
@@ -94,33 +86,6 @@ SITL_THROTTLE_BOTTOM_US = 1000
 AIRBORNE_BOOTED_S = 60.0
 
 _AUTOPILOT_COMMANDS = (Goto, SetMode, Arm, Takeoff, SetServo, RcOverride, SetUpAutopilotSafety)
-
-#: How much shorter than the mesh's lookahead a split run's window is.
-WINDOW_MARGIN_S = 1e-7
-
-#: Phases of one visit of a time, in the order they run (the third element of a key);
-#: the last, commands from outside the run (a rehearsal's station view), comes after the ticks.
-_PHYSICS, _RADIO, _CAMERAS, _SCENARIO, _TICKS, _OUTSIDE = range(6)
-
-#: Where a send or silence happened in the run's order: (time, visit of that time, phase,
-#: then three phase-specific parts naming the agent and the event, then a count within).
-#: A single process runs in increasing key order; a split run sorts by it.
-Key = tuple[Any, ...]
-#: What an agent did to the radio in a split run: (key, "send" or "silence", agent,
-#: packet, destination).
-Action = tuple[Key, str, str, bytes, str]
-#: Vehicles' true positions after the physics step at a time.
-GridPositions = tuple[float, dict[str, Position]]
-
-
-class Exchange(Protocol):
-    """How the processes of a split run swap what their agents did to the radio."""
-
-    def swap(
-        self, actions: list[Action], grid: list[GridPositions]
-    ) -> list[tuple[list[Action], list[GridPositions]]]:
-        """Send this process's actions and positions; return every other process's."""
-        ...
 
 
 @dataclass(slots=True)
@@ -183,34 +148,16 @@ class SimAgent:
 
 
 @dataclass(slots=True)
-class Share:
-    """What one process of a split run simulated, for the process that gathers them.
-
-    Attributes:
-        recording: Its agents' part of the recording.
-        configs: Its agents' compiled configs.
-        ticks: Agent name -> ticks it ran.
-        links: The radio links into its agents, with complete statistics.
-    """
-
-    recording: Recording
-    configs: dict[str, AgentConfig]
-    ticks: dict[str, int]
-    links: dict[tuple[str, str], LinkStats]
-
-
-@dataclass(slots=True)
 class DryRunResult:
     """What a dry run produced.
 
     Attributes:
         recording: Tracks, states, signals, photos and safety events of every agent.
         configs: Every agent's compiled config.
-        agents: The agents this process simulated (all of them unless the run was split).
+        agents: Every agent's pieces in the simulation.
         radio: The mesh, with every link's statistics.
         wall_s: Wall-clock seconds of the simulation loop.
         ticks: Agent name -> ticks it ran.
-        workers: Processes the run was split across (1: not split).
     """
 
     recording: Recording
@@ -219,7 +166,6 @@ class DryRunResult:
     radio: RadioMesh
     wall_s: float
     ticks: dict[str, int] = field(default_factory=dict)
-    workers: int = 1
 
 
 def tick_phase(seed: int, agent: str) -> float:
@@ -245,15 +191,6 @@ def build_mesh(mission: Mission, seed: int) -> RadioMesh:
         if profile is not None:
             radio.add_agent(name, agent.id, profile)
     return radio
-
-
-def split_window_s(radio: RadioMesh) -> float:
-    """Simulated time a split run's processes go between swaps: a hair under the lookahead.
-
-    The hair (:data:`WINDOW_MARGIN_S`) keeps rounding in an arrival time (start + air
-    time + latency) from ever landing a packet inside the window it was sent in.
-    """
-    return radio.lookahead_s - WINDOW_MARGIN_S
 
 
 def pilot_reaction_s(mission: Mission, agent: str, seed: int) -> float:
@@ -480,7 +417,7 @@ def build_sitl_vehicle(
 
 
 class DryRun:
-    """One dry run of a validated mission, or one process's share of a split run.
+    """One dry run of a validated mission.
 
     Args:
         mission: The resolved mission (from validation, without errors).
@@ -493,10 +430,6 @@ class DryRun:
         progress: Called now and then with (simulated time, end time).
         speed: Run at this many simulated seconds per wall-clock second (1 is real
             time); as fast as possible when None.
-        owned: The agents this process simulates, with ``exchange``; every agent when None.
-        exchange: Swaps radio actions with the other processes of a split run, once
-            per :attr:`window_s` of simulated time (a hair under the mesh's lookahead);
-            None for a run in one process.
         wall_clock: The simulated autopilots' SYSTEM_TIME gives the wall clock's time
             (a real-time run with ground stations), not the simulated one.
         sitl: Fly every vehicle's autopilot as a real ArduPilot SITL process from this
@@ -507,9 +440,6 @@ class DryRun:
             deactivate, mode, terminate); False leaves them to a person at the station's
             view (``--station --no-operator-script``). The pilots' ``rc`` actions play
             either way.
-
-    Raises:
-        ValueError: A split run on a mesh whose lookahead is too short to split on.
     """
 
     def __init__(
@@ -523,8 +453,6 @@ class DryRun:
         extra_faults: Sequence[Mapping[str, Any]] = (),
         progress: Callable[[float, float], None] | None = None,
         speed: float | None = None,
-        owned: Collection[str] | None = None,
-        exchange: Exchange | None = None,
         wall_clock: bool = False,
         sitl: SitlInstall | None = None,
         sitl_speedup: float = 10.0,
@@ -544,16 +472,12 @@ class DryRun:
         self.until_s = until_s
         self.progress = progress
         self.speed = speed
-        self.exchange = exchange
         self.recording = Recording()
         self.radio = build_mesh(mission, seed)
-        owned_set = set(mission.agents) if owned is None else set(owned)
         key = load_key(mission_path.parent / mission.key_file) if mission.key_file else None
         gps_epoch_ms = gps_time_ms_from_unix_us(START_UNIX_US)
         self.agents: dict[str, SimAgent] = {}
         for name, agent in mission.agents.items():
-            if name not in owned_set:
-                continue
             config = config_from_dict(agent_config(mission, agent))
             logbook = (
                 Logbook.to_folder(log_dir, config, overwrite=True)
@@ -573,7 +497,7 @@ class DryRun:
                     )
             if agent.is_vehicle:
                 self._build_vehicle(sim_agent, agent)
-        # Agent order (the tie-break of events at one time) is the mission's, whoever owns them.
+        # Agent order (the tie-break of ticks at one time) is the mission's.
         self._order = {name: i for i, name in enumerate(mission.agents)}
         self._vehicles = [a for a in self.agents.values() if a.backend is not None]
         # Stations and agents without a vehicle stay where the mission puts them.
@@ -585,8 +509,8 @@ class DryRun:
         self._apply_faults([*mission.faults, *extra_faults])
         station = next((a.name for a in mission.agents.values() if not a.is_vehicle), None)
         operator = jittered_operator(mission, seed)
-        # Each operator action goes to the process of the agent it acts on: a pilot's stick
-        # to the vehicle's, every other action to the (first) station's.
+        # A pilot's stick acts on its vehicle, every other action through the (first)
+        # station; without the script, only the pilots' actions play.
         self._operator = [
             entry
             for entry in operator
@@ -607,47 +531,27 @@ class DryRun:
         #: rehearsal's station view updates and takes its commands here). Whoever sets it
         #: calls the hook that was there before (hooks chain, none replaces another).
         self.on_step: Callable[[float], None] | None = None
-        self._outside_n = 0
         # (next tick time, agent order, name): one heap instead of a scan per event
         self._ticks = [(a.next_tick_s(), self._order[a.name], a.name) for a in self.agents.values()]
         heapq.heapify(self._ticks)
-        # Every camera with its agent and its index in the agent's payloads, in agent order;
+        # Every camera with its agent, in agent order;
         # the earliest answer any of them has pending; and whether one was commanded or
         # answered since that was worked out (so that the loop does not ask every camera
         # at every event).
-        self._cameras_list = [
-            (a, i, c) for a in self.agents.values() for i, c in enumerate(a.cameras.values())
-        ]
+        self._cameras_list = [(a, c) for a in self.agents.values() for c in a.cameras.values()]
         self._cameras_s = math.inf
         self._cameras_changed = True
         # The loop's position: physics steps done, the next track sample, the time being
-        # processed and how many times it was visited before.
+        # processed.
         self._physics_steps = 0
         self._next_sample_s = 0.0
         self._t = -math.inf
-        self._visit = 0
-        # Where sends and silences are in the run's order (see Key), and, in a split run,
-        # what this process's agents did to the radio since the last swap.
-        self._key: Key = ()
-        self._key_n = 0
-        self._outbox: list[Action] | None = None
-        self._grid_out: list[GridPositions] = []
-        self._grid_last: dict[str, Position] = dict(self._fixed_positions)
-        #: Simulated seconds between swaps of a split run.
-        self.window_s = split_window_s(self.radio)
-        if exchange is not None:
-            if self.window_s <= 0:
-                raise ValueError(
-                    f"the radio's lookahead ({self.radio.lookahead_s} s) is too short to split on"
-                )
-            self._outbox = []
-            self.radio.keep_receivers(self.agents)
 
     @property
     def station(self) -> SimAgent | None:
         """The station agent the operator acts through: the mission's first non-vehicle.
 
-        None when the mission has none, or another process of a split run simulates it.
+        None when the mission has none.
         """
         return self._station
 
@@ -665,19 +569,13 @@ class DryRun:
             terminated (its interfaces are closed).
 
         Raises:
-            RuntimeError: The mission has no station here, or the run is split across
-                processes (an outside command would break its order).
+            RuntimeError: The mission has no station.
         """
         station = self._station
         if station is None:
             raise RuntimeError("the mission has no station agent in this run")
-        if self._outbox is not None:
-            raise RuntimeError("a run split across processes takes no outside command")
         if not station.alive or station.closed:
             return False
-        self._key = (t_s, self._visit, _OUTSIDE, 0, self._outside_n, 0)
-        self._key_n = 0
-        self._outside_n += 1
         self._route(station, station.runtime.deliver(command, t_s), t_s)
         return True
 
@@ -770,17 +668,10 @@ class DryRun:
                 for agent in self.mission.stations:
                     self.radio.silence(agent.name, start, end)
             elif kind == "autopilot_disconnect":
-                victim = self.agents.get(str(body["agent"]))
-                if victim is not None:  # else another process of a split run simulates it
-                    victim.autopilot_down.append(Window(start, end))
+                self.agents[str(body["agent"])].autopilot_down.append(Window(start, end))
             elif kind == "corrupt":
                 self.radio.corrupt(float(body["share"]), start, end)
-        # (time, index in the mission's kill order, agent): the index keys the kill's silence.
-        self._kills = [
-            (at_s, index, name)
-            for index, (at_s, name) in enumerate(sorted(kills))
-            if name in self.agents
-        ]
+        self._kills = sorted(kills)  # (time, agent)
 
     def _signal_channels(self) -> None:
         """The control channels each agent's doublets and sweeps drive, to record."""
@@ -812,11 +703,7 @@ class DryRun:
     # -- the loop ------------------------------------------------------------------------
 
     def run(self) -> DryRunResult:
-        """Simulate until ``until_s``; returns what was recorded.
-
-        In a split run, this process's share: stop at every ``window_s`` to swap radio
-        actions with the other processes (all of them swap the same number of times).
-        """
+        """Simulate until ``until_s``; returns what was recorded."""
         self._wall_start = time.perf_counter()
         self._next_progress_wall = self._wall_start + 1.0
         try:
@@ -829,16 +716,7 @@ class DryRun:
                 epoch_ms = gps_time_ms_from_unix_us(time.time_ns() // 1000)
                 for sim_agent in self.agents.values():
                     sim_agent.runtime.anchor_gps_time(epoch_ms)
-            if self.exchange is None:
-                self._advance(math.inf, last=True)
-            else:
-                window = 1
-                while window * self.window_s <= self.until_s:
-                    self._advance(window * self.window_s, last=False)
-                    self._swap()
-                    window += 1
-                self._advance(math.inf, last=True)
-                self._swap()  # the last window's sends, for the links' statistics
+            self._advance()
             if self.sitl is not None:
                 self._settle_sitl()
         finally:  # the logs so far are complete rows, even when the run failed
@@ -858,18 +736,8 @@ class DryRun:
             ticks={name: a.ticks for name, a in self.agents.items()},
         )
 
-    def share(self) -> Share:
-        """What this process simulated, for the process gathering a split run's shares."""
-        links = self.radio.links()
-        return Share(
-            self.recording,
-            {name: a.config for name, a in self.agents.items()},
-            {name: a.ticks for name, a in self.agents.items()},
-            {key: stats for key, stats in links.items() if key[1] in self.agents},
-        )
-
-    def _advance(self, end_s: float, *, last: bool) -> None:
-        """Process every event before ``end_s``; when ``last``, up to ``until_s``.
+    def _advance(self) -> None:
+        """Process every event up to ``until_s``.
 
         ``until_s`` is read at every event: a real-time run's Ctrl-C lowers it.
         """
@@ -888,7 +756,7 @@ class DryRun:
             if self._cameras_changed:
                 self._cameras_changed = False
                 self._cameras_s = min(
-                    (s for _, _, c in self._cameras_list if (s := c.next_event_s()) is not None),
+                    (s for _, c in self._cameras_list if (s := c.next_event_s()) is not None),
                     default=math.inf,
                 )
             if self._cameras_s < t:
@@ -897,11 +765,8 @@ class DryRun:
                 t = self._operator[0][0]
             if self._kills and self._kills[0][0] < t:
                 t = self._kills[0][0]
-            if (t > self.until_s + 1e-9) if last else (t >= end_s):
+            if t > self.until_s + 1e-9:
                 break
-            # Each agent's events at a time depend on its own events only: nothing here
-            # may merge events of different times, or a split run would differ.
-            self._visit = self._visit + 1 if t == self._t else 0
             self._t = t
             if self.speed is not None:
                 self._pace(t)
@@ -920,8 +785,6 @@ class DryRun:
                 sim_agent = self.agents[name]
                 if not self._ticking_agent(name):
                     continue
-                self._key = (t, self._visit, _TICKS, order, 0, 0)
-                self._key_n = 0
                 self._tick(sim_agent, t)
                 heapq.heappush(self._ticks, (sim_agent.next_tick_s(), order, name))
             if self.on_step is not None:
@@ -929,38 +792,6 @@ class DryRun:
             if self.progress is not None and time.perf_counter() >= self._next_progress_wall:
                 self.progress(t, self.until_s)
                 self._next_progress_wall = time.perf_counter() + 1.0
-
-    def _swap(self) -> None:
-        """Swap radio actions with the other processes and replay them all, in key order."""
-        assert self.exchange is not None and self._outbox is not None
-        own, grid = self._outbox, self._grid_out
-        others = self.exchange.swap(own, grid)
-        self._outbox, self._grid_out = [], []
-        # Every vehicle's position at each physics step of the window, when ranges matter.
-        steps: dict[float, dict[str, Position]] = {}
-        if self._ranged:
-            for t_s, seen in [*grid, *(g for _, other in others for g in other)]:
-                steps.setdefault(t_s, {}).update(seen)
-        times = sorted(steps)
-        step = 0
-        for key, kind, name, data, destination in heapq.merge(
-            own, *(actions for actions, _ in others), key=itemgetter(0)
-        ):
-            t_s = key[0]
-            if kind == "silence":
-                if name not in self.agents:  # this process's own were silenced at once
-                    self.radio.silence(name, t_s)
-                continue
-            positions: dict[str, Position] | None = None
-            if self._ranged:
-                # As the sender saw them: after the last physics step at or before the send.
-                while step < len(times) and times[step] <= t_s:
-                    self._grid_last.update(steps[times[step]])
-                    step += 1
-                positions = self._grid_last
-            self.radio.send(name, data, destination, t_s, positions)
-        for t_s in times[step:]:
-            self._grid_last.update(steps[t_s])
 
     def _pace(self, t_s: float) -> None:
         assert self.speed is not None
@@ -989,8 +820,6 @@ class DryRun:
                 truth = sim_agent.backend.truth()  # type: ignore[union-attr]
                 here[sim_agent.name] = (truth.north_m, truth.east_m, truth.up_m)
             self._positions.update(here)
-            if self._outbox is not None:
-                self._grid_out.append((t_s, here))
         for sim_agent, data in heard:
             tap = self.autopilot_taps.get(sim_agent.name)
             if tap is not None:
@@ -1002,8 +831,6 @@ class DryRun:
                 continue
             if not sim_agent.link_up(t_s):
                 continue
-            self._key = (t_s, self._visit, _PHYSICS, self._order[sim_agent.name], 0, 0)
-            self._key_n = 0
             for event in sim_agent.adapter.receive(data, t_s):
                 out = sim_agent.runtime.deliver(event, t_s)  # type: ignore[arg-type]
                 if out:
@@ -1041,46 +868,30 @@ class DryRun:
                 event = PacketReceived(delivery.packet)
             out = receiver.runtime.deliver(event, t_s)
             if out:
-                self._key = (
-                    t_s,
-                    self._visit,
-                    _RADIO,
-                    delivery.sender,
-                    delivery.receiver,
-                    delivery.sequence,
-                )
-                self._key_n = 0
                 self._route(receiver, out, t_s)
 
     def _cameras(self, t_s: float) -> None:
         self._cameras_changed = True  # answers are taken (and answering may command others)
-        for sim_agent, index, camera in self._cameras_list:
-            for answer, (_at_s, event) in enumerate(camera.events_until(t_s)):
+        for sim_agent, camera in self._cameras_list:
+            for _at_s, event in camera.events_until(t_s):
                 if event.kind == "captured" and sim_agent.backend is not None:
                     truth = sim_agent.backend.truth()
                     self.recording.photos.setdefault(sim_agent.name, []).append(
                         Photo(t_s, truth.north_m, truth.east_m, truth.up_m)
                     )
                 if sim_agent.alive and not sim_agent.closed:
-                    order = self._order[sim_agent.name]
-                    self._key = (t_s, self._visit, _CAMERAS, order, index, answer)
-                    self._key_n = 0
                     self._route(sim_agent, sim_agent.runtime.deliver(event, t_s), t_s)
 
     def _scenario(self, t_s: float) -> None:
         while self._kills and self._kills[0][0] <= t_s:
-            _, index, name = self._kills.pop(0)
+            _, name = self._kills.pop(0)
             sim_agent = self.agents[name]
             sim_agent.alive = False
             self.recording.killed[name] = t_s
             sim_agent.logbook.mission.error("killed by the dry run's fault at %.2f s", t_s)
-            self._key = (t_s, self._visit, _SCENARIO, 0, index, 0)
-            self._key_n = 0
             self._silence(name, t_s)
         while self._operator and self._operator[0][0] <= t_s:
-            _, index, item = self._operator.pop(0)
-            self._key = (t_s, self._visit, _SCENARIO, 1, index, 0)
-            self._key_n = 0
+            _, _, item = self._operator.pop(0)
             self._operate(item, t_s)
 
     def _operate(self, item: Mapping[str, Any], t_s: float) -> None:
@@ -1197,18 +1008,9 @@ class DryRun:
             elif isinstance(command, SendPacket):
                 if sim_agent.name not in self.radio.agents:
                     continue
-                if self._outbox is None:
-                    # Positions only matter to radios with a range.
-                    positions = self._positions if self._ranged else None
-                    self.radio.send(
-                        sim_agent.name, command.data, command.destination, t_s, positions
-                    )
-                else:  # replayed in the run's order at the next swap
-                    key = (*self._key, self._key_n)
-                    self._key_n += 1
-                    self._outbox.append(
-                        (key, "send", sim_agent.name, command.data, command.destination)
-                    )
+                # Positions only matter to radios with a range.
+                positions = self._positions if self._ranged else None
+                self.radio.send(sim_agent.name, command.data, command.destination, t_s, positions)
             elif isinstance(command, PayloadCommand):
                 camera = sim_agent.cameras.get(command.payload)
                 if camera is not None:
@@ -1222,14 +1024,9 @@ class DryRun:
                     self._silence(sim_agent.name, t_s)
 
     def _silence(self, name: str, t_s: float) -> None:
-        """Silence an agent's radio from ``t_s`` on (and tell the other processes)."""
-        if name not in self.radio.agents:
-            return
-        self.radio.silence(name, t_s)
-        if self._outbox is not None:
-            key = (*self._key, self._key_n)
-            self._key_n += 1
-            self._outbox.append((key, "silence", name, b"", ""))
+        """Silence an agent's radio from ``t_s`` on."""
+        if name in self.radio.agents:
+            self.radio.silence(name, t_s)
 
     def inject(self, agent: str, data: bytes, t_s: float) -> None:
         """Bytes from an outside ground station to an agent's simulated autopilot."""

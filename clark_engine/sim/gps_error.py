@@ -34,7 +34,7 @@ Determinism: every draw comes from generators seeded from the run's seed and a
 stable key (``{seed}:gps:{agent}`` for the vehicle's walk, ``{seed}:gps:common``
 for the shared one, ``{seed}:gps-glitch:{agent}`` for glitches); the walk is
 sampled on the fixed grid whatever the caller's steps, so every vehicle's copy
-of the common process is the same, whichever process of a split run it is in.
+of the common process is the same, whenever and in whatever order it is asked.
 """
 
 from __future__ import annotations

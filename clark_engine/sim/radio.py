@@ -71,8 +71,8 @@ packets in each. It starts in the bad state with the stationary probability
 ``radio_loss + (1 - radio_loss) * (good_s * loss_good + bad_s * loss_bad) / (good_s +
 bad_s)``. Each chain draws its sojourns from its own generator, seeded from the run's
 seed and the link's two names (``{seed}:radio-burst:{a}:{b}``), lazily as simulated
-time reaches them: its state at a time depends on nothing but that time, so every
-copy of a split run's mesh sees the same state.
+time reaches them: its state at a time depends on nothing but that time (and the seed),
+not on how many packets crossed the link before.
 
 Not modelled: DigiMesh relaying (every agent is assumed to hear every other
 directly, and a relayed packet would cost the channel air time twice), MAC
@@ -443,7 +443,6 @@ class RadioMesh:
         self._ranged = False  # some radio has a range
         self._ids: set[int] = set()
         self._pending: list[_Pending] = []
-        self._local: frozenset[str] | None = None  # receivers whose packets this mesh keeps
         self._channel_free_s = 0.0
         self._send_clock_s = -math.inf  # the last send's time
         self._clock_s = -math.inf  # deliveries were taken up to this time
@@ -495,36 +494,6 @@ class RadioMesh:
     def radio(self, name: str) -> RadioSettings:
         """The radio settings of agent ``name``."""
         return self._agent(name).radio
-
-    @property
-    def lookahead_s(self) -> float:
-        """The least time from any send to its arrival: the latency plus the shortest air time.
-
-        An empty packet still carries its sender's framing; a run split across processes
-        (:mod:`clark_engine.sim.parallel`) may simulate this long without hearing from the
-        other processes, since nothing sent meanwhile can arrive sooner.
-        """
-        air_s = min(
-            (a.radio.air_time_s(0) for a in self._agents.values()),
-            default=0.0,
-        )
-        return self.latency_s + air_s
-
-    def keep_receivers(self, names: Iterable[str]) -> None:
-        """Keep in-flight packets for these receivers only: this mesh is one process's copy.
-
-        A run split across processes gives each process a copy of the mesh. Every copy
-        takes every send, in the same order, so channel, sequence numbers and random draws
-        stay identical; each keeps (and resolves, and counts the arrival of) only the
-        packets for the agents it simulates. A link's statistics are then complete in the
-        copy of its receiver's process (:meth:`adopt_links` gathers them).
-        """
-        self._local = frozenset(names)
-
-    def adopt_links(self, links: Mapping[tuple[str, str], LinkStats]) -> None:
-        """Take these links' statistics as they are (from the copy that kept their packets)."""
-        for key, stats in links.items():
-            self._links[key] = _copy_link(stats)
 
     # -- faults --------------------------------------------------------------
 
@@ -638,11 +607,8 @@ class RadioMesh:
         self._queue.add(queue_s, air_s)
         self._queue_by_sender[sender].add(queue_s, air_s)
         at_s = start_s + air_s + self.latency_s
-        local = self._local
         bursts = self.bursts is not None
         for receiver, link, loss_draw, corrupt_draw, flip_seed in targets:
-            if local is not None and receiver not in local:
-                continue  # another process's copy of the mesh keeps it
             range_m = self._link_range_m(sender, receiver) if self._ranged else None
             # Without a range the distance law is the base rate: skip measuring the distance.
             p_loss = (

@@ -157,7 +157,7 @@ class Track:
     __hash__ = None  # type: ignore[assignment]
 
     def __getstate__(self) -> dict[str, Any]:
-        """For a split run's share: the file goes with it (the receiver deletes it)."""
+        """For another process: the file goes with the pickled track (the receiver deletes it)."""
         self._spill()
         if self._finalizer is not None:
             self._finalizer.detach()  # this process no longer owns the file

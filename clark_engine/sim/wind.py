@@ -25,8 +25,8 @@ in the same air. The model follows SITL's (``SITL_State::_simulator_servos`` and
   scaled by the altitude profile like the mean.
 
 Every draw comes from one ``random.Random(f"{seed}:wind")`` advanced on a fixed time
-grid, so the wind at a time is the same whichever vehicle asks, in whichever process
-of a split run, in whatever order: one air mass. The air is uniform over the mission
+grid, so the wind at a time is the same whichever vehicle asks, in whatever order:
+one air mass. The air is uniform over the mission
 area (no spatial variation); SITL's wind is uniform too.
 """
 
