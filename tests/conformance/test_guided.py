@@ -320,7 +320,8 @@ TOUR_LEG_M = 30.0
 TOUR_TOLERANCE_M = 2.0
 """The engine's waypoint_tour sends the next corner within this of the last (tolerance_m)."""
 TOUR_CORNERS_M = ((-TOUR_LEG_M, 0.0), (-TOUR_LEG_M, TOUR_LEG_M), (0.0, TOUR_LEG_M), (0.0, 0.0))
-"""A square begun behind the rover (it stands facing north): fault_lost_peer's patrol."""
+"""A square begun behind the rover, (ahead, right) of it in metres: fault_lost_peer's patrol
+(Slash C faces north; the square is turned to the rover's heading)."""
 TOUR_LEG_S = (20.66, 12.0, 12.2, 12.2)
 """SITL (WP_SPEED 3, WP_RADIUS 2, the Slash's): seconds from each corner sent to within
 TOUR_TOLERANCE_M of it. The first leg turns round from rest: the rover drives a wide arc
@@ -342,10 +343,15 @@ def test_rover_on_a_waypoint_tour_reaches_each_corner_as_ardurover_does(rover: P
         peer = rover
         assert peer.set_mode("GUIDED").result == mavlink2.MAV_RESULT_ACCEPTED
         assert peer.arm().result == mavlink2.MAV_RESULT_ACCEPTED
-        origin = here(peer)
-        base = (origin.lat_deg, origin.lon_deg)
+        position = peer.wait_for("GLOBAL_POSITION_INT", 2.0)
+        base = (position.lat / 1e7, position.lon / 1e7)
+        # The square turned to the rover's heading (SITL's shared rover faces wherever the
+        # scenario before left it): the first corner straight behind it.
+        yaw = math.radians(position.hdg / 100.0)
         legs_s = []
-        for (north_m, east_m), sitl_s in zip(TOUR_CORNERS_M, TOUR_LEG_S, strict=True):
+        for (ahead_m, right_m), sitl_s in zip(TOUR_CORNERS_M, TOUR_LEG_S, strict=True):
+            north_m = ahead_m * math.cos(yaw) - right_m * math.sin(yaw)
+            east_m = ahead_m * math.sin(yaw) + right_m * math.cos(yaw)
             target = moved(*base, north_m, east_m)
             sent_s = peer.now_s
             goto(peer, *target, 0.0)
