@@ -32,7 +32,7 @@ Models, in the order a packet meets them:
    packet is in flight; they are looked up when the packet arrives, and they
    take precedence: every packet a fault touches counts as ``lost_fault``.
 6. Loss, per receiver and independently for each receiver of a broadcast, from
-   one uniform draw ``u`` made at the send: ``u < loss_rate`` is a random loss
+   one uniform ``u`` of the packet's own (see Determinism): ``u < loss_rate`` is a random loss
    (``lost_random``); otherwise ``u < p(d)`` is a range loss (``lost_range``),
    where ``p(d)`` is the distance law below at the send-time positions;
    otherwise, with bursts declared, ``u < 1 - (1 - p(d)) (1 - b)`` is a burst loss
@@ -42,8 +42,9 @@ Models, in the order a packet meets them:
    as an independent draw would, and the mesh's draws are the same with or without
    bursts.
 7. Corruption: a delivered packet inside a corruption window is corrupted with
-   the window's probability; 1 to :data:`MAX_FLIPPED_BYTES` distinct bytes are
-   XORed with a random non-zero value, so a corrupted packet always differs.
+   the window's probability (a second uniform of the packet's own); 1 to
+   :data:`MAX_FLIPPED_BYTES` distinct bytes are XORed with a random non-zero value
+   (from a third value of the packet's own), so a corrupted packet always differs.
    Corrupted packets are delivered (and counted both as ``delivered`` and as
    ``corrupted``); an empty packet cannot be corrupted.
 
@@ -86,21 +87,35 @@ ideal by 0.045 to 0.059 s for a round trip (tables 5.1 and 5.2), about 25 to
 the 18-byte XBee frame takes 29 ms on air at 33 kbit/s, so a few milliseconds
 of fixed latency (:data:`DEFAULT_LATENCY_S`) on top of serialisation fits.
 
-Determinism. Every :meth:`~RadioMesh.send` call draws, for each addressed
-receiver in name order, exactly three values from the mesh's ``random.Random``:
-the loss uniform, the corruption uniform and a 64-bit seed for the byte flips
-(which run on their own ``random.Random``). It draws them whatever happens to
-the packet (refused, silenced, queued out, lost, dropped), so the stream's
-position depends only on the sequence of sends, and injecting a fault changes
-the fate of the packets it touches and of no other. The same agents, sends,
-faults and seed give the same deliveries.
+Determinism: a packet's fate is its own. The loss uniform, the corruption uniform
+and the seed of the byte flips of one packet at one receiver are a keyed hash
+(BLAKE2b, keyed with 64 bits the mesh draws once from its ``random.Random``) of
+that packet's identity: sender, destination (``""`` for a broadcast), receiver,
+send time in whole microseconds, and its place among the sender's sends to that
+destination at that time (0, then 1 when a bundle is split in two). They do not
+depend on which packets were sent before or in between, so:
+
+- the same mission flown on the simulated autopilot and on ArduPilot SITL loses and
+  corrupts the same packets: agents tick at the same times on both (a seeded phase
+  and ``loop_hz``), and a heartbeat sent at a tick meets the same fate on both,
+  though the packets around it differ (a state change a tick later, a report that
+  waits for the autopilot); with one uniform stream drawn in the order of the
+  sends, one extra packet early in a run moved every later draw onto another packet;
+- injecting a fault changes the fate of the packets it touches and of no other.
+
+The hash is computed only when it matters: the loss uniform when the packet can be
+lost (a loss rate, range or burst loss above 0 for it), the corruption values when it
+arrives inside a corruption window. A mission with neither draws nothing. The same
+agents, sends, faults and seed give the same deliveries.
 """
 
 from __future__ import annotations
 
+import hashlib
 import heapq
 import math
 import random
+import struct
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, fields, replace
 from typing import Any, NamedTuple
@@ -111,6 +126,10 @@ DEFAULT_LATENCY_S = 0.005
 DEFAULT_RANGE_FADE_FACTOR = 2.0
 #: Most bytes one corruption flips.
 MAX_FLIPPED_BYTES = 4
+#: A packet's three values (loss uniform, corruption uniform, flip seed) from its 24-byte hash.
+_FATE = struct.Struct(">QQQ")
+#: 2**-53: the top 53 bits of a 64-bit integer times this are a uniform in [0, 1), never 1.
+_TO_UNIT = 2.0**-53
 
 #: A position in the mission's local frame: (north_m, east_m, up_m).
 Position = tuple[float, float, float]
@@ -359,12 +378,15 @@ class _Window:
 
 
 #: A packet in flight to one receiver: (at_s, sender, receiver, sequence, packet, sent_s,
-#: loss_probability, loss_draw, corrupt_draw, flip_seed, link, loss_with_bursts). The mesh
+#: loss_probability, destination, place, link, loss_with_bursts), where ``place`` is the
+#: packet's place among its sender's sends to that destination at that time. The mesh
 #: keeps these in a heap, so they come out as deliveries do: the first four fields are
 #: unique per item (one receiver per send sequence), so comparisons never reach the rest.
 #: Plain tuples, built and compared in C: a broadcast to 49 receivers makes 49 of them and costs
 #: hundreds of comparisons. ``link`` is the link's statistics, counted on arrival.
-_Pending = tuple[float, str, str, int, bytes, float, float, float, float, int, LinkStats, float]
+_Pending = tuple[float, str, str, int, bytes, float, float, str, int, LinkStats, float]
+#: A packet's own values at one receiver: (loss uniform, corruption uniform, flip seed).
+_Fate = tuple[float, float, int]
 
 
 @dataclass(slots=True)
@@ -399,8 +421,8 @@ class RadioMesh:
     on the bench and XBee in the field) belong in separate meshes.
 
     Args:
-        rng: The mesh's seeded random source; the mesh alone draws from it, in the
-            order the module docstring gives.
+        rng: The mesh's seeded random source: the mesh draws the 64-bit key of its
+            packets' fates from it, once (module docstring, Determinism).
         latency_s: Fixed delay from the end of a packet's air time to its arrival.
         loss_rate: Base probability (0..1) that a receiver misses a packet within range.
         range_fade_factor: Loss reaches 1 at this multiple of the link's range (> 1).
@@ -430,7 +452,12 @@ class RadioMesh:
             raise ValueError(f"range_fade_factor must be > 1, got {range_fade_factor}")
         if max_queue_s is not None and not max_queue_s >= 0:
             raise ValueError(f"max_queue_s must be >= 0 or None, got {max_queue_s}")
-        self._rng = rng
+        self._fate_key = rng.getrandbits(64).to_bytes(8, "big")
+        # Per link, a hash already fed the link's names: each packet copies it.
+        self._fate_hashes: dict[tuple[str, str, str], Any] = {}
+        # The time of the latest send and, per (sender, destination), the sends made then.
+        self._place_s = -math.inf
+        self._places: dict[tuple[str, str], int] = {}
         self.latency_s = latency_s
         self.loss_rate = loss_rate
         self.range_fade_factor = range_fade_factor
@@ -577,13 +604,13 @@ class RadioMesh:
         self._send_clock_s = now_s
         sequence = self._sequence
         self._sequence += 1
-        rng = self._rng
-        # Each receiver's link and three draws, in name order (see the module docstring).
+        # The packet's place among its sender's sends to this destination at this time.
+        if now_s != self._place_s:
+            self._place_s = now_s
+            self._places.clear()
+        place = self._places.get((sender, destination), 0)
+        self._places[(sender, destination)] = place + 1
         links = [self._link(sender, receiver) for receiver in receivers]
-        targets = [
-            (receiver, link, rng.random(), rng.random(), rng.getrandbits(64))
-            for receiver, link in zip(receivers, links, strict=True)
-        ]
         for link in links:
             link.sent += 1
 
@@ -608,7 +635,7 @@ class RadioMesh:
         self._queue_by_sender[sender].add(queue_s, air_s)
         at_s = start_s + air_s + self.latency_s
         bursts = self.bursts is not None
-        for receiver, link, loss_draw, corrupt_draw, flip_seed in targets:
+        for receiver, link in zip(receivers, links, strict=True):
             range_m = self._link_range_m(sender, receiver) if self._ranged else None
             # Without a range the distance law is the base rate: skip measuring the distance.
             p_loss = (
@@ -635,9 +662,8 @@ class RadioMesh:
                 packet,
                 now_s,
                 p_loss,
-                loss_draw,
-                corrupt_draw,
-                flip_seed,
+                destination,
+                place,
                 link,
                 p_total,
             )
@@ -739,6 +765,25 @@ class RadioMesh:
     def _corruption_share(self, t_s: float) -> float:
         return max((share for w, share in self._corruption if w.covers(t_s)), default=0.0)
 
+    def _fate(
+        self, sender: str, destination: str, receiver: str, sent_s: float, place: int
+    ) -> _Fate:
+        """The packet's own loss uniform, corruption uniform and flip seed at ``receiver``.
+
+        A keyed hash of the packet's identity (module docstring, Determinism): the same
+        packet gets the same values whatever else the mesh carried.
+        """
+        link = (sender, destination, receiver)
+        prefix = self._fate_hashes.get(link)
+        if prefix is None:
+            prefix = hashlib.blake2b(digest_size=_FATE.size, key=self._fate_key)
+            prefix.update(f"{sender}\0{destination}\0{receiver}\0".encode())
+            self._fate_hashes[link] = prefix
+        digest = prefix.copy()
+        digest.update(f"{round(sent_s * 1e6)}\0{place}".encode())
+        loss, corrupt, seed = _FATE.unpack(digest.digest())
+        return (loss >> 11) * _TO_UNIT, (corrupt >> 11) * _TO_UNIT, seed
+
     def _resolve(self, item: _Pending) -> Delivery | None:
         (
             at_s,
@@ -748,32 +793,40 @@ class RadioMesh:
             packet,
             sent_s,
             p_loss,
-            loss,
-            corrupt,
-            seed,
+            destination,
+            place,
             link,
             p_all,
         ) = item
+        fate: _Fate | None = None
         # (Each fault look-up is skipped while no fault of its kind was ever injected.)
         if (self._dropped_links and self._is_dropped(sender, receiver, at_s)) or (
             self._silenced and self._is_silenced(receiver, at_s)
         ):
             link.lost_fault += 1
             return None
-        if loss < self.loss_rate:
-            link.lost_random += 1
-            return None
-        if loss < p_loss:
-            link.lost_range += 1
-            return None
-        if loss < p_all:
-            link.lost_burst += 1
-            return None
+        if p_all > 0.0:  # the packet may be lost: its own uniform decides
+            fate = self._fate(sender, destination, receiver, sent_s, place)
+            loss = fate[0]
+            if loss < self.loss_rate:
+                link.lost_random += 1
+                return None
+            if loss < p_loss:
+                link.lost_range += 1
+                return None
+            if loss < p_all:
+                link.lost_burst += 1
+                return None
         corrupted = False
-        if packet and self._corruption and corrupt < self._corruption_share(at_s):
-            packet = _flip_bytes(packet, seed)
-            corrupted = True
-            link.corrupted += 1
+        if packet and self._corruption:
+            share = self._corruption_share(at_s)
+            if share > 0.0:
+                if fate is None:
+                    fate = self._fate(sender, destination, receiver, sent_s, place)
+                if fate[1] < share:
+                    packet = _flip_bytes(packet, fate[2])
+                    corrupted = True
+                    link.corrupted += 1
         link.delivered += 1
         return Delivery(at_s, sender, receiver, sequence, packet, sent_s, corrupted)
 

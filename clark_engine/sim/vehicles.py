@@ -313,6 +313,14 @@ where it can stop and only then loops round. Measured on SITL at WP_SPEED 3,
 ATC_ACCEL_MAX 1, a target sent at 3 m/s: 10 m behind, it stopped 6.5 m further on and
 was within 3 m of the target after 14.8 s; 30 m behind, 19.4 s. A target ahead or to
 the side is driven to at once, turning while slowing (20 m to the right: 10.8 s)."""
+ROVER_POS_P_1_S: Final = 0.2
+"""ArduRover's AR_PosControl position gain (AR_POSCON_POS_P, 0.2/s). A GUIDED target's
+shaped position runs down the leg whatever the rover does; a rover that fell behind it
+(turning round from rest toward a target behind it) is asked, once the shaped position
+brakes into the target, for the shaped speed plus this times its lag, and closes the
+last of the gap at this rate alone. Measured on SITL (WP_SPEED 3, a 30 m leg begun behind
+the rover): 2.95 m/s 18 m out, 1.09 m/s 5.5 m out, 0.40 m/s 2.2 m out; within 2 m after
+20.66 s (tests/conformance/test_guided.py, the waypoint tour)."""
 ROVER_START_DELAY_S: Final = 0.84
 """From a new target to the first motion of a rover at rest (SITL: 0.84 s, in every run,
 at speedup 1 and 10): its speed controller winding up."""
@@ -2664,7 +2672,14 @@ class Rover(SimulatedVehicle):
     (ArduRover's), where a mission executor moves on. A target behind it within
     WP_RADIUS is reached where it is. A GUIDED target behind a rover at speed
     (:data:`ROVER_REVERSAL_SPEED_M_S`) brakes it straight to a stop before it turns
-    round, as ArduRover's shaped target does. Hold (and a guided mode entered with no
+    round, as ArduRover's shaped target does. A GUIDED target more than 90 degrees off the
+    heading when sent (or after such a stop) is turned round to; meanwhile its shaped
+    position runs down the leg from when the rover sets off, as a rover on a straight leg
+    would, and once it
+    brakes into the target the rover is asked for the shaped speed plus
+    :data:`ROVER_POS_P_1_S` times its lag behind it: a rover that turned round from rest
+    toward a target behind it arrives lagging and crawls its last metres as ArduRover's
+    does (stopped once that crawl is below ATC_STOP_SPEED). Hold (and a guided mode entered with no
     target) stops where it is, braking at the deceleration limit. Manual modes: the
     steering channel steers, the throttle channel (centred) drives forward above
     trim and reverses below it, full stick meaning ``max_speed_m_s`` reached at up
@@ -2706,6 +2721,10 @@ class Rover(SimulatedVehicle):
         self._wind_up_s = 0.0
         self._redirect = False
         self._redirect_s = 0.0
+        # A GUIDED target's shaped position: its distance to the target and its speed.
+        self._shaped_d = 0.0
+        self._shaped_v = 0.0
+        self._turning_round = False  # the target was behind the rover when it was sent
         self._capture()
         self._leg_speed = self._default_speed()
 
@@ -2771,6 +2790,11 @@ class Rover(SimulatedVehicle):
             and self._speed > ROVER_REVERSAL_SPEED_M_S
             and abs(_wrap_pi(bearing - self._yaw)) > _HALF_PI
         )
+        if self._arrived or abs(north_m - self._tn) > 0.01 or abs(east_m - self._te) > 0.01:
+            # The shaped position starts where the rover is, at its speed toward the target.
+            self._shaped_d = math.hypot(north_m - self._n, east_m - self._e)
+            self._shaped_v = max(0.0, self._speed * math.cos(bearing - self._yaw))
+            self._turning_round = abs(_wrap_pi(bearing - self._yaw)) > _HALF_PI
         self._tn, self._te = north_m, east_m
         self._arrived = False
         self._command = _CMD_TARGET
@@ -2778,6 +2802,39 @@ class Rover(SimulatedVehicle):
     def _set_speed(self, speed_m_s: float) -> None:
         self._leg_speed = _clamp(speed_m_s, ROVER_MIN_SPEED_M_S, self.limits.max_speed_m_s)
         self._speed_set = True
+
+    def _shaped_speed(self, distance: float, speed: float, speed_cmd: float, h: float) -> float:
+        """The speed a GUIDED rover is asked for, given its lag behind the shaped target.
+
+        The shaped position runs down the leg (from when the rover sets off) as a rover
+        on a straight leg would; the rover, ``distance`` from the target, lags it by
+        ``distance - shaped distance``. Once the shaped position brakes into the target,
+        the rover is asked for the shaped speed plus :data:`ROVER_POS_P_1_S` times that
+        lag, never more than ``speed_cmd``; before, ``speed_cmd`` (its own profile: a rover
+        at speed after its turn keeps the leg speed, one setting off keeps ArduRover's ramp).
+        """
+        approach = self._approach_decel
+        braking = (
+            sqrt_controller(self._shaped_d, ROVER_APPROACH_GAIN_1_S, approach, h) < self._leg_speed
+        )
+        if speed >= ROVER_MIN_SPEED_M_S or self._wind_up_s >= ROVER_START_DELAY_S:
+            shaped_cmd = min(
+                self._leg_speed,
+                sqrt_controller(self._shaped_d, ROVER_APPROACH_GAIN_1_S, approach, h),
+            )
+            v = self._shaped_v
+            if shaped_cmd >= v:
+                v += min(shaped_cmd - v, self._accel * h)
+            else:
+                v -= min(v - shaped_cmd, self._decel * h)
+            self._shaped_v = v
+            self._shaped_d = max(0.0, self._shaped_d - v * h)
+            if self._shaped_d <= 0.0:
+                self._shaped_v = 0.0
+        lag = distance - self._shaped_d
+        if lag <= 0.0 or not braking:
+            return speed_cmd
+        return min(speed_cmd, self._shaped_v + ROVER_POS_P_1_S * lag)
 
     def auto_land(self) -> None:
         """A land item means nothing to a rover: it stops where it is."""
@@ -2806,6 +2863,8 @@ class Rover(SimulatedVehicle):
                 )
                 if self._redirect and speed <= 0.0:
                     self._redirect = False
+                    self._shaped_d, self._shaped_v = distance, 0.0  # as from rest
+                    self._turning_round = True
                 if self._redirect:
                     # Braking straight to a stop, the deceleration ramping up at WP_JERK
                     # (0: the acceleration limit's value per second, as AR_WPNav's).
@@ -2820,6 +2879,11 @@ class Rover(SimulatedVehicle):
                     rate = _clamp(self.heading_gain_1_s * error, -limit, limit)
                     steer_cmd = rate / limit if limit > 0 else 0.0
                     speed_cmd = min(self._leg_speed, approach)
+                    if behaviour is ModeBehaviour.GUIDED and self._turning_round:
+                        speed_cmd = self._shaped_speed(distance, speed, speed_cmd, h)
+                        if speed_cmd < ROVER_STOP_SPEED_M_S and self._shaped_d <= 0.0:
+                            self._arrived = True  # the lag's crawl below the stop speed
+                            speed_cmd = 0.0
                     speed_cmd = max(
                         speed_cmd * math.cos(error), min(self.crawl_speed_m_s, speed_cmd)
                     )

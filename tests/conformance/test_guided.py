@@ -21,6 +21,7 @@ from flight import (
     distance_m,
     first,
     fix_of,
+    flight_params,
     goto,
     here,
     landed_states,
@@ -313,3 +314,59 @@ def redirect(peer: Peer, case: str, north_m: float, east_m: float) -> None:
         return fix_of(msg).ground_speed_m_s < 0.05 and there(msg, 3.5)
 
     peer.wait_for("GLOBAL_POSITION_INT", 15.0, where=stopped)
+
+
+TOUR_LEG_M = 30.0
+TOUR_TOLERANCE_M = 2.0
+"""The engine's waypoint_tour sends the next corner within this of the last (tolerance_m)."""
+TOUR_CORNERS_M = ((-TOUR_LEG_M, 0.0), (-TOUR_LEG_M, TOUR_LEG_M), (0.0, TOUR_LEG_M), (0.0, 0.0))
+"""A square begun behind the rover, (ahead, right) of it in metres: fault_lost_peer's patrol
+(Slash C faces north; the square is turned to the rover's heading)."""
+TOUR_LEG_S = (20.66, 12.0, 12.2, 12.2)
+"""SITL (WP_SPEED 3, WP_RADIUS 2, the Slash's): seconds from each corner sent to within
+TOUR_TOLERANCE_M of it. The first leg turns round from rest: the rover drives a wide arc
+while ArduRover's shaped position target runs on down the leg and stops at the corner,
+so the rover arrives lagging it and closes the gap at AR_PosControl's POS_P (0.2/s):
+1.09 m/s 5.5 m out, 0.40 m/s 2.2 m out, where a straight leg brakes on its square-root
+profile (2.6 m/s 5.5 m out). The others turn 90 degrees at speed."""
+
+
+@backends(kinds=("rover",))
+def test_rover_on_a_waypoint_tour_reaches_each_corner_as_ardurover_does(rover: Peer) -> None:
+    """A square tour driven as the engine's waypoint_tour drives it (fault_lost_peer's
+    Slash C): each corner sent when the last is within 2 m. The simulated rover once braked
+    on its straight-leg profile after turning round and reached the first corner 4.9 s
+    before ArduRover's (0.76x), and so stood 15.3 m from SITL's when its autopilot link
+    dropped 24 s into the patrol; it now lags its shaped target as ArduRover does (19.6 s,
+    then 11.4, 11.0 and 11.0 s a leg)."""
+    with flight_params(rover, {"WP_RADIUS": TOUR_TOLERANCE_M}):
+        peer = rover
+        assert peer.set_mode("GUIDED").result == mavlink2.MAV_RESULT_ACCEPTED
+        assert peer.arm().result == mavlink2.MAV_RESULT_ACCEPTED
+        position = peer.wait_for("GLOBAL_POSITION_INT", 2.0)
+        base = (position.lat / 1e7, position.lon / 1e7)
+        # The square turned to the rover's heading (SITL's shared rover faces wherever the
+        # scenario before left it): the first corner straight behind it.
+        yaw = math.radians(position.hdg / 100.0)
+        legs_s = []
+        for (ahead_m, right_m), sitl_s in zip(TOUR_CORNERS_M, TOUR_LEG_S, strict=True):
+            north_m = ahead_m * math.cos(yaw) - right_m * math.sin(yaw)
+            east_m = ahead_m * math.sin(yaw) + right_m * math.cos(yaw)
+            target = moved(*base, north_m, east_m)
+            sent_s = peer.now_s
+            goto(peer, *target, 0.0)
+
+            def near(msg: object, target: tuple[float, float] = target) -> bool:
+                """within the tour's tolerance of the corner"""
+                f = fix_of(msg)
+                return distance_m((f.lat_deg, f.lon_deg), target) < TOUR_TOLERANCE_M
+
+            reached = fix_of(peer.wait_for("GLOBAL_POSITION_INT", 2 * sitl_s, where=near))
+            legs_s.append(reached.t_s - sent_s)
+        assert all(within(s, sitl_s) for s, sitl_s in zip(legs_s, TOUR_LEG_S, strict=True)), legs_s
+
+        def stopped(msg: object) -> bool:
+            """stopped back where it started"""
+            return fix_of(msg).ground_speed_m_s < 0.05
+
+        peer.wait_for("GLOBAL_POSITION_INT", 20.0, where=stopped)
