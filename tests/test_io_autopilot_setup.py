@@ -33,6 +33,7 @@ from clark_engine.io.autopilot import (
 from clark_engine.io.autopilot_setup import took
 from clark_engine.io.mission_upload import UPLOAD_ATTEMPTS, UPLOAD_SILENCE_S
 from clark_engine.mission.compiler import agent_config
+from clark_engine.mission.variation import resolve_mission
 from clark_engine.runtime.autopilot_safety import safety_setup
 from clark_engine.runtime.commands import (
     FenceZone,
@@ -552,7 +553,8 @@ def test_took_compares_as_the_parameter_stores(
 def test_the_simulated_autopilot_holds_what_the_runtime_planned(
     mission: str, agent: str, expected: dict[str, float]
 ) -> None:
-    resolved = load_mission(str(ROOT / "missions" / mission))
+    # Includes resolved, then the world it declares drawn (as a dry run of seed 1 does).
+    resolved, _ = resolve_mission(load_mission(str(ROOT / "missions" / mission)), seed=1)
     config = config_from_dict(agent_config(resolved, resolved.agents[agent]))
     backend, _pilot = build_vehicle(resolved, resolved.agents[agent], config, seed=1)
     adapter = AutopilotAdapter(AutopilotSettings.from_config(config))

@@ -54,13 +54,13 @@ from clark_engine.sim.report import (
     ReportFolder,
     RunOrigin,
     checks_table,
+    drawn_line,
     equivalent_command,
     pace_lines,
     plot_altitude,
     plot_inputs,
     plot_timeline,
     plot_tracks,
-    vary_value_text,
     write_summary,
 )
 from clark_engine.sim.safety import SafetyJudgement, count_breaches
@@ -285,8 +285,7 @@ def run_dry_run(
         raise UsageError(str(exc)) from None
     mission, drawn = resolve_mission(mission, seed, fixed)
     if drawn:
-        shown = ", ".join(f"{path}={vary_value_text(value)}" for path, value in drawn.items())
-        print(f"drawn for seed {seed}: {shown}", file=err)
+        print(drawn_line(seed, drawn), file=err)
     origin = RunOrigin(
         shlex.join(command_line)
         if command_line is not None

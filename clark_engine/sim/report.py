@@ -275,6 +275,12 @@ def vary_value_text(value: float | bool) -> str:
     return f"{number:g}" if number.is_integer() and abs(number) < 1e15 else repr(number)
 
 
+def drawn_line(seed: int, drawn: Mapping[str, float | bool]) -> str:
+    """What one run drew, as ``clark dry-run`` and ``clark autopilot-sim`` say it."""
+    shown = ", ".join(f"{path}={vary_value_text(value)}" for path, value in drawn.items())
+    return f"drawn for seed {seed}: {shown}"
+
+
 def equivalent_command(
     mission_path: Path | str,
     seed: int,

@@ -46,11 +46,13 @@ from clark_engine.errors import UsageError
 from clark_engine.io.transports import TransportError, UdpTransport
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.model import Mission
+from clark_engine.mission.variation import resolve_mission
 from clark_engine.runtime.config import config_from_dict
 from clark_engine.sim.backend import SimulatedBackend
 from clark_engine.sim.engine import PHYSICS_STEP_S, build_sitl_vehicle, build_vehicle
 from clark_engine.sim.pilot import SimPilot
 from clark_engine.sim.realtime import StopFlag, datagrams
+from clark_engine.sim.report import drawn_line
 from clark_engine.sim.sitl import SitlError, SitlInstall
 from clark_engine.sim.sitl_backend import SitlBackend
 from clark_engine.untrusted import printable
@@ -181,9 +183,12 @@ class ServedSimulated:
     ) -> None:
         if ready_s is not None:
             mission = replace(mission, sim={**mission.sim, "autopilot_ready_s": ready_s})
+        run_seed = int(mission.sim.get("seed", 0)) if seed is None else seed
+        # The world the mission declares, drawn as its dry run with this seed draws it.
+        mission, self.drawn = resolve_mission(mission, run_seed)
+        self.seed = run_seed
         spec, config = _vehicle(mission, agent)
         self.name = agent
-        run_seed = int(mission.sim.get("seed", 0)) if seed is None else seed
         self.backend: SimulatedBackend
         self.backend, self.pilot = build_vehicle(mission, spec, config, run_seed, wall_clock=True)
         self.transport = UdpTransport(bind=(host, port))
@@ -255,11 +260,15 @@ class ServedSitl:
     """
 
     def __init__(self, mission: Mission, agent: str, install: SitlInstall) -> None:
+        self.seed = int(mission.sim.get("seed", 0))
+        # The world the mission declares (SIM_WIND_*, the GPS error), drawn as its dry run
+        # with the mission's seed draws it.
+        mission, self.drawn = resolve_mission(mission, self.seed)
         spec, config = _vehicle(mission, agent)
         self.name = agent
         self.backend: SitlBackend
         self.backend, self.pilot, self._fly_up = build_sitl_vehicle(
-            mission, spec, config, install, 1.0
+            mission, spec, config, install, 1.0, seed=self.seed
         )
         self._modes = dict(config.modes)
         self._mav = mavlink2.MAVLink(self, srcSystem=255, srcComponent=25)
@@ -413,6 +422,8 @@ def serve_vehicle(args: Any) -> int:
         print(line, flush=True)
 
     say(f"clark autopilot-sim: {args.agent}'s autopilot on {kind}")
+    if server.drawn:
+        say(drawn_line(server.seed, server.drawn))
     say(f"{args.agent}: clark run connects with --autopilot-connection {server.connection}")
     stop = StopFlag(args.until)
     try:
