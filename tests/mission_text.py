@@ -15,7 +15,7 @@ import yaml
 
 def with_sim_keys(text: str, extra: str) -> str:
     """``text`` with the keys of ``extra`` (a flow mapping's inside: ``"a: 1, b: {c: 2}"``)
-    added to its top-level ``sim:`` mapping.
+    set in its top-level ``sim:`` mapping (added; in a block, a key already there replaced).
 
     Raises:
         AssertionError: The text has no top-level ``sim:`` mapping, or ``extra`` is not a
@@ -28,12 +28,16 @@ def with_sim_keys(text: str, extra: str) -> str:
     )
     if count == 1:
         return one_line
+    found = re.search(r"^sim:[ \t]*\n((?:[ \t]+.*\n)*)", text, flags=re.M)
+    assert found is not None, "the mission has a top-level sim: mapping"
+    # A block's key that ``extra`` sets again is replaced (a duplicate key is an error).
+    kept = [
+        line
+        for line in found[1].splitlines()
+        if not any(re.match(rf"  {re.escape(str(key))}:", line) for key in keys)
+    ]
     lines = [
         "  " + yaml.safe_dump({key: value}, default_flow_style=True, width=10**6).strip()[1:-1]
         for key, value in keys.items()
     ]
-    block, count = re.subn(
-        r"^sim:[ \t]*\n", lambda m: m[0] + "\n".join(lines) + "\n", text, count=1, flags=re.M
-    )
-    assert count == 1, "the mission has a top-level sim: mapping"
-    return block
+    return text[: found.start()] + "sim:\n" + "\n".join(lines + kept) + "\n" + text[found.end() :]

@@ -23,7 +23,8 @@ def test_quiet_hides_warnings_but_keeps_the_verdict(capsys: pytest.CaptureFixtur
     assert main(["validate", "--quiet", EXAMPLE]) == 0
     out = capsys.readouterr().out
     assert "W-NO-KEY" not in out and "W-ENVELOPE-REACTIVE" not in out
-    assert "valid mission (2 warnings)" in out
+    assert "W-POSITION-ERROR" not in out
+    assert "valid mission (3 warnings)" in out
 
 
 def test_quiet_still_shows_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -10,6 +10,7 @@ waits for a message, with a timeout. The rest runs the dry run on its virtual cl
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import json
 import re
 import signal
@@ -50,7 +51,9 @@ READY_S = 2
 def quick_mission(folder: Path) -> Path:
     """cooperative_follow with its autopilots ready after READY_S seconds."""
     text = MISSION.read_text(encoding="utf-8")
-    quick = with_sim_keys(text, f"autopilot_ready_s: {READY_S}")
+    # The operator on time (the example jitters its script by up to 5 s): the tests here
+    # act when the script would.
+    quick = with_sim_keys(text, f"autopilot_ready_s: {READY_S}, jitter: {{operator_s: 0}}")
     path = folder / MISSION.name
     path.write_text(quick, encoding="utf-8")
     return path
@@ -322,6 +325,9 @@ def test_a_mission_without_a_station_is_refused(
 def test_the_station_commands_what_the_script_no_longer_does() -> None:
     """--no-operator-script: slash_b idles; a command through the station activates it."""
     mission = load(MISSION)
+    # The script on time (the example jitters it by up to 5 s), to compare with the command.
+    jitter = {**mission.sim.get("jitter", {}), "operator_s": 0}
+    mission = dataclasses.replace(mission, sim={**mission.sim, "jitter": jitter})
     quiet = DryRun(mission, MISSION, seed=1, until_s=100.0, operator_script=False).run()
     assert not quiet.recording.entered_by("slash_b", "chase", 100.0)
 

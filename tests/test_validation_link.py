@@ -113,15 +113,16 @@ def test_key_file_rules(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> N
     keyed = COOP.replace("  loop_hz: 10\n", "  loop_hz: 10\n  key_file: keys/coop.key\n", 1)
     mission = write(tmp_path, keyed)
     follow = "W-ENVELOPE-REACTIVE"  # Slash B's follow, which only the dry run can judge
-    assert codes(mission) == ["E-KEY-FILE", follow]  # missing
+    gps = "W-POSITION-ERROR"  # its world's GPS error, against no declared position error
+    assert codes(mission) == ["E-KEY-FILE", follow, gps]  # missing
     (tmp_path / "keys").mkdir()
     assert main(["keygen", str(tmp_path / "keys" / "coop.key")]) == 0
     assert "wrote" in capsys.readouterr().out
-    assert codes(mission) == [follow]
+    assert codes(mission) == [follow, gps]
     assert main(["keygen", str(tmp_path / "keys" / "coop.key")]) == 2  # never overwrites
     (tmp_path / "keys" / "coop.key").chmod(0o644)
     findings = validate_file(mission, "m.yaml").findings
-    assert [f.code for f in findings] == ["E-KEY-FILE", follow]
+    assert [f.code for f in findings] == ["E-KEY-FILE", follow, gps]
     assert "chmod 600" in findings[0].message
     key_text = (tmp_path / "keys" / "coop.key").read_text().strip()
     assert key_text not in findings[0].message
