@@ -181,8 +181,11 @@ class ServedSimulated:
         ready_s: float | None = None,
         seed: int | None = None,
     ) -> None:
-        if ready_s is not None:
-            mission = replace(mission, sim={**mission.sim, "autopilot_ready_s": ready_s})
+        if ready_s is not None:  # ready when asked: no jitter on top (sim.jitter.ready_s)
+            jitter = {**mission.sim.get("jitter", {}), "ready_s": 0}
+            mission = replace(
+                mission, sim={**mission.sim, "autopilot_ready_s": ready_s, "jitter": jitter}
+            )
         run_seed = int(mission.sim.get("seed", 0)) if seed is None else seed
         # The world the mission declares, drawn as its dry run with this seed draws it.
         mission, self.drawn = resolve_mission(mission, run_seed)
