@@ -52,8 +52,12 @@ def quick_mission(folder: Path) -> Path:
     """cooperative_follow with its autopilots ready after READY_S seconds."""
     text = MISSION.read_text(encoding="utf-8")
     # The operator on time (the example jitters its script by up to 5 s): the tests here
-    # act when the script would.
-    quick = with_sim_keys(text, f"autopilot_ready_s: {READY_S}, jitter: {{operator_s: 0}}")
+    # act when the script would; and no bad radio spells, in which a command sent at a
+    # wall-clock moment could be lost (a campaign measures those).
+    quick = with_sim_keys(
+        text,
+        f"autopilot_ready_s: {READY_S}, jitter: {{operator_s: 0}}, radio_bursts: {{loss_bad: 0}}",
+    )
     path = folder / MISSION.name
     path.write_text(quick, encoding="utf-8")
     return path

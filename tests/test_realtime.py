@@ -90,7 +90,8 @@ def quick_mission(folder: Path) -> Path:
     """The cooperative-follow example with autopilots ready after :data:`READY_S`."""
     path = folder / MISSION.name
     text = MISSION.read_text(encoding="utf-8")
-    quick = with_sim_keys(text, f"autopilot_ready_s: {READY_S}")
+    # No bad radio spells: what a test sends at a wall-clock moment must not fall in one.
+    quick = with_sim_keys(text, f"autopilot_ready_s: {READY_S}, radio_bursts: {{loss_bad: 0}}")
     path.write_text(quick, encoding="utf-8")
     return path
 

@@ -214,6 +214,10 @@ def rehearsal(tmp_path: Path) -> Iterator[ServedStation]:
         f"link_drop:mcs,slash_b@{SLASH_B_DOWN_S[0]}-{SLASH_B_DOWN_S[1]}",
         "--until",
         str(UNTIL_S),
+        # The example's world without its radio's bad spells: a command sent from the page
+        # at a wall-clock moment must not fall in one (a campaign measures those).
+        "--vary",
+        "sim.radio_bursts.loss_bad=0",
         "--quiet",
     ]
     with served_station(argv, tmp_path) as station:
