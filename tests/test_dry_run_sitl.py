@@ -93,6 +93,10 @@ def comparison_row(stdout: str) -> str:
     return last
 
 
+OVERLOADED = "too busy for this speed-up"
+"""What a SITL run says when the engine fell behind SITL's clock (the pace warning)."""
+
+
 def on_sitl(mission: Path, tmp_path: Path, *args: str) -> subprocess.CompletedProcess[str]:
     assert REAL is not None
     return clark(
@@ -124,6 +128,12 @@ def test_the_example_flies_on_sitl_as_on_the_simulated_autopilot(
 ) -> None:
     path = MISSIONS / mission
     run = on_sitl(path, tmp_path)
+    if run.returncode != 0 and OVERLOADED in run.stdout + run.stderr:
+        # The run says itself that it is void: the engine fell behind SITL's clock on a
+        # busy machine, so SITL flew late commands. Flown again once; twice is a failure.
+        again = tmp_path / "again"
+        again.mkdir()
+        run = on_sitl(path, again)
     assert run.returncode == 0, run.stdout + run.stderr
     last = comparison_row(run.stdout)
     assert last.endswith("| pass |")
