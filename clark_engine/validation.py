@@ -97,6 +97,29 @@ def load_mission(path_text: str, errors: TextIO | None = None) -> Mission:
     return result.mission
 
 
+def mission_to_fly(
+    mission_path: Path | str, err: TextIO, *, quiet: bool, nothing: str
+) -> Mission | None:
+    """The valid mission a dry run or a campaign flies, its findings printed first.
+
+    Errors are always printed to ``err``, warnings unless ``quiet``; an invalid mission
+    prints ``PATH: invalid; NOTHING`` (``nothing simulated``, ``nothing flown``) and gives
+    None, for the command's exit status 1.
+
+    Raises:
+        UsageError: The file cannot be read, or it is a file of another kind (a block).
+    """
+    validation = validate_file(Path(mission_path), str(mission_path))
+    for finding in validation.findings:
+        if finding.is_error or not quiet:
+            print(finding.format_text(), file=err)
+    if validation.kind != "mission" and validation.ok:
+        raise UsageError(f"{mission_path} is a {validation.kind}, not a mission")
+    if validation.mission is None:
+        print(f"{mission_path}: invalid; {nothing}", file=err)
+    return validation.mission
+
+
 def _mission_location(mission: Mission, key: str) -> Location:
     return mission.locations.get(key, Location(mission.file, 1, 1, ("mission", key)))
 

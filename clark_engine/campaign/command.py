@@ -220,19 +220,12 @@ def run_campaign(
         ClarkError: ``campaign.min_pass_rates`` names no check (exit 1).
         KeyboardInterrupt: Ctrl-C; the workers are stopped and nothing is written.
     """
-    from clark_engine.validation import validate_file
+    from clark_engine.validation import mission_to_fly
 
     out = sys.stdout if out is None else out
     err = sys.stderr if err is None else err
-    validation = validate_file(mission_path, str(mission_path))
-    for finding in validation.findings:
-        if finding.is_error or not options.quiet:
-            print(finding.format_text(), file=err)
-    mission = validation.mission
-    if validation.kind != "mission" and validation.ok:
-        raise UsageError(f"{mission_path} is a {validation.kind}, not a mission")
+    mission = mission_to_fly(mission_path, err, quiet=options.quiet, nothing="nothing flown")
     if mission is None:
-        print(f"{mission_path}: invalid; nothing flown", file=err)
         return 1
     _check_faults(mission, options.faults)
     _check_vary(mission, options.vary)

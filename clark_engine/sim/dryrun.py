@@ -68,7 +68,7 @@ from clark_engine.sim.safety import judge as judge_safety
 from clark_engine.sim.sitl import SitlError, SitlInstall
 from clark_engine.sim.sitl_backend import SitlBackend
 from clark_engine.sim.timeline import Comparison, Tolerance, compare
-from clark_engine.validation import validate_file
+from clark_engine.validation import mission_to_fly
 
 DEFAULT_DURATION_S: Final = 300.0
 """A mission's simulated duration when its ``sim.duration_s`` says none."""
@@ -259,15 +259,8 @@ def run_dry_run(
     out = sys.stdout if out is None else out
     err = sys.stderr if err is None else err
     extra = [parse_fault(text) for text in faults]
-    validation = validate_file(mission_path, str(mission_path))
-    for finding in validation.findings:
-        if finding.is_error or not quiet:
-            print(finding.format_text(), file=err)
-    mission = validation.mission
-    if validation.kind != "mission" and validation.ok:
-        raise UsageError(f"{mission_path} is a {validation.kind}, not a mission")
+    mission = mission_to_fly(mission_path, err, quiet=quiet, nothing="nothing simulated")
     if mission is None:
-        print(f"{mission_path}: invalid; nothing simulated", file=err)
         return Outcome(1, [], None)
     for fault in extra:
         ((kind, body),) = fault.items()
