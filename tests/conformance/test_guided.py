@@ -353,6 +353,7 @@ def test_rover_on_a_waypoint_tour_reaches_each_corner_as_ardurover_does(rover: P
             north_m = ahead_m * math.cos(yaw) - right_m * math.sin(yaw)
             east_m = ahead_m * math.sin(yaw) + right_m * math.cos(yaw)
             target = moved(*base, north_m, east_m)
+            peer.sync()  # the present, not when the test process last read SITL
             sent_s = peer.now_s
             goto(peer, *target, 0.0)
 

@@ -24,13 +24,19 @@ OVERRIDE_TIME_S = 3.0
 """RC_OVERRIDE_TIME on every firmware (ArduPilot's default, SITL's too)."""
 
 
-def override(peer: Peer, channels: dict[int, int], system_id: int = GCS_SYSTEM_ID) -> None:
-    """One RC_CHANNELS_OVERRIDE from ``system_id`` (channels not named: no change)."""
+def override(peer: Peer, channels: dict[int, int], system_id: int = GCS_SYSTEM_ID) -> float:
+    """One RC_CHANNELS_OVERRIDE from ``system_id`` (channels not named: no change).
+
+    Returns the autopilot's time it was sent at: read after what already arrived, since a
+    SITL vehicle runs on while nobody reads it (a time read before would be stale by as
+    long as the test process was not scheduled).
+    """
     values = [channels.get(ch, NO_CHANGE if ch <= 8 else 0) for ch in range(1, 19)]
     mav = mavlink2.MAVLink(None, srcSystem=system_id, srcComponent=190)
     msg = mav.rc_channels_override_encode(peer.spec.system_id, 1, *values)
     peer.sync()
     peer.link.send(msg.pack(mav))
+    return peer.now_s
 
 
 def channel_us(msg: object) -> int:
@@ -58,8 +64,7 @@ def test_an_override_lapses_after_rc_override_time(rc: tuple[Peer, int]) -> None
     peer, untouched = rc
     assert untouched != OVERRIDE_US
     assert peer.param_get("RC_OVERRIDE_TIME").param_value == pytest.approx(OVERRIDE_TIME_S)
-    sent_s = peer.now_s
-    override(peer, {CHANNEL: OVERRIDE_US})
+    sent_s = override(peer, {CHANNEL: OVERRIDE_US})
     taken = peer.wait_for("RC_CHANNELS", 1.0, where=lambda m: channel_us(m) == OVERRIDE_US)
     assert rc_time_s(taken) - sent_s <= 0.3
     lapsed = peer.wait_for("RC_CHANNELS", 5.0, where=lambda m: channel_us(m) == untouched)
@@ -82,8 +87,7 @@ def test_zero_releases_at_once(rc: tuple[Peer, int]) -> None:
     peer, untouched = rc
     override(peer, {CHANNEL: OVERRIDE_US})
     peer.wait_for("RC_CHANNELS", 1.0, where=lambda m: channel_us(m) == OVERRIDE_US)
-    released_s = peer.now_s
-    override(peer, {CHANNEL: 0})
+    released_s = override(peer, {CHANNEL: 0})
     back = peer.wait_for("RC_CHANNELS", 1.0, where=lambda m: channel_us(m) == untouched)
     assert rc_time_s(back) - released_s <= 0.3
 
