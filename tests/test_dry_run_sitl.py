@@ -13,6 +13,7 @@ import math
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -21,6 +22,7 @@ from sitl_here import real_install
 from clark_engine.sim.checks import evaluate
 from clark_engine.sim.engine import DryRun
 from clark_engine.sim.sitl import ENV_SITL
+from clark_engine.sim.sitl_backend import SitlBackend
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -189,14 +191,32 @@ def test_a_simulation_kinder_than_sitl_fails_the_comparison(tmp_path: Path) -> N
 
 @pytest.mark.sitl
 @needs_sitl
-def test_aircraft_handed_over_in_flight_start_on_their_position() -> None:
+def test_aircraft_handed_over_in_flight_start_on_their_position(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     """Issue 19: a plane was handed over anywhere within 150 m of its position.
 
     The simulation starts a handed-over aircraft at its ``position``, in its hold mode: a
     copter hovering there, a plane there on its heading, circling that point. SITL's
     pre-flight must put each where the simulation does before the run's time 0.
+
+    SITL flies on while the engine is held back: a CI run put the plane 57 m on when the
+    test process was not scheduled for a moment between the handover and time 0. Here the
+    engine is held back 0.5 s of wall time once, just after the plane's handover (SITL
+    flies 90 m meanwhile at ten times real time): the run finds it off its position and
+    flies it round its approach again.
     """
     assert REAL is not None
+    stalled: list[float] = []
+    start_run_here = SitlBackend.start_run_here
+
+    def held_back_once(backend: SitlBackend) -> None:
+        if backend.handover_miss_m() is not None and not stalled:
+            stalled.append(time.monotonic())
+            time.sleep(0.5)
+        start_run_here(backend)
+
+    monkeypatch.setattr(SitlBackend, "start_run_here", held_back_once)
     path = ROOT / "tests" / "dryrun" / "handover_in_flight.yaml"
     mission = validate_file(path, str(path)).mission
     assert mission is not None
@@ -205,6 +225,9 @@ def test_aircraft_handed_over_in_flight_start_on_their_position() -> None:
         result = run.run()
     finally:
         run.close()
+    assert stalled
+    assert list(run.handover_again) == ["cub"], run.handover_again
+    assert run.handover_again["cub"][0] > 30.0, run.handover_again
     tracks = result.recording.tracks
     _, north, east, up = next(tracks["f450"].samples())
     assert math.hypot(north - 40.0, east + 30.0) <= 2.0, (north, east)

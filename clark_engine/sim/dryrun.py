@@ -690,6 +690,12 @@ def _fly_sitl(
             progress.finish()  # also on Ctrl-C: what follows starts on its own line
     for name, wall_s in run.preflight_wall_s.items():
         print(f"  {name}: flown up to its start point before the run, in {wall_s:.1f} s", file=err)
+    for name, misses_m in run.handover_again.items():
+        print(
+            f"  {name}: {', '.join(f'{m:.0f}' for m in misses_m)} m off its position at time 0 "
+            "(the machine held the engine back while SITL flew on): flown round again",
+            file=err,
+        )
     return result
 
 

@@ -109,6 +109,14 @@ PLANE_LINE_M: Final = 5.0
 PLANE_ALIGNED: Final = 0.95
 """...flying along the line: its speed along the heading at least this share of its
 ground speed (within 18 degrees)."""
+PLANE_HANDOVER_M: Final = 5.0
+"""The last plane handed over must be this close to its position at the run's time 0
+(metres); one further off (the machine held the engine back while SITL flew on) goes
+round its approach again, :data:`PLANE_HANDOVER_TRIES` times at most."""
+PLANE_HANDOVER_TRIES: Final = 3
+PLANE_AGAIN_S: Final = 300.0
+"""SITL seconds a plane may take to go round its approach again (the lead-in and the
+approach are 1.8 km: about 100 s at 18 m/s, and the turn onto it)."""
 PLANE_LEAD_S: Final = 0.05
 """LOITER is asked for this long before the plane reaches its position: SIM_STATE's
 interval (its position is up to that old) against the command's way to SITL."""
@@ -239,6 +247,8 @@ class SitlBackend(VehicleBackend):
             home.lat_deg, home.lon_deg, home.alt_m, (0.0, 0.0, 0.0),
             (0.0, 0.0, math.radians(home.heading_deg)),
         )  # fmt: skip
+        self._handover: tuple[float, float, float, float, Mapping[str, int], str] | None = None
+        """A plane handed over in flight: :meth:`_plane_over`'s arguments, to go round again."""
         self._rc: tuple[int, ...] = ()
         self._servos: tuple[int, ...] = ()
         self._later: list[LaterReport] = []  # asked for and not yet reported, in order
@@ -724,23 +734,7 @@ class SitlBackend(VehicleBackend):
             self._streams_wanted[name] = 500_000
         self._streams_wanted["GLOBAL_POSITION_INT"] = 200_000
         self._streams_wanted["HEARTBEAT"] = 1_000_000
-        deadline = [self._clock_s or 0.0]
-        deadline[0] += within_s
-
-        def wait(what: str, done: Any, act: Any = None, every_s: float = 2.0) -> None:
-            next_act = -math.inf
-            while not done():
-                now = self._clock_s or 0.0
-                if now > deadline[0]:
-                    raise self.process.failure(f"pre-flight: did not {what} in time")
-                if act is not None and now >= next_act:
-                    next_act = now + every_s
-                    act()
-                    self._flush()
-                self._duties()
-                self._read(0.05)
-                if meanwhile is not None:
-                    meanwhile()
+        wait = self._waiter(within_s, meanwhile)
 
         def prearm_ok() -> bool:
             status, ekf = self._latest.get("SYS_STATUS"), self._latest.get("EKF_STATUS_REPORT")
@@ -795,12 +789,62 @@ class SitlBackend(VehicleBackend):
                 every_s=5.0,
             )
         if self.firmware == "arduplane":
-            self._plane_over(north_m, east_m, up_m, heading_deg, modes, hold_mode, wait)
+            self._handover = (north_m, east_m, up_m, heading_deg, modes, hold_mode)
+            self._plane_over(*self._handover, wait)
         else:
             self._copter_over(north_m, east_m, up_m, hold_mode, throttle, wait, in_mode, set_mode)
         for name in ("SYS_STATUS", "EKF_STATUS_REPORT", "EXTENDED_SYS_STATE", "HEARTBEAT"):
             self._streams_wanted.pop(name, None)
         self._streams_wanted.pop("GLOBAL_POSITION_INT", None)
+        self.start_run_here()
+
+    def _waiter(self, within_s: float, meanwhile: Callable[[], None] | None) -> Any:
+        """A pre-flight's ``wait(what, done, act=None, every_s=2.0)``.
+
+        It waits until ``done()``, doing ``act()`` every ``every_s`` SITL seconds and
+        ``meanwhile()`` as it waits, all of it within ``within_s`` SITL seconds.
+        """
+        deadline_s = (self._clock_s or 0.0) + within_s
+
+        def wait(what: str, done: Any, act: Any = None, every_s: float = 2.0) -> None:
+            next_act = -math.inf
+            while not done():
+                now = self._clock_s or 0.0
+                if now > deadline_s:
+                    raise self.process.failure(f"pre-flight: did not {what} in time")
+                if act is not None and now >= next_act:
+                    next_act = now + every_s
+                    act()
+                    self._flush()
+                self._duties()
+                self._read(0.05)
+                if meanwhile is not None:
+                    meanwhile()
+
+        return wait
+
+    def handover_miss_m(self) -> float | None:
+        """How far a plane handed over in flight is from its position now (metres).
+
+        Horizontally; None for any other vehicle.
+
+        Read at the run's time 0: the plane was put in LOITER as it crossed its position,
+        but it flies on at 18 m/s through whatever wall time passes before the run
+        starts, ten times that at a speed-up of 10: a test process not scheduled for
+        0.3 s put the Super Cub 57 m on.
+        """
+        if self._handover is None:
+            return None
+        north_m, east_m = self._handover[0], self._handover[1]
+        return math.hypot(self._truth.north_m - north_m, self._truth.east_m - east_m)
+
+    def hand_over_again(self, meanwhile: Callable[[], None] | None = None) -> None:
+        """Fly a plane that missed its position round its approach again; hand it over.
+
+        As :meth:`_plane_over`; then the run's time 0 is now.
+        """
+        assert self._handover is not None, "only a plane handed over in flight goes round"
+        self._plane_over(*self._handover, self._waiter(PLANE_AGAIN_S, meanwhile))
         self.start_run_here()
 
     def _copter_over(
