@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ipaddress
+import os
 import signal
 import socket
 from collections.abc import Iterator
@@ -100,6 +101,38 @@ def sitl_install() -> SitlInstall:
 LONGEST_MODULES = ("test_run_end_to_end.py",)
 """Modules whose tests each take over a minute (real-time rehearsals): dealt out first."""
 
+WALL_CLOCK_MODULES = (
+    "test_run_end_to_end.py",
+    "test_browser_rehearsal.py",
+    "test_computer_lost.py",
+    "test_cli_run_stop.py",
+    "test_run_replay_restart.py",
+    "test_gcs_rehearsal.py",
+    "test_realtime.py",
+    "test_cli_sims.py",
+    "test_cli_run.py",
+)
+"""Modules whose tests mostly wait on the wall clock: real-time rehearsals of ``clark``
+processes, ArduPilot SITL at real time, a browser following a live run. Measured alone
+they use 4-60 % of a core (about 440 s of wall time, 100 s of CPU); they run one after
+the other on a test worker of their own, beside one worker per core for the rest."""
+WALL_CLOCK_TESTS = ("test_a_wall_clock_dry_run_stamps_every_log_on_one_time_base",)
+"""Single tests elsewhere that wait on the wall clock too (14 s, 4 % of a core)."""
+
+
+def _waits_on_the_wall_clock(item: pytest.Item) -> bool:
+    return item.path.name in WALL_CLOCK_MODULES or item.name in WALL_CLOCK_TESTS
+
+
+def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
+    """``-n auto``: a worker per core, and one for the tests that wait on the wall clock.
+
+    Those would otherwise hold a core's worker idle for minutes; on their own worker
+    they wait beside the CPU-bound tests (7.5 min of waiting on 2 cores).
+    """
+    return (os.cpu_count() or 1) + 1
+
+
 SPED_UP_SITL_MODULES = ("test_dry_run_sitl.py", "test_sitl.py")
 """Modules that run ArduPilot SITL at a speed-up (as do the conformance suite's sitl-*)."""
 
@@ -117,18 +150,24 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     real time needs a core of its own to keep ArduPilot's loops on time: two at once
     beside the rest of the suite made a rover stop short and a stream request race
     (seen on this 2-core machine), so those tests share one group, which xdist runs on
-    one worker, one after the other. The order of the rest is unchanged (the sort is
-    stable), and every test is independent of order.
+    one worker, one after the other. The tests that wait on the wall clock share another
+    group, dealt out first (:func:`pytest_xdist_auto_num_workers` gives them a worker of
+    their own). The order of the rest is unchanged (the sort is stable), and every test
+    is independent of order.
     """
 
     def rank(item: pytest.Item) -> int:
         if item.path.name in LONGEST_MODULES:
             return 0
-        if item.get_closest_marker("sitl") or item.get_closest_marker("slow"):
+        if _waits_on_the_wall_clock(item):
             return 1
-        return 2
+        if item.get_closest_marker("sitl") or item.get_closest_marker("slow"):
+            return 2
+        return 3
 
     items.sort(key=rank)
     for item in items:
         if _sped_up_sitl(item):
             item.add_marker(pytest.mark.xdist_group("sitl-speedup"))
+        elif _waits_on_the_wall_clock(item):
+            item.add_marker(pytest.mark.xdist_group("wall-clock"))

@@ -11,11 +11,11 @@ that however the suite is spread over processes, the steps stay together and in 
    checks pane lists the mission's checks;
 2. the link between the station and slash_a drops from 20 s to 26 s (a fault of the
    run): slash_a is flagged STALE, then LOST, then live again;
-3. once both vehicles' behaviours have started (about 44 s), Activate for slash_b: its
+3. once both vehicles' behaviours have started (about 32 s), Activate for slash_b: its
    command shows pending, then done, it chases slash_a on the map (its label moves, its
    track grows) and parks, and the checks pane shows the checks passing;
 4. a mode change from the page (slash_b to MANUAL) shows in its row;
-5. the link between the station and slash_b drops from 75 s to 81 s (a second fault of
+5. the link between the station and slash_b drops from 60 s to 66 s (a second fault of
    the run): slash_b loses its station and its failsafe holds it; once heard again, the
    page raises a failsafe alarm, once, in its banner and its mission log;
 6. Terminate from the dialog: slash_a alone stops where it is; then all: the station
@@ -24,7 +24,9 @@ that however the suite is spread over processes, the steps stay together and in 
 
 Every step waits on the page's own content (its clock, rows, commands, labels), never
 on a fixed sleep; a failure names its step. The rehearsal is the slow part: about 80 s
-of mission, the whole test under a minute and a half.
+of mission, the whole test about a minute and a quarter. The simulated autopilots are
+ready 30 s after power-on (``sim.autopilot_ready_s``; ArduRover takes 42 s): the page
+waits less for what it does not test.
 """
 
 from __future__ import annotations
@@ -52,16 +54,19 @@ expect = sync_api.expect
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow, pytest.mark.xdist_group("browser")]
 
+READY_S = 30
+"""When the simulated autopilots are ready, seconds after power-on."""
+
 LINK_DOWN_S = (20, 26)
 """The station and slash_a cannot hear each other then: before the vehicles' behaviours
-start (about 44 s), so that the drop changes nothing in the mission but the view."""
+start (about 32 s), so that the drop changes nothing in the mission but the view."""
 
-SLASH_B_DOWN_S = (75, 81)
+SLASH_B_DOWN_S = (60, 66)
 """The station and slash_b cannot hear each other then: after slash_b has parked (about
-60 s) and its mode was changed, so that its failsafe changes nothing but the view."""
+48 s) and its mode was changed, so that its failsafe changes nothing but the view."""
 
-UNTIL_S = 130
-"""The rehearsal's end, at the latest (the steps are over by about 95 s)."""
+UNTIL_S = 115
+"""The rehearsal's end, at the latest (the steps are over by about 80 s)."""
 
 STEP_TIMEOUT_MS = 60_000
 """The longest a step waits for what it expects (a timeout, never a measured time)."""
@@ -218,6 +223,8 @@ def rehearsal(tmp_path: Path) -> Iterator[ServedStation]:
         # at a wall-clock moment must not fall in one (a campaign measures those).
         "--vary",
         "sim.radio_bursts.loss_bad=0",
+        "--vary",
+        f"sim.autopilot_ready_s={READY_S}",
         "--quiet",
     ]
     with served_station(argv, tmp_path) as station:
