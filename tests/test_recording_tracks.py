@@ -23,6 +23,7 @@ from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent
 FOLLOW = ROOT / "missions" / "cooperative_follow.yaml"
+ONE_ROVER = ROOT / "missions" / "single_vehicle_mode_change.yaml"
 
 
 def _filled(n: int, capacity: int = MAX_TRACK_POINTS) -> Track:
@@ -77,10 +78,11 @@ def test_a_track_sent_to_another_process_takes_its_file_along() -> None:
 
 
 def test_a_long_dry_run_holds_a_bounded_recording() -> None:
-    mission = validate_file(FOLLOW).mission
+    """A quarter of an hour of one rover: past the bound (the fleet's example took 18 s)."""
+    mission = validate_file(ONE_ROVER).mission
     assert mission is not None
     until_s = 1.2 * MAX_TRACK_POINTS * SAMPLE_PERIOD_S
-    result = DryRun(mission, FOLLOW, seed=1, until_s=until_s).run()
+    result = DryRun(mission, ONE_ROVER, seed=1, until_s=until_s).run()
     for track in result.recording.tracks.values():
         assert track.count == round(until_s / SAMPLE_PERIOD_S) + 1
         assert len(track.times_s) <= MAX_TRACK_POINTS
@@ -90,13 +92,16 @@ def test_a_long_dry_run_holds_a_bounded_recording() -> None:
 def test_checks_read_every_sample_not_the_decimated_lists(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """Closest approach, reaching a point and separation: the same text at any capacity."""
+    """Closest approach, reaching a point and separation: the same text at any capacity.
+
+    Two hundred seconds are 2,000 samples a vehicle: 125 times the small capacity.
+    """
     mission = validate_file(FOLLOW).mission
     assert mission is not None
-    until_s = 600.0
+    until_s = 200.0
     checks = [
         {"by_s": until_s, "distance_m": {"between": ["slash_b", "slash_a"], "max": 6}},
-        {"by_s": 300.0, "distance_m": {"between": ["slash_a", "slash_b"], "min": 1}},
+        {"by_s": 100.0, "distance_m": {"between": ["slash_a", "slash_b"], "min": 1}},
         {"by_s": until_s, "reached": {"agent": "slash_a", "to": [0, 0], "tolerance_m": 0.5}},
         {"separation_m": {"min": 1}},
     ]
