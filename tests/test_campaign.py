@@ -21,7 +21,7 @@ import pytest
 from sitl_here import NO_SITL, real_install
 
 from clark_engine.campaign.command import CampaignOptions, run_campaign
-from clark_engine.campaign.pool import DaskCluster
+from clark_engine.campaign.pool import DaskCluster, InProcess, LocalPool, backend_for
 from clark_engine.campaign.runs import run_in_group
 from clark_engine.cli import main
 from clark_engine.errors import UsageError
@@ -254,17 +254,47 @@ def test_ctrl_c_stops_the_workers_and_writes_nothing(tmp_path: Path) -> None:
 SITL = real_install()
 
 
+def test_a_local_sitl_campaign_flies_at_most_sitl_per_worker_at_once() -> None:
+    """Locally, the pool's size caps the SITL stacks flown at once (one per process)."""
+    pools = [backend_for(None, 4, True, 2, 10), backend_for(None, 4, False, 1, 10)]
+    try:
+        assert [getattr(p, "processes", None) for p in pools] == [2, 4]  # SITL's cap only
+        assert all(isinstance(p, LocalPool) for p in pools)
+    finally:
+        for pool in pools:
+            pool.close(cancel=False)  # no run was queued: no process was started
+    assert isinstance(backend_for(None, 4, True, 1, 10), InProcess)
+
+
 @pytest.mark.sitl
+@pytest.mark.slow  # a Dask scheduler, a worker interpreter, two SITL stacks
 @pytest.mark.skipif(SITL is None, reason=NO_SITL)
-def test_a_sitl_campaign_isolates_each_run(tmp_path: Path) -> None:
+def test_a_sitl_campaign_on_a_dask_cluster_isolates_each_run(tmp_path: Path) -> None:
+    """Two SITL runs through a loopback Dask cluster whose one worker offers two ``sitl``.
+
+    Each run takes one ``sitl`` resource, its own SITL instances and ports: the two fly
+    at once on the one worker and both finish with the comparison's row.
+    """
+    distributed = pytest.importorskip("distributed")
     assert SITL is not None
-    result = cli(
-        str(DRIVE), "--runs", "2", "--autopilot", "sitl", "--sitl", str(SITL.folder),
-        "--sitl-per-worker", "2", "--until", "20", "--report", str(tmp_path / "r"),
-        timeout_s=400,
-    )  # fmt: skip
+    with distributed.LocalCluster(
+        n_workers=1,
+        threads_per_worker=2,
+        processes=True,
+        resources={"sitl": 2},
+        host="127.0.0.1",
+        scheduler_port=0,
+        dashboard_address=None,
+        scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
+    ) as cluster:
+        result = cli(
+            str(DRIVE), "--runs", "2", "--autopilot", "sitl", "--sitl", str(SITL.folder),
+            "--scheduler", cluster.scheduler_address, "--until", "20",
+            "--report", str(tmp_path / "r"), timeout_s=400,
+        )  # fmt: skip
     assert result.returncode in (0, 1), result.stderr
     assert "on ArduPilot SITL at 10x" in result.stderr
+    assert "Dask cluster at tcp://127.0.0.1:" in result.stderr
     summary = (tmp_path / "r" / "summary.md").read_text()
     assert "| the same mission on ArduPilot SITL | 2 |" in summary
     assert "Traceback" not in result.stderr
