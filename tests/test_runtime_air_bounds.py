@@ -138,10 +138,13 @@ def test_forged_mode_requests_reach_the_autopilot_a_bounded_number_of_times() ->
         (data,) = forger.encode([ModeChangeRequest(1, GPS0, 3, (0, 4, 15)[k % 3])], 0)
         out += runtime.deliver(PacketReceived(data), t + 0.1)
     assert sorted(c.mode for c in of(out, SetMode)) == ["GUIDED", "HOLD"]  # type: ignore[attr-defined]
-    # The vehicle reports another mode: a request is news again.
+    # The vehicle reports another mode: a new request (a new stamp) is news again; a copy
+    # of one acted on is not (runtime/command_delivery.py).
     out = tick(runtime, t + 0.2)
     out += runtime.deliver(vehicle(t + 0.2, mode="MANUAL", custom_mode=0), t + 0.2)
     (data,) = forger.encode([ModeChangeRequest(1, GPS0, 3, 4)], 0)
+    assert of(runtime.deliver(PacketReceived(data), t + 0.2), SetMode) == []
+    (data,) = forger.encode([ModeChangeRequest(1, GPS0 + 200, 3, 4)], 0)
     assert of(runtime.deliver(PacketReceived(data), t + 0.2), SetMode) == [SetMode("HOLD", 4)]
 
 

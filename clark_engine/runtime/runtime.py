@@ -63,6 +63,13 @@ from clark_engine.link.messages import (
 from clark_engine.link.packet import BROADCAST, Packet
 from clark_engine.mission.geo import Origin, to_local
 from clark_engine.runtime.autopilot_safety import SafetyPlanError, safety_setup
+from clark_engine.runtime.command_delivery import (
+    COMMAND_RESEND_S,
+    COMMAND_SENDS,
+    ActedOn,
+    Unconfirmed,
+    command_key,
+)
 from clark_engine.runtime.commands import (
     Arm,
     CloseInterfaces,
@@ -305,6 +312,12 @@ class AgentRuntime:
         # Behaviour events from the air (activate, deactivate) queued in _events and not yet
         # dispatched: each is queued once per tick, however many packets ask for it.
         self._air_events: set[str] = set()
+        # A vehicle: the station commands it acted on, so that a station's copy of one is
+        # not acted on again (runtime/command_delivery.py).
+        self._acted_on = ActedOn()
+        # A station: the commands it sent one vehicle and has not seen take, by (target
+        # id, activate/deactivate or mode); sent again until they do, a few times at most.
+        self._unconfirmed: dict[tuple[int, str], Unconfirmed] = {}
         # When a mode request for each mode was last passed on (runtime s), until the
         # vehicle reports another mode: a repeat sooner than MODE_REQUEST_REPEAT_S is
         # coalesced. At most one entry per mode of the profile.
@@ -654,6 +667,15 @@ class AgentRuntime:
                 )
                 self._terminate(now_s, None)
                 return
+            if isinstance(message, ActivateController | ModeChangeRequest) and (
+                message.target_id in (0, me)
+                and not self._acted_on.first_time(command_key(sender.id, message))
+            ):
+                if self.logbook.from_air(now_s, "command", sender.name, size, "copy"):
+                    self.logbook.mission.info(
+                        "a copy of a command from %s acted on already: ignored", sender.name
+                    )
+                continue
             if isinstance(message, ActivateController) and message.target_id in (0, me):
                 event = "activate" if message.active else "deactivate"
                 gps_now = self._gps_now_ms(now_s)
@@ -823,6 +845,15 @@ class AgentRuntime:
         self.logbook.mission.info("operator: %s %s", command.action, command.target or "all")
         destination = command.target if target is not None else ""
         self._send([message], destination, now_s)
+        if target is not None and isinstance(message, ActivateController | ModeChangeRequest):
+            # Sent again until the target shows it took (command_delivery.py); a new
+            # command of the same family replaces the one before, copies and all.
+            family = "mode" if isinstance(message, ModeChangeRequest) else "activate"
+            self._unconfirmed.pop((target.id, family), None)
+            if message.gps_time_ms:
+                self._unconfirmed[(target.id, family)] = Unconfirmed(
+                    message, command.action, target.name, now_s, now_s
+                )
         if command.action == "terminate" and target is None:
             self._begin_terminate_all(now_s)
 
@@ -898,6 +929,35 @@ class AgentRuntime:
                 message = Terminate(self.config.agent_id, gps, agent_id, "operator")
                 self._send([message], self._peer_by_id[agent_id].name, now_s)
 
+    def _resend_unconfirmed(self, now_s: float) -> None:
+        """A station's commands not yet seen to take: sent again, or given up after a few."""
+        for key, pending in list(self._unconfirmed.items()):
+            what = f"{pending.action} {pending.target}"
+            if pending.confirmed_by(self.fleet.record(key[0])):
+                del self._unconfirmed[key]
+                if pending.sends > 1:
+                    self.logbook.mission.info("%s: took after %d sends", what, pending.sends)
+            elif now_s - pending.last_sent_s < COMMAND_RESEND_S - 1e-9:
+                continue
+            elif pending.sends >= COMMAND_SENDS:
+                del self._unconfirmed[key]
+                self.logbook.mission.warning(
+                    "%s: not seen to take after %d sends in %.1f s",
+                    what,
+                    pending.sends,
+                    now_s - pending.first_sent_s,
+                )
+            else:
+                pending.sends += 1
+                pending.last_sent_s = now_s
+                self.logbook.mission.info(
+                    "%s: not seen to take yet, sent again (%d of %d)",
+                    what,
+                    pending.sends,
+                    COMMAND_SENDS,
+                )
+                self._send([pending.message], pending.target, now_s)
+
     # -- the tick ------------------------------------------------------------------------
 
     def tick(self, now_s: float) -> list[Command]:
@@ -955,6 +1015,8 @@ class AgentRuntime:
             self._terminate_all_progress(now_s)
             if self.terminated:
                 return
+        if self._unconfirmed:
+            self._resend_unconfirmed(now_s)
         if self._scheduled:
             gps_now = self._gps_now_ms(now_s)
             if gps_now is not None:
