@@ -12,6 +12,8 @@ Three measurements, each on the conformance harness's backends (``sim-rover`` or
   within 2 m of the last, 30 m legs turning 90 degrees right): per corner, the speed when
   the next corner went, the slowest speed through the corner, and the seconds to 5 m and
   10 m along the new leg and to within 2 m of the next corner.
+- ``step`` (``sim-rover`` only, no autopilot): the CPU time of one 0.05 s step of the
+  simulated rover driving GUIDED targets (the model alone, what a dry run pays per rover).
 
 Used to fit the simulated rover's GUIDED model to ArduRover's (docs/autopilot-fidelity.md).
 SITL instances follow CLARK_SITL_INSTANCES and the speed-up CLARK_SITL_SPEEDUP_TESTS:
@@ -26,6 +28,7 @@ import argparse
 import json
 import math
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -187,6 +190,35 @@ def probe_corner(peer: Peer, out: dict[str, Any]) -> None:
     out["corner"] = {"legs": legs, "track": rows(track(peer, mark), base, first_sent or 0.0)}
 
 
+def step_cost(out: dict[str, Any]) -> None:
+    """CPU microseconds per 0.05 s step of a simulated rover driving GUIDED targets."""
+    import random
+
+    import yaml
+
+    from clark_engine.mission.geo import LocalPoint, Origin, to_global
+    from clark_engine.sim.vehicles import make_vehicle
+
+    profiles = Path(__file__).resolve().parents[1] / "hardware_profiles"
+    airframe = yaml.safe_load((profiles / "airframes/traxxas_slash_airframe.yaml").read_text())
+    autopilot = yaml.safe_load((profiles / "autopilots/pixhawk_ardurover.yaml").read_text())
+    origin = Origin(30.6372, -96.4787, 90.0)
+    model = make_vehicle(airframe, autopilot, None, origin, (0.0, 0.0), random.Random(1))
+    model.set_mode("GUIDED")
+    model.configure({"WP_SPEED": ROVER_SPEED_M_S})
+    steps = 40_000
+    began = time.process_time()
+    for i in range(steps):
+        if i % 2000 == 0:
+            north = 2000.0 if (i // 2000) % 2 == 0 else -2000.0
+            lat, lon, alt = to_global(LocalPoint(north, 300.0, 0.0), origin)
+            model.goto(lat, lon, alt, None)
+        model.step(0.05)
+    cost_us = (time.process_time() - began) / steps * 1e6
+    print(f"step: {cost_us:.1f} us of CPU per 0.05 s step of a GUIDED rover", flush=True)
+    out["step_us"] = round(cost_us, 1)
+
+
 def main() -> int:
     """Run the probe on the backend named on the command line; print the figures."""
     parser = argparse.ArgumentParser()
@@ -197,12 +229,19 @@ def main() -> int:
         "--keep-logs", action="store_true", help="SITL: keep its folder (DataFlash logs: PSCN/PSCE)"
     )
     args = parser.parse_args()
+    out: dict[str, Any] = {"backend": args.backend}
+    if args.what == "step":
+        if args.backend != "sim-rover":
+            parser.error("--what step measures the simulated rover (sim-rover)")
+        step_cost(out)
+        if args.out:
+            args.out.write_text(json.dumps(out, indent=1))
+        return 0
     peer = open_peer(args.backend)
     process = getattr(peer.link, "process", None)
     if args.keep_logs and process is not None:
         process.keep_work = True
         print(f"SITL folder: {process.work_dir}", flush=True)
-    out: dict[str, Any] = {"backend": args.backend}
     try:
         peer.wait_ready()
         with flight_params(peer, {"WP_SPEED": ROVER_SPEED_M_S}), streaming(peer):
