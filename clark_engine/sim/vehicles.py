@@ -2841,7 +2841,6 @@ class Rover(SimulatedVehicle):
         self._wp_radius = max(p["WP_RADIUS"], 0.1)
         self._lateral_accel = max(p["ATC_TURN_MAX_G"], 0.05) * G_M_S2
         self._turn_radius = max(p["TURN_RADIUS"], 0.0)
-        self._jerk = max(p["WP_JERK"], 0.0) or min(self._accel, self._decel)
         # AR_WPNav::init and AR_PosControl: one limit for the shaped target's velocity
         # vector, the least of the speed limits and the turn's.
         self._psc_accel = min(self._accel, self._decel, self._lateral_accel)
@@ -3018,6 +3017,9 @@ class Rover(SimulatedVehicle):
             steer_cmd = speed_cmd = 0.0
             if self._arrived or behaviour is ModeBehaviour.HOLD:
                 pass
+            elif behaviour is ModeBehaviour.GUIDED and not self.armed:
+                # AR_WPNav does nothing while disarmed: armed, it starts afresh from here.
+                self._psc = False
             elif behaviour is ModeBehaviour.GUIDED:
                 if not self._psc:
                     self._psc_start()
