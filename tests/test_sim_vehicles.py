@@ -290,7 +290,9 @@ def test_rover_guided_goto_drives_there_stops_at_the_target_and_stays() -> None:
     assert goto(rover, -40.0, 30.0, 25.0)  # behind it; the altitude is ignored
     states = run(rover, 60.0)
     final = states[-1]
-    assert distance(final, -40.0, 30.0) < 0.2
+    # ArduRover stops once its shaped target is at the point and the rover within
+    # WP_RADIUS of it, crawling in behind it (SITL turned round stopped 1.2 m off).
+    assert distance(final, -40.0, 30.0) < 1.5
     assert final.ground_speed_m_s == 0.0
     assert rover.target_reached
     assert all(s.up_m == 0.0 and s.roll_deg == 0.0 and s.pitch_deg == 0.0 for s in states)
@@ -1307,7 +1309,10 @@ def test_plane_auto_launches_on_arming_and_lands_as_the_executor_says() -> None:
 def test_rover_guided_leg_follows_sitls_profile() -> None:
     # SITL (WP_SPEED 5, ATC_ACCEL_MAX 1, ATC_DECEL_MAX 0), a 40 m target from rest: first
     # motion +0.84 s, 10-90 % at 1.09 m/s^2, peak 5.05 m/s, 4 -> 1 m/s in 4.90 s, stopped
-    # at +14.94 s, 0.4 m past the target. The model: never sooner, within 1.5 s.
+    # at +14.94 s, 0.4 m past the target. ArduRover's shaped target itself peaks below 5 m/s
+    # on 40 m (its speed closes on WP_SPEED with a 1 s time constant); SITL's truck
+    # overshoots it and runs 0.4 m past. The model follows the shaped target: peak 4.8-4.9,
+    # stopped at +14.8 s (0.99x), 0.1 m short; within 1.5 s of SITL.
     for north, east in ((40.0, 0.0), (0.0, 40.0)):
         rover = build(ROVER, mode="GUIDED")
         rover.configure(SITL_ROVER)
@@ -1316,7 +1321,7 @@ def test_rover_guided_leg_follows_sitls_profile() -> None:
         first = next(i for i, s in enumerate(states) if s.ground_speed_m_s >= 0.1) * DT_S
         assert first == pytest.approx(0.84, abs=0.15)
         speeds = [s.ground_speed_m_s for s in states]
-        assert max(speeds) == pytest.approx(5.0, abs=1e-6)
+        assert max(speeds) == pytest.approx(4.9, abs=0.15)
         t10 = next(i for i, v in enumerate(speeds) if v >= 0.5) * DT_S
         t90 = next(i for i, v in enumerate(speeds) if v >= 4.5) * DT_S
         assert 4.0 / (t90 - t10) == pytest.approx(1.0, abs=0.05)
@@ -1325,7 +1330,7 @@ def test_rover_guided_leg_follows_sitls_profile() -> None:
         t1 = next(i for i in range(peak, len(speeds)) if speeds[i] <= 1.0) * DT_S
         assert t1 - t4 == pytest.approx(4.90, abs=0.3)
         stopped = next(i for i in range(peak, len(speeds)) if speeds[i] < 0.05) * DT_S
-        assert 14.94 <= stopped <= 16.5
+        assert 0.98 * 14.94 <= stopped <= 16.5
         assert distance(states[-1], north, east) < 0.5
 
 
@@ -1333,23 +1338,23 @@ def test_rover_speed_rules_are_ardurovers() -> None:
     rover = build(ROVER, mode="GUIDED")
     rover.configure(SITL_ROVER)
     assert goto(rover, 200.0, 0.0, 0.0)
-    assert run(rover, 8.0)[-1].ground_speed_m_s == pytest.approx(5.0, abs=1e-6)
+    assert run(rover, 8.0)[-1].ground_speed_m_s == pytest.approx(5.0, abs=0.05)
     # SITL: a PARAM_SET of WP_SPEED 3 changed nothing mid-leg, nor for a new target...
     rover.configure({**SITL_ROVER, "WP_SPEED": 3.0})
-    assert run(rover, 4.0)[-1].ground_speed_m_s == pytest.approx(5.0, abs=1e-6)
+    assert run(rover, 4.0)[-1].ground_speed_m_s == pytest.approx(5.0, abs=0.05)
     assert goto(rover, 0.0, 0.0, 0.0)
-    assert max(s.ground_speed_m_s for s in run(rover, 40.0)) == pytest.approx(5.0, abs=1e-6)
+    assert max(s.ground_speed_m_s for s in run(rover, 40.0)) == pytest.approx(5.0, abs=0.05)
     # ... until GUIDED was entered again.
     assert rover.set_mode("HOLD") and rover.set_mode("GUIDED")
     assert goto(rover, 100.0, 0.0, 0.0)
-    assert max(s.ground_speed_m_s for s in run(rover, 40.0)) == pytest.approx(3.0, abs=1e-6)
+    assert max(s.ground_speed_m_s for s in run(rover, 40.0)) == pytest.approx(3.0, abs=0.05)
     # DO_CHANGE_SPEED: the current leg and later ones in the mode; lost on leaving it.
     rover.set_speed(2.0)
     assert goto(rover, 0.0, 0.0, 0.0)
-    assert max(s.ground_speed_m_s for s in run(rover, 60.0)) == pytest.approx(2.0, abs=1e-6)
+    assert max(s.ground_speed_m_s for s in run(rover, 60.0)) == pytest.approx(2.0, abs=0.05)
     rover.set_speed(50.0)  # SITL: 9.53 m/s and still accelerating; the airframe's max 10
     assert goto(rover, 300.0, 0.0, 0.0)
-    assert max(s.ground_speed_m_s for s in run(rover, 30.0)) == pytest.approx(10.0, abs=1e-6)
+    assert max(s.ground_speed_m_s for s in run(rover, 30.0)) == pytest.approx(10.0, abs=0.05)
     # WP_SPEED 0: SITL crawled at 0.04 m/s.
     crawl = build(ROVER, mode="GUIDED")
     crawl.configure({"WP_SPEED": 0.0})
@@ -1387,10 +1392,12 @@ def test_rover_target_is_reached_within_wp_radius_and_driven_to() -> None:
     assert reached < run_until(rover, lambda v: v.truth().ground_speed_m_s < 0.05) + reached
     assert distance(rover.truth(), 30.0, 0.0) < 0.5  # but it drives to the point
     assert not rover.auto_takeoff(10.0) and rover.landed_state == "on_ground"
-    # SITL: a 1.5 m target (inside WP_RADIUS 3) was still driven to (error 0.45 m).
+    # SITL: a 1.5 m target (inside WP_RADIUS 3) was still driven to (error 0.45 m): in
+    # GUIDED it is reached once the shaped target gets there (AR_WPNav), not at once.
     near = build(ROVER, mode="GUIDED")
     near.configure(SITL_ROVER)
     assert goto(near, 1.5, 0.0, 0.0)
-    assert near.target_reached
+    assert not near.target_reached
+    assert run_until(near, lambda v: v.target_reached) < 10.0
     run(near, 10.0)
     assert distance(near.truth(), 1.5, 0.0) < 0.5

@@ -302,25 +302,29 @@ ROVER_STOP_SPEED_M_S: Final = 0.1
 """ArduRover's ATC_STOP_SPEED: at a target, below this it is stopped."""
 ROVER_MIN_SPEED_M_S: Final = 0.05
 """AR_WPNav's lowest waypoint speed (SITL with WP_SPEED 0 crawled at 0.04 m/s)."""
-ROVER_REVERSAL_SPEED_M_S: Final = 0.5
-"""A GUIDED target behind a rover driving faster than this (more than 90 degrees off its
-heading) brakes it straight to a stop, at its deceleration limit ramped up at WP_JERK,
-before it turns round and sets off again as from rest (:data:`ROVER_START_DELAY_S`).
-ArduRover's GUIDED feeds a position target to its position controller's input shaping
-(AR_WPNav::set_desired_location_expect_fast_update, GUID_OPTIONS 0): the shaped target
-keeps the vehicle's velocity and decelerates to reverse, so a car-like rover runs on to
-where it can stop and only then loops round. Measured on SITL at WP_SPEED 3,
-ATC_ACCEL_MAX 1, a target sent at 3 m/s: 10 m behind, it stopped 6.5 m further on and
-was within 3 m of the target after 14.8 s; 30 m behind, 19.4 s. A target ahead or to
-the side is driven to at once, turning while slowing (20 m to the right: 10.8 s)."""
 ROVER_POS_P_1_S: Final = 0.2
-"""ArduRover's AR_PosControl position gain (AR_POSCON_POS_P, 0.2/s). A GUIDED target's
-shaped position runs down the leg whatever the rover does; a rover that fell behind it
-(turning round from rest toward a target behind it) is asked, once the shaped position
-brakes into the target, for the shaped speed plus this times its lag, and closes the
-last of the gap at this rate alone. Measured on SITL (WP_SPEED 3, a 30 m leg begun behind
-the rover): 2.95 m/s 18 m out, 1.09 m/s 5.5 m out, 0.40 m/s 2.2 m out; within 2 m after
-20.66 s (tests/conformance/test_guided.py, the waypoint tour)."""
+"""ArduRover's AR_PosControl position gain (AR_POSCON_POS_P, 0.2/s): a GUIDED rover is asked
+for its shaped target's velocity plus this times its lag behind the shaped position
+(square-root limited), so a rover that fell behind closes the last of the gap at this
+rate. Measured on SITL (WP_SPEED 3, a 30 m leg begun behind the rover): 2.95 m/s 18 m out,
+1.09 m/s 5.5 m out, 0.40 m/s 2.2 m out (tests/conformance/test_guided.py, the tour)."""
+ROVER_VEL_P: Final = 1.0
+"""AR_PosControl's velocity gain (AR_POSCON_VEL_P): acceleration asked per m/s of velocity
+error, on top of the shaped target's own acceleration."""
+ROVER_STEER_SPEED_MIN_M_S: Final = 1.0
+"""AR_AttitudeControl's AR_ATTCONTROL_STEER_SPEED_MIN: a lateral acceleration is turned
+into a turn rate at the desired speed, never below this (no wild rates from rest)."""
+ROVER_CORNER_ACCEL_RATIO: Final = 1.0 / math.sqrt(2.0)
+"""AP_Math control.cpp's CORNER_ACCELERATION_RATIO: where the shaped velocity's change along
+its command dominates, the part across it keeps this share of the acceleration limit
+(``limit_accel_corner_xy`` of the SITL build, 2025-07)."""
+ROVER_BEHIND_NUDGE: Final = 0.02
+"""A FIT, not ArduPilot's code: the share of the acceleration limit a GUIDED rover is turned
+with, to its right, when its target lies behind it and nothing asks it to turn either way.
+AR_PosControl asks for no lateral acceleration toward a target exactly behind (a vector
+straight back has no side); SITL turns round anyway because its estimate is never exactly
+straight. With this share the rover turns round as SITL's does in the redirect scenarios
+(tests/conformance/test_guided.py)."""
 ROVER_START_DELAY_S: Final = 0.84
 """From a new target to the first motion of a rover at rest (SITL: 0.84 s, in every run,
 at speedup 1 and 10): its speed controller winding up."""
@@ -547,6 +551,103 @@ def sqrt_controller(error: float, p_gain: float, accel_max: float, dt_s: float) 
         speed = p_gain * error
     limit = abs(error) / dt_s
     return _clamp(speed, -limit, limit)
+
+
+def _limit_length(x: float, y: float, limit: float) -> tuple[float, float]:
+    """The vector (x, y) shortened to ``limit`` if longer (ArduPilot's Vector2f::limit_length)."""
+    length = math.hypot(x, y)
+    if length > limit:
+        scale = limit / length
+        return x * scale, y * scale
+    return x, y
+
+
+def _sqrt_controller_xy(
+    x: float, y: float, p_gain: float, accel_max: float, dt_s: float
+) -> tuple[float, float]:
+    """:func:`sqrt_controller` of a 2-D error, along the error (control.cpp's vector form)."""
+    length = math.hypot(x, y)
+    if length <= 0.0:
+        return 0.0, 0.0
+    scale = sqrt_controller(length, p_gain, accel_max, dt_s) / length
+    return x * scale, y * scale
+
+
+def limit_accel_corner_xy(
+    vn: float, ve: float, an: float, ae: float, accel_max: float
+) -> tuple[float, float]:
+    """An acceleration limited to ``accel_max``, keeping a share for the turn.
+
+    AP_Math control.cpp's ``limit_accel_corner_xy`` as the SITL build (ArduPilot master of
+    2025-07) has it, about the velocity (vn, ve) the target is asked for: where the part
+    across that velocity is at least the part along it, the vector is simply shortened;
+    where the part along dominates, the part across keeps
+    :data:`ROVER_CORNER_ACCEL_RATIO` of the limit and the part along has what is left.
+    (Later ArduPilot splits about the current velocity and gives braking priority: SITL's
+    logged shaped target follows this one, to 0.2 m over 5 s after a redirect.)
+    """
+    speed = math.hypot(vn, ve)
+    if speed <= 0.0:
+        return _limit_length(an, ae, accel_max)
+    un, ue = vn / speed, ve / speed
+    along = an * un + ae * ue
+    cn, ce = an - un * along, ae - ue * along
+    if along * along <= cn * cn + ce * ce:
+        return _limit_length(an, ae, accel_max)
+    cn, ce = _limit_length(cn, ce, ROVER_CORNER_ACCEL_RATIO * accel_max)
+    along_max = math.sqrt(max(accel_max * accel_max - (cn * cn + ce * ce), 0.0))
+    along = _clamp(along, -along_max, along_max)
+    return cn + un * along, ce + ue * along
+
+
+def shape_pos_vel_accel_xy(
+    error_n_m: float,
+    error_e_m: float,
+    vn: float,
+    ve: float,
+    an: float,
+    ae: float,
+    speed_max: float,
+    accel_max: float,
+    jerk_max: float,
+    dt_s: float,
+) -> tuple[float, float]:
+    """The next acceleration of a shaped target ``error`` short of a destination at rest.
+
+    AP_Math control.cpp's ``shape_pos_vel_accel_xy`` with ``shape_vel_accel_xy`` as the
+    SITL build has them: a velocity toward the destination from a square-root law (gain
+    ``0.5 jerk/accel``, braking at half ``accel_max``), capped at ``speed_max``; the
+    acceleration toward that velocity from a square-root law on the velocity error (gain
+    ``jerk/accel``, limited at ``jerk_max``), held by :func:`limit_accel_corner_xy` about
+    the velocity asked, and approached at ``jerk_max``. One 2-D limit for the velocity
+    vector: turning 3 m/s through 90 degrees is a 4.2 m/s change, seconds at 1 m/s^2, the
+    target slowing on the way. Checked against SITL's own log (PSCN/PSCE): from the same
+    state, this target stays within 0.1 m of SITL's over a 40 m leg from rest and within
+    0.2-0.3 m over 5 s after a redirect.
+
+    Args:
+        error_n_m: Destination minus the shaped position, north.
+        error_e_m: The same, east.
+        vn: The shaped velocity, north (m/s).
+        ve: The same, east.
+        an: The shaped acceleration, north (m/s^2).
+        ae: The same, east.
+        speed_max: The leg speed (m/s).
+        accel_max: The acceleration limit (m/s^2).
+        jerk_max: The jerk limit (m/s^3).
+        dt_s: The step.
+
+    Returns:
+        The shaped acceleration (north, east) for the next step.
+    """
+    tn, te = _sqrt_controller_xy(
+        error_n_m, error_e_m, 0.5 * jerk_max / accel_max, 0.5 * accel_max, dt_s
+    )
+    tn, te = _limit_length(tn, te, speed_max)
+    wn, we = _sqrt_controller_xy(tn - vn, te - ve, jerk_max / accel_max, jerk_max, dt_s)
+    wn, we = limit_accel_corner_xy(tn, te, wn, we, accel_max)
+    dn, de = _limit_length(wn - an, we - ae, jerk_max * dt_s)
+    return an + dn, ae + de
 
 
 class SimulatedVehicle(VehicleModel):
@@ -2658,33 +2759,36 @@ class Rover(SimulatedVehicle):
     less: a car cannot turn in place), never tighter than TURN_RADIUS and never
     beyond a lateral acceleration of ATC_TURN_MAX_G.
 
-    Guided, AUTO and RTL drive toward the target at the leg speed (WP_SPEED, or
-    RTL_SPEED for RTL when set, or DO_CHANGE_SPEED's; at least
-    :data:`ROVER_MIN_SPEED_M_S`, never above ``max_speed_m_s``; the airframe's
-    ``cruise_speed_m_s`` is not read, nor is ArduRover's CRUISE_SPEED), steering at a
-    turn rate proportional to the heading error and slowing while pointed away. It
-    sets off :data:`ROVER_START_DELAY_S` after a target reaches it at rest (SITL's
-    speed controller winding up), speeds up at ATC_ACCEL_MAX and brakes into the
-    target on a square-root profile at :data:`ROVER_APPROACH_DECEL_FRACTION` of its
-    deceleration limit (ATC_DECEL_MAX, ATC_ACCEL_MAX when 0): SITL's 5 m/s to a stop
-    over about 8.7 s. It stops at the target and stays stopped (RTL and AUTO stay in
-    their mode, as ArduRover's do); the target counts as reached within WP_RADIUS
-    (ArduRover's), where a mission executor moves on. A target behind it within
-    WP_RADIUS is reached where it is. A GUIDED target behind a rover at speed
-    (:data:`ROVER_REVERSAL_SPEED_M_S`) brakes it straight to a stop before it turns
-    round, as ArduRover's shaped target does. A GUIDED target more than 90 degrees off the
-    heading when sent (or after such a stop) is turned round to; meanwhile its shaped
-    position runs down the leg from when the rover sets off, as a rover on a straight leg
-    would, and once it
-    brakes into the target the rover is asked for the shaped speed plus
-    :data:`ROVER_POS_P_1_S` times its lag behind it: a rover that turned round from rest
-    toward a target behind it arrives lagging and crawls its last metres as ArduRover's
-    does (stopped once that crawl is below ATC_STOP_SPEED). Hold (and a guided mode entered with no
-    target) stops where it is, braking at the deceleration limit. Manual modes: the
-    steering channel steers, the throttle channel (centred) drives forward above
-    trim and reverses below it, full stick meaning ``max_speed_m_s`` reached at up
-    to ``accel_m_s2``. Roll and pitch are always 0. The throttle in the truth is
-    signed (negative in reverse).
+    GUIDED, AUTO and RTL drive at the leg speed (WP_SPEED, or RTL_SPEED for RTL when set,
+    or DO_CHANGE_SPEED's; at least :data:`ROVER_MIN_SPEED_M_S`, never above
+    ``max_speed_m_s``; the airframe's ``cruise_speed_m_s`` is not read, nor is
+    ArduRover's CRUISE_SPEED). It sets off :data:`ROVER_START_DELAY_S` after a target
+    reaches it at rest (SITL's speed controller winding up).
+
+    GUIDED is ArduRover's own controller (GUID_OPTIONS 0: AR_WPNav's position-controller
+    input shaping, :meth:`_psc_step`): a shaped target (position, velocity, acceleration)
+    starts on the rover at its velocity when a target comes and the controller is not
+    running, and is pulled toward the destination under one acceleration limit for its
+    velocity vector (:func:`shape_pos_vel_accel_xy`); a new target while it runs only
+    moves the destination, so a target sent while driving is reached by braking while
+    the target's velocity turns, as ArduRover's is. The rover is asked for the shaped
+    velocity plus :data:`ROVER_POS_P_1_S` times its lag (so one that fell behind crawls
+    its last metres), and turns at the lateral acceleration asked over its speed. It is
+    reached (MISSION_ITEM_REACHED) when the shaped target is at the destination and the
+    rover within WP_RADIUS of it, and then stops where it is.
+
+    AUTO and RTL steer at a turn rate proportional to the heading error, slowing while
+    pointed away; they speed up at ATC_ACCEL_MAX and brake into the target on a
+    square-root profile at :data:`ROVER_APPROACH_DECEL_FRACTION` of the deceleration limit
+    (ATC_DECEL_MAX, ATC_ACCEL_MAX when 0): SITL's 5 m/s to a stop over about 8.7 s. They
+    stop at the target and stay stopped (in their mode, as ArduRover's do); the target
+    counts as reached within WP_RADIUS (ArduRover's), where a mission executor moves on.
+    A target behind it within WP_RADIUS is reached where it is. Hold (and a guided mode
+    entered with no target) stops where it is, braking at the deceleration limit. Manual
+    modes: the steering channel steers, the throttle channel (centred) drives forward
+    above trim and reverses below it, full stick meaning ``max_speed_m_s`` reached at up
+    to ``accel_m_s2``. Roll and pitch are always 0. The throttle in the truth is signed
+    (negative in reverse).
     """
 
     airframe_class = "rover"
@@ -2719,12 +2823,12 @@ class Rover(SimulatedVehicle):
         self._arrived = True
         self._speed_set = False
         self._wind_up_s = 0.0
-        self._redirect = False
-        self._redirect_s = 0.0
-        # A GUIDED target's shaped position: its distance to the target and its speed.
-        self._shaped_d = 0.0
-        self._shaped_v = 0.0
-        self._turning_round = False  # the target was behind the rover when it was sent
+        # GUIDED: AR_PosControl's input-shaped target (position, velocity, acceleration,
+        # north and east), live while ArduRover's controller would be.
+        self._psc = False
+        self._psn = self._pse = self._psvn = self._psve = self._psan = self._psae = 0.0
+        self._psc_speed = 0.0  # ArduRover's desired speed (its own acceleration limit)
+        self._an = self._ae = 0.0  # the rover's own acceleration, for a start (AHRS)
         self._capture()
         self._leg_speed = self._default_speed()
 
@@ -2737,7 +2841,13 @@ class Rover(SimulatedVehicle):
         self._wp_radius = max(p["WP_RADIUS"], 0.1)
         self._lateral_accel = max(p["ATC_TURN_MAX_G"], 0.05) * G_M_S2
         self._turn_radius = max(p["TURN_RADIUS"], 0.0)
-        self._jerk = max(p["WP_JERK"], 0.0) or min(self._accel, self._decel)
+        # AR_WPNav::init and AR_PosControl: one limit for the shaped target's velocity
+        # vector, the least of the speed limits and the turn's.
+        self._psc_accel = min(self._accel, self._decel, self._lateral_accel)
+        wp_accel = p.get("WP_ACCEL", 0.0)
+        if wp_accel > 0.0:
+            self._psc_accel = min(self._psc_accel, wp_accel)
+        self._psc_jerk = max(p["WP_JERK"], 0.0) or min(self._accel, self._decel)
 
     def _default_speed(self) -> float:
         p = self._params
@@ -2753,11 +2863,15 @@ class Rover(SimulatedVehicle):
 
     @property
     def target_reached(self) -> bool:
-        """Stopped at the target, or within WP_RADIUS of it (ArduRover's reached)."""
+        """ArduRover's reached.
+
+        In GUIDED, the shaped target at the destination and the rover within WP_RADIUS
+        of it (AR_WPNav); otherwise stopped at the target, or within WP_RADIUS of it.
+        """
         if self._command != _CMD_TARGET:
             return False
-        if self._arrived:
-            return True
+        if self._arrived or self._behaviour is ModeBehaviour.GUIDED:
+            return self._arrived
         dn, de = self._tn - self._n, self._te - self._e
         return dn * dn + de * de <= self._wp_radius * self._wp_radius
 
@@ -2766,7 +2880,7 @@ class Rover(SimulatedVehicle):
         self._speed_set = False
         self._leg_speed = self._default_speed()
         self._command = _CMD_NONE
-        self._redirect = False
+        self._psc = False
         if behaviour is ModeBehaviour.RTL:
             self._tn, self._te = self.home_m[0], self.home_m[1]
             self._arrived = False
@@ -2781,60 +2895,107 @@ class Rover(SimulatedVehicle):
         # ArduRover takes new parameters only on entering a mode, not with a target.
         if speed_m_s is not None:
             self._set_speed(speed_m_s)
-        # A GUIDED target behind a rover at speed: it runs on to a stop before turning
-        # round (ROVER_REVERSAL_SPEED_M_S).
-        self._redirect_s = 0.0
-        bearing = math.atan2(east_m - self._e, north_m - self._n)
-        self._redirect = (
-            self._behaviour is ModeBehaviour.GUIDED
-            and self._speed > ROVER_REVERSAL_SPEED_M_S
-            and abs(_wrap_pi(bearing - self._yaw)) > _HALF_PI
-        )
-        if self._arrived or abs(north_m - self._tn) > 0.01 or abs(east_m - self._te) > 0.01:
-            # The shaped position starts where the rover is, at its speed toward the target.
-            self._shaped_d = math.hypot(north_m - self._n, east_m - self._e)
-            self._shaped_v = max(0.0, self._speed * math.cos(bearing - self._yaw))
-            self._turning_round = abs(_wrap_pi(bearing - self._yaw)) > _HALF_PI
+        if self._behaviour is ModeBehaviour.GUIDED and not self._psc:
+            # AR_WPNav::set_desired_location_expect_fast_update: the position controller is
+            # started afresh when it was not running (GUIDED just entered, or the last
+            # target reached); while it runs, a new target only replaces the destination.
+            self._psc_start()
         self._tn, self._te = north_m, east_m
         self._arrived = False
         self._command = _CMD_TARGET
 
+    def _psc_start(self) -> None:
+        """AR_PosControl::init: the shaped target on the rover, at its velocity and acceleration."""
+        self._psc = True
+        self._psn, self._pse = self._n, self._e
+        self._psvn, self._psve = self._vn, self._ve
+        self._psan, self._psae = self._an, self._ae
+        self._psc_speed = self._speed  # AR_WPNav::update: from the speed it has
+
+    def _psc_step(self, h: float) -> tuple[float, float]:
+        """One step of ArduRover's GUIDED controller: the speed and turn rate it asks for.
+
+        AR_WPNav::update_psc_input_shaping then AR_PosControl::update:
+
+        - ``input_pos_target``: the shaped target moves on by its velocity and
+          acceleration, and is pulled toward the destination by
+          :func:`shape_pos_vel_accel_xy` (the leg speed, one acceleration limit for the
+          velocity vector, WP_JERK);
+        - reached once the shaped target is within 1 cm of the destination and the rover
+          within WP_RADIUS of it (the controller then stops; a later target starts it
+          afresh);
+        - the velocity asked is the shaped velocity plus :data:`ROVER_POS_P_1_S` times the
+          rover's lag behind the shaped position (square-root limited, the lag held to
+          what the leg speed can close: the shaped target is dragged back when the rover
+          falls further behind), capped at the leg speed; the acceleration asked,
+          :data:`ROVER_VEL_P` times the velocity error plus the shaped acceleration;
+        - the speed asked is that velocity's forward part, but not below the least of its
+          length and the speed that turns within TURN_RADIUS at half ATC_TURN_MAX_G; it
+          changes at ATC_ACCEL_MAX (ATC_DECEL_MAX slowing);
+        - the turn rate is the acceleration's lateral part over that speed (never below
+          :data:`ROVER_STEER_SPEED_MIN_M_S`). A target dead behind asks for none: the
+          rover is turned right at :data:`ROVER_BEHIND_NUDGE` of the limit (a fit).
+        """
+        accel = self._psc_accel
+        jerk = self._psc_jerk
+        speed_max = self._leg_speed
+        # input_pos_target: move the shaped target on, then shape it toward the destination.
+        hh = 0.5 * h * h
+        self._psn += self._psvn * h + self._psan * hh
+        self._pse += self._psve * h + self._psae * hh
+        self._psvn += self._psan * h
+        self._psve += self._psae * h
+        self._psan, self._psae = shape_pos_vel_accel_xy(
+            self._tn - self._psn,
+            self._te - self._pse,
+            self._psvn,
+            self._psve,
+            self._psan,
+            self._psae,
+            speed_max,
+            accel,
+            jerk,
+            h,
+        )
+        en, ee = self._psn - self._n, self._pse - self._e
+        dn, de = self._tn - self._psn, self._te - self._pse
+        if dn * dn + de * de < 1e-4 and en * en + ee * ee < self._wp_radius * self._wp_radius:
+            self._arrived = True
+            self._psc = False
+            return 0.0, 0.0
+        # AR_PosControl::update (AC_P_2D with its limits: the lag is held to the distance
+        # from which the leg speed brakes to a stop).
+        gain = ROVER_POS_P_1_S
+        p_accel = min(accel, jerk / gain)
+        lag_max = (
+            speed_max / gain
+            if speed_max < p_accel / gain
+            else 0.5 * p_accel / (gain * gain) + speed_max * speed_max / (2.0 * p_accel)
+        )
+        lag = math.hypot(en, ee)
+        if lag > lag_max:
+            en, ee = en * lag_max / lag, ee * lag_max / lag
+            self._psn, self._pse = self._n + en, self._e + ee
+        wn, we = _sqrt_controller_xy(en, ee, gain, p_accel, h)
+        wn, we = _limit_length(wn + self._psvn, we + self._psve, speed_max)
+        an = ROVER_VEL_P * (wn - self._vn) + self._psan
+        ae = ROVER_VEL_P * (we - self._ve) + self._psae
+        cy, sy = math.cos(self._yaw), math.sin(self._yaw)
+        forward = cy * wn + sy * we
+        lateral = cy * ae - sy * an
+        turn_speed = math.sqrt(0.5 * self._lateral_accel * self._turn_radius)
+        wanted = max(min(math.hypot(wn, we), turn_speed), forward)
+        if forward < 0.0 and abs(lateral) < ROVER_BEHIND_NUDGE * accel:
+            lateral = ROVER_BEHIND_NUDGE * accel
+        previous = self._psc_speed
+        change = (self._decel if abs(wanted) < abs(previous) else self._accel) * h
+        self._psc_speed = _clamp(wanted, previous - change, previous + change)
+        rate = lateral / max(abs(self._psc_speed), ROVER_STEER_SPEED_MIN_M_S)
+        return self._psc_speed, rate
+
     def _set_speed(self, speed_m_s: float) -> None:
         self._leg_speed = _clamp(speed_m_s, ROVER_MIN_SPEED_M_S, self.limits.max_speed_m_s)
         self._speed_set = True
-
-    def _shaped_speed(self, distance: float, speed: float, speed_cmd: float, h: float) -> float:
-        """The speed a GUIDED rover is asked for, given its lag behind the shaped target.
-
-        The shaped position runs down the leg (from when the rover sets off) as a rover
-        on a straight leg would; the rover, ``distance`` from the target, lags it by
-        ``distance - shaped distance``. Once the shaped position brakes into the target,
-        the rover is asked for the shaped speed plus :data:`ROVER_POS_P_1_S` times that
-        lag, never more than ``speed_cmd``; before, ``speed_cmd`` (its own profile: a rover
-        at speed after its turn keeps the leg speed, one setting off keeps ArduRover's ramp).
-        """
-        approach = self._approach_decel
-        braking = (
-            sqrt_controller(self._shaped_d, ROVER_APPROACH_GAIN_1_S, approach, h) < self._leg_speed
-        )
-        if speed >= ROVER_MIN_SPEED_M_S or self._wind_up_s >= ROVER_START_DELAY_S:
-            shaped_cmd = min(
-                self._leg_speed,
-                sqrt_controller(self._shaped_d, ROVER_APPROACH_GAIN_1_S, approach, h),
-            )
-            v = self._shaped_v
-            if shaped_cmd >= v:
-                v += min(shaped_cmd - v, self._accel * h)
-            else:
-                v -= min(v - shaped_cmd, self._decel * h)
-            self._shaped_v = v
-            self._shaped_d = max(0.0, self._shaped_d - v * h)
-            if self._shaped_d <= 0.0:
-                self._shaped_v = 0.0
-        lag = distance - self._shaped_d
-        if lag <= 0.0 or not braking:
-            return speed_cmd
-        return min(speed_cmd, self._shaped_v + ROVER_POS_P_1_S * lag)
 
     def auto_land(self) -> None:
         """A land item means nothing to a rover: it stops where it is."""
@@ -2854,23 +3015,31 @@ class Rover(SimulatedVehicle):
         else:
             up, down = self._accel, self._decel
             steer_cmd = speed_cmd = 0.0
-            if not self._arrived and behaviour is not ModeBehaviour.HOLD:
+            if self._arrived or behaviour is ModeBehaviour.HOLD:
+                pass
+            elif behaviour is ModeBehaviour.GUIDED and not self.armed:
+                # AR_WPNav does nothing while disarmed: armed, it starts afresh from here.
+                self._psc = False
+            elif behaviour is ModeBehaviour.GUIDED:
+                if not self._psc:
+                    self._psc_start()
+                speed_cmd, rate = self._psc_step(h)
+                # ArduRover limits the speed it asks for (ATC_ACCEL_MAX); the truck
+                # follows it as quickly as its motor can (after a wind-up from rest).
+                up = max(up, self.accel_m_s2)
+                if not self._arrived:
+                    # ArduRover's turn-rate controller steers for the rate it asks.
+                    limit = self._max_turn_rad_s
+                    reach = limit * _clamp(abs(speed) / self.full_steer_speed_m_s, 0.05, 1.0)
+                    steer_cmd = _clamp(rate / reach, -1.0, 1.0) if limit > 0.0 else 0.0
+            else:
                 dn, de = self._tn - self._n, self._te - self._e
                 distance = math.sqrt(dn * dn + de * de)
                 error = _wrap_pi(math.atan2(de, dn) - yaw) if distance > 1e-9 else 0.0
                 approach = sqrt_controller(
                     distance, ROVER_APPROACH_GAIN_1_S, self._approach_decel, h
                 )
-                if self._redirect and speed <= 0.0:
-                    self._redirect = False
-                    self._shaped_d, self._shaped_v = distance, 0.0  # as from rest
-                    self._turning_round = True
-                if self._redirect:
-                    # Braking straight to a stop, the deceleration ramping up at WP_JERK
-                    # (0: the acceleration limit's value per second, as AR_WPNav's).
-                    self._redirect_s += h
-                    down = min(down, self._jerk * self._redirect_s)
-                elif approach < ROVER_STOP_SPEED_M_S or (
+                if approach < ROVER_STOP_SPEED_M_S or (
                     distance <= self._wp_radius and abs(error) > _HALF_PI
                 ):
                     self._arrived = True
@@ -2879,11 +3048,6 @@ class Rover(SimulatedVehicle):
                     rate = _clamp(self.heading_gain_1_s * error, -limit, limit)
                     steer_cmd = rate / limit if limit > 0 else 0.0
                     speed_cmd = min(self._leg_speed, approach)
-                    if behaviour is ModeBehaviour.GUIDED and self._turning_round:
-                        speed_cmd = self._shaped_speed(distance, speed, speed_cmd, h)
-                        if speed_cmd < ROVER_STOP_SPEED_M_S and self._shaped_d <= 0.0:
-                            self._arrived = True  # the lag's crawl below the stop speed
-                            speed_cmd = 0.0
                     speed_cmd = max(
                         speed_cmd * math.cos(error), min(self.crawl_speed_m_s, speed_cmd)
                     )
@@ -2919,6 +3083,7 @@ class Rover(SimulatedVehicle):
         vn, ve = speed * math.cos(yaw), speed * math.sin(yaw)
         self._n += vn * h
         self._e += ve * h
+        self._an, self._ae = (vn - self._vn) / h, (ve - self._ve) / h
         self._yaw, self._speed, self._vn, self._ve = yaw, speed, vn, ve
         max_speed = self.limits.max_speed_m_s
         self._act_roll = steer_cmd

@@ -482,7 +482,10 @@ def test_rover_polygon_fence_breach_holds_and_blocks_arming(rover: Peer) -> None
             )
             at = fix_of(peer.wait_for("GLOBAL_POSITION_INT", 1.0))
             east = distance_m((lat, at.lon_deg), (lat, lon))
-            assert POLYGON_HALF_M <= east <= POLYGON_HALF_M + 2.5, east  # SITL: 0.86 m past
+            # SITL: 0.86 m past. The simulated fence sees the true position, its reports
+            # are GPS fixes up to 0.2 s old: at 3 m/s the report may be 0.6 m short of
+            # the edge that was breached (docs/autopilot-fidelity.md, the fence).
+            assert POLYGON_HALF_M - 0.6 <= east <= POLYGON_HALF_M + 2.5, east
             assert peer.time_of(hold) >= mark_s
             assert (INFO, "Manual recovery started") in texts(peer, mark)
             # Stopped outside, disarmed: arming is refused while it breaches the polygon.
