@@ -120,6 +120,14 @@ STREAM_SILENCE_S: Final = 3.0
 """No GLOBAL_POSITION_INT for this long while heartbeats arrive: ask for the streams again
 (the autopilot rebooted, or another ground station turned them off)."""
 
+STREAM_RATE_CHECK_S: Final = 2.0
+"""Every this long, once the stream requests are answered, the positions that came are
+counted: fewer than half the rate asked for, and the streams are asked for again.
+ArduPilot acknowledges a SET_MESSAGE_INTERVAL sent before its first HEARTBEAT and then
+streams at its own default (ArduRover SITL: GLOBAL_POSITION_INT at 1 Hz, measured), so an
+acknowledgement does not prove the rate: a mission computer powered up with its
+autopilot drove on 1 Hz positions, sending its guided targets up to a second late."""
+
 FALLBACK_ALT_GAP_M: Final = 20.0
 """GLOBAL_POSITION_INT's ``alt`` this far from a 3-D fix's GPS_RAW_INT ``alt`` is the
 barometer's height of an autopilot whose EKF has not taken over yet (ArduRover, ArduPlane;
@@ -531,6 +539,9 @@ class AutopilotAdapter:
         self._rc: tuple[int, ...] = ()
         self._gps_at_boot_ms: tuple[int, int] | None = None  # (GPS ms, autopilot boot ms)
         self._position_s: float | None = None
+        # Positions counted since the last rate check (STREAM_RATE_CHECK_S), and its time.
+        self._positions_counted = 0
+        self._rate_check_s = -math.inf
         self._last_boot_ms: int | None = None
         self._setup_s = -math.inf
         self._setup_due = False
@@ -690,6 +701,8 @@ class AutopilotAdapter:
             elif now_s - max(self._setup_s, last_position_s) >= STREAM_SILENCE_S:
                 self._log.info("autopilot sends no position; asking for the streams again")
                 self._queue_setup(now_s)
+            elif now_s - self._rate_check_s >= STREAM_RATE_CHECK_S - 1e-9:
+                self._check_stream_rate(now_s)
             if self._legacy_streams_due:
                 self._legacy_streams_due = False
                 self._mav.send(
@@ -1315,6 +1328,7 @@ class AutopilotAdapter:
 
     def _on_position(self, msg: Any, now_s: float) -> VehicleState | None:
         self._position_s = now_s
+        self._positions_counted += 1
         if self._heartbeat is None or self._attitude is None:
             return None
         if msg.lat == 0 and msg.lon == 0:
@@ -1488,8 +1502,32 @@ class AutopilotAdapter:
         )
         self._next_home_request_s = now_s + HOME_REQUEST_PERIOD_S
 
+    def _check_stream_rate(self, now_s: float) -> None:
+        """Ask for the streams again when positions come at under half the rate asked for.
+
+        Counted over the :data:`STREAM_RATE_CHECK_S` since the last check, and only once
+        every stream request has been answered (until then the rate is not yet asked for).
+        """
+        window_s = now_s - self._rate_check_s
+        counted, self._positions_counted = self._positions_counted, 0
+        self._rate_check_s = now_s
+        if any(r.setup for r in self._requests) or not math.isfinite(window_s):
+            return
+        rate_hz = counted / window_s
+        asked_hz = 1e6 / self._interval_us
+        if counted and rate_hz < 0.5 * asked_hz:
+            self._log.info(
+                "autopilot streams positions at %.1f Hz where %.1f Hz was asked for; "
+                "asking for the streams again",
+                rate_hz,
+                asked_hz,
+            )
+            self._queue_setup(now_s)
+
     def _queue_setup(self, now_s: float) -> None:
         self._setup_s = now_s
+        self._rate_check_s = now_s
+        self._positions_counted = 0
         self._setup_due = False
         self._requests = [r for r in self._requests if not r.setup]
         for name in STREAMED_MESSAGES:
