@@ -29,6 +29,7 @@ from clark_engine.sim.model import LANDED_STATES, Truth, VehicleModel
 from clark_engine.sim.vehicles import (
     COPTER_FALL_TERMINAL_M_S,
     DEFAULT_GPS_NOISE_M,
+    PLANE_AIRSPEED_SENSOR_SCALE,
     PLANE_TURN_EFFICIENCY,
     FixedWing,
     ModeBehaviour,
@@ -36,6 +37,7 @@ from clark_engine.sim.vehicles import (
     Rover,
     SimulatedVehicle,
     VehicleSetupError,
+    eas2tas,
     make_vehicle,
 )
 
@@ -1196,9 +1198,11 @@ def test_plane_loiter_radius_is_wp_loiter_rad_as_sitl_flies_it() -> None:
     tight = build(PLANE, (0.0, 0.0, 80.0), mode="LOITER")
     assert isinstance(tight, FixedWing)
     tight.configure({"WP_LOITER_RAD": 10.0})
-    floor = 1.5 * 15.0 / math.radians(35.0)  # 1.5 x V / max turn rate: the radius asked
+    # 15 m/s is what the airspeed sensor reads: the turn is the true airspeed's, 80 m up.
+    tas = 15.0 * eas2tas(ORIGIN.alt_amsl_m + 80.0) / PLANE_AIRSPEED_SENSOR_SCALE
+    floor = 1.5 * tas / math.radians(35.0)  # 1.5 x V / max turn rate: the radius asked
     c, kx = PLANE_TURN_EFFICIENCY, (2.0 * math.pi / 17.0) ** 2
-    flown = 0.5 * (floor + math.sqrt(floor**2 + 4.0 * (1.0 - c) * 15.0**2 / (c * kx)))
+    flown = 0.5 * (floor + math.sqrt(floor**2 + 4.0 * (1.0 - c) * tas**2 / (c * kx)))
     assert tight.loiter_radius_m == pytest.approx(flown, rel=1e-9)
     run(tight, 120.0)
     assert distance(tight.truth(), 0.0, 0.0) == pytest.approx(flown, abs=1.0)

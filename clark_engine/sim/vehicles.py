@@ -287,6 +287,35 @@ fitted to SITL's TAKEOFF: climbing 7-10 m/s through TKOFF_ALT 50 m it peaked at 
 PLANE_LAND_SLOPE_DEG: Final = 3.1
 """Glide slope of a landing with no approach to fit it to: SITL's AUTO landing said
 "Landing glide slope 3.1 degrees" (sink 0.8-1.4 m/s at 16 m/s)."""
+ISA_SEA_LEVEL_K: Final = 288.15
+"""The 1976 standard atmosphere's sea-level temperature, K (15 C)."""
+ISA_LAPSE_K_M: Final = 0.0065
+"""Its tropospheric lapse rate, K per metre."""
+ISA_DENSITY_EXPONENT: Final = G_M_S2 / (ISA_LAPSE_K_M * 287.053) - 1.0
+"""rho / rho0 = (T / T0) ** this in the troposphere (g / (L R) - 1, R of dry air)."""
+
+
+PLANE_AIRSPEED_SENSOR_SCALE: Final = 0.9937
+"""What ArduPlane SITL's airspeed sensor reads per m/s of the equivalent airspeed its
+simulator flies at (fitted): holding AIRSPEED_CRUISE 18 m/s by it (VFR_HUD airspeed 17.99-
+18.01) at 150 m above sea level in still air, SITL's plane flew 18.24-18.25 m/s over the
+ground, straight and circling alike (1.0134-1.0138 in two runs, 2026-11-28), where the
+standard atmosphere's :func:`eas2tas` gives 1.0072: its simulated analog pitot reads 0.63 %
+low. A real aircraft's sensor has its own error (ARSPD_RATIO); this is SITL's."""
+
+
+def eas2tas(alt_amsl_m: float) -> float:
+    """True over equivalent airspeed at ``alt_amsl_m`` in the 1976 standard atmosphere.
+
+    ``sqrt(rho0 / rho)``: the factor ArduPilot SITL's simulator converts its aircraft's
+    true airspeed to what the pitot measures with (AP_Baro::get_EAS2TAS_for_alt_amsl,
+    called from SITL_State::_update_airspeed), so the EAS ArduPlane holds is flown at
+    this times it through the air: 1.0072 at 150 m above sea level. The troposphere's
+    law (below 11 km); an altitude below sea level is taken as sea level's density.
+    """
+    temperature_k = ISA_SEA_LEVEL_K - ISA_LAPSE_K_M * max(alt_amsl_m, 0.0)
+    return float((temperature_k / ISA_SEA_LEVEL_K) ** (-0.5 * ISA_DENSITY_EXPONENT))
+
 
 # --- rover constants (measured on ArduRover SITL) ---------------------------------------
 
@@ -2146,7 +2175,9 @@ class FixedWing(SimulatedVehicle):
         idle_sink = 0.5 * self._max_descent
         self._v_idle = self._v_min - G_M_S2 * idle_sink / (self._v_min * self._k_1_s)
         self._flying = self._u > 0.0
-        self._speed = cruise if self._flying else 0.0
+        self._tas_per_eas = self._tas_per_indicated(self._u)
+        # The pilot flies the airframe's cruise as the airspeed indicator shows it (EAS).
+        self._speed = cruise * self._tas_per_eas if self._flying else 0.0
         self._yaw_rate = 0.0
         self._climb_cmd = 0.0
         self._sub = _P_LOITER
@@ -2163,9 +2194,9 @@ class FixedWing(SimulatedVehicle):
         self._radius = self._loiter_radius(self._target_speed)
         if self._flying:
             # Level flight at cruise; a pilot who is flying holds the cruise throttle.
-            self._vn = cruise * math.cos(self._yaw)
-            self._ve = cruise * math.sin(self._yaw)
-            self._thr = (cruise - self._v_idle) / (self._v_max - self._v_idle)
+            self._vn = self._speed * math.cos(self._yaw)
+            self._ve = self._speed * math.sin(self._yaw)
+            self._thr = (self._speed - self._v_idle) / (self._v_max - self._v_idle)
             self._act_thr = self._thr
             throttle = self._controls[3]
             if throttle is not None and throttle.rc is not None:
@@ -2255,18 +2286,22 @@ class FixedWing(SimulatedVehicle):
         """
         c = PLANE_TURN_EFFICIENCY
         r = self._radius
-        speed = self._target_speed
+        speed = self._target_speed * self._tas_per_eas
         gain = c * self._loiter_kx
         return 0.5 * (r + math.sqrt(r * r + 4.0 * (1.0 - c) * speed * speed / gain))
 
     def _airspeed(self, ground_speed_m_s: float) -> float:
-        return self._speed
+        """What the airspeed sensor reads (VFR_HUD): about the equivalent airspeed."""
+        return self._speed / self._tas_per_eas
 
-    def _loiter_radius(self, speed_m_s: float) -> float:
+    def _loiter_radius(self, eas_m_s: float) -> float:
         """The radius the L1 loiter is asked for, never tighter than the airframe turns.
 
-        WP_LOITER_RAD (or RTL_RADIUS); what it flies is :attr:`loiter_radius_m`.
+        WP_LOITER_RAD (or RTL_RADIUS); what it flies is :attr:`loiter_radius_m`. The turn
+        is the true airspeed's (``eas_m_s``, the loiter's equivalent airspeed, at the
+        present altitude).
         """
+        speed_m_s = eas_m_s * self._tas_per_eas
         by_bank = speed_m_s * speed_m_s / (G_M_S2 * math.tan(self._max_bank))
         by_rate = speed_m_s / self._max_turn_rad_s if self._max_turn_rad_s > 0 else by_bank
         tightest = self.loiter_radius_factor * max(by_bank, by_rate)
@@ -2393,7 +2428,12 @@ class FixedWing(SimulatedVehicle):
 
     # --- physics ----------------------------------------------------------------------
 
+    def _tas_per_indicated(self, up_m: float) -> float:
+        """True airspeed per m/s the airspeed sensor reads, ``up_m`` above the origin."""
+        return eas2tas(self.origin.alt_amsl_m + up_m) / PLANE_AIRSPEED_SENSOR_SCALE
+
     def _advance(self, h: float) -> None:
+        self._tas_per_eas = self._tas_per_indicated(self._u)
         speed = self._speed
         sub = self._sub
         level = False
@@ -2565,8 +2605,13 @@ class FixedWing(SimulatedVehicle):
         return math.asin(_clamp(command / speed, -1.0, 1.0))
 
     def _speed_throttle(self, speed: float) -> float:
-        """Throttle that holds the target speed and pays for the current climb."""
-        accel = (self._target_speed - speed) / self.speed_time_constant_s
+        """Throttle that holds the target speed and pays for the current climb.
+
+        The target is an equivalent airspeed (AIRSPEED_CRUISE, DO_CHANGE_SPEED), held as
+        ArduPlane's TECS holds what its pitot reads: flown at :func:`eas2tas` times it
+        (over :data:`PLANE_AIRSPEED_SENSOR_SCALE`, the sensor's reading).
+        """
+        accel = (self._target_speed * self._tas_per_eas - speed) / self.speed_time_constant_s
         accel += G_M_S2 * self._vu / speed
         level_speed = speed + accel / self._k_1_s
         return _clamp((level_speed - self._v_idle) / (self._v_max - self._v_idle), 0.0, 1.0)
@@ -2590,12 +2635,15 @@ class FixedWing(SimulatedVehicle):
         if climb > 0.0 and self._u >= self.limits.max_altitude_m:
             climb = 0.0
         new_speed = speed + (thrust - G_M_S2 * climb / speed) * h
-        if new_speed < self._v_min:
+        # The stall margin is an airspeed (EAS, what the wing feels): higher up, a higher
+        # true speed.
+        v_min = self._v_min * self._tas_per_eas
+        if new_speed < v_min:
             # The energy cannot pay for this climb at minimum speed: the nose drops.
-            affordable = speed * (thrust - (self._v_min - speed) / h) / G_M_S2
+            affordable = speed * (thrust - (v_min - speed) / h) / G_M_S2
             if climb > affordable:
                 climb = max(affordable, -self._max_descent)
-            new_speed = self._v_min
+            new_speed = v_min
         elif new_speed > self._v_max:
             new_speed = self._v_max
         limit = self._max_turn_rad_s
@@ -2643,10 +2691,11 @@ class FixedWing(SimulatedVehicle):
         self._n += vn * h
         self._e += ve * h
         self._yaw, self._speed, self._vn, self._ve, self._vu = yaw, speed, vn, ve, 0.0
-        if lift_off and self.armed and speed >= self._v_min:
+        v_min = self._v_min * self._tas_per_eas  # the stall margin is an airspeed
+        if lift_off and self.armed and speed >= v_min:
             self._flying = True
             self.touchdown_s = None
-            self._speed = max(speed, self._v_min)
+            self._speed = max(speed, v_min)
 
 
 class Rover(SimulatedVehicle):
