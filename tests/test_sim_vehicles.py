@@ -565,6 +565,29 @@ def test_aileron_override_step_rolls_with_a_first_order_lag(mode: str, sign: int
     assert run(plane, 1.5)[-1].roll_deg == pytest.approx(0.0, abs=0.01)
 
 
+@pytest.mark.parametrize(
+    ("pwm_us", "dead_zone_us", "step_deg"),
+    [
+        (1350, 30, -(150 - 30) / (400 - 30) * 45.0),  # ArduPlane's norm_input_dz: -14.6
+        (1480, 30, 0.0),  # inside the dead zone
+        (1350, 0, -150 / 400 * 45.0),  # RC1_DZ 0: read plainly, -16.9
+        (1200, 30, -(3.0 * (300 - 30) / (400 - 30) - 1.0) * 45.0),  # past half stick: 3x - 1
+    ],
+)
+def test_loiter_mixes_the_aileron_through_its_dead_zone(
+    pwm_us: int, dead_zone_us: int, step_deg: float
+) -> None:
+    """The roll asked for (NAV_CONTROLLER_OUTPUT's nav_roll) moves by ArduPlane's stick mix."""
+    plane = build(CUB, (0.0, 0.0, 100.0), mode="LOITER")
+    plane.configure({"RC1_DZ": dead_zone_us})
+    run(plane, 40.0)
+    before = plane.nav_attitude_deg()[0]
+    assert before > 20.0  # circling clockwise, banked right
+    plane.set_rc_override({1: pwm_us})
+    plane.step(DT_S)
+    assert plane.nav_attitude_deg()[0] - before == pytest.approx(step_deg, abs=0.3)
+
+
 def _pitch_amplitude_deg(frequency_hz: float) -> float:
     plane = build(CUB, (0.0, 0.0, 150.0), mode="MANUAL")
     run(plane, 2.0)

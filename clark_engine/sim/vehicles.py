@@ -194,6 +194,8 @@ PLANE_DEFAULT_PARAMS: Final[Mapping[str, float]] = {
     "RTL_ALTITUDE": 100.0,  # m above home
     "RTL_RADIUS": 0.0,  # m; 0: WP_LOITER_RAD
     "ROLL_LIMIT_DEG": 45.0,  # deg, never above the airframe's max_bank_deg
+    "PTCH_LIM_MAX_DEG": 20.0,  # deg, the highest pitch demand (SITL's plane.parm: 25)
+    "PTCH_LIM_MIN_DEG": -25.0,  # deg, the lowest (SITL's plane.parm: -20)
     "NAVL1_PERIOD": 17.0,  # s, the L1 navigation period (SITL's plane.parm: 15)
     "NAVL1_DAMPING": 0.75,  # the L1 damping ratio
     "LAND_FLARE_ALT": 3.0,  # m
@@ -277,6 +279,9 @@ loiter asks for the shortfall back in proportion to the distance outside the cir
 PD term), so the circle settles outside WP_LOITER_RAD where the two balance: 92-93 m for
 80 m at 22 m/s with NAVL1_PERIOD 15 (86.6 m at 15 m/s, 98.5 at 28, 101 at 30), 69-70 m
 for 60 m at 15 m/s with 17 (:meth:`FixedWing.loiter_radius_m`)."""
+PLANE_RC_DEAD_ZONE_US: Final = 30
+"""ArduPlane's RCn_DZ for its roll, pitch and rudder sticks (Plane::init_rc_in; SITL
+reports 30): what a model never configured from a parameter table reads them with."""
 PLANE_LAUNCH_DELAY_S: Final = 0.2
 """From arming in TAKEOFF (or AUTO with a takeoff) to the launch: ArduPlane's "Armed
 AUTO, xaccel = ..., waiting 0.2 sec" then "Triggered AUTO"."""
@@ -517,6 +522,26 @@ class _Channel:
             value = (pwm_us - self.trim_us) / span if span > 0 else 0.0
         return -1.0 if value < -1.0 else (1.0 if value > 1.0 else value)
 
+    def deflection_dz(self, pwm_us: int, dead_zone_us: int) -> float:
+        """:meth:`deflection` with a dead zone round trim (ArduPilot's norm_input_dz).
+
+        ``dead_zone_us`` either side of trim reads 0, and the rest of each half of the
+        range is scaled from the dead zone's edge: RC_Channel::norm_input_dz, with which
+        ArduPlane reads the sticks it mixes into its automatic modes (RCn_DZ, 30 us by
+        default): 150 us above a 1500 us trim on a 1100-1900 us channel reads 0.324, not
+        0.375.
+        """
+        if dead_zone_us <= 0:
+            return self.deflection(pwm_us)
+        low, high = self.trim_us - dead_zone_us, self.trim_us + dead_zone_us
+        if pwm_us < low and low > self.min_us:
+            value = (pwm_us - low) / (low - self.min_us)
+        elif pwm_us > high and self.max_us > high:
+            value = (pwm_us - high) / (self.max_us - high)
+        else:
+            return 0.0
+        return -1.0 if value < -1.0 else (1.0 if value > 1.0 else value)
+
     def fraction(self, pwm_us: int) -> float:
         """0 (min) .. 1 (max): a throttle that idles at its minimum."""
         span = self.max_us - self.min_us
@@ -549,6 +574,19 @@ def _channel(name: str, spec: ChannelLike | Mapping[str, Any]) -> _Channel:
         int(trim),
         int(high),
     )
+
+
+def _stick_mix(value: float) -> float:
+    """ArduPlane's FBW stick mixing curve: linear to half stick, then 3x - 1 (to 2 at full).
+
+    Plane::stabilize_stick_mixing_fbw, so that a pilot can turn an automatic mode's
+    aircraft any way they want; the demand is clamped to the limit afterwards.
+    """
+    if value > 0.5:
+        return 3.0 * value - 1.0
+    if value < -0.5:
+        return 3.0 * value + 1.0
+    return value
 
 
 def _clamp(value: float, low: float, high: float) -> float:
@@ -698,6 +736,11 @@ class SimulatedVehicle(VehicleModel):
         self._rc_inputs_until_s = math.inf
         self._rc_stale = True
         self._rc_roll = self._rc_pitch = self._rc_yaw = self._rc_thr = 0.0
+        # The roll, pitch and yaw sticks read through their dead zones (RCn_DZ, in us), as
+        # ArduPlane reads the sticks it mixes into its automatic modes; 0 reads them
+        # plainly (the models that do not mix sticks).
+        self._dead_zones_us = (0, 0, 0)
+        self._mix_roll = self._mix_pitch = self._mix_yaw = 0.0
 
         # Servo outputs: output index -> the demand that drives it.
         self._servo_us = [0] * SERVO_OUTPUT_COUNT
@@ -1171,6 +1214,14 @@ class SimulatedVehicle(VehicleModel):
             else:
                 values.append(channel.deflection(pwm))
         self._rc_roll, self._rc_pitch, self._rc_yaw, self._rc_thr = values
+        mixed = [values[0], values[1], values[2]]
+        for position, dead_zone in enumerate(self._dead_zones_us):
+            channel = self._controls[position]
+            rc = channel.rc if channel is not None else None
+            if dead_zone and channel is not None and rc is not None and 1 <= rc <= RC_CHANNEL_COUNT:
+                pwm = self._override_us[rc - 1] or self._pilot_us[rc - 1]
+                mixed[position] = channel.deflection_dz(pwm, dead_zone)
+        self._mix_roll, self._mix_pitch, self._mix_yaw = mixed
         self._rc_stale = False
 
     def _function_pwm(self, function: str) -> int:
@@ -2166,6 +2217,8 @@ class FixedWing(SimulatedVehicle):
         self._airframe_bank = math.radians(limits.max_bank_deg if limits.max_bank_deg else 45.0)
         self._max_pitch = math.radians(self.max_pitch_deg)
         self._min_pitch = math.radians(self.min_pitch_deg)
+        self._dead_zones_us = (PLANE_RC_DEAD_ZONE_US,) * 3
+        self._nav_roll = self._nav_pitch = 0.0
         self._rudder_rate = 0.5 * self._max_turn_rad_s
         self._max_climb = limits.max_climb_rate_m_s
         self._max_descent = limits.max_descent_rate_m_s
@@ -2226,12 +2279,31 @@ class FixedWing(SimulatedVehicle):
         self._direction = -1.0 if p["WP_LOITER_RAD"] < 0.0 else 1.0
         limit = math.radians(p["ROLL_LIMIT_DEG"]) if p["ROLL_LIMIT_DEG"] > 0.0 else _INF
         self._max_bank = min(self._airframe_bank, limit)
+        up, down = p["PTCH_LIM_MAX_DEG"], p["PTCH_LIM_MIN_DEG"]
+        self._max_pitch = math.radians(up if 0.0 < up <= 90.0 else self.max_pitch_deg)
+        self._min_pitch = math.radians(down if -90.0 <= down < 0.0 else self.min_pitch_deg)
         self._level_below = max(p["TKOFF_LVL_ALT"], 0.0)
         self._flare_alt = max(p["LAND_FLARE_ALT"], 0.0)
         self._land_sink = max(p["TECS_LAND_SINK"], 0.05)
 
     def _auto_speed(self) -> float:
         return self._cruise
+
+    def configure(self, params: Mapping[str, float]) -> None:
+        """Take the parameter table; also the sticks' dead zones (RCn_DZ of their channels).
+
+        ArduPlane reads the sticks it mixes into its automatic modes through them
+        (:meth:`_Channel.deflection_dz`); a channel whose RCn_DZ the table lacks keeps
+        :data:`PLANE_RC_DEAD_ZONE_US`.
+        """
+        super().configure(params)
+        zones = []
+        for channel in self._controls[:3]:
+            value = params.get(f"RC{channel.rc}_DZ") if channel and channel.rc else None
+            number = float(value) if value is not None else float(PLANE_RC_DEAD_ZONE_US)
+            zones.append(int(_clamp(number, 0.0, 200.0)) if math.isfinite(number) else 0)
+        self._dead_zones_us = (zones[0], zones[1], zones[2])
+        self._rc_stale = True
 
     def _set_step(self, h: float) -> None:
         super()._set_step(h)
@@ -2428,6 +2500,15 @@ class FixedWing(SimulatedVehicle):
 
     # --- physics ----------------------------------------------------------------------
 
+    def nav_attitude_deg(self) -> tuple[float, float]:
+        """The roll and pitch demanded (ArduPlane's nav_roll_cd and nav_pitch_cd).
+
+        The automatic modes' navigation plus the pilot's stick mixing, within the
+        limits: what NAV_CONTROLLER_OUTPUT reports. SITL's nav_roll stepped by 14.6
+        degrees at once for 150 us of aileron in LOITER while its roll lagged.
+        """
+        return math.degrees(self._nav_roll), math.degrees(self._nav_pitch)
+
     def _tas_per_indicated(self, up_m: float) -> float:
         """True airspeed per m/s the airspeed sensor reads, ``up_m`` above the origin."""
         return eas2tas(self.origin.alt_amsl_m + up_m) / PLANE_AIRSPEED_SENSOR_SCALE
@@ -2480,11 +2561,12 @@ class FixedWing(SimulatedVehicle):
                 roll_cmd = self._loiter_roll(speed)
                 pitch_cmd = self._pitch_for(h, speed, self.altitude_gain_1_s * (self._ch - self._u))
                 throttle = self._speed_throttle(speed)
-            # FBW stick mixing.
-            roll_cmd += self._rc_roll * self._max_bank
-            elevator = self._rc_pitch
+            # FBW stick mixing (Plane::stabilize_stick_mixing_fbw): the sticks read
+            # through their dead zones, past half stick steeper (to twice the limit).
+            roll_cmd += _stick_mix(self._mix_roll) * self._max_bank
+            elevator = _stick_mix(self._mix_pitch)
             pitch_cmd += elevator * (self._max_pitch if elevator > 0.0 else -self._min_pitch)
-            yaw_rate_cmd = self._rc_yaw * self._rudder_rate
+            yaw_rate_cmd = self._mix_yaw * self._rudder_rate
             if level:
                 roll_cmd = 0.0
             lift_off = True
@@ -2492,6 +2574,7 @@ class FixedWing(SimulatedVehicle):
             throttle = 0.0
         roll_cmd = _clamp(roll_cmd, -self._max_bank, self._max_bank)
         pitch_cmd = _clamp(pitch_cmd, self._min_pitch, self._max_pitch)
+        self._nav_roll, self._nav_pitch = roll_cmd, pitch_cmd
         self._act_roll = roll_cmd / self._max_bank
         self._act_pitch = (
             pitch_cmd / self._max_pitch if pitch_cmd > 0.0 else -pitch_cmd / self._min_pitch
