@@ -118,6 +118,7 @@ from __future__ import annotations
 import math
 import random
 from abc import abstractmethod
+from collections import deque
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from enum import Enum
@@ -282,6 +283,28 @@ for 60 m at 15 m/s with 17 (:meth:`FixedWing.loiter_radius_m`)."""
 PLANE_RC_DEAD_ZONE_US: Final = 30
 """ArduPlane's RCn_DZ for its roll, pitch and rudder sticks (Plane::init_rc_in; SITL
 reports 30): what a model never configured from a parameter table reads them with."""
+PLANE_STICK_PITCH_GAIN: Final = 2.055
+"""Gain of the stick-mixed pitch's band-pass (below) in the automatic modes. A fit, not
+ArduPlane's code: ArduPlane adds the elevator stick to TECS's pitch demand
+(Plane::stabilize_stick_mixing_fbw), its pitch controller (PTCH2SRV_TCONST 0.25) flies it on
+SITL's airframe, and TECS (TECS_TIME_CONST 5, TECS_PTCH_DAMP 0.3) answers the climb and sink
+it causes: the pitch answers a sine of elevator as a band-pass, washed out below a few
+tenths of a hertz, resonant near 0.8 Hz, cut above 1.2 Hz. Fitted (with the model's own
+0.3 s pitch lag) to SITL's pitch in LOITER at 18 m/s, 150 m AMSL, under 100 us elevator
+sines (0.19 of the stick, 4.25 degrees of demand; 8 s bursts, runs probe2 and probe3 of
+2026-11-28, which two runs reproduced to 0.05 degrees): pitch amplitude 3.06, 3.89, 5.66,
+12.91, 10.05, 7.08, 5.91, 2.46 and 1.04 degrees at 0.3, 0.45, 0.6, 0.75, 0.85, 0.95, 1.0,
+1.2 and 1.5 Hz; the fit gives 2.91, 4.35, 6.49, 10.68, 10.92, 6.90, 5.39, 2.44 and 1.08
+(phases within 16 degrees). Before it, the stick's pitch was a 0.3 s lag: 5.2 degrees at
+0.3 Hz falling to 1.9 at 1.5 Hz (2.7 at 1 Hz). SITL's airframe, not the Super Cub's."""
+PLANE_STICK_PITCH_WASHOUT_1_S: Final = 5.32
+"""The band-pass's wash-out corner, rad/s (the fit above: TECS holding its height)."""
+PLANE_STICK_PITCH_MODE_HZ: Final = 0.826
+"""Its resonance (the fit above): the pitch loop with TECS on SITL's airframe."""
+PLANE_STICK_PITCH_DAMPING: Final = 0.143
+"""Its damping ratio (the fit above)."""
+PLANE_STICK_PITCH_DELAY_S: Final = 0.12
+"""Its delay, s (the fit above; taken in whole physics steps)."""
 PLANE_LAUNCH_DELAY_S: Final = 0.2
 """From arming in TAKEOFF (or AUTO with a takeoff) to the launch: ArduPlane's "Armed
 AUTO, xaccel = ..., waiting 0.2 sec" then "Triggered AUTO"."""
@@ -2219,6 +2242,7 @@ class FixedWing(SimulatedVehicle):
         self._min_pitch = math.radians(self.min_pitch_deg)
         self._dead_zones_us = (PLANE_RC_DEAD_ZONE_US,) * 3
         self._nav_roll = self._nav_pitch = 0.0
+        self._reset_stick_pitch()
         self._rudder_rate = 0.5 * self._max_turn_rad_s
         self._max_climb = limits.max_climb_rate_m_s
         self._max_descent = limits.max_descent_rate_m_s
@@ -2500,6 +2524,47 @@ class FixedWing(SimulatedVehicle):
 
     # --- physics ----------------------------------------------------------------------
 
+    def _reset_stick_pitch(self) -> None:
+        """Empty the stick-mixed pitch's band-pass (at the start, and once it has settled)."""
+        self._sp_washout = self._sp_pitch = self._sp_rate = 0.0
+        self._sp_delayed: deque[float] = deque()
+
+    def _stick_pitch(self, h: float, pitch_rad: float) -> float:
+        """The pitch the automatic modes add for a stick-mixed pitch demand (band-pass).
+
+        ``pitch_rad`` is ArduPlane's stick-mixing share of nav_pitch; the answer is what
+        SITL's plane pitches for it, in the fit of :data:`PLANE_STICK_PITCH_GAIN`: a wash-out
+        (``s / (s + a)``), a lightly damped second-order mode and a delay. With the stick
+        centred and nothing left ringing, it is exactly 0 (no draw, no change to a flight
+        without sticks).
+        """
+        if pitch_rad == 0.0 and not self._sp_delayed and self._sp_pitch == 0.0:
+            return 0.0
+        a = PLANE_STICK_PITCH_WASHOUT_1_S
+        decay = math.exp(-a * h)
+        self._sp_washout = decay * self._sp_washout + (1.0 - decay) / a * pitch_rad
+        washed = pitch_rad - a * self._sp_washout
+        omega = _TAU * PLANE_STICK_PITCH_MODE_HZ
+        self._sp_rate += h * (
+            omega * omega * (washed - self._sp_pitch)
+            - 2.0 * PLANE_STICK_PITCH_DAMPING * omega * self._sp_rate
+        )
+        self._sp_pitch += h * self._sp_rate
+        delayed = self._sp_delayed
+        delayed.append(self._sp_pitch)
+        steps = max(round(PLANE_STICK_PITCH_DELAY_S / h), 1)
+        out = delayed.popleft() if len(delayed) > steps else 0.0
+        settled = (
+            pitch_rad == 0.0
+            and max(
+                abs(self._sp_pitch), abs(self._sp_rate), abs(self._sp_washout), *map(abs, delayed)
+            )
+            < 1e-9
+        )
+        if settled:
+            self._reset_stick_pitch()  # back to exactly 0
+        return PLANE_STICK_PITCH_GAIN * out
+
     def nav_attitude_deg(self) -> tuple[float, float]:
         """The roll and pitch demanded (ArduPlane's nav_roll_cd and nav_pitch_cd).
 
@@ -2565,7 +2630,9 @@ class FixedWing(SimulatedVehicle):
             # through their dead zones, past half stick steeper (to twice the limit).
             roll_cmd += _stick_mix(self._mix_roll) * self._max_bank
             elevator = _stick_mix(self._mix_pitch)
-            pitch_cmd += elevator * (self._max_pitch if elevator > 0.0 else -self._min_pitch)
+            stick = elevator * (self._max_pitch if elevator > 0.0 else -self._min_pitch)
+            # ... whose pitch the aircraft answers as SITL's does (a fitted band-pass).
+            pitch_cmd += self._stick_pitch(h, stick)
             yaw_rate_cmd = self._mix_yaw * self._rudder_rate
             if level:
                 roll_cmd = 0.0

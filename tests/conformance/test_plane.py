@@ -404,3 +404,94 @@ def test_plane_stick_mixed_aileron_asks_for_arduplanes_roll(peer: Peer) -> None:
         assert left_before - left == pytest.approx(NAV_ROLL_STEP_DEG, abs=0.5), steps
         assert right == pytest.approx(STICK_PARAMS["ROLL_LIMIT_DEG"], abs=0.2), steps
         assert peer.set_mode("RTL").result == mavlink2.MAV_RESULT_ACCEPTED
+
+
+ELEVATOR_US = 100
+"""supercub_sysid's sweep amplitude: 0.19 of the stick through RC2_DZ, 4.25 degrees asked."""
+SINE_BURSTS = (
+    (0.3, 2.91, 13.24, False),
+    (0.6, 5.69, 14.61, True),
+    (1.0, 5.70, 14.38, False),
+    (1.5, 0.96, 14.36, False),
+)
+"""SITL (4.7.0-dev, 2026-11-28; two runs of this scenario at speed-up 10: 2.86-2.96,
+5.67-5.70, 5.61-5.78 and 0.91-1.01 degrees, 13.22-13.26, 14.58-14.64, 14.37-14.39 and
+14.36-14.37 deg/s), in
+LOITER at 18 m/s 150 m above sea level, 15 s after entering it from a circle (its circle
+settled turns at 14.29 deg/s): for 8 s bursts of a 100 us elevator sine at each frequency
+(Hz), the pitch's amplitude at that frequency (degrees, from 1 s into the burst), the
+course's rate round the circle (deg/s) and whether the circle itself tightened (its rate
+0.3 deg/s up at 0.6 Hz, with the bank swinging 2.3 degrees s.d.). Probes of the same kind
+(probe2, probe3): 3.89 degrees at 0.45 Hz, 12.91 at 0.75, 10.05 at 0.85, 7.08 at 0.95, 2.46
+at 1.2; at 0.75-0.95 Hz the bank swung 3-7 degrees and the circle tightened to 68.3-70.5 m
+(73.3 at rest) at up to 17.0 deg/s. The simulated plane's pitch answers as SITL's (the fit
+of clark_engine.sim.vehicles.PLANE_STICK_PITCH_GAIN): 2.74, 5.79, 5.03, 0.95; its circle
+does not tighten (14.26 at 0.6 Hz): not kinder (it goes round more slowly), but the sweeps of
+supercub_sysid part the two tracks there. Before the fit its pitch was a 0.3 s lag behind
+the stick: about 4.0, 3.0, 2.0 and 1.4 degrees, and before the equivalent airspeed (the first
+scenario above) its circle turned 0.2-0.3 deg/s slower."""
+PITCH_AMPLITUDE_SHARE = 0.3
+"""The simulated pitch's amplitude may be this share off SITL's."""
+CIRCLE_RATE_DEG_S = 0.2
+"""And its angular rate round the circle this far off SITL's during a burst."""
+
+
+def sine_fit(times_s: list[float], values: list[float], frequency_hz: float) -> float:
+    """The amplitude at ``frequency_hz`` of ``values`` (least squares, with a drift)."""
+    import numpy as np
+
+    t = np.array(times_s)
+    omega = 2.0 * math.pi * frequency_hz
+    basis = np.column_stack([np.sin(omega * t), np.cos(omega * t), np.ones_like(t), t])
+    coefficients, *_ = np.linalg.lstsq(basis, np.array(values), rcond=None)
+    return float(math.hypot(coefficients[0], coefficients[1]))
+
+
+def course_rate_deg_s(fixes: list[Any]) -> float:
+    """How fast the course over the ground turns (deg/s, right positive; least squares).
+
+    Round a circle it is the circle's angular rate, with no centre to find.
+    """
+    import numpy as np
+
+    courses = np.unwrap([math.atan2(f.east_m_s, f.north_m_s) for f in fixes])
+    slope = np.polyfit([f.t_s for f in fixes], courses, 1)[0]
+    return math.degrees(float(slope))
+
+
+@backends(kinds=("plane",))
+def test_plane_loiter_elevator_sine_pitch_and_circle(peer: Peer) -> None:
+    """LOITER's pitch answers the stick-mixed elevator as ArduPlane's (a band-pass)."""
+    peer.wait_ready()
+    with flight_params(peer, STICK_PARAMS), streaming(peer, STICK_STREAMS):
+        circling(peer)
+        peer.run_for(10.0)
+        assert peer.set_mode("LOITER").result == mavlink2.MAV_RESULT_ACCEPTED
+        peer.run_for(15.0)
+        figures = []
+        for frequency_hz, *_ in SINE_BURSTS:
+            mark = peer.mark()
+            start_s = peer.now_s
+            while peer.now_s < start_s + 8.0:
+                phase = 2.0 * math.pi * frequency_hz * (peer.now_s - start_s)
+                override(peer, {2: round(1500 + ELEVATOR_US * math.sin(phase))})
+                peer.run_for(0.04)
+            override(peer, {2: 0})
+            pitches = [
+                (peer.time_of(m) - start_s, math.degrees(m.pitch))
+                for _, m in peer.history[mark:]
+                if m.get_type() == "ATTITUDE" and peer.time_of(m) >= start_s + 1.0
+            ]
+            amplitude = sine_fit([t for t, _ in pitches], [p for _, p in pitches], frequency_hz)
+            fixes = [f for f in track(peer, mark) if f.t_s >= start_s + 1.0]
+            figures.append((frequency_hz, amplitude, course_rate_deg_s(fixes)))
+            peer.run_for(4.0)
+        for (_, sitl_deg, sitl_rate, tightened), (_, amplitude, rate) in zip(
+            SINE_BURSTS, figures, strict=True
+        ):
+            assert amplitude == pytest.approx(sitl_deg, rel=PITCH_AMPLITUDE_SHARE), figures
+            if tightened:  # not simulated: never quicker round the circle than SITL
+                assert rate <= sitl_rate + CIRCLE_RATE_DEG_S, figures
+            else:
+                assert rate == pytest.approx(sitl_rate, abs=CIRCLE_RATE_DEG_S), figures
+        assert peer.set_mode("RTL").result == mavlink2.MAV_RESULT_ACCEPTED
