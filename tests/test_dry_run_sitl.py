@@ -19,8 +19,9 @@ from pathlib import Path
 import pytest
 from sitl_here import real_install
 
+from clark_engine.runtime.config import ChannelSpec
 from clark_engine.sim.checks import evaluate
-from clark_engine.sim.engine import DryRun
+from clark_engine.sim.engine import DryRun, rc_calibration_params
 from clark_engine.sim.sitl import ENV_SITL
 from clark_engine.sim.sitl_backend import SitlBackend
 from clark_engine.validation import validate_file
@@ -65,6 +66,30 @@ def test_usage_errors_exit_2_with_a_message(args: list[str], message: str) -> No
     assert run.returncode == 2, run.stderr
     assert message in run.stderr
     assert "Traceback" not in run.stderr
+
+
+def test_sitl_is_calibrated_to_the_profiles_receiver() -> None:
+    """Issue 19: SITL read 150 us of aileron as 0.255 of full stick (its own 1000-2000 us),
+    the simulated autopilot as the profile's 1100-1900 us: 0.324. Each mapped channel's
+    range is given to SITL as RCn_MIN/TRIM/MAX; the first mapping of a channel wins."""
+    channels = [
+        ChannelSpec("aileron", 1, 1, 1100, 1500, 1900),
+        ChannelSpec("throttle", 3, 3, 1100, 1100, 1900),
+        ChannelSpec("failsafe_mux", 7, None, 1000, 1500, 2000),
+        ChannelSpec("excite_switch", 7, None, 900, 1400, 2100),
+        ChannelSpec("payload", None, 9, 1000, 1500, 2000),
+    ]
+    assert rc_calibration_params(channels) == {
+        "RC1_MIN": 1100.0,
+        "RC1_TRIM": 1500.0,
+        "RC1_MAX": 1900.0,
+        "RC3_MIN": 1100.0,
+        "RC3_TRIM": 1100.0,
+        "RC3_MAX": 1900.0,
+        "RC7_MIN": 1000.0,
+        "RC7_TRIM": 1500.0,
+        "RC7_MAX": 2000.0,
+    }
 
 
 def test_no_sitl_anywhere_says_where_to_point() -> None:

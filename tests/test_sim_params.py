@@ -39,6 +39,8 @@ FIRMWARE_WINS: dict[str, dict[str, tuple[float, float]]] = {
         "WP_LOITER_RAD": (60.0, 80.0),
         "NAVL1_PERIOD": (17.0, 15.0),
         "ROLL_LIMIT_DEG": (45.0, 65.0),
+        "PTCH_LIM_MAX_DEG": (20.0, 25.0),
+        "PTCH_LIM_MIN_DEG": (-25.0, -20.0),
     },
 }
 """Where SITL's default-parameter file (rover.parm, copter.parm, plane.parm) gives a

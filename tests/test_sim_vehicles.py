@@ -29,6 +29,7 @@ from clark_engine.sim.model import LANDED_STATES, Truth, VehicleModel
 from clark_engine.sim.vehicles import (
     COPTER_FALL_TERMINAL_M_S,
     DEFAULT_GPS_NOISE_M,
+    PLANE_AIRSPEED_SENSOR_SCALE,
     PLANE_TURN_EFFICIENCY,
     FixedWing,
     ModeBehaviour,
@@ -36,6 +37,7 @@ from clark_engine.sim.vehicles import (
     Rover,
     SimulatedVehicle,
     VehicleSetupError,
+    eas2tas,
     make_vehicle,
 )
 
@@ -563,6 +565,29 @@ def test_aileron_override_step_rolls_with_a_first_order_lag(mode: str, sign: int
     # Released: back to level with the same lag.
     plane.set_rc_override({1: 0})
     assert run(plane, 1.5)[-1].roll_deg == pytest.approx(0.0, abs=0.01)
+
+
+@pytest.mark.parametrize(
+    ("pwm_us", "dead_zone_us", "step_deg"),
+    [
+        (1350, 30, -(150 - 30) / (400 - 30) * 45.0),  # ArduPlane's norm_input_dz: -14.6
+        (1480, 30, 0.0),  # inside the dead zone
+        (1350, 0, -150 / 400 * 45.0),  # RC1_DZ 0: read plainly, -16.9
+        (1200, 30, -(3.0 * (300 - 30) / (400 - 30) - 1.0) * 45.0),  # past half stick: 3x - 1
+    ],
+)
+def test_loiter_mixes_the_aileron_through_its_dead_zone(
+    pwm_us: int, dead_zone_us: int, step_deg: float
+) -> None:
+    """The roll asked for (NAV_CONTROLLER_OUTPUT's nav_roll) moves by ArduPlane's stick mix."""
+    plane = build(CUB, (0.0, 0.0, 100.0), mode="LOITER")
+    plane.configure({"RC1_DZ": dead_zone_us})
+    run(plane, 40.0)
+    before = plane.nav_attitude_deg()[0]
+    assert before > 20.0  # circling clockwise, banked right
+    plane.set_rc_override({1: pwm_us})
+    plane.step(DT_S)
+    assert plane.nav_attitude_deg()[0] - before == pytest.approx(step_deg, abs=0.3)
 
 
 def _pitch_amplitude_deg(frequency_hz: float) -> float:
@@ -1198,9 +1223,11 @@ def test_plane_loiter_radius_is_wp_loiter_rad_as_sitl_flies_it() -> None:
     tight = build(PLANE, (0.0, 0.0, 80.0), mode="LOITER")
     assert isinstance(tight, FixedWing)
     tight.configure({"WP_LOITER_RAD": 10.0})
-    floor = 1.5 * 15.0 / math.radians(35.0)  # 1.5 x V / max turn rate: the radius asked
+    # 15 m/s is what the airspeed sensor reads: the turn is the true airspeed's, 80 m up.
+    tas = 15.0 * eas2tas(ORIGIN.alt_amsl_m + 80.0) / PLANE_AIRSPEED_SENSOR_SCALE
+    floor = 1.5 * tas / math.radians(35.0)  # 1.5 x V / max turn rate: the radius asked
     c, kx = PLANE_TURN_EFFICIENCY, (2.0 * math.pi / 17.0) ** 2
-    flown = 0.5 * (floor + math.sqrt(floor**2 + 4.0 * (1.0 - c) * 15.0**2 / (c * kx)))
+    flown = 0.5 * (floor + math.sqrt(floor**2 + 4.0 * (1.0 - c) * tas**2 / (c * kx)))
     assert tight.loiter_radius_m == pytest.approx(flown, rel=1e-9)
     run(tight, 120.0)
     assert distance(tight.truth(), 0.0, 0.0) == pytest.approx(flown, abs=1.0)

@@ -2553,9 +2553,10 @@ class SimAutopilot:
             bearing_deg = math.degrees(math.atan2(east, north)) % 360.0
             distance_m = math.hypot(north, east)
             alt_error_m = target[2] - t.up_m
+        nav_roll_deg, nav_pitch_deg = self.model.nav_attitude_deg()
         return self._mav.nav_controller_output_encode(
-            t.roll_deg,
-            t.pitch_deg,
+            nav_roll_deg,
+            nav_pitch_deg,
             round(t.heading_deg) % 360,
             round(bearing_deg) % 360,
             min(round(distance_m), UINT16_MAX),

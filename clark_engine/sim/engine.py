@@ -29,7 +29,7 @@ import heapq
 import math
 import random
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -53,7 +53,7 @@ from clark_engine.runtime.commands import (
     SetUpAutopilotSafety,
     Takeoff,
 )
-from clark_engine.runtime.config import AgentConfig, config_from_dict
+from clark_engine.runtime.config import AgentConfig, ChannelSpec, config_from_dict
 from clark_engine.runtime.context import offset_position
 from clark_engine.runtime.events import PacketReceived, StationCommand
 from clark_engine.runtime.logbook import Logbook
@@ -326,6 +326,28 @@ def build_vehicle(
     return backend, pilot
 
 
+def rc_calibration_params(channels: Iterable[ChannelSpec]) -> dict[str, float]:
+    """RCn_MIN, RCn_TRIM and RCn_MAX of a SITL autopilot, from the profile's channels.
+
+    A vehicle's autopilot is calibrated to its receiver (the RC calibration a ground
+    station does), and the simulated autopilot reads the sticks against the profile's
+    ``pwm_min_us``/``pwm_trim_us``/``pwm_max_us``. SITL boots with its own calibration
+    (1000/1500/2000 us), which reads the same pulse width as a smaller deflection: 150 us
+    of aileron asked ArduPlane SITL for 0.255 of full stick (with its 30 us RCn_DZ) where
+    the simulation, and the vehicle, read 0.324. A channel the profile maps twice keeps
+    the first mapping.
+    """
+    params: dict[str, float] = {}
+    for channel in channels:
+        rc = channel.rc
+        if rc is None or not 1 <= rc <= 16 or f"RC{rc}_MIN" in params:
+            continue
+        params[f"RC{rc}_MIN"] = float(channel.pwm_min_us)
+        params[f"RC{rc}_TRIM"] = float(channel.pwm_trim_us)
+        params[f"RC{rc}_MAX"] = float(channel.pwm_max_us)
+    return params
+
+
 def build_sitl_vehicle(
     mission: Mission,
     agent: Agent,
@@ -373,6 +395,7 @@ def build_sitl_vehicle(
         }
     )
     params.update(sitl_wind_params(mission.sim))  # sim.wind as SITL's own SIM_WIND_*
+    params.update(rc_calibration_params(config.channels.values()))
     mav = autopilot.get("mavlink") or {}
     process.start()
     backend = SitlBackend(

@@ -581,6 +581,10 @@ PLANE: Final = Firmware(
         "NAVL1_PERIOD": (17.0, _REAL32),
         "NAVL1_DAMPING": (0.75, _REAL32),
         "ROLL_LIMIT_DEG": (45.0, _REAL32),
+        # The pitch limits the stick mixes to and the pilot's modes fly (SITL's plane.parm:
+        # 25 and -20).
+        "PTCH_LIM_MAX_DEG": (20.0, _REAL32),
+        "PTCH_LIM_MIN_DEG": (-25.0, _REAL32),
         "LAND_DISARMDELAY": (20, _INT8),
         # The fence: uploaded polygons only by default, and no mode change while breached.
         "FENCE_TYPE": (4, _INT8),
@@ -605,6 +609,8 @@ PLANE: Final = Firmware(
         "NAVL1_PERIOD",
         "NAVL1_DAMPING",
         "ROLL_LIMIT_DEG",
+        "PTCH_LIM_MAX_DEG",
+        "PTCH_LIM_MIN_DEG",
     ),
 )
 

@@ -186,6 +186,16 @@ class VehicleModel(ABC):
     def set_pilot(self, pwm_us: Mapping[int, int]) -> None:
         """The pilot's transmitter: RC inputs before any override (a switch for rc events)."""
 
+    def nav_attitude_deg(self) -> tuple[float, float]:
+        """The roll and pitch the attitude controller is asked for (NAV_CONTROLLER_OUTPUT).
+
+        ArduPilot reports its demand (nav_roll_cd, nav_pitch_cd: the navigation's plus
+        the pilot's stick mixing) there, not the attitude flown; a model that does not
+        keep its demand reports the attitude, which the demand settles to.
+        """
+        truth = self.truth()
+        return truth.roll_deg, truth.pitch_deg
+
     def shift_estimate(self, north_m: float, east_m: float) -> None:
         """Move the position the autopilot believes by (north, east) metres; the truth stays.
 

@@ -118,6 +118,7 @@ from __future__ import annotations
 import math
 import random
 from abc import abstractmethod
+from collections import deque
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from enum import Enum
@@ -194,6 +195,8 @@ PLANE_DEFAULT_PARAMS: Final[Mapping[str, float]] = {
     "RTL_ALTITUDE": 100.0,  # m above home
     "RTL_RADIUS": 0.0,  # m; 0: WP_LOITER_RAD
     "ROLL_LIMIT_DEG": 45.0,  # deg, never above the airframe's max_bank_deg
+    "PTCH_LIM_MAX_DEG": 20.0,  # deg, the highest pitch demand (SITL's plane.parm: 25)
+    "PTCH_LIM_MIN_DEG": -25.0,  # deg, the lowest (SITL's plane.parm: -20)
     "NAVL1_PERIOD": 17.0,  # s, the L1 navigation period (SITL's plane.parm: 15)
     "NAVL1_DAMPING": 0.75,  # the L1 damping ratio
     "LAND_FLARE_ALT": 3.0,  # m
@@ -277,6 +280,31 @@ loiter asks for the shortfall back in proportion to the distance outside the cir
 PD term), so the circle settles outside WP_LOITER_RAD where the two balance: 92-93 m for
 80 m at 22 m/s with NAVL1_PERIOD 15 (86.6 m at 15 m/s, 98.5 at 28, 101 at 30), 69-70 m
 for 60 m at 15 m/s with 17 (:meth:`FixedWing.loiter_radius_m`)."""
+PLANE_RC_DEAD_ZONE_US: Final = 30
+"""ArduPlane's RCn_DZ for its roll, pitch and rudder sticks (Plane::init_rc_in; SITL
+reports 30): what a model never configured from a parameter table reads them with."""
+PLANE_STICK_PITCH_GAIN: Final = 2.055
+"""Gain of the stick-mixed pitch's band-pass (below) in the automatic modes. A fit, not
+ArduPlane's code: ArduPlane adds the elevator stick to TECS's pitch demand
+(Plane::stabilize_stick_mixing_fbw), its pitch controller (PTCH2SRV_TCONST 0.25) flies it on
+SITL's airframe, and TECS (TECS_TIME_CONST 5, TECS_PTCH_DAMP 0.3) answers the climb and sink
+it causes: the pitch answers a sine of elevator as a band-pass, washed out below a few
+tenths of a hertz, resonant near 0.8 Hz, cut above 1.2 Hz. Fitted (with the model's own
+0.3 s pitch lag) to SITL's pitch in LOITER at 18 m/s, 150 m AMSL, under 100 us elevator
+sines (0.19 of the stick, 4.25 degrees of demand; 8 s bursts, runs probe2 and probe3 of
+2026-11-28, which two runs reproduced to 0.05 degrees): pitch amplitude 3.06, 3.89, 5.66,
+12.91, 10.05, 7.08, 5.91, 2.46 and 1.04 degrees at 0.3, 0.45, 0.6, 0.75, 0.85, 0.95, 1.0,
+1.2 and 1.5 Hz; the fit gives 2.91, 4.35, 6.49, 10.68, 10.92, 6.90, 5.39, 2.44 and 1.08
+(phases within 16 degrees). Before it, the stick's pitch was a 0.3 s lag: 5.2 degrees at
+0.3 Hz falling to 1.9 at 1.5 Hz (2.7 at 1 Hz). SITL's airframe, not the Super Cub's."""
+PLANE_STICK_PITCH_WASHOUT_1_S: Final = 5.32
+"""The band-pass's wash-out corner, rad/s (the fit above: TECS holding its height)."""
+PLANE_STICK_PITCH_MODE_HZ: Final = 0.826
+"""Its resonance (the fit above): the pitch loop with TECS on SITL's airframe."""
+PLANE_STICK_PITCH_DAMPING: Final = 0.143
+"""Its damping ratio (the fit above)."""
+PLANE_STICK_PITCH_DELAY_S: Final = 0.12
+"""Its delay, s (the fit above; taken in whole physics steps)."""
 PLANE_LAUNCH_DELAY_S: Final = 0.2
 """From arming in TAKEOFF (or AUTO with a takeoff) to the launch: ArduPlane's "Armed
 AUTO, xaccel = ..., waiting 0.2 sec" then "Triggered AUTO"."""
@@ -287,6 +315,35 @@ fitted to SITL's TAKEOFF: climbing 7-10 m/s through TKOFF_ALT 50 m it peaked at 
 PLANE_LAND_SLOPE_DEG: Final = 3.1
 """Glide slope of a landing with no approach to fit it to: SITL's AUTO landing said
 "Landing glide slope 3.1 degrees" (sink 0.8-1.4 m/s at 16 m/s)."""
+ISA_SEA_LEVEL_K: Final = 288.15
+"""The 1976 standard atmosphere's sea-level temperature, K (15 C)."""
+ISA_LAPSE_K_M: Final = 0.0065
+"""Its tropospheric lapse rate, K per metre."""
+ISA_DENSITY_EXPONENT: Final = G_M_S2 / (ISA_LAPSE_K_M * 287.053) - 1.0
+"""rho / rho0 = (T / T0) ** this in the troposphere (g / (L R) - 1, R of dry air)."""
+
+
+PLANE_AIRSPEED_SENSOR_SCALE: Final = 0.9937
+"""What ArduPlane SITL's airspeed sensor reads per m/s of the equivalent airspeed its
+simulator flies at (fitted): holding AIRSPEED_CRUISE 18 m/s by it (VFR_HUD airspeed 17.99-
+18.01) at 150 m above sea level in still air, SITL's plane flew 18.24-18.25 m/s over the
+ground, straight and circling alike (1.0134-1.0138 in two runs, 2026-11-28), where the
+standard atmosphere's :func:`eas2tas` gives 1.0072: its simulated analog pitot reads 0.63 %
+low. A real aircraft's sensor has its own error (ARSPD_RATIO); this is SITL's."""
+
+
+def eas2tas(alt_amsl_m: float) -> float:
+    """True over equivalent airspeed at ``alt_amsl_m`` in the 1976 standard atmosphere.
+
+    ``sqrt(rho0 / rho)``: the factor ArduPilot SITL's simulator converts its aircraft's
+    true airspeed to what the pitot measures with (AP_Baro::get_EAS2TAS_for_alt_amsl,
+    called from SITL_State::_update_airspeed), so the EAS ArduPlane holds is flown at
+    this times it through the air: 1.0072 at 150 m above sea level. The troposphere's
+    law (below 11 km); an altitude below sea level is taken as sea level's density.
+    """
+    temperature_k = ISA_SEA_LEVEL_K - ISA_LAPSE_K_M * max(alt_amsl_m, 0.0)
+    return float((temperature_k / ISA_SEA_LEVEL_K) ** (-0.5 * ISA_DENSITY_EXPONENT))
+
 
 # --- rover constants (measured on ArduRover SITL) ---------------------------------------
 
@@ -492,6 +549,26 @@ class _Channel:
             value = (pwm_us - self.trim_us) / span if span > 0 else 0.0
         return -1.0 if value < -1.0 else (1.0 if value > 1.0 else value)
 
+    def deflection_dz(self, pwm_us: int, dead_zone_us: int) -> float:
+        """:meth:`deflection` with a dead zone round trim (ArduPilot's norm_input_dz).
+
+        ``dead_zone_us`` either side of trim reads 0, and the rest of each half of the
+        range is scaled from the dead zone's edge: RC_Channel::norm_input_dz, with which
+        ArduPlane reads the sticks it mixes into its automatic modes (RCn_DZ, 30 us by
+        default): 150 us above a 1500 us trim on a 1100-1900 us channel reads 0.324, not
+        0.375.
+        """
+        if dead_zone_us <= 0:
+            return self.deflection(pwm_us)
+        low, high = self.trim_us - dead_zone_us, self.trim_us + dead_zone_us
+        if pwm_us < low and low > self.min_us:
+            value = (pwm_us - low) / (low - self.min_us)
+        elif pwm_us > high and self.max_us > high:
+            value = (pwm_us - high) / (self.max_us - high)
+        else:
+            return 0.0
+        return -1.0 if value < -1.0 else (1.0 if value > 1.0 else value)
+
     def fraction(self, pwm_us: int) -> float:
         """0 (min) .. 1 (max): a throttle that idles at its minimum."""
         span = self.max_us - self.min_us
@@ -524,6 +601,19 @@ def _channel(name: str, spec: ChannelLike | Mapping[str, Any]) -> _Channel:
         int(trim),
         int(high),
     )
+
+
+def _stick_mix(value: float) -> float:
+    """ArduPlane's FBW stick mixing curve: linear to half stick, then 3x - 1 (to 2 at full).
+
+    Plane::stabilize_stick_mixing_fbw, so that a pilot can turn an automatic mode's
+    aircraft any way they want; the demand is clamped to the limit afterwards.
+    """
+    if value > 0.5:
+        return 3.0 * value - 1.0
+    if value < -0.5:
+        return 3.0 * value + 1.0
+    return value
 
 
 def _clamp(value: float, low: float, high: float) -> float:
@@ -770,6 +860,11 @@ class SimulatedVehicle(VehicleModel):
         self._rc_inputs_until_s = math.inf
         self._rc_stale = True
         self._rc_roll = self._rc_pitch = self._rc_yaw = self._rc_thr = 0.0
+        # The roll, pitch and yaw sticks read through their dead zones (RCn_DZ, in us), as
+        # ArduPlane reads the sticks it mixes into its automatic modes; 0 reads them
+        # plainly (the models that do not mix sticks).
+        self._dead_zones_us = (0, 0, 0)
+        self._mix_roll = self._mix_pitch = self._mix_yaw = 0.0
 
         # Servo outputs: output index -> the demand that drives it.
         self._servo_us = [0] * SERVO_OUTPUT_COUNT
@@ -1243,6 +1338,14 @@ class SimulatedVehicle(VehicleModel):
             else:
                 values.append(channel.deflection(pwm))
         self._rc_roll, self._rc_pitch, self._rc_yaw, self._rc_thr = values
+        mixed = [values[0], values[1], values[2]]
+        for position, dead_zone in enumerate(self._dead_zones_us):
+            channel = self._controls[position]
+            rc = channel.rc if channel is not None else None
+            if dead_zone and channel is not None and rc is not None and 1 <= rc <= RC_CHANNEL_COUNT:
+                pwm = self._override_us[rc - 1] or self._pilot_us[rc - 1]
+                mixed[position] = channel.deflection_dz(pwm, dead_zone)
+        self._mix_roll, self._mix_pitch, self._mix_yaw = mixed
         self._rc_stale = False
 
     def _function_pwm(self, function: str) -> int:
@@ -2151,12 +2254,16 @@ class FixedWing(SimulatedVehicle):
     goto flies to the point and then circles it, as ArduPlane's GUIDED does; RTL
     flies home and circles it at RTL_ALTITUDE above home indefinitely (RTL_AUTOLAND
     0). Airspeed: AIRSPEED_CRUISE (or DO_CHANGE_SPEED's) within AIRSPEED_MIN..MAX and
-    the airframe's limits. Altitude: climb rate proportional to the error within the
-    limits, its changes slewed at :data:`PLANE_CLIMB_SLEW_M_S2`; throttle holds the
-    speed and pays for the climb. The RC sticks are mixed in (ArduPlane's default
-    STICK_MIXING, FBW style): an aileron deflection adds ``deflection * max bank``
-    to the roll command, elevator likewise to pitch, so a doublet shows in the
-    attitude in these modes too.
+    the airframe's limits, an equivalent airspeed as ArduPlane holds it: what the
+    airspeed sensor reads (VFR_HUD), flown at :func:`eas2tas` times it through the air
+    (:data:`PLANE_AIRSPEED_SENSOR_SCALE`). Altitude: climb rate proportional to the error
+    within the limits, its changes slewed at :data:`PLANE_CLIMB_SLEW_M_S2`; throttle holds
+    the speed and pays for the climb. The RC sticks are mixed in (ArduPlane's default
+    STICK_MIXING, FBW style, Plane::stabilize_stick_mixing_fbw): the sticks read through
+    their dead zones (RCn_DZ), past half stick steeper, times ROLL_LIMIT_DEG (pitch:
+    PTCH_LIM_MAX_DEG up, PTCH_LIM_MIN_DEG down) are added to the navigation's demand
+    (:meth:`nav_attitude_deg`), so a doublet shows in the attitude in these modes too; the
+    pitch's share passes a band-pass fitted to SITL's (:data:`PLANE_STICK_PITCH_GAIN`).
 
     Takeoff is by mode, as on ArduPlane: armed in TAKEOFF (or armed in AUTO after
     :meth:`auto_takeoff`) on the ground it launches :data:`PLANE_LAUNCH_DELAY_S`
@@ -2238,6 +2345,9 @@ class FixedWing(SimulatedVehicle):
         self._airframe_bank = math.radians(limits.max_bank_deg if limits.max_bank_deg else 45.0)
         self._max_pitch = math.radians(self.max_pitch_deg)
         self._min_pitch = math.radians(self.min_pitch_deg)
+        self._dead_zones_us = (PLANE_RC_DEAD_ZONE_US,) * 3
+        self._nav_roll = self._nav_pitch = 0.0
+        self._reset_stick_pitch()
         self._rudder_rate = 0.5 * self._max_turn_rad_s
         self._max_climb = limits.max_climb_rate_m_s
         self._max_descent = limits.max_descent_rate_m_s
@@ -2247,7 +2357,9 @@ class FixedWing(SimulatedVehicle):
         idle_sink = 0.5 * self._max_descent
         self._v_idle = self._v_min - G_M_S2 * idle_sink / (self._v_min * self._k_1_s)
         self._flying = self._u > 0.0
-        self._speed = cruise if self._flying else 0.0
+        self._tas_per_eas = self._tas_per_indicated(self._u)
+        # The pilot flies the airframe's cruise as the airspeed indicator shows it (EAS).
+        self._speed = cruise * self._tas_per_eas if self._flying else 0.0
         self._yaw_rate = 0.0
         self._climb_cmd = 0.0
         self._sub = _P_LOITER
@@ -2264,9 +2376,9 @@ class FixedWing(SimulatedVehicle):
         self._radius = self._loiter_radius(self._target_speed)
         if self._flying:
             # Level flight at cruise; a pilot who is flying holds the cruise throttle.
-            self._vn = cruise * math.cos(self._yaw)
-            self._ve = cruise * math.sin(self._yaw)
-            self._thr = (cruise - self._v_idle) / (self._v_max - self._v_idle)
+            self._vn = self._speed * math.cos(self._yaw)
+            self._ve = self._speed * math.sin(self._yaw)
+            self._thr = (self._speed - self._v_idle) / (self._v_max - self._v_idle)
             self._act_thr = self._thr
             throttle = self._controls[3]
             if throttle is not None and throttle.rc is not None:
@@ -2296,12 +2408,31 @@ class FixedWing(SimulatedVehicle):
         self._direction = -1.0 if p["WP_LOITER_RAD"] < 0.0 else 1.0
         limit = math.radians(p["ROLL_LIMIT_DEG"]) if p["ROLL_LIMIT_DEG"] > 0.0 else _INF
         self._max_bank = min(self._airframe_bank, limit)
+        up, down = p["PTCH_LIM_MAX_DEG"], p["PTCH_LIM_MIN_DEG"]
+        self._max_pitch = math.radians(up if 0.0 < up <= 90.0 else self.max_pitch_deg)
+        self._min_pitch = math.radians(down if -90.0 <= down < 0.0 else self.min_pitch_deg)
         self._level_below = max(p["TKOFF_LVL_ALT"], 0.0)
         self._flare_alt = max(p["LAND_FLARE_ALT"], 0.0)
         self._land_sink = max(p["TECS_LAND_SINK"], 0.05)
 
     def _auto_speed(self) -> float:
         return self._cruise
+
+    def configure(self, params: Mapping[str, float]) -> None:
+        """Take the parameter table; also the sticks' dead zones (RCn_DZ of their channels).
+
+        ArduPlane reads the sticks it mixes into its automatic modes through them
+        (:meth:`_Channel.deflection_dz`); a channel whose RCn_DZ the table lacks keeps
+        :data:`PLANE_RC_DEAD_ZONE_US`.
+        """
+        super().configure(params)
+        zones = []
+        for channel in self._controls[:3]:
+            value = params.get(f"RC{channel.rc}_DZ") if channel and channel.rc else None
+            number = float(value) if value is not None else float(PLANE_RC_DEAD_ZONE_US)
+            zones.append(int(_clamp(number, 0.0, 200.0)) if math.isfinite(number) else 0)
+        self._dead_zones_us = (zones[0], zones[1], zones[2])
+        self._rc_stale = True
 
     def _set_step(self, h: float) -> None:
         super()._set_step(h)
@@ -2356,18 +2487,22 @@ class FixedWing(SimulatedVehicle):
         """
         c = PLANE_TURN_EFFICIENCY
         r = self._radius
-        speed = self._target_speed
+        speed = self._target_speed * self._tas_per_eas
         gain = c * self._loiter_kx
         return 0.5 * (r + math.sqrt(r * r + 4.0 * (1.0 - c) * speed * speed / gain))
 
     def _airspeed(self, ground_speed_m_s: float) -> float:
-        return self._speed
+        """What the airspeed sensor reads (VFR_HUD): about the equivalent airspeed."""
+        return self._speed / self._tas_per_eas
 
-    def _loiter_radius(self, speed_m_s: float) -> float:
+    def _loiter_radius(self, eas_m_s: float) -> float:
         """The radius the L1 loiter is asked for, never tighter than the airframe turns.
 
-        WP_LOITER_RAD (or RTL_RADIUS); what it flies is :attr:`loiter_radius_m`.
+        WP_LOITER_RAD (or RTL_RADIUS); what it flies is :attr:`loiter_radius_m`. The turn
+        is the true airspeed's (``eas_m_s``, the loiter's equivalent airspeed, at the
+        present altitude).
         """
+        speed_m_s = eas_m_s * self._tas_per_eas
         by_bank = speed_m_s * speed_m_s / (G_M_S2 * math.tan(self._max_bank))
         by_rate = speed_m_s / self._max_turn_rad_s if self._max_turn_rad_s > 0 else by_bank
         tightest = self.loiter_radius_factor * max(by_bank, by_rate)
@@ -2494,7 +2629,62 @@ class FixedWing(SimulatedVehicle):
 
     # --- physics ----------------------------------------------------------------------
 
+    def _reset_stick_pitch(self) -> None:
+        """Empty the stick-mixed pitch's band-pass (at the start, and once it has settled)."""
+        self._sp_washout = self._sp_pitch = self._sp_rate = 0.0
+        self._sp_delayed: deque[float] = deque()
+
+    def _stick_pitch(self, h: float, pitch_rad: float) -> float:
+        """The pitch the automatic modes add for a stick-mixed pitch demand (band-pass).
+
+        ``pitch_rad`` is ArduPlane's stick-mixing share of nav_pitch; the answer is what
+        SITL's plane pitches for it, in the fit of :data:`PLANE_STICK_PITCH_GAIN`: a wash-out
+        (``s / (s + a)``), a lightly damped second-order mode and a delay. With the stick
+        centred and nothing left ringing, it is exactly 0 (no draw, no change to a flight
+        without sticks).
+        """
+        if pitch_rad == 0.0 and not self._sp_delayed and self._sp_pitch == 0.0:
+            return 0.0
+        a = PLANE_STICK_PITCH_WASHOUT_1_S
+        decay = math.exp(-a * h)
+        self._sp_washout = decay * self._sp_washout + (1.0 - decay) / a * pitch_rad
+        washed = pitch_rad - a * self._sp_washout
+        omega = _TAU * PLANE_STICK_PITCH_MODE_HZ
+        self._sp_rate += h * (
+            omega * omega * (washed - self._sp_pitch)
+            - 2.0 * PLANE_STICK_PITCH_DAMPING * omega * self._sp_rate
+        )
+        self._sp_pitch += h * self._sp_rate
+        delayed = self._sp_delayed
+        delayed.append(self._sp_pitch)
+        steps = max(round(PLANE_STICK_PITCH_DELAY_S / h), 1)
+        out = delayed.popleft() if len(delayed) > steps else 0.0
+        settled = (
+            pitch_rad == 0.0
+            and max(
+                abs(self._sp_pitch), abs(self._sp_rate), abs(self._sp_washout), *map(abs, delayed)
+            )
+            < 1e-9
+        )
+        if settled:
+            self._reset_stick_pitch()  # back to exactly 0
+        return PLANE_STICK_PITCH_GAIN * out
+
+    def nav_attitude_deg(self) -> tuple[float, float]:
+        """The roll and pitch demanded (ArduPlane's nav_roll_cd and nav_pitch_cd).
+
+        The automatic modes' navigation plus the pilot's stick mixing, within the
+        limits: what NAV_CONTROLLER_OUTPUT reports. SITL's nav_roll stepped by 14.6
+        degrees at once for 150 us of aileron in LOITER while its roll lagged.
+        """
+        return math.degrees(self._nav_roll), math.degrees(self._nav_pitch)
+
+    def _tas_per_indicated(self, up_m: float) -> float:
+        """True airspeed per m/s the airspeed sensor reads, ``up_m`` above the origin."""
+        return eas2tas(self.origin.alt_amsl_m + up_m) / PLANE_AIRSPEED_SENSOR_SCALE
+
     def _advance(self, h: float) -> None:
+        self._tas_per_eas = self._tas_per_indicated(self._u)
         speed = self._speed
         sub = self._sub
         level = False
@@ -2541,11 +2731,14 @@ class FixedWing(SimulatedVehicle):
                 roll_cmd = self._loiter_roll(speed)
                 pitch_cmd = self._pitch_for(h, speed, self.altitude_gain_1_s * (self._ch - self._u))
                 throttle = self._speed_throttle(speed)
-            # FBW stick mixing.
-            roll_cmd += self._rc_roll * self._max_bank
-            elevator = self._rc_pitch
-            pitch_cmd += elevator * (self._max_pitch if elevator > 0.0 else -self._min_pitch)
-            yaw_rate_cmd = self._rc_yaw * self._rudder_rate
+            # FBW stick mixing (Plane::stabilize_stick_mixing_fbw): the sticks read
+            # through their dead zones, past half stick steeper (to twice the limit).
+            roll_cmd += _stick_mix(self._mix_roll) * self._max_bank
+            elevator = _stick_mix(self._mix_pitch)
+            stick = elevator * (self._max_pitch if elevator > 0.0 else -self._min_pitch)
+            # ... whose pitch the aircraft answers as SITL's does (a fitted band-pass).
+            pitch_cmd += self._stick_pitch(h, stick)
+            yaw_rate_cmd = self._mix_yaw * self._rudder_rate
             if level:
                 roll_cmd = 0.0
             lift_off = True
@@ -2553,6 +2746,7 @@ class FixedWing(SimulatedVehicle):
             throttle = 0.0
         roll_cmd = _clamp(roll_cmd, -self._max_bank, self._max_bank)
         pitch_cmd = _clamp(pitch_cmd, self._min_pitch, self._max_pitch)
+        self._nav_roll, self._nav_pitch = roll_cmd, pitch_cmd
         self._act_roll = roll_cmd / self._max_bank
         self._act_pitch = (
             pitch_cmd / self._max_pitch if pitch_cmd > 0.0 else -pitch_cmd / self._min_pitch
@@ -2666,8 +2860,13 @@ class FixedWing(SimulatedVehicle):
         return math.asin(_clamp(command / speed, -1.0, 1.0))
 
     def _speed_throttle(self, speed: float) -> float:
-        """Throttle that holds the target speed and pays for the current climb."""
-        accel = (self._target_speed - speed) / self.speed_time_constant_s
+        """Throttle that holds the target speed and pays for the current climb.
+
+        The target is an equivalent airspeed (AIRSPEED_CRUISE, DO_CHANGE_SPEED), held as
+        ArduPlane's TECS holds what its pitot reads: flown at :func:`eas2tas` times it
+        (over :data:`PLANE_AIRSPEED_SENSOR_SCALE`, the sensor's reading).
+        """
+        accel = (self._target_speed * self._tas_per_eas - speed) / self.speed_time_constant_s
         accel += G_M_S2 * self._vu / speed
         level_speed = speed + accel / self._k_1_s
         return _clamp((level_speed - self._v_idle) / (self._v_max - self._v_idle), 0.0, 1.0)
@@ -2691,12 +2890,15 @@ class FixedWing(SimulatedVehicle):
         if climb > 0.0 and self._u >= self.limits.max_altitude_m:
             climb = 0.0
         new_speed = speed + (thrust - G_M_S2 * climb / speed) * h
-        if new_speed < self._v_min:
+        # The stall margin is an airspeed (EAS, what the wing feels): higher up, a higher
+        # true speed.
+        v_min = self._v_min * self._tas_per_eas
+        if new_speed < v_min:
             # The energy cannot pay for this climb at minimum speed: the nose drops.
-            affordable = speed * (thrust - (self._v_min - speed) / h) / G_M_S2
+            affordable = speed * (thrust - (v_min - speed) / h) / G_M_S2
             if climb > affordable:
                 climb = max(affordable, -self._max_descent)
-            new_speed = self._v_min
+            new_speed = v_min
         elif new_speed > self._v_max:
             new_speed = self._v_max
         limit = self._max_turn_rad_s
@@ -2744,10 +2946,11 @@ class FixedWing(SimulatedVehicle):
         self._n += vn * h
         self._e += ve * h
         self._yaw, self._speed, self._vn, self._ve, self._vu = yaw, speed, vn, ve, 0.0
-        if lift_off and self.armed and speed >= self._v_min:
+        v_min = self._v_min * self._tas_per_eas  # the stall margin is an airspeed
+        if lift_off and self.armed and speed >= v_min:
             self._flying = True
             self.touchdown_s = None
-            self._speed = max(speed, self._v_min)
+            self._speed = max(speed, v_min)
 
 
 class Rover(SimulatedVehicle):

@@ -272,7 +272,7 @@ LIST_SAMPLES: dict[str, dict[str, tuple[int, float]]] = {
     },
     "plane": {
         "ARMING_CHECK": (_I32, 1),
-        "PTCH_LIM_MAX_DEG": (_F, 25),
+        "PTCH2SRV_TCONST": (_F, 0.25),
         "TRIM_THROTTLE": (_I8, 50),
         "TECS_CLMB_MAX": (_F, 5),
         "ARSPD_TYPE": (_I8, 2),
