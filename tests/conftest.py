@@ -141,8 +141,14 @@ def _sped_up_sitl(item: pytest.Item) -> bool:
     return "[sitl-" in item.nodeid or item.path.name in SPED_UP_SITL_MODULES
 
 
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Deal the slow tests out first, and run SITL at a speed-up on one worker at a time.
+
+    First of the hooks: pytest-xdist's own, on each worker, reads the ``xdist_group``
+    marks to name each test's group, so marks added after it are never seen (they were
+    not, until this ran first: every SITL test was spread over every worker, three SITLs
+    at ten times real time at once on two cores).
 
     `make test` spreads the suite over the machine's cores (pytest-xdist, `-n auto
     --dist loadgroup`). A long test dealt out last would keep one core busy while the
