@@ -395,7 +395,10 @@ def build_sitl_vehicle(
         }
     )
     params.update(sitl_wind_params(mission.sim))  # sim.wind as SITL's own SIM_WIND_*
-    params.update(rc_calibration_params(config.channels.values()))
+    if firmware.name == "arduplane":
+        # Where it was measured and needed: a plane mixing its sticks into its automatic
+        # modes. Copters and rovers keep SITL's own calibration (measured against it).
+        params.update(rc_calibration_params(config.channels.values()))
     mav = autopilot.get("mavlink") or {}
     process.start()
     backend = SitlBackend(
