@@ -69,7 +69,9 @@ def test_rover_drives_to_a_guided_target_and_back(rover: Peer) -> None:
     def back(msg: object) -> bool:
         """back where it started, stopped"""
         f = fix_of(msg)
-        return distance_m((f.lat_deg, f.lon_deg), home) < 2.0 and f.ground_speed_m_s < 0.05
+        # Within ArduRover's arrival radius (WP_RADIUS, 3 m in SITL's parameters) and a
+        # little: a SITL run stopped just past 2 m on its way back in a suite run.
+        return distance_m((f.lat_deg, f.lon_deg), home) < 3.5 and f.ground_speed_m_s < 0.05
 
     peer.wait_for("GLOBAL_POSITION_INT", 60.0, where=back)
 
