@@ -19,7 +19,7 @@ from clark_engine.link.messages import (
     BehaviorState,
     ModeChangeRequest,
 )
-from clark_engine.runtime.command_delivery import COMMAND_SENDS, ActedOn
+from clark_engine.runtime.command_delivery import COMMAND_SENDS, ActedOn, took_effect
 from clark_engine.runtime.commands import SendPacket, SetMode
 from clark_engine.runtime.events import AutopilotHeartbeat, PacketReceived, StationCommand
 from clark_engine.runtime.runtime import AgentRuntime
@@ -88,6 +88,29 @@ def test_the_station_sends_a_command_again_until_it_takes() -> None:
     mcs.deliver(PacketReceived(slash_b.heartbeat(1.2, state).data), 1.2)
     assert [_sent(mcs.tick(t), "slash_b") for t in (2.0, 3.0, 4.0)] == [[], [], []]
     assert "activate slash_b: took after 2 sends" in mission_log(mcs)
+
+
+def test_an_older_activation_repeated_does_not_confirm_a_new_one() -> None:
+    # Slash B already showed an activation; the operator deactivates and activates it
+    # again. Its periodic Behavior State still repeating the old activation (the same
+    # states, the same event) is no sign that the new one took: the station sends it again.
+    mcs = AgentRuntime(config_of("cooperative_follow.yaml", "mcs"), gps_epoch_ms=GPS0)
+    slash_b = Peer(521, 3, AgentType.VEHICLE)
+    old = BehaviorState(3, GPS0, ("chase",), "activate")
+    mcs.deliver(PacketReceived(slash_b.heartbeat(0.1, old).data), 0.1)
+    first = _sent(mcs.deliver(StationCommand("activate", "slash_b"), 0.5), "slash_b")
+    repeat = BehaviorState(3, GPS0 + 1000, ("chase",), "activate")
+    mcs.deliver(PacketReceived(slash_b.heartbeat(1.0, repeat).data), 1.0)
+    assert _sent(mcs.tick(1.5), "slash_b") == first
+    # The same rule is the station view's (gcs/model.py calls took_effect too).
+    record = mcs.fleet.record(3)
+    assert record is not None and record.sample(BehaviorState) is not None
+    before = record.sample(BehaviorState)
+    assert not took_effect("activate", record, 0.5, behaviour_before=before)
+    fresh = BehaviorState(3, GPS0 + 1800, ("chase", "near"), "activate")
+    mcs.deliver(PacketReceived(slash_b.heartbeat(1.8, fresh).data), 1.8)
+    assert took_effect("activate", record, 0.5, behaviour_before=before)
+    assert not took_effect("deactivate", record, 0.5, behaviour_before=before)
 
 
 def test_the_station_gives_up_after_a_few_copies() -> None:

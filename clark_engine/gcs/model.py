@@ -51,6 +51,7 @@ from clark_engine.link.messages import (
 )
 from clark_engine.mission.fence import Zone
 from clark_engine.mission.geo import Origin, parse_point, to_local
+from clark_engine.runtime.command_delivery import took_effect
 from clark_engine.runtime.config import AgentConfig, EnvelopeSpec, StateSpec
 from clark_engine.runtime.events import StationCommand
 from clark_engine.runtime.logbook import line_safe
@@ -456,7 +457,6 @@ class _Target:
     agent_id: int
     status: str = "pending"
     behaviour: Sample[BehaviorState] | None = None
-    behaviour_was: tuple[tuple[str, ...], str] | None = None
     mode_number: int | None = None
 
 
@@ -1014,8 +1014,6 @@ class StationView:
             if record is not None:
                 sample = record.sample(BehaviorState)
                 target.behaviour = sample
-                if sample is not None:
-                    target.behaviour_was = (sample.value.active_states, sample.value.last_event)
         if all(t.status == "terminated" for t in command.targets):
             return "every vehicle has terminated"
         return None
@@ -1041,7 +1039,13 @@ class StationView:
             if target.status != "pending":
                 continue
             record = fleet.record(target.agent_id)
-            if record is not None and _took_effect(action, target, record, command.sent_s):
+            if record is not None and took_effect(
+                action,
+                record,
+                command.sent_s,
+                behaviour_before=target.behaviour,
+                mode_number=target.mode_number,
+            ):
                 target.status = "done"
         waiting = [t.name for t in command.targets if t.status == "pending"]
         if not waiting:
@@ -1072,36 +1076,6 @@ class StationView:
     def commands(self) -> list[Json]:
         """Every command kept, oldest first, with its lifecycle."""
         return [c.to_json() for c in self._commands]
-
-
-def _took_effect(action: str, target: _Target, record: AgentRecord, sent_s: float) -> bool:
-    """Whether ``record`` shows, since ``sent_s``, that the command reached its target.
-
-    - activate / deactivate: a Behavior State received since, naming that event, that
-      differs from the one known when the command was sent (a periodic Behavior State
-      repeating an older activation is no answer);
-    - mode: an Agent Status received since, reporting the mode asked for;
-    - terminate: the target's heartbeat reports the ``terminated`` condition.
-    """
-    if action in ("activate", "deactivate"):
-        sample = record.sample(BehaviorState)
-        if sample is None or sample is target.behaviour or sample.received_s < sent_s:
-            return False
-        value = sample.value
-        if value.last_event != action:
-            return False
-        return target.behaviour_was != (value.active_states, value.last_event)
-    if action == "mode":
-        status = record.sample(AgentStatus)
-        return (
-            status is not None
-            and status.received_s >= sent_s
-            and target.mode_number is not None
-            and status.value.mode == target.mode_number
-        )
-    if action == "terminate":
-        return record.condition == Condition.TERMINATED
-    return False
 
 
 def _evidence(action: str, mode: str) -> str:

@@ -23,11 +23,12 @@ from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Final
 
-from clark_engine.link.fleet import AgentRecord
+from clark_engine.link.fleet import AgentRecord, Sample
 from clark_engine.link.messages import (
     ActivateController,
     AgentStatus,
     BehaviorState,
+    Condition,
     ModeChangeRequest,
 )
 
@@ -78,6 +79,49 @@ class ActedOn:
         return True
 
 
+def took_effect(
+    action: str,
+    record: AgentRecord,
+    sent_s: float,
+    *,
+    behaviour_before: Sample[BehaviorState] | None,
+    mode_number: int | None = None,
+) -> bool:
+    """Whether ``record`` shows, since ``sent_s``, that a command reached its target.
+
+    The one rule by which both the station's runtime (to stop sending a command again)
+    and the station's view (to show a command done) judge that a command took:
+
+    - activate / deactivate: a Behavior State received since, naming that event, that
+      is not the one known when the command was sent (``behaviour_before``) and differs
+      from it: a periodic Behavior State repeating an older activation is no answer;
+    - mode: an Agent Status received since, reporting ``mode_number``;
+    - terminate: the target's heartbeat reports the ``terminated`` condition.
+    """
+    if action in ("activate", "deactivate"):
+        sample = record.sample(BehaviorState)
+        if sample is None or sample is behaviour_before or sample.received_s < sent_s:
+            return False
+        value = sample.value
+        if value.last_event != action:
+            return False
+        if behaviour_before is None:
+            return True
+        was = behaviour_before.value
+        return (was.active_states, was.last_event) != (value.active_states, value.last_event)
+    if action == "mode":
+        status = record.sample(AgentStatus)
+        return (
+            status is not None
+            and status.received_s >= sent_s
+            and mode_number is not None
+            and status.value.mode == mode_number
+        )
+    if action == "terminate":
+        return record.condition == Condition.TERMINATED
+    return False
+
+
 @dataclass
 class Unconfirmed:
     """A command a station sent and has not yet seen take.
@@ -88,6 +132,7 @@ class Unconfirmed:
         target: The target's name (its destination on the radio).
         first_sent_s: When the first copy went (runtime seconds).
         last_sent_s: When the last copy went.
+        behaviour_before: The target's Behavior State known when the first copy went.
         sends: Copies sent so far.
     """
 
@@ -96,24 +141,20 @@ class Unconfirmed:
     target: str
     first_sent_s: float
     last_sent_s: float
+    behaviour_before: Sample[BehaviorState] | None = None
     sends: int = 1
 
     def confirmed_by(self, record: AgentRecord | None) -> bool:
         """Whether the target's telemetry since the first copy shows the command took."""
         if record is None:
             return False
-        if isinstance(self.message, ActivateController):
-            state = record.sample(BehaviorState)
-            return (
-                state is not None
-                and state.received_s >= self.first_sent_s
-                and state.value.last_event == self.action
-            )
-        status = record.sample(AgentStatus)
-        return (
-            status is not None
-            and status.received_s >= self.first_sent_s
-            and status.value.mode == self.message.mode
+        mode = self.message.mode if isinstance(self.message, ModeChangeRequest) else None
+        return took_effect(
+            self.action,
+            record,
+            self.first_sent_s,
+            behaviour_before=self.behaviour_before,
+            mode_number=mode,
         )
 
 
@@ -125,4 +166,5 @@ __all__ = [
     "CommandKey",
     "Unconfirmed",
     "command_key",
+    "took_effect",
 ]

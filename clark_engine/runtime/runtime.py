@@ -851,8 +851,14 @@ class AgentRuntime:
             family = "mode" if isinstance(message, ModeChangeRequest) else "activate"
             self._unconfirmed.pop((target.id, family), None)
             if message.gps_time_ms:
+                record = self.fleet.record(target.id)
                 self._unconfirmed[(target.id, family)] = Unconfirmed(
-                    message, command.action, target.name, now_s, now_s
+                    message,
+                    command.action,
+                    target.name,
+                    now_s,
+                    now_s,
+                    behaviour_before=None if record is None else record.sample(BehaviorState),
                 )
         if command.action == "terminate" and target is None:
             self._begin_terminate_all(now_s)
