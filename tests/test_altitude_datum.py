@@ -122,7 +122,6 @@ def test_the_rover_reports_its_height_above_the_origin(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 @pytest.mark.sitl
-@pytest.mark.xdist_group("sitl-speedup")
 def test_on_arducopter_and_ardurover_sitl(tmp_path: Path, sitl_install: SitlInstall) -> None:
     """The same follow on real ArduPilot SITL (rover and copter): 12 m up, not 102 m."""
     copter_top, rover_top = fly(
