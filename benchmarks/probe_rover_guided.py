@@ -12,6 +12,10 @@ Three measurements, each on the conformance harness's backends (``sim-rover`` or
   within 2 m of the last, 30 m legs turning 90 degrees right): per corner, the speed when
   the next corner went, the slowest speed through the corner, and the seconds to 5 m and
   10 m along the new leg and to within 2 m of the next corner.
+- ``chase``: from rest, a goal 3 m beside a leader walking at 1 m/s (test_guided's path,
+  or ``--walk``), sent twice a second 2.5 s ahead as follow_agent sends it, then the leader
+  stands (test_guided's chase): the times to within 3, 2, 1.5 and 1 m of the moving goal,
+  its mean distance over the walk's last 5 s, how far past the standing goal it runs.
 - ``step`` (``sim-rover`` only, no autopilot): the CPU time of one 0.05 s step of the
   simulated rover driving GUIDED targets (the model alone, what a dry run pays per rover).
 
@@ -49,10 +53,19 @@ from flight import (
 )
 from harness import Peer, open_peer
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
-from test_guided import REDIRECT_TARGETS_M, drive_and_redirect
+from test_guided import (
+    CHASE_PATH_M,
+    CHASE_SPEED_M_S,
+    REDIRECT_TARGETS_M,
+    Walk,
+    chase,
+    drive_and_redirect,
+)
 
 TOUR_LEG_M = 30.0
 TOUR_TOLERANCE_M = 2.0
+CHASE_WALK = ";".join(f"{a:g},{r:g}" for a, r in CHASE_PATH_M)
+"""``--walk``: the chase's leader path, corners ``ahead,right;...`` of the rover."""
 
 
 def rows(fixes: list[Fix], base: tuple[float, float], t0_s: float) -> list[list[float]]:
@@ -190,6 +203,27 @@ def probe_corner(peer: Peer, out: dict[str, Any]) -> None:
     out["corner"] = {"legs": legs, "track": rows(track(peer, mark), base, first_sent or 0.0)}
 
 
+def probe_chase(peer: Peer, out: dict[str, Any]) -> None:
+    """From rest, chase a goal beside a walking leader (test_guided's chase); its figures."""
+    stop(peer)
+    peer.run_for(2.0)
+    path = tuple(tuple(float(v) for v in p.split(",")) for p in CHASE_WALK.split(";"))
+    run = chase(peer, Walk(path, CHASE_SPEED_M_S))  # type: ignore[arg-type]
+    end = run.fixes[-1]
+    figures = {
+        "reach_s": {f"{d:g}": None if s is None else round(s, 2) for d, s in run.reach_s.items()},
+        "trail_m": round(run.trail_m, 2),
+        "past_m": round(run.past_m, 2),
+        "end_speed_m_s": round(end.ground_speed_m_s, 2),
+    }
+    print(f"chase: {figures}", flush=True)
+    track_rows = rows(run.fixes, run.base, run.t0_s)
+    for row, gap in zip(track_rows, run.gaps_m, strict=True):
+        row.append(round(gap, 2))
+    out.setdefault("chase", []).append({**figures, "walk": path, "track": track_rows})
+    stop(peer)
+
+
 def step_cost(out: dict[str, Any]) -> None:
     """CPU microseconds per 0.05 s step of a simulated rover driving GUIDED targets."""
     import random
@@ -228,7 +262,9 @@ def main() -> int:
     parser.add_argument(
         "--keep-logs", action="store_true", help="SITL: keep its folder (DataFlash logs: PSCN/PSCE)"
     )
+    parser.add_argument("--walk", default=CHASE_WALK, help="chase: the leader's corners")
     args = parser.parse_args()
+    globals()["CHASE_WALK"] = args.walk
     out: dict[str, Any] = {"backend": args.backend}
     if args.what == "step":
         if args.backend != "sim-rover":
@@ -248,9 +284,12 @@ def main() -> int:
             assert peer.set_mode("GUIDED").result == mavlink2.MAV_RESULT_ACCEPTED
             assert peer.arm().result == mavlink2.MAV_RESULT_ACCEPTED
             for what in args.what.split(","):
-                {"redirect": probe_redirect, "start": probe_start, "corner": probe_corner}[what](
-                    peer, out
-                )
+                {
+                    "redirect": probe_redirect,
+                    "start": probe_start,
+                    "corner": probe_corner,
+                    "chase": probe_chase,
+                }[what](peer, out)
             peer.disarm()
     finally:
         peer.close()

@@ -1,0 +1,130 @@
+"""Probe: what ArduPilot reports of a noisy GPS (GLOBAL_POSITION_INT is its EKF's estimate).
+
+The simulated autopilot reports each GPS fix as it is (``sim.gps_noise_m``: 0.5 m per axis,
+fresh at every 5 Hz fix, by default in a dry run). ArduPilot SITL's GPS has no horizontal
+noise of its own, so this probe gives it some: an ArduRover SITL at rest, disarmed, and
+every 0.2 s of its time a fresh Gaussian offset (``--noise`` m per axis) in its GPS glitch
+parameters (SIM_GPS1_GLTCH_X/_Y, as the dry run plays ``sim.gps_error`` to SITL). Printed,
+for GLOBAL_POSITION_INT and GPS_RAW_INT at 10 Hz: the spread north and east, the mean step
+between reports and the autocorrelation of north after 0.5, 1 and 3 s.
+
+    PYTHONPATH=.:tests/conformance CLARK_SITL_INSTANCES=200-229 \\
+        python benchmarks/probe_gps_noise_ekf.py [--noise 0.5] [--seconds 40]
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import math
+import random
+import statistics
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "conformance"))
+
+from flight import EARTH_M_PER_DEG, offset_m, streaming
+from harness import Peer, open_peer
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+FIX_PERIOD_S = 0.2
+"""SITL's GPS rate (SIM_GPS1_HZ 5): a fresh error per fix."""
+GLITCHES = ("SIM_GPS1_GLTCH_X", "SIM_GPS1_GLTCH_Y")
+
+
+def glitch(peer: Peer, north_m: float, east_m: float) -> None:
+    """Set SITL's GPS offset (degrees of latitude and longitude), without waiting for echoes."""
+    lat_deg = peer.last["GLOBAL_POSITION_INT"].lat / 1e7
+    per_deg_lon = EARTH_M_PER_DEG * math.cos(math.radians(lat_deg))
+    for name, value in zip(
+        GLITCHES, (north_m / EARTH_M_PER_DEG, east_m / per_deg_lon), strict=True
+    ):
+        peer.send(
+            mavlink2.MAVLink_param_set_message(
+                peer.spec.system_id, 1, name.encode("ascii"), value, mavlink2.MAV_PARAM_TYPE_REAL32
+            )
+        )
+
+
+def record(
+    peer: Peer, seconds: float, noise_m: float, seed: int
+) -> dict[str, list[tuple[float, float]]]:
+    """``seconds`` of reports with a fresh GPS error every fix; (north, east) m per message type."""
+    rng = random.Random(seed)
+    mark = peer.mark()
+    t0_s = peer.now_s
+    fixes = 0
+    while peer.now_s < t0_s + seconds:
+        due_s = t0_s + fixes * FIX_PERIOD_S
+        if due_s > peer.now_s:
+            peer.run_for(due_s - peer.now_s)
+        if noise_m > 0.0:
+            glitch(peer, rng.gauss(0.0, noise_m), rng.gauss(0.0, noise_m))
+        fixes += 1
+    out: dict[str, list[tuple[float, float]]] = {}
+    for kind in ("GLOBAL_POSITION_INT", "GPS_RAW_INT"):
+        points = [
+            (m.lat / 1e7, m.lon / 1e7) for _, m in peer.history[mark:] if m.get_type() == kind
+        ]
+        points = points[len(points) // 8 :]  # the EKF settles on the noise first
+        lat0 = statistics.fmean(p[0] for p in points)
+        lon0 = statistics.fmean(p[1] for p in points)
+        out[kind] = [offset_m(lat0, lon0, lat, lon) for lat, lon in points]
+    return out
+
+
+def autocorrelation(values: list[float], lag: int) -> float:
+    """The autocorrelation of ``values`` after ``lag`` samples."""
+    mean = statistics.fmean(values)
+    spread = sum((v - mean) ** 2 for v in values)
+    if spread == 0.0:
+        return 0.0
+    return (
+        sum((values[i] - mean) * (values[i + lag] - mean) for i in range(len(values) - lag))
+        / spread
+    )
+
+
+def describe(name: str, points: list[tuple[float, float]]) -> str:
+    """One line of figures for a series of (north, east) reports at 10 Hz."""
+    north = [n for n, _ in points]
+    east = [e for _, e in points]
+    steps = [math.dist(a, b) for a, b in itertools.pairwise(points)]
+    return (
+        f"{name}: {len(points)} reports, spread north {statistics.pstdev(north):.3f} m, east "
+        f"{statistics.pstdev(east):.3f} m, mean step {statistics.fmean(steps):.3f} m, "
+        f"autocorrelation after 0.5 s {autocorrelation(north, 5):.2f}, 1 s "
+        f"{autocorrelation(north, 10):.2f}, 3 s {autocorrelation(north, 30):.2f}"
+    )
+
+
+def main() -> int:
+    """Measure SITL's reports without and with the noise; print the figures."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--noise", type=float, default=0.5, help="GPS error per axis, m")
+    parser.add_argument("--seconds", type=float, default=40.0, help="of SITL's time, noisy")
+    parser.add_argument("--seed", type=int, default=7)
+    args = parser.parse_args()
+    peer = open_peer("sitl-rover")
+    try:
+        peer.wait_ready()
+        streams = {"GLOBAL_POSITION_INT": 100_000, "GPS_RAW_INT": 100_000}
+        with streaming(peer, streams):
+            peer.run_for(3.0)
+            for label, noise_m, seconds in (
+                ("quiet", 0.0, 15.0),
+                ("noisy", args.noise, args.seconds),
+            ):
+                series = record(peer, seconds, noise_m, args.seed)
+                for kind, points in series.items():
+                    print(describe(f"{label} {kind}", points), flush=True)
+            glitch(peer, 0.0, 0.0)
+            peer.run_for(1.0)
+    finally:
+        peer.close()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
