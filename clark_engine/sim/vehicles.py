@@ -305,6 +305,32 @@ PLANE_STICK_PITCH_DAMPING: Final = 0.143
 """Its damping ratio (the fit above)."""
 PLANE_STICK_PITCH_DELAY_S: Final = 0.12
 """Its delay, s (the fit above; taken in whole physics steps)."""
+PLANE_ROLL_COUPLING_S: Final = 0.2
+"""Roll per unit of ``sin(bank)`` times the pitch rate (s) that SITL's plane departs from its
+roll demand by in the automatic modes: a pull in a bank rolls it further in. A fit, not
+ArduPlane's code (what the airframe's roll due to the yaw rate of the tighter turn, against
+ArduPlane's roll loop, would give). In LOITER at 18 m/s, bank 32.5 degrees, under the 100 us
+elevator sines of :data:`PLANE_STICK_PITCH_GAIN` (probes of 2026-11-28), SITL's bank swung
+with its pitch, 0.42-0.56 of the pitch's amplitude at 0.3-1.0 Hz (1.8, 7.05, 5.63, 3.87 and
+0.91 degrees at 0.45, 0.75, 0.85, 0.95 and 1.2 Hz), more than its roll demand
+(NAV_CONTROLLER_OUTPUT's nav_roll) explains. What is left after the demand's lag is a
+second-order, delayed answer to the pitch rate: the mode, damping and delay below, and 0.115
+s here, fitted open-loop to SITL's own nav_roll at 0.3-1.5 Hz; in the simulation's closed
+loop (its L1 loiter answering its own track) the gain that gives SITL's bank is this one:
+1.8-2.2, 5.1, 5.9, 4.8 and 1.8 degrees at those frequencies (0.75 Hz low with the pitch
+there, 8.6 degrees against 12.9). With the pull's turn (:meth:`FixedWing._fly`) it is what
+tightens SITL's circle at its pitch resonance. SITL's airframe, measured there only."""
+PLANE_ROLL_COUPLING_MODE_HZ: Final = 1.09
+"""The roll coupling's second-order mode (the fit above)."""
+PLANE_ROLL_COUPLING_DAMPING: Final = 0.35
+"""Its damping ratio (the fit above)."""
+PLANE_ROLL_COUPLING_DELAY_S: Final = 0.14
+"""Its delay, s (the fit above; taken in whole physics steps)."""
+PLANE_PATH_LAG_S: Final = 0.045
+"""How late the flight path follows the pitch attitude, s (a first-order lag: the lift of a
+new angle of attack builds up). Measured in SITL's climb rate against its pitch under the
+elevator sines above: the flight path's rate lagged the pitch rate by 6-15 degrees at
+0.3-1.0 Hz and 27 at 1.5 Hz (0.88-1.0 of its size); this lag gives 5-13 and 23 degrees."""
 PLANE_LAUNCH_DELAY_S: Final = 0.2
 """From arming in TAKEOFF (or AUTO with a takeoff) to the launch: ArduPlane's "Armed
 AUTO, xaccel = ..., waiting 0.2 sec" then "Triggered AUTO"."""
@@ -2348,6 +2374,9 @@ class FixedWing(SimulatedVehicle):
         self._dead_zones_us = (PLANE_RC_DEAD_ZONE_US,) * 3
         self._nav_roll = self._nav_pitch = 0.0
         self._reset_stick_pitch()
+        self._reset_roll_coupling()
+        self._gamma = 0.0  # the flight path's angle, rad (its rate is the pull)
+        self._path = 0.0  # the flight path's angle the climb follows (lagging the pitch)
         self._rudder_rate = 0.5 * self._max_turn_rad_s
         self._max_climb = limits.max_climb_rate_m_s
         self._max_descent = limits.max_descent_rate_m_s
@@ -2437,6 +2466,7 @@ class FixedWing(SimulatedVehicle):
     def _set_step(self, h: float) -> None:
         super()._set_step(h)
         self._yaw_alpha = 1.0 - math.exp(-h / self.yaw_time_constant_s)
+        self._path_alpha = 1.0 - math.exp(-h / PLANE_PATH_LAG_S)
 
     @property
     def airborne(self) -> bool:
@@ -2670,6 +2700,37 @@ class FixedWing(SimulatedVehicle):
             self._reset_stick_pitch()  # back to exactly 0
         return PLANE_STICK_PITCH_GAIN * out
 
+    def _reset_roll_coupling(self) -> None:
+        """Empty the roll coupling's filter (at the start, on the ground, once settled)."""
+        self._rc_bank = self._rc_bank_rate = 0.0
+        self._rc_delayed: deque[float] = deque()
+
+    def _roll_coupling(self, h: float, drive_rad_s: float) -> float:
+        """The roll (rad) SITL's plane departs from its demand by for a pull in a bank.
+
+        ``drive_rad_s`` is ``sin(bank)`` times the pitch rate; the answer is the
+        second-order, delayed fit of :data:`PLANE_ROLL_COUPLING_S`. Exactly 0 with no pull
+        and nothing left ringing (a level, steady flight is unchanged).
+        """
+        if drive_rad_s == 0.0 and not self._rc_delayed and self._rc_bank == 0.0:
+            return 0.0
+        delayed = self._rc_delayed
+        delayed.append(drive_rad_s)
+        steps = max(round(PLANE_ROLL_COUPLING_DELAY_S / h), 1)
+        drive = delayed.popleft() if len(delayed) > steps else 0.0
+        omega = _TAU * PLANE_ROLL_COUPLING_MODE_HZ
+        self._rc_bank_rate += h * (
+            omega * omega * (PLANE_ROLL_COUPLING_S * drive - self._rc_bank)
+            - 2.0 * PLANE_ROLL_COUPLING_DAMPING * omega * self._rc_bank_rate
+        )
+        self._rc_bank += h * self._rc_bank_rate
+        if (
+            max(abs(self._rc_bank), abs(self._rc_bank_rate), *map(abs, delayed)) < 1e-9
+            and drive_rad_s == 0.0
+        ):
+            self._reset_roll_coupling()  # back to exactly 0
+        return self._rc_bank
+
     def nav_attitude_deg(self) -> tuple[float, float]:
         """The roll and pitch demanded (ArduPlane's nav_roll_cd and nav_pitch_cd).
 
@@ -2881,12 +2942,34 @@ class FixedWing(SimulatedVehicle):
         throttle: float,
         efficiency: float = 1.0,
     ) -> None:
-        """One step in the air; the bank turns at ``efficiency`` of a coordinated turn."""
-        roll = self._roll + (roll_cmd - self._roll) * self._roll_alpha
+        """One step in the air; the bank turns at ``efficiency`` of a coordinated turn.
+
+        The lift turns the flight path: its horizontal share turns the course at ``tan(bank)
+        (g cos(gamma) + V gamma') / (V cos(gamma))`` (gamma the flight path's angle), so a
+        pull in a bank (gamma' > 0) turns the aircraft quicker and a push slower. Level, it
+        is ``g tan(bank) / V``. In the automatic modes (``efficiency`` below 1) the bank
+        also departs from its lagged demand by :meth:`_roll_coupling` of the pitch rate, as
+        SITL's plane does; with the two together its circle tightens when its pitch swings
+        at its resonance, as SITL's does.
+        """
+        coupled = self._rc_bank
+        lagged = self._roll - coupled
+        lagged += (roll_cmd - lagged) * self._roll_alpha
         pitch = self._pitch + (pitch_cmd - self._pitch) * self._pitch_alpha
+        if efficiency != 1.0:
+            drive = math.sin(lagged) * (pitch - self._pitch) / h
+            coupled = self._roll_coupling(h, drive)
+        elif coupled != 0.0:
+            self._reset_roll_coupling()
+            coupled = 0.0
+        roll = lagged + coupled
         self._yaw_rate += (yaw_rate_cmd - self._yaw_rate) * self._yaw_alpha
         thrust = self._k_1_s * (self._v_idle + throttle * (self._v_max - self._v_idle) - speed)
-        climb = _clamp(speed * math.sin(pitch), -self._max_descent, self._max_climb)
+        # The flight path follows the attitude a little late (the lift of a new angle of
+        # attack): PLANE_PATH_LAG_S.
+        path = self._path + (pitch - self._path) * self._path_alpha
+        self._path = path
+        climb = _clamp(speed * math.sin(path), -self._max_descent, self._max_climb)
         if climb > 0.0 and self._u >= self.limits.max_altitude_m:
             climb = 0.0
         new_speed = speed + (thrust - G_M_S2 * climb / speed) * h
@@ -2902,8 +2985,17 @@ class FixedWing(SimulatedVehicle):
         elif new_speed > self._v_max:
             new_speed = self._v_max
         limit = self._max_turn_rad_s
+        gamma = math.asin(_clamp(climb / new_speed, -1.0, 1.0))
+        pull = (gamma - self._gamma) / h  # the flight path's rate, rad/s
+        self._gamma = gamma
         bank_turn = efficiency * G_M_S2 * math.tan(roll) / new_speed
         turn = _clamp(bank_turn + self._yaw_rate, -limit, limit)
+        if pull != 0.0:
+            # The pull's share is the whole of it (SITL's course swings by tan(bank) times
+            # its flight path's swing, 0.3-1.5 Hz), not the steady turn's efficiency; and
+            # the turn-rate limit is the steady turn's (SITL's course turned at up to 48
+            # deg/s in a pull at 0.85 Hz).
+            turn += math.tan(roll) * pull / math.cos(gamma)
         yaw = self._yaw + turn * h
         if yaw >= math.pi:
             yaw -= _TAU
@@ -2927,6 +3019,8 @@ class FixedWing(SimulatedVehicle):
             self._u = 0.0
             self._vu = 0.0
             self._roll = self._pitch = 0.0
+            self._gamma = 0.0
+            self._reset_roll_coupling()
             self._flying = False
 
     def _roll_on_ground(
