@@ -331,6 +331,10 @@ PLANE_PATH_LAG_S: Final = 0.045
 new angle of attack builds up). Measured in SITL's climb rate against its pitch under the
 elevator sines above: the flight path's rate lagged the pitch rate by 6-15 degrees at
 0.3-1.0 Hz and 27 at 1.5 Hz (0.88-1.0 of its size); this lag gives 5-13 and 23 degrees."""
+PLANE_PULL_MAX_G: Final = 2.0
+"""The most a pull (or push) adds to the lift, in g: ``V gamma' / g`` for the flight path's
+rate gamma'. SITL's plane reached 1.7 at its pitch resonance (0.75 Hz); a step of the elevator
+stick, or a climb cut at a limit, asks for more, which no wing gives."""
 PLANE_LAUNCH_DELAY_S: Final = 0.2
 """From arming in TAKEOFF (or AUTO with a takeoff) to the launch: ArduPlane's "Armed
 AUTO, xaccel = ..., waiting 0.2 sec" then "Triggered AUTO"."""
@@ -2703,6 +2707,7 @@ class FixedWing(SimulatedVehicle):
     def _reset_roll_coupling(self) -> None:
         """Empty the roll coupling's filter (at the start, on the ground, once settled)."""
         self._rc_bank = self._rc_bank_rate = 0.0
+        self._roll_lagged = 0.0  # the roll's lagged demand while a coupling is under way
         self._rc_delayed: deque[float] = deque()
 
     def _roll_coupling(self, h: float, drive_rad_s: float) -> float:
@@ -2953,8 +2958,10 @@ class FixedWing(SimulatedVehicle):
         at its resonance, as SITL's does.
         """
         coupled = self._rc_bank
-        lagged = self._roll - coupled
+        # The lagged demand is the roll itself unless a coupling is under way.
+        lagged = self._roll_lagged if coupled != 0.0 or self._rc_delayed else self._roll
         lagged += (roll_cmd - lagged) * self._roll_alpha
+        self._roll_lagged = lagged
         pitch = self._pitch + (pitch_cmd - self._pitch) * self._pitch_alpha
         if efficiency != 1.0:
             drive = math.sin(lagged) * (pitch - self._pitch) / h
@@ -2962,7 +2969,8 @@ class FixedWing(SimulatedVehicle):
         elif coupled != 0.0:
             self._reset_roll_coupling()
             coupled = 0.0
-        roll = lagged + coupled
+        # Never beyond the airframe's bank (the class's promise; SITL's may be).
+        roll = _clamp(lagged + coupled, -self._airframe_bank, self._airframe_bank)
         self._yaw_rate += (yaw_rate_cmd - self._yaw_rate) * self._yaw_alpha
         thrust = self._k_1_s * (self._v_idle + throttle * (self._v_max - self._v_idle) - speed)
         # The flight path follows the attitude a little late (the lift of a new angle of
@@ -2992,10 +3000,11 @@ class FixedWing(SimulatedVehicle):
         turn = _clamp(bank_turn + self._yaw_rate, -limit, limit)
         if pull != 0.0:
             # The pull's share is the whole of it (SITL's course swings by tan(bank) times
-            # its flight path's swing, 0.3-1.5 Hz), not the steady turn's efficiency; and
-            # the turn-rate limit is the steady turn's (SITL's course turned at up to 48
-            # deg/s in a pull at 0.85 Hz).
-            turn += math.tan(roll) * pull / math.cos(gamma)
+            # its flight path's swing, 0.3-1.5 Hz), not the steady turn's efficiency, and
+            # on top of the airframe's turn-rate limit, which is the steady turn's (SITL's
+            # course turned at up to 50 deg/s at 0.85 Hz): within PLANE_PULL_MAX_G.
+            most = PLANE_PULL_MAX_G * G_M_S2 / new_speed
+            turn += math.tan(roll) * _clamp(pull, -most, most) / math.cos(gamma)
         yaw = self._yaw + turn * h
         if yaw >= math.pi:
             yaw -= _TAU
