@@ -2257,11 +2257,17 @@ class FixedWing(SimulatedVehicle):
     ``max_turn_rate_deg_s``; roll follows its command through a first-order lag
     (``roll_time_constant_s``), never beyond the airframe's ``max_bank_deg`` nor
     ArduPlane's ROLL_LIMIT_DEG. The rudder adds a skidding yaw rate of up to half
-    the turn-rate limit.
+    the turn-rate limit. A pull in a bank (the flight path's angle rising) turns it
+    quicker by ``tan(roll)`` times the flight path's rate, and a push slower (the
+    load factor's share of the lift, within :data:`PLANE_PULL_MAX_G`), on top of that
+    limit; in the automatic modes the bank also swings with the pitch rate
+    (:data:`PLANE_ROLL_COUPLING_S`, SITL's plane's, fitted), so that at the stick-mixed
+    pitch's resonance the loiter tightens as SITL's does.
 
-    Longitudinal (an energy model): the flight path follows the pitch attitude,
-    climb ``V * sin(pitch)`` within the climb/descent limits; pitch follows its
-    command through a first-order lag (``pitch_time_constant_s``). Speed obeys
+    Longitudinal (an energy model): the flight path follows the pitch attitude
+    :data:`PLANE_PATH_LAG_S` late, climb ``V * sin(path)`` within the climb/descent
+    limits; pitch follows its command through a first-order lag
+    (``pitch_time_constant_s``). Speed obeys
     ``dV/dt = k (V_thr - V) - g * climb / V``: thrust minus drag, linear in speed,
     with ``V_thr`` the level-flight speed the throttle sustains, from ``V_idle``
     (throttle 0) to ``max_speed_m_s`` (full). ``k`` is sized so that full
