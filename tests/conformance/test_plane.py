@@ -437,7 +437,7 @@ PITCH_AMPLITUDE_SHARE = 0.3
 """The simulated pitch's amplitude may be this share off SITL's."""
 CIRCLE_RATE_DEG_S = 0.15
 """The simulated circle may turn this much quicker than SITL's through the bursts (deg/s,
-their mean: SITL's 14.44-14.52 in eight runs)..."""
+their mean: SITL's 14.43-14.52 in ten runs)..."""
 EXCITED_SLOWER_DEG_S = 0.15
 """...and this much slower. SITL's circle speeds up under the excitation (the pull's turn and
 the bank swinging with it, RESONANCE_SITL); the simulated one now too, 14.49 (0.3, 0.6, 1.0
@@ -448,11 +448,11 @@ before the equivalent airspeed, 0.15 deg/s slower still (14.11 against 14.47).""
 
 RESONANCE_BURST_HZ = 0.85
 """A fifth burst, after the four, at the resonance of SITL's plane's stick-mixed pitch."""
-RESONANCE_SITL = (10.7, 15.3, 5.2)
-"""SITL there (two runs of this scenario at speed-up 10, 2026-11-29): the pitch's amplitude
-(9.97 and 11.41 degrees per 100 us), how fast the course turned (15.35 and 15.25 deg/s, where
-it turns at 14.3 at rest: the circle tightens) and the bank's s.d. (4.64 and 5.77 degrees;
-under 2.4 in the four bursts above) over the burst from 1 s in. A pull in a bank turns the
+RESONANCE_SITL = (11.1, 15.2, 5.5)
+"""SITL there (the means of four runs of this scenario at speed-up 10, 2026-11-29): the
+pitch's amplitude (9.97-11.53 degrees per 100 us), how fast the course turned (15.11-15.35
+deg/s, where it turns at 14.3 at rest: the circle tightens) and the bank's s.d. (4.64-5.83
+degrees; under 2.4 in the four bursts above) over the burst from 1 s in. A pull in a bank turns the
 plane quicker (the load factor) and rolls it further in, so the bank swings with the pitch and
 the turn gains on average. The simulation before it modelled the two: 8.8 degrees, 14.18
 deg/s, bank s.d. 0.06; now 8.8, 15.18 and 4.34."""
