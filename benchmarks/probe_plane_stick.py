@@ -10,7 +10,10 @@ flown straight north at 60 m above home (150 m above sea level), then LOITER. Pr
   and the roll's largest excursion within 2 s (the stick's scale, the roll's dynamics);
 - for 8 s bursts of a 100 us elevator sine at each ``--freqs`` frequency (4 s apart): the
   pitch's amplitude and phase at that frequency, the bank's mean and s.d., the course's
-  rate round the circle and the altitude's range (the band-pass of the pitch, the circle).
+  rate round the circle and the altitude's range (the band-pass of the pitch, the circle);
+  then the bank's swing at that frequency and the course's (GLOBAL_POSITION_INT's velocity)
+  against tan(bank) times the flight path's (climb over ground speed): what a pull in a bank
+  turns (amplitude in degrees, phase in degrees).
 
 Used to fit the simulated plane's equivalent airspeed, stick mixing and stick-pitch band-pass
 (clark_engine/sim/vehicles.py; docs/performance.md, "The plane under stick mixing").
@@ -80,6 +83,20 @@ def course_rate_deg_s(fixes: list[Any]) -> float:
     return math.degrees(float(np.polyfit([f.t_s for f in fixes], courses, 1)[0]))
 
 
+def phasor(times_s: Any, values: Any, frequency_hz: float) -> complex:
+    """``values``' component at ``frequency_hz`` as ``amplitude * exp(1j * phase)`` of a sine."""
+    omega = 2.0 * math.pi * frequency_hz
+    t = np.asarray(times_s)
+    basis = np.column_stack([np.sin(omega * t), np.cos(omega * t), np.ones_like(t), t])
+    (a, b, _, _), *_ = np.linalg.lstsq(basis, np.asarray(values), rcond=None)
+    return complex(a, b)
+
+
+def swing(z: complex) -> str:
+    """A phasor as 'amplitude@phase' (degrees)."""
+    return f"{abs(z):.2f}@{math.degrees(math.atan2(z.imag, z.real)):+.0f}"
+
+
 def main() -> int:
     """Fly the probe on the backend named on the command line; print its figures."""
     parser = argparse.ArgumentParser()
@@ -142,10 +159,21 @@ def main() -> int:
                 (a, b, _, _), *_ = np.linalg.lstsq(basis, pitch, rcond=None)
                 fixes = [fix_of(m) for m in seen(peer, mark, "GLOBAL_POSITION_INT", start_s + 1)]
                 ups = [f.up_m for f in fixes]
+                fix_t = [f.t_s - start_s for f in fixes]
+                course = np.degrees(np.unwrap([math.atan2(f.east_m_s, f.north_m_s) for f in fixes]))
+                path = [
+                    math.degrees(math.atan2(f.climb_m_s, math.hypot(f.north_m_s, f.east_m_s)))
+                    for f in fixes
+                ]
+                pull = math.tan(math.radians(bank.mean())) * phasor(fix_t, path, frequency_hz)
                 print(f"{args.backend} elevator {frequency_hz:g} Hz: pitch {math.hypot(a, b):.2f} "
                       f"deg at {math.degrees(math.atan2(b, a)):+.0f} deg, bank {bank.mean():.1f} "
                       f"s.d. {bank.std():.1f} deg, course {course_rate_deg_s(fixes):.2f} deg/s, "
                       f"altitude range {max(ups) - min(ups):.2f} m")  # fmt: skip
+                print(f"{args.backend} elevator {frequency_hz:g} Hz: bank swing "
+                      f"{swing(phasor(t, bank, frequency_hz))}, course swing "
+                      f"{swing(phasor(fix_t, course, frequency_hz))} against tan(bank) x flight "
+                      f"path {swing(pull)} deg")  # fmt: skip
                 peer.run_for(4.0)
             assert peer.set_mode("RTL").result == mavlink2.MAV_RESULT_ACCEPTED
     finally:

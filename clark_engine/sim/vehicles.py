@@ -305,6 +305,36 @@ PLANE_STICK_PITCH_DAMPING: Final = 0.143
 """Its damping ratio (the fit above)."""
 PLANE_STICK_PITCH_DELAY_S: Final = 0.12
 """Its delay, s (the fit above; taken in whole physics steps)."""
+PLANE_ROLL_COUPLING_S: Final = 0.2
+"""Roll per unit of ``sin(bank)`` times the pitch rate (s) that SITL's plane departs from its
+roll demand by in the automatic modes: a pull in a bank rolls it further in. A fit, not
+ArduPlane's code (what the airframe's roll due to the yaw rate of the tighter turn, against
+ArduPlane's roll loop, would give). In LOITER at 18 m/s, bank 32.5 degrees, under the 100 us
+elevator sines of :data:`PLANE_STICK_PITCH_GAIN` (probes of 2026-11-28), SITL's bank swung
+with its pitch, 0.42-0.56 of the pitch's amplitude at 0.3-1.0 Hz (1.8, 7.05, 5.63, 3.87 and
+0.91 degrees at 0.45, 0.75, 0.85, 0.95 and 1.2 Hz), more than its roll demand
+(NAV_CONTROLLER_OUTPUT's nav_roll) explains. What is left after the demand's lag is a
+second-order, delayed answer to the pitch rate: the mode, damping and delay below, and 0.115
+s here, fitted open-loop to SITL's own nav_roll at 0.3-1.5 Hz; in the simulation's closed
+loop (its L1 loiter answering its own track) the gain that gives SITL's bank is this one:
+1.8-2.2, 5.1, 5.9, 4.8 and 1.8 degrees at those frequencies (0.75 Hz low with the pitch
+there, 8.6 degrees against 12.9). With the pull's turn (:meth:`FixedWing._fly`) it is what
+tightens SITL's circle at its pitch resonance. SITL's airframe, measured there only."""
+PLANE_ROLL_COUPLING_MODE_HZ: Final = 1.09
+"""The roll coupling's second-order mode (the fit above)."""
+PLANE_ROLL_COUPLING_DAMPING: Final = 0.35
+"""Its damping ratio (the fit above)."""
+PLANE_ROLL_COUPLING_DELAY_S: Final = 0.14
+"""Its delay, s (the fit above; taken in whole physics steps)."""
+PLANE_PATH_LAG_S: Final = 0.045
+"""How late the flight path follows the pitch attitude, s (a first-order lag: the lift of a
+new angle of attack builds up). Measured in SITL's climb rate against its pitch under the
+elevator sines above: the flight path's rate lagged the pitch rate by 6-15 degrees at
+0.3-1.0 Hz and 27 at 1.5 Hz (0.88-1.0 of its size); this lag gives 5-13 and 23 degrees."""
+PLANE_PULL_MAX_G: Final = 2.0
+"""The most a pull (or push) adds to the lift, in g: ``V gamma' / g`` for the flight path's
+rate gamma'. SITL's plane reached 1.7 at its pitch resonance (0.75 Hz); a step of the elevator
+stick, or a climb cut at a limit, asks for more, which no wing gives."""
 PLANE_LAUNCH_DELAY_S: Final = 0.2
 """From arming in TAKEOFF (or AUTO with a takeoff) to the launch: ArduPlane's "Armed
 AUTO, xaccel = ..., waiting 0.2 sec" then "Triggered AUTO"."""
@@ -471,7 +501,8 @@ class AirframeLimits:
             multirotor descends as its autopilot's parameters say (WPNAV_SPEED_DN,
             LAND_SPEED, PILOT_SPEED_DN) or, motors at idle, falls: ArduCopter does
             not know this number.
-        max_turn_rate_deg_s: Never exceeded yaw rate.
+        max_turn_rate_deg_s: Never exceeded yaw rate in a steady turn (a plane's pull in a
+            bank adds its load factor's turn on top, within ``PLANE_PULL_MAX_G``).
         max_bank_deg: Largest roll angle (fixed wing; the lean angle of a multirotor
             when given, else ArduCopter's ANGLE_MAX of 30 degrees).
         max_altitude_m: Highest altitude above the origin (0 for rovers).
@@ -2227,11 +2258,17 @@ class FixedWing(SimulatedVehicle):
     ``max_turn_rate_deg_s``; roll follows its command through a first-order lag
     (``roll_time_constant_s``), never beyond the airframe's ``max_bank_deg`` nor
     ArduPlane's ROLL_LIMIT_DEG. The rudder adds a skidding yaw rate of up to half
-    the turn-rate limit.
+    the turn-rate limit. A pull in a bank (the flight path's angle rising) turns it
+    quicker by ``tan(roll)`` times the flight path's rate, and a push slower (the
+    load factor's share of the lift, within :data:`PLANE_PULL_MAX_G`), on top of that
+    limit; in the automatic modes the bank also swings with the pitch rate
+    (:data:`PLANE_ROLL_COUPLING_S`, SITL's plane's, fitted), so that at the stick-mixed
+    pitch's resonance the loiter tightens as SITL's does.
 
-    Longitudinal (an energy model): the flight path follows the pitch attitude,
-    climb ``V * sin(pitch)`` within the climb/descent limits; pitch follows its
-    command through a first-order lag (``pitch_time_constant_s``). Speed obeys
+    Longitudinal (an energy model): the flight path follows the pitch attitude
+    :data:`PLANE_PATH_LAG_S` late, climb ``V * sin(path)`` within the climb/descent
+    limits; pitch follows its command through a first-order lag
+    (``pitch_time_constant_s``). Speed obeys
     ``dV/dt = k (V_thr - V) - g * climb / V``: thrust minus drag, linear in speed,
     with ``V_thr`` the level-flight speed the throttle sustains, from ``V_idle``
     (throttle 0) to ``max_speed_m_s`` (full). ``k`` is sized so that full
@@ -2348,6 +2385,9 @@ class FixedWing(SimulatedVehicle):
         self._dead_zones_us = (PLANE_RC_DEAD_ZONE_US,) * 3
         self._nav_roll = self._nav_pitch = 0.0
         self._reset_stick_pitch()
+        self._reset_roll_coupling()
+        self._gamma = 0.0  # the flight path's angle, rad (its rate is the pull)
+        self._path = 0.0  # the flight path's angle the climb follows (lagging the pitch)
         self._rudder_rate = 0.5 * self._max_turn_rad_s
         self._max_climb = limits.max_climb_rate_m_s
         self._max_descent = limits.max_descent_rate_m_s
@@ -2437,6 +2477,7 @@ class FixedWing(SimulatedVehicle):
     def _set_step(self, h: float) -> None:
         super()._set_step(h)
         self._yaw_alpha = 1.0 - math.exp(-h / self.yaw_time_constant_s)
+        self._path_alpha = 1.0 - math.exp(-h / PLANE_PATH_LAG_S)
 
     @property
     def airborne(self) -> bool:
@@ -2670,6 +2711,38 @@ class FixedWing(SimulatedVehicle):
             self._reset_stick_pitch()  # back to exactly 0
         return PLANE_STICK_PITCH_GAIN * out
 
+    def _reset_roll_coupling(self) -> None:
+        """Empty the roll coupling's filter (at the start, on the ground, once settled)."""
+        self._rc_bank = self._rc_bank_rate = 0.0
+        self._roll_lagged = 0.0  # the roll's lagged demand while a coupling is under way
+        self._rc_delayed: deque[float] = deque()
+
+    def _roll_coupling(self, h: float, drive_rad_s: float) -> float:
+        """The roll (rad) SITL's plane departs from its demand by for a pull in a bank.
+
+        ``drive_rad_s`` is ``sin(bank)`` times the pitch rate; the answer is the
+        second-order, delayed fit of :data:`PLANE_ROLL_COUPLING_S`. Exactly 0 with no pull
+        and nothing left ringing (a level, steady flight is unchanged).
+        """
+        if drive_rad_s == 0.0 and not self._rc_delayed and self._rc_bank == 0.0:
+            return 0.0
+        delayed = self._rc_delayed
+        delayed.append(drive_rad_s)
+        steps = max(round(PLANE_ROLL_COUPLING_DELAY_S / h), 1)
+        drive = delayed.popleft() if len(delayed) > steps else 0.0
+        omega = _TAU * PLANE_ROLL_COUPLING_MODE_HZ
+        self._rc_bank_rate += h * (
+            omega * omega * (PLANE_ROLL_COUPLING_S * drive - self._rc_bank)
+            - 2.0 * PLANE_ROLL_COUPLING_DAMPING * omega * self._rc_bank_rate
+        )
+        self._rc_bank += h * self._rc_bank_rate
+        if (
+            max(abs(self._rc_bank), abs(self._rc_bank_rate), *map(abs, delayed)) < 1e-9
+            and drive_rad_s == 0.0
+        ):
+            self._reset_roll_coupling()  # back to exactly 0
+        return self._rc_bank
+
     def nav_attitude_deg(self) -> tuple[float, float]:
         """The roll and pitch demanded (ArduPlane's nav_roll_cd and nav_pitch_cd).
 
@@ -2881,12 +2954,37 @@ class FixedWing(SimulatedVehicle):
         throttle: float,
         efficiency: float = 1.0,
     ) -> None:
-        """One step in the air; the bank turns at ``efficiency`` of a coordinated turn."""
-        roll = self._roll + (roll_cmd - self._roll) * self._roll_alpha
+        """One step in the air; the bank turns at ``efficiency`` of a coordinated turn.
+
+        The lift turns the flight path: its horizontal share turns the course at ``tan(bank)
+        (g cos(gamma) + V gamma') / (V cos(gamma))`` (gamma the flight path's angle), so a
+        pull in a bank (gamma' > 0) turns the aircraft quicker and a push slower. Level, it
+        is ``g tan(bank) / V``. In the automatic modes (``efficiency`` below 1) the bank
+        also departs from its lagged demand by :meth:`_roll_coupling` of the pitch rate, as
+        SITL's plane does; with the two together its circle tightens when its pitch swings
+        at its resonance, as SITL's does.
+        """
+        coupled = self._rc_bank
+        # The lagged demand is the roll itself unless a coupling is under way.
+        lagged = self._roll_lagged if coupled != 0.0 or self._rc_delayed else self._roll
+        lagged += (roll_cmd - lagged) * self._roll_alpha
+        self._roll_lagged = lagged
         pitch = self._pitch + (pitch_cmd - self._pitch) * self._pitch_alpha
+        if efficiency != 1.0:
+            drive = math.sin(lagged) * (pitch - self._pitch) / h
+            coupled = self._roll_coupling(h, drive)
+        elif coupled != 0.0:
+            self._reset_roll_coupling()
+            coupled = 0.0
+        # Never beyond the airframe's bank (the class's promise; SITL's may be).
+        roll = _clamp(lagged + coupled, -self._airframe_bank, self._airframe_bank)
         self._yaw_rate += (yaw_rate_cmd - self._yaw_rate) * self._yaw_alpha
         thrust = self._k_1_s * (self._v_idle + throttle * (self._v_max - self._v_idle) - speed)
-        climb = _clamp(speed * math.sin(pitch), -self._max_descent, self._max_climb)
+        # The flight path follows the attitude a little late (the lift of a new angle of
+        # attack): PLANE_PATH_LAG_S.
+        path = self._path + (pitch - self._path) * self._path_alpha
+        self._path = path
+        climb = _clamp(speed * math.sin(path), -self._max_descent, self._max_climb)
         if climb > 0.0 and self._u >= self.limits.max_altitude_m:
             climb = 0.0
         new_speed = speed + (thrust - G_M_S2 * climb / speed) * h
@@ -2902,8 +3000,18 @@ class FixedWing(SimulatedVehicle):
         elif new_speed > self._v_max:
             new_speed = self._v_max
         limit = self._max_turn_rad_s
+        gamma = math.asin(_clamp(climb / new_speed, -1.0, 1.0))
+        pull = (gamma - self._gamma) / h  # the flight path's rate, rad/s
+        self._gamma = gamma
         bank_turn = efficiency * G_M_S2 * math.tan(roll) / new_speed
         turn = _clamp(bank_turn + self._yaw_rate, -limit, limit)
+        if pull != 0.0:
+            # The pull's share is the whole of it (SITL's course swings by tan(bank) times
+            # its flight path's swing, 0.3-1.5 Hz), not the steady turn's efficiency, and
+            # on top of the airframe's turn-rate limit, which is the steady turn's (SITL's
+            # course turned at up to 50 deg/s at 0.85 Hz): within PLANE_PULL_MAX_G.
+            most = PLANE_PULL_MAX_G * G_M_S2 / new_speed
+            turn += math.tan(roll) * _clamp(pull, -most, most) / math.cos(gamma)
         yaw = self._yaw + turn * h
         if yaw >= math.pi:
             yaw -= _TAU
@@ -2927,6 +3035,8 @@ class FixedWing(SimulatedVehicle):
             self._u = 0.0
             self._vu = 0.0
             self._roll = self._pitch = 0.0
+            self._gamma = 0.0
+            self._reset_roll_coupling()
             self._flying = False
 
     def _roll_on_ground(

@@ -358,7 +358,9 @@ def _airframe_properties() -> dict[str, Schema]:
             "Highest sustained descent rate, in metres per second (0 for a rover).", **speed
         ),
         "max_turn_rate_deg_s": number(
-            "Highest heading change rate, in degrees per second.",
+            "Highest sustained heading change rate, in degrees per second: the steadiest "
+            "turn its autopilot flies (a plane pulled up in a bank turns faster for a "
+            "moment, as ArduPlane SITL's does).",
             unit="deg/s",
             exclusive_minimum=0,
             maximum=720,
