@@ -24,27 +24,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "conformance"))
 
-from flight import EARTH_M_PER_DEG, offset_m, streaming
+from flight import GPS_FIX_PERIOD_S as FIX_PERIOD_S
+from flight import autocorrelation, offset_m, streaming
+from flight import gps_glitch as glitch
 from harness import Peer, open_peer
-from pymavlink.dialects.v20 import ardupilotmega as mavlink2
-
-FIX_PERIOD_S = 0.2
-"""SITL's GPS rate (SIM_GPS1_HZ 5): a fresh error per fix."""
-GLITCHES = ("SIM_GPS1_GLTCH_X", "SIM_GPS1_GLTCH_Y")
-
-
-def glitch(peer: Peer, north_m: float, east_m: float) -> None:
-    """Set SITL's GPS offset (degrees of latitude and longitude), without waiting for echoes."""
-    lat_deg = peer.last["GLOBAL_POSITION_INT"].lat / 1e7
-    per_deg_lon = EARTH_M_PER_DEG * math.cos(math.radians(lat_deg))
-    for name, value in zip(
-        GLITCHES, (north_m / EARTH_M_PER_DEG, east_m / per_deg_lon), strict=True
-    ):
-        peer.send(
-            mavlink2.MAVLink_param_set_message(
-                peer.spec.system_id, 1, name.encode("ascii"), value, mavlink2.MAV_PARAM_TYPE_REAL32
-            )
-        )
 
 
 def record(
@@ -72,18 +55,6 @@ def record(
         lon0 = statistics.fmean(p[1] for p in points)
         out[kind] = [offset_m(lat0, lon0, lat, lon) for lat, lon in points]
     return out
-
-
-def autocorrelation(values: list[float], lag: int) -> float:
-    """The autocorrelation of ``values`` after ``lag`` samples."""
-    mean = statistics.fmean(values)
-    spread = sum((v - mean) ** 2 for v in values)
-    if spread == 0.0:
-        return 0.0
-    return (
-        sum((values[i] - mean) * (values[i + lag] - mean) for i in range(len(values) - lag))
-        / spread
-    )
 
 
 def describe(name: str, points: list[tuple[float, float]]) -> str:
