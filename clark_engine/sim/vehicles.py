@@ -111,6 +111,10 @@ is what a receiver reports: fixes at 5 Hz by default (ArduPilot's GPS_RATE_MS
 with ``gps_rate_hz=2``), each the true position plus independent Gaussian
 errors of 0.5 m per horizontal axis, which reproduces the thesis's static test
 (5.1.5: mean error 0.62 m, standard deviation 0.33 m), and 1 m vertically.
+Those fixes are what GPS_RAW_INT reports; :meth:`SimulatedVehicle.position_estimate`
+is what GLOBAL_POSITION_INT reports, the autopilot's estimate: ArduPilot's EKF passes on
+only a smoothed share of the fixes' white noise (about a third, with a memory of about
+a second, :data:`EKF_NOISE_TIME_CONSTANT_S`).
 """
 
 from __future__ import annotations
