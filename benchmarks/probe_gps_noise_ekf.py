@@ -6,10 +6,12 @@ noise of its own, so this probe gives it some: an ArduRover SITL at rest, disarm
 every 0.2 s of its time a fresh Gaussian offset (``--noise`` m per axis) in its GPS glitch
 parameters (SIM_GPS1_GLTCH_X/_Y, as the dry run plays ``sim.gps_error`` to SITL). Printed,
 for GLOBAL_POSITION_INT and GPS_RAW_INT at 10 Hz: the spread north and east, the mean step
-between reports and the autocorrelation of north after 0.5, 1 and 3 s.
+between reports and the autocorrelation of north after 0.5, 1 and 3 s. With ``--jump M``
+(repeatable), then a jump of the GPS by M m north: when each report has moved 10, 50 and
+90 % of it (ArduPilot's EKF smooths a small jump and rejects a large one for a while).
 
     PYTHONPATH=.:tests/conformance CLARK_SITL_INSTANCES=200-229 \\
-        python benchmarks/probe_gps_noise_ekf.py [--noise 0.5] [--seconds 40]
+        python benchmarks/probe_gps_noise_ekf.py [--noise 0.5] [--seconds 40] [--jump 1]
 """
 
 from __future__ import annotations
@@ -24,27 +26,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "conformance"))
 
-from flight import EARTH_M_PER_DEG, offset_m, streaming
+from flight import GPS_FIX_PERIOD_S as FIX_PERIOD_S
+from flight import autocorrelation, offset_m, streaming
+from flight import gps_glitch as glitch
 from harness import Peer, open_peer
-from pymavlink.dialects.v20 import ardupilotmega as mavlink2
-
-FIX_PERIOD_S = 0.2
-"""SITL's GPS rate (SIM_GPS1_HZ 5): a fresh error per fix."""
-GLITCHES = ("SIM_GPS1_GLTCH_X", "SIM_GPS1_GLTCH_Y")
-
-
-def glitch(peer: Peer, north_m: float, east_m: float) -> None:
-    """Set SITL's GPS offset (degrees of latitude and longitude), without waiting for echoes."""
-    lat_deg = peer.last["GLOBAL_POSITION_INT"].lat / 1e7
-    per_deg_lon = EARTH_M_PER_DEG * math.cos(math.radians(lat_deg))
-    for name, value in zip(
-        GLITCHES, (north_m / EARTH_M_PER_DEG, east_m / per_deg_lon), strict=True
-    ):
-        peer.send(
-            mavlink2.MAVLink_param_set_message(
-                peer.spec.system_id, 1, name.encode("ascii"), value, mavlink2.MAV_PARAM_TYPE_REAL32
-            )
-        )
 
 
 def record(
@@ -74,18 +59,6 @@ def record(
     return out
 
 
-def autocorrelation(values: list[float], lag: int) -> float:
-    """The autocorrelation of ``values`` after ``lag`` samples."""
-    mean = statistics.fmean(values)
-    spread = sum((v - mean) ** 2 for v in values)
-    if spread == 0.0:
-        return 0.0
-    return (
-        sum((values[i] - mean) * (values[i + lag] - mean) for i in range(len(values) - lag))
-        / spread
-    )
-
-
 def describe(name: str, points: list[tuple[float, float]]) -> str:
     """One line of figures for a series of (north, east) reports at 10 Hz."""
     north = [n for n, _ in points]
@@ -99,12 +72,43 @@ def describe(name: str, points: list[tuple[float, float]]) -> str:
     )
 
 
+def step_response(peer: Peer, step_m: float, seconds: float) -> str:
+    """Jump SITL's GPS ``step_m`` north at once: when each report has moved 10, 50, 90 %."""
+    before = peer.last["GLOBAL_POSITION_INT"]
+    lat0, lon0 = before.lat / 1e7, before.lon / 1e7
+    mark = peer.mark()
+    t0_s = peer.now_s
+    glitch(peer, step_m, 0.0)
+    peer.run_for(seconds)
+    seen: dict[tuple[str, float], float] = {}
+    for _, m in peer.history[mark:]:
+        kind = m.get_type()
+        if kind not in ("GLOBAL_POSITION_INT", "GPS_RAW_INT"):
+            continue
+        north_m, _ = offset_m(lat0, lon0, m.lat / 1e7, m.lon / 1e7)
+        for share in (0.1, 0.5, 0.9):
+            if (kind, share) not in seen and north_m >= share * step_m:
+                seen[kind, share] = peer.time_of(m) - t0_s
+    glitch(peer, 0.0, 0.0)
+    peer.run_for(seconds)
+    moved = ", ".join(
+        f"{kind} {share:.0%} after {seen[kind, share]:.1f} s" if (kind, share) in seen else
+        f"{kind} {share:.0%} not in {seconds:g} s"
+        for kind in ("GPS_RAW_INT", "GLOBAL_POSITION_INT")
+        for share in (0.1, 0.5, 0.9)
+    )  # fmt: skip
+    return f"a {step_m:g} m jump: {moved}"
+
+
 def main() -> int:
     """Measure SITL's reports without and with the noise; print the figures."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--noise", type=float, default=0.5, help="GPS error per axis, m")
     parser.add_argument("--seconds", type=float, default=40.0, help="of SITL's time, noisy")
     parser.add_argument("--seed", type=int, default=7)
+    parser.add_argument(
+        "--jump", type=float, action="append", default=[], help="then a GPS jump of this, m"
+    )
     args = parser.parse_args()
     peer = open_peer("sitl-rover")
     try:
@@ -120,7 +124,9 @@ def main() -> int:
                 for kind, points in series.items():
                     print(describe(f"{label} {kind}", points), flush=True)
             glitch(peer, 0.0, 0.0)
-            peer.run_for(1.0)
+            peer.run_for(3.0)
+            for step_m in args.jump:
+                print(step_response(peer, step_m, 25.0), flush=True)
     finally:
         peer.close()
     return 0

@@ -169,6 +169,9 @@ def test_the_example_flies_on_sitl_as_on_the_simulated_autopilot(
     assert last.endswith("| pass |")
     assert "Safety (judged in every run):" in run.stdout
     assert "on ArduPilot SITL at" in run.stderr
+    # compared in SITL's world: without the white GPS noise SITL's GPS does not have
+    assert "compared with a simulated run without" in run.stderr
+    assert "the GPS's white noise (sim.gps_noise_m" in run.stderr
     summary = (tmp_path / "report" / "summary.md").read_text(encoding="utf-8")
     assert "## ArduPilot SITL against the simulated autopilot" in summary
     # the engine's logs name the real firmware: this was not the simulated autopilot

@@ -820,6 +820,38 @@ def test_gps_noise_matches_the_thesis_static_test() -> None:
     assert statistics.stdev(errors) == pytest.approx(0.33, abs=0.02)
 
 
+def test_the_reported_estimate_smooths_the_fixes_noise_as_ardupilots_ekf() -> None:
+    """GLOBAL_POSITION_INT's position (the estimate) carries a smoothed third of the fixes'
+    white noise, about a second long (ArduRover SITL: 0.16-0.19 m of 0.5 m, autocorrelation
+    0.76-0.79 after 0.5 s, 0.03-0.07 after 3 s); the fixes are unchanged and the estimate
+    draws nothing of its own; without noise it is the fix."""
+    rover = build(ROVER, (12.0, -7.0), armed=False, gps_noise_m=DEFAULT_GPS_NOISE_M)
+    twin = build(ROVER, (12.0, -7.0), armed=False, gps_noise_m=DEFAULT_GPS_NOISE_M)
+    raw: list[float] = []
+    smooth: list[float] = []
+    for _ in range(5000):
+        rover.step(0.2)  # one fix per step at 5 Hz
+        twin.step(0.2)
+        assert rover.gps_fix() == twin.gps_fix()
+        for fix, series in ((rover.gps_fix(), raw), (rover.position_estimate(), smooth)):
+            series.append(to_local(fix.lat_deg, fix.lon_deg, fix.alt_m, ORIGIN).north_m - 12.0)
+        assert rover.position_estimate().alt_m == rover.gps_fix().alt_m
+
+    def correlation(values: list[float], lag: int) -> float:
+        mean = statistics.fmean(values)
+        pairs = zip(values, values[lag:], strict=False)
+        return sum((a - mean) * (b - mean) for a, b in pairs) / sum((v - mean) ** 2 for v in values)
+
+    assert statistics.pstdev(raw) == pytest.approx(0.5, rel=0.05)
+    assert 0.15 <= statistics.pstdev(smooth) <= 0.19
+    assert abs(correlation(raw, 3)) < 0.05
+    assert correlation(smooth, 3) > 0.6  # 0.6 s (fixes at 5 Hz)
+    assert abs(correlation(smooth, 15)) < 0.1  # 3 s
+    exact = build(ROVER, (12.0, -7.0), armed=False, gps_noise_m=0.0, gps_vertical_noise_m=0.0)
+    exact.step(1.0)
+    assert exact.position_estimate() == exact.gps_fix()
+
+
 def test_gps_fixes_come_at_the_gps_rate_and_truth_is_exact() -> None:
     copter = build(COPTER)
     fixes, times = [copter.gps_fix()], [copter.gps_fix_time_s]

@@ -8,6 +8,7 @@ here: the recordings are written by hand, so each rule is seen to hold and to fa
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -313,3 +314,29 @@ def test_the_old_key_says_what_to_write(tmp_path: Path) -> None:
     (finding,) = [f for f in validate_file(old, "old.yaml").findings if f.is_error]
     assert finding.code == "E-KEY-RENAMED"
     assert "sitl_tolerance: {time_floor_s: ...}" in finding.format_text()
+
+
+def test_the_simulated_run_sitl_is_compared_with_holds_equal_what_sitl_lacks() -> None:
+    """SITL boots on its own time, has no white GPS noise and no gusts: the comparison's
+    simulated run has none of them either (seed 1 drew Slash A 2.0 s late, and the noise
+    parked Slash B sooner than SITL, issue 19); what acts in the engine stays."""
+    from clark_engine.mission.variation import resolve_mission
+    from clark_engine.sim.dryrun import as_sitl_flies, held_equal_for_sitl
+    from clark_engine.validation import load_mission
+
+    declared = load_mission(str(ROOT / "missions" / "cooperative_follow.yaml"))
+    gusty = {**declared.sim["wind"], "gusts": {"speed_mps": 3, "every_s": 30, "duration_s": 4}}
+    mission, _ = resolve_mission(
+        dataclasses.replace(declared, sim={**declared.sim, "wind": gusty}), seed=1
+    )
+    assert set(held_equal_for_sitl(mission)) == {"jitter.ready_s", "gps_noise_m", "wind.gusts"}
+    fair = as_sitl_flies(mission)
+    assert fair.sim["jitter"] == {"operator_s": 5, "ready_s": 0, "pilot_s": 3}
+    assert fair.sim["gps_noise_m"] == 0
+    assert "gusts" not in fair.sim["wind"]
+    assert fair.sim["wind"]["speed_mps"] == mission.sim["wind"]["speed_mps"]
+    assert fair.sim["gps_error"] == mission.sim["gps_error"]
+    assert fair.sim["radio_bursts"] == mission.sim["radio_bursts"]
+    assert mission.sim["jitter"]["ready_s"] == 5  # the mission itself is left as it was
+    assert held_equal_for_sitl(fair) == {}
+    assert as_sitl_flies(fair) is fair

@@ -2344,17 +2344,20 @@ class SimAutopilot:
         remaining = max(0, round(100.0 * (1.0 - self._battery_mah / capacity)))
         return round(current_a * 100), remaining
 
-    def _position(self, now_s: float) -> tuple[float, float, float]:
-        """Latitude, longitude and height above the origin as the GPS reports them.
+    def _position(self, now_s: float, raw: bool = False) -> tuple[float, float, float]:
+        """Latitude, longitude and height above the origin as the autopilot reports them.
 
         Before the GPS has a fix ArduPilot reports 0, 0 (ArduPlane: its dead reckoning
         from there, :meth:`_dead_reckoned_m`), and a height from its barometer (taken
         here as the height with the receiver's vertical error: a little noise around
-        the truth). A model with a GPS (``gps_fix``: seeded noise at the
-        receiver's rate) is read through it, as ArduPilot reads its receiver; otherwise
-        the truth is reported.
+        the truth). A model with a GPS is read through it: ``raw`` the receiver's fix
+        (``gps_fix``: seeded noise at the receiver's rate, GPS_RAW_INT), otherwise its
+        estimate (``position_estimate``: that noise smoothed as ArduPilot's EKF smooths
+        it, GLOBAL_POSITION_INT); a model without one reports the truth.
         """
-        fix = getattr(self.model, "gps_fix", None)
+        fix = getattr(self.model, "gps_fix" if raw else "position_estimate", None)
+        if fix is None:
+            fix = getattr(self.model, "gps_fix", None)
         if fix is not None:
             lat, lon, alt = fix()
         else:
@@ -2388,7 +2391,7 @@ class SimAutopilot:
 
     def _msg_gps_raw_int(self, now_s: float) -> Any:
         t = self._truth()
-        lat, lon, up = self._position(now_s)
+        lat, lon, up = self._position(now_s, raw=True)
         fixed = self._gps_fix(now_s)
         if not fixed:
             lat = lon = 0.0  # the receiver's own report: nothing (the DCM's is not its)

@@ -68,6 +68,7 @@ from clark_engine.sim.safety import judge as judge_safety
 from clark_engine.sim.sitl import SitlError, SitlInstall
 from clark_engine.sim.sitl_backend import SitlBackend
 from clark_engine.sim.timeline import Comparison, Tolerance, compare
+from clark_engine.sim.vehicles import DEFAULT_GPS_NOISE_M
 from clark_engine.validation import mission_to_fly
 
 DEFAULT_DURATION_S: Final = 300.0
@@ -380,9 +381,18 @@ def _run_live(
                 view=view, switch=switch, operator_script=operator_script,
             )  # fmt: skip
         else:
-            # The simulated autopilot first (seconds), so a SITL run has something to meet.
+            # The simulated autopilot first (seconds), so a SITL run has something to meet;
+            # in SITL's world (what SITL cannot be given is held equal).
+            held = held_equal_for_sitl(mission)
+            if held:
+                print(
+                    "  note: compared with a simulated run without "
+                    + "; ".join(held.values())
+                    + ", as SITL flies",
+                    file=err,
+                )
             simulated = DryRun(
-                mission,
+                as_sitl_flies(mission),
                 mission_path,
                 seed=seed,
                 until_s=until,
@@ -605,6 +615,53 @@ def _progress_for(err: TextIO, until_s: float) -> _Progress | None:
     return _Progress(err, terminal=False) if until_s > 60 else None
 
 
+SITL_LACKS: Final[Mapping[str, str]] = {
+    "jitter.ready_s": "the readiness jitter (sim.jitter.ready_s: SITL boots on its own time)",
+    "gps_noise_m": "the GPS's white noise (sim.gps_noise_m: SITL's GPS has none)",
+    "wind.gusts": "the gusts (sim.wind.gusts: SITL has no gust model)",
+}
+"""What a simulated run has and SITL cannot be given: the comparison's simulated run
+(``--autopilot sitl``) is run without it, so that the two runs differ by their autopilots
+and vehicles, not by their worlds."""
+
+
+def held_equal_for_sitl(mission: Mission) -> dict[str, str]:
+    """Of :data:`SITL_LACKS`, what ``mission`` (its distributions drawn) declares: key -> why."""
+    sim = mission.sim
+    jitter = sim.get("jitter") or {}
+    gusts = (sim.get("wind") or {}).get("gusts") or {}
+    declared = {
+        "jitter.ready_s": float(jitter.get("ready_s", 0.0)) > 0.0,
+        "gps_noise_m": float(sim.get("gps_noise_m", DEFAULT_GPS_NOISE_M)) > 0.0,
+        "wind.gusts": float(gusts.get("speed_mps", 0.0)) > 0.0,
+    }
+    return {key: why for key, why in SITL_LACKS.items() if declared[key]}
+
+
+def as_sitl_flies(mission: Mission) -> Mission:
+    """``mission`` (its distributions drawn) without what SITL cannot be given.
+
+    The simulated run that ``--autopilot sitl`` compares SITL's with: no readiness
+    jitter (SITL boots on its own time), no white GPS noise (SITL's GPS has none; the
+    slow ``sim.gps_error`` is played to SITL and stays), no gusts (SITL has no gust
+    model). The operator's and the pilot's jitter, the radio and the faults act in the
+    engine and so apply to both runs alike; the seed is the same. A declared
+    ``sim.autopilot_ready_s`` stays: it is the user's own choice of a quicker
+    simulated boot, and the run says its timelines will differ.
+    """
+    held = held_equal_for_sitl(mission)
+    if not held:
+        return mission
+    sim = dict(mission.sim)
+    if "jitter.ready_s" in held:
+        sim["jitter"] = {**sim["jitter"], "ready_s": 0}
+    if "gps_noise_m" in held:
+        sim["gps_noise_m"] = 0
+    if "wind.gusts" in held:
+        sim["wind"] = {k: v for k, v in sim["wind"].items() if k != "gusts"}
+    return dataclasses.replace(mission, sim=sim)
+
+
 def _fly_sitl(
     mission: Mission,
     mission_path: Path,
@@ -635,13 +692,6 @@ def _fly_sitl(
             f"  note: sim.autopilot_ready_s ({mission.sim['autopilot_ready_s']:g} s) speeds up "
             "the simulated autopilot only; SITL takes its own time (about 42 s for ArduRover "
             "and ArduCopter, 23 s for ArduPlane), so the runs' timelines will differ",
-            file=err,
-        )
-    gusts = (mission.sim.get("wind") or {}).get("gusts") or {}
-    if float(gusts.get("speed_mps", 0.0)) > 0.0:
-        print(
-            "  note: sim.wind.gusts are simulated only: SITL has no gust model and flies the "
-            "rest of sim.wind (its SIM_WIND_* parameters), so the runs' timelines may differ",
             file=err,
         )
     print(

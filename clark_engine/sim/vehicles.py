@@ -111,6 +111,10 @@ is what a receiver reports: fixes at 5 Hz by default (ArduPilot's GPS_RATE_MS
 with ``gps_rate_hz=2``), each the true position plus independent Gaussian
 errors of 0.5 m per horizontal axis, which reproduces the thesis's static test
 (5.1.5: mean error 0.62 m, standard deviation 0.33 m), and 1 m vertically.
+Those fixes are what GPS_RAW_INT reports; :meth:`SimulatedVehicle.position_estimate`
+is what GLOBAL_POSITION_INT reports, the autopilot's estimate: ArduPilot's EKF passes on
+only a smoothed share of the fixes' white noise (about a third, with a memory of about
+a second, :data:`EKF_NOISE_TIME_CONSTANT_S`).
 """
 
 from __future__ import annotations
@@ -146,6 +150,21 @@ DEFAULT_GPS_RATE_HZ = 5.0
 #: standard deviation 0.655 * 0.5 = 0.33 m: the thesis's static test (5.1.5: mean
 #: 0.62 m, standard deviation 0.33 m), and the mission schema's ``sim.gps_noise_m``.
 DEFAULT_GPS_NOISE_M = 0.5
+#: Time constant of each of the two first-order lags the reported position's share of the
+#: receiver's white noise passes through (:meth:`SimulatedVehicle.position_estimate`):
+#: ArduPilot reports its EKF's estimate, which fuses the fixes with the IMU and smooths
+#: their noise. A fit to ArduRover SITL at rest fed 0.5 m of white noise per axis at
+#: 5 Hz: benchmarks/probe_gps_noise_ekf.py, two runs of 35 s at 5x (GLOBAL_POSITION_INT
+#: spread 0.16-0.19 m, autocorrelation 0.76-0.79 after 0.5 s, 0.44-0.53 after 1 s,
+#: 0.03-0.07 after 3 s), and tests/conformance/test_gps.py twice (15 s: 0.17 m, 0.77 and
+#: 0.79 after 0.5 s), 2026-11-29. Two lags of 0.6 s (with :data:`EKF_NOISE_GAIN`) give,
+#: in 35 s windows, 0.165 m, 0.74, 0.41 and -0.04 (medians of 200 seeds). One lag cannot
+#: give both the spread and the memory (0.5 s: 0.22 m and 0.38 after 0.5 s).
+EKF_NOISE_TIME_CONSTANT_S = 0.6
+#: Scale of the smoothed noise: the two lags alone spread 0.14 m in 35 s windows where
+#: SITL's estimate spreads 0.16-0.19 m (its EKF is not two fixed lags: its gain follows
+#: its covariance); fitted with :data:`EKF_NOISE_TIME_CONSTANT_S`.
+EKF_NOISE_GAIN = 1.2
 #: Standard deviation of the GPS altitude error: GPS vertical error is typically
 #: about twice the per-axis horizontal one.
 DEFAULT_GPS_VERTICAL_NOISE_M = 1.0
@@ -926,7 +945,12 @@ class SimulatedVehicle(VehicleModel):
             )
         self._enter(self._behaviour)
 
-        # GPS.
+        # GPS: the receiver's fixes, and the estimate's smoothed share of their white
+        # noise (two first-order lags per axis, stepped at every fix).
+        self._ekf_keep = math.exp(-self._gps_period_s / EKF_NOISE_TIME_CONSTANT_S)
+        self._ekf_lag1 = (0.0, 0.0)
+        self._ekf_noise = (0.0, 0.0)
+        self._estimate = GpsFix(0.0, 0.0, 0.0)
         self._fix = GpsFix(0.0, 0.0, 0.0)
         self._fix_time_s = 0.0
         self._next_fix_s = 0.0
@@ -1322,6 +1346,20 @@ class SimulatedVehicle(VehicleModel):
         self._n += north_m
         self._e += east_m
 
+    def set_gps_noise(self, noise_m: float, vertical_noise_m: float) -> None:
+        """Give the receiver this white noise from its next fix on (``sim.gps_noise_m``).
+
+        For scenarios that compare a noisy GPS with ArduPilot SITL's (the conformance
+        suite); a dry run sets the noise when it builds the vehicle.
+
+        Raises:
+            VehicleSetupError: A negative noise.
+        """
+        if noise_m < 0.0 or vertical_noise_m < 0.0:
+            raise VehicleSetupError("GPS noise must not be negative")
+        self._gps_noise_m = noise_m
+        self._gps_vertical_noise_m = vertical_noise_m
+
     def gps_fix(self) -> GpsFix:
         """The latest GPS fix: the true position at the fix time plus Gaussian error.
 
@@ -1331,6 +1369,19 @@ class SimulatedVehicle(VehicleModel):
         the same seed gives the same fixes.
         """
         return self._fix
+
+    def position_estimate(self) -> GpsFix:
+        """The position the autopilot reports (GLOBAL_POSITION_INT): its estimate.
+
+        ArduPilot reports its EKF's estimate, not the receiver's fix (GPS_RAW_INT,
+        :meth:`gps_fix`): the fixes' white noise reaches it smoothed, about a third of
+        it and wandering with a memory of about a second
+        (:data:`EKF_NOISE_TIME_CONSTANT_S`). The estimate is the model's position at the
+        latest fix plus that smoothed noise; the slow GPS error and glitches
+        (:mod:`clark_engine.sim.gps_error`) are in the model's position and pass whole,
+        as an EKF follows them. The altitude is the fix's. With no noise it is the fix.
+        """
+        return self._estimate
 
     @property
     def gps_fix_time_s(self) -> float:
@@ -1399,14 +1450,31 @@ class SimulatedVehicle(VehicleModel):
         """Draw the fix due now and schedule the next one on the fixed GPS grid."""
         gauss = self._rng.gauss
         sigma, sigma_up = self._gps_noise_m, self._gps_vertical_noise_m
-        north = self._n + (gauss(0.0, sigma) if sigma else 0.0)
-        east = self._e + (gauss(0.0, sigma) if sigma else 0.0)
+        noise_n = gauss(0.0, sigma) if sigma else 0.0
+        noise_e = gauss(0.0, sigma) if sigma else 0.0
         up = self._u + (gauss(0.0, sigma_up) if sigma_up else 0.0)
+        lat0, lon0 = self.origin.lat_deg, self.origin.lon_deg
         self._fix = GpsFix(
-            self.origin.lat_deg + north / self._m_per_deg_lat,
-            self.origin.lon_deg + east / self._m_per_deg_lon,
+            lat0 + (self._n + noise_n) / self._m_per_deg_lat,
+            lon0 + (self._e + noise_e) / self._m_per_deg_lon,
             up,
         )
+        lag1, lag2 = self._ekf_lag1, self._ekf_noise
+        if sigma or lag1 != (0.0, 0.0) or lag2 != (0.0, 0.0):
+            # The estimate's share of the noise: no draws of its own, so a run without
+            # noise reports exactly the fixes, as before.
+            keep = self._ekf_keep
+            take = 1.0 - keep
+            lag1 = (keep * lag1[0] + take * noise_n, keep * lag1[1] + take * noise_e)
+            lag2 = (keep * lag2[0] + take * lag1[0], keep * lag2[1] + take * lag1[1])
+            self._ekf_lag1, self._ekf_noise = lag1, lag2
+            self._estimate = GpsFix(
+                lat0 + (self._n + EKF_NOISE_GAIN * lag2[0]) / self._m_per_deg_lat,
+                lon0 + (self._e + EKF_NOISE_GAIN * lag2[1]) / self._m_per_deg_lon,
+                up,
+            )
+        else:
+            self._estimate = self._fix
         # The fix grid is k * period; the small margin keeps float accumulation of
         # the simulator's steps (0.02 * 10 = 0.19999...) from delaying a fix a step.
         index = math.floor(self.time_s / self._gps_period_s + 1e-6)

@@ -8,6 +8,8 @@ hundred metres). Heights are GLOBAL_POSITION_INT.relative_alt, above home.
 from __future__ import annotations
 
 import math
+import random
+import statistics
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from typing import Any, NamedTuple
@@ -220,3 +222,66 @@ def sim_wind(peer: Peer, params: Mapping[str, float]) -> Iterator[Peer]:
         yield peer
     finally:
         model.set_wind(None)
+
+
+GPS_FIX_PERIOD_S = 0.2
+"""SITL's GPS rate (SIM_GPS1_HZ 5) and the simulated receiver's: a fresh noise per fix."""
+GPS_GLITCHES = ("SIM_GPS1_GLTCH_X", "SIM_GPS1_GLTCH_Y")
+"""SITL's GPS offset (degrees of latitude and longitude), which its SIM_GPS.cpp adds."""
+
+
+def gps_glitch(peer: Peer, north_m: float, east_m: float) -> None:
+    """Set SITL's GPS offset (metres, sent as degrees), without waiting for the echoes."""
+    lat_deg = peer.last["GLOBAL_POSITION_INT"].lat / 1e7
+    per_deg_lon = EARTH_M_PER_DEG * math.cos(math.radians(lat_deg))
+    for name, value in zip(
+        GPS_GLITCHES, (north_m / EARTH_M_PER_DEG, east_m / per_deg_lon), strict=True
+    ):
+        peer.send(
+            mavlink2.MAVLink_param_set_message(
+                peer.spec.system_id, 1, name.encode("ascii"), value, mavlink2.MAV_PARAM_TYPE_REAL32
+            )
+        )
+
+
+def run_with_gps_noise(peer: Peer, seconds: float, noise_m: float, seed: int) -> None:
+    """Run ``seconds`` with white GPS noise of ``noise_m`` per horizontal axis, fresh per fix.
+
+    SITL's GPS has no horizontal noise of its own (SIM_GPS1_NOISE is a slow sine on
+    the altitude): every fix's worth of its time it gets a fresh Gaussian offset
+    through SIM_GPS1_GLTCH_X/_Y, drawn from ``random.Random(seed)``, and none after.
+    The simulated vehicle gets the dry run's ``sim.gps_noise_m`` (horizontal only, its
+    own seeded draws), and none after.
+    """
+    model = getattr(peer.link, "model", None)
+    if model is not None:
+        model.set_gps_noise(noise_m, 0.0)
+        try:
+            peer.run_for(seconds)
+        finally:
+            model.set_gps_noise(0.0, 0.0)
+        return
+    rng = random.Random(seed)
+    t0_s = peer.now_s
+    fixes = 0
+    try:
+        while peer.now_s < t0_s + seconds:
+            due_s = t0_s + fixes * GPS_FIX_PERIOD_S
+            if due_s > peer.now_s:
+                peer.run_for(due_s - peer.now_s)
+            gps_glitch(peer, rng.gauss(0.0, noise_m), rng.gauss(0.0, noise_m))
+            fixes += 1
+    finally:
+        gps_glitch(peer, 0.0, 0.0)
+
+
+def autocorrelation(values: list[float], lag: int) -> float:
+    """The autocorrelation of ``values`` after ``lag`` samples (0 for a constant series)."""
+    mean = statistics.fmean(values)
+    spread = sum((v - mean) ** 2 for v in values)
+    if spread == 0.0:
+        return 0.0
+    return (
+        sum((values[i] - mean) * (values[i + lag] - mean) for i in range(len(values) - lag))
+        / spread
+    )
