@@ -21,7 +21,8 @@ same times and places, and the mission's checks see about the same figures.
   horizontal position in the two runs may be :attr:`Tolerance.position_m` apart, plus
   the way it covers (at its speed on SITL) in the entry times' difference; an
   aircraft's altitude :attr:`Tolerance.altitude_m`.
-- **The mission's checks.** Each check's verdict must be the same in both runs, and
+- **The mission's checks.** Each check's verdict must be the same in both runs (or
+  FAIL simulated where SITL passed: the dry run was stricter, not kinder), and
   each figure it observed (:class:`~clark_engine.sim.checks.Figure`) within its
   tolerance: a moment like a state's entry (the leg it falls in being its agent's),
   distances and altitudes in metres, counts (photos) within a share, a pulse width's
@@ -214,9 +215,23 @@ class VerdictRow:
     sitl: str
 
     @property
+    def stricter(self) -> bool:
+        """The simulated run failed the check and SITL passed it."""
+        return self.simulated == "FAIL" and self.sitl == "pass"
+
+    @property
     def holds(self) -> bool:
-        """The same verdict."""
-        return self.simulated == self.sitl
+        """The same verdict, or a stricter one simulated.
+
+        A check that passes simulated and fails on SITL is what the comparison is for
+        (the simulation kinder than ArduPilot). One that fails simulated and passes on
+        SITL is not: the dry run was stricter, and its own verdict said so already. The
+        check's figures are judged apart (:class:`FigureRow`), so two runs that meet a
+        check's edge on different sides (a closest approach of 6.0 m simulated and 5.9 m
+        on SITL, 6 m allowed) hold, and two that differ beyond the figure's tolerance
+        do not.
+        """
+        return self.simulated == self.sitl or self.stricter
 
 
 @dataclass(frozen=True, slots=True)
@@ -316,6 +331,9 @@ class Comparison:
                 f"{states} states, {len(self.verdicts)} checks ({len(self.figures)} figures) "
                 "matched; worst: " + ("; ".join(self.worst()) or "none")
             )
+            stricter = [v.check for v in self.verdicts if v.stricter]
+            if stricter:
+                observed += "; failed simulated, passed on SITL: " + ", ".join(stricter)
         else:
             problems: list[str] = []
             if self.out_of_order:
@@ -370,9 +388,10 @@ class Comparison:
                 "|---|---|---|---|---|---|",
             ]
             for v in self.verdicts:
+                held = "pass (stricter simulated)" if v.stricter else "pass"
                 lines.append(
-                    f"| {v.check} | verdict | {v.simulated} | {v.sitl} | the same "
-                    f"| {'pass' if v.holds else '**FAIL**'} |"
+                    f"| {v.check} | verdict | {v.simulated} | {v.sitl} | the same, or FAIL "
+                    f"simulated | {held if v.holds else '**FAIL**'} |"
                 )
                 for f in self.figures:
                     if f.check != v.check:
