@@ -4,9 +4,8 @@
 PYTHON ?= $(shell command -v python3.11 2>/dev/null || command -v python3)
 VENV   := .venv
 BIN    := $(VENV)/bin
-# Test processes: one per core, one for the tests that wait on the wall clock and one more so
-# that the two SITL groups each have one (tests/conftest.py); `make test TEST_WORKERS=0` runs
-# in one process.
+# Test processes: one per core and one for the tests that wait on the wall clock by default
+# (tests/conftest.py); `make test TEST_WORKERS=0` runs in one process.
 TEST_WORKERS ?= auto
 CKSUM  := $(shell cat pyproject.toml | cksum | cut -d' ' -f1)
 # What is installed, by pyproject.toml's checksum: the engine alone (what `make demo`

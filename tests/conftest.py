@@ -125,45 +125,33 @@ def _waits_on_the_wall_clock(item: pytest.Item) -> bool:
 
 
 def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
-    """``-n auto``: a worker per core, one for the tests that wait on the wall clock, and
-    one so that the two SITL groups each have a worker while the rest of the suite runs.
+    """``-n auto``: a worker per core, and one for the tests that wait on the wall clock.
 
-    The tests that wait on the wall clock would otherwise hold a core's worker idle for
-    minutes (6.5 min of waiting); the SITL groups use about half a core (conformance
-    scenarios: one SITL at ten times real time, 31 % of a core, and its ground station)
-    and one core (a dry run's two or three SITLs and the engine) while they run.
+    Those would otherwise hold a core's worker idle for minutes; on their own worker
+    they wait beside the CPU-bound tests (7.5 min of waiting on 2 cores).
     """
-    return (os.cpu_count() or 1) + 2
+    return (os.cpu_count() or 1) + 1
 
 
 SPED_UP_SITL_MODULES = ("test_dry_run_sitl.py", "test_sitl.py")
-"""Modules that run ArduPilot SITL at a speed-up, not every test of them marked ``sitl``."""
+"""Modules that run ArduPilot SITL at a speed-up (as do the conformance suite's sitl-*)."""
 
 
-def _sitl_group(item: pytest.Item) -> str | None:
-    """The group of a test that runs ArduPilot SITL at a speed-up, or None.
-
-    Two groups, each run on one worker, one test after the other, beside each other:
-    ``sitl-scenarios``, the conformance suite's scenarios (``[sitl-*]``: one shared SITL
-    vehicle at a time), and ``sitl-runs``, every other test marked ``sitl`` that does not
-    wait on the wall clock (dry runs and campaigns on two or three SITLs, safety set-ups,
-    the SITL launcher's own tests). In one group (until 2026-11-29) they were the suite's
-    longest chain: 601 s of its 648. Spread over every worker they had made three SITL
-    stacks at ten times real time at once on two cores, and the engine fell 9.5 s behind
-    one of them; two at once, one of each group, is the most now.
-    """
-    if "[sitl-" in item.nodeid:
-        return "sitl-scenarios"
-    if item.path.name in SPED_UP_SITL_MODULES or (
-        item.get_closest_marker("sitl") is not None and not _waits_on_the_wall_clock(item)
-    ):
-        return "sitl-runs"
-    return None
+def _sped_up_sitl(item: pytest.Item) -> bool:
+    """SITL at a speed-up: the conformance suite's sitl-*, those modules, and every other
+    test marked ``sitl`` that does not wait on the wall clock (a campaign's two SITLs, a
+    safety set-up on ArduCopter SITL...): one of them beside another made three SITLs at
+    ten times real time, and the engine fell 9.5 s behind one of them."""
+    return (
+        "[sitl-" in item.nodeid
+        or item.path.name in SPED_UP_SITL_MODULES
+        or (item.get_closest_marker("sitl") is not None and not _waits_on_the_wall_clock(item))
+    )
 
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Deal the slow tests out first, and run SITL at a speed-up in two groups of its own.
+    """Deal the slow tests out first, and run SITL at a speed-up on one worker at a time.
 
     First of the hooks: pytest-xdist's own, on each worker, reads the ``xdist_group``
     marks to name each test's group, so marks added after it are never seen (they were
@@ -173,12 +161,12 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     `make test` spreads the suite over the machine's cores (pytest-xdist, `-n auto
     --dist loadgroup`). A long test dealt out last would keep one core busy while the
     others idle, so the longest go first, then the other slow ones. SITL at ten times
-    real time must keep ArduPilot's loops on time: three stacks at once beside the rest of
-    the suite made a rover stop short and a stream request race (seen on this 2-core
-    machine), so those tests are in two groups (:func:`_sitl_group`), each of which xdist
-    runs on one worker, one test after the other. The tests that wait on the wall clock
-    share another group, dealt out first (:func:`pytest_xdist_auto_num_workers` gives
-    each group a worker). The order of the rest is unchanged (the sort is stable), and every test
+    real time needs a core of its own to keep ArduPilot's loops on time: two at once
+    beside the rest of the suite made a rover stop short and a stream request race
+    (seen on this 2-core machine), so those tests share one group, which xdist runs on
+    one worker, one after the other. The tests that wait on the wall clock share another
+    group, dealt out first (:func:`pytest_xdist_auto_num_workers` gives them a worker of
+    their own). The order of the rest is unchanged (the sort is stable), and every test
     is independent of order.
     """
 
@@ -195,5 +183,5 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     for item in items:
         if _waits_on_the_wall_clock(item):
             item.add_marker(pytest.mark.xdist_group("wall-clock"))
-        elif (group := _sitl_group(item)) is not None:
-            item.add_marker(pytest.mark.xdist_group(group))
+        elif _sped_up_sitl(item):
+            item.add_marker(pytest.mark.xdist_group("sitl-speedup"))

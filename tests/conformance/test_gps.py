@@ -69,12 +69,18 @@ def test_a_noisy_gps_is_reported_raw_and_smoothed_as_ardupilot_reports_it(rover:
             assert len(points) >= RECORD_S / REPORT_S * 0.8, (kind, len(points))
             figures[kind] = spreads(points)
         rover.run_for(2.0)  # the estimate settles back before the next scenario
-    spread, ac_half, ac_three, off_m = figures["GPS_RAW_INT"]
-    assert 0.38 <= spread <= 0.65, figures  # SITL 0.47-0.56
+    raw, ac_half, ac_three, off_m = figures["GPS_RAW_INT"]
+    # The noise was fed: SITL 0.47-0.56 m. Less when the machine is busy: the harness
+    # feeds SITL a fresh offset per fix by a parameter, and a late one repeats the last
+    # (0.36 m in a loaded suite run), so the estimate is judged against the raw spread.
+    assert 0.3 <= raw <= 0.65, figures
     assert ac_half <= 0.3, figures  # white: a fresh error at every fix
     assert off_m <= 0.25, figures
     spread, ac_half, ac_three, off_m = figures["GLOBAL_POSITION_INT"]
     assert 0.09 <= spread <= 0.27, figures  # SITL 0.16-0.19 (0.5 m fed)
+    # About a third of the raw spread (SITL about 0.3-0.4, 0.49 with the late offsets of a
+    # loaded run; the simulation 0.26); a position that reported the raw fix would be 1.
+    assert 0.18 <= spread / raw <= 0.6, figures
     assert ac_half >= 0.45, figures  # SITL 0.76-0.79: it remembers
     assert ac_three <= 0.45, figures  # SITL 0.03-0.07: but not for long
     assert off_m <= 0.25, figures
