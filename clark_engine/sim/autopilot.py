@@ -2356,8 +2356,6 @@ class SimAutopilot:
         it, GLOBAL_POSITION_INT); a model without one reports the truth.
         """
         fix = getattr(self.model, "gps_fix" if raw else "position_estimate", None)
-        if fix is None:
-            fix = getattr(self.model, "gps_fix", None)
         if fix is not None:
             lat, lon, alt = fix()
         else:
