@@ -19,14 +19,22 @@ ROOT = Path(__file__).resolve().parent.parent
 MISSIONS = sorted((ROOT / "missions").glob("*.yaml"))
 
 
+TEST_SITL_INSTANCES = "150-199"
+"""SITL instance numbers the tests take unless ``$CLARK_SITL_INSTANCES`` says otherwise:
+TCP ports 7260 and up, clear of instance 0's 5760 and the low instances a person's own
+SITL or ground station holds (the engine's default range starts at 0)."""
+
+
 def pytest_configure(config: pytest.Config) -> None:
-    """Give Ctrl-C back to a suite started as a background job.
+    """Give Ctrl-C back to a suite started as a background job; keep SITL to high instances.
 
     A shell without job control starts `make test &` with SIGINT ignored, and every child
     inherits that: the tests that stop a `clark` child with SIGINT, as a person's Ctrl-C,
     then wait in vain. A Python handler is reset to the default when a child starts, an
-    ignored signal is not.
+    ignored signal is not. The instance range is set in the environment, so that it holds
+    for every worker and every `clark` the tests start.
     """
+    os.environ.setdefault("CLARK_SITL_INSTANCES", TEST_SITL_INSTANCES)
     if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
 

@@ -7,16 +7,20 @@ pymavlink, as SITL sends them.
 
 from __future__ import annotations
 
+import time
 from types import SimpleNamespace
 from typing import Any
 
+import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+from sitl_here import NO_SITL, real_install
 
 from clark_engine.mission.geo import Origin
 from clark_engine.sim.recording import Pace
 from clark_engine.sim.report import pace_lines
-from clark_engine.sim.sitl import Home
+from clark_engine.sim.sitl import Home, SitlProcess
 from clark_engine.sim.sitl_backend import REPORT_AFTER_S, LaterReport, SitlBackend
+from clark_engine.sim.sitl_pace import GENTLEST, MARGIN, SitlPace
 
 ORIGIN = Origin(30.6372, -96.4787, 90.0)
 
@@ -121,3 +125,66 @@ def test_servo_outputs_are_matched_by_their_microsecond_stamp() -> None:
         ),
     )
     assert report.pwm_us == 1234
+
+
+def test_the_report_says_when_sitl_was_slowed_down() -> None:
+    (line,) = pace_lines(
+        {
+            "copter": Pace(
+                behind_s=1.4, behind_at_s=40.0, silent_s=1.3, silent_at_s=40.1,
+                start_speedup=10.0, slowed=[(40.0, 5.0), (52.5, 2.5)],
+            )
+        }
+    )  # fmt: skip
+    assert line.startswith("copter: the engine kept ArduPilot SITL's pace (1.4 s behind")
+    assert "SITL slowed from 10x to 5x at 40.0 s, 2.5x at 52.5 s of the run" in line
+
+
+REAL = real_install()
+
+
+@pytest.mark.sitl
+@pytest.mark.skipif(REAL is None, reason=NO_SITL)
+def test_an_engine_that_falls_behind_slows_sitl_to_the_pace_it_keeps() -> None:
+    """An engine that keeps 4x of SITL's 10x (a sleep at each step) slows SITL to it.
+
+    First by :data:`~clark_engine.sim.sitl_pace.GENTLEST` (the pace kept is not known
+    yet), then to :data:`~clark_engine.sim.sitl_pace.MARGIN` of the pace the run kept
+    (the run falls :data:`~clark_engine.sim.sitl_pace.BEHIND_S` behind in a quarter of a
+    wall second at 10x, before half a second of the pace it keeps is known).
+    Before: SITL ran on at its launch speed-up whatever the engine kept, and a loaded CI
+    run fell 10 s behind ArduCopter SITL, whose ground-station failsafe then flew RTL
+    before the copter took off.
+    """
+    assert REAL is not None
+    process = SitlProcess(REAL, "copter", Home(30.6372, -96.4787, 90.0), speedup=10).start()
+    sitl = SitlBackend(process, origin=ORIGIN, firmware="arducopter")
+    try:
+        sitl.connect()
+        deadline = time.monotonic() + 30.0
+        while sitl._clock_s is None and time.monotonic() < deadline:  # its first time stamp
+            sitl.drain()
+            time.sleep(0.05)
+        assert sitl._clock_s is not None, "SITL sent no time stamp in 30 s"
+        sitl.start_run_here()
+        pace = SitlPace([sitl], 10.0)
+        t_s = 0.0
+        while len(sitl.pace.slowed) < 2 and t_s < 12.0:  # a fortieth of a wall second a step
+            sitl.step(t_s, 0.1)
+            pace.after_step(t_s)
+            time.sleep(0.025)
+            t_s = round(t_s + 0.1, 1)
+        first, second, *_ = sitl.pace.slowed
+        assert first[1] == pytest.approx(10.0 * GENTLEST)
+        # The engine kept at most 4x (less on a busy machine): that with the margin.
+        assert 1.0 <= second[1] <= 4.0 * MARGIN, sitl.pace.slowed
+        assert pace.speedup == sitl.pace.slowed[-1][1] == sitl.speedup
+        # SITL runs at the new speed-up: its clock against the wall.
+        start_clock_s, start_wall = sitl._clock_s, time.monotonic()
+        while time.monotonic() - start_wall < 1.0:
+            sitl.step(t_s, 0.1)
+            t_s = round(t_s + 0.1, 1)
+        rate = (sitl._clock_s - start_clock_s) / (time.monotonic() - start_wall)
+        assert 0.7 * pace.speedup < rate < 1.3 * pace.speedup, f"SITL ran {rate:.1f}x the wall"
+    finally:
+        sitl.close()

@@ -75,6 +75,7 @@ from clark_engine.sim.sitl_backend import (
     LaterReport,
     SitlBackend,
 )
+from clark_engine.sim.sitl_pace import SitlPace
 from clark_engine.sim.vehicles import make_vehicle
 from clark_engine.sim.wind import sitl_wind_params, wind_field
 
@@ -578,6 +579,7 @@ class DryRun:
         # The loop's position: physics steps done, the next track sample, the time being
         # processed.
         self._physics_steps = 0
+        self._sitl_pace: SitlPace | None = None  # SITL runs: slows SITL when the run is late
         self._next_sample_s = 0.0
         self._t = -math.inf
 
@@ -670,6 +672,7 @@ class DryRun:
         # would otherwise be ahead of the run, by its share of the connections' wall time.
         for backend in backends:
             backend.start_run_here()
+        self._sitl_pace = SitlPace(backends, self.sitl_speedup)
         # The last plane is on its position at time 0 unless the machine held the engine
         # back meanwhile while SITL flew on: then it goes round again (the others wait).
         if flown:
@@ -860,6 +863,8 @@ class DryRun:
             data = sim_agent.backend.step(t_s, dt_s)
             if data:  # else nothing due: the usual case between streamed messages
                 heard.append((sim_agent, data))
+        if self._sitl_pace is not None:
+            self._sitl_pace.after_step(t_s)
         if self._ranged:
             here: dict[str, Position] = {}
             for sim_agent in self._vehicles:

@@ -246,6 +246,10 @@ class Pace:
     (heartbeats, RC overrides, commands): what ArduPilot's ground-station failsafe counts."""
     silent_at_s: float = 0.0
     """The run's time at the end of that silence."""
+    start_speedup: float = 1.0
+    """SITL's speed-up when the run started (``--sitl-speedup``)."""
+    slowed: list[tuple[float, float]] = field(default_factory=list)
+    """Each slow-down: the run's time, SITL's new speed-up (the engine fell behind)."""
 
 
 @dataclass(slots=True)

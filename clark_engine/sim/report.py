@@ -693,11 +693,13 @@ def timeline_text(recording: Recording) -> str:
     return "\n".join(lines) + "\n"
 
 
-PACE_LATE_S: Final = 2.0
+PACE_LATE_S: Final = 3.0
 """A SITL run whose engine fell further behind SITL's clock than this says so plainly: it
-heard SITL that late, and its commands and heartbeats reached SITL late (two heartbeat
-periods, twenty ticks at 10 Hz; ArduPlane's ground-station failsafe acts after 5 s of
-silence). A busy machine puts a run on time about a second behind now and then."""
+heard SITL that late, and its commands and heartbeats reached SITL late (three heartbeat
+periods, thirty ticks at 10 Hz; with a heartbeat period more of silence, that is a second
+short of the 5 s after which ArduPilot's ground-station failsafe acts). A busy machine puts
+a run on time a second or two behind now and then; the run slows SITL down at 2 s
+(:data:`~clark_engine.sim.sitl_pace.BEHIND_S`)."""
 
 
 def pace_lines(pace: Mapping[str, Pace]) -> list[str]:
@@ -709,6 +711,12 @@ def pace_lines(pace: Mapping[str, Pace]) -> list[str]:
     lines = []
     for name, kept in pace.items():
         silence = f"its link to the autopilot silent {kept.silent_s:.1f} s at most"
+        if kept.slowed:
+            steps = ", ".join(f"{speedup:g}x at {t_s:.1f} s" for t_s, speedup in kept.slowed)
+            silence += (
+                f"; SITL slowed from {kept.start_speedup:g}x to {steps} of the run, "
+                "where the engine fell behind it"
+            )
         if kept.behind_s > PACE_LATE_S:
             lines.append(
                 f"warning: {name}: the engine fell {kept.behind_s:.1f} s behind ArduPilot "

@@ -28,7 +28,8 @@ not fall behind SITL either: the RC inputs and servo outputs a tick commanded ar
 matched to SITL's reports as they stream in (:meth:`SitlBackend.report_later`), a tick
 waiting only for the previous one's value to show when it has not yet
 (:meth:`SitlBackend.wait_shown`), and :attr:`SitlBackend.pace` records how far behind SITL
-the run fell (a machine too busy for the speed-up).
+the run fell (a machine too busy for the speed-up). An engine that falls behind anyway
+slows SITL down (:mod:`clark_engine.sim.sitl_pace`, through :meth:`SitlBackend.set_speedup`).
 
 Set-up. Before the run, each SITL autopilot is given the parameters the simulated
 autopilot flies with (the firmware's defaults the simulation uses, and the
@@ -255,8 +256,11 @@ class SitlBackend(VehicleBackend):
         self._shows: dict[tuple[str, int], bool] = {}  # SITL showed the last value asked for
         self._sent_clock_s: float | None = None
         self._pilot_us = [0] * 16
-        self.pace = Pace()
+        self.pace = Pace(start_speedup=process.speedup)
         """How far behind SITL the run fell, and the engine link's longest silence."""
+        self._speedup = float(process.speedup)
+        self.behind_s = 0.0
+        """How far SITL's clock was past the run's time at the last step (0 when it was not)."""
 
     # -- the interface ----------------------------------------------------------------------
 
@@ -276,7 +280,7 @@ class SitlBackend(VehicleBackend):
             return self._clock_s
         if self._connected_wall is None:
             return None
-        return (time.monotonic() - self._connected_wall) * self.process.speedup
+        return (time.monotonic() - self._connected_wall) * self.speedup
 
     def connect(self, timeout_s: float = 30.0) -> None:
         """Connect the engine's link (SITL's clock starts) and the backend's own."""
@@ -332,11 +336,13 @@ class SitlBackend(VehicleBackend):
         # What SITL sent while the engine worked: how far past the run's time it is now.
         while self._read(0.0):
             pass
-        if self._clock_s is not None and self._clock_s - want_s > self.pace.behind_s:
-            self.pace.behind_s, self.pace.behind_at_s = self._clock_s - want_s, t_s
+        if self._clock_s is not None:
+            self.behind_s = max(0.0, self._clock_s - want_s)
+            if self.behind_s > self.pace.behind_s:
+                self.pace.behind_s, self.pace.behind_at_s = self.behind_s, t_s
         while (clock_s := self.clock_s) is None or clock_s < want_s:
             self._duties()
-            wait_wall_s = 0.05 if clock_s is None else (want_s - clock_s) / self.process.speedup
+            wait_wall_s = 0.05 if clock_s is None else (want_s - clock_s) / self.speedup
             self._read(min(0.05, max(0.001, wait_wall_s)))
         # A SITL ahead of the run (the engine waited for a slower one) has sent more:
         # take it, so that the engine hears SITL's latest.
@@ -344,6 +350,26 @@ class SitlBackend(VehicleBackend):
             pass
         data, self._inbox = bytes(self._inbox), bytearray()
         return data
+
+    @property
+    def speedup(self) -> float:
+        """SITL's speed-up now: its launch's, or lower once the run slowed it down."""
+        return self._speedup
+
+    def set_speedup(self, speedup: float, t_s: float) -> None:
+        """Run SITL at ``speedup`` from now on (its ``SIM_SPEEDUP``); recorded in the pace.
+
+        SITL takes a new speed-up while it runs (measured: 10x to 2x within half a wall
+        second). ArduPilot's loops and SITL's physics keep their rates against SITL's own
+        clock; only that clock runs slower against the wall.
+        """
+        self._speedup = float(speedup)
+        self.pace.slowed.append((t_s, self._speedup))
+        self._mav.param_set_send(
+            self._target[0], self._target[1], b"SIM_SPEEDUP", self._speedup,
+            mavlink2.MAV_PARAM_TYPE_REAL32,
+        )  # fmt: skip
+        self._flush()
 
     def _send_gps_error(self, t_s: float) -> None:
         """Give SITL's GPS the error at ``t_s``, when it moved by :data:`GPS_ERROR_STEP_M`."""
