@@ -31,10 +31,12 @@ Usage, from the repository root::
     python tools/golden.py --check                 # exit 1 on any difference (make golden)
     python tools/golden.py --check cooperative_follow copter_takeoff_land   # a subset
     python tools/golden.py --check --part generated --part compile          # fast parts
+    python tools/golden.py --check --against HEAD  # show differing lines against HEAD's code
 
 Exit codes: 0 identical, 1 a difference (each printed as ``path: expected sha256 ...,
-got ...``, with the first differing lines of a text file when its expected bytes are at
-hand), 2 a usage or I/O error (a missing or malformed manifest, an unknown mission).
+got ...``, with the first differing lines of a text file when its recorded bytes are at
+hand: a generated file as committed, or with ``--against REV`` what that revision's code
+makes), 2 a usage or I/O error (a missing or malformed manifest, an unknown mission).
 """
 
 from __future__ import annotations
@@ -47,8 +49,11 @@ import importlib
 import importlib.util
 import io
 import json
+import os
 import re
+import subprocess
 import sys
+import tarfile
 import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -498,8 +503,8 @@ def compare(
                 lines = _lines(path, copy, data)
             elif path.endswith(TEXT_SUFFIXES):
                 lines = (
-                    "    (no copy of the recorded bytes to show lines from: run the recorded "
-                    "code with --keep DIR, then check with --against DIR)",
+                    "    (to see the differing lines: --against HEAD, or the revision the "
+                    "manifest was recorded at)",
                 )
         differences.append(Difference(path, want, got, lines))
     for package, count in sorted(skipped.items()):
@@ -525,11 +530,69 @@ def check(
     """
     manifest = Manifest.load(manifest_path)
     chosen = _missions(missions)
+    folder = against if against is None or against.is_dir() else None
     with tempfile.TemporaryDirectory(prefix="clark-golden-") as tmp:
         made = make(parts, chosen, Path(tmp), progress)
     if keep is not None:
         _write(made, keep)
-    return compare(manifest, made, parts, chosen, against)
+    differences, notes = compare(manifest, made, parts, chosen, folder)
+    if against is None or folder is not None or not differences:
+        return differences, notes
+    # A revision: make the differing parts again on its code, for their lines.
+    with tempfile.TemporaryDirectory(prefix="clark-golden-against-") as tmp:
+        old = made_at(
+            str(against),
+            sorted({part_of(d.path) for d in differences}),
+            sorted({m for d in differences if (m := mission_of(d.path)) is not None}),
+            Path(tmp),
+            progress,
+        )
+        return compare(manifest, made, parts, chosen, old)
+
+
+def made_at(
+    revision: str,
+    parts: Sequence[str],
+    missions: Sequence[str],
+    tmp: Path,
+    progress: Callable[[str], None] = lambda _: None,
+) -> Path:
+    """Make ``parts`` for ``missions`` on the code of a git revision; the folder they are in.
+
+    The revision is exported (``git archive``, which leaves the repository as it is) and
+    its own tools/golden.py runs on its own engine with ``--keep``.
+
+    Raises:
+        GoldenError: Not a revision of this repository, or its tool failed.
+    """
+    progress(f"the same again on {revision}, for the differing lines")
+    source, kept = tmp / "source", tmp / "kept"
+    archive = subprocess.run(
+        ["git", "-C", str(ROOT), "archive", "--format=tar", revision],
+        capture_output=True,
+        check=False,
+    )
+    if archive.returncode != 0:
+        message = archive.stderr.decode(errors="replace").strip()
+        raise GoldenError(f"--against {revision}: not a folder, and git says: {message}")
+    with tarfile.open(fileobj=io.BytesIO(archive.stdout)) as tar:
+        tar.extractall(source, filter="data")
+    if not (source / "tools" / "golden.py").exists():
+        raise GoldenError(f"--against {revision}: that revision has no tools/golden.py")
+    selection = [arg for part in parts for arg in ("--part", part)] + list(missions)
+    run = subprocess.run(
+        [sys.executable, "tools/golden.py", "--check", "--keep", str(kept), *selection],
+        cwd=source,
+        env={**os.environ, "PYTHONPATH": str(source)},
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    if run.returncode not in (0, 1) or not kept.is_dir():
+        raise GoldenError(
+            f"--against {revision}: its tools/golden.py failed:\n{run.stdout}{run.stderr}"
+        )
+    return kept
 
 
 def _missions(names: Sequence[str] | None) -> list[str]:
@@ -564,9 +627,21 @@ def record(
     Re-recording a manifest whose files change needs a reason: the changed paths and
     the reason are appended to ``intended_changes`` (1 and nothing written without one).
     """
-    old = Manifest.load(manifest_path) if manifest_path.exists() else None
+    if manifest_path.exists():
+        Manifest.load(manifest_path)  # a malformed one is refused before minutes of work
     with tempfile.TemporaryDirectory(prefix="clark-golden-") as tmp:
         made = make(PARTS, example_missions(), Path(tmp), progress)
+    return write_manifest(manifest_path, made, reason, out)
+
+
+def write_manifest(
+    manifest_path: Path,
+    made: Mapping[str, bytes],
+    reason: str | None,
+    out: Callable[[str], None] = print,
+) -> int:
+    """Write the manifest of ``made``; returns the exit code (see :func:`record`)."""
+    old = Manifest.load(manifest_path) if manifest_path.exists() else None
     files = {path: sha256(data) for path, data in sorted(made.items())}
     versions = {package: installed(package) for package, _ in VERSION_BOUND.values()}
     changes: list[dict[str, Any]] = list(old.intended_changes) if old is not None else []
@@ -626,7 +701,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--against",
         type=Path,
-        help="with --check: a --keep folder of the recorded code, to show differing lines",
+        metavar="REV|DIR",
+        help="with --check: show the differing lines of text files against what a git "
+        "revision's code makes (made again, only for the differences), or a --keep folder",
     )
     return parser
 
