@@ -13,7 +13,7 @@ CKSUM  := $(shell cat pyproject.toml | cksum | cut -d' ' -f1)
 RUN_STAMP := $(VENV)/.installed-run-$(CKSUM)
 STAMP     := $(VENV)/.installed-dev-$(CKSUM)
 
-.PHONY: demo test lint format typecheck schemas docs bench check clean
+.PHONY: demo test lint format typecheck schemas docs bench golden check clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -55,6 +55,12 @@ typecheck: $(STAMP)
 schemas: $(STAMP)
 	$(BIN)/python -m clark_engine.mission.schema_source
 	$(BIN)/python tools/gen_reference.py
+
+## golden: make everything the examples make again (compiled configs, seed-1 dry runs,
+## generated schemas, docs and protobuf module) and compare it byte for byte with
+## tests/golden/manifest.json; the gate for moving code (docs/architecture.md)
+golden: $(STAMP)
+	$(BIN)/python tools/golden.py --check
 
 ## bench: run the benchmarks and print their figures
 bench: $(STAMP)
