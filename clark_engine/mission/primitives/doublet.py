@@ -14,6 +14,7 @@ from collections.abc import Iterator
 from clark_engine.mission.findings import Finding, error
 from clark_engine.mission.primitives._shared import (
     CHANNEL_SCHEMA,
+    RESOLVED_CHANNEL_SCHEMA,
     VIA_SCHEMA,
     check_channel_swing,
 )
@@ -68,6 +69,7 @@ SPEC = PrimitiveSpec(
         },
         required=["channel", "amplitude_us", "width_s"],
     ),
+    compiled={"channel": RESOLVED_CHANNEL_SCHEMA},
     events=raises_done,
     check=_check,
 )

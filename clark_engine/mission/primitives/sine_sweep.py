@@ -16,6 +16,7 @@ from collections.abc import Iterator
 from clark_engine.mission.findings import Finding, error, warning
 from clark_engine.mission.primitives._shared import (
     CHANNEL_SCHEMA,
+    RESOLVED_CHANNEL_SCHEMA,
     VIA_SCHEMA,
     check_channel_swing,
 )
@@ -104,6 +105,7 @@ SPEC = PrimitiveSpec(
         },
         required=["channel", "amplitude_us", "f_start_hz", "f_stop_hz", "duration_s"],
     ),
+    compiled={"channel": RESOLVED_CHANNEL_SCHEMA},
     events=raises_done,
     check=_check,
 )
