@@ -190,3 +190,63 @@ def test_every_example_config_loads(tmp_path: Path, mission: Path) -> None:
     assert configs
     for path in configs:
         assert load_config(path).agent == path.stem
+
+
+def test_conditions_are_resolved_once_and_decide_as_written(tmp_path: Path) -> None:
+    """The runtime resolves each ``when`` when its machine is built; the figures decide."""
+    from clark_engine.runtime.events import VehicleState
+    from clark_engine.runtime.runtime import AgentRuntime
+
+    runtime = AgentRuntime(load_config(compiled(tmp_path, FOLLOW, "slash_b")))
+    ctx = runtime.context
+    resolve = runtime._resolve_condition
+    assert resolve({})(ctx, 0.0)
+    assert not resolve({"altitude_m": {"gt": 5}})(ctx, 0.0)  # no vehicle state: unknown
+    assert not resolve({"distance_m": {"to": "slash_a", "lt": 1e9}})(ctx, 0.0)  # no status
+    ctx.vehicle = VehicleState(
+        gps_time_ms=0,
+        lat_deg=30.6,
+        lon_deg=-96.4,
+        alt_m=12.0,
+        ground_speed_m_s=3.0,
+        climb_rate_m_s=0.0,
+        heading_deg=0.0,
+        roll_deg=0.0,
+        pitch_deg=0.0,
+        yaw_deg=0.0,
+        mode="GUIDED",
+        custom_mode=15,
+        armed=True,
+    )
+    cases: list[tuple[dict[str, Any], float, bool]] = [
+        ({"altitude_m": {"gt": 5}}, 0.0, True),
+        ({"altitude_m": {"gt": 5, "lt": 12}}, 0.0, False),
+        ({"speed_m_s": {"lt": 3.5}}, 0.0, True),
+        ({"in_state_s": {"gt": 10}}, 10.0, False),
+        ({"in_state_s": {"gt": 10}}, 10.5, True),
+        ({"mode": {"is": "GUIDED"}}, 0.0, True),
+        ({"not": {"mode": {"is": "GUIDED"}}}, 0.0, False),
+        ({"all": [{"mode": {"is": "GUIDED"}}, {"speed_m_s": {"gt": 4}}]}, 0.0, False),
+        ({"any": [{"mode": {"is": "HOLD"}}, {"speed_m_s": {"gt": 2}}]}, 0.0, True),
+    ]
+    for when, in_state_s, holds in cases:
+        assert resolve(when)(ctx, in_state_s) is holds, when
+
+
+def test_a_runtime_refuses_tick_phases_a_config_was_given_in_code() -> None:
+    """The runtime's own guard: a config built with replace() never passed load_config."""
+    import dataclasses
+
+    from clark_engine.mission.compiler import agent_config
+    from clark_engine.mission.validate import validate_path
+    from clark_engine.runtime.config import config_from_dict
+    from clark_engine.runtime.runtime import AgentRuntime
+
+    result = validate_path(COPTER, COPTER.name)
+    assert result.mission is not None
+    config = config_from_dict(agent_config(result.mission, result.mission.agents["f450"]))
+    for phases in [(), ("timeouts", "machine", "commands", "telemetry", "telemetry")]:
+        with pytest.raises(ConfigError, match=r"mission\.tick_phases: the tick phases must be"):
+            AgentRuntime(dataclasses.replace(config, tick_phases=phases))
+    reordered = ("telemetry", "log", "timeouts", "machine", "commands")
+    assert AgentRuntime(dataclasses.replace(config, tick_phases=reordered)).tick(0.0) is not None

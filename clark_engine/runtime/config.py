@@ -380,8 +380,9 @@ def _check_schema(data: Mapping[str, Any], where: str) -> None:
         from clark_engine.mission.primitives import PRIMITIVES
 
         message = f"unknown primitive {first.instance!r}: this engine has {', '.join(PRIMITIVES)}"
+    state = _state_of(data, path, primitive=path[-1:] != ["primitive"])
     raise ConfigError(
-        f"{message}{_state_of(data, path)}; {_RECOMPILE}",
+        f"{message}{state}; {_RECOMPILE}",
         file=where,
         path=_json_path(path),
     )
@@ -391,8 +392,11 @@ def _json_path(path: list[Any]) -> str:
     return ".".join(str(p) for p in path) or "(top)"
 
 
-def _state_of(data: Mapping[str, Any], path: list[Any]) -> str:
-    """`` (state climb, primitive takeoff)`` for a path inside the machine, else ``""``."""
+def _state_of(data: Mapping[str, Any], path: list[Any], *, primitive: bool = True) -> str:
+    """`` (state climb, primitive takeoff)`` for a path inside the machine, else ``""``.
+
+    Without the primitive when ``primitive`` is False (the problem is the primitive).
+    """
     if not path or path[0] != "machine" or not isinstance(data.get("machine"), Mapping):
         return ""
     state: Any = data["machine"]
@@ -405,9 +409,9 @@ def _state_of(data: Mapping[str, Any], path: list[Any]) -> str:
     if not isinstance(state, Mapping):
         return ""
     name = state.get("path") or "(root)"
-    primitive = state.get("primitive")
-    used = f", primitive {primitive}" if isinstance(primitive, str) else ""
-    return f" (state {name}{used})"
+    used = state.get("primitive")
+    said = f", primitive {used}" if primitive and isinstance(used, str) else ""
+    return f" (state {name}{said})"
 
 
 def check_tick_phases(phases: Sequence[str], where: str | None = None) -> None:

@@ -114,7 +114,7 @@ from clark_engine.runtime.logbook import (
     BROADCAST_PEER,
     Logbook,
 )
-from clark_engine.runtime.machine import BehaviorMachine, StateChange
+from clark_engine.runtime.machine import BehaviorMachine, Holds, StateChange
 from clark_engine.runtime.primitives import make_primitive
 
 #: Commands that move the vehicle; never sent while the autopilot is lost or after terminate.
@@ -259,7 +259,13 @@ class AgentRuntime:
         #: The telemetry schedule, each message resolved to its builder once.
         self._telemetry_plan = self._resolve_telemetry()
         self.machine = (
-            BehaviorMachine(config.machine, make_primitive, self._evaluate, self._on_change)
+            BehaviorMachine(
+                config.machine,
+                make_primitive,
+                self._evaluate,
+                self._on_change,
+                resolve=self._resolve_condition,
+            )
             if config.machine is not None
             else None
         )
@@ -1600,44 +1606,70 @@ class AgentRuntime:
     # -- machine callbacks ---------------------------------------------------------------
 
     def _evaluate(self, when: Mapping[str, Any], ctx: PrimitiveContext, in_state_s: float) -> bool:
-        """Structured transition conditions (the schema's condition kinds).
+        """Decide a structured transition condition as written (the schema's kinds).
+
+        The machine resolves every condition once instead (:meth:`_resolve_condition`);
+        this decides one as written, for callers that hold a condition as data.
 
         Args:
             when: The condition, as the compiled config gives it.
             ctx: The agent's context (vehicle, peers, clock).
             in_state_s: Time since the state owning the transition was entered.
         """
-        for key, value in when.items():
-            if key == "all":
-                return all(self._evaluate(item, ctx, in_state_s) for item in value)
-            if key == "any":
-                return any(self._evaluate(item, ctx, in_state_s) for item in value)
-            if key == "not":
-                return not self._evaluate(value, ctx, in_state_s)
-            if key == "mode":
-                return ctx.vehicle is not None and ctx.vehicle.mode == value["is"]
-            measured = in_state_s if key == "in_state_s" else self._measure(key, value, ctx)
-            if measured is None:
-                return False
-            if "lt" in value and not measured < value["lt"]:
-                return False
-            return not ("gt" in value and not measured > value["gt"])
-        return True
+        return self._resolve_condition(when)(ctx, in_state_s)
 
-    def _measure(self, key: str, value: Mapping[str, Any], ctx: PrimitiveContext) -> float | None:
-        vehicle = ctx.vehicle
+    def _resolve_condition(self, when: Mapping[str, Any]) -> Holds:
+        """A transition's condition resolved once into what decides it each time.
+
+        Called when the machine is built, so the condition's kind, bounds and agent are
+        read once and a tick reads no string: ``all``/``any``/``not`` combine their
+        parts; ``mode`` compares the vehicle's mode; ``distance_m`` (to a peer, read by
+        the id the peer table gives; loading proved it a peer), ``altitude_m``,
+        ``speed_m_s`` and ``in_state_s`` hold while the figure is below ``lt`` and above
+        ``gt``, and never while it is unknown. A condition with no key always holds.
+        """
+        for key, value in when.items():  # exactly one key (the schema's)
+            if key in ("all", "any"):
+                parts = tuple(self._resolve_condition(item) for item in value)
+                if key == "all":
+                    return lambda ctx, s: all(part(ctx, s) for part in parts)
+                return lambda ctx, s: any(part(ctx, s) for part in parts)
+            if key == "not":
+                inner = self._resolve_condition(value)
+                return lambda ctx, s: not inner(ctx, s)
+            if key == "mode":
+                mode = value["is"]
+                return lambda ctx, _s: ctx.vehicle is not None and ctx.vehicle.mode == mode
+            return _bounded(self._measurement(key, value), value.get("lt"), value.get("gt"))
+        return _always
+
+    def _measurement(
+        self, key: str, value: Mapping[str, Any]
+    ) -> Callable[[PrimitiveContext, float], float | None]:
+        """What a bounded condition measures, None while it is unknown."""
+        if key == "in_state_s":
+            return _in_state_s
         if key == "distance_m":
-            status = ctx.peer_status(str(value["to"]))
-            if vehicle is None or status is None:
-                return None
-            return ground_distance_m(
-                vehicle.lat_deg, vehicle.lon_deg, status.lat_deg, status.lon_deg
-            )
+            peer = self.config.peer(str(value["to"]))
+            if peer is None:  # loading refuses it; a config built in code may not have
+                return _unknown
+            peer_id = peer.id
+
+            def distance(ctx: PrimitiveContext, _s: float) -> float | None:
+                vehicle = ctx.vehicle
+                status = ctx.peer_status_by_id(peer_id)
+                if vehicle is None or status is None:
+                    return None
+                return ground_distance_m(
+                    vehicle.lat_deg, vehicle.lon_deg, status.lat_deg, status.lon_deg
+                )
+
+            return distance
         if key == "altitude_m":
-            return vehicle.alt_m if vehicle is not None else None
+            return _altitude_m
         if key == "speed_m_s":
-            return vehicle.ground_speed_m_s if vehicle is not None else None
-        return None
+            return _speed_m_s
+        return _unknown
 
     def terminate(self, now_s: float, reason: str) -> list[Command]:
         """Run this agent's own terminate sequence now and return the commands it produced.
@@ -1739,3 +1771,41 @@ class AgentRuntime:
     @staticmethod
     def _closing(commands: list[Command]) -> bool:
         return any(isinstance(c, CloseInterfaces) for c in commands)
+
+
+def _always(_ctx: PrimitiveContext, _in_state_s: float) -> bool:
+    return True
+
+
+def _unknown(_ctx: PrimitiveContext, _in_state_s: float) -> float | None:
+    return None
+
+
+def _in_state_s(_ctx: PrimitiveContext, in_state_s: float) -> float | None:
+    return in_state_s
+
+
+def _altitude_m(ctx: PrimitiveContext, _in_state_s: float) -> float | None:
+    return ctx.vehicle.alt_m if ctx.vehicle is not None else None
+
+
+def _speed_m_s(ctx: PrimitiveContext, _in_state_s: float) -> float | None:
+    return ctx.vehicle.ground_speed_m_s if ctx.vehicle is not None else None
+
+
+def _bounded(
+    measure: Callable[[PrimitiveContext, float], float | None],
+    lt: float | None,
+    gt: float | None,
+) -> Holds:
+    """Holds while the measure is known, below ``lt`` and above ``gt`` (each when given)."""
+
+    def holds(ctx: PrimitiveContext, in_state_s: float) -> bool:
+        measured = measure(ctx, in_state_s)
+        if measured is None:
+            return False
+        if lt is not None and not measured < lt:
+            return False
+        return not (gt is not None and not measured > gt)
+
+    return holds
