@@ -32,9 +32,6 @@ from clark_engine.mission.schema_source.common import (
     speed_m_s,
     string,
 )
-from clark_engine.mission.schema_source.hardware_profile import (
-    CHANNEL_SCHEMA as PROFILE_CHANNEL_SCHEMA,
-)
 
 POINT_SCHEMA: Schema = {
     "description": (
@@ -94,17 +91,25 @@ CHANNEL_SCHEMA: Schema = string(
 #: A point in both frames (the compiler's ``_point``).
 RESOLVED_POINT_SCHEMA: Schema = resolved_point()
 
-#: A channel resolved through the agent's hardware profile: its name and the profile's
-#: channel entry (the hardware-profile schema's, every field present).
-RESOLVED_CHANNEL_SCHEMA: Schema = {
-    **PROFILE_CHANNEL_SCHEMA,
-    "description": "A control channel resolved through the agent's hardware profile.",
-    "properties": {
-        "name": string("The channel's name.", pattern=NAME_PATTERN),
-        **PROFILE_CHANNEL_SCHEMA["properties"],
-    },
-    "required": ["name", *PROFILE_CHANNEL_SCHEMA["properties"]],
-}
+
+def resolved_channel_schema() -> Schema:
+    """A channel as the compiler resolves it: its name and the profile's channel entry.
+
+    The hardware-profile schema's own entry, every field present. A function: that
+    schema's module takes a while to import, and only the schema generator needs this.
+    """
+    from clark_engine.mission.schema_source.hardware_profile import CHANNEL_SCHEMA
+
+    return {
+        **CHANNEL_SCHEMA,
+        "description": "A control channel resolved through the agent's hardware profile.",
+        "properties": {
+            "name": string("The channel's name.", pattern=NAME_PATTERN),
+            **CHANNEL_SCHEMA["properties"],
+        },
+        "required": ["name", *CHANNEL_SCHEMA["properties"]],
+    }
+
 
 #: Another agent of the mission, by name and by id (the peer table holds both).
 RESOLVED_AGENT_SCHEMA: Schema = obj(

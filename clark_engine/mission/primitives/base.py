@@ -63,8 +63,10 @@ class PrimitiveSpec:
         check: Pre-flight checks that need the mission and the agent's hardware.
         compiled: The parameters the compiler writes in another form than the mission
             does (points in both frames, a channel as its resolved map, an agent as
-            ``{name, id}``): parameter name -> JSON Schema of its compiled form. The
-            other parameters are compiled as written, defaults filled in.
+            ``{name, id}``): returns parameter name -> JSON Schema of its compiled form.
+            The other parameters are compiled as written, defaults filled in. A
+            function, called only when the agent-config schema is generated: validating
+            a mission never pays for building these.
     """
 
     name: str
@@ -73,7 +75,7 @@ class PrimitiveSpec:
     events: EventsFn
     needs_autopilot: bool = True
     check: CheckFn = field(default=_no_checks)
-    compiled: Mapping[str, Schema] = field(default_factory=dict)
+    compiled: Callable[[], Mapping[str, Schema]] = field(default=dict)
 
     def config_params(self) -> Schema:
         """JSON Schema of the parameters as a compiled agent config holds them.
@@ -85,7 +87,7 @@ class PrimitiveSpec:
         before the first tick rather than when the state is entered.
         """
         properties = dict(self.params.get("properties", {}))
-        properties.update(self.compiled)
+        properties.update(self.compiled())
         return {**self.params, "properties": properties}
 
     def with_defaults(self, given: Mapping[str, Any]) -> dict[str, Any]:

@@ -257,7 +257,7 @@ SPEC = PrimitiveSpec(
         },
         required=["target"],
     ),
-    compiled={"target": RESOLVED_AGENT_SCHEMA},
+    compiled=lambda: {"target": RESOLVED_AGENT_SCHEMA},
     events=_events,
     check=_check,
 )

@@ -16,9 +16,9 @@ from collections.abc import Iterator
 from clark_engine.mission.findings import Finding, error, warning
 from clark_engine.mission.primitives._shared import (
     CHANNEL_SCHEMA,
-    RESOLVED_CHANNEL_SCHEMA,
     VIA_SCHEMA,
     check_channel_swing,
+    resolved_channel_schema,
 )
 from clark_engine.mission.primitives.base import PrimitiveSpec, UseContext, raises_done
 from clark_engine.mission.schema_source.common import number, obj, string, time_s
@@ -105,7 +105,7 @@ SPEC = PrimitiveSpec(
         },
         required=["channel", "amplitude_us", "f_start_hz", "f_stop_hz", "duration_s"],
     ),
-    compiled={"channel": RESOLVED_CHANNEL_SCHEMA},
+    compiled=lambda: {"channel": resolved_channel_schema()},
     events=raises_done,
     check=_check,
 )

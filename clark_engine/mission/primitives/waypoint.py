@@ -40,7 +40,7 @@ SPEC = PrimitiveSpec(
         },
         required=["to"],
     ),
-    compiled={"to": RESOLVED_POINT_SCHEMA},
+    compiled=lambda: {"to": RESOLVED_POINT_SCHEMA},
     events=raises_done,
     check=_check,
 )

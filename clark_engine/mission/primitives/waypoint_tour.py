@@ -51,7 +51,7 @@ SPEC = PrimitiveSpec(
         },
         required=["waypoints"],
     ),
-    compiled={"waypoints": {**_WAYPOINTS, "items": RESOLVED_POINT_SCHEMA}},
+    compiled=lambda: {"waypoints": {**_WAYPOINTS, "items": RESOLVED_POINT_SCHEMA}},
     events=_events,
     check=_check,
 )
