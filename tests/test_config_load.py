@@ -9,6 +9,7 @@ it (exit 1, a message, no traceback). Each case compiles an example mission into
 
 from __future__ import annotations
 
+import functools
 import json
 from collections.abc import Callable
 from pathlib import Path
@@ -17,7 +18,9 @@ from typing import Any
 import pytest
 
 from clark_engine.cli import main
-from clark_engine.runtime.config import ConfigError, load_config
+from clark_engine.mission.compiler import compile_mission
+from clark_engine.mission.validate import validate_path
+from clark_engine.runtime.config import ConfigError, config_from_dict, load_config
 
 ROOT = Path(__file__).resolve().parent.parent
 COPTER = ROOT / "missions" / "copter_takeoff_land.yaml"
@@ -25,10 +28,18 @@ SYSID = ROOT / "missions" / "supercub_sysid.yaml"
 FOLLOW = ROOT / "missions" / "cooperative_follow.yaml"
 
 
+@functools.cache
+def configs_of(mission: Path) -> dict[str, str]:
+    """Every agent's compiled config text (what ``clark compile`` writes), compiled once."""
+    result = validate_path(mission, mission.name)
+    assert result.mission is not None, [f.format_text() for f in result.findings]
+    return compile_mission(result.mission)
+
+
 def compiled(tmp_path: Path, mission: Path, agent: str) -> Path:
-    """The agent's config, freshly compiled into ``tmp_path``."""
-    assert main(["compile", str(mission), "-o", str(tmp_path), "--agent", agent, "-q"]) == 0
-    (path,) = tmp_path.glob(f"*/{agent}.json")
+    """The agent's config, as ``clark compile`` writes it, in a file of ``tmp_path``."""
+    path = tmp_path / f"{agent}.json"
+    path.write_text(configs_of(mission)[agent], encoding="utf-8")
     return path
 
 
@@ -184,12 +195,12 @@ EXAMPLES = sorted((ROOT / "missions").glob("*.yaml")) + sorted(
 
 
 @pytest.mark.parametrize("mission", EXAMPLES, ids=lambda p: f"{p.parent.name}/{p.name}")
-def test_every_example_config_loads(tmp_path: Path, mission: Path) -> None:
-    assert main(["compile", str(mission), "-o", str(tmp_path), "-q"]) == 0
-    configs = sorted(tmp_path.glob("*/*.json"))
+def test_every_example_config_loads(mission: Path) -> None:
+    """Every compiled config of every example passes load, its primitives built."""
+    configs = configs_of(mission)
     assert configs
-    for path in configs:
-        assert load_config(path).agent == path.stem
+    for agent, text in configs.items():
+        assert config_from_dict(json.loads(text), source=f"{agent}.json").agent == agent
 
 
 def test_conditions_are_resolved_once_and_decide_as_written(tmp_path: Path) -> None:
