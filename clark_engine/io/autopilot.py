@@ -73,15 +73,21 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from clark_engine.io.autopilot_setup import ParamAnswer, SafetySetup
 from clark_engine.io.mission_upload import MissionUpload, fence_items
 from clark_engine.runtime.commands import (
+    AUTOPILOT_COMMANDS,
     Arm,
+    CloseInterfaces,
     Command,
     Goto,
+    PayloadCommand,
     RcOverride,
+    SendPacket,
     SetMode,
     SetServo,
     SetUpAutopilotSafety,
     Takeoff,
     UploadFence,
+    check_dispatch,
+    unknown_command,
 )
 from clark_engine.runtime.config import AgentConfig, ConfigError
 from clark_engine.runtime.events import (
@@ -204,6 +210,11 @@ RC_OVERRIDE_CHANNELS: Final = 18
 """RC_CHANNELS_OVERRIDE carries channels 1-18."""
 
 _UINT16_MAX: Final = 65535
+#: The commands that reach the adapter but are not the autopilot's: answered with ``b""``.
+_NOT_THE_AUTOPILOTS: Final = (SendPacket, PayloadCommand, CloseInterfaces)
+# AutopilotAdapter.command carries out AUTOPILOT_COMMANDS and answers these with nothing;
+# any other type raises, and a command type added without a place here fails on import.
+check_dispatch((*AUTOPILOT_COMMANDS, *_NOT_THE_AUTOPILOTS), "the autopilot adapter")
 _RC_IGNORE: Final = _UINT16_MAX  # "no change" for every channel
 _RC_RELEASE_LOW: Final = 0  # channels 1-8: give the channel back to the pilot
 _RC_RELEASE_HIGH: Final = _UINT16_MAX - 1  # channels 9-18: 0 means "ignore" there
@@ -796,8 +807,11 @@ class AutopilotAdapter:
           MAVLink release value (0 for channels 1-8, UINT16_MAX-1 for 9-18), and
           every other channel at "ignore" (UINT16_MAX). Overrides stay active, and
           :meth:`poll` keeps them alive, until released.
-        - Anything else (radio, payload, CloseInterfaces) is not the autopilot's:
+        - Radio, payload and CloseInterfaces commands are not the autopilot's:
           ``b""``.
+
+        Raises:
+            UnknownCommandError: Any other type (an engine bug, never dropped).
         """
         if isinstance(cmd, Goto):
             self._goto(cmd, now_s)
@@ -835,6 +849,8 @@ class AutopilotAdapter:
             self._rc_override(cmd, now_s)
         elif isinstance(cmd, SetUpAutopilotSafety):
             self._safety_start(cmd, now_s)
+        elif not isinstance(cmd, _NOT_THE_AUTOPILOTS):
+            raise unknown_command(cmd, "the autopilot adapter")
         return self._outbox.take()
 
     def arm(self, armed: bool, now_s: float, *, force: bool = False) -> bytes:

@@ -28,11 +28,11 @@ from clark_engine import __version__
 from clark_engine.errors import UsageError
 from clark_engine.mission.envelope import DeclaredZone
 from clark_engine.mission.geo import LocalPoint, parse_point, round_coordinate, to_global
-from clark_engine.mission.model import TELEMETRY_MESSAGES, Agent, Mission, State
+from clark_engine.mission.model import TELEMETRY_MESSAGES, TICK_PHASES, Agent, Mission, State
 
 CONFIG_VERSION = 1
 #: The order of the phases of one tick (thesis 7.3.3-7.3.4); the runtime follows it.
-DEFAULT_TICK_PHASES = ("timeouts", "machine", "commands", "telemetry", "log")
+DEFAULT_TICK_PHASES = TICK_PHASES
 
 
 def _point(point: LocalPoint, mission: Mission) -> dict[str, float]:

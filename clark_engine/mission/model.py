@@ -25,6 +25,11 @@ TELEMETRY_MESSAGES = (
     "vehicle_health",
 )
 
+#: The phases of one tick, in the order the compiler writes them (thesis 7.3.3-7.3.4).
+#: A compiled config lists each exactly once: a config without ``timeouts`` would switch
+#: off every timeout and failsafe, so loading refuses one.
+TICK_PHASES = ("timeouts", "machine", "commands", "telemetry", "log")
+
 PARTS = ("airframe", "autopilot", "radio", "computer")
 
 #: What the autopilot itself does when the mission computer falls silent

@@ -6,7 +6,9 @@ MAVLink, radio frames and payload requests. Nothing here knows a wire format.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import get_args
 
 
 @dataclass(frozen=True, slots=True)
@@ -219,3 +221,56 @@ Command = (
     | SetUpAutopilotSafety
     | CloseInterfaces
 )
+
+#: Every type of :data:`Command`: what each shell's dispatch must cover, exactly.
+COMMAND_TYPES: frozenset[type] = frozenset(get_args(Command))
+
+#: The commands the autopilot adapter carries out (MAVLink to the autopilot); the others
+#: are the radio's (SendPacket), a payload's (PayloadCommand) or the shell's own
+#: (CloseInterfaces).
+AUTOPILOT_COMMANDS: tuple[type, ...] = (
+    Goto,
+    SetMode,
+    Arm,
+    Takeoff,
+    SetServo,
+    RcOverride,
+    SetUpAutopilotSafety,
+)
+
+
+class UnknownCommandError(TypeError):
+    """A shell was handed a command type it does not carry out: an engine bug.
+
+    Never a user's mistake, so not a ``ClarkError``: a command dropped in silence would
+    fly a mission with one of its commands missing (a dry run that drops what the
+    real-time shell forwards is no rehearsal of it).
+    """
+
+
+def unknown_command(command: object, shell: str) -> UnknownCommandError:
+    """The error for a command ``shell`` has no way to carry out, naming its type."""
+    return UnknownCommandError(
+        f"{shell}: no way to carry out a {type(command).__name__} command ({command!r}); "
+        "every command type needs an entry in this shell's dispatch"
+    )
+
+
+def check_dispatch(handled: Iterable[type], shell: str) -> None:
+    """Refuse, at import, a shell whose dispatch does not cover the command types exactly.
+
+    Each shell checks its table against :data:`COMMAND_TYPES` when its module loads,
+    so a new command type fails every shell that lacks it before anything runs.
+
+    Raises:
+        UnknownCommandError: A command type missing from ``handled``, or a type in it
+            that is no command.
+    """
+    handled = frozenset(handled)
+    missing = sorted(t.__name__ for t in COMMAND_TYPES - handled)
+    extra = sorted(t.__name__ for t in handled - COMMAND_TYPES)
+    if missing or extra:
+        raise UnknownCommandError(
+            f"{shell}: its command dispatch does not match the command types "
+            f"(missing: {', '.join(missing) or 'none'}; not commands: {', '.join(extra) or 'none'})"
+        )

@@ -9,14 +9,14 @@ schema first: a config edited by hand is checked as strictly as a compiled one.
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from clark_engine.errors import ClarkError, UsageError
 from clark_engine.mission.fence import Fence, Zone
-from clark_engine.mission.model import DEFAULT_COMPUTER_LOST_S
+from clark_engine.mission.model import DEFAULT_COMPUTER_LOST_S, TICK_PHASES
 
 
 class ConfigError(ClarkError):
@@ -317,22 +317,224 @@ def _state(data: Mapping[str, Any]) -> StateSpec:
     )
 
 
-def config_from_dict(data: Mapping[str, Any]) -> AgentConfig:
-    """Build the typed config from a dict that is valid against agent-config.
+def config_from_dict(data: Mapping[str, Any], *, source: str | None = None) -> AgentConfig:
+    """Build the typed config from a dict that is valid against agent-config, and prove it.
+
+    Loading proves the config before anything flies (docs/runtime.md#loading-a-config):
+    the whole dict against the agent-config schema (every state's primitive known and
+    its parameters valid against that primitive's own schema, the tick phases each once,
+    every condition well formed), then what a schema cannot say (a followed agent and a
+    condition's agent are peers of this config, by name and id), then every state's
+    runtime primitive built once from its parameters.
+
+    Args:
+        data: The config as JSON gives it.
+        source: The file it was read from, for messages; None for a config compiled in
+            this process.
 
     Raises:
-        ConfigError: The dict is not valid against the agent-config schema.
+        ConfigError: Anything unknown or malformed, with the file and the JSON path.
     """
+    where = source if source is not None else _agent_label(data)
+    _check_schema(data, where)
+    config = _build(data)
+    _check_references(config, data, where)
+    _build_primitives(config, where)
+    return config
+
+
+#: Appended to every refusal: the cure for a config from another engine version.
+_RECOMPILE = "compile the mission again with clark compile"
+
+
+def _agent_label(data: Mapping[str, Any]) -> str:
+    """How a config that was never a file is named in a message."""
+    mission = data.get("mission")
+    agent = mission.get("agent") if isinstance(mission, Mapping) else None
+    return f"the compiled config of {agent}" if isinstance(agent, str) else "a compiled config"
+
+
+def _path_key(error: Any) -> tuple[tuple[bool, Any], ...]:
+    """Order errors by where they are (list indices and keys never compared together)."""
+    return tuple((isinstance(p, str), p) for p in error.absolute_path)
+
+
+def _check_schema(data: Mapping[str, Any], where: str) -> None:
+    """Refuse the first problem the agent-config schema finds, at its JSON path."""
+    from jsonschema.exceptions import best_match
+
     from clark_engine.mission.schemas import validator
 
-    problems = sorted(validator("agent-config").iter_errors(dict(data)), key=lambda e: e.path)
-    if problems:
-        first = problems[0]
-        where = ".".join(str(p) for p in first.absolute_path) or "(top)"
-        raise ConfigError(
-            f"not a valid compiled agent config at {where}: {first.message}; "
-            "compile the mission again with clark compile"
-        )
+    problems = sorted(validator("agent-config").iter_errors(dict(data)), key=_path_key)
+    if not problems:
+        return
+    first = problems[0]
+    if first.validator in ("anyOf", "oneOf") and first.context:
+        first = best_match([first])  # the branch that fits the value, not "none of them"
+    path = list(first.absolute_path)
+    phases = data["mission"].get("tick_phases") if path[:2] == ["mission", "tick_phases"] else None
+    if isinstance(phases, list) and all(isinstance(p, str) for p in phases):
+        check_tick_phases(phases, where)  # says what is missing, doubled or unknown
+    message = first.message
+    if path[-1:] == ["primitive"] and first.validator == "enum":
+        from clark_engine.mission.primitives import PRIMITIVES
+
+        message = f"unknown primitive {first.instance!r}: this engine has {', '.join(PRIMITIVES)}"
+    state = _state_of(data, path, primitive=path[-1:] != ["primitive"])
+    raise ConfigError(
+        f"{message}{state}; {_RECOMPILE}",
+        file=where,
+        path=_json_path(path),
+    )
+
+
+def _json_path(path: list[Any]) -> str:
+    return ".".join(str(p) for p in path) or "(top)"
+
+
+def _state_of(data: Mapping[str, Any], path: list[Any], *, primitive: bool = True) -> str:
+    """`` (state climb, primitive takeoff)`` for a path inside the machine, else ``""``.
+
+    Without the primitive when ``primitive`` is False (the problem is the primitive).
+    """
+    if not path or path[0] != "machine" or not isinstance(data.get("machine"), Mapping):
+        return ""
+    state: Any = data["machine"]
+    rest = path[1:]
+    while len(rest) >= 2 and rest[0] == "states" and isinstance(rest[1], int):
+        children = state.get("states") if isinstance(state, Mapping) else None
+        if not isinstance(children, list) or not 0 <= rest[1] < len(children):
+            break
+        state, rest = children[rest[1]], rest[2:]
+    if not isinstance(state, Mapping):
+        return ""
+    name = state.get("path") or "(root)"
+    used = state.get("primitive")
+    said = f", primitive {used}" if primitive and isinstance(used, str) else ""
+    return f" (state {name}{said})"
+
+
+def check_tick_phases(phases: Sequence[str], where: str | None = None) -> None:
+    """Refuse tick phases that are not each of :data:`TICK_PHASES` exactly once.
+
+    The schema says as much; this is the runtime's own guard, for configs built in
+    code (``dataclasses.replace``) as well as loaded: an empty list would run no
+    timeouts, so no failsafe would ever fire.
+
+    Raises:
+        ConfigError: A phase missing, doubled or unknown.
+    """
+    if len(phases) == len(TICK_PHASES) and set(phases) == set(TICK_PHASES):
+        return
+    missing = [p for p in TICK_PHASES if p not in phases]
+    doubled = sorted({p for p in phases if phases.count(p) > 1})
+    unknown = [p for p in phases if p not in TICK_PHASES]
+    said = [
+        f"{label} {', '.join(map(repr, names))}"
+        for label, names in (("missing", missing), ("doubled", doubled), ("unknown", unknown))
+        if names
+    ]
+    raise ConfigError(
+        f"the tick phases must be {', '.join(TICK_PHASES)}, each once, in any order "
+        f"({'; '.join(said)}); {_RECOMPILE}",
+        file=where,
+        path="mission.tick_phases",
+    )
+
+
+def _states_with_paths(spec: StateSpec, where: str) -> Iterator[tuple[StateSpec, str]]:
+    """Every state with its JSON path in the config (``machine.states.1``), parents first."""
+    yield spec, where
+    for index, child in enumerate(spec.states):
+        yield from _states_with_paths(child, f"{where}.states.{index}")
+
+
+def _conditions(when: Mapping[str, Any], where: str) -> Iterator[tuple[Mapping[str, Any], str]]:
+    """Every condition inside ``when`` (itself included) with its JSON path."""
+    yield when, where
+    for key, value in when.items():
+        if key in ("all", "any"):
+            for index, item in enumerate(value):
+                yield from _conditions(item, f"{where}.{key}.{index}")
+        elif key == "not":
+            yield from _conditions(value, f"{where}.not")
+
+
+def _check_references(config: AgentConfig, data: Mapping[str, Any], where: str) -> None:
+    """Refuse a followed agent or a condition's agent that is not a peer of this config.
+
+    The runtime finds them in the peer table (a followed agent by its id): a name the
+    table lacks would make the state wait forever for a status that never comes.
+    """
+    check_tick_phases(config.tick_phases, where)
+    if config.machine is None:
+        return
+    peers = {p.name: p.id for p in config.peers}
+    for state, at in _states_with_paths(config.machine, "machine"):
+        target = state.params.get("target") if state.primitive == "follow_agent" else None
+        if isinstance(target, Mapping) and peers.get(target["name"]) != target["id"]:
+            raise ConfigError(
+                f"follows {target['name']!r} (id {target['id']}), which is not a peer of this "
+                f"config{_peer_list(peers)}{_state_hint(state)}; {_RECOMPILE}",
+                file=where,
+                path=f"{at}.params.target",
+            )
+        for index, transition in enumerate(state.transitions):
+            if transition.when is None:
+                continue
+            for condition, place in _conditions(transition.when, f"{at}.transitions.{index}.when"):
+                distance = condition.get("distance_m")
+                if isinstance(distance, Mapping) and distance["to"] not in peers:
+                    raise ConfigError(
+                        f"measures the distance to {distance['to']!r}, which is not a peer of "
+                        f"this config{_peer_list(peers)}{_state_hint(state)}; {_RECOMPILE}",
+                        file=where,
+                        path=f"{place}.distance_m.to",
+                    )
+
+
+def _peer_list(peers: Mapping[str, int]) -> str:
+    listed = ", ".join(f"{name} (id {id_})" for name, id_ in peers.items())
+    return f" ({listed})" if listed else " (it has none)"
+
+
+def _state_hint(state: StateSpec) -> str:
+    used = f", primitive {state.primitive}" if state.primitive else ""
+    return f" (state {state.path or '(root)'}{used})"
+
+
+def _build_primitives(config: AgentConfig, where: str) -> None:
+    """Build every state's runtime primitive once, so that none fails when entered.
+
+    The machine builds a fresh one on every entry (a primitive keeps its state); this
+    proves, before the first tick, that each state's parameters make one. A primitive's
+    own refusal (a channel without the output its ``via`` needs) is a ConfigError;
+    anything else a valid config cannot raise, and is reported at the state all the same.
+    """
+    if config.machine is None:
+        return
+    from clark_engine.runtime.primitives import make_primitive
+
+    for state, at in _states_with_paths(config.machine, "machine"):
+        if state.primitive is None:
+            continue
+        try:
+            make_primitive(state)
+        except ConfigError as exc:
+            raise ConfigError(
+                f"{exc.message}{_state_hint(state)}", file=where, path=f"{at}.params"
+            ) from None
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ConfigError(
+                f"its parameters do not make a {state.primitive} ({type(exc).__name__}: "
+                f"{exc}){_state_hint(state)}; {_RECOMPILE}",
+                file=where,
+                path=f"{at}.params",
+            ) from None
+
+
+def _build(data: Mapping[str, Any]) -> AgentConfig:
+    """The typed config from a dict the schema accepted."""
     mission, agent = data["mission"], data["agent"]
     hardware = agent["hardware"]
     autopilot = hardware.get("autopilot") or {}
@@ -429,4 +631,4 @@ def load_config(path: Path) -> AgentConfig:
         ) from None
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: not a compiled agent config (expected a JSON object)")
-    return config_from_dict(data)
+    return config_from_dict(data, source=str(path))

@@ -106,6 +106,14 @@ class PrimitiveContext:
             return None
         return self.fleet.peek(peer.id, AgentStatus)
 
+    def peer_status_by_id(self, peer_id: int) -> AgentStatus | None:
+        """The latest Agent Status of the peer with this id, without clearing its flag.
+
+        For names resolved to ids when the config loaded (a followed agent): no lookup
+        by name at flight time.
+        """
+        return self.fleet.peek(peer_id, AgentStatus)
+
     def mode_number(self, mode: str) -> int:
         """The custom_mode number of a mode of this agent's autopilot."""
         return int(self.config.modes[mode])

@@ -84,6 +84,11 @@ MakePrimitive = Callable[[StateSpec], Primitive]
 #: Decides a transition's ``when``: (condition, context, seconds since the source
 #: state was entered) -> whether it holds.
 Evaluate = Callable[[Mapping[str, Any], PrimitiveContext, float], bool]
+#: A transition's ``when`` resolved once, when the machine is built: (context, seconds
+#: since the source state was entered) -> whether it holds.
+Holds = Callable[[PrimitiveContext, float], bool]
+#: Resolves a ``when`` into its :data:`Holds` (the runtime's; nothing read by string then).
+Resolve = Callable[[Mapping[str, Any]], Holds]
 
 
 @dataclass(frozen=True, slots=True)
@@ -215,6 +220,9 @@ class BehaviorMachine:
             state the transition is written on) was entered, for ``in_state_s``.
         on_change: Called after every change of the active states (and when a
             primitive fails), with what changed.
+        resolve: Resolves each transition's ``when`` once, as the machine is built,
+            into what decides it each time (the runtime's); ``evaluate`` is then never
+            called. None: ``evaluate`` decides the condition as written.
 
     Raises:
         ConfigError: A machine state without ``initial``, or a transition whose
@@ -227,9 +235,12 @@ class BehaviorMachine:
         make_primitive: MakePrimitive,
         evaluate: Evaluate,
         on_change: Callable[[StateChange], None] | None = None,
+        *,
+        resolve: Resolve | None = None,
     ) -> None:
         self._make_primitive = make_primitive
         self._evaluate = evaluate
+        self._resolve = resolve
         self._on_change = on_change
         self._nodes: dict[str, _Node] = {}
         self._root = self._build_nodes(spec, None)
@@ -306,7 +317,10 @@ class BehaviorMachine:
         # first move, so a region that move already left must not move again.
         conditions: list[str | Callable[..., bool | None]] = [partial(_is_active, node)]
         if transition.when is not None:
-            conditions.append(partial(self._holds, node, transition.when))
+            if self._resolve is not None:
+                conditions.append(partial(_resolved_holds, node, self._resolve(transition.when)))
+            else:
+                conditions.append(partial(self._holds, node, transition.when))
         self._machine.add_transition(
             trigger,
             node.name,
@@ -594,6 +608,10 @@ class BehaviorMachine:
 
 def _is_active(node: _Node, ctx: PrimitiveContext) -> bool:
     return node.active
+
+
+def _resolved_holds(node: _Node, holds: Holds, ctx: PrimitiveContext) -> bool:
+    return holds(ctx, ctx.now_s - node.entered_s)
 
 
 def _innermost_first(node: _Node) -> tuple[int, int]:

@@ -62,6 +62,7 @@ from clark_engine.link.messages import (
 )
 from clark_engine.link.packet import BROADCAST, Packet
 from clark_engine.mission.geo import Origin, to_local
+from clark_engine.mission.model import TELEMETRY_MESSAGES, TICK_PHASES
 from clark_engine.runtime.autopilot_safety import SafetyPlanError, safety_setup
 from clark_engine.runtime.command_delivery import (
     COMMAND_RESEND_S,
@@ -81,7 +82,7 @@ from clark_engine.runtime.commands import (
     SetServo,
     Takeoff,
 )
-from clark_engine.runtime.config import AgentConfig, PeerSpec
+from clark_engine.runtime.config import AgentConfig, PeerSpec, check_tick_phases
 from clark_engine.runtime.context import PrimitiveContext, ground_distance_m
 from clark_engine.runtime.envelope import (
     Breach,
@@ -113,7 +114,7 @@ from clark_engine.runtime.logbook import (
     BROADCAST_PEER,
     Logbook,
 )
-from clark_engine.runtime.machine import BehaviorMachine, StateChange
+from clark_engine.runtime.machine import BehaviorMachine, Holds, StateChange
 from clark_engine.runtime.primitives import make_primitive
 
 #: Commands that move the vehicle; never sent while the autopilot is lost or after terminate.
@@ -253,8 +254,18 @@ class AgentRuntime:
         )
         self.logbook = logbook if logbook is not None else Logbook.in_memory(config)
         self.context = PrimitiveContext(config, self.fleet, log=self.logbook.mission)
+        #: The tick's phases, resolved to methods once (:meth:`_resolve_phases`).
+        self._phases = self._resolve_phases(config.tick_phases)
+        #: The telemetry schedule, each message resolved to its builder once.
+        self._telemetry_plan = self._resolve_telemetry()
         self.machine = (
-            BehaviorMachine(config.machine, make_primitive, self._evaluate, self._on_change)
+            BehaviorMachine(
+                config.machine,
+                make_primitive,
+                self._evaluate,
+                self._on_change,
+                resolve=self._resolve_condition,
+            )
             if config.machine is not None
             else None
         )
@@ -994,24 +1005,50 @@ class AgentRuntime:
         if opening and self.failsafe is None and self.machine is not None:
             self.machine.start(self.context)
             self._collect_outbox()
-        for phase in self.config.tick_phases:
+        for phase in self._phases:
             if self.terminated:
                 break
-            if phase == "timeouts":
-                self._timeouts(now_s)
-                if self.logbook.air_pending:
-                    self.logbook.summarise_air(now_s)
-            elif phase == "machine":
-                self._machine_phase()
-            elif phase == "commands":
-                self._collect_outbox()
-            elif phase == "telemetry":
-                self._telemetry(now_s)
-            elif phase == "log" and self.logbook.tables:
-                rows = self.fleet.csv_rows(now_s, text=True)
-                self.logbook.fleet_row(now_s, self.fleet.csv_header(), rows)
+            phase(now_s)
         self._tick += 1
         return self._drain()
+
+    def _resolve_phases(self, phases: tuple[str, ...]) -> tuple[Callable[[float], None], ...]:
+        """The tick's phases as this runtime's methods, in the config's order, once.
+
+        Resolved when the runtime is built, so a tick runs no string switch; a config
+        whose phases are not each phase exactly once is refused here as at load (an
+        empty list would switch off every timeout and failsafe).
+
+        Raises:
+            ConfigError: A phase missing, doubled or unknown.
+        """
+        check_tick_phases(phases)
+        methods: dict[str, Callable[[float], None]] = {
+            "timeouts": self._timeouts_phase,
+            "machine": self._machine_phase,
+            "commands": self._commands_phase,
+            "telemetry": self._telemetry,
+            "log": self._log_phase,
+        }
+        if set(methods) != set(TICK_PHASES):  # an engine bug, found by every test
+            raise RuntimeError(f"tick phases without a method: {set(TICK_PHASES) ^ set(methods)}")
+        return tuple(methods[phase] for phase in phases)
+
+    def _timeouts_phase(self, now_s: float) -> None:
+        """Peers', the stations' and the autopilot's silence; the air's log summary."""
+        self._timeouts(now_s)
+        if self.logbook.air_pending:
+            self.logbook.summarise_air(now_s)
+
+    def _commands_phase(self, now_s: float) -> None:
+        """What the primitives asked for, collected for the shell."""
+        self._collect_outbox()
+
+    def _log_phase(self, now_s: float) -> None:
+        """A fleet-table row, when the logbook keeps tables."""
+        if self.logbook.tables:
+            rows = self.fleet.csv_rows(now_s, text=True)
+            self.logbook.fleet_row(now_s, self.fleet.csv_header(), rows)
 
     def _timeouts(self, now_s: float) -> None:
         lost = self.fleet.check_timeouts(now_s)
@@ -1065,7 +1102,8 @@ class AgentRuntime:
                     now_s - seen,
                 )
 
-    def _machine_phase(self) -> None:
+    def _machine_phase(self, now_s: float = 0.0) -> None:
+        """Events, then the state machine and its primitives (``now_s`` is the context's)."""
         if self.machine is None or not self._started:
             if "mcs_lost" in self._events:
                 self._apply_failsafe()
@@ -1139,13 +1177,13 @@ class AgentRuntime:
 
     def _telemetry(self, now_s: float) -> None:
         by_destination: dict[str, list[Message]] = {}
-        for spec in self.config.telemetry:
-            if self._tick % spec.every_ticks:
+        for every_ticks, build, destinations in self._telemetry_plan:
+            if self._tick % every_ticks:
                 continue
-            message = self._telemetry_message(spec.message)
+            message = build()
             if message is None:
                 continue
-            for destination in spec.to or ("",):
+            for destination in destinations:
                 by_destination.setdefault(destination, []).append(message)
         for message, to in self._pending_messages:
             for destination in to or ("",):
@@ -1182,37 +1220,82 @@ class AgentRuntime:
                     "",
                 )
 
-    def _telemetry_message(self, name: str) -> Message | None:
-        me, gps = self.config.agent_id, self.context.gps_time_ms or 0
+    def _resolve_telemetry(
+        self,
+    ) -> tuple[tuple[int, Callable[[], Message | None], tuple[str, ...]], ...]:
+        """The telemetry schedule with each message resolved to its builder, once.
+
+        Each entry: send every this many ticks, the method that builds the message
+        (None when there is nothing to say yet), the destinations (``""``: broadcast).
+        """
+        builders: dict[str, Callable[[], Message | None]] = {
+            "heartbeat": self._heartbeat,
+            "agent_status": self._agent_status,
+            "agent_attitude": self._agent_attitude,
+            "behavior_state": self._behavior_state,
+            "vehicle_health": self._health_now,
+        }
+        if set(builders) != set(TELEMETRY_MESSAGES):  # an engine bug, found by every test
+            raise RuntimeError(
+                f"telemetry messages without a builder: {set(TELEMETRY_MESSAGES) ^ set(builders)}"
+            )
+        return tuple(
+            (spec.every_ticks, builders[spec.message], spec.to or ("",))
+            for spec in self.config.telemetry
+        )
+
+    def _heartbeat(self) -> Message | None:
+        return Heartbeat(
+            agent_id=self.config.agent_id,
+            gps_time_ms=self.context.gps_time_ms or 0,
+            mission_id=self.config.mission_id,
+            agent_type=AgentType.VEHICLE if self.config.is_vehicle else AgentType.MCS,
+            condition=self._condition(),
+            payload_count=len(self.config.payloads),
+        )
+
+    def _agent_status(self) -> Message | None:
         vehicle = self.context.vehicle
-        if name == "heartbeat":
-            return Heartbeat(
-                agent_id=me,
-                gps_time_ms=gps,
-                mission_id=self.config.mission_id,
-                agent_type=AgentType.VEHICLE if self.config.is_vehicle else AgentType.MCS,
-                condition=self._condition(),
-                payload_count=len(self.config.payloads),
-            )
-        if name == "agent_status" and vehicle is not None:
-            return AgentStatus(
-                agent_id=me,
-                gps_time_ms=gps,
-                lat_deg=vehicle.lat_deg,
-                lon_deg=vehicle.lon_deg,
-                alt_m=vehicle.alt_m,
-                ground_speed_m_s=max(0.0, vehicle.ground_speed_m_s),
-                climb_rate_m_s=vehicle.climb_rate_m_s,
-                heading_deg=vehicle.heading_deg % 360.0,
-                mode=vehicle.custom_mode,
-            )
-        if name == "agent_attitude" and vehicle is not None:
-            return AgentAttitude(me, gps, vehicle.roll_deg, vehicle.pitch_deg, vehicle.yaw_deg)
-        if name == "behavior_state" and self.machine is not None:
-            return BehaviorState(me, gps, self.machine.active_paths(), self.machine.last_event)
-        if name == "vehicle_health" and self.config.is_vehicle:
-            return self._vehicle_health(me, gps)
-        return None
+        if vehicle is None:
+            return None
+        return AgentStatus(
+            agent_id=self.config.agent_id,
+            gps_time_ms=self.context.gps_time_ms or 0,
+            lat_deg=vehicle.lat_deg,
+            lon_deg=vehicle.lon_deg,
+            alt_m=vehicle.alt_m,
+            ground_speed_m_s=max(0.0, vehicle.ground_speed_m_s),
+            climb_rate_m_s=vehicle.climb_rate_m_s,
+            heading_deg=vehicle.heading_deg % 360.0,
+            mode=vehicle.custom_mode,
+        )
+
+    def _agent_attitude(self) -> Message | None:
+        vehicle = self.context.vehicle
+        if vehicle is None:
+            return None
+        return AgentAttitude(
+            self.config.agent_id,
+            self.context.gps_time_ms or 0,
+            vehicle.roll_deg,
+            vehicle.pitch_deg,
+            vehicle.yaw_deg,
+        )
+
+    def _behavior_state(self) -> Message | None:
+        if self.machine is None:
+            return None
+        return BehaviorState(
+            self.config.agent_id,
+            self.context.gps_time_ms or 0,
+            self.machine.active_paths(),
+            self.machine.last_event,
+        )
+
+    def _health_now(self) -> Message | None:
+        if not self.config.is_vehicle:
+            return None
+        return self._vehicle_health(self.config.agent_id, self.context.gps_time_ms or 0)
 
     def _vehicle_health(self, me: int, gps: int) -> VehicleHealth:
         """Vehicle Health now: what the autopilot last said, and the failsafe in force.
@@ -1448,7 +1531,7 @@ class AgentRuntime:
             self._commands.append(SetMode(terminal, int(self.config.modes[terminal])))
         self.terminated = True
         # A last heartbeat tells every peer (and the station's view) this agent is done.
-        last = self._telemetry_message("heartbeat")
+        last = self._heartbeat()
         if last is not None:
             self._send([last], "", now_s)
         self._commands.append(CloseInterfaces())
@@ -1523,44 +1606,70 @@ class AgentRuntime:
     # -- machine callbacks ---------------------------------------------------------------
 
     def _evaluate(self, when: Mapping[str, Any], ctx: PrimitiveContext, in_state_s: float) -> bool:
-        """Structured transition conditions (the schema's condition kinds).
+        """Decide a structured transition condition as written (the schema's kinds).
+
+        The machine resolves every condition once instead (:meth:`_resolve_condition`);
+        this decides one as written, for callers that hold a condition as data.
 
         Args:
             when: The condition, as the compiled config gives it.
             ctx: The agent's context (vehicle, peers, clock).
             in_state_s: Time since the state owning the transition was entered.
         """
-        for key, value in when.items():
-            if key == "all":
-                return all(self._evaluate(item, ctx, in_state_s) for item in value)
-            if key == "any":
-                return any(self._evaluate(item, ctx, in_state_s) for item in value)
-            if key == "not":
-                return not self._evaluate(value, ctx, in_state_s)
-            if key == "mode":
-                return ctx.vehicle is not None and ctx.vehicle.mode == value["is"]
-            measured = in_state_s if key == "in_state_s" else self._measure(key, value, ctx)
-            if measured is None:
-                return False
-            if "lt" in value and not measured < value["lt"]:
-                return False
-            return not ("gt" in value and not measured > value["gt"])
-        return True
+        return self._resolve_condition(when)(ctx, in_state_s)
 
-    def _measure(self, key: str, value: Mapping[str, Any], ctx: PrimitiveContext) -> float | None:
-        vehicle = ctx.vehicle
+    def _resolve_condition(self, when: Mapping[str, Any]) -> Holds:
+        """A transition's condition resolved once into what decides it each time.
+
+        Called when the machine is built, so the condition's kind, bounds and agent are
+        read once and a tick reads no string: ``all``/``any``/``not`` combine their
+        parts; ``mode`` compares the vehicle's mode; ``distance_m`` (to a peer, read by
+        the id the peer table gives; loading proved it a peer), ``altitude_m``,
+        ``speed_m_s`` and ``in_state_s`` hold while the figure is below ``lt`` and above
+        ``gt``, and never while it is unknown. A condition with no key always holds.
+        """
+        for key, value in when.items():  # exactly one key (the schema's)
+            if key in ("all", "any"):
+                parts = tuple(self._resolve_condition(item) for item in value)
+                if key == "all":
+                    return lambda ctx, s: all(part(ctx, s) for part in parts)
+                return lambda ctx, s: any(part(ctx, s) for part in parts)
+            if key == "not":
+                inner = self._resolve_condition(value)
+                return lambda ctx, s: not inner(ctx, s)
+            if key == "mode":
+                mode = value["is"]
+                return lambda ctx, _s: ctx.vehicle is not None and ctx.vehicle.mode == mode
+            return _bounded(self._measurement(key, value), value.get("lt"), value.get("gt"))
+        return _always
+
+    def _measurement(
+        self, key: str, value: Mapping[str, Any]
+    ) -> Callable[[PrimitiveContext, float], float | None]:
+        """What a bounded condition measures, None while it is unknown."""
+        if key == "in_state_s":
+            return _in_state_s
         if key == "distance_m":
-            status = ctx.peer_status(str(value["to"]))
-            if vehicle is None or status is None:
-                return None
-            return ground_distance_m(
-                vehicle.lat_deg, vehicle.lon_deg, status.lat_deg, status.lon_deg
-            )
+            peer = self.config.peer(str(value["to"]))
+            if peer is None:  # loading refuses it; a config built in code may not have
+                return _unknown
+            peer_id = peer.id
+
+            def distance(ctx: PrimitiveContext, _s: float) -> float | None:
+                vehicle = ctx.vehicle
+                status = ctx.peer_status_by_id(peer_id)
+                if vehicle is None or status is None:
+                    return None
+                return ground_distance_m(
+                    vehicle.lat_deg, vehicle.lon_deg, status.lat_deg, status.lon_deg
+                )
+
+            return distance
         if key == "altitude_m":
-            return vehicle.alt_m if vehicle is not None else None
+            return _altitude_m
         if key == "speed_m_s":
-            return vehicle.ground_speed_m_s if vehicle is not None else None
-        return None
+            return _speed_m_s
+        return _unknown
 
     def terminate(self, now_s: float, reason: str) -> list[Command]:
         """Run this agent's own terminate sequence now and return the commands it produced.
@@ -1662,3 +1771,41 @@ class AgentRuntime:
     @staticmethod
     def _closing(commands: list[Command]) -> bool:
         return any(isinstance(c, CloseInterfaces) for c in commands)
+
+
+def _always(_ctx: PrimitiveContext, _in_state_s: float) -> bool:
+    return True
+
+
+def _unknown(_ctx: PrimitiveContext, _in_state_s: float) -> float | None:
+    return None
+
+
+def _in_state_s(_ctx: PrimitiveContext, in_state_s: float) -> float | None:
+    return in_state_s
+
+
+def _altitude_m(ctx: PrimitiveContext, _in_state_s: float) -> float | None:
+    return ctx.vehicle.alt_m if ctx.vehicle is not None else None
+
+
+def _speed_m_s(ctx: PrimitiveContext, _in_state_s: float) -> float | None:
+    return ctx.vehicle.ground_speed_m_s if ctx.vehicle is not None else None
+
+
+def _bounded(
+    measure: Callable[[PrimitiveContext, float], float | None],
+    lt: float | None,
+    gt: float | None,
+) -> Holds:
+    """Holds while the measure is known, below ``lt`` and above ``gt`` (each when given)."""
+
+    def holds(ctx: PrimitiveContext, in_state_s: float) -> bool:
+        measured = measure(ctx, in_state_s)
+        if measured is None:
+            return False
+        if lt is not None and not measured < lt:
+            return False
+        return not (gt is not None and not measured > gt)
+
+    return holds

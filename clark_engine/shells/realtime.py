@@ -83,17 +83,20 @@ import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from types import FrameType
-from typing import Final, cast
+from typing import Any, Final, cast
 
 from clark_engine.io.autopilot import AutopilotAdapter, gps_time_ms_from_unix_us
 from clark_engine.io.payload import PayloadAdapter
 from clark_engine.io.radio import LinkEvent, Radio, RadioError
 from clark_engine.io.transports import Transport, TransportError
 from clark_engine.runtime.commands import (
+    AUTOPILOT_COMMANDS,
     CloseInterfaces,
     Command,
     PayloadCommand,
     SendPacket,
+    check_dispatch,
+    unknown_command,
 )
 from clark_engine.runtime.events import (
     AutopilotHealth,
@@ -604,19 +607,29 @@ class RealtimeShell:
     # -- outputs ----------------------------------------------------------------------------
 
     def _carry_out(self, commands: list[Command], now: float) -> None:
+        """Carry out the runtime's commands through :data:`_CARRY_OUT`, one per type.
+
+        Raises:
+            UnknownCommandError: A command type this shell has no way to carry out (an
+                engine bug, raised rather than dropped in silence).
+        """
         for command in commands:
-            if isinstance(command, SendPacket):
-                self._send_packet(command, now)
-            elif isinstance(command, PayloadCommand):
-                self._payload_command(command, now)
-            elif isinstance(command, CloseInterfaces):
-                self._closing = True
-            else:
-                link = self.autopilot
-                if link is None or link.transport is None:
-                    self.stats.drop(type(command).__name__)
-                    continue
-                self._to_autopilot(link.adapter.command(command, now), now)
+            carry_out = _CARRY_OUT.get(type(command))
+            if carry_out is None:
+                raise unknown_command(command, "the real-time shell")
+            carry_out(self, command, now)
+
+    def _autopilot_command(self, command: Any, now: float) -> None:
+        """To the autopilot through its adapter; counted as dropped while it is closed."""
+        link = self.autopilot
+        if link is None or link.transport is None:
+            self.stats.drop(type(command).__name__)
+            return
+        self._to_autopilot(link.adapter.command(command, now), now)
+
+    def _close_command(self, command: CloseInterfaces, now: float) -> None:
+        """Terminate: the loop closes the interfaces once this tick's commands are out."""
+        self._closing = True
 
     def _send_packet(self, command: SendPacket, now: float) -> None:
         link = self.radio
@@ -1000,3 +1013,14 @@ class RealtimeShell:
             f"longest {s.max_tick_s * 1000:.1f} ms, "
             f"autopilot reopened {s.autopilot_reopens}, radio reopened {s.radio_reopens}"
         )
+
+
+#: The real-time shell's dispatch: command type -> how it is carried out. Checked against
+#: every command type when this module loads, so none can be added without an entry here.
+_CARRY_OUT: dict[type, Callable[[RealtimeShell, Any, float], None]] = {
+    **dict.fromkeys(AUTOPILOT_COMMANDS, RealtimeShell._autopilot_command),
+    SendPacket: RealtimeShell._send_packet,
+    PayloadCommand: RealtimeShell._payload_command,
+    CloseInterfaces: RealtimeShell._close_command,
+}
+check_dispatch(_CARRY_OUT, "the real-time shell")

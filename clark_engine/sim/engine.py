@@ -41,17 +41,14 @@ from clark_engine.mission.geo import parse_point
 from clark_engine.mission.model import Agent, Mission
 from clark_engine.mission.variation import resolve_mission
 from clark_engine.runtime.commands import (
-    Arm,
+    AUTOPILOT_COMMANDS,
     CloseInterfaces,
     Command,
-    Goto,
     PayloadCommand,
-    RcOverride,
     SendPacket,
-    SetMode,
     SetServo,
-    SetUpAutopilotSafety,
-    Takeoff,
+    check_dispatch,
+    unknown_command,
 )
 from clark_engine.runtime.config import AgentConfig, ChannelSpec, config_from_dict
 from clark_engine.runtime.context import offset_position
@@ -90,8 +87,6 @@ SITL_THROTTLE_BOTTOM_US = 1000
 #: How long before the run an aircraft the pilot hands over in flight was powered on,
 #: beyond its autopilot's boot: it is ready, and its pilot took off, before time 0.
 AIRBORNE_BOOTED_S = 60.0
-
-_AUTOPILOT_COMMANDS = (Goto, SetMode, Arm, Takeoff, SetServo, RcOverride, SetUpAutopilotSafety)
 
 
 @dataclass(slots=True)
@@ -1052,27 +1047,45 @@ class DryRun:
         del later[:done]
 
     def _route(self, sim_agent: SimAgent, commands: Sequence[Command], t_s: float) -> None:
+        """Carry out an agent's commands through :data:`_ROUTES`, one per command type.
+
+        Raises:
+            UnknownCommandError: A command type the dry run has no route for (an engine
+                bug: the real-time shell would carry it out, so it is never dropped here).
+        """
         for command in commands:
-            if isinstance(command, _AUTOPILOT_COMMANDS):
-                if sim_agent.adapter is not None:
-                    self._to_autopilot(sim_agent, sim_agent.adapter.command(command, t_s), t_s)
-            elif isinstance(command, SendPacket):
-                if sim_agent.name not in self.radio.agents:
-                    continue
-                # Positions only matter to radios with a range.
-                positions = self._positions if self._ranged else None
-                self.radio.send(sim_agent.name, command.data, command.destination, t_s, positions)
-            elif isinstance(command, PayloadCommand):
-                camera = sim_agent.cameras.get(command.payload)
-                if camera is not None:
-                    camera.command(command, t_s)
-                    self._cameras_changed = True
-            elif isinstance(command, CloseInterfaces):
-                sim_agent.closed = True
-                if sim_agent.adapter is not None:
-                    self._to_autopilot(sim_agent, sim_agent.adapter.close(t_s), t_s)
-                if sim_agent.name in self.radio.agents:
-                    self._silence(sim_agent.name, t_s)
+            route = _ROUTES.get(type(command))
+            if route is None:
+                raise unknown_command(command, "the dry run")
+            route(self, sim_agent, command, t_s)
+
+    def _route_autopilot(self, sim_agent: SimAgent, command: Any, t_s: float) -> None:
+        """To the agent's autopilot, through its adapter (none: a station)."""
+        if sim_agent.adapter is not None:
+            self._to_autopilot(sim_agent, sim_agent.adapter.command(command, t_s), t_s)
+
+    def _route_packet(self, sim_agent: SimAgent, command: Any, t_s: float) -> None:
+        """Onto the simulated radio mesh (an agent without a radio sends nothing)."""
+        if sim_agent.name not in self.radio.agents:
+            return
+        # Positions only matter to radios with a range.
+        positions = self._positions if self._ranged else None
+        self.radio.send(sim_agent.name, command.data, command.destination, t_s, positions)
+
+    def _route_payload(self, sim_agent: SimAgent, command: Any, t_s: float) -> None:
+        """To the simulated camera it names (a payload the agent lacks does nothing)."""
+        camera = sim_agent.cameras.get(command.payload)
+        if camera is not None:
+            camera.command(command, t_s)
+            self._cameras_changed = True
+
+    def _route_close(self, sim_agent: SimAgent, command: Any, t_s: float) -> None:
+        """Terminate: close the agent's autopilot link and silence its radio."""
+        sim_agent.closed = True
+        if sim_agent.adapter is not None:
+            self._to_autopilot(sim_agent, sim_agent.adapter.close(t_s), t_s)
+        if sim_agent.name in self.radio.agents:
+            self._silence(sim_agent.name, t_s)
 
     def _silence(self, name: str, t_s: float) -> None:
         """Silence an agent's radio from ``t_s`` on."""
@@ -1088,6 +1101,17 @@ class DryRun:
     def _to_autopilot(self, sim_agent: SimAgent, data: bytes, t_s: float) -> None:
         if data and sim_agent.backend is not None and sim_agent.link_up(t_s):
             sim_agent.backend.send(data, t_s)
+
+
+#: The dry run's dispatch: command type -> how it is carried out. Checked against every
+#: command type when this module loads, so none can be added without a route here.
+_ROUTES: dict[type, Callable[[DryRun, SimAgent, Any, float], None]] = {
+    **dict.fromkeys(AUTOPILOT_COMMANDS, DryRun._route_autopilot),
+    SendPacket: DryRun._route_packet,
+    PayloadCommand: DryRun._route_payload,
+    CloseInterfaces: DryRun._route_close,
+}
+check_dispatch(_ROUTES, "the dry run")
 
 
 def _drain(backends: Sequence[SitlBackend]) -> None:

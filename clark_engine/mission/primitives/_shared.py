@@ -24,8 +24,11 @@ from clark_engine.mission.schema_source.common import (
     Schema,
     altitude_m,
     distance_m,
+    integer,
     number,
+    obj,
     position_m,
+    resolved_point,
     speed_m_s,
     string,
 )
@@ -80,6 +83,42 @@ CHANNEL_SCHEMA: Schema = string(
     "Name of a control channel (aileron, elevator, rudder, throttle, roll, pitch, yaw, "
     "steering, ...), resolved through the agent's hardware profile.",
     pattern=NAME_PATTERN,
+)
+
+# The compiled forms of the parameters the compiler resolves (PrimitiveSpec.compiled):
+# what a compiled agent config holds in place of a point, a channel name or an agent name.
+
+#: A point in both frames (the compiler's ``_point``).
+RESOLVED_POINT_SCHEMA: Schema = resolved_point()
+
+
+def resolved_channel_schema() -> Schema:
+    """A channel as the compiler resolves it: its name and the profile's channel entry.
+
+    The hardware-profile schema's own entry, every field present. A function: that
+    schema's module takes a while to import, and only the schema generator needs this.
+    """
+    from clark_engine.mission.schema_source.hardware_profile import CHANNEL_SCHEMA
+
+    return {
+        **CHANNEL_SCHEMA,
+        "description": "A control channel resolved through the agent's hardware profile.",
+        "properties": {
+            "name": string("The channel's name.", pattern=NAME_PATTERN),
+            **CHANNEL_SCHEMA["properties"],
+        },
+        "required": ["name", *CHANNEL_SCHEMA["properties"]],
+    }
+
+
+#: Another agent of the mission, by name and by id (the peer table holds both).
+RESOLVED_AGENT_SCHEMA: Schema = obj(
+    "Another agent of the mission: its name and its id (one of the config's peers).",
+    {
+        "name": string("The agent's name.", pattern=NAME_PATTERN),
+        "id": integer("The agent's id.", minimum=1, maximum=65535),
+    },
+    required=["name", "id"],
 )
 
 VIA_SCHEMA: Schema = string(

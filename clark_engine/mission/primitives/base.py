@@ -61,6 +61,12 @@ class PrimitiveSpec:
             it finishes; nothing when it runs until something else moves on).
         needs_autopilot: Only vehicles may use it (the station has no autopilot).
         check: Pre-flight checks that need the mission and the agent's hardware.
+        compiled: The parameters the compiler writes in another form than the mission
+            does (points in both frames, a channel as its resolved map, an agent as
+            ``{name, id}``): returns parameter name -> JSON Schema of its compiled form.
+            The other parameters are compiled as written, defaults filled in. A
+            function, called only when the agent-config schema is generated: validating
+            a mission never pays for building these.
     """
 
     name: str
@@ -69,6 +75,20 @@ class PrimitiveSpec:
     events: EventsFn
     needs_autopilot: bool = True
     check: CheckFn = field(default=_no_checks)
+    compiled: Callable[[], Mapping[str, Schema]] = field(default=dict)
+
+    def config_params(self) -> Schema:
+        """JSON Schema of the parameters as a compiled agent config holds them.
+
+        The mission's own parameter schema (:attr:`params`, the one definition of the
+        primitive's parameters) with the parameters the compiler resolves replaced by
+        their compiled form (:attr:`compiled`). Loading a config validates every state's
+        parameters against it, so a hand-edited or version-skewed config is refused
+        before the first tick rather than when the state is entered.
+        """
+        properties = dict(self.params.get("properties", {}))
+        properties.update(self.compiled())
+        return {**self.params, "properties": properties}
 
     def with_defaults(self, given: Mapping[str, Any]) -> dict[str, Any]:
         """The parameters with every declared default filled in, in declared order."""

@@ -24,6 +24,7 @@ from clark_engine.mission.findings import Finding, error, warning
 from clark_engine.mission.model import Agent
 from clark_engine.mission.primitives._shared import (
     AGENT_NAME_SCHEMA,
+    RESOLVED_AGENT_SCHEMA,
     TOLERANCE_SCHEMA,
     check_agents_exist,
 )
@@ -256,6 +257,7 @@ SPEC = PrimitiveSpec(
         },
         required=["target"],
     ),
+    compiled=lambda: {"target": RESOLVED_AGENT_SCHEMA},
     events=_events,
     check=_check,
 )

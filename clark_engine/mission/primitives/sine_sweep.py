@@ -18,6 +18,7 @@ from clark_engine.mission.primitives._shared import (
     CHANNEL_SCHEMA,
     VIA_SCHEMA,
     check_channel_swing,
+    resolved_channel_schema,
 )
 from clark_engine.mission.primitives.base import PrimitiveSpec, UseContext, raises_done
 from clark_engine.mission.schema_source.common import number, obj, string, time_s
@@ -104,6 +105,7 @@ SPEC = PrimitiveSpec(
         },
         required=["channel", "amplitude_us", "f_start_hz", "f_stop_hz", "duration_s"],
     ),
+    compiled=lambda: {"channel": resolved_channel_schema()},
     events=raises_done,
     check=_check,
 )

@@ -11,6 +11,7 @@ from collections.abc import Iterator
 from clark_engine.mission.findings import Finding
 from clark_engine.mission.primitives._shared import (
     POINT_SCHEMA,
+    RESOLVED_POINT_SCHEMA,
     SPEED_SCHEMA,
     TOLERANCE_SCHEMA,
     check_orbit_tolerance,
@@ -39,6 +40,7 @@ SPEC = PrimitiveSpec(
         },
         required=["to"],
     ),
+    compiled=lambda: {"to": RESOLVED_POINT_SCHEMA},
     events=raises_done,
     check=_check,
 )

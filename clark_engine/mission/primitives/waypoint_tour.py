@@ -13,6 +13,7 @@ from typing import Any
 from clark_engine.mission.findings import Finding
 from clark_engine.mission.primitives._shared import (
     POINT_SCHEMA,
+    RESOLVED_POINT_SCHEMA,
     SPEED_SCHEMA,
     TOLERANCE_SCHEMA,
     check_orbit_tolerance,
@@ -35,19 +36,22 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
     yield from check_orbit_tolerance(ctx)
 
 
+_WAYPOINTS = array("The positions to visit, in order.", POINT_SCHEMA, min_items=1)
+
 SPEC = PrimitiveSpec(
     name="waypoint_tour",
     summary="Visit waypoints in order (optionally forever); done at the last one unless loop.",
     params=obj(
         "Parameters of waypoint_tour.",
         {
-            "waypoints": array("The positions to visit, in order.", POINT_SCHEMA, min_items=1),
+            "waypoints": _WAYPOINTS,
             "loop": boolean("Start again at the first waypoint after the last.", default=False),
             "tolerance_m": TOLERANCE_SCHEMA,
             "speed_m_s": SPEED_SCHEMA,
         },
         required=["waypoints"],
     ),
+    compiled=lambda: {"waypoints": {**_WAYPOINTS, "items": RESOLVED_POINT_SCHEMA}},
     events=_events,
     check=_check,
 )

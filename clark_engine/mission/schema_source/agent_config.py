@@ -14,7 +14,9 @@ from clark_engine.mission.model import (
     COMPUTER_LOST_ACTIONS,
     COMPUTER_LOST_RANGE_S,
     TELEMETRY_MESSAGES,
+    TICK_PHASES,
 )
+from clark_engine.mission.primitives import PRIMITIVES
 from clark_engine.mission.schema_source.common import (
     DIALECT,
     NAME_PATTERN,
@@ -24,9 +26,11 @@ from clark_engine.mission.schema_source.common import (
     integer,
     number,
     obj,
+    resolved_point,
     schema_id,
     string,
 )
+from clark_engine.mission.schema_source.states import condition_schema
 
 _NULLABLE_STRING: Schema = {"type": ["string", "null"]}
 
@@ -35,19 +39,7 @@ def _nullable(schema: Schema) -> Schema:
     return {"anyOf": [{"type": "null"}, schema], "description": schema.get("description", "")}
 
 
-def _point() -> Schema:
-    return obj(
-        "A position in both frames.",
-        {
-            "north_m": number("Metres north of the origin.", unit="m"),
-            "east_m": number("Metres east of the origin.", unit="m"),
-            "up_m": number("Metres above the origin.", unit="m"),
-            "lat": number("Latitude.", unit="deg", minimum=-90, maximum=90),
-            "lon": number("Longitude.", unit="deg", minimum=-180, maximum=180),
-            "alt_m": number("Metres above the origin's altitude.", unit="m"),
-        },
-        required=["north_m", "east_m", "up_m", "lat", "lon", "alt_m"],
-    )
+_point = resolved_point
 
 
 def _zone() -> Schema:
@@ -165,12 +157,13 @@ def _state() -> Schema:
         {
             "event": string("Event that triggers it."),
             "target": string("Dotted path of the target state from the root."),
-            "when": {"type": ["object", "null"], "description": "Structured condition, or null."},
+            "when": _nullable({"$ref": "#/$defs/condition"})
+            | {"description": "Structured condition (the mission's), or null."},
             "source": string("Where it was written (file:line:column)."),
         },
         required=["event", "target", "when", "source"],
     )
-    return obj(
+    state = obj(
         "A resolved state: blocks expanded, defaults applied, names resolved.",
         {
             "name": string("State name; empty at the root."),
@@ -179,11 +172,17 @@ def _state() -> Schema:
                 "What the state is.", enum=["primitive", "machine", "parallel", "final", "empty"]
             ),
             "description": _NULLABLE_STRING | {"description": "The author's note."},
-            "primitive": _NULLABLE_STRING | {"description": "Primitive the state runs."},
+            "primitive": {
+                "enum": [None, *PRIMITIVES],
+                "description": "Primitive the state runs (null for none): "
+                + ", ".join(PRIMITIVES)
+                + ".",
+            },
             "params": {
                 "type": "object",
                 "description": "Primitive parameters: defaults applied, points in both frames, "
-                "channels as their resolved map, agents as {name, id}.",
+                "channels as their resolved map, agents as {name, id}; checked against the "
+                "primitive's own parameters (params_<primitive>).",
             },
             "block": _NULLABLE_STRING | {"description": "Block the state came from."},
             "initial": _NULLABLE_STRING | {"description": "First child of a machine."},
@@ -217,6 +216,14 @@ def _state() -> Schema:
             "states",
         ],
     )
+    state["allOf"] = [
+        {
+            "if": {"properties": {"primitive": {"const": name}}},
+            "then": {"properties": {"params": {"$ref": f"#/$defs/params_{name}"}}},
+        }
+        for name in PRIMITIVES
+    ]
+    return state
 
 
 def build() -> dict[str, Any]:
@@ -290,10 +297,12 @@ def build() -> dict[str, Any]:
                         "mission file; copy it beside the config. Never the key itself."
                     },
                     "tick_phases": array(
-                        "Order of the phases of one tick.",
-                        string(
-                            "A phase.", enum=["timeouts", "machine", "commands", "telemetry", "log"]
-                        ),
+                        "Order of the phases of one tick: each phase exactly once (without "
+                        "timeouts no timeout or failsafe would ever fire).",
+                        string("A phase.", enum=list(TICK_PHASES)),
+                        min_items=len(TICK_PHASES),
+                        max_items=len(TICK_PHASES),
+                        unique=True,
                     ),
                     "log": obj(
                         "Log level and file names (thesis 2.4.1-2.4.4, 7.3.6).",
@@ -487,5 +496,10 @@ def build() -> dict[str, Any]:
             | {"description": "This vehicle's safety envelope; null for a station."},
             "machine": _nullable({"$ref": "#/$defs/state"}),
         },
-        "$defs": {"state": _state(), "envelope": _envelope()},
+        "$defs": {
+            "state": _state(),
+            "envelope": _envelope(),
+            "condition": condition_schema(),
+            **{f"params_{name}": spec.config_params() for name, spec in PRIMITIVES.items()},
+        },
     }

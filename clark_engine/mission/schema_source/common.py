@@ -312,12 +312,41 @@ def obj(
 
 
 def array(
-    description: str, items: Schema, *, min_items: int | None = None, unique: bool = False
+    description: str,
+    items: Schema,
+    *,
+    min_items: int | None = None,
+    max_items: int | None = None,
+    unique: bool = False,
 ) -> Schema:
     """A list whose items all follow ``items`` (each only once with ``unique``)."""
     out: Schema = {"type": "array", "description": description, "items": items}
     if min_items is not None:
         out["minItems"] = min_items
+    if max_items is not None:
+        out["maxItems"] = max_items
     if unique:
         out["uniqueItems"] = True
     return out
+
+
+def resolved_point() -> Schema:
+    """A position as a compiled config writes it: in both frames, every field present.
+
+    The one definition of a compiled point: the agent-config schema uses it for homes,
+    fence corners and agents' positions, and the primitives for the points the compiler
+    resolves in their parameters (:attr:`PrimitiveSpec.compiled
+    <clark_engine.mission.primitives.base.PrimitiveSpec.compiled>`).
+    """
+    return obj(
+        "A position in both frames.",
+        {
+            "north_m": number("Metres north of the origin.", unit="m"),
+            "east_m": number("Metres east of the origin.", unit="m"),
+            "up_m": number("Metres above the origin.", unit="m"),
+            "lat": number("Latitude.", unit="deg", minimum=-90, maximum=90),
+            "lon": number("Longitude.", unit="deg", minimum=-180, maximum=180),
+            "alt_m": number("Metres above the origin's altitude.", unit="m"),
+        },
+        required=["north_m", "east_m", "up_m", "lat", "lon", "alt_m"],
+    )

@@ -6,7 +6,8 @@ waypoint of it and put Slash B in guided mode; this primitive does the same and
 keeps moving the waypoint as the target moves.
 
 - The target's position is its latest Agent Status in the fleet table
-  (``ctx.peer_status``, which peeks and leaves the new-data flag to others). The
+  (``ctx.peer_status_by_id``, read by the id the compiled config gives, which peeks
+  and leaves the new-data flag to others). The
   goal is that position moved by ``offset`` north/east (``offset_position``) and
   ``offset.up_m`` above the target's altitude.
 - ``start``: SetMode(guided), as for :mod:`.waypoint`, and a Goto to the goal at
@@ -50,6 +51,7 @@ class FollowAgent(Primitive):
 
     Attributes:
         target_name: The agent followed.
+        target_id: Its id: the fleet table is read by id (loading proved it is a peer's).
         offset_north_m: Metres north of the target.
         offset_east_m: Metres east of the target.
         offset_up_m: Metres above the target.
@@ -63,7 +65,8 @@ class FollowAgent(Primitive):
     def __init__(self, params: Mapping[str, Any]) -> None:
         super().__init__(params)
         target = params["target"]
-        self.target_name = str(target["name"] if isinstance(target, Mapping) else target)
+        self.target_name = str(target["name"])
+        self.target_id = int(target["id"])
         offset = params.get("offset") or {}
         self.offset_north_m = float(offset.get("north_m", 0.0))
         self.offset_east_m = float(offset.get("east_m", 0.0))
@@ -105,13 +108,13 @@ class FollowAgent(Primitive):
         self._schedule = Schedule(self.retarget_period_s)
         self._leg.begin(ctx)
         if not self._leg.failed:
-            self._retarget(ctx, ctx.peer_status(self.target_name))
+            self._retarget(ctx, ctx.peer_status_by_id(self.target_id))
 
     def update(self, ctx: PrimitiveContext) -> Status:
         """DONE at the goal unless continuous; otherwise re-target when due."""
         if self._leg.failed:
             return Status.FAILED
-        status = ctx.peer_status(self.target_name)
+        status = ctx.peer_status_by_id(self.target_id)
         if status is not None and not self.continuous:
             remaining_m = distance_m(ctx, self.goal(status), three_d=self._three_d)
             if remaining_m is not None and remaining_m <= self.tolerance_m:
