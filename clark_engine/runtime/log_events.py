@@ -434,3 +434,20 @@ def events_table() -> str:
             f"{spec.fields or '-'} |"
         )
     return "\n".join(rows) + "\n"
+
+
+def _write_docs(path: str = "docs/logs.md") -> int:
+    """Replace the events table between its markers in docs/logs.md (run from the root)."""
+    from pathlib import Path
+
+    doc = Path(path)
+    text = doc.read_text(encoding="utf-8")
+    begin, end = "<!-- events: begin -->\n", "<!-- events: end -->"
+    head, rest = text.split(begin, 1)
+    _, tail = rest.split(end, 1)
+    doc.write_text(head + begin + events_table() + end + tail, encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(_write_docs())
