@@ -33,9 +33,12 @@ def _module_loggers(tree: ast.Module) -> set[str]:
     """Names a module binds at its top level to ``logging.getLogger(...)``."""
     names = set()
     for node in tree.body:
-        if isinstance(node, ast.Assign) and isinstance(node.value, ast.Call):
-            if ast.unparse(node.value.func) == "logging.getLogger":
-                names |= {t.id for t in node.targets if isinstance(t, ast.Name)}
+        if (
+            isinstance(node, ast.Assign)
+            and isinstance(node.value, ast.Call)
+            and ast.unparse(node.value.func) == "logging.getLogger"
+        ):
+            names |= {t.id for t in node.targets if isinstance(t, ast.Name)}
     return names
 
 
