@@ -47,13 +47,13 @@ HEADER = ["now_s", *FleetTable.csv_header()]
 GPS_EPOCH_MS = 1_451_260_818_000
 
 
-def _line(t_s: float, level: str, where: str, message: str) -> str:
-    return f"t={t_s:.3f} gps_ms={GPS_EPOCH_MS + round(1000 * t_s)} {level} {where}: {message}\n"
+def _line(t_s: float, level: str, event: str, message: str) -> str:
+    return f"t={t_s:.3f} gps_ms={GPS_EPOCH_MS + round(1000 * t_s)} {level} {event}: {message}\n"
 
 
 def _header_line(agent: str, agent_id: int, role: str) -> str:
     return (
-        f"t=0.000 gps_ms=- INFO logbook.__init__: logbook opened: clark_engine=0.1.0 "
+        f"t=0.000 gps_ms=- INFO log.open: logbook opened: clark_engine=0.1.0 "
         f"mission=bench mission_id=7 agent={agent} agent_id={agent_id} role={role} "
         "loop_hz=10.0 period_s=0.1 level=INFO\n"
     )
@@ -104,7 +104,7 @@ def write_logs(
     with (folder / "mcs.mission.log").open("w", encoding="utf-8") as stream:
         stream.write(_header_line("mcs", 1, "mcs"))
         for k in range(int(duration_s / 3)):
-            stream.write(_line(3.0 * k, "INFO", "runtime._fleet_events", f"note {k}"))
+            stream.write(_line(3.0 * k, "INFO", "fleet.found", f"note {k}"))
     for k, name in enumerate(names):
         with (folder / f"{name}.mission.log").open("w", encoding="utf-8") as stream:
             stream.write(_header_line(name, k + 2, "vehicle"))
@@ -115,7 +115,7 @@ def write_logs(
                     _line(
                         10.0 * j + 0.1 * k,
                         "INFO",
-                        "runtime._on_change",
+                        "behavior.change",
                         f"toggle: {state} -> {target} (active: {target})",
                     )
                 )

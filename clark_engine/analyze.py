@@ -1,7 +1,9 @@
 """``clark analyze``: the thesis's message latency tables from a folder of message logs.
 
 Each agent writes ``<agent>.messages.csv`` (see :mod:`clark_engine.runtime.logbook`
-and docs/logs.md). This module reads every one in a folder and reports, per link
+and docs/logs.md). This module reads every one in a run's folder (found by the
+readers' one rule, :func:`clark_engine.log_folder.find_log_files`: the folder, its
+``logs/`` folder and their sub-folders) and reports, per link
 (sender -> receiver, sorted by sender then receiver):
 
 - **latency** as in the thesis's Tables 5.3-5.5: how many messages, mean,
@@ -41,13 +43,14 @@ import math
 import re
 import statistics
 from collections import defaultdict
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Final, TextIO
 
 from clark_engine.errors import ClarkError, UsageError
 from clark_engine.link.messages import MESSAGE_NAMES, PictureData
+from clark_engine.log_folder import find_log_files
 from clark_engine.runtime.logbook import BROADCAST_PEER, DIRECTIONS, MESSAGE_LOG_COLUMNS
 
 MESSAGE_LOG_SUFFIX = ".messages.csv"
@@ -355,15 +358,15 @@ def _mission_log_period(path: Path) -> float | None:
 
 
 def _period(
-    folder: Path, agents: Iterable[str], period_s: float | None
+    mission_logs: Mapping[str, Path], period_s: float | None
 ) -> tuple[float | None, str | None, str | None]:
     """The sample period, where it came from, and why there is none when there is none."""
     if period_s is not None:
         return period_s, "--period-s", None
     found = {
         agent: p
-        for agent in agents
-        if (p := _mission_log_period(folder / f"{agent}{MISSION_LOG_SUFFIX}")) is not None
+        for agent, path in sorted(mission_logs.items())
+        if (p := _mission_log_period(path)) is not None
     }
     values = sorted(set(found.values()))
     if len(values) == 1:
@@ -431,25 +434,6 @@ def summarize(
     return tuple(pairs), mean_of_means, sum_of_means, deviation_s
 
 
-def _hint(folder: Path) -> str:
-    """What to give instead of a folder without message logs.
-
-    A folder inside that has them (a dry-run report keeps its logs in ``logs/``), or
-    else where agents write them.
-    """
-    try:
-        inside = sorted(
-            sub
-            for sub in folder.iterdir()
-            if sub.is_dir() and any(p.name.endswith(MESSAGE_LOG_SUFFIX) for p in sub.iterdir())
-        )
-    except OSError:
-        inside = []
-    if inside:
-        return f"did you mean {inside[0]}? (e.g. clark analyze {inside[0]})"
-    return "give the folder the agents wrote their logs to (a dry-run report's logs/)"
-
-
 CLOCKS_APART_S: Final = 60.0
 """A link whose median latency is larger than this (either way) is between two clocks, not
 a radio: no radio holds a packet for a minute. The agents stamped their logs on different
@@ -492,27 +476,20 @@ def analyze_folder(folder: Path, period_s: float | None = None) -> Analysis:
         UsageError: The folder does not exist, is not a folder, or a file cannot be read.
         AnalyzeError: No message log in it could be read.
     """
-    if not folder.exists():
-        raise UsageError(f"{folder}: no such folder")
-    if not folder.is_dir():
-        raise UsageError(f"{folder}: not a folder; give the folder the agents logged to")
     if period_s is not None and not (math.isfinite(period_s) and period_s > 0):
         raise UsageError(f"the sample period must be a positive number of seconds, not {period_s}")
     problems: list[Problem] = []
-    logs: dict[str, list[_Row]] = {}
-    paths = sorted(p for p in folder.iterdir() if p.name.endswith(MESSAGE_LOG_SUFFIX))
+    notes: list[str] = []
+    found = find_log_files(folder, notes)
+    paths = {a: files["message_log"] for a, files in found.items() if "message_log" in files}
     if not paths:
         raise AnalyzeError(
-            f"{folder}: no message logs (<agent>{MESSAGE_LOG_SUFFIX}); {_hint(folder)}"
+            f"{folder}: no message logs (<agent>{MESSAGE_LOG_SUFFIX}) in it, in its logs/ "
+            "folder or in their sub-folders; give the folder the agents wrote their logs to"
         )
-    for path in paths:
-        agent = path.name.removesuffix(MESSAGE_LOG_SUFFIX)
-        if not agent:
-            problems.append(Problem(str(path), None, "no agent name before .messages.csv"))
-            continue
-        if not path.is_file():
-            problems.append(Problem(str(path), None, "not a file"))
-            continue
+    problems += [Problem(str(folder), None, note) for note in notes]
+    logs: dict[str, list[_Row]] = {}
+    for agent, path in sorted(paths.items()):
         rows = _read_log(path, problems)
         if rows is not None:
             logs[agent] = rows
@@ -549,7 +526,12 @@ def analyze_folder(folder: Path, period_s: float | None = None) -> Analysis:
         _link_report(sender, receiver, tally, logged)
         for (sender, receiver), tally in sorted(tallies.items())
     )
-    period, source, note = _period(folder, sorted(logged), period_s)
+    mission_logs = {
+        agent: files["mission_log"]
+        for agent, files in found.items()
+        if agent in logged and "mission_log" in files
+    }
+    period, source, note = _period(mission_logs, period_s)
     pairs, mean_of_means, sum_of_means, deviation = summarize(links, period)
     return Analysis(
         folder=str(folder),

@@ -32,7 +32,7 @@ How (each agent's four files, named by its compiled config: ``<agent>.mission.lo
   (every arrival of any vehicle), each holding its latest position; before a
   vehicle's first position its samples are NaN, which no distance can pass on.
 - **States** come from each agent's mission log lines
-  ``runtime._on_change: EVENT: SOURCE -> TARGET (active: A, B)``. The line does not
+  ``behavior.change: EVENT: SOURCE -> TARGET (active: A, B)``. The line does not
   say which states the change entered; they are rebuilt as
   :class:`~clark_engine.runtime.machine.BehaviorMachine` enters them
   (:func:`entered_states`): the target and every state active under it afterwards
@@ -40,11 +40,11 @@ How (each agent's four files, named by its compiled config: ``<agent>.mission.lo
   active descendant), and every state active afterwards that was not before.
   ``failed`` enters nothing.
 - **Why a state was not reached**: the last ``launch: the behaviour waits for ...``
-  line of ``launch.update`` (mission log) before the behaviour started, for an agent
+  line (``launch.wait``, mission log) before the behaviour started, for an agent
   whose behaviour never did; the ``state`` and ``sequence`` checks quote it.
 - **Safety events**, as the dry run records them: the first ``failsafe ACTION`` line
-  of ``runtime._apply_failsafe`` (mission log; ``continue`` is no failsafe) and the
-  first ``autopilot silent ...: lost`` line (interface log).
+  (``failsafe.act``, mission log; ``continue`` is no failsafe) and the first
+  ``autopilot silent ...: lost`` line (``autopilot.lost``, interface log).
 - **Photos** are the Picture Data an agent sent (its message log's ``sent`` rows of
   ``picture_data``, one per picture however many destinations it went to) plus the
   pictures its mission log says were taken before any position (none sent), at the
@@ -57,6 +57,11 @@ How (each agent's four files, named by its compiled config: ``<agent>.mission.lo
   no check passes on missing data. ``altitude_m`` and ``ends_at`` read the tracks
   (the altitude is Agent Status's ``alt_m``, above the origin), as ``reached`` does.
 - ``end_s`` is the latest mission time in any of the logs.
+
+Lines are told apart by the event they name (docs/logs.md, "Events"), never by the code
+that wrote them; logs written before events named ``module.function`` instead, and the
+names the readers need are read as their events
+(:data:`~clark_engine.runtime.log_events.LEGACY_NAMES`).
 
 A row or line that cannot be read is a warning with its file and line, and is
 skipped; the rest is still evaluated.
@@ -77,27 +82,21 @@ from typing import Any, Final, TextIO
 
 from clark_engine.analyze import Problem, csv_rows, open_log
 from clark_engine.errors import ClarkError, UsageError
+from clark_engine.log_folder import LOG_FILES, find_log_files
 from clark_engine.mission.geo import Origin, to_local
 from clark_engine.mission.model import Mission
 from clark_engine.runtime.config import AgentConfig
+from clark_engine.runtime.log_events import LogEvent, event_of
 from clark_engine.runtime.logbook import MESSAGE_LOG_COLUMNS
 from clark_engine.sim.checks import CheckResult, evaluate
 from clark_engine.sim.recording import Photo, Recording, StateEntry, Track
 from clark_engine.untrusted import printable
 
-#: The four files of an agent: config key -> the default suffix after the agent's name.
-LOG_FILES: Final = {
-    "mission_log": ".mission.log",
-    "interface_log": ".interface.log",
-    "fleet_csv": ".fleet.csv",
-    "message_log": ".messages.csv",
-}
-
 #: A text log line (:data:`clark_engine.runtime.logbook.LINE_FORMAT`).
 _LINE: Final = re.compile(
-    r"t=(?P<t>\S+) gps_ms=(?P<gps>\S+) (?P<level>[A-Z]+) (?P<where>[^\s:]+): (?P<message>.*)"
+    r"t=(?P<t>\S+) gps_ms=(?P<gps>\S+) (?P<level>[A-Z]+) (?P<event>[^\s:]+): (?P<message>.*)"
 )
-#: ``runtime._on_change``'s message: ``EVENT: SOURCE -> TARGET (active: A, B)``.
+#: ``behavior.change``'s message: ``EVENT: SOURCE -> TARGET (active: A, B)``.
 _CHANGE: Final = re.compile(
     r"(?P<event>.+?): (?P<source>\S+) -> (?P<target>\S+) \(active: (?P<active>.*)\)"
 )
@@ -139,7 +138,9 @@ class TextLine:
     t_s: float
     gps_ms: int | None
     level: str
-    where: str
+    event: str
+    """The event the line names (:class:`~clark_engine.runtime.log_events.LogEvent`'s
+    value), a legacy ``module.function`` already read as its event."""
     message: str
 
 
@@ -297,7 +298,7 @@ def text_lines(path: Path, problems: list[Problem]) -> Iterator[TextLine]:
                 match = _LINE.fullmatch(text)
                 if match is None:
                     problems.append(
-                        Problem(name, number, "not a log line (t=... gps_ms=... LEVEL where: ...)")
+                        Problem(name, number, "not a log line (t=... gps_ms=... LEVEL event: ...)")
                     )
                     continue
                 gps = match["gps"]
@@ -314,7 +315,9 @@ def text_lines(path: Path, problems: list[Problem]) -> Iterator[TextLine]:
                 if level not in _LEVELS:
                     problems.append(Problem(name, number, f"level {level!r} is not a log level"))
                     continue
-                yield TextLine(number, t_s, gps_ms, level, match["where"], match["message"])
+                yield TextLine(
+                    number, t_s, gps_ms, level, event_of(match["event"]), match["message"]
+                )
         except OSError as exc:
             raise UsageError(f"{path}: cannot read it ({exc.strerror or exc})") from None
 
@@ -335,9 +338,10 @@ def read_mission_log(path: Path, logs: AgentLogs, problems: list[Problem]) -> No
         if line.gps_ms is not None:
             logs.offsets_ms.append(line.gps_ms - 1000 * line.t_s)
         message = line.message
-        if line.where == "logbook.__init__" and message.startswith(_HEADER):
+        event = line.event
+        if event == LogEvent.LOG_OPEN and message.startswith(_HEADER):
             logs.header = _header(message)
-        elif line.where == "runtime._on_change":
+        elif event == LogEvent.BEHAVIOR_CHANGE:
             match = _CHANGE.fullmatch(message)
             if match is None:
                 problems.append(
@@ -350,13 +354,13 @@ def read_mission_log(path: Path, logs: AgentLogs, problems: list[Problem]) -> No
             source = "" if match["source"] == "(start)" else match["source"]
             target = "" if match["target"] == "(behavior)" else match["target"]
             logs.changes.append((line.t_s, match["event"], source, target, active))
-        elif line.where == "runtime._apply_failsafe" and logs.failsafe is None:
+        elif event == LogEvent.FAILSAFE_ACT and logs.failsafe is None:
             found = _FAILSAFE.fullmatch(message)
             if found is not None and found["action"] != "continue":
                 logs.failsafe = (line.t_s, found["action"])
-        elif line.where.startswith("photo_trigger.") and _NO_POSITION_PICTURE.match(message):
+        elif event == LogEvent.PHOTO_NO_POSITION and _NO_POSITION_PICTURE.match(message):
             logs.pictures_s.append(line.t_s)
-        elif line.where == "launch.update":
+        elif event in (LogEvent.LAUNCH_WAIT, LogEvent.LAUNCH_START):
             if message.startswith(_LAUNCH_WAITS):
                 logs.waiting = printable(message.removeprefix(_LAUNCH_WAITS), 400)
             elif _LAUNCH_STARTS.fullmatch(message):
@@ -375,7 +379,7 @@ def read_interface_log(path: Path, logs: AgentLogs, problems: list[Problem]) -> 
             logs.offsets_ms.append(line.gps_ms - 1000 * line.t_s)
         if (
             logs.autopilot_lost_s is None
-            and line.where == "runtime._timeouts"
+            and line.event == LogEvent.AUTOPILOT_LOST
             and _AUTOPILOT_LOST.match(line.message)
         ):
             logs.autopilot_lost_s = line.t_s
@@ -713,44 +717,26 @@ def _find_logs(
 ) -> dict[str, AgentLogs]:
     """The mission's agents with at least one log in ``folder``, and their files.
 
+    Found by the readers' one rule (:func:`clark_engine.log_folder.find_log_files`): in
+    ``folder``, its ``logs/`` folder and their sub-folders; the agents in the mission's
+    order.
+
     Raises:
         UsageError: The folder does not exist, is not a folder, or cannot be listed.
         LogChecksError: It holds no log of any agent of the mission.
     """
-    if not folder.exists():
-        raise UsageError(f"{folder}: no such folder")
-    if not folder.is_dir():
-        raise UsageError(f"{folder}: not a folder; give the folder the agents logged to")
-    agents: dict[str, AgentLogs] = {}
-    known_files: set[str] = set()
-    for name, config in configs.items():
-        logs = AgentLogs(name)
-        for key, file_name in file_names(config).items():
-            known_files.add(file_name)
-            path = folder / file_name
-            if path.is_file():
-                logs.files[key] = path
-        if logs.files:
-            agents[name] = logs
-    try:
-        strangers = sorted(
-            p.name
-            for p in folder.iterdir()
-            if p.name.endswith(tuple(LOG_FILES.values())) and p.name not in known_files
-        )
-    except OSError as exc:
-        raise UsageError(f"{folder}: cannot list it ({exc.strerror or exc})") from None
+    names = {name: file_names(config) for name, config in configs.items()}
+    found = find_log_files(folder, notes, names)
+    agents = {name: AgentLogs(name, files=dict(found[name])) for name in configs if found.get(name)}
+    strangers = sorted(
+        path.name for name, files in found.items() if name not in configs for path in files.values()
+    )
     if not agents:
-        inside = folder / "logs"
-        hint = (
-            f"; did you mean {inside}? (a dry-run report keeps its logs there)"
-            if inside.is_dir() and any(inside.glob("*.mission.log"))
-            else ""
-        )
-        found = f" (it holds {', '.join(strangers[:5])})" if strangers else ""
+        shown = f" (it holds {', '.join(strangers[:5])})" if strangers else ""
         raise LogChecksError(
             f"{folder}: no log of any agent of mission {mission.name} "
-            f"({', '.join(sorted(configs))}){found}{hint}"
+            f"({', '.join(sorted(configs))}){shown}; looked in it, its logs/ folder and "
+            "their sub-folders"
         )
     if strangers:
         notes.append(

@@ -289,9 +289,9 @@ def test_a_failed_primitive_enters_nothing() -> None:
 # -- 2. clocks: each agent's time mapped onto the station's through GPS time -------------
 
 
-def header(agent: str, role: str) -> str:
+def header(agent: str, role: str, event: str = "log.open") -> str:
     return (
-        f"t=0.000 gps_ms=- INFO logbook.__init__: logbook opened: clark_engine=0.1.0 "
+        f"t=0.000 gps_ms=- INFO {event}: logbook opened: clark_engine=0.1.0 "
         f"mission=cooperative-follow mission_id=521 agent={agent} agent_id=1 role={role} "
         "loop_hz=10.0 period_s=0.1 level=INFO"
     )
@@ -323,18 +323,35 @@ ORIGIN = mission_at(COOPERATIVE).origin
 STATION_MS, SLASH_A_MS, SLASH_B_MS = 0, -3_000, 12_500  # GPS time at each one's t=0
 
 
-CHANGE = "runtime._on_change"
+#: The events the fixture's lines name, and what logs written before events named them
+#: (``module.function``, docs/logs.md "Compatibility").
+EVENTS = {
+    "open": ("log.open", "logbook.__init__"),
+    "change": ("behavior.change", "runtime._on_change"),
+    "found": ("fleet.found", "runtime._fleet_events"),
+    "command": ("station.command", "runtime._station_command"),
+    "wait": ("launch.wait", "launch.update"),
+}
 
 
 def write_run(
-    folder: Path, *, station: bool = True, gps: bool = True, station_shift_ms: int = 0
+    folder: Path,
+    *,
+    station: bool = True,
+    gps: bool = True,
+    station_shift_ms: int = 0,
+    legacy: bool = False,
 ) -> Path:
     """Logs of cooperative_follow with three clocks: slash_a starts 3 s before the station,
-    slash_b 12.5 s after it. The station sees slash_a only; slash_a sees slash_b."""
+    slash_b 12.5 s after it. The station sees slash_a only; slash_a sees slash_b.
+    ``legacy``: lines name ``module.function`` as logs before events did."""
     folder.mkdir(exist_ok=True)
+    name = {key: pair[legacy] for key, pair in EVENTS.items()}
+    change = name["change"]
 
     def log(agent: str, role: str, *lines: str) -> None:
-        (folder / f"{agent}.mission.log").write_text("\n".join([header(agent, role), *lines]))
+        first = header(agent, role, name["open"])
+        (folder / f"{agent}.mission.log").write_text("\n".join([first, *lines]))
 
     def off(ms: int) -> int | None:
         return ms if gps else None
@@ -344,11 +361,11 @@ def write_run(
         log(
             "mcs",
             "mcs",
-            line(0.5, off(STATION_MS + station_shift_ms), "runtime._fleet_events", "found slash_a"),
+            line(0.5, off(STATION_MS + station_shift_ms), name["found"], "found slash_a"),
             line(
                 30.0,
                 off(STATION_MS + station_shift_ms),
-                "runtime._station_command",
+                name["command"],
                 "operator: activate slash_b",
             ),
         )
@@ -359,18 +376,18 @@ def write_run(
             status(2.0, "slash_a", 10, 0, 0.2),
         ]
         (folder / "mcs.fleet.csv").write_text(fleet_csv(rows))
-    log("slash_a", "vehicle", line(1.0, a, CHANGE, "start: (start) -> (behavior) (active: )"))
+    log("slash_a", "vehicle", line(1.0, a, change, "start: (start) -> (behavior) (active: )"))
     rows = [status(5.0, "slash_b", -15, -10, 0.5), status(6.0, "slash_b", -5, -5, 0.1)]
     (folder / "slash_a.fleet.csv").write_text(fleet_csv(rows))
     log(
         "slash_b",
         "vehicle",
-        line(0.04, None, "launch.update", "launch: the behaviour waits for the pilot to arm it"),
-        line(5.0, b, CHANGE, "start: (start) -> (behavior) (active: idle)"),
-        line(17.6, b, CHANGE, "activate: idle -> chase (active: chase)"),
-        line(40.0, b, CHANGE, "done: chase -> parked (active: parked)"),
+        line(0.04, None, name["wait"], "launch: the behaviour waits for the pilot to arm it"),
+        line(5.0, b, change, "start: (start) -> (behavior) (active: idle)"),
+        line(17.6, b, change, "activate: idle -> chase (active: chase)"),
+        line(40.0, b, change, "done: chase -> parked (active: parked)"),
         # a GPS time far off (a clock step): the median offset ignores it
-        line(41.0, off(SLASH_B_MS + 60_000), "runtime._fleet_events", "lost slash_a (silent 3 s)"),
+        line(41.0, off(SLASH_B_MS + 60_000), name["found"], "lost slash_a (silent 3 s)"),
     )
     return folder
 
@@ -404,6 +421,19 @@ def test_every_clock_is_mapped_onto_the_stations_through_gps_time(tmp_path: Path
     assert b[-1][1:3] == pytest.approx((-5.0, -5.0), abs=0.01)
     assert any("slash_b: positions from slash_a's fleet table" in n for n in run.notes)
     assert run.recording.end_s == pytest.approx(53.5)  # slash_b's last line, 41 + 12.5
+
+
+def test_logs_written_before_events_are_read_alike(tmp_path: Path) -> None:
+    """Lines naming ``module.function`` (clark_engine before events) rebuild the same run."""
+    mission = mission_at(COOPERATIVE)
+    new = check_folder(write_run(tmp_path / "new"), mission).run
+    old = check_folder(write_run(tmp_path / "old", legacy=True), mission).run
+    assert old.recording.states == new.recording.states
+    assert old.recording.waiting == new.recording.waiting
+    assert {n: a.header for n, a in old.agents.items()} == {
+        n: a.header for n, a in new.agents.items()
+    }
+    assert not old.problems
 
 
 def test_a_station_on_another_time_base_is_not_aligned_by_it(tmp_path: Path) -> None:
@@ -484,11 +514,11 @@ def test_a_folder_without_the_missions_logs_says_so(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     (tmp_path / "logs").mkdir()
-    (tmp_path / "logs" / "mcs.mission.log").write_text(header("mcs", "mcs") + "\n")
+    (tmp_path / "logs" / "rover.mission.log").write_text(header("rover", "vehicle") + "\n")
     code, _, err = analyze(capsys, str(tmp_path), "--checks", str(COOPERATIVE), "-q")
     assert code == 1
     assert "no log of any agent of mission cooperative-follow (mcs, slash_a, slash_b)" in err
-    assert f"did you mean {tmp_path / 'logs'}?" in err
+    assert "(it holds rover.mission.log); looked in it, its logs/ folder" in err
 
 
 def test_logs_of_another_mission_are_refused(

@@ -79,6 +79,6 @@ def test_a_follow_whose_leader_leaves_the_field_stays_inside_it(tmp_path: Path) 
     log = (tmp_path / "report" / "logs" / "copter.mission.log").read_text(encoding="utf-8")
     first = [line for line in log.splitlines() if "envelope: Goto clamped (fence)" in line]
     assert len(first) == 1, first  # once per episode, not once per Goto
-    closing = [line for line in log.splitlines() if "runtime._envelope_summary" in line]
+    closing = [line for line in log.splitlines() if "envelope.summary" in line]
     assert len(closing) == 1 and "clamped (fence " in closing[0], closing
     assert "no breach acted on" in closing[0]

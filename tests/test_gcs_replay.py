@@ -270,7 +270,7 @@ def _fleet_row(now_s: str, name: str, agent_id: int, **values: str) -> list[str]
 
 
 HEADER_LINE = (
-    "t=0.000 gps_ms=1400000000000 INFO logbook.__init__: logbook opened: clark_engine=0.1.0 "
+    "t=0.000 gps_ms=1400000000000 INFO log.open: logbook opened: clark_engine=0.1.0 "
     "mission=hand mission_id=9 agent={agent} agent_id={id} role={role} loop_hz=10.0 "
     "period_s=0.1 level=INFO\n"
 )
@@ -295,7 +295,7 @@ def _hostile_folder(folder: Path) -> Path:
         csv.writer(stream).writerows(rows)
     (folder / "mcs.mission.log").write_text(
         HEADER_LINE.format(agent="mcs", id=1, role="mcs")
-        + "t=1.000 gps_ms=1400000001000 INFO runtime._fleet_events: found rover\n"
+        + "t=1.000 gps_ms=1400000001000 INFO fleet.found: found rover\n"
         + "t=2.000 gps_ms=1400000002000 WARNING runtime.x: evil \x1b[2J <script>alert(1)</script>\n"
         + "garbage that is no log line\n"
         + "t=oops gps_ms=- INFO a.b: not a time\n"
@@ -306,7 +306,7 @@ def _hostile_folder(folder: Path) -> Path:
     )
     (folder / "rover.mission.log").write_text(
         HEADER_LINE.format(agent="rover", id=2, role="vehicle")
-        + "t=2.500 gps_ms=1400000002500 INFO runtime._on_change: activate: idle -> chase "
+        + "t=2.500 gps_ms=1400000002500 INFO behavior.change: activate: idle -> chase "
         "(active: chase)\n",
         encoding="utf-8",
     )

@@ -333,7 +333,7 @@ def test_a_failed_set_up_keeps_the_behaviour_from_starting_and_names_the_paramet
     assert setups(later) == []  # not asked again: the parameter will not take by itself
     assert runtime.launch.waiting_for == (f"the autopilot's safety set-up ({problem})",)
     log = mission_log(runtime)
-    assert f"ERROR runtime._safety_result: the autopilot's safety set-up failed: {problem}" in log
+    assert f"ERROR safety.setup: the autopilot's safety set-up failed: {problem}" in log
     assert f"waits for the autopilot's safety set-up ({problem})" in log
 
 

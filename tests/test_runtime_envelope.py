@@ -608,7 +608,7 @@ def test_clamps_are_logged_once_per_episode_and_summed_up(tmp_path: Path) -> Non
     assert lines(log, "envelope: 3 Gotos clamped (fence)") == []  # not over yet
     flight.runtime.logbook.close()  # as a dry run's end or a shell's stop closes it
     log = flight.mission_log()
-    (closing,) = lines(log, "runtime._envelope_summary")
+    (closing,) = lines(log, "envelope.summary")
     assert closing.endswith(
         "envelope: 18 targets checked, 13 clamped (ceiling 10, fence 3), 0 refused; "
         "no breach acted on"
@@ -643,11 +643,11 @@ def test_a_fence_breach_returns_the_copter_home_once(tmp_path: Path) -> None:
     out = _leave(flight, (55.0, 0, 30), (60.0, 0, 130), (60.0, 0, 130))
     assert of(out, SetMode) == [] and of(out, Goto) == []
     log = flight.mission_log()
-    (line,) = lines(log, "ERROR runtime._watch: envelope breach: fence:")
+    (line,) = lines(log, "ERROR envelope.breach: envelope breach: fence:")
     assert line.endswith(
         "envelope breach: fence: 1.0 m outside the geofence at north 51.0 m, east 0.0 m: rtl"
     )
-    assert lines(log, "ERROR runtime._apply_failsafe: failsafe rtl")  # clark analyze reads it
+    assert lines(log, "ERROR failsafe.act: failsafe rtl")  # clark analyze reads it
     (later,) = lines(log, "envelope breach: ceiling:")
     assert later.endswith(": rtl not applied (the failsafe rtl holds; a failsafe is applied once)")
 
@@ -662,7 +662,7 @@ def test_two_breaches_in_one_tick_apply_the_first_kinds_action(tmp_path: Path) -
     breach = flight.runtime.breach
     assert breach is not None and breach.kind == "fence"
     log = lines(flight.mission_log(), "envelope breach:")
-    assert [line.split("runtime._watch: ")[1].split(":")[1] for line in log] == [
+    assert [line.split("envelope.breach: ")[1].split(":")[1] for line in log] == [
         " fence",
         " ceiling",
     ]

@@ -22,6 +22,7 @@ from clark_engine.link.packet import Packet
 from clark_engine.mission.compiler import compile_mission
 from clark_engine.mission.validate import validate_path
 from clark_engine.runtime.config import AgentConfig, config_from_dict
+from clark_engine.runtime.log_events import LogEvent
 from clark_engine.runtime.logbook import (
     MESSAGE_LOG_COLUMNS,
     Logbook,
@@ -56,11 +57,11 @@ def lines(stream: object) -> list[str]:
 
 def log_a_tick(logbook: Logbook) -> None:
     logbook.set_time(12.3, GPS_MS + 45)
-    logbook.mission.info("entered state %s", "survey")
+    logbook.mission.info("entered state %s", "survey", extra=LogEvent.BEHAVIOR_CHANGE.extra)
 
 
 def warn_through_a_helper(logbook: Logbook) -> None:
-    logbook.interface.warning("radio quiet", stacklevel=2)  # names the caller
+    logbook.interface.warning("radio quiet", extra=LogEvent.RADIO_LINK.extra)
 
 
 def the_caller(logbook: Logbook) -> None:
@@ -70,20 +71,39 @@ def the_caller(logbook: Logbook) -> None:
 # ------------------------------------------------------------------ lines
 
 
-def test_line_has_runtime_time_gps_level_module_and_function() -> None:
+def test_line_has_runtime_time_gps_level_and_event() -> None:
     logbook = Logbook.in_memory(config())
     log_a_tick(logbook)
     assert lines(logbook.streams.mission)[-1] == (
-        f"t=12.300 gps_ms={GPS_MS + 45} INFO test_runtime_logbook.log_a_tick: entered state survey"
+        f"t=12.300 gps_ms={GPS_MS + 45} INFO behavior.change: entered state survey"
     )
 
 
-def test_gps_time_unknown_is_a_dash_and_stacklevel_names_the_real_caller() -> None:
+def test_a_line_names_its_event_not_the_code_that_logged_it() -> None:
+    """Moving or renaming the logging function changes no byte (docs/logs.md)."""
+    logbook = Logbook.in_memory(config())
+    log_a_tick(logbook)
+
+    def renamed_elsewhere(book: Logbook) -> None:
+        book.mission.info("entered state %s", "survey", extra=LogEvent.BEHAVIOR_CHANGE.extra)
+
+    renamed_elsewhere(logbook)
+    first, second = lines(logbook.streams.mission)[-2:]
+    assert first == second
+
+
+def test_a_call_without_an_event_says_undeclared() -> None:
+    logbook = Logbook.in_memory(config())
+    logbook.mission.info("no event")
+    assert lines(logbook.streams.mission)[-1] == "t=0.000 gps_ms=- INFO undeclared: no event"
+
+
+def test_gps_time_unknown_is_a_dash() -> None:
     logbook = Logbook.in_memory(config())
     logbook.set_time(0.05, None)
     the_caller(logbook)
     assert lines(logbook.streams.interface)[-1] == (
-        "t=0.050 gps_ms=- WARNING test_runtime_logbook.the_caller: radio quiet"
+        "t=0.050 gps_ms=- WARNING radio.link: radio quiet"
     )
 
 
@@ -92,7 +112,7 @@ def test_header_line_comes_first_whatever_the_level() -> None:
     log_a_tick(logbook)  # INFO: below ERROR
     for stream in (logbook.streams.mission, logbook.streams.interface):
         (only,) = lines(stream)
-        assert only.startswith("t=0.000 gps_ms=- INFO logbook.__init__: logbook opened: ")
+        assert only.startswith("t=0.000 gps_ms=- INFO log.open: logbook opened: ")
         assert "mission=cooperative-follow mission_id=521 agent=mcs agent_id=1" in only
         assert " loop_hz=10.0 period_s=0.1 level=ERROR" in only
 

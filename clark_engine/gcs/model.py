@@ -54,6 +54,7 @@ from clark_engine.mission.geo import Origin, parse_point, to_local
 from clark_engine.runtime.command_delivery import took_effect
 from clark_engine.runtime.config import AgentConfig, EnvelopeSpec, StateSpec
 from clark_engine.runtime.events import StationCommand
+from clark_engine.runtime.log_events import RECORD_ATTRIBUTE, UNDECLARED, LogEvent
 from clark_engine.runtime.logbook import line_safe
 from clark_engine.runtime.runtime import AgentRuntime
 
@@ -354,8 +355,8 @@ class LogLine:
         level: ``INFO``, ``WARNING``...
         text: The message, escaped (no control character) and at most
             :data:`MAX_LOG_TEXT_CHARS` long.
-        func: The function that logged it (not sent to the page; used to tell the
-            runtime's answer to a command).
+        event: The event it records (:mod:`clark_engine.runtime.log_events`; not sent
+            to the page; used to tell the runtime's answer to a command).
         levelno: The numeric level (not sent).
     """
 
@@ -363,7 +364,7 @@ class LogLine:
     now_s: float
     level: str
     text: str
-    func: str
+    event: str
     levelno: int
 
     def to_json(self) -> Json:
@@ -415,7 +416,7 @@ class MissionLogBuffer(logging.Handler):
                 float(getattr(record, "clark_now_s", 0.0)),
                 record.levelname,
                 line_safe(text, MAX_LOG_TEXT_CHARS),
-                record.funcName or "",
+                str(getattr(record, RECORD_ATTRIBUTE, UNDECLARED)),
                 record.levelno,
             )
         )
@@ -812,7 +813,13 @@ class StationView:
         for change in changes:
             alarm = change.alarm
             if change.raised:
-                logbook.mission.warning("ALARM %d %s: %s", alarm.id, alarm.kind, alarm.text)
+                logbook.mission.warning(
+                    "ALARM %d %s: %s",
+                    alarm.id,
+                    alarm.kind,
+                    alarm.text,
+                    extra=LogEvent.ALARM_RAISED.extra,
+                )
                 continue
             lasted_s = (alarm.cleared_s or alarm.raised_s) - alarm.raised_s
             worst = ""
@@ -828,6 +835,7 @@ class StationView:
                 alarm.kind + (f" {alarm.what}" if alarm.what else ""),
                 " and ".join(alarm.agents),
                 worst,
+                extra=LogEvent.ALARM_CLEARED.extra,
             )
 
     def _track_point(self, record: AgentRecord, sample: Sample[AgentStatus]) -> None:
@@ -963,7 +971,12 @@ class StationView:
         what = f"{request.action} {target_text}" + (f" {request.mode}" if request.mode else "")
         if not runtime.logbook.closed:
             runtime.logbook.mission.info(
-                "view command %d from %s at %s: %s", request.id, who, request.address, what
+                "view command %d from %s at %s: %s",
+                request.id,
+                who,
+                request.address,
+                what,
+                extra=LogEvent.VIEW_COMMAND.extra,
             )
         command = _Command(request, now_s, "pending", targets=self._targets(request))
         self._commands.append(command)
@@ -974,7 +987,7 @@ class StationView:
         deliver(StationCommand(request.action, request.target, request.mode))
         if self.log is not None:
             for line in self.log.since(mark):
-                if line.func == "_station_command" and line.levelno >= logging.WARNING:
+                if line.event == LogEvent.STATION_COMMAND and line.levelno >= logging.WARNING:
                     return self._refuse(command, f"the station's runtime: {line.text}", now_s)
         # A terminate of the whole fleet: the station's runtime keeps listening until every
         # agent confirms (or falls silent), then terminates itself; followed like the rest.
@@ -1027,7 +1040,10 @@ class StationView:
                 target.status = "refused"
         if not self.runtime.logbook.closed:
             self.runtime.logbook.mission.warning(
-                "view command %d refused: %s", command.request.id, reason
+                "view command %d refused: %s",
+                command.request.id,
+                reason,
+                extra=LogEvent.VIEW_COMMAND.extra,
             )
         return command.to_json()
 
@@ -1070,7 +1086,10 @@ class StationView:
             )
             if not self.runtime.logbook.closed:
                 self.runtime.logbook.mission.warning(
-                    "view command %d unanswered: %s", command.request.id, command.detail
+                    "view command %d unanswered: %s",
+                    command.request.id,
+                    command.detail,
+                    extra=LogEvent.VIEW_COMMAND.extra,
                 )
 
     def commands(self) -> list[Json]:

@@ -48,6 +48,7 @@ from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.model import Mission
 from clark_engine.runtime.config import AgentConfig, config_from_dict
 from clark_engine.runtime.events import StationCommand
+from clark_engine.runtime.log_events import LogEvent
 from clark_engine.runtime.runtime import AgentRuntime
 from clark_engine.sim.checks import CheckResult, evaluate
 from clark_engine.sim.engine import DryRun, SimAgent
@@ -290,7 +291,8 @@ class RehearsalHost:
             if not logbook.closed:
                 logbook.mission.warning(
                     "view command not sent: the station agent is not running (killed by a "
-                    "fault, or terminated)"
+                    "fault, or terminated)",
+                    extra=LogEvent.VIEW_COMMAND.extra,
                 )
 
     def detach(self) -> None:
@@ -369,7 +371,9 @@ class Rehearsal:
             link.errors += 1
             logbook = link.host.runtime.logbook
             if not logbook.closed and link.errors == 1:
-                logbook.interface.error("station view: checks failed: %r", exc)
+                logbook.interface.error(
+                    "station view: checks failed: %r", exc, extra=LogEvent.VIEW_FAILED.extra
+                )
 
     def finish(self, results: Sequence[CheckResult], end_s: float) -> None:
         """The run is over: its verdicts to the checks pane, the last state to the page."""

@@ -20,7 +20,7 @@ What comes from where (each agent's four files, docs/logs.md, "The files"):
   agent's fleet table saw it (the one with the most rows of it). Between two rows the
   ages grow with ``t``, as they did on the station.
 - **Behaviour** (active states and the event that led there) comes from the vehicle's
-  own mission log (``runtime._on_change`` lines): the fleet CSV does not log Behavior
+  own mission log (``behavior.change`` lines, docs/logs.md): the fleet CSV does not log Behavior
   State; its age is the time since the change.
 - **Tracks**: one point per Agent Status arrival in the rows used (as the live view
   draws one per Agent Status received).
@@ -52,8 +52,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
 
+from clark_engine import log_folder
 from clark_engine.analyze import Problem
-from clark_engine.errors import ClarkError, UsageError
+from clark_engine.errors import ClarkError
 from clark_engine.gcs.alarms import CLEARED_SHOWN_S, Alarm, AlarmWatch, failsafe_words
 from clark_engine.gcs.model import (
     MAX_LOG_LINES,
@@ -75,10 +76,10 @@ from clark_engine.link.messages import (
     VehicleHealth,
 )
 from clark_engine.log_checks import (
-    LOG_FILES,
     AgentLogs,
     LogChecksError,
     align_clocks,
+    file_names,
     fleet_csv,
     judge,
     read_interface_log,
@@ -112,7 +113,7 @@ MAX_NAME_CHARS: Final = 64
 MAX_AGENTS: Final = 256
 """Most agents a replay shows; the logs of more are ignored (with a warning)."""
 
-MAX_SUBFOLDERS: Final = 256
+MAX_SUBFOLDERS: Final = log_folder.MAX_SUBFOLDERS
 """Most sub-folders searched for agents' logs."""
 
 MAX_FLEET_ROWS: Final = 5_000_000
@@ -220,61 +221,22 @@ MAX_ALARMS: Final = 10_000
 # -- finding the files -----------------------------------------------------------------------
 
 
-def find_log_files(folder: Path, notes: list[str]) -> dict[str, dict[str, Path]]:
-    """Agent -> config key (``mission_log``...) -> its file, wherever the run left them.
+def find_log_files(
+    folder: Path, notes: list[str], names: Mapping[str, Mapping[str, str]] | None = None
+) -> dict[str, dict[str, Path]]:
+    """Agent -> config key (``mission_log``...) -> its file, by the readers' one rule.
 
-    Looked for in ``folder`` itself (a ``clark run``'s folder, where several agents can
-    log side by side), in its ``logs`` folder (a dry-run report), and in their
-    sub-folders (the agents' folders, gathered from several machines). An agent's file
-    found twice is taken from the first place (the order above) and noted.
+    :func:`clark_engine.log_folder.find_log_files`: in ``folder`` itself (a ``clark
+    run``'s folder), in its ``logs`` folder (a dry-run report), and in their sub-folders
+    (the agents' folders, gathered from several machines); at most :data:`MAX_AGENTS`.
 
     Raises:
         UsageError: The folder does not exist, is not a folder, or cannot be listed (2).
         ReplayError: It holds no agent's log (1).
     """
-    if not folder.exists():
-        raise UsageError(f"{folder}: no such folder")
-    if not folder.is_dir():
-        raise UsageError(f"{folder}: not a folder; give the folder the agents logged to")
-    places = [folder]
-    if (folder / "logs").is_dir():
-        places.append(folder / "logs")
-    subfolders: list[Path] = []
-    for place in list(places):
-        try:
-            subfolders += sorted(p for p in place.iterdir() if p.is_dir() and p.name != "logs")
-        except OSError as exc:
-            raise UsageError(f"{place}: cannot list it ({exc.strerror or exc})") from None
-    if len(subfolders) > MAX_SUBFOLDERS:
-        notes.append(f"{folder}: only the first {MAX_SUBFOLDERS} sub-folders were searched")
-    places += subfolders[:MAX_SUBFOLDERS]
-    found: dict[str, dict[str, Path]] = {}
-    twice: list[str] = []
-    for place in places:
-        try:
-            entries = sorted(place.iterdir())
-        except OSError as exc:
-            raise UsageError(f"{place}: cannot list it ({exc.strerror or exc})") from None
-        for path in entries:
-            for key, suffix in LOG_FILES.items():
-                if not path.name.endswith(suffix) or not path.is_file():
-                    continue
-                agent = _name(path.name[: -len(suffix)])
-                if not agent:
-                    continue
-                files = found.setdefault(agent, {})
-                if key in files:
-                    twice.append(f"{path} (using {files[key]})")
-                else:
-                    files[key] = path
-    if twice:
-        notes.append("found twice: " + "; ".join(twice[:5]) + (" ..." if len(twice) > 5 else ""))
+    found = log_folder.find_log_files(folder, notes, names)
     if not found:
-        raise ReplayError(
-            f"{folder}: no agent's log in it (files named <agent>.mission.log, "
-            "<agent>.interface.log, <agent>.fleet.csv or <agent>.messages.csv, in it, in "
-            "its logs/ folder or in their sub-folders)"
-        )
+        raise ReplayError(f"{folder}: {log_folder.NO_LOGS}")
     if len(found) > MAX_AGENTS:
         notes.append(f"{folder}: logs of {len(found)} agents; only the first {MAX_AGENTS} shown")
         found = dict(sorted(found.items())[:MAX_AGENTS])
@@ -1070,8 +1032,9 @@ def load_replay(
     """
     load = ReplayLoad(mission_source=mission_source)
     problems, notes = load.problems, load.notes
-    files = find_log_files(folder, notes)
     configs = _configs(mission) if mission is not None else {}
+    names = {name: file_names(config) for name, config in configs.items()}
+    files = find_log_files(folder, notes, names)
     if mission is not None:
         strangers = sorted(set(files) - set(configs))
         if strangers:

@@ -51,6 +51,7 @@ from clark_engine.gcs.server import (
 )
 from clark_engine.runtime.config import AgentConfig, load_config
 from clark_engine.runtime.events import StationCommand
+from clark_engine.runtime.log_events import LogEvent
 from clark_engine.runtime.runtime import AgentRuntime
 
 DEFAULT_UPDATE_HZ: Final = 5.0
@@ -330,7 +331,9 @@ class StationViewLink:
         logbook = self.host.runtime.logbook
         if kind not in self._reported and not logbook.closed:
             self._reported.add(kind)
-            logbook.interface.error("station view: %s failed: %r", where, exc)
+            logbook.interface.error(
+                "station view: %s failed: %r", where, exc, extra=LogEvent.VIEW_FAILED.extra
+            )
 
     def _on_tick(self, host: object, now_s: float) -> None:
         try:

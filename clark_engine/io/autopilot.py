@@ -101,6 +101,7 @@ from clark_engine.runtime.events import (
     RcChannels,
     VehicleState,
 )
+from clark_engine.runtime.log_events import LogEvent
 from clark_engine.untrusted import printable
 
 GPS_EPOCH_UNIX_MS: Final = 315_964_800_000
@@ -710,7 +711,10 @@ class AutopilotAdapter:
             if self._setup_due:
                 self._queue_setup(now_s)
             elif now_s - max(self._setup_s, last_position_s) >= STREAM_SILENCE_S:
-                self._log.info("autopilot sends no position; asking for the streams again")
+                self._log.info(
+                    "autopilot sends no position; asking for the streams again",
+                    extra=LogEvent.AUTOPILOT_STREAMS.extra,
+                )
                 self._queue_setup(now_s)
             elif now_s - self._rate_check_s >= STREAM_RATE_CHECK_S - 1e-9:
                 self._check_stream_rate(now_s)
@@ -829,6 +833,7 @@ class AutopilotAdapter:
                     number,
                     cmd.custom_mode,
                     number,
+                    extra=LogEvent.AUTOPILOT_MODE.extra,
                 )
             self._command_long(
                 mavlink2.MAV_CMD_DO_SET_MODE,
@@ -940,9 +945,16 @@ class AutopilotAdapter:
     def _safety_start(self, cmd: SetUpAutopilotSafety, now_s: float) -> None:
         """Start a safety set-up; one under way is dropped (the runtime asks once at a time)."""
         if self._safety is not None:
-            self._log.warning("a new safety set-up replaces the one under way")
+            self._log.warning(
+                "a new safety set-up replaces the one under way",
+                extra=LogEvent.AUTOPILOT_SAFETY.extra,
+            )
             self._param_answers.clear()
-        self._log.info("safety set-up: %s", cmd.summary or "(no summary)")
+        self._log.info(
+            "safety set-up: %s",
+            cmd.summary or "(no summary)",
+            extra=LogEvent.AUTOPILOT_SAFETY.extra,
+        )
         self._safety = SafetySetup(cmd, self, self._safety_over)
         self._safety.start(now_s)
 
@@ -956,9 +968,15 @@ class AutopilotAdapter:
             )
             self._on_close = tuple(close.items())
         if result.ok:
-            self._log.info("safety set-up: every parameter took")
+            self._log.info(
+                "safety set-up: every parameter took", extra=LogEvent.AUTOPILOT_SAFETY.extra
+            )
         else:
-            self._log.error("safety set-up failed: %s", printable(result.problem))
+            self._log.error(
+                "safety set-up failed: %s",
+                printable(result.problem),
+                extra=LogEvent.AUTOPILOT_SAFETY.extra,
+            )
         self._late_events.append(result)
 
     def _safety_close(self, now_s: float) -> None:
@@ -970,7 +988,9 @@ class AutopilotAdapter:
         (:attr:`unanswered`); one that may not has sent it once.
         """
         for name, value in self._on_close:
-            self._log.info("leaving on purpose: %s = %g", name, value)
+            self._log.info(
+                "leaving on purpose: %s = %g", name, value, extra=LogEvent.AUTOPILOT_SAFETY.extra
+            )
             self._param_set(name, value, now_s, lambda _result, _at_s: None)
         self.left_on_purpose = tuple(name for name, _value in self._on_close)
         self._on_close = ()
@@ -1032,7 +1052,7 @@ class AutopilotAdapter:
 
     def setup_note(self, text: str) -> None:
         """A line of the safety set-up for the interface log."""
-        self._log.info("safety set-up: %s", text)
+        self._log.info("safety set-up: %s", text, extra=LogEvent.AUTOPILOT_SAFETY.extra)
 
     @property
     def own_system_id(self) -> int:
@@ -1077,7 +1097,9 @@ class AutopilotAdapter:
         try:
             messages = self._parser.parse_buffer(data) or []
         except Exception:  # a link is untrusted input; a parser bug must not stop the flight
-            self._log.exception("MAVLink parser failed; dropping its buffer")
+            self._log.exception(
+                "MAVLink parser failed; dropping its buffer", extra=LogEvent.AUTOPILOT_PARSER.extra
+            )
             self.bad_frames += 1
             self._parser = self._new_parser()
             messages = []
@@ -1151,6 +1173,7 @@ class AutopilotAdapter:
                     "autopilot %d answers: ArduPilot %s",
                     self.settings.system_id,
                     self.flight_sw_version,
+                    extra=LogEvent.AUTOPILOT_FOUND.extra,
                 )
         if kind in self._wanted:
             self._wanted.discard(kind)
@@ -1170,7 +1193,13 @@ class AutopilotAdapter:
             if severity <= mavlink2.MAV_SEVERITY_INFO
             else logging.DEBUG
         )
-        self._log.log(level, "autopilot %d says: %s", self.settings.system_id, shown)
+        self._log.log(
+            level,
+            "autopilot %d says: %s",
+            self.settings.system_id,
+            shown,
+            extra=LogEvent.AUTOPILOT_TEXT.extra,
+        )
         return AutopilotText(severity, text)
 
     def _on_status(self, kind: str, msg: Any) -> AutopilotStatus | None:
@@ -1199,12 +1228,17 @@ class AutopilotAdapter:
         self._status = new
         if new.ready != old.ready or new.waiting_for != old.waiting_for:
             if new.ready:
-                self._log.info("autopilot %d is ready", self.settings.system_id)
+                self._log.info(
+                    "autopilot %d is ready",
+                    self.settings.system_id,
+                    extra=LogEvent.AUTOPILOT_READINESS.extra,
+                )
             else:
                 self._log.info(
                     "autopilot %d waits for %s",
                     self.settings.system_id,
                     ", ".join(new.waiting_for),
+                    extra=LogEvent.AUTOPILOT_READINESS.extra,
                 )
         return new
 
@@ -1277,7 +1311,12 @@ class AutopilotAdapter:
                 )
         if problem != self._problem:
             if problem is not None:
-                self._log.error("autopilot %d: %s", self.settings.system_id, problem)
+                self._log.error(
+                    "autopilot %d: %s",
+                    self.settings.system_id,
+                    problem,
+                    extra=LogEvent.AUTOPILOT_IDENTITY.extra,
+                )
             self._problem = problem
 
     def _check_boot(self, time_boot_ms: int) -> None:
@@ -1295,7 +1334,12 @@ class AutopilotAdapter:
         is not sent again, and RC overrides are released at once, so the channels are
         the pilot's until the behaviour overrides them anew.
         """
-        self._log.warning("autopilot %d %s; setting it up again", self.settings.system_id, why)
+        self._log.warning(
+            "autopilot %d %s; setting it up again",
+            self.settings.system_id,
+            why,
+            extra=LogEvent.AUTOPILOT_BACK.extra,
+        )
         stale = [r for r in self._requests if not r.setup]
         if stale:
             self._requests = [r for r in self._requests if r.setup]
@@ -1303,6 +1347,7 @@ class AutopilotAdapter:
                 "autopilot %d: not sent again after the silence: %s",
                 self.settings.system_id,
                 ", ".join(r.request for r in stale),
+                extra=LogEvent.AUTOPILOT_BACK.extra,
             )
         self._speed_wanted = None
         self._targeted = False
@@ -1311,6 +1356,7 @@ class AutopilotAdapter:
                 "autopilot %d: RC override of channel(s) %s released to the pilot",
                 self.settings.system_id,
                 ", ".join(str(c) for c in sorted(self._overrides)),
+                extra=LogEvent.AUTOPILOT_BACK.extra,
             )
             released = dict.fromkeys(self._overrides, 0)
             self._overrides.clear()
@@ -1452,6 +1498,7 @@ class AutopilotAdapter:
                 refusal.command,
                 refusal.result,
                 f": {reason}" if reason else "",
+                extra=LogEvent.AUTOPILOT_REFUSED.extra,
             )
             events.append(replace(refusal, reason=reason))
 
@@ -1537,6 +1584,7 @@ class AutopilotAdapter:
                 "asking for the streams again",
                 rate_hz,
                 asked_hz,
+                extra=LogEvent.AUTOPILOT_STREAMS.extra,
             )
             self._queue_setup(now_s)
 
@@ -1569,7 +1617,12 @@ class AutopilotAdapter:
         def answered(result: int | None, _now_s: float) -> None:
             if result != mavlink2.MAV_RESULT_ACCEPTED:
                 why = "no answer" if result is None else _result_name(result)
-                self._log.info("autopilot does not stream %s (%s)", name, why)
+                self._log.info(
+                    "autopilot does not stream %s (%s)",
+                    name,
+                    why,
+                    extra=LogEvent.AUTOPILOT_STREAMS.extra,
+                )
 
         return answered
 
@@ -1610,6 +1663,7 @@ class AutopilotAdapter:
                     request.request,
                     request.command,
                     request.attempts,
+                    extra=LogEvent.AUTOPILOT_UNANSWERED.extra,
                 )
                 if request.answered is not None:
                     request.answered(None, now_s)
@@ -1698,7 +1752,10 @@ class AutopilotAdapter:
         if self.settings.firmware == "arduplane":
             number = self.settings.modes.get("TAKEOFF")
             if number is None:
-                self._log.error("Takeoff: the autopilot profile has no TAKEOFF mode")
+                self._log.error(
+                    "Takeoff: the autopilot profile has no TAKEOFF mode",
+                    extra=LogEvent.AUTOPILOT_COMMAND.extra,
+                )
                 return
             self._param_set("TKOFF_ALT", round(above_home_m), now_s)
             self._command_long(
@@ -1780,6 +1837,7 @@ class AutopilotAdapter:
                 speed_m_s,
                 why,
                 SPEED_RETRY_S,
+                extra=LogEvent.AUTOPILOT_COMMAND.extra,
             )
         self._speed_retry_s = now_s + SPEED_RETRY_S
 
@@ -1791,6 +1849,7 @@ class AutopilotAdapter:
                     "RcOverride channel %d width %d us is outside MAVLink's range; ignored",
                     channel,
                     pwm_us,
+                    extra=LogEvent.AUTOPILOT_COMMAND.extra,
                 )
                 continue
             changes[channel] = pwm_us

@@ -49,6 +49,7 @@ from clark_engine.mission.primitives._shared import orbit_radius_m
 from clark_engine.runtime.commands import Goto, Takeoff
 from clark_engine.runtime.config import AgentConfig, EnvelopeSpec
 from clark_engine.runtime.events import VehicleState
+from clark_engine.runtime.log_events import LogEvent
 
 BREACH_CLEAR_M: Final = 1.0
 """How far back inside a limit a vehicle must be before a breach of it is over. A
@@ -719,7 +720,14 @@ class EnvelopeGuard:
         self.end_episode()
         self._episode = _Episode(key, now_s, now_s)
         what, outcome, reasons = key
-        self._log.warning("envelope: %s %s (%s): %s", what, outcome, ", ".join(reasons), note)
+        self._log.warning(
+            "envelope: %s %s (%s): %s",
+            what,
+            outcome,
+            ", ".join(reasons),
+            note,
+            extra=LogEvent.ENVELOPE_LIMIT.extra,
+        )
 
     def end_episode(self) -> None:
         """Write the summary of the episode under way, if it had more than its first."""
@@ -736,6 +744,7 @@ class EnvelopeGuard:
             episode.first_s,
             episode.last_s,
             episode.count - 1,
+            extra=LogEvent.ENVELOPE_LIMIT.extra,
         )
 
 

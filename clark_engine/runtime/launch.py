@@ -27,6 +27,7 @@ from typing import Final
 
 from clark_engine.runtime.config import AgentConfig
 from clark_engine.runtime.events import AutopilotStatus, LandedState, VehicleState
+from clark_engine.runtime.log_events import LogEvent
 
 AIRBORNE_ALT_M: Final = 2.0
 """Height above the origin that counts as flying when the autopilot gives no landed state."""
@@ -111,17 +112,26 @@ class LaunchGate:
                 if not launch.engine_arms
                 else "the engine arms it when the behaviour needs it"
             )
-            self._log.info("launch: the autopilot is ready; %s; the behaviour starts", how)
+            self._log.info(
+                "launch: the autopilot is ready; %s; the behaviour starts",
+                how,
+                extra=LogEvent.LAUNCH_START.extra,
+            )
             if self._config.is_vehicle and not self._config.safety_setup:
                 self._log.warning(
                     "launch: the autopilot's own fence and its reaction to a dead mission "
                     "computer are NOT set up (its profile says safety_setup: false): if this "
-                    "computer stops, the vehicle flies on to its last target"
+                    "computer stops, the vehicle flies on to its last target",
+                    extra=LogEvent.LAUNCH_UNPROTECTED.extra,
                 )
             return True
         if missing != self._waiting:
             self._waiting = missing
-            self._log.info("launch: the behaviour waits for %s", ", ".join(missing))
+            self._log.info(
+                "launch: the behaviour waits for %s",
+                ", ".join(missing),
+                extra=LogEvent.LAUNCH_WAIT.extra,
+            )
         return False
 
     def _missing(

@@ -6,9 +6,11 @@ One :class:`Logbook` per agent, owned by its runtime and never shared:
   **interface log** (2.4.1: low level, what the autopilot, radio and payloads
   do), through two standard :class:`logging.Logger` objects, :attr:`Logbook.mission`
   and :attr:`Logbook.interface`, at the level the mission sets (2.4.3). Each line
-  starts with the time, the module and the function (2.4.4)::
+  starts with the time, the level and the event it records (2.4.4 asked for the module
+  and the function; a stable event name serves the same reader and survives moving the
+  code, :mod:`clark_engine.runtime.log_events`)::
 
-      t=65.043 gps_ms=1451260883043 INFO runtime._on_change: activate: idle -> chase (active: chase)
+      t=65.043 gps_ms=1451260883043 INFO behavior.change: activate: idle -> chase (active: chase)
 
   The time is the *runtime's* clock (``now_s``, virtual in a dry run) and the
   GPS time when known, never the wall clock, so a dry run writes the same bytes
@@ -32,9 +34,10 @@ Decisions:
   ``%(name)s``. A shell that wants a copy of the lines (a console) adds a
   handler to :attr:`Logbook.mission` itself, or builds the logbook on its own
   streams.
-- **Call the loggers directly** (``logbook.mission.info(...)``): the line then
-  names the caller's module and function. The logbook has no wrapper methods
-  that would name themselves instead.
+- **Call the loggers directly, naming the event** (``logbook.mission.info("found %s",
+  name, extra=LogEvent.FLEET_FOUND.extra)``): they stay standard loggers that
+  primitives and adapters take as ``logging.Logger``. A call without an event writes
+  ``undeclared``; ``tests/test_log_events.py`` fails on such a call.
 - **Every line and every CSV row is written whole and flushed at once**, so a
   process that is killed leaves every completed line and row intact.
 - **The first line of each text log is a header**, written whatever the level:
@@ -76,6 +79,7 @@ from typing import Literal, TextIO
 from clark_engine import __version__
 from clark_engine.errors import ClarkError
 from clark_engine.runtime.config import AgentConfig
+from clark_engine.runtime.log_events import RECORD_ATTRIBUTE, UNDECLARED, LogEvent
 from clark_engine.untrusted import printable
 
 #: Longest text argument or CSV cell written as it is; a longer one is cut (``...``).
@@ -155,9 +159,11 @@ DIRECTIONS: tuple[str, ...] = ("sent", "received", "rejected")
 
 Direction = Literal["sent", "received", "rejected"]
 
-#: Format of every text log line; the ``clark_*`` fields come from the logbook's clock.
+#: Format of every text log line; the ``clark_*`` fields come from the logbook's clock and
+#: the event the call declared (:mod:`clark_engine.runtime.log_events`), never from where
+#: the code that logged it lives.
 LINE_FORMAT = (
-    "t=%(clark_now_s).3f gps_ms=%(clark_gps_ms)s %(levelname)s %(module)s.%(funcName)s: %(message)s"
+    "t=%(clark_now_s).3f gps_ms=%(clark_gps_ms)s %(levelname)s %(clark_event)s: %(message)s"
 )
 
 _LOG_KEYS = ("mission_log", "interface_log", "fleet_csv", "message_log")
@@ -228,6 +234,8 @@ class _Stamp(logging.Filter):
         record.clark_now_s = logbook.now_s
         gps_ms = logbook.gps_time_ms
         record.clark_gps_ms = "-" if gps_ms is None else gps_ms
+        if not hasattr(record, RECORD_ATTRIBUTE):
+            setattr(record, RECORD_ATTRIBUTE, UNDECLARED)
         args = record.args
         if args:
             if isinstance(args, tuple):
@@ -408,7 +416,15 @@ class Logbook:
             # the header is written whatever the level.
             logger.handle(
                 logger.makeRecord(
-                    logger.name, logging.INFO, __file__, 0, header, (), None, func="__init__"
+                    logger.name,
+                    logging.INFO,
+                    __file__,
+                    0,
+                    header,
+                    (),
+                    None,
+                    func="__init__",
+                    extra=LogEvent.LOG_OPEN.extra,
                 )
             )
         self._write(self.streams.messages, ",".join(MESSAGE_LOG_COLUMNS) + "\n")
@@ -733,6 +749,7 @@ class Logbook:
                     unlogged,
                     reasons,
                     senders,
+                    extra=LogEvent.AIR_SUMMARY.extra,
                 )
                 continue
             if not unlogged:
@@ -748,6 +765,7 @@ class Logbook:
                 tally.total,
                 f"; {reasons}" if reasons else "",
                 senders,
+                extra=LogEvent.AIR_SUMMARY.extra,
             )
         self.air_pending = False
         self._air = {}
@@ -779,7 +797,11 @@ class Logbook:
         if not self.from_air(now_s, "rejected", peer, size_bytes, reason):
             return
         self.interface.info(
-            "rejected %d bytes from %s: %s", size_bytes, peer or "(unreadable)", reason
+            "rejected %d bytes from %s: %s",
+            size_bytes,
+            peer or "(unreadable)",
+            reason,
+            extra=LogEvent.AIR_REJECTED.extra,
         )
         self.message(
             "rejected", now_s, gps_time_ms, peer, None, size_bytes, reason, None, None, detail

@@ -108,6 +108,7 @@ from clark_engine.runtime.events import (
     VehicleState,
 )
 from clark_engine.runtime.launch import LaunchGate, is_airborne
+from clark_engine.runtime.log_events import LogEvent
 from clark_engine.runtime.logbook import (
     AIR_LINES_PER_INTERVAL,
     AIR_SUMMARY_S,
@@ -300,7 +301,8 @@ class AgentRuntime:
         elif config.is_vehicle:
             self.logbook.mission.warning(
                 "no envelope in this config: targets are not checked and nothing is "
-                "watched; compile the mission again with clark compile"
+                "watched; compile the mission again with clark compile",
+                extra=LogEvent.AGENT_NO_ENVELOPE.extra,
             )
         self.failsafe_reason = ""
         #: When the behaviour may start (readiness, arming, take-off, as the mission says).
@@ -401,6 +403,7 @@ class AgentRuntime:
             config.mission_id,
             config.loop_hz,
             len(config.peers),
+            extra=LogEvent.AGENT_START.extra,
         )
 
     # -- time --------------------------------------------------------------------------
@@ -416,7 +419,9 @@ class AgentRuntime:
         except ReplayStoreError as exc:
             if not self._trim_failed:
                 self._trim_failed = True
-                self.logbook.interface.warning("replay marks not trimmed: %s", exc)
+                self.logbook.interface.warning(
+                    "replay marks not trimmed: %s", exc, extra=LogEvent.AGENT_REPLAY_MARKS.extra
+                )
         else:
             self._trim_failed = False
 
@@ -492,6 +497,7 @@ class AgentRuntime:
                 event.request,
                 event.result,
                 f" ({event.reason})" if event.reason else "",
+                extra=LogEvent.AUTOPILOT_REFUSED.extra,
             )
         elif isinstance(event, PayloadEvent):
             if self.machine is not None and self._started:
@@ -535,6 +541,7 @@ class AgentRuntime:
         self.logbook.interface.warning(
             "autopilot heard again; commanding it again (nothing of the silent time is sent%s)",
             f"; failsafe {self.failsafe}: {unsent.mode}" if unsent is not None else "",
+            extra=LogEvent.AUTOPILOT_BACK.extra,
         )
 
     def _mode_seen(self, mode: str) -> None:
@@ -542,7 +549,12 @@ class AgentRuntime:
         if mode != self._last_mode:
             self._mode_requests.clear()  # a request for a mode again is news now
             if self._last_mode is not None:
-                self.logbook.mission.info("autopilot mode %s -> %s", self._last_mode, mode)
+                self.logbook.mission.info(
+                    "autopilot mode %s -> %s",
+                    self._last_mode,
+                    mode,
+                    extra=LogEvent.AUTOPILOT_MODE.extra,
+                )
             self._last_mode = mode
             self._events.append(f"mode:{mode}")
 
@@ -659,13 +671,18 @@ class AgentRuntime:
             name = self._peer_name(packet.sender_id)
             if self.logbook.from_air(now_s, "ignored", name, size, "not a station"):
                 self.logbook.mission.warning(
-                    "ignored %d command(s) from %s: only a station commands", len(commands), name
+                    "ignored %d command(s) from %s: only a station commands",
+                    len(commands),
+                    name,
+                    extra=LogEvent.COMMAND_IGNORED.extra,
                 )
             return
         if self.config.authenticated and not packet.authenticated:
             if self.logbook.from_air(now_s, "ignored", sender.name, size, "unauthenticated"):
                 self.logbook.mission.warning(
-                    "ignored unauthenticated command(s) from %s", sender.name
+                    "ignored unauthenticated command(s) from %s",
+                    sender.name,
+                    extra=LogEvent.COMMAND_IGNORED.extra,
                 )
             return
         me = self.config.agent_id
@@ -675,6 +692,7 @@ class AgentRuntime:
                     "terminate from %s%s",
                     sender.name,
                     f": {message.reason}" if message.reason else "",
+                    extra=LogEvent.COMMAND_TERMINATE.extra,
                 )
                 self._terminate(now_s, None)
                 return
@@ -684,7 +702,9 @@ class AgentRuntime:
             ):
                 if self.logbook.from_air(now_s, "command", sender.name, size, "copy"):
                     self.logbook.mission.info(
-                        "a copy of a command from %s acted on already: ignored", sender.name
+                        "a copy of a command from %s acted on already: ignored",
+                        sender.name,
+                        extra=LogEvent.COMMAND_IGNORED.extra,
                     )
                 continue
             if isinstance(message, ActivateController) and message.target_id in (0, me):
@@ -712,14 +732,19 @@ class AgentRuntime:
             if self._events and self._events[-1] == event:
                 if self.logbook.from_air(now_s, "command", sender, size_bytes, "coalesced"):
                     self.logbook.mission.info(
-                        "%s from %s: coalesced with the one queued this tick", event, sender
+                        "%s from %s: coalesced with the one queued this tick",
+                        event,
+                        sender,
+                        extra=LogEvent.COMMAND_RECEIVED.extra,
                     )
                 return
             self._events.remove(event)
         self._air_events.add(event)
         self._events.append(event)
         if self.logbook.from_air(now_s, "command", sender, size_bytes, event):
-            self.logbook.mission.info("%s from %s", event, sender)
+            self.logbook.mission.info(
+                "%s from %s", event, sender, extra=LogEvent.COMMAND_RECEIVED.extra
+            )
 
     def _schedule(
         self,
@@ -762,12 +787,23 @@ class AgentRuntime:
         if why:
             if self.logbook.from_air(now_s, "command", sender.name, size_bytes, reason):
                 self.logbook.mission.warning(
-                    "%s from %s at GPS time %d not held: %s", event, sender.name, start_ms, why
+                    "%s from %s at GPS time %d not held: %s",
+                    event,
+                    sender.name,
+                    start_ms,
+                    why,
+                    extra=LogEvent.COMMAND_SCHEDULED.extra,
                 )
             return
         self._scheduled.append((start_ms, event, sender.id, target_id))
         if self.logbook.from_air(now_s, "command", sender.name, size_bytes, f"{event} timed"):
-            self.logbook.mission.info("%s from %s at GPS time %d", event, sender.name, start_ms)
+            self.logbook.mission.info(
+                "%s from %s at GPS time %d",
+                event,
+                sender.name,
+                start_ms,
+                extra=LogEvent.COMMAND_SCHEDULED.extra,
+            )
 
     def _mode_request(self, custom_mode: int, sender: str, size_bytes: int) -> None:
         """A station's mode request, passed on once per mode per :data:`MODE_REQUEST_REPEAT_S`.
@@ -782,7 +818,10 @@ class AgentRuntime:
         if not names or not self.config.is_vehicle:
             if self.logbook.from_air(now_s, "command", sender, size_bytes, "no such mode"):
                 self.logbook.mission.warning(
-                    "mode request %d from %s: no such mode", custom_mode, sender
+                    "mode request %d from %s: no such mode",
+                    custom_mode,
+                    sender,
+                    extra=LogEvent.COMMAND_MODE_REQUEST.extra,
                 )
             return
         mode = names[0]
@@ -794,25 +833,35 @@ class AgentRuntime:
                     mode,
                     sender,
                     now_s - last_s,
+                    extra=LogEvent.COMMAND_MODE_REQUEST.extra,
                 )
             return
         self._mode_requests[mode] = now_s
         if self.logbook.from_air(now_s, "command", sender, size_bytes, "mode request"):
-            self.logbook.mission.info("mode request %s from %s", mode, sender)
+            self.logbook.mission.info(
+                "mode request %s from %s", mode, sender, extra=LogEvent.COMMAND_MODE_REQUEST.extra
+            )
         self._commands.append(SetMode(mode, custom_mode))
 
     def _fleet_events(self, events: list[Any]) -> None:
         for event in events:
             if isinstance(event, AgentFound):
                 self._events.append(f"found:{event.name or event.agent_id}")
-                self.logbook.mission.info("found %s", event.name or event.agent_id)
+                self.logbook.mission.info(
+                    "found %s", event.name or event.agent_id, extra=LogEvent.FLEET_FOUND.extra
+                )
                 if event.agent_id in self._stations:
                     self._stations_in_contact.add(event.agent_id)
                     self._stations_silent_since_s = None
                     self._mcs_lost_raised = False  # a later silence raises it again
             elif isinstance(event, AgentLost):
                 self._events.append(f"lost:{event.name or event.agent_id}")
-                self.logbook.mission.warning("lost %s (silent %.1f s)", event.name, event.silent_s)
+                self.logbook.mission.warning(
+                    "lost %s (silent %.1f s)",
+                    event.name,
+                    event.silent_s,
+                    extra=LogEvent.FLEET_LOST.extra,
+                )
                 if event.agent_id in self._stations:
                     self._stations_in_contact.discard(event.agent_id)
                     if not self._stations_in_contact and self._stations_silent_since_s is None:
@@ -821,19 +870,30 @@ class AgentRuntime:
                         self._stations_silent_since_s = self.context.now_s - event.silent_s
             elif isinstance(event, ForeignAgent):
                 self.logbook.mission.warning(
-                    "agent %d runs mission %d, not ours: ignored", event.agent_id, event.mission_id
+                    "agent %d runs mission %d, not ours: ignored",
+                    event.agent_id,
+                    event.mission_id,
+                    extra=LogEvent.FLEET_FOREIGN.extra,
                 )
 
     def _station_command(self, command: StationCommand, now_s: float) -> None:
         """An operator's command at this station: sent to its targets as ClarkLink."""
         if self.config.is_vehicle:
-            self.logbook.mission.warning("station command %s on a vehicle: ignored", command.action)
+            self.logbook.mission.warning(
+                "station command %s on a vehicle: ignored",
+                command.action,
+                extra=LogEvent.STATION_COMMAND.extra,
+            )
             return
         gps = self._gps_now_ms(now_s) or 0
         me = self.config.agent_id
         target = self._peer_by_name.get(command.target) if command.target else None
         if command.target and target is None:
-            self.logbook.mission.warning("station command for unknown agent %s", command.target)
+            self.logbook.mission.warning(
+                "station command for unknown agent %s",
+                command.target,
+                extra=LogEvent.STATION_COMMAND.extra,
+            )
             return
         target_id = target.id if target is not None else 0
         message: Message
@@ -844,16 +904,24 @@ class AgentRuntime:
         elif command.action == "terminate":
             message = Terminate(me, gps, target_id, "operator")
         else:
-            self.logbook.mission.warning("station command %s not understood", command)
+            self.logbook.mission.warning(
+                "station command %s not understood", command, extra=LogEvent.STATION_COMMAND.extra
+            )
             return
         if self._terminating is not None:
             self.logbook.mission.warning(
                 "station command %s %s ignored: the fleet is terminating",
                 command.action,
                 command.target or "all",
+                extra=LogEvent.STATION_COMMAND.extra,
             )
             return
-        self.logbook.mission.info("operator: %s %s", command.action, command.target or "all")
+        self.logbook.mission.info(
+            "operator: %s %s",
+            command.action,
+            command.target or "all",
+            extra=LogEvent.STATION_COMMAND.extra,
+        )
         destination = command.target if target is not None else ""
         self._send([message], destination, now_s)
         if target is not None and isinstance(message, ActivateController | ModeChangeRequest):
@@ -896,6 +964,7 @@ class AgentRuntime:
                     "terminate: %s %s: it cannot confirm",
                     peer.name,
                     "never heard" if record is None else "is lost",
+                    extra=LogEvent.TERMINATE_FLEET.extra,
                 )
             else:
                 waiting[peer.id] = now_s
@@ -906,6 +975,7 @@ class AgentRuntime:
                 "terminate: waiting for %s to confirm (at most %.1f s)",
                 ", ".join(sorted(self._peer_by_id[i].name for i in waiting)),
                 self._terminate_all_wait_s(),
+                extra=LogEvent.TERMINATE_FLEET.extra,
             )
         self._terminate_all_progress(now_s)
 
@@ -927,14 +997,22 @@ class AgentRuntime:
             record = self.fleet.record(agent_id)
             if record is not None and record.condition == Condition.TERMINATED:
                 del waiting[agent_id]
-                self.logbook.mission.info("terminate: %s confirmed", name)
+                self.logbook.mission.info(
+                    "terminate: %s confirmed", name, extra=LogEvent.TERMINATE_FLEET.extra
+                )
             elif record is not None and record.lost:
                 del waiting[agent_id]
-                self.logbook.mission.warning("terminate: %s fell silent unconfirmed", name)
+                self.logbook.mission.warning(
+                    "terminate: %s fell silent unconfirmed",
+                    name,
+                    extra=LogEvent.TERMINATE_FLEET.extra,
+                )
         late = now_s - self._terminate_sent_s >= self._terminate_all_wait_s()
         if waiting and late:
             names = ", ".join(sorted(self._peer_by_id[i].name for i in waiting))
-            self.logbook.mission.error("terminate: no confirmation from %s", names)
+            self.logbook.mission.error(
+                "terminate: no confirmation from %s", names, extra=LogEvent.TERMINATE_FLEET.extra
+            )
         if not waiting or late:
             self._terminating = None
             self._terminate(now_s, None)
@@ -953,7 +1031,12 @@ class AgentRuntime:
             if pending.confirmed_by(self.fleet.record(key[0])):
                 del self._unconfirmed[key]
                 if pending.sends > 1:
-                    self.logbook.mission.info("%s: took after %d sends", what, pending.sends)
+                    self.logbook.mission.info(
+                        "%s: took after %d sends",
+                        what,
+                        pending.sends,
+                        extra=LogEvent.COMMAND_RESEND.extra,
+                    )
             elif now_s - pending.last_sent_s < COMMAND_RESEND_S - 1e-9:
                 continue
             elif pending.sends >= COMMAND_SENDS:
@@ -963,6 +1046,7 @@ class AgentRuntime:
                     what,
                     pending.sends,
                     now_s - pending.first_sent_s,
+                    extra=LogEvent.COMMAND_RESEND.extra,
                 )
             else:
                 pending.sends += 1
@@ -972,6 +1056,7 @@ class AgentRuntime:
                     what,
                     pending.sends,
                     COMMAND_SENDS,
+                    extra=LogEvent.COMMAND_RESEND.extra,
                 )
                 self._send([pending.message], pending.target, now_s)
 
@@ -1079,7 +1164,9 @@ class AgentRuntime:
             # because before it the behaviour commands nothing a failsafe would stop.
             silent_s = now_s - max(silent_since, self._started_s)
             if silent_s > self.config.heartbeat_timeout_s:
-                self.logbook.mission.error("no station heard for %.1f s", silent_s)
+                self.logbook.mission.error(
+                    "no station heard for %.1f s", silent_s, extra=LogEvent.STATION_SILENT.extra
+                )
                 self._mcs_lost()
         if not self.config.is_vehicle or self._autopilot_lost:
             return
@@ -1093,13 +1180,16 @@ class AgentRuntime:
             self._events.append("autopilot_lost")
             if self._autopilot_connected:
                 self.logbook.interface.error(
-                    "autopilot silent for %.1f s: lost; no more commands to it", now_s - seen
+                    "autopilot silent for %.1f s: lost; no more commands to it",
+                    now_s - seen,
+                    extra=LogEvent.AUTOPILOT_LOST.extra,
                 )
             else:
                 self.logbook.interface.info(
                     "no autopilot (testing mode): treated as lost after %.1f s; commands "
                     "to it are dropped",
                     now_s - seen,
+                    extra=LogEvent.AUTOPILOT_LOST.extra,
                 )
 
     def _machine_phase(self, now_s: float = 0.0) -> None:
@@ -1114,6 +1204,7 @@ class AgentRuntime:
                     "before the behaviour starts (waiting for %s): ignored %s",
                     ", ".join(self.launch.waiting_for) or "the next tick",
                     ", ".join(ignored),
+                    extra=LogEvent.BEHAVIOR_EVENT_IGNORED.extra,
                 )
             self._events.clear()
             self._air_events.clear()
@@ -1124,7 +1215,9 @@ class AgentRuntime:
             taken = self.failsafe is None and self.machine.dispatch(event, self.context)
             if event == "mcs_lost":
                 if taken:
-                    self.logbook.mission.warning("mcs_lost handled by the behaviour")
+                    self.logbook.mission.warning(
+                        "mcs_lost handled by the behaviour", extra=LogEvent.FAILSAFE_HANDLED.extra
+                    )
                 else:
                     self._apply_failsafe()
             elif not taken and event in _STATION_EVENTS:
@@ -1152,12 +1245,16 @@ class AgentRuntime:
                 "does not resume)",
                 event,
                 self.failsafe,
+                extra=LogEvent.BEHAVIOR_EVENT_IGNORED.extra,
             )
         else:
             assert self.machine is not None
             active = ", ".join(self.machine.active_paths()) or "the behaviour's root"
             self.logbook.mission.info(
-                "%s: ignored: no active state takes it (active: %s)", event, active
+                "%s: ignored: no active state takes it (active: %s)",
+                event,
+                active,
+                extra=LogEvent.BEHAVIOR_EVENT_IGNORED.extra,
             )
 
     def _collect_outbox(self) -> None:
@@ -1359,7 +1456,9 @@ class AgentRuntime:
             return
         self._mcs_lost_raised = True
         self._events.append("mcs_lost")
-        self.logbook.mission.error("every station is silent: mcs_lost")
+        self.logbook.mission.error(
+            "every station is silent: mcs_lost", extra=LogEvent.STATION_LOST.extra
+        )
 
     def _void_requests(self, commands: list[Command]) -> list[Command]:
         """The behaviour's commands without the requests of states active across a loss.
@@ -1376,6 +1475,7 @@ class AgentRuntime:
             self.logbook.mission.info(
                 "not sent, asked for by a state active while the autopilot was lost: %s",
                 ", ".join(type(c).__name__ for c in commands if isinstance(c, _REQUESTS)),
+                extra=LogEvent.COMMAND_VOIDED.extra,
             )
         return kept
 
@@ -1396,7 +1496,7 @@ class AgentRuntime:
                 else "continue"
             )
         # `clark analyze --checks` and `clark replay` read this line (log_checks): keep it.
-        self.logbook.mission.error("failsafe %s", action)
+        self.logbook.mission.error("failsafe %s", action, extra=LogEvent.FAILSAFE_ACT.extra)
         if action == "continue" or self.failsafe is not None:
             return
         mode = {
@@ -1425,6 +1525,7 @@ class AgentRuntime:
                 "behaviour is stopped",
                 action,
                 reported,
+                extra=LogEvent.FAILSAFE_NO_MODE.extra,
             )
             return
         if mode is not None and mode in self.config.modes:
@@ -1462,12 +1563,21 @@ class AgentRuntime:
             guided_flight=self._guided_flight(vehicle),
         )
         for ended in result.ended:
-            self.logbook.mission.info("envelope breach over: %s", ended.describe())
+            self.logbook.mission.info(
+                "envelope breach over: %s",
+                ended.describe(),
+                extra=LogEvent.ENVELOPE_BREACH_OVER.extra,
+            )
         acting = result.active and self._started and self.failsafe is None
         act = result.active[0] if acting else None
         if act is not None:
             self.breach = act
-            self.logbook.mission.error("envelope breach: %s: %s", act.describe(), act.action)
+            self.logbook.mission.error(
+                "envelope breach: %s: %s",
+                act.describe(),
+                act.action,
+                extra=LogEvent.ENVELOPE_BREACH.extra,
+            )
             self._apply_failsafe(act.action, breach=act)
         for breach in result.began:
             if breach is act:
@@ -1477,6 +1587,7 @@ class AgentRuntime:
                     "envelope breach: %s: logged only (the behaviour has not started, "
                     "the engine commands nothing)",
                     breach.describe(),
+                    extra=LogEvent.ENVELOPE_BREACH.extra,
                 )
             else:
                 self.logbook.mission.error(
@@ -1485,6 +1596,7 @@ class AgentRuntime:
                     breach.describe(),
                     breach.action,
                     self.failsafe,
+                    extra=LogEvent.ENVELOPE_BREACH.extra,
                 )
 
     def _guided_flight(self, vehicle: VehicleState) -> bool:
@@ -1513,6 +1625,7 @@ class AgentRuntime:
                 if breach is not None
                 else "no breach acted on"
             ),
+            extra=LogEvent.ENVELOPE_SUMMARY.extra,
         )
 
     def _terminate(self, now_s: float, mode: str | None) -> None:
@@ -1535,7 +1648,11 @@ class AgentRuntime:
         if last is not None:
             self._send([last], "", now_s)
         self._commands.append(CloseInterfaces())
-        self.logbook.mission.warning("terminated%s", f"; vehicle to {terminal}" if terminal else "")
+        self.logbook.mission.warning(
+            "terminated%s",
+            f"; vehicle to {terminal}" if terminal else "",
+            extra=LogEvent.AGENT_TERMINATED.extra,
+        )
         if self.close_logbook_on_terminate:
             self.logbook.close()
 
@@ -1566,6 +1683,7 @@ class AgentRuntime:
             self.logbook.mission.error(
                 "the autopilot's safety set-up cannot be made: %s; the behaviour will not start",
                 exc,
+                extra=LogEvent.SAFETY_SETUP.extra,
             )
             return
         self._safety_state = "sent"
@@ -1573,6 +1691,7 @@ class AgentRuntime:
         self.logbook.mission.info(
             "setting up the autopilot's own safety (the behaviour waits for it): %s",
             command.summary,
+            extra=LogEvent.SAFETY_SETUP.extra,
         )
 
     def _safety_result(self, result: AutopilotSafetyResult, now_s: float) -> None:
@@ -1584,7 +1703,8 @@ class AgentRuntime:
             self._safety_state = "done"
             self.logbook.mission.info(
                 "the autopilot's fence and its reaction to a dead mission computer are set "
-                "and read back"
+                "and read back",
+                extra=LogEvent.SAFETY_SETUP.extra,
             )
             return
         if result.retry:
@@ -1594,6 +1714,7 @@ class AgentRuntime:
                 "the autopilot's safety set-up was cut short: %s; asked again once the "
                 "autopilot is back",
                 result.problem,
+                extra=LogEvent.SAFETY_SETUP.extra,
             )
             return
         self._safety_state = "failed"
@@ -1601,6 +1722,7 @@ class AgentRuntime:
             "the autopilot's safety set-up failed: %s; the behaviour will not start: fix "
             "the autopilot (or its profile) and start again",
             result.problem,
+            extra=LogEvent.SAFETY_SETUP.extra,
         )
 
     # -- machine callbacks ---------------------------------------------------------------
@@ -1692,7 +1814,9 @@ class AgentRuntime:
             return []
         self._set_time(now_s)
         if not self.logbook.closed:
-            self.logbook.mission.warning("terminating: %s", reason)
+            self.logbook.mission.warning(
+                "terminating: %s", reason, extra=LogEvent.AGENT_TERMINATING.extra
+            )
         self._terminate(now_s, None)
         return self._drain()
 
@@ -1724,6 +1848,7 @@ class AgentRuntime:
             change.source or "(start)",
             change.target or "(behavior)",
             ", ".join(change.active),
+            extra=LogEvent.BEHAVIOR_CHANGE.extra,
         )
         if self._stations and self.machine is not None:
             self._state_messages.append(

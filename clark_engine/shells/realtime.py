@@ -111,6 +111,7 @@ from clark_engine.runtime.events import (
     RcChannels,
     VehicleState,
 )
+from clark_engine.runtime.log_events import LogEvent
 from clark_engine.runtime.runtime import AgentRuntime
 
 REOPEN_BACKOFF_S: Final = (0.5, 1.0, 2.0, 4.0, 8.0)
@@ -442,6 +443,7 @@ class RealtimeShell:
                 self.autopilot.describe if self.autopilot else "disabled",
                 self.radio.describe if self.radio else "disabled",
                 ", ".join(self.payloads) or "none",
+                extra=LogEvent.SHELL_START.extra,
             )
             self._open_links(start)
             k = 0
@@ -472,6 +474,7 @@ class RealtimeShell:
                             late * 1000,
                             period * 1000,
                             missed,
+                            extra=LogEvent.SHELL_OVERRUN.extra,
                         )
                         k += missed
                     self._tick(now)
@@ -645,7 +648,12 @@ class RealtimeShell:
             # An address the radio cannot use is a configuration error: counted and logged,
             # never raised into the loop; the packet is lost as on a bad link.
             self.stats.drop("SendPacket")
-            self.log.error("radio: cannot send to %s: %s", command.destination, exc)
+            self.log.error(
+                "radio: cannot send to %s: %s",
+                command.destination,
+                exc,
+                extra=LogEvent.RADIO_FAILED.extra,
+            )
 
     def _payload_command(self, command: PayloadCommand, now: float) -> None:
         adapter = self.payloads.get(command.payload)
@@ -734,6 +742,7 @@ class RealtimeShell:
                 "autopilot: %s open again after %d failed attempt(s)",
                 link.describe,
                 link.reopen.failures,
+                extra=LogEvent.AUTOPILOT_LINK.extra,
             )
         link.reopen.succeeded()
         if not link.started:
@@ -753,7 +762,11 @@ class RealtimeShell:
         self.stats.autopilot_failures += 1
         wait = link.reopen.failed(now, error)
         self.log.error(
-            "autopilot: %s failed: %s; trying again in %.1f s", link.describe, error, wait
+            "autopilot: %s failed: %s; trying again in %.1f s",
+            link.describe,
+            error,
+            wait,
+            extra=LogEvent.AUTOPILOT_LINK.extra,
         )
 
     def _open_radio(self, now: float, *, first: bool) -> None:
@@ -772,9 +785,12 @@ class RealtimeShell:
                 "radio: %s open again after %d failed attempt(s)",
                 link.describe,
                 link.reopen.failures,
+                extra=LogEvent.RADIO_OPEN.extra,
             )
         link.reopen.succeeded()
-        self.log.info("radio: %s open, address %s", radio.name, radio.address)
+        self.log.info(
+            "radio: %s open, address %s", radio.name, radio.address, extra=LogEvent.RADIO_OPEN.extra
+        )
 
     def _radio_link_event(self, radio: Radio, event: LinkEvent, now: float) -> None:
         """One line in the interface log for a loss or a return the radio handled itself.
@@ -786,10 +802,22 @@ class RealtimeShell:
         at_s = now - max(0.0, time.monotonic() - event.monotonic_s)
         if event.up:
             self.stats.radio_reopens += 1
-            self.log.warning("radio: %s link back at t=%.3f %s", radio.name, at_s, event.detail)
+            self.log.warning(
+                "radio: %s link back at t=%.3f %s",
+                radio.name,
+                at_s,
+                event.detail,
+                extra=LogEvent.RADIO_LINK.extra,
+            )
         else:
             self.stats.radio_failures += 1
-            self.log.error("radio: %s link lost at t=%.3f: %s", radio.name, at_s, event.detail)
+            self.log.error(
+                "radio: %s link lost at t=%.3f: %s",
+                radio.name,
+                at_s,
+                event.detail,
+                extra=LogEvent.RADIO_LINK.extra,
+            )
 
     def _radio_failed(self, now: float, error: str) -> None:
         link = self.radio
@@ -801,7 +829,13 @@ class RealtimeShell:
             link.radio = None
         self.stats.radio_failures += 1
         wait = link.reopen.failed(now, error)
-        self.log.error("radio: %s failed: %s; trying again in %.1f s", link.describe, error, wait)
+        self.log.error(
+            "radio: %s failed: %s; trying again in %.1f s",
+            link.describe,
+            error,
+            wait,
+            extra=LogEvent.RADIO_FAILED.extra,
+        )
 
     # -- the end ----------------------------------------------------------------------------
 
@@ -830,7 +864,7 @@ class RealtimeShell:
         done: list[str] = []
         if not runtime.terminated:
             self._safely("log the loop's figures", self._log_summary)
-        self.log.info("stop began (%s)", self.stopped_by or "stop")
+        self.log.info("stop began (%s)", self.stopped_by or "stop", extra=LogEvent.SHELL_STOP.extra)
         if link is not None and link.transport is not None and not runtime.terminated:
             # (A runtime terminated in the loop already sent its terminal mode: kept.)
             self._safely(
@@ -858,12 +892,17 @@ class RealtimeShell:
                 f"stop shortened by {which}{self.hurried_by}: skipped {skipped}; "
                 f"still done: {', '.join([*done, 'links closed'])}"
             )
-            self._safely("log the shortened stop", lambda: self.log.warning("%s", line))
+            self._safely(
+                "log the shortened stop",
+                lambda: self.log.warning("%s", line, extra=LogEvent.SHELL_STOP.extra),
+            )
             self._safely("announce the shortened stop", lambda: self._say(line))
         self._close_all()
 
     def _log_summary(self) -> None:
-        self.runtime.logbook.interface.info("real-time shell: %s", self.summary())
+        self.runtime.logbook.interface.info(
+            "real-time shell: %s", self.summary(), extra=LogEvent.SHELL_SUMMARY.extra
+        )
 
     def _terminate(self) -> None:
         now = self.now()
@@ -881,7 +920,7 @@ class RealtimeShell:
             step()
         except Exception as exc:
             with contextlib.suppress(Exception):
-                self.log.error("stop: cannot %s: %s", what, exc)
+                self.log.error("stop: cannot %s: %s", what, exc, extra=LogEvent.SHELL_STOP.extra)
             return False
         return True
 
@@ -909,7 +948,10 @@ class RealtimeShell:
         begin = self.now()
         deadline = begin + STOP_CONFIRM_S
         self.log.info(
-            "stop: waiting up to %g s for the autopilot to answer %s", STOP_CONFIRM_S, what
+            "stop: waiting up to %g s for the autopilot to answer %s",
+            STOP_CONFIRM_S,
+            what,
+            extra=LogEvent.SHELL_STOP.extra,
         )
         announced = False
         while True:
@@ -919,7 +961,11 @@ class RealtimeShell:
                 return
             left = link.adapter.unanswered
             if not left:
-                self.log.info("stop: the autopilot answered in %.3f s", now - begin)
+                self.log.info(
+                    "stop: the autopilot answered in %.3f s",
+                    now - begin,
+                    extra=LogEvent.SHELL_STOP.extra,
+                )
                 return
             if not announced and now - begin >= STOP_ANNOUNCE_S:
                 announced = True  # a person waiting longer than a blink is told why
@@ -935,6 +981,7 @@ class RealtimeShell:
                     "stop: no answer from the autopilot to %s within %g s",
                     ", ".join(left),
                     STOP_CONFIRM_S,
+                    extra=LogEvent.SHELL_STOP.extra,
                 )
                 return
             wake = deadline if announced else min(deadline, begin + STOP_ANNOUNCE_S)
@@ -959,14 +1006,19 @@ class RealtimeShell:
             return
         for event in link.adapter.receive(data, now) if data else []:
             if isinstance(event, CommandRefused):
-                self.log.warning("stop: the autopilot refused %s: %s", event.request, event.result)
+                self.log.warning(
+                    "stop: the autopilot refused %s: %s",
+                    event.request,
+                    event.result,
+                    extra=LogEvent.SHELL_STOP.extra,
+                )
         self._to_autopilot(link.adapter.flush(), now)
         self._to_autopilot(link.adapter.poll(now), now)
 
     def _save_replay_marks(self) -> None:
         self.runtime.codec.save_replay_marks()
         if self.runtime.codec.authenticated:
-            self.log.info("stop: replay marks saved")
+            self.log.info("stop: replay marks saved", extra=LogEvent.SHELL_STOP.extra)
 
     def _close_all(self) -> None:
         """Every link closed (each failure logged, never stopping the rest), then the logs."""
@@ -998,7 +1050,11 @@ class RealtimeShell:
         self._wake_w.close()
         self._safely(
             "log the links closed",
-            lambda: self.log.info("stop: links closed (%s)", ", ".join(closed) or "none open"),
+            lambda: self.log.info(
+                "stop: links closed (%s)",
+                ", ".join(closed) or "none open",
+                extra=LogEvent.SHELL_STOP.extra,
+            ),
         )
         self._safely("close the logs", self.runtime.logbook.close)
 

@@ -53,6 +53,7 @@ from clark_engine.runtime.commands import (
 from clark_engine.runtime.config import AgentConfig, ChannelSpec, config_from_dict
 from clark_engine.runtime.context import offset_position
 from clark_engine.runtime.events import PacketReceived, StationCommand
+from clark_engine.runtime.log_events import LogEvent
 from clark_engine.runtime.logbook import Logbook
 from clark_engine.runtime.machine import StateChange
 from clark_engine.runtime.runtime import AgentRuntime
@@ -934,7 +935,9 @@ class DryRun:
             sim_agent = self.agents[name]
             sim_agent.alive = False
             self.recording.killed[name] = t_s
-            sim_agent.logbook.mission.error("killed by the dry run's fault at %.2f s", t_s)
+            sim_agent.logbook.mission.error(
+                "killed by the dry run's fault at %.2f s", t_s, extra=LogEvent.SIM_FAULT.extra
+            )
             self._silence(name, t_s)
         while self._operator and self._operator[0][0] <= t_s:
             _, _, item = self._operator.pop(0)

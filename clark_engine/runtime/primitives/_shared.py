@@ -16,6 +16,7 @@ from clark_engine.runtime.commands import Arm, Command, Goto, RcOverride, SetMod
 from clark_engine.runtime.config import ConfigError
 from clark_engine.runtime.context import PrimitiveContext
 from clark_engine.runtime.launch import is_airborne
+from clark_engine.runtime.log_events import LogEvent
 from clark_engine.runtime.primitives.base import Primitive
 
 #: Slack when comparing runtime-clock times: ``k / loop_hz`` summed or divided in
@@ -180,7 +181,12 @@ class ProfileModePrimitive(Primitive):
         mode: str | None = getattr(ctx.config, self.mode_key)
         self._failed = mode is None
         if mode is None:
-            ctx.log.error("%s: the autopilot profile names no %s", ctx.config.agent, self.mode_key)
+            ctx.log.error(
+                "%s: the autopilot profile names no %s",
+                ctx.config.agent,
+                self.mode_key,
+                extra=LogEvent.BEHAVIOR_ERROR.extra,
+            )
             return
         self._mode.begin(ctx, mode)
 
@@ -286,6 +292,7 @@ class GuidedLeg:
             ctx.log.error(
                 "%s: the autopilot profile names no guided_mode; cannot navigate",
                 ctx.config.agent,
+                extra=LogEvent.BEHAVIOR_ERROR.extra,
             )
             return
         self._mode.begin(ctx, self._guided_mode)

@@ -41,6 +41,7 @@ from clark_engine.link.messages import PictureData
 from clark_engine.runtime.commands import PayloadCommand
 from clark_engine.runtime.context import PrimitiveContext, Status
 from clark_engine.runtime.events import PayloadEvent
+from clark_engine.runtime.log_events import LogEvent
 from clark_engine.runtime.primitives._shared import Schedule
 from clark_engine.runtime.primitives.base import Primitive
 
@@ -108,6 +109,7 @@ class PhotoTrigger(Primitive):
                     agent,
                     self.captured,
                     event.detail,
+                    extra=LogEvent.PHOTO_NO_POSITION.extra,
                 )
                 return
             picture = PictureData(
@@ -121,7 +123,13 @@ class PhotoTrigger(Primitive):
             ctx.send(picture, to=self.to)
         elif event.kind == "refused":
             self.refused += 1
-            ctx.log.info("%s: %s refused capture %d", agent, self.payload, event.request_id)
+            ctx.log.info(
+                "%s: %s refused capture %d",
+                agent,
+                self.payload,
+                event.request_id,
+                extra=LogEvent.PHOTO_REFUSED.extra,
+            )
         else:
             self.errors += 1
             ctx.log.warning(
@@ -131,6 +139,7 @@ class PhotoTrigger(Primitive):
                 event.request_id,
                 event.kind,
                 event.detail,
+                extra=LogEvent.PHOTO_FAILED.extra,
             )
 
     def _request(self, ctx: PrimitiveContext) -> None:

@@ -38,6 +38,7 @@ from typing import Any, Final
 from clark_engine.runtime.commands import Takeoff as TakeoffCommand
 from clark_engine.runtime.context import PrimitiveContext, Status
 from clark_engine.runtime.launch import is_airborne
+from clark_engine.runtime.log_events import LogEvent
 from clark_engine.runtime.primitives._shared import (
     TIME_EPSILON_S,
     EngineArming,
@@ -84,7 +85,11 @@ class Takeoff(Primitive):
         mode = ctx.config.guided_mode
         self._failed = mode is None
         if mode is None:
-            ctx.log.error("%s: the autopilot profile names no guided_mode", ctx.config.agent)
+            ctx.log.error(
+                "%s: the autopilot profile names no guided_mode",
+                ctx.config.agent,
+                extra=LogEvent.BEHAVIOR_ERROR.extra,
+            )
             return
         self._mode.begin(ctx, mode)
         self._arming.begin(ctx)
@@ -111,6 +116,7 @@ class Takeoff(Primitive):
                 ctx.log.error(
                     "%s: disarmed before taking off; the engine does not arm it again",
                     ctx.config.agent,
+                    extra=LogEvent.BEHAVIOR_ERROR.extra,
                 )
                 self._failed = True
                 return Status.FAILED
