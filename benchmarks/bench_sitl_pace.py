@@ -7,7 +7,8 @@ failsafe flew RTL in such runs). For each mission and speed-up, one ``clark dry-
 --autopilot sitl`` in this process; printed per SITL vehicle: the most SITL's clock was
 past the run's time (and when), the longest silence of the engine's link to the
 autopilot (SITL's clock), the run's wall time, and the mission's signal and failsafe
-checks on SITL, and the speed-ups the run slowed SITL to when it fell behind
+checks on SITL, and the speed-ups the run set SITL to (slowed when it fell behind, sped up
+again once it kept up)
 (:mod:`clark_engine.sim.sitl_pace`). The machine's load average is printed with each run:
 the figures depend on it. ``--busy N`` keeps N processes spinning meanwhile, as a loaded
 machine (a test suite beside the run) would; ``--runs K`` flies each mission K times.
@@ -65,7 +66,7 @@ def main() -> int:
     print(f"ArduPilot SITL from {install.folder}")
     print(
         f"{'mission':<26} {'x':>4} {'vehicle':<8} {'behind s':>8} {'at s':>6} {'silent s':>8} "
-        f"{'wall s':>7} {'load':>5} {'slowed to':>22}  checks on SITL"
+        f"{'wall s':>7} {'load':>5} {'speed-ups':>22}  checks on SITL"
     )
     busy = [multiprocessing.Process(target=_spin, daemon=True) for _ in range(args.busy)]
     for process in busy:
@@ -110,11 +111,11 @@ def _fly(path: Path, speedup: float, install: SitlInstall) -> None:
     )
     load = os.getloadavg()[0]
     for name, pace in result.recording.pace.items():
-        slowed = ", ".join(f"{x:.1f}" for _, x in pace.slowed) or "-"
+        changes = ", ".join(f"{x:.1f}" for _, x in pace.speedups) or "-"
         print(
             f"{path.stem:<26} {speedup:>4g} {name:<8} {pace.behind_s:>8.2f} "
             f"{pace.behind_at_s:>6.1f} {pace.silent_s:>8.2f} {result.wall_s:>7.1f} "
-            f"{load:>5.1f} {slowed:>22}  {checks}   ({total_s:.0f} s in all)"
+            f"{load:>5.1f} {changes:>22}  {checks}   ({total_s:.0f} s in all)"
         )
 
 

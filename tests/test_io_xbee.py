@@ -19,7 +19,9 @@ A = "0013A20041000001"
 B = "0013A20041000002"
 C = "0013A20041000003"
 ABSENT = "0013A20041009999"
-WAIT_S = 5.0
+WAIT_S = 20.0
+"""How long a test waits for what must happen (it returns as soon as it does): a bound on a
+hang, not a time asserted. A loaded suite took 8 s to reconnect an unplugged radio."""
 
 
 def wait_for(condition: Callable[[], bool], timeout_s: float = WAIT_S) -> None:

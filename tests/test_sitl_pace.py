@@ -7,6 +7,7 @@ pymavlink, as SITL sends them.
 
 from __future__ import annotations
 
+import itertools
 import time
 from types import SimpleNamespace
 from typing import Any
@@ -16,11 +17,12 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from sitl_here import NO_SITL, real_install
 
 from clark_engine.mission.geo import Origin
+from clark_engine.sim import sitl_pace
 from clark_engine.sim.recording import Pace
 from clark_engine.sim.report import pace_lines
 from clark_engine.sim.sitl import Home, SitlProcess
 from clark_engine.sim.sitl_backend import REPORT_AFTER_S, LaterReport, SitlBackend
-from clark_engine.sim.sitl_pace import GENTLEST, MARGIN, SitlPace
+from clark_engine.sim.sitl_pace import GENTLEST, MARGIN, RAISE, RAISE_AFTER_WALL_S, SitlPace
 
 ORIGIN = Origin(30.6372, -96.4787, 90.0)
 
@@ -132,12 +134,57 @@ def test_the_report_says_when_sitl_was_slowed_down() -> None:
         {
             "copter": Pace(
                 behind_s=1.4, behind_at_s=40.0, silent_s=1.3, silent_at_s=40.1,
-                start_speedup=10.0, slowed=[(40.0, 5.0), (52.5, 2.5)],
+                start_speedup=10.0, speedups=[(40.0, 5.0), (52.5, 2.5)],
             )
         }
     )  # fmt: skip
     assert line.startswith("copter: the engine kept ArduPilot SITL's pace (1.4 s behind")
-    assert "SITL slowed from 10x to 5x at 40.0 s, 2.5x at 52.5 s of the run" in line
+    assert "SITL's speed-up went from 10x to 5x at 40.0 s, 2.5x at 52.5 s of the run" in line
+
+
+class _Vehicle:
+    """What SitlPace reads of a SITL backend and asks of it (a SitlBackend has both)."""
+
+    def __init__(self) -> None:
+        self.behind_s = 0.0
+        self.asked: list[tuple[float, float]] = []
+
+    def set_speedup(self, speedup: float, t_s: float) -> None:
+        self.asked.append((t_s, speedup))
+
+
+def test_sitl_is_sped_up_again_once_the_run_keeps_up(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A busy spell slows SITL; RAISE_AFTER_WALL_S of keeping up gives speed back, to the
+    start's at most. Before: a run slowed once stayed slow (a suite's SITL test ran its
+    120 s mission at about real time after one busy spell, 118 s of wall time)."""
+    wall = [100.0]
+    monkeypatch.setattr(sitl_pace.time, "monotonic", lambda: wall[0])
+    vehicle = _Vehicle()
+    pace = SitlPace([vehicle], 10.0)  # type: ignore[list-item]
+    t_s = 0.0
+
+    def run(wall_s: float, pace_x: float, behind_s: float, more_behind_s: float = 0.0) -> None:
+        nonlocal t_s
+        for _ in range(round(wall_s / 0.05)):
+            wall[0] += 0.05
+            t_s += 0.05 * pace_x
+            vehicle.behind_s = behind_s
+            behind_s += more_behind_s
+            pace.after_step(t_s)
+
+    run(2.0, 10.0, 0.0)  # on time
+    run(4.0, 2.0, 2.1, more_behind_s=0.05)  # a busy spell: the run keeps 2x, falls behind
+    slowed = [x for _, x in vehicle.asked]
+    assert slowed[0] == pytest.approx(10.0 * GENTLEST)
+    assert len(slowed) >= 2 and all(b < a for a, b in itertools.pairwise(slowed))
+    assert slowed[-1] < 2.0 / MARGIN  # what the run kept, with the margin, give or take
+    run(RAISE_AFTER_WALL_S - 0.5, slowed[-1], 0.0)  # keeps up, not yet long enough
+    assert len(vehicle.asked) == len(slowed)
+    run(60.0, 10.0, 0.0)  # keeps up: raised by RAISE every RAISE_AFTER_WALL_S, to 10x
+    raised = [x for _, x in vehicle.asked[len(slowed) :]]
+    assert raised[0] == pytest.approx(slowed[-1] * RAISE)
+    assert all(b > a for a, b in itertools.pairwise(raised))
+    assert raised[-1] == 10.0 and pace.speedup == 10.0
 
 
 REAL = real_install()
@@ -169,16 +216,16 @@ def test_an_engine_that_falls_behind_slows_sitl_to_the_pace_it_keeps() -> None:
         sitl.start_run_here()
         pace = SitlPace([sitl], 10.0)
         t_s = 0.0
-        while len(sitl.pace.slowed) < 2 and t_s < 12.0:  # a fortieth of a wall second a step
+        while len(sitl.pace.speedups) < 2 and t_s < 12.0:  # a fortieth of a wall second a step
             sitl.step(t_s, 0.1)
             pace.after_step(t_s)
             time.sleep(0.025)
             t_s = round(t_s + 0.1, 1)
-        first, second, *_ = sitl.pace.slowed
+        first, second, *_ = sitl.pace.speedups
         assert first[1] == pytest.approx(10.0 * GENTLEST)
         # The engine kept at most 4x (less on a busy machine): that with the margin.
-        assert 1.0 <= second[1] <= 4.0 * MARGIN, sitl.pace.slowed
-        assert pace.speedup == sitl.pace.slowed[-1][1] == sitl.speedup
+        assert 1.0 <= second[1] <= 4.0 * MARGIN, sitl.pace.speedups
+        assert pace.speedup == sitl.pace.speedups[-1][1] == sitl.speedup
         # SITL runs at the new speed-up: its clock against the wall.
         start_clock_s, start_wall = sitl._clock_s, time.monotonic()
         while time.monotonic() - start_wall < 1.0:

@@ -248,8 +248,9 @@ class Pace:
     """The run's time at the end of that silence."""
     start_speedup: float = 1.0
     """SITL's speed-up when the run started (``--sitl-speedup``)."""
-    slowed: list[tuple[float, float]] = field(default_factory=list)
-    """Each slow-down: the run's time, SITL's new speed-up (the engine fell behind)."""
+    speedups: list[tuple[float, float]] = field(default_factory=list)
+    """Each change of SITL's speed-up: the run's time, the new speed-up (lower when the
+    engine fell behind, higher again once it kept up a while)."""
 
 
 @dataclass(slots=True)

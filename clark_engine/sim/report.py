@@ -711,11 +711,11 @@ def pace_lines(pace: Mapping[str, Pace]) -> list[str]:
     lines = []
     for name, kept in pace.items():
         silence = f"its link to the autopilot silent {kept.silent_s:.1f} s at most"
-        if kept.slowed:
-            steps = ", ".join(f"{speedup:g}x at {t_s:.1f} s" for t_s, speedup in kept.slowed)
+        if kept.speedups:
+            steps = ", ".join(f"{speedup:.3g}x at {t_s:.1f} s" for t_s, speedup in kept.speedups)
             silence += (
-                f"; SITL slowed from {kept.start_speedup:g}x to {steps} of the run, "
-                "where the engine fell behind it"
+                f"; SITL's speed-up went from {kept.start_speedup:g}x to {steps} of the run, "
+                "slowed where the engine fell behind it"
             )
         if kept.behind_s > PACE_LATE_S:
             lines.append(

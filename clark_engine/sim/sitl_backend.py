@@ -364,7 +364,7 @@ class SitlBackend(VehicleBackend):
         clock; only that clock runs slower against the wall.
         """
         self._speedup = float(speedup)
-        self.pace.slowed.append((t_s, self._speedup))
+        self.pace.speedups.append((t_s, self._speedup))
         self._mav.param_set_send(
             self._target[0], self._target[1], b"SIM_SPEEDUP", self._speedup,
             mavlink2.MAV_PARAM_TYPE_REAL32,

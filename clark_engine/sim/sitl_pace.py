@@ -7,7 +7,9 @@ vehicle home (a loaded CI run fell 10 s behind ArduCopter SITL at 10x, which fle
 before the copter took off, and the run then failed as a flight it never was). SITL
 takes a new speed-up while it runs (its ``SIM_SPEEDUP``), so :class:`SitlPace` lowers
 every SITL's speed-up together when the run falls behind any of them: the run stays the
-mission's flight on ArduPilot, only slower against the wall.
+mission's flight on ArduPilot, only slower against the wall. A run that then keeps up
+with SITL for :data:`RAISE_AFTER_WALL_S` gives some of the speed back (the machine was busy
+for a while: a test suite's other workers, another run starting), never above the start's.
 
 Together, because the run keeps the slowest SITL's pace: a SITL that runs faster gets
 ahead of the run, and slowing only that one would leave the two to overtake each other
@@ -47,10 +49,19 @@ WINDOW_WALL_S: Final = 3.0
 """The pace the run kept is measured over this many of the last wall seconds."""
 SAMPLE_WALL_S: Final = 0.25
 """...from a sample of the run's time this often."""
+ON_TIME_S: Final = 0.5
+"""A run at most this far behind every SITL (seconds of SITL's clock) keeps up with them."""
+RAISE_AFTER_WALL_S: Final = 5.0
+"""Wall seconds of keeping up (and since the last change) before the speed-up is raised."""
+RAISE: Final = 1.25
+"""Each raise multiplies the speed-up by this, up to the start's."""
 
 
 class SitlPace:
     """Watches how far the run is behind its SITL vehicles; slows them all when it is.
+
+    ``backends`` need only a ``behind_s`` (how far SITL's clock was past the run's time at
+    the last step) and ``set_speedup(speedup, t_s)``: :class:`SitlBackend` has both.
 
     Args:
         backends: Every SITL vehicle of the run.
@@ -59,6 +70,8 @@ class SitlPace:
 
     def __init__(self, backends: Sequence[SitlBackend], speedup: float) -> None:
         self._backends = tuple(backends)
+        self._start_speedup = float(speedup)
+        self._on_time_since: float | None = None  # wall time since the run keeps up
         self.speedup = float(speedup)
         """The speed-up every SITL of the run has now."""
         self._changed_wall = float("-inf")
@@ -68,11 +81,25 @@ class SitlPace:
         )
 
     def after_step(self, t_s: float) -> None:
-        """After every SITL stepped to the run's time ``t_s``: slow them down if behind."""
+        """After every SITL stepped to the run's time ``t_s``: slow them if behind.
+
+        And speed them up again once the run has kept up with them a while.
+        """
         now = time.monotonic()
         if not self._samples or now - self._samples[-1][0] >= SAMPLE_WALL_S:
             self._samples.append((now, t_s))
         behind_s = max((backend.behind_s for backend in self._backends), default=0.0)
+        if behind_s > ON_TIME_S:
+            self._on_time_since = None
+        elif self._on_time_since is None:
+            self._on_time_since = now
+        elif (
+            self.speedup < self._start_speedup
+            and now - self._on_time_since >= RAISE_AFTER_WALL_S
+            and now - self._changed_wall >= RAISE_AFTER_WALL_S
+        ):
+            self._change(min(self._start_speedup, self.speedup * RAISE), now, t_s, 0.0)
+            return
         if (
             behind_s <= max(BEHIND_S, self._behind_then_s)
             or self.speedup <= SLOWEST
@@ -83,7 +110,11 @@ class SitlPace:
         kept = self.kept_pace(now, t_s)
         if kept is not None:
             speedup = min(speedup, kept * MARGIN)
-        self.speedup = max(SLOWEST, speedup)
+        self._change(max(SLOWEST, speedup), now, t_s, behind_s)
+
+    def _change(self, speedup: float, now: float, t_s: float, behind_s: float) -> None:
+        """Every SITL of the run to ``speedup`` from the run's time ``t_s``."""
+        self.speedup = speedup
         self._changed_wall, self._behind_then_s = now, behind_s
         for backend in self._backends:
             backend.set_speedup(self.speedup, t_s)
