@@ -1028,6 +1028,11 @@ class ViewServer:
             for victim in list(self._unproven)[:8]:
                 self._shed(victim)
             return
+        if isinstance(exc, (OSError, ValueError)) and "_start_serving" in str(
+            context.get("message", "")
+        ):
+            self._accept_rearm_failed(exc)
+            return
         kind = f"loop:{context.get('message')}"
         first = kind not in self._throttle.total
         count = self._throttle.admit(kind)
@@ -1043,6 +1048,27 @@ class ViewServer:
                 count,
                 self._throttle.interval_s,
             )
+
+    def _accept_rearm_failed(self, exc: BaseException) -> None:
+        """When asyncio's own retry of accept() fails: one line, never a traceback.
+
+        After accept() runs out of file descriptors, asyncio (3.11) stops listening and
+        schedules ``_start_serving`` a second later to listen again, once per failed
+        accept of that tick. When the view stops within that second, the listening
+        socket is closed before the retry runs, and the retry raises on its file
+        descriptor (-1). That is the expected end of a flood, not an error: it is noted
+        at debug level. While the view serves, a failed retry would mean it no longer
+        accepts at all: that is said once a log interval.
+        """
+        serving = self._stopping is not None and not self._stopping.is_set()
+        if not serving:
+            _LOG.debug("station view: asyncio's accept retry ran after the view closed: %s", exc)
+            return
+        self._throttle.note(
+            "rearm",
+            "station view: could not listen again after running out of files "
+            "(%d failures): " + str(exc).replace("%", "%%"),
+        )
 
     async def _close_clients(self) -> None:
         clients = list(self._clients)
