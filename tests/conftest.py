@@ -167,6 +167,35 @@ an auto-disarm text a step early), against none of the same tests alone. A secon
 fails the suite. Only these tests: every other test must pass the first time."""
 
 
+BATCH_NICE = 10
+"""Niceness a test worker takes before its first test that neither flies SITL at a
+speed-up, nor waits on the wall clock, nor drives a browser: the CPU-bound rest of the
+suite. SITL cannot be paused, so a SITL test starved of CPU by the rest falls behind
+SITL's clock; the engine then slows SITL down (sim/sitl_pace.py) and the test takes two to
+three times as long (the suite's critical path), or an ungoverned conformance test fails.
+At niceness 10 the rest gets what SITL and the wall-clock tests leave (a tenth of a core
+beside each of theirs) and still all of an idle core. A worker never goes back to 0
+(only root may): xdist deals the groups out first, the largest first, so the SITL
+worker and the wall-clock worker run their groups before any other test."""
+
+
+def _is_batch(item: pytest.Item) -> bool:
+    return not (
+        _waits_on_the_wall_clock(item)
+        or _sped_up_sitl(item)
+        or item.get_closest_marker("browser") is not None
+    )
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    """Under xdist, yield the CPU to SITL and the wall-clock tests (:data:`BATCH_NICE`)."""
+    if "PYTEST_XDIST_WORKER" in os.environ and _is_batch(item):
+        current = os.getpriority(os.PRIO_PROCESS, 0)
+        if current < BATCH_NICE:
+            os.nice(BATCH_NICE - current)
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Deal the slow tests out first, and run SITL at a speed-up on one worker at a time.

@@ -21,7 +21,12 @@ from clark_engine.sim import sitl_pace
 from clark_engine.sim.recording import Pace
 from clark_engine.sim.report import pace_lines
 from clark_engine.sim.sitl import Home, SitlProcess
-from clark_engine.sim.sitl_backend import REPORT_AFTER_S, LaterReport, SitlBackend
+from clark_engine.sim.sitl_backend import (
+    REPORT_AFTER_S,
+    REPORT_STREAMS,
+    LaterReport,
+    SitlBackend,
+)
 from clark_engine.sim.sitl_pace import GENTLEST, MARGIN, RAISE, RAISE_AFTER_WALL_S, SitlPace
 
 ORIGIN = Origin(30.6372, -96.4787, 90.0)
@@ -49,6 +54,18 @@ def rc(boot_s: float, chan1_us: int) -> Any:
 
 def pressure(boot_s: float) -> Any:
     return mavlink2.MAVLink_scaled_pressure_message(round(boot_s * 1000), 1013.0, 0.0, 2000)
+
+
+def test_rc_and_servo_reports_stream_only_for_a_recorded_signal() -> None:
+    """At 40 Hz they were half the backend's messages in every run; now only when a
+    doublet or sweep records a signal on them (``want_reports``, before connecting)."""
+    sitl = backend()
+    assert not set(REPORT_STREAMS) & set(sitl._streams_wanted)
+    sitl.want_reports({"servo"})
+    assert "SERVO_OUTPUT_RAW" in sitl._streams_wanted
+    assert "RC_CHANNELS" not in sitl._streams_wanted
+    sitl.want_reports({"rc_override", "servo"})
+    assert set(REPORT_STREAMS) <= set(sitl._streams_wanted)
 
 
 def test_a_tick_takes_the_first_report_showing_what_it_asked_for() -> None:

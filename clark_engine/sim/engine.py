@@ -648,6 +648,9 @@ class DryRun:
             self._preflights.items(),
             key=lambda item: getattr(self.agents[item[0]].backend, "firmware", "") == "arduplane",
         )
+        for sim_agent in self._vehicles:
+            if isinstance(sim_agent.backend, SitlBackend):
+                sim_agent.backend.want_reports({via for _, via, _ in sim_agent.signal_keys})
         flown: list[SitlBackend] = []
         for name, plan in planes_last:
             backend = self.agents[name].backend
