@@ -68,6 +68,31 @@ def test_rc_and_servo_reports_stream_only_for_a_recorded_signal() -> None:
     assert set(REPORT_STREAMS) <= set(sitl._streams_wanted)
 
 
+def heartbeat() -> Any:
+    return mavlink2.MAVLink_heartbeat_message(
+        mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, 3, 3
+    )
+
+
+def test_before_sitls_first_time_stamp_the_run_waits_for_its_heartbeats() -> None:
+    """A SITL starved of CPU at boot runs slower than its speed-up: the run's clock on the
+    wall's estimate alone got ahead of it, heard no heartbeat for 3 s of that clock, and
+    lost the autopilot at the start (a campaign's early autopilot_lost)."""
+    sitl = backend()
+    assert sitl.clock_s is None  # not connected
+    sitl._connected_wall = time.monotonic() - 5.0  # 50 s of SITL's clock at 10x, by the wall
+    assert sitl.clock_s == pytest.approx(1.0)  # no heartbeat yet: its first second at most
+    feed(sitl, heartbeat(), heartbeat())
+    assert sitl.clock_s == pytest.approx(3.0)
+    feed(sitl, pressure(2.4))  # its own clock, once it stamps one
+    assert sitl.clock_s == pytest.approx(2.4)
+    on_time = backend()
+    on_time._connected_wall = time.monotonic() - 5.0
+    feed(on_time, *(heartbeat() for _ in range(100)))
+    clock_s = on_time.clock_s
+    assert clock_s is not None and 50.0 <= clock_s < 101.0  # the wall's estimate, the lower
+
+
 def test_a_tick_takes_the_first_report_showing_what_it_asked_for() -> None:
     report = LaterReport("RC_CHANNELS", 0, after_s=10.0, want_us=1650)
     assert not report.take(9.99, (1650,))  # made before the tick's commands

@@ -98,6 +98,9 @@ the first report after the tick that shows what the tick asked for, or else the 
 report this long after it (what SITL made of it: the check then fails). The reports are
 matched as they stream in (:class:`LaterReport`); a tick waits for the previous tick's
 value to show this long at most (:meth:`SitlBackend.wait_shown`)."""
+HEARTBEAT_PERIOD_S: Final = 1.0
+"""ArduPilot sends HEARTBEAT on every link once a second of its own clock, from boot:
+before its first time stamp, the only sign of how far SITL's clock has got."""
 PARAM_RETRY_WALL_S: Final = 1.0
 """A parameter not echoed is set again this often; one SITL lacks is given up after 5."""
 
@@ -241,6 +244,7 @@ class SitlBackend(VehicleBackend):
         self._inbox = bytearray()
         self._clock_s: float | None = None
         self._connected_wall: float | None = None
+        self._beats = 0  # HEARTBEATs on the backend's own link
         self._offset_s = 0.0
         self._streams_wanted = dict(OWN_STREAMS)
         self._streams_seen: set[str] = set()  # arriving at their interval (at least half)
@@ -278,14 +282,20 @@ class SitlBackend(VehicleBackend):
     def clock_s(self) -> float | None:
         """The SITL vehicle's own time (its boot clock), None before the connection.
 
-        Before SITL's first time stamp, the wall time since the connection times the
-        speed-up (SITL's clock starts when it is connected).
+        Before SITL's first time stamp (ArduCopter streams nothing for its first
+        seconds), the wall time since the connection times the speed-up (SITL's clock
+        starts when it is connected), but never more than a heartbeat period past the
+        heartbeats SITL has sent (:data:`HEARTBEAT_PERIOD_S`): a SITL starved of CPU
+        while it boots runs slower than its speed-up, and a run on the wall's estimate
+        got ahead of it, heard no heartbeat for the autopilot's timeout and lost the
+        autopilot at the start (a campaign's four SITLs on two cores).
         """
         if self._clock_s is not None:
             return self._clock_s
         if self._connected_wall is None:
             return None
-        return (time.monotonic() - self._connected_wall) * self.speedup
+        by_wall_s = (time.monotonic() - self._connected_wall) * self.speedup
+        return min(by_wall_s, (self._beats + 1) * HEARTBEAT_PERIOD_S)
 
     def want_reports(self, vias: Collection[str]) -> None:
         """Stream the reports of ``vias`` (``rc_override``, ``servo``): before :meth:`connect`.
@@ -620,6 +630,8 @@ class SitlBackend(VehicleBackend):
         if kind == "BAD_DATA":
             return
         self._latest[kind] = msg
+        if kind == "HEARTBEAT":
+            self._beats += 1
         boot_ms = getattr(msg, "time_boot_ms", None)
         if isinstance(boot_ms, int) and boot_ms > 0:
             clock_s = boot_ms / 1000.0
