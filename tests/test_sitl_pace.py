@@ -93,6 +93,55 @@ def test_before_sitls_first_time_stamp_the_run_waits_for_its_heartbeats() -> Non
     assert clock_s is not None and 50.0 <= clock_s < 101.0  # the wall's estimate, the lower
 
 
+def test_the_engine_hears_what_sitl_sent_at_the_runs_time_it_was_sent() -> None:
+    """SITL ahead of the run: a tick heard everything SITL had sent (3 s of it at once),
+    the ticks catching up heard nothing, and the adapter lost its autopilot (its 3 s
+    timeout). Now each frame waits for the run's time it was sent at: its own time stamp,
+    or the last stamped frame's (HEARTBEAT has none). Every byte still comes, in order."""
+    sitl = backend()
+    sender = mavlink2.MAVLink(None, 1, 1)
+    sent = [
+        heartbeat(),
+        pressure(1.0),
+        heartbeat(),  # stamped as the frame before it: 1.0 s
+        pressure(2.0),
+        heartbeat(),
+        pressure(3.5),
+    ]
+    stream = b"".join(bytes(msg.pack(sender)) for msg in sent)
+    sitl._connected_wall = time.monotonic()  # before any stamp: SITL's clock as read
+    sitl._hold(stream[:37])  # a frame cut in two, as TCP may deliver it
+    sitl._hold(stream[37:])
+    early = sitl._release(0.5)
+    assert [m.get_type() for m in sitl.heard] == ["HEARTBEAT"]
+    at_1 = sitl._release(1.5)
+    assert [m.get_type() for m in sitl.heard] == ["SCALED_PRESSURE", "HEARTBEAT"]
+    at_3 = sitl._release(3.0)
+    assert [m.get_type() for m in sitl.heard] == ["SCALED_PRESSURE", "HEARTBEAT"]
+    assert sitl._release(3.4) == b""
+    rest = sitl._release(3.5)
+    assert early + at_1 + at_3 + rest == stream
+
+
+def sim_state(alt_amsl_m: float) -> Any:
+    zero = [0.0] * 13
+    return mavlink2.MAVLink_sim_state_message(
+        1.0, *zero[:12], 0.0, 0.0, alt_amsl_m, 0.0, 0.0, 0.0, 0.0, 0.0, 306372000, -964787000
+    )
+
+
+def test_the_truth_recorded_at_a_tick_is_sitls_at_the_runs_time() -> None:
+    """As the engine hears SITL at the run's time, the truth is taken at that time too:
+    a state entered on what SITL said is recorded where SITL was when it said it."""
+    sitl = backend()  # a plane: its height is SITL's altitude over the origin's
+    feed(sitl, pressure(1.0), sim_state(100.0), pressure(2.0), sim_state(110.0))
+    assert sitl.truth().up_m == pytest.approx(20.0)  # before the run: SITL's latest
+    sitl._want_s = 1.5
+    assert sitl.truth().up_m == pytest.approx(10.0)
+    sitl._want_s = 2.5
+    assert sitl.truth().up_m == pytest.approx(20.0)
+
+
 def test_a_tick_takes_the_first_report_showing_what_it_asked_for() -> None:
     report = LaterReport("RC_CHANNELS", 0, after_s=10.0, want_us=1650)
     assert not report.take(9.99, (1650,))  # made before the tick's commands

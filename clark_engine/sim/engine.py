@@ -876,7 +876,10 @@ class DryRun:
                 tap(data)
             pilot = sim_agent.pilot
             if pilot is not None and not pilot.done:
-                pilot.hear(data, t_s)
+                if isinstance(sim_agent.backend, SitlBackend):
+                    pilot.hear_messages(sim_agent.backend.heard, t_s)
+                else:
+                    pilot.hear(data, t_s)
             if sim_agent.adapter is None or not sim_agent.alive or sim_agent.closed:
                 continue
             if not sim_agent.link_up(t_s):

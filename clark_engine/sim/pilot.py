@@ -44,6 +44,7 @@ flown up before the run starts (see :mod:`clark_engine.sim.sitl_backend`).
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any, Final
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -168,7 +169,14 @@ class SimPilot:
         height can stall).
         """
         if not self._ever_armed or self._throttle is not None:
-            for msg in self._parser.parse_buffer(data) or []:
+            self.hear_messages(self._parser.parse_buffer(data) or [], now_s)
+        else:
+            self._act(now_s)
+
+    def hear_messages(self, messages: Iterable[Any], now_s: float) -> None:
+        """As :meth:`hear`, from messages parsed already (SITL's backend parses its link)."""
+        if not self._ever_armed or self._throttle is not None:
+            for msg in messages:
                 self._note(msg, now_s)
         self._act(now_s)
 

@@ -46,6 +46,7 @@ simulated pilot uses component 25 and the engine's adapter 191.
 
 from __future__ import annotations
 
+import collections
 import math
 import select
 import socket
@@ -98,6 +99,9 @@ the first report after the tick that shows what the tick asked for, or else the 
 report this long after it (what SITL made of it: the check then fails). The reports are
 matched as they stream in (:class:`LaterReport`); a tick waits for the previous tick's
 value to show this long at most (:meth:`SitlBackend.wait_shown`)."""
+TRUTHS_KEPT: Final = 200
+"""SIM_STATEs kept (10 s of SITL's at 20 Hz), so that the truth recorded at the run's time
+is SITL's at that time when SITL is ahead of the run (:meth:`SitlBackend.truth`)."""
 HEARTBEAT_PERIOD_S: Final = 1.0
 """ArduPilot sends HEARTBEAT on every link once a second of its own clock, from boot:
 before its first time stamp, the only sign of how far SITL's clock has got."""
@@ -241,7 +245,17 @@ class SitlBackend(VehicleBackend):
         self._mav = mavlink2.MAVLink(self, srcSystem=_SYSTEM, srcComponent=_COMPONENT)
         self._parser = mavlink2.MAVLink(None, _SYSTEM, _COMPONENT)
         self._parser.robust_parsing = True
-        self._inbox = bytearray()
+        # The engine's link, parsed only to tell when SITL sent each frame: a frame is
+        # handed to the engine's adapter (as the bytes it came in) at the run's time it was
+        # sent, not before (:meth:`step`).
+        self._link_parser = mavlink2.MAVLink(None, _SYSTEM, _COMPONENT)
+        self._link_parser.robust_parsing = True
+        self._held: collections.deque[tuple[float, bytes, Any]] = collections.deque()
+        self._link_stamp_s: float | None = None  # SITL's time of the last stamped frame
+        self.heard: list[Any] = []
+        """The messages :meth:`step` last handed over, parsed (for the simulated pilot)."""
+        self._truths: collections.deque[tuple[float, Truth]] = collections.deque()
+        self._want_s: float | None = None  # SITL's time of the run's last step
         self._clock_s: float | None = None
         self._connected_wall: float | None = None
         self._beats = 0  # HEARTBEATs on the backend's own link
@@ -329,7 +343,7 @@ class SitlBackend(VehicleBackend):
         while self._read(0.0):
             pass
         self._duties()
-        self._inbox.clear()
+        self._held.clear()
 
     def start_run_here(self) -> None:
         """Make the SITL vehicle's current time the run's time 0 (after a pre-flight).
@@ -342,8 +356,9 @@ class SitlBackend(VehicleBackend):
         if self._sock is not None and self._own is not None:
             while self._read(0.0):
                 pass
-        self._inbox.clear()
+        self._held.clear()
         self._offset_s = self.clock_s or 0.0
+        self._want_s = self._offset_s  # the truth at the run's time 0 until its first step
         self._sent_clock_s = None  # the engine's link is silent until the run starts
 
     def step(self, t_s: float, dt_s: float) -> bytes:
@@ -371,12 +386,26 @@ class SitlBackend(VehicleBackend):
             self._duties()
             wait_wall_s = 0.05 if clock_s is None else (want_s - clock_s) / self.speedup
             self._read(min(0.05, max(0.001, wait_wall_s)))
-        # A SITL ahead of the run (the engine waited for a slower one) has sent more:
-        # take it, so that the engine hears SITL's latest.
+        # A SITL ahead of the run (the engine fell behind it, or waited for a slower one)
+        # has sent more: that is held until the run's time reaches it. Handed over at
+        # once, a second or three of SITL's messages came in one tick, and nothing in the
+        # ticks the run took to catch up: the adapter heard its autopilot silent for its
+        # timeout and lost it (a campaign's early autopilot_lost).
         while self._read(0.0):
             pass
-        data, self._inbox = bytes(self._inbox), bytearray()
-        return data
+        self._want_s = want_s
+        return self._release(want_s)
+
+    def _release(self, until_s: float) -> bytes:
+        """The held frames SITL sent by its time ``until_s``, in order; parsed in :attr:`heard`."""
+        frames: list[bytes] = []
+        self.heard = []
+        held = self._held
+        while held and held[0][0] <= until_s:
+            _, frame, msg = held.popleft()
+            frames.append(frame)
+            self.heard.append(msg)
+        return b"".join(frames)
 
     @property
     def speedup(self) -> float:
@@ -438,12 +467,18 @@ class SitlBackend(VehicleBackend):
     def truth(self) -> Truth:
         """The simulator's true state (SIM_STATE), with VFR_HUD's airspeed and throttle.
 
-        SITL's latest: what the engine hears comes from SITL's present too, so a state
-        entered on what SITL said is recorded where SITL then was (a run lagging behind
-        SITL has both a little late; a copter's "landed" was recorded 9 m up when the
-        truth was taken at the run's own clock instead).
+        SITL's at the run's time, as what the engine hears (:meth:`step`): a state entered
+        on what SITL said is recorded where SITL was when it said it (a copter's "landed"
+        was recorded 9 m up when the engine heard SITL's present and the truth was taken
+        at the run's time). SITL's latest before the run and when the run has caught up.
         """
-        return self._truth
+        want_s = self._want_s
+        if want_s is None or not self._truths or self._truths[-1][0] <= want_s:
+            return self._truth
+        for stamp_s, truth in reversed(self._truths):
+            if stamp_s <= want_s:
+                return truth
+        return self._truths[0][1]
 
     def flight_status(self) -> tuple[bool, str]:
         """Arming and mode from SITL's latest HEARTBEAT on the backend's own link.
@@ -617,11 +652,31 @@ class SitlBackend(VehicleBackend):
                 raise self.process.failure("closed the MAVLink connection")
             self._last_byte_wall = time.monotonic()
             if sock is self._sock:
-                self._inbox += data
+                self._hold(data)
             else:
                 for msg in self._parser.parse_buffer(data) or []:
                     self._note(msg)
         return True
+
+    def _hold(self, data: bytes) -> None:
+        """Queue what came on the engine's link, each frame with SITL's time it was sent.
+
+        A frame's time is its own ``time_boot_ms``, or that of the last stamped frame
+        before it (HEARTBEAT, STATUSTEXT and the like carry none; SITL sends its streams
+        interleaved, so that is at most a stream period early), or SITL's clock as read
+        before its first stamped frame. Bytes the parser could not frame go with the
+        frames around them: the adapter hears every byte, in order, as it came.
+        """
+        for msg in self._link_parser.parse_buffer(data) or []:
+            if msg.get_type() == "BAD_DATA":
+                frame = bytes(msg.data)
+            else:
+                frame = bytes(msg.get_msgbuf())
+                boot_ms = getattr(msg, "time_boot_ms", None)
+                if isinstance(boot_ms, int) and boot_ms > 0:
+                    self._link_stamp_s = boot_ms / 1000.0
+            stamp_s = self._link_stamp_s if self._link_stamp_s is not None else self.clock_s
+            self._held.append((stamp_s or 0.0, frame, msg))
 
     def _note(self, msg: Any) -> None:
         if (msg.get_srcSystem(), msg.get_srcComponent()) != self._target:
@@ -641,6 +696,9 @@ class SitlBackend(VehicleBackend):
             self._stream_arrived(kind)
         if kind == "SIM_STATE":
             self._truth = self._truth_from(msg)
+            self._truths.append((self._clock_s or 0.0, self._truth))
+            while len(self._truths) > TRUTHS_KEPT:
+                self._truths.popleft()
         elif kind == "RC_CHANNELS":
             self._rc = tuple(
                 0 if v == 65535 else int(v)
