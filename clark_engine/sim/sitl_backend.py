@@ -197,6 +197,13 @@ def _same_float32(reported: float, wanted: float) -> bool:
     return math.isclose(reported, wanted, rel_tol=1e-6, abs_tol=1e-6)
 
 
+def _link_parser() -> Any:
+    """A pymavlink parser for the engine's link that skips what it cannot frame."""
+    parser = mavlink2.MAVLink(None, _SYSTEM, _COMPONENT)
+    parser.robust_parsing = True
+    return parser
+
+
 class SitlBackend(VehicleBackend):
     """One vehicle's autopilot and physics as a real ArduPilot SITL process.
 
@@ -248,8 +255,8 @@ class SitlBackend(VehicleBackend):
         # The engine's link, parsed only to tell when SITL sent each frame: a frame is
         # handed to the engine's adapter (as the bytes it came in) at the run's time it was
         # sent, not before (:meth:`step`).
-        self._link_parser = mavlink2.MAVLink(None, _SYSTEM, _COMPONENT)
-        self._link_parser.robust_parsing = True
+        self._link_parser = _link_parser()
+        self._live = False  # the run has started: the engine's link is parsed and held
         self._held: collections.deque[tuple[float, bytes, Any]] = collections.deque()
         self._link_stamp_s: float | None = None  # SITL's time of the last stamped frame
         self.heard: list[Any] = []
@@ -340,6 +347,7 @@ class SitlBackend(VehicleBackend):
         flies on); what came on the engine's link is dropped: the engine's adapter starts
         with the run.
         """
+        self._live = False
         while self._read(0.0):
             pass
         self._duties()
@@ -348,15 +356,20 @@ class SitlBackend(VehicleBackend):
     def start_run_here(self) -> None:
         """Make the SITL vehicle's current time the run's time 0 (after a pre-flight).
 
-        What SITL sent the engine's link before is dropped, not handed to the engine's
-        adapter at its first step: after a pre-flight that is minutes of SITL's own
-        streams, which took the adapter 0.7 s of wall time to parse (7 s of SITL's, a
-        plane handed over 130 m on) before the run's first step was over.
+        What SITL sent the engine's link before is dropped unparsed, not handed to the
+        engine's adapter at its first step: after a pre-flight that is minutes of SITL's
+        own streams, which took the adapter 0.7 s of wall time to parse (7 s of SITL's, a
+        plane handed over 130 m on) before the run's first step was over. From here on
+        the engine's link is parsed and held (:meth:`_hold`).
         """
+        self._live = False
         if self._sock is not None and self._own is not None:
             while self._read(0.0):
                 pass
         self._held.clear()
+        self._link_parser = _link_parser()  # no frame begun before time 0
+        self._link_stamp_s = None
+        self._live = True
         self._offset_s = self.clock_s or 0.0
         self._want_s = self._offset_s  # the truth at the run's time 0 until its first step
         self._sent_clock_s = None  # the engine's link is silent until the run starts
@@ -652,7 +665,8 @@ class SitlBackend(VehicleBackend):
                 raise self.process.failure("closed the MAVLink connection")
             self._last_byte_wall = time.monotonic()
             if sock is self._sock:
-                self._hold(data)
+                if self._live:
+                    self._hold(data)
             else:
                 for msg in self._parser.parse_buffer(data) or []:
                     self._note(msg)
@@ -957,6 +971,7 @@ class SitlBackend(VehicleBackend):
         As :meth:`_plane_over`; then the run's time 0 is now.
         """
         assert self._handover is not None, "only a plane handed over in flight goes round"
+        self._live = False
         self._plane_over(*self._handover, self._waiter(PLANE_AGAIN_S, meanwhile))
         self.start_run_here()
 
