@@ -95,6 +95,13 @@ EVENTS: tuple[tuple[str, str], ...] = (
         "Needs a station in the mission.",
     ),
     ("autopilot_lost", "This vehicle's own autopilot went silent. Vehicles only."),
+    (
+        "always",
+        "Raised every tick: an `always` transition is taken on the first tick its `when:` "
+        "holds (it must have one), so a state can wait for another agent's state or "
+        "position without a polling state. See [docs/runtime.md](runtime.md#conditions-on-"
+        "other-agents).",
+    ),
 )
 
 
@@ -1110,6 +1117,21 @@ def conditions_section(schema: Schema) -> list[str]:
         "when: {distance_m: {to: slash_a, lt: 10}}",
         "when: {all: [{altitude_m: {gt: 30}}, {in_state_s: {gt: 5}}]}",
         "when: {not: {mode: {is: MANUAL}}}",
+        "```",
+        "",
+        "Conditions on another agent (`agent_state`, `ahead_m`, `behind_m`, `above_m`, "
+        "`within_m`) hold only on fresh data: the other agent must send this one its "
+        "`behavior_state` (for `agent_state`) or `agent_status` (for the others) in its "
+        "`telemetry:` ([E-CONDITION-DATA](check-codes.md#e-condition-data)), and a "
+        "message older than three of its periods, or from an agent that is lost, never "
+        "satisfies one. With the event `always` a transition is taken as soon as its "
+        "condition holds; in a block, any value of a condition may be a parameter "
+        "(`gt: $gap_m`). [docs/runtime.md](runtime.md#conditions-on-other-agents) defines "
+        "ahead, behind, above and within.",
+        "",
+        "```yaml",
+        "always: {to: advance, when: {agent_state: {agent: rover_b, in: hold}}}",
+        "always: {to: hold, when: {ahead_m: {agent: rover_b, lt: -15, bearing_deg: 0}}}",
         "```",
         "",
     ]

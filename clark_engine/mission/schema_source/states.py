@@ -37,7 +37,7 @@ PARAM_REF_PATTERN = r"^\$[a-z][a-z0-9_]*$"
 EVENT_DESCRIPTION = (
     "Event name: done, timeout, activate, deactivate, terminate, mode:<MODE>, "
     "rc:<channel>:high, rc:<channel>:low, lost:<agent>, found:<agent>, mcs_lost, "
-    "autopilot_lost."
+    "autopilot_lost, always (taken on the first tick its when: holds)."
 )
 
 
