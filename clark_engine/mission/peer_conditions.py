@@ -122,7 +122,12 @@ def _check_state_path(
         return
     paths = [s.dotted for s in root.walk() if s.path]
     close = difflib.get_close_matches(path, paths, n=1)
-    hint = f"did you mean {close[0]!r}?" if close else "its states: " + ", ".join(paths[:12])
+    if close:
+        hint = f"did you mean {close[0]!r}?"
+    elif paths:
+        hint = "its states: " + ", ".join(paths[:12]) + (", ..." if len(paths) > 12 else "")
+    else:
+        hint = f"its behavior: is one use: with no named states; give {peer.name} states:"
     yield error(
         "E-STATE-UNKNOWN",
         where,
