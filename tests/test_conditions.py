@@ -353,3 +353,62 @@ def test_loading_refuses_a_condition_on_an_agent_that_is_not_a_peer() -> None:
         config_from_dict(data, source="rover_a.json")
     assert "waits for 'rover_z' (agent_state), which is not a peer" in str(caught.value)
     assert caught.value.path == "machine.states.1.transitions.0.when.any.1.agent_state.agent"
+
+
+# -- a block that waits for another agent ------------------------------------------------------
+
+PARTNER_BLOCK = """\
+    block: wait_for_partner
+    description: Hold until the partner is far enough ahead, then drive to a point.
+    parameters:
+      type: object
+      required: [partner, point]
+      properties:
+        partner: {type: string, description: The agent to wait for.}
+        gap_m: {type: number, description: How far ahead it must be., default: 6}
+        point: {type: array, description: Where to go then.}
+    machine:
+      initial: wait
+      states:
+        wait:
+          use: hold
+          transitions:
+            always: {to: go, when: {ahead_m: {agent: $partner, gt: $gap_m, bearing_deg: 0}}}
+        go: {use: waypoint, with: {to: $point}}
+"""
+
+PARTNERS = """\
+include: {behaviors: [blocks]}
+agents:
+  rover_a:
+    id: 2
+    profile: traxxas_slash
+    telemetry: {heartbeat: 1, agent_status: 2}
+    behavior: {use: waypoint, with: {to: [40, 0]}}
+  rover_b:
+    id: 3
+    profile: traxxas_slash
+    position: [0, 8]
+    telemetry: {heartbeat: 1}
+    behavior: {use: wait_for_partner, with: {partner: PARTNER, point: [40, 8]}}
+"""
+
+
+def test_a_block_waits_for_the_agent_its_user_names(tmp_path: Path) -> None:
+    result = _validate(
+        tmp_path, PARTNERS.replace("PARTNER", "rover_a"), {"wait_for_partner": PARTNER_BLOCK}
+    )
+    assert not result.findings, [f.format_text() for f in result.findings]
+    wait = _config(result, "rover_b")["machine"]["states"][0]  # type: ignore[index]
+    assert wait["transitions"][0]["when"] == {
+        "ahead_m": {"agent": "rover_a", "gt": 6, "bearing_deg": 0}
+    }
+
+
+def test_a_block_given_an_unknown_agent_is_refused_at_the_users_with(tmp_path: Path) -> None:
+    result = _validate(
+        tmp_path, PARTNERS.replace("PARTNER", "rover_z"), {"wait_for_partner": PARTNER_BLOCK}
+    )
+    assert [(f.code, f.location.file, f.location.line) for f in result.findings] == [
+        ("E-AGENT-UNKNOWN", "m.yaml", 16)
+    ]

@@ -151,6 +151,10 @@ def on_sitl(mission: Path, tmp_path: Path, *args: str) -> subprocess.CompletedPr
         # moving Slash A, sits at the comparison's edge: docs/autopilot-fidelity.md.)
         "fault_station_loss.yaml",
         "copter_takeoff_land.yaml",  # ArduCopter: engine-armed takeoff, legs, land, disarm
+        # Two ArduRovers leapfrog: each sets off on the other's Behavior State and position
+        # (always transitions on agent_state and ahead_m); its checks are the sequences
+        # of their turns (issue 20 item 8).
+        "leapfrog.yaml",
     ],
 )
 def test_the_example_flies_on_sitl_as_on_the_simulated_autopilot(
