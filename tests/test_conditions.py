@@ -24,6 +24,7 @@ from clark_engine.runtime.config import AgentConfig, ConfigError, config_from_di
 from clark_engine.runtime.context import PrimitiveContext, offset_position
 from clark_engine.runtime.events import VehicleState
 from clark_engine.runtime.peer_conditions import resolve_peer_condition, stale_after_s
+from clark_engine.runtime.runtime import AgentRuntime
 
 HEAD = """\
 clark: 1
@@ -412,3 +413,26 @@ def test_a_block_given_an_unknown_agent_is_refused_at_the_users_with(tmp_path: P
     assert [(f.code, f.location.file, f.location.line) for f in result.findings] == [
         ("E-AGENT-UNKNOWN", "m.yaml", 16)
     ]
+
+
+def test_the_runtime_asks_the_machine_only_when_an_active_states_always_guard_holds() -> None:
+    """The library's trigger costs about 0.2 ms even when no guard holds: the runtime's
+    watch decides first, on the guards of the active states only, each with its own
+    time in state, and follows the machine's changes."""
+    config, _ = _runtime_parts()
+    runtime = AgentRuntime(config)
+    ctx = runtime.context
+    ctx.vehicle = VehicleState(None, *ORIGIN, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, "GUIDED", 15, True)
+    watch = runtime._always
+    assert watch is not None and runtime.machine is not None
+    runtime.machine.start(ctx)  # Rover A in advance: holds once Rover B is 15 m behind
+    _hear_b(ctx, 0.0, 1, north_m=-10)
+    assert not watch.due(ctx)
+    _hear_b(ctx, 0.0, 2, north_m=-16)
+    assert watch.due(ctx)
+    assert runtime.machine.dispatch("always", ctx)
+    assert runtime.machine.active_paths() == ("hold",)
+    # In hold: sets off when Rover B holds 10 m ahead (it is 16 m behind), or is parked.
+    assert not watch.due(ctx)
+    _hear_b(ctx, 0.0, 3, north_m=-16, active=("parked",))
+    assert watch.due(ctx)

@@ -32,10 +32,11 @@ from collections.abc import Callable, Mapping
 from typing import Any, Final
 
 from clark_engine.link.messages import AgentStatus, BehaviorState
-from clark_engine.mission.peer_conditions import PEER_CONDITIONS
+from clark_engine.mission.peer_conditions import ALWAYS_EVENT, PEER_CONDITIONS
 from clark_engine.runtime.config import AgentConfig, StateSpec
 from clark_engine.runtime.context import EARTH_RADIUS_M, PrimitiveContext
 from clark_engine.runtime.events import VehicleState
+from clark_engine.runtime.machine import StateChange
 
 #: A peer's message older than this many of its declared periods is stale: two may be
 #: lost in a row (a bad spell of the radio) and the condition still decides on the third.
@@ -86,11 +87,64 @@ def resolve_peer_condition(key: str, value: Mapping[str, Any], config: AgentConf
     return _bounded(peer_id, stale_s, measure, value.get("lt"), value.get("gt"))
 
 
-def has_event(spec: StateSpec, event: str) -> bool:
-    """Whether any state of the behaviour has a transition on ``event``."""
-    return any(t.event == event for t in spec.transitions) or any(
-        has_event(child, event) for child in spec.states
-    )
+class AlwaysWatch:
+    """Says, each tick, whether an active state's ``always`` transition could be taken.
+
+    The runtime raises ``always`` only when this says so: the state machine library's
+    trigger costs about 0.2 ms even when no guard holds (docs/performance.md), seven
+    times a whole tick, and a rover waits in such a state for most of a leapfrog. Asking
+    first changes nothing the machine decides: when no guard of an active state holds,
+    ``dispatch`` takes no transition; when one does, the machine decides which, as ever.
+
+    It follows the machine's changes (:meth:`on_change`, from the runtime's listener) to
+    know which states with ``always`` transitions are active and since when, so that a
+    guard's ``in_state_s`` is the one the machine gives it.
+    """
+
+    def __init__(self, spec: StateSpec, resolve: Callable[[Mapping[str, Any]], Holds]) -> None:
+        """Resolve the guard of every ``always`` transition of the behaviour ``spec``, once."""
+        self._guards: dict[str, tuple[Holds, ...]] = {}
+        self._add(spec, resolve)
+        #: Active states with ``always`` transitions -> when they were entered.
+        self._entered: dict[str, float] = {}
+
+    def _add(self, spec: StateSpec, resolve: Callable[[Mapping[str, Any]], Holds]) -> None:
+        guards = tuple(
+            resolve(t.when) if t.when is not None else _always_holds
+            for t in spec.transitions
+            if t.event == ALWAYS_EVENT
+        )
+        if guards:
+            self._guards[spec.path] = guards
+        for child in spec.states:
+            self._add(child, resolve)
+
+    @property
+    def watching(self) -> bool:
+        """Whether the behaviour has any ``always`` transition at all."""
+        return bool(self._guards)
+
+    def on_change(self, change: StateChange) -> None:
+        """Follow one change of the active states."""
+        entered = self._entered
+        for path in change.exited:
+            entered.pop(path, None)
+        for path in change.entered:
+            if path in self._guards:
+                entered[path] = change.time_s
+
+    def due(self, ctx: PrimitiveContext) -> bool:
+        """Whether a guard of an active state's ``always`` transition holds now."""
+        now_s = ctx.now_s
+        for path, entered_s in self._entered.items():
+            for holds in self._guards[path]:
+                if holds(ctx, now_s - entered_s):
+                    return True
+        return False
+
+
+def _always_holds(_ctx: PrimitiveContext, _in_state_s: float) -> bool:
+    return True  # an always transition without when: clark validate refuses it
 
 
 def _never(_ctx: PrimitiveContext, _in_state_s: float) -> bool:

@@ -117,7 +117,7 @@ from clark_engine.runtime.logbook import (
     Logbook,
 )
 from clark_engine.runtime.machine import BehaviorMachine, Holds, StateChange
-from clark_engine.runtime.peer_conditions import has_event, resolve_peer_condition
+from clark_engine.runtime.peer_conditions import AlwaysWatch, resolve_peer_condition
 from clark_engine.runtime.primitives import make_primitive
 
 #: Commands that move the vehicle; never sent while the autopilot is lost or after terminate.
@@ -272,8 +272,10 @@ class AgentRuntime:
             if config.machine is not None
             else None
         )
-        #: The behaviour has ``always`` transitions: the machine phase raises the event.
-        self._always = config.machine is not None and has_event(config.machine, ALWAYS_EVENT)
+        #: The behaviour's ``always`` transitions: the machine phase raises the event when
+        #: one of an active state's could be taken; None when it has none.
+        watch = AlwaysWatch(config.machine, self._resolve_condition) if config.machine else None
+        self._always = watch if watch is not None and watch.watching else None
         self.terminated = False
         self.close_logbook_on_terminate = True
         """False when the owner closes the logbook after its own stop (the real-time shell
@@ -1228,9 +1230,9 @@ class AgentRuntime:
                 self._say_ignored(event)
             if self.terminated:
                 return
-        if self._always and self.failsafe is None:
+        if self._always is not None and self.failsafe is None and self._always.due(self.context):
             # Transitions taken as soon as their condition holds (another agent's state,
-            # where it is): raised every tick, taken by the states that have one.
+            # where it is): raised on the tick a guard of an active state holds.
             self.machine.dispatch(ALWAYS_EVENT, self.context)
             if self.terminated:
                 return
@@ -1854,6 +1856,8 @@ class AgentRuntime:
         return self._autopilot_lost
 
     def _on_change(self, change: StateChange) -> None:
+        if self._always is not None:
+            self._always.on_change(change)
         if not self._autopilot_lost:
             self._requests_void = False  # a state entered now asks afresh
         self.logbook.mission.info(
