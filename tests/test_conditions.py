@@ -218,6 +218,16 @@ def test_a_relative_position_without_bounds_or_with_impossible_ones_is_refused(
     assert _codes(result) == [("E-CONDITION", 21)]
 
 
+def test_a_relative_position_to_a_station_is_refused_once(tmp_path: Path) -> None:
+    text = PAIR.replace("TRANSITION", "{to: go, when: {within_m: {agent: mcs, lt: 3}}}")
+    text = text.replace("TELEMETRY_A", "2").replace(
+        "agents:\n", "agents:\n  mcs: {id: 1, profile: mcs_laptop, telemetry: {heartbeat: 1}}\n"
+    )
+    result = _validate(tmp_path, text)
+    assert _codes(result) == [("E-CONDITION", 22)]  # not also "add agent_status to mcs"
+    assert "mcs is a station with no position" in result.findings[0].message
+
+
 def test_an_always_transition_needs_a_condition(tmp_path: Path) -> None:
     assert _codes(_pair(tmp_path, "go")) == [("E-ALWAYS-WHEN", 21)]
 

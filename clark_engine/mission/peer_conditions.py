@@ -77,7 +77,16 @@ def check_peer_condition(
     if key == "agent_state":
         yield from _check_state_path(peer, str(value.get("in")), transition, here)
     else:
-        yield from _check_positions(agent, peer, key, value, transition, here)
+        station = next((who for who in (agent, peer) if not who.is_vehicle), None)
+        if station is not None:
+            yield error(
+                "E-CONDITION",
+                transition.condition_location(here),
+                f"{key} needs the positions of both agents, and {station.name} is a station "
+                "with no position; compare two vehicles",
+            )
+            return
+        yield from _check_bounds(key, value, transition, here)
     message = PEER_CONDITIONS[key]
     sent = peer.telemetry.get(message)
     if sent is None or not sent.reaches(agent.name):
@@ -136,25 +145,11 @@ def _check_state_path(
     )
 
 
-def _check_positions(
-    agent: Agent,
-    peer: Agent,
-    key: str,
-    value: Mapping[str, Any],
-    transition: Transition,
-    here: tuple[str | int, ...],
+def _check_bounds(
+    key: str, value: Mapping[str, Any], transition: Transition, here: tuple[str | int, ...]
 ) -> Iterator[Finding]:
-    """Both ends have a position (and this one a heading), and the bounds can hold."""
+    """A relative-position condition compares with something, and can hold."""
     where = transition.condition_location(here)
-    for who in (agent, peer):
-        if not who.is_vehicle:
-            yield error(
-                "E-CONDITION",
-                where,
-                f"{key} needs the positions of both agents, and {who.name} is a station "
-                "with no position; compare two vehicles",
-            )
-            return
     low, high = value.get("gt"), value.get("lt")
     if low is None and high is None:
         yield error(
