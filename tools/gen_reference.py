@@ -1316,8 +1316,10 @@ def blocks_section(behavior_schema: Schema) -> list[str]:
         "A block file is named after its block (`aileron_doublet.yaml` holds "
         "`block: aileron_doublet`) and starts with "
         "`# yaml-language-server: $schema=../schemas/behavior.schema.json`. Inside `machine:`, "
-        "a value written `$name` inside a `with:` is replaced by parameter `name`: the value "
-        "the mission gave, or the parameter's default. Control channels are named "
+        "a value written `$name` inside a `with:` or a transition's `when:` is replaced by "
+        "parameter `name`: the value the mission gave, or the parameter's default (a "
+        "condition is then checked as a mission's, "
+        "[E-BLOCK-WHEN](check-codes.md#e-block-when)). Control channels are named "
         "(`channel: aileron`) and resolved through each agent's profile, so one block serves "
         "every airframe that has that control. `clark validate behaviors/my_block.yaml` checks "
         "a block on its own.",
