@@ -97,7 +97,7 @@ EVENTS: tuple[tuple[str, str], ...] = (
     ("autopilot_lost", "This vehicle's own autopilot went silent. Vehicles only."),
     (
         "always",
-        "Raised every tick: an `always` transition is taken on the first tick its `when:` "
+        "Checked every tick: an `always` transition is taken on the first tick its `when:` "
         "holds (it must have one), so a state can wait for another agent's state or "
         "position without a polling state. See [docs/runtime.md](runtime.md#conditions-on-"
         "other-agents).",
