@@ -317,3 +317,35 @@ def test_the_engine_keeps_sitls_pace_through_a_sweep() -> None:
     assert late_s < 5.0, f"the engine fell {late_s:.2f} s behind SITL at {at_s:.1f} s"
     results = evaluate(mission.checks, result.recording, result.configs, mission.origin)
     assert all(r.passed for r in results), [(r.name, r.observed) for r in results]
+
+
+@pytest.mark.sitl
+@needs_sitl
+def test_the_leapfrog_switches_on_the_other_rovers_state_on_sitl() -> None:
+    """Issue 20 item 8 on two ArduRovers: each sets off on the other's state and position.
+
+    missions/leapfrog.yaml's rovers take turns through ``always`` transitions on the
+    other's Behavior State (``agent_state``) and Agent Status (``ahead_m``), sent over the
+    simulated radio. Flown until both have switched on the other once (Rover B sets off
+    when Rover A holds ahead of it, Rover A when Rover B does), its checks of those turns
+    pass on SITL. Not compared with the simulated run: SITL's rover coasts to a stop in
+    HOLD about a metre further than the simulated one brakes (docs/autopilot-fidelity.md,
+    not yet modelled), so its later turns come a few seconds sooner than simulated.
+    """
+    assert REAL is not None
+    path = MISSIONS / "leapfrog.yaml"
+    mission = validate_file(path, str(path)).mission
+    assert mission is not None
+    until_s = 80.0  # the second check's by_s: both rovers have switched once
+    run = DryRun(mission, path, seed=1, until_s=until_s, sitl=REAL, sitl_speedup=float(SPEEDUP))
+    try:
+        result = run.run()
+    finally:
+        run.close()
+    turns = [c for c in mission.checks if c.get("by_s", until_s + 1) <= until_s]
+    assert [c["name"] for c in turns] == [
+        "Rover B sets off once Rover A holds ahead",
+        "Rover A sets off once Rover B holds ahead",
+    ]
+    rows = evaluate(turns, result.recording, result.configs, mission.origin, until_s)
+    assert all(row.passed for row in rows), [(r.name, r.observed) for r in rows]

@@ -95,6 +95,13 @@ EVENTS: tuple[tuple[str, str], ...] = (
         "Needs a station in the mission.",
     ),
     ("autopilot_lost", "This vehicle's own autopilot went silent. Vehicles only."),
+    (
+        "always",
+        "Checked every tick: an `always` transition is taken on the first tick its `when:` "
+        "holds (it must have one), so a state can wait for another agent's state or "
+        "position without a polling state. See [docs/runtime.md](runtime.md#conditions-on-"
+        "other-agents).",
+    ),
 )
 
 
@@ -1112,6 +1119,21 @@ def conditions_section(schema: Schema) -> list[str]:
         "when: {not: {mode: {is: MANUAL}}}",
         "```",
         "",
+        "Conditions on another agent (`agent_state`, `ahead_m`, `behind_m`, `above_m`, "
+        "`within_m`) hold only on fresh data: the other agent must send this one its "
+        "`behavior_state` (for `agent_state`) or `agent_status` (for the others) in its "
+        "`telemetry:` ([E-CONDITION-DATA](check-codes.md#e-condition-data)), and a "
+        "message older than three of its periods, or from an agent that is lost, never "
+        "satisfies one. With the event `always` a transition is taken as soon as its "
+        "condition holds; in a block, any value of a condition may be a parameter "
+        "(`gt: $gap_m`). [docs/runtime.md](runtime.md#conditions-on-other-agents) defines "
+        "ahead, behind, above and within.",
+        "",
+        "```yaml",
+        "always: {to: advance, when: {agent_state: {agent: rover_b, in: hold}}}",
+        "always: {to: hold, when: {ahead_m: {agent: rover_b, lt: -15, bearing_deg: 0}}}",
+        "```",
+        "",
     ]
     return lines
 
@@ -1294,8 +1316,10 @@ def blocks_section(behavior_schema: Schema) -> list[str]:
         "A block file is named after its block (`aileron_doublet.yaml` holds "
         "`block: aileron_doublet`) and starts with "
         "`# yaml-language-server: $schema=../schemas/behavior.schema.json`. Inside `machine:`, "
-        "a value written `$name` inside a `with:` is replaced by parameter `name`: the value "
-        "the mission gave, or the parameter's default. Control channels are named "
+        "a value written `$name` inside a `with:` or a transition's `when:` is replaced by "
+        "parameter `name`: the value the mission gave, or the parameter's default (a "
+        "condition is then checked as a mission's, "
+        "[E-BLOCK-WHEN](check-codes.md#e-block-when)). Control channels are named "
         "(`channel: aileron`) and resolved through each agent's profile, so one block serves "
         "every airframe that has that control. `clark validate behaviors/my_block.yaml` checks "
         "a block on its own.",

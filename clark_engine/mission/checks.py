@@ -20,13 +20,28 @@ from clark_engine.mission.faults import fault_problems
 from clark_engine.mission.findings import Finding, Location, error, rehome, warning
 from clark_engine.mission.flow import entry_leaves
 from clark_engine.mission.model import Agent, Mission, State, Transition
+from clark_engine.mission.peer_conditions import (
+    ALWAYS_EVENT,
+    PEER_CONDITIONS,
+    check_always,
+    check_peer_condition,
+)
 from clark_engine.mission.primitives import PRIMITIVES, UseContext
 from clark_engine.mission.primitives._shared import off_the_globe
 from clark_engine.mission.variation import sim_schema as mission_varied_fields_schema
 from clark_engine.mission.variation import variation_problems
 
 SIMPLE_EVENTS = frozenset(
-    {"done", "timeout", "activate", "deactivate", "terminate", "mcs_lost", "autopilot_lost"}
+    {
+        "done",
+        "timeout",
+        "activate",
+        "deactivate",
+        "terminate",
+        "mcs_lost",
+        "autopilot_lost",
+        ALWAYS_EVENT,
+    }
 )
 STATION_EVENTS = frozenset({"activate", "deactivate", "mcs_lost"})
 _RC_EVENT = re.compile(r"^rc:([A-Za-z0-9_]+):(high|low)$")
@@ -512,6 +527,7 @@ def check_states(mission: Mission, agent: Agent, root: State) -> Iterator[Findin
         events = {t.event for t in state.transitions}
         for transition in state.transitions:
             yield from _check_event(mission, agent, state, transition.event, transition.location)
+            yield from check_always(transition)
             if transition.condition is not None:
                 yield from _check_condition(mission, agent, transition.condition, transition)
             yield from _check_region_crossing(root, state, transition)
@@ -726,6 +742,8 @@ def _check_condition(
                     f"the autopilot of {agent.name} has no mode {mode!r}; "
                     + _hint(mode, agent.hardware.modes),
                 )
+        elif key in PEER_CONDITIONS:
+            yield from check_peer_condition(mission, agent, key, value, transition, here)
         else:
             yield from _check_bounds(key, value, transition, here)
             if key == "distance_m":

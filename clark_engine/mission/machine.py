@@ -25,6 +25,7 @@ from clark_engine.mission.findings import DocPath, Finding, Location, error
 from clark_engine.mission.model import State, Transition
 from clark_engine.mission.primitives import PRIMITIVES
 from clark_engine.mission.schema_source.common import TIME_MAX_S
+from clark_engine.mission.schema_source.states import condition_schema
 from clark_engine.mission.schemas import validate_data
 from clark_engine.mission.yaml_loader import Document
 
@@ -237,7 +238,34 @@ class BehaviorResolver:
                 )
                 if cond is not None:
                     _record_condition(transition, cond, (), (*where, "when"), frame.locator)
+                    if frame.chain:
+                        self._check_substituted_condition(cond, (*where, "when"), frame)
                 state.transitions.append(transition)
+
+    def _check_substituted_condition(self, cond: Any, src: DocPath, frame: _Frame) -> None:
+        """A block's ``when:`` after its ``$name`` values were replaced: of the right type.
+
+        The block file's schema lets any condition value be a parameter reference; what the
+        user (or the block's default) gave in its place is checked here, found at the value
+        given, with the block's use as the related location.
+        """
+        problems = validate_data(
+            "", cond, _AsDocument(frame.locator), src, checker=_condition_checker()
+        )
+        for finding in problems:
+            self.findings.append(
+                _with_related(
+                    Finding(
+                        "E-BLOCK-WHEN",
+                        finding.severity,
+                        finding.location,
+                        "after the block's parameters are put in, its condition is wrong: "
+                        + finding.message,
+                        finding.related,
+                    ),
+                    frame.use_sites,
+                )
+            )
 
     def _children(self, state: State, raw: Mapping[str, Any], src: DocPath, frame: _Frame) -> None:
         children = raw.get("states") or {}
@@ -428,12 +456,18 @@ class BehaviorResolver:
         frame: _Frame,
         in_with: bool = False,
     ) -> Any:
-        """Replace ``$name`` values inside ``with:`` mappings by their parameters."""
+        """Replace ``$name`` values inside ``with:`` and ``when:`` mappings by their parameters."""
         if isinstance(value, Mapping):
             out = {}
             for key, item in value.items():
                 out[key] = self._substitute(
-                    block, item, (*path, key), bindings, locator, frame, in_with or key == "with"
+                    block,
+                    item,
+                    (*path, key),
+                    bindings,
+                    locator,
+                    frame,
+                    in_with or key == "with" or _is_when(path, key),
                 )
             return out
         if isinstance(value, list):
@@ -573,6 +607,23 @@ class _AsDocument(Document):
 
     def location(self, path: DocPath, *, key: bool = False) -> Location:
         return self._locator.location(path, key=key)
+
+
+def _is_when(path: DocPath, key: str | int) -> bool:
+    """Whether ``(*path, key)`` is a transition's ``when:`` (``transitions.<event>[.<i>].when``)."""
+    if key != "when":
+        return False
+    return (len(path) >= 2 and path[-2] == "transitions") or (
+        len(path) >= 3 and path[-3] == "transitions" and isinstance(path[-1], int)
+    )
+
+
+@functools.cache
+def _condition_checker() -> Draft202012Validator:
+    """Validator of one condition as a mission writes it (no parameter references)."""
+    return Draft202012Validator(
+        {"$ref": "#/$defs/condition", "$defs": {"condition": condition_schema()}}
+    )
 
 
 @functools.cache

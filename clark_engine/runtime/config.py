@@ -17,6 +17,7 @@ from typing import Any
 from clark_engine.errors import ClarkError, UsageError
 from clark_engine.mission.fence import Fence, Zone
 from clark_engine.mission.model import DEFAULT_COMPUTER_LOST_S, TICK_PHASES
+from clark_engine.mission.peer_conditions import PEER_CONDITIONS
 
 
 class ConfigError(ClarkError):
@@ -483,6 +484,7 @@ def _check_references(config: AgentConfig, data: Mapping[str, Any], where: str) 
             if transition.when is None:
                 continue
             for condition, place in _conditions(transition.when, f"{at}.transitions.{index}.when"):
+                _check_peer_condition(condition, peers, state, place, where)
                 distance = condition.get("distance_m")
                 if isinstance(distance, Mapping) and distance["to"] not in peers:
                     raise ConfigError(
@@ -491,6 +493,25 @@ def _check_references(config: AgentConfig, data: Mapping[str, Any], where: str) 
                         file=where,
                         path=f"{place}.distance_m.to",
                     )
+
+
+def _check_peer_condition(
+    condition: Mapping[str, Any],
+    peers: Mapping[str, int],
+    state: StateSpec,
+    place: str,
+    where: str,
+) -> None:
+    """Refuse a condition on another agent (its state, where it is) that is not a peer."""
+    for key in PEER_CONDITIONS:
+        body = condition.get(key)
+        if isinstance(body, Mapping) and body["agent"] not in peers:
+            raise ConfigError(
+                f"waits for {body['agent']!r} ({key}), which is not a peer of this "
+                f"config{_peer_list(peers)}{_state_hint(state)}; {_RECOMPILE}",
+                file=where,
+                path=f"{place}.{key}.agent",
+            )
 
 
 def _peer_list(peers: Mapping[str, int]) -> str:

@@ -63,6 +63,7 @@ from clark_engine.link.messages import (
 from clark_engine.link.packet import BROADCAST, Packet
 from clark_engine.mission.geo import Origin, to_local
 from clark_engine.mission.model import TELEMETRY_MESSAGES, TICK_PHASES
+from clark_engine.mission.peer_conditions import ALWAYS_EVENT, PEER_CONDITIONS
 from clark_engine.runtime.autopilot_safety import SafetyPlanError, safety_setup
 from clark_engine.runtime.command_delivery import (
     COMMAND_RESEND_S,
@@ -116,6 +117,7 @@ from clark_engine.runtime.logbook import (
     Logbook,
 )
 from clark_engine.runtime.machine import BehaviorMachine, Holds, StateChange
+from clark_engine.runtime.peer_conditions import AlwaysWatch, resolve_peer_condition
 from clark_engine.runtime.primitives import make_primitive
 
 #: Commands that move the vehicle; never sent while the autopilot is lost or after terminate.
@@ -270,6 +272,10 @@ class AgentRuntime:
             if config.machine is not None
             else None
         )
+        #: The behaviour's ``always`` transitions: the machine phase raises the event when
+        #: one of an active state's could be taken; None when it has none.
+        watch = AlwaysWatch(config.machine, self._resolve_condition) if config.machine else None
+        self._always = watch if watch is not None and watch.watching else None
         self.terminated = False
         self.close_logbook_on_terminate = True
         """False when the owner closes the logbook after its own stop (the real-time shell
@@ -1224,6 +1230,12 @@ class AgentRuntime:
                 self._say_ignored(event)
             if self.terminated:
                 return
+        if self._always is not None and self.failsafe is None and self._always.due(self.context):
+            # Transitions taken as soon as their condition holds (another agent's state,
+            # where it is): raised on the tick a guard of an active state holds.
+            self.machine.dispatch(ALWAYS_EVENT, self.context)
+            if self.terminated:
+                return
         if self.failsafe is None:
             self.machine.step(self.context)
         if self.context.terminate_requested:
@@ -1748,7 +1760,9 @@ class AgentRuntime:
         parts; ``mode`` compares the vehicle's mode; ``distance_m`` (to a peer, read by
         the id the peer table gives; loading proved it a peer), ``altitude_m``,
         ``speed_m_s`` and ``in_state_s`` hold while the figure is below ``lt`` and above
-        ``gt``, and never while it is unknown. A condition with no key always holds.
+        ``gt``, and never while it is unknown; a condition on another agent (its state,
+        where it is) is :mod:`~clark_engine.runtime.peer_conditions`', on fresh data only.
+        A condition with no key always holds.
         """
         for key, value in when.items():  # exactly one key (the schema's)
             if key in ("all", "any"):
@@ -1762,6 +1776,8 @@ class AgentRuntime:
             if key == "mode":
                 mode = value["is"]
                 return lambda ctx, _s: ctx.vehicle is not None and ctx.vehicle.mode == mode
+            if key in PEER_CONDITIONS:  # another agent's state or relative position
+                return resolve_peer_condition(key, value, self.config)
             return _bounded(self._measurement(key, value), value.get("lt"), value.get("gt"))
         return _always
 
@@ -1840,6 +1856,8 @@ class AgentRuntime:
         return self._autopilot_lost
 
     def _on_change(self, change: StateChange) -> None:
+        if self._always is not None:
+            self._always.on_change(change)
         if not self._autopilot_lost:
             self._requests_void = False  # a state entered now asks afresh
         self.logbook.mission.info(

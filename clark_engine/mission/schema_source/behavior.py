@@ -3,7 +3,7 @@
 A block is a reusable piece of behaviour with declared parameters: its
 ``parameters`` are a JSON Schema (defaults included) for the ``with:`` of
 whoever uses it, and its ``machine`` is a state whose values may be
-``$name`` references to those parameters.
+``$name`` references to those parameters (in a ``with:`` or a transition's ``when:``).
 """
 
 from __future__ import annotations
@@ -52,8 +52,8 @@ def build() -> dict[str, Any]:
             ),
             "machine": {
                 "$ref": "#/$defs/state",
-                "description": "The block's behaviour. A value written $name is replaced by "
-                "parameter name.",
+                "description": "The block's behaviour. A value written $name (in a with: or a "
+                "when:) is replaced by parameter name.",
             },
         },
         "$defs": state_defs(check_params=False),

@@ -19,18 +19,25 @@ from clark_engine.mission.schema_source.common import (
     array,
     boolean,
     distance_m,
+    number,
     obj,
+    position_m,
     speed_m_s,
     string,
     time_s,
 )
 
 STATE_PATH_PATTERN = r"^[a-z][a-z0-9_]*(\.[a-z][a-z0-9_]*)*$"
+#: Longest state path a condition on another agent may name: far beyond any behaviour's
+#: nesting, and what bounds the comparison with the paths a peer reports over the air.
+MAX_STATE_PATH_CHARS = 200
+#: A block parameter written in a block's machine: ``$name``.
+PARAM_REF_PATTERN = r"^\$[a-z][a-z0-9_]*$"
 
 EVENT_DESCRIPTION = (
     "Event name: done, timeout, activate, deactivate, terminate, mode:<MODE>, "
     "rc:<channel>:high, rc:<channel>:low, lost:<agent>, found:<agent>, mcs_lost, "
-    "autopilot_lost."
+    "autopilot_lost, always (taken on the first tick its when: holds)."
 )
 
 
@@ -72,6 +79,7 @@ def condition_schema() -> Schema:
                 {"is": string("Mode name of the agent's autopilot firmware.")},
                 required=["is"],
             ),
+            **peer_condition_properties(),
             "all": array(
                 "Holds when every condition holds.", {"$ref": "#/$defs/condition"}, min_items=1
             ),
@@ -81,6 +89,94 @@ def condition_schema() -> Schema:
             "not": {"$ref": "#/$defs/condition"},
         },
     }
+
+
+def peer_condition_properties() -> dict[str, Schema]:
+    """Conditions on another agent: its behaviour state and where it is relative to this one.
+
+    Each names the other agent by ``agent`` and holds only on fresh data: the peer's
+    last Behavior State or Agent Status younger than three of the periods it declares
+    sending them to this agent at, and never while the peer is lost (docs/runtime.md).
+    """
+    agent = AGENT_NAME_SCHEMA | {"description": "The other agent, by its name in agents:."}
+
+    def relative(description: str, quantity: Callable[..., Schema], *extra: str) -> Schema:
+        properties: dict[str, Schema] = {
+            "agent": agent,
+            "lt": quantity("Holds while the figure is below this."),
+            "gt": quantity("Holds while the figure is above this."),
+        }
+        if "bearing_deg" in extra:
+            properties["bearing_deg"] = number(
+                "Fixed direction of ahead, in degrees clockwise from true north, instead of "
+                "this agent's heading (a leapfrog's line of advance, say).",
+                unit="deg",
+                minimum=0,
+                exclusive_maximum=360,
+            )
+        return obj(description, properties, required=["agent"])
+
+    return {
+        "agent_state": obj(
+            "Another agent's behaviour is in a state: the state or one of its descendants is "
+            "active, by the agent's last Behavior State.",
+            {
+                "agent": agent,
+                "in": string(
+                    "Dotted path of a state of that agent's behaviour.",
+                    pattern=STATE_PATH_PATTERN,
+                )
+                | {"maxLength": MAX_STATE_PATH_CHARS},
+            },
+            required=["agent", "in"],
+        ),
+        "ahead_m": relative(
+            "How far the other agent is ahead of this one, in metres along this agent's "
+            "heading (or bearing_deg); negative when it is behind.",
+            position_m,
+            "bearing_deg",
+        ),
+        "behind_m": relative(
+            "How far the other agent is behind this one, in metres against this agent's "
+            "heading (or bearing_deg); negative when it is ahead.",
+            position_m,
+            "bearing_deg",
+        ),
+        "above_m": relative(
+            "How far the other agent is above this one, in metres: both altitudes above the "
+            "mission origin; negative when it is below.",
+            position_m,
+        ),
+        "within_m": relative(
+            "Straight-line distance to the other agent in metres (ground distance and height "
+            "difference together): within_m: {agent: x, lt: 10} is within 10 m of x.",
+            distance_m,
+        ),
+    }
+
+
+def with_param_refs(condition: Schema) -> Schema:
+    """The condition schema of a block's machine: any value may be a ``$name`` parameter.
+
+    A block's transitions may say ``when: {in_state_s: {gt: $wait_s}}``; the value is
+    substituted when the block is used and checked then against :func:`condition_schema`.
+    """
+    ref = string(
+        "A block parameter, $name, replaced by its value where the block is used.",
+        pattern=PARAM_REF_PATTERN,
+    )
+    out = dict(condition)
+    properties = {}
+    for key, schema in condition["properties"].items():
+        if "properties" in schema:
+            schema = dict(schema)
+            schema["properties"] = {
+                name: {"description": leaf.get("description", ""), "anyOf": [leaf, ref]}
+                for name, leaf in schema["properties"].items()
+            }
+        properties[key] = schema
+    out["properties"] = properties
+    return out
 
 
 def transition_schema() -> Schema:
@@ -181,7 +277,7 @@ def state_defs(*, check_params: bool = True) -> dict[str, Schema]:
     defs: dict[str, Schema] = {
         "state": state_schema(check_params=check_params),
         "transition": transition_schema(),
-        "condition": condition_schema(),
+        "condition": condition_schema() if check_params else with_param_refs(condition_schema()),
     }
     if check_params:
         for name, spec in PRIMITIVES.items():
