@@ -28,6 +28,7 @@ from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.validate import validate_path
 from clark_engine.runtime.config import AgentConfig, StateSpec, config_from_dict
 from clark_engine.runtime.context import PrimitiveContext
+from clark_engine.runtime.log_events import RECORD_ATTRIBUTE
 from clark_engine.runtime.primitives.base import Primitive
 from tests.test_runtime_machine import Fake, Harness, leaf, spec
 
@@ -98,9 +99,14 @@ def test_a_start_that_raises_fails_its_state_and_the_transition_completes(
         },
         config,
     ).start()
-    with caplog.at_level(logging.ERROR, logger="clark_engine.runtime.machine"):
+    with caplog.at_level(logging.ERROR):
         assert h.dispatch("activate", 1.0) is True  # no exception out of the agent's tick
-    assert "par.a: the servo channel is gone" in caplog.text
+    (line,) = [r for r in caplog.records if r.name == h.ctx.log.name]  # the agent's mission log
+    assert getattr(line, RECORD_ATTRIBUTE) == "behavior.error"
+    assert line.getMessage() == (
+        "primitive fake of state par.a raised in start: RuntimeError: par.a: the servo "
+        "channel is gone; the state fails"
+    )
     assert h.machine.active_paths() == ("par.a", "par.b")
     h.check_library()
     assert [(c.event, c.source, c.target) for c in h.changes[1:]] == [
@@ -166,7 +172,9 @@ def test_a_primitive_that_cannot_be_built_fails_its_state(config: AgentConfig) -
     h.check_library()
 
 
-def test_a_stop_that_raises_still_leaves_its_state(config: AgentConfig) -> None:
+def test_a_stop_that_raises_still_leaves_its_state(
+    config: AgentConfig, caplog: pytest.LogCaptureFixture
+) -> None:
     h = broken(
         {
             "initial": "a",
@@ -174,7 +182,11 @@ def test_a_stop_that_raises_still_leaves_its_state(config: AgentConfig) -> None:
         },
         config,
     ).start()
-    assert h.dispatch("activate", 1.0) is True
+    with caplog.at_level(logging.ERROR):
+        assert h.dispatch("activate", 1.0) is True
+    assert "primitive fake of state a raised in stop: RuntimeError: a: cannot release the " in (
+        caplog.text
+    )
     assert h.machine.active_paths() == ("b",)
     change = h.changes[-1]
     assert (change.event, change.exited, change.entered) == ("activate", ("a",), ("b",))

@@ -81,6 +81,7 @@ from transitions.extensions.nesting import NestedEventData, NestedState, NestedT
 from clark_engine.runtime.config import ConfigError, StateSpec, TransitionSpec
 from clark_engine.runtime.context import PrimitiveContext, Status
 from clark_engine.runtime.events import PayloadEvent
+from clark_engine.runtime.log_events import LogEvent
 from clark_engine.runtime.primitives.base import Primitive
 
 _LOGGER = logging.getLogger(__name__)
@@ -637,31 +638,43 @@ class BehaviorMachine:
             node.running = True
             try:
                 primitive = self._make_primitive(node.spec)
-            except Exception:
-                self._raised(node, "could not be built")
+            except Exception as exc:
+                self._raised(node, "could not be built", exc, ctx)
                 return
             self._primitives[node] = primitive
             try:
                 primitive.start(ctx)
-            except Exception:
-                self._raised(node, "raised in start")
+            except Exception as exc:
+                self._raised(node, "raised in start", exc, ctx)
 
-    def _raised(self, node: _Node, what: str) -> None:
+    def _raised(self, node: _Node, what: str, exc: Exception, ctx: PrimitiveContext) -> None:
         """A primitive raised while its state was entered: the state stays, its primitive failed.
 
         Called from inside the library's transition, so the failure is reported after it
         (:meth:`_after`), never by raising through it: the library would keep a half-made
-        configuration, and the agent's tick would stop.
+        configuration, and the agent's tick would stop. The mission log gets one line
+        (``behavior.error``); the traceback, for whoever fixes the primitive, goes to
+        this module's logger.
         """
-        _LOGGER.error(
-            "primitive %s of state %s %s; the state is entered and fails",
-            node.spec.primitive,
-            node.path or "(root)",
-            what,
-            exc_info=True,
-        )
+        self._log_raised(node, what, "the state fails", exc, ctx)
         node.running = False
         self._broken.append(node)
+
+    def _log_raised(
+        self, node: _Node, what: str, outcome: str, exc: Exception, ctx: PrimitiveContext
+    ) -> None:
+        state = node.path or "(root)"
+        ctx.log.error(
+            "primitive %s of state %s %s: %s: %s; %s",
+            node.spec.primitive,
+            state,
+            what,
+            type(exc).__name__,
+            exc,
+            outcome,
+            extra=LogEvent.BEHAVIOR_ERROR.extra,
+        )
+        _LOGGER.debug("primitive %s of state %s %s", node.spec.primitive, state, what, exc_info=exc)
 
     def _on_exit(self, node: _Node, ctx: PrimitiveContext) -> None:
         self._active_nodes = None
@@ -679,13 +692,8 @@ class BehaviorMachine:
         """Stop a primitive; one that raises is logged and its state left all the same."""
         try:
             primitive.stop(ctx)
-        except Exception:
-            _LOGGER.error(
-                "primitive %s of state %s raised in stop; the state is left all the same",
-                node.spec.primitive,
-                node.path or "(root)",
-                exc_info=True,
-            )
+        except Exception as exc:
+            self._log_raised(node, "raised in stop", "it is stopped all the same", exc, ctx)
 
     # -- per tick -----------------------------------------------------------------------
 
