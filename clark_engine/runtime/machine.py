@@ -1,10 +1,15 @@
 """One agent's behaviour as a hierarchical state machine (transitions' HierarchicalMachine).
 
 The compiled behaviour (:class:`~clark_engine.runtime.config.StateSpec`, a tree of
-states) becomes one ``transitions`` HierarchicalMachine per agent. The library
-decides what a transition leaves and enters (parent delegation, nesting,
-parallel regions); this module adds what a flying behaviour needs on top of it
-and keeps the per-tick work out of the library, which only runs on events:
+states) becomes one ``transitions`` HierarchicalMachine per agent. The library's
+state (its model's ``state``) is the one record of the active configuration: what
+:meth:`BehaviorMachine.active_paths` says, what a guard checks and what completion
+reads all come from it, and only the library changes it, in its own transitions.
+The library decides what a transition leaves and enters (parent delegation,
+nesting, parallel regions, local and external transitions); this module adds
+what a flying behaviour needs on top of it, through the library's extension points
+(its state, transition and machine classes, callbacks and conditions), and keeps
+the per-tick work out of the library, which only runs on events:
 
 - **Primitives.** Entering a state that ``use:`` s a primitive builds a fresh
   instance (``make_primitive``) and calls its ``start``; leaving it calls ``stop``.
@@ -45,7 +50,16 @@ Re-entry: a transition to its own source state, or to an ancestor of it, is
 from a state to one of its own descendants is *local* (the library's
 semantics): the state itself stays active and its timer keeps counting; only
 its active children are left. A transition to a state deep inside a parallel
-state enters the other regions at their initial states too.
+state enters the other regions at their initial states too, in the same
+transition of the library (:class:`_Transition`), so its state never lacks them.
+
+A primitive that raises: ``make_primitive`` or ``start`` raising (the state's entry)
+fails the state as a primitive returning FAILED does (reported as a ``failed`` change
+right after the transition's own, never updated, stopped when left), and the
+transition completes; ``stop`` raising (the state's exit, or :meth:`BehaviorMachine.stop`)
+is logged and the state is left all the same. Either way the library's state and the
+primitives stay in step, and the agent's tick goes on: its failsafes, heartbeats and
+station link run only while the tick does.
 
 Two agents in one process share nothing: the separator ``"."`` is set on a
 private NestedState subclass, never on transitions' own class, and every
@@ -55,17 +69,19 @@ machine has its own model object.
 from __future__ import annotations
 
 import logging
+from collections import OrderedDict
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import partial
 from typing import Any
 
 from transitions.extensions import HierarchicalMachine
-from transitions.extensions.nesting import NestedState
+from transitions.extensions.nesting import NestedEventData, NestedState, NestedTransition
 
 from clark_engine.runtime.config import ConfigError, StateSpec, TransitionSpec
 from clark_engine.runtime.context import PrimitiveContext, Status
 from clark_engine.runtime.events import PayloadEvent
+from clark_engine.runtime.log_events import LogEvent
 from clark_engine.runtime.primitives.base import Primitive
 
 _LOGGER = logging.getLogger(__name__)
@@ -78,6 +94,9 @@ _DEADLINE_EPS_S = 1e-9
 _IDLE = "idle"
 _ROOT = "root"
 _START_TRIGGER = "start@"
+
+#: The library's record of a configuration: state names to their active children.
+StateTree = OrderedDict[str, Any]
 
 #: Builds the primitive of a state; called once per entry of the state.
 MakePrimitive = Callable[[StateSpec], Primitive]
@@ -127,21 +146,54 @@ class _State(NestedState):
     separator = "."
 
 
+class _Transition(NestedTransition):
+    """The library's nested transition, entering every region of a parallel state it enters.
+
+    transitions enters only the path a deep target names (``survey.photos.later``);
+    a parallel state runs all its regions, so this class adds the others, at their
+    initial states, to the same transition: to the configuration the library then
+    records, and to the entries it then calls, after those of the named path. The
+    library's state is therefore complete at every moment, with nothing to re-sync.
+    """
+
+    def _resolve_transition(
+        self, event_data: NestedEventData
+    ) -> tuple[StateTree, list[Callable[[], None]], list[Callable[[], Any]]]:
+        state_tree, exit_partials, enter_partials = super()._resolve_transition(event_data)
+        machine = event_data.machine
+        if isinstance(machine, _Machine) and machine.owner is not None and self.dest:
+            machine.owner._complete_regions(self.dest, state_tree, enter_partials, event_data)
+        return state_tree, exit_partials, enter_partials
+
+
 class _Machine(HierarchicalMachine):
-    """HierarchicalMachine building :class:`_State` (the library reads ``state_cls``)."""
+    """HierarchicalMachine building :class:`_State` and :class:`_Transition`.
+
+    Attributes:
+        owner: The behaviour machine whose states these are (for :class:`_Transition`).
+    """
 
     state_cls = _State
+    transition_cls = _Transition
+    owner: BehaviorMachine | None = None
 
 
 class _Model:
     """The object the library keeps the current state on (``state``) and binds triggers to.
 
-    One per :class:`BehaviorMachine`, so two agents never share one.
+    One per :class:`BehaviorMachine`, so two agents never share one. Its ``state`` is
+    the active configuration: a library name (``root.<path>``), or a list of them (nested
+    for parallel states), of the active leaf states; ``idle`` before the start.
     """
+
+    state: str | list[Any]
 
 
 class _Node:
     """One state of the behaviour with its run-time bookkeeping.
+
+    Whether it is active is not part of it: that is the library's state, read
+    through :meth:`BehaviorMachine._active`.
 
     Attributes:
         spec: The compiled state.
@@ -151,10 +203,9 @@ class _Node:
         children: Child states in document order.
         depth: 0 at the root.
         order: Index in document order (parents first), to break ties deterministically.
-        active: Whether the state is active.
+        state: The library's state object for it.
         entered_s: Clock at its last entry.
         finished: Whether it finished (primitive done, final reached, regions finished).
-        active_child: The active child of a (non-parallel) machine state.
         first_step: Index of the first step that updates the primitive.
         running: Whether the primitive is still updated (not yet done or failed).
         deadline_s: When the timeout fires, None when it is not armed.
@@ -162,8 +213,6 @@ class _Node:
     """
 
     __slots__ = (
-        "active",
-        "active_child",
         "children",
         "deadline_s",
         "depth",
@@ -177,6 +226,7 @@ class _Node:
         "path",
         "running",
         "spec",
+        "state",
     )
 
     def __init__(self, spec: StateSpec, parent: _Node | None, order: int) -> None:
@@ -187,10 +237,9 @@ class _Node:
         self.children: list[_Node] = []
         self.depth: int = 0 if parent is None else parent.depth + 1
         self.order = order
-        self.active = False
+        self.state: _State | None = None
         self.entered_s = 0.0
         self.finished = False
-        self.active_child: _Node | None = None
         self.first_step = 0
         self.running = False
         self.deadline_s: float | None = None
@@ -251,14 +300,16 @@ class BehaviorMachine:
         self._last_event = ""
         self._event = ""
         self._taken = 0
-        self._active: dict[_Node, None] = {}  # ordered set, entry order
+        # Read from the library's state when a change made them stale (None).
+        self._active_nodes: frozenset[_Node] | None = frozenset()
+        self._paths: tuple[str, ...] | None = ()
         self._primitives: dict[_Node, Primitive] = {}  # active states' primitives, entry order
         self._timed: dict[_Node, None] = {}  # active states with an armed timeout
         self._pending: dict[_Node, None] = {}  # states whose completion must be checked
-        self._new_parallels: list[_Node] = []
+        self._broken: list[_Node] = []  # entered states whose primitive raised, to report
         self._exited: list[str] = []
         self._entered: list[str] = []
-        self._paths: tuple[str, ...] | None = ()
+        self._by_name = {node.name: node for node in self._nodes.values()}
         self._model = _Model()
         self._machine = _Machine(
             model=self._model,
@@ -268,6 +319,7 @@ class BehaviorMachine:
             ignore_invalid_triggers=True,
             send_event=False,
         )
+        self._machine.owner = self
         self._machine.add_transition(
             _START_TRIGGER, _IDLE, _ROOT, after=[partial(self._after, self._root, None)]
         )
@@ -296,6 +348,7 @@ class BehaviorMachine:
             on_enter=[partial(self._on_enter, node)],
             on_exit=[partial(self._on_exit, node)],
         )
+        node.state = state
         if node.children:
             names = [child.spec.name for child in node.children]
             # A list of initial children is how the library writes parallel regions.
@@ -315,7 +368,7 @@ class BehaviorMachine:
         # First condition: the source is still active. One event may move several
         # parallel regions; the library walks a list of states made before the
         # first move, so a region that move already left must not move again.
-        conditions: list[str | Callable[..., bool | None]] = [partial(_is_active, node)]
+        conditions: list[str | Callable[..., bool | None]] = [partial(self._is_active, node)]
         if transition.when is not None:
             if self._resolve is not None:
                 conditions.append(partial(_resolved_holds, node, self._resolve(transition.when)))
@@ -372,7 +425,7 @@ class BehaviorMachine:
             Whether a transition was taken.
         """
         if not self.running or not any(
-            event in node.events for node in self._active if node.events
+            event in node.events for node in self._active() if node.events
         ):
             return False
         taken = self._fire(event, event, ctx)
@@ -426,7 +479,7 @@ class BehaviorMachine:
         self._stopped = True
         for node in sorted(self._primitives, key=_innermost_first):
             node.running = False
-            self._primitives[node].stop(ctx)
+            self._stop_primitive(node, self._primitives[node], ctx)
 
     def deliver_payload(self, ctx: PrimitiveContext, event: PayloadEvent) -> None:
         """Hand a payload event to the primitive of every active state, in entry order."""
@@ -436,14 +489,42 @@ class BehaviorMachine:
             primitive.on_payload(ctx, event)
 
     def active_paths(self) -> tuple[str, ...]:
-        """Dotted paths of the active leaf states, sorted (``("",)`` for a one-primitive root)."""
+        """Dotted paths of the active leaf states, sorted (``("",)`` for a one-primitive root).
+
+        Read from the library's state (cached until the next change).
+        """
         if self._paths is None:
-            self._paths = tuple(sorted(n.path for n in self._active if not n.children))
+            self._paths = tuple(sorted(n.path for n in self._active() if not n.children))
         return self._paths
 
     def active_states(self) -> tuple[str, ...]:
         """Dotted paths of every active state, ancestors included, sorted (root ``""`` first)."""
-        return tuple(sorted(n.path for n in self._active))
+        return tuple(sorted(n.path for n in self._active()))
+
+    def _active(self) -> frozenset[_Node]:
+        """The active states, ancestors included: the library's state, read once per change.
+
+        Only the library changes its state, in a transition, between the exit callbacks
+        and the entry callbacks; both mark this stale, and nothing reads it in between.
+        """
+        active = self._active_nodes
+        if active is None:
+            found: set[_Node] = set()
+            for name in _flat(self._model.state):
+                node = self._by_name.get(name)  # None for idle, before the start
+                while node is not None and node not in found:
+                    found.add(node)
+                    node = node.parent
+            active = self._active_nodes = frozenset(found)
+        return active
+
+    def _is_active(self, node: _Node, ctx: PrimitiveContext) -> bool:
+        """A transition's first condition: its source is active in the library's state.
+
+        One event may move several parallel regions; the library walks a list of states
+        made before the first move, so a region that move already left must not move again.
+        """
+        return node in self._active()
 
     # -- events -------------------------------------------------------------------------
 
@@ -458,9 +539,7 @@ class BehaviorMachine:
         return self._evaluate(when, ctx, ctx.now_s - node.entered_s)
 
     def _after(self, node: _Node, transition: TransitionSpec | None, ctx: PrimitiveContext) -> None:
-        """After each transition: complete parallel states, then report the change."""
-        if self._new_parallels:
-            self._complete_regions(ctx)
+        """After each transition: report the change, then the primitives that raised on entry."""
         change = StateChange(
             time_s=ctx.now_s,
             event=self._event,
@@ -476,80 +555,145 @@ class BehaviorMachine:
         self._last_event = self._event
         if self._on_change is not None:
             self._on_change(change)
+        if self._broken:
+            broken, self._broken = self._broken, []
+            for failed in broken:
+                self._failed(failed, ctx)
 
-    def _complete_regions(self, ctx: PrimitiveContext) -> None:
-        """Enter the regions the library left out of a parallel state entered through a child.
+    def _complete_regions(
+        self,
+        dest: str,
+        state_tree: StateTree,
+        enter_partials: list[Callable[[], Any]],
+        event_data: NestedEventData,
+    ) -> None:
+        """Add the regions the library left out of the parallel states a deep target enters.
 
-        transitions enters only the path named by a deep target (``survey.tour.leg_2``);
-        a parallel state runs all its regions, so the others start at their initial
-        states here, and the library's record of the current states is updated.
+        Called by :class:`_Transition` while the library resolves a transition, before it
+        records the new configuration: for each parallel state on the path to ``dest``
+        (outermost first), the regions missing from ``state_tree`` are added at their
+        initial states, and their entries appended to ``enter_partials``. The regions
+        keep document order in the tree, so the library takes an event region by region
+        in that order, as it does in a parallel state it entered whole.
         """
-        parallels, self._new_parallels = self._new_parallels, []
-        added = False
-        for node in parallels:
-            if not node.active:
-                continue
-            for region in node.children:
-                if not region.active:
-                    self._enter_default(region, ctx)
-                    added = True
-        if added:
-            self._new_parallels.clear()  # regions entered here are complete by construction
-            leaves = [n.name for n in sorted(self._active, key=_doc_order) if not n.children]
-            self._machine.set_state(leaves if len(leaves) > 1 else leaves[0], self._model)
+        level = state_tree
+        scope: list[str] = []
+        for name in dest.split(self._machine.state_cls.separator):
+            subtree = level.get(name)
+            if subtree is None:
+                return
+            scope.append(name)
+            node = self._by_name[".".join(scope)]
+            if node.spec.parallel and len(subtree) < len(node.children):
+                for region in node.children:
+                    if region.spec.name not in subtree:
+                        subtree[region.spec.name] = OrderedDict()
+                        self._enter_default(
+                            region, subtree[region.spec.name], scope, enter_partials, event_data
+                        )
+                ordered = [(child.spec.name, subtree[child.spec.name]) for child in node.children]
+                subtree.clear()
+                subtree.update(ordered)
+            level = subtree
 
-    def _enter_default(self, node: _Node, ctx: PrimitiveContext) -> None:
-        """Enter a state and its default descendants (initial child, or every region)."""
-        self._on_enter(node, ctx)
+    def _enter_default(
+        self,
+        node: _Node,
+        subtree: StateTree,
+        scope: list[str],
+        enter_partials: list[Callable[[], Any]],
+        event_data: NestedEventData,
+    ) -> None:
+        """Add a state and its default descendants (initial child, or every region), depth first."""
+        assert node.state is not None
+        enter_partials.append(partial(node.state.scoped_enter, event_data, list(scope)))
+        inner = [*scope, node.spec.name]
         if node.spec.parallel:
-            for child in node.children:
-                self._enter_default(child, ctx)
+            children = node.children
         elif node.children:
-            initial = next(c for c in node.children if c.spec.name == node.spec.initial)
-            self._enter_default(initial, ctx)
+            children = [next(c for c in node.children if c.spec.name == node.spec.initial)]
+        else:
+            return
+        for child in children:
+            subtree[child.spec.name] = OrderedDict()
+            self._enter_default(child, subtree[child.spec.name], inner, enter_partials, event_data)
 
     # -- entering and leaving -----------------------------------------------------------
 
     def _on_enter(self, node: _Node, ctx: PrimitiveContext) -> None:
-        node.active = True
         node.entered_s = ctx.now_s
         node.finished = node.spec.final
-        self._active[node] = None
+        self._active_nodes = None
         self._paths = None
         self._entered.append(node.path)
         parent = node.parent
         if parent is not None:
-            if not parent.spec.parallel:
-                parent.active_child = node
             parent.finished = False
             self._pending[parent] = None
-        if node.spec.parallel:
-            self._new_parallels.append(node)
         if node.spec.timeout_s is not None and node.trigger("timeout") in node.events:
             node.deadline_s = ctx.now_s + node.spec.timeout_s
             self._timed[node] = None
         if node.spec.primitive is not None:
-            primitive = self._make_primitive(node.spec)
             node.first_step = self._step_index + 1
             node.running = True
+            try:
+                primitive = self._make_primitive(node.spec)
+            except Exception as exc:
+                self._raised(node, "could not be built", exc, ctx)
+                return
             self._primitives[node] = primitive
-            primitive.start(ctx)
+            try:
+                primitive.start(ctx)
+            except Exception as exc:
+                self._raised(node, "raised in start", exc, ctx)
+
+    def _raised(self, node: _Node, what: str, exc: Exception, ctx: PrimitiveContext) -> None:
+        """A primitive raised while its state was entered: the state stays, its primitive failed.
+
+        Called from inside the library's transition, so the failure is reported after it
+        (:meth:`_after`), never by raising through it: the library would keep a half-made
+        configuration, and the agent's tick would stop. The mission log gets one line
+        (``behavior.error``); the traceback, for whoever fixes the primitive, goes to
+        this module's logger.
+        """
+        self._log_raised(node, what, "the state fails", exc, ctx)
+        node.running = False
+        self._broken.append(node)
+
+    def _log_raised(
+        self, node: _Node, what: str, outcome: str, exc: Exception, ctx: PrimitiveContext
+    ) -> None:
+        state = node.path or "(root)"
+        ctx.log.error(
+            "primitive %s of state %s %s: %s: %s; %s",
+            node.spec.primitive,
+            state,
+            what,
+            type(exc).__name__,
+            exc,
+            outcome,
+            extra=LogEvent.BEHAVIOR_ERROR.extra,
+        )
+        _LOGGER.debug("primitive %s of state %s %s", node.spec.primitive, state, what, exc_info=exc)
 
     def _on_exit(self, node: _Node, ctx: PrimitiveContext) -> None:
-        node.active = False
-        self._active.pop(node, None)
+        self._active_nodes = None
+        self._paths = None
         self._timed.pop(node, None)
         self._pending.pop(node, None)
-        self._paths = None
         self._exited.append(node.path)
         node.deadline_s = None
-        parent = node.parent
-        if parent is not None and parent.active_child is node:
-            parent.active_child = None
         primitive = self._primitives.pop(node, None)
         if primitive is not None:
             node.running = False
+            self._stop_primitive(node, primitive, ctx)
+
+    def _stop_primitive(self, node: _Node, primitive: Primitive, ctx: PrimitiveContext) -> None:
+        """Stop a primitive; one that raises is logged and its state left all the same."""
+        try:
             primitive.stop(ctx)
+        except Exception as exc:
+            self._log_raised(node, "raised in stop", "it is stopped all the same", exc, ctx)
 
     # -- per tick -----------------------------------------------------------------------
 
@@ -592,7 +736,8 @@ class BehaviorMachine:
         while pending:
             node = min(pending, key=_innermost_first)
             del pending[node]
-            if not node.active or node.finished or not node.children:
+            active = self._active()
+            if node not in active or node.finished or not node.children:
                 continue
             if node.spec.parallel:
                 if node.spec.finish == "any":
@@ -600,14 +745,10 @@ class BehaviorMachine:
                 else:
                     complete = all(region.finished for region in node.children)
             else:
-                child = node.active_child
+                child = next((c for c in node.children if c in active), None)
                 complete = child is not None and child.spec.final
             if complete:
                 self._finish(node, ctx)
-
-
-def _is_active(node: _Node, ctx: PrimitiveContext) -> bool:
-    return node.active
 
 
 def _resolved_holds(node: _Node, holds: Holds, ctx: PrimitiveContext) -> bool:
@@ -618,5 +759,8 @@ def _innermost_first(node: _Node) -> tuple[int, int]:
     return (-node.depth, node.order)
 
 
-def _doc_order(node: _Node) -> int:
-    return node.order
+def _flat(state: str | list[Any]) -> list[str]:
+    """The library's state (a name, or nested lists of names) as a flat list of names."""
+    if isinstance(state, str):
+        return [state]
+    return [name for item in state for name in _flat(item)]
