@@ -11,6 +11,7 @@ import math
 from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
 
+from clark_engine.behaviors.declaration import CompileContext, UseContext
 from clark_engine.mission.envelope_checks import (
     check_height_margin as check_height_margin,  # for takeoff, beside the other checks
 )
@@ -18,7 +19,6 @@ from clark_engine.mission.envelope_checks import check_leg, check_point
 from clark_engine.mission.findings import Finding, Location, error, warning
 from clark_engine.mission.geo import LocalPoint, Origin, parse_point, to_global
 from clark_engine.mission.model import Channel
-from clark_engine.mission.primitives.base import UseContext
 from clark_engine.mission.schema_source.common import (
     NAME_PATTERN,
     Schema,
@@ -143,6 +143,20 @@ SPEED_SCHEMA: Schema = speed_m_s(
     exclusive_minimum=0,
     maximum=100,
 )
+
+
+def compile_channel(params: dict[str, Any], ctx: CompileContext) -> dict[str, Any]:
+    """A doublet's or sweep's ``channel``, resolved to its map in the agent's hardware profile."""
+    channel = ctx.agent.hardware.channels[params["channel"]]
+    params["channel"] = {
+        "name": channel.name,
+        "rc": channel.rc,
+        "servo": channel.servo,
+        "pwm_min_us": channel.pwm_min_us,
+        "pwm_trim_us": channel.pwm_trim_us,
+        "pwm_max_us": channel.pwm_max_us,
+    }
+    return params
 
 
 def suggest(word: str, choices: Iterable[str]) -> str:

@@ -1,23 +1,25 @@
-"""What several runtime primitives share: targets, distances, guided legs, channel outputs.
+"""What several behaviours' runtime classes share: targets, distances, guided legs, channels.
 
 A waypoint, a tour and a follower all send guided targets and judge arrival the
 same way; a doublet and a sweep drive a control channel and hand it back the
-same way. Those rules live here once, so the primitives cannot drift apart.
+same way. Those rules live here once, so the behaviours cannot drift apart.
+
+The runtime's command, config and launch modules are imported where they are
+used, never when this module is: the behaviour modules import it, and
+``clark validate`` imports them (it must stay fast and free of flight code).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
-from clark_engine.runtime.commands import Arm, Command, Goto, RcOverride, SetMode, SetServo
-from clark_engine.runtime.config import ConfigError
-from clark_engine.runtime.context import PrimitiveContext
-from clark_engine.runtime.launch import is_airborne
-from clark_engine.runtime.log_events import LogEvent
-from clark_engine.runtime.primitives.base import Primitive
+from clark_engine.behaviors.base import BehaviorRuntime, ChannelMap, Point
+
+if TYPE_CHECKING:
+    from clark_engine.runtime.commands import Command, SetMode
+    from clark_engine.runtime.context import PrimitiveContext
 
 #: Slack when comparing runtime-clock times: ``k / loop_hz`` summed or divided in
 #: floating point may land a hair before a deadline it reaches exactly.
@@ -76,9 +78,9 @@ class Target:
     alt_m: float
 
     @classmethod
-    def from_point(cls, point: Mapping[str, Any]) -> Target:
-        """A target from a compiled point ``{north_m, east_m, up_m, lat, lon, alt_m}``."""
-        return cls(float(point["lat"]), float(point["lon"]), float(point.get("alt_m", 0.0)))
+    def from_point(cls, point: Point) -> Target:
+        """A target from a compiled point."""
+        return cls(point.lat, point.lon, point.alt_m)
 
 
 def distance_m(ctx: PrimitiveContext, target: Target, *, three_d: bool) -> float | None:
@@ -96,8 +98,17 @@ def distance_m(ctx: PrimitiveContext, target: Target, *, three_d: bool) -> float
     return math.hypot(ground_m, ctx.vehicle.alt_m - target.alt_m)
 
 
+def is_airborne(ctx: PrimitiveContext) -> bool:
+    """True when the vehicle flies (:func:`clark_engine.runtime.launch.is_airborne`)."""
+    from clark_engine.runtime.launch import is_airborne as airborne
+
+    return airborne(ctx.autopilot, ctx.vehicle)
+
+
 def mode_command(ctx: PrimitiveContext, mode: str) -> SetMode:
     """A SetMode carrying both the mode's name and its number in this firmware."""
+    from clark_engine.runtime.commands import SetMode
+
     return SetMode(mode, ctx.mode_number(mode))
 
 
@@ -156,7 +167,7 @@ class ModeRequest:
         ctx.command(mode_command(ctx, self.mode))
 
 
-class ProfileModePrimitive(Primitive):
+class ProfileModePrimitive(BehaviorRuntime):
     """A primitive flown in a mode its autopilot profile names (hold, land, RTL).
 
     ``start`` asks for the mode the profile's ``mode_key`` names, through a
@@ -171,7 +182,7 @@ class ProfileModePrimitive(Primitive):
 
     mode_key: ClassVar[str] = ""
 
-    def __init__(self, params: Mapping[str, Any]) -> None:
+    def __init__(self, params: Any) -> None:
         super().__init__(params)
         self._mode = ModeRequest()
         self._failed = False
@@ -181,6 +192,8 @@ class ProfileModePrimitive(Primitive):
         mode: str | None = getattr(ctx.config, self.mode_key)
         self._failed = mode is None
         if mode is None:
+            from clark_engine.runtime.log_events import LogEvent
+
             ctx.log.error(
                 "%s: the autopilot profile names no %s",
                 ctx.config.agent,
@@ -238,6 +251,8 @@ class EngineArming:
             self._arm(ctx)
 
     def _arm(self, ctx: PrimitiveContext) -> None:
+        from clark_engine.runtime.commands import Arm
+
         self._sent_s = ctx.now_s
         ctx.command(Arm())
 
@@ -289,6 +304,8 @@ class GuidedLeg:
         self._seen = self._look(ctx)
         self.failed = self._guided_mode is None
         if self._guided_mode is None:
+            from clark_engine.runtime.log_events import LogEvent
+
             ctx.log.error(
                 "%s: the autopilot profile names no guided_mode; cannot navigate",
                 ctx.config.agent,
@@ -308,6 +325,8 @@ class GuidedLeg:
         self.target = target
         self._velocity = velocity_m_s
         self._seen = self._look(ctx)
+        from clark_engine.runtime.commands import Goto
+
         north, east = velocity_m_s if velocity_m_s is not None else (None, None)
         ctx.command(Goto(target.lat_deg, target.lon_deg, target.alt_m, self.speed_m_s, north, east))
 
@@ -331,7 +350,7 @@ class GuidedLeg:
         return (
             reported_mode(ctx),
             vehicle is not None and vehicle.armed,
-            ctx.config.is_aircraft and is_airborne(ctx.autopilot, vehicle),
+            ctx.config.is_aircraft and is_airborne(ctx),
         )
 
 
@@ -356,7 +375,7 @@ class ChannelOutput:
     pwm_max_us: int
 
     @classmethod
-    def from_params(cls, params: Mapping[str, Any]) -> ChannelOutput:
+    def of(cls, channel: ChannelMap, via: str) -> ChannelOutput:
         """The output of a doublet's or sweep's compiled ``channel`` and ``via``.
 
         Raises:
@@ -364,22 +383,22 @@ class ChannelOutput:
                 reports this as E-CHANNEL-VIA, so only a hand-edited config gets here,
                 and it fails when the behaviour is built, not in flight).
         """
-        channel = params["channel"]
-        via = str(params.get("via", "rc_override"))
-        number = channel.get("servo" if via == "servo" else "rc")
+        number = channel.servo if via == "servo" else channel.rc
         if number is None:
+            from clark_engine.runtime.config import ConfigError
+
             output = "servo output" if via == "servo" else "RC input"
             raise ConfigError(
-                f"channel {channel['name']!r} has no {output} for via {via}; "
+                f"channel {channel.name!r} has no {output} for via {via}; "
                 "compile the mission again with clark compile"
             )
         return cls(
-            name=str(channel["name"]),
+            name=channel.name,
             via=via,
-            number=int(number),
-            pwm_min_us=int(channel["pwm_min_us"]),
-            pwm_trim_us=int(channel["pwm_trim_us"]),
-            pwm_max_us=int(channel["pwm_max_us"]),
+            number=number,
+            pwm_min_us=channel.pwm_min_us,
+            pwm_trim_us=channel.pwm_trim_us,
+            pwm_max_us=channel.pwm_max_us,
         )
 
     def clamp(self, pwm_us: float) -> int:
@@ -388,6 +407,8 @@ class ChannelOutput:
 
     def drive(self, pwm_us: int) -> Command:
         """The command that puts ``pwm_us`` on the channel."""
+        from clark_engine.runtime.commands import RcOverride, SetServo
+
         if self.via == "servo":
             return SetServo(self.number, pwm_us)
         return RcOverride({self.number: pwm_us})
@@ -399,6 +420,8 @@ class ChannelOutput:
         releases the channel so the pilot's stick drives it again; a servo driven
         by DO_SET_SERVO has no pilot input behind it, so it is left at trim.
         """
+        from clark_engine.runtime.commands import RcOverride
+
         commands = [self.drive(self.pwm_trim_us)]
         if self.via != "servo":
             commands.append(RcOverride({self.number: 0}))

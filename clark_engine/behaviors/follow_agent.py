@@ -11,8 +11,25 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator, Mapping
-from typing import Any
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
+from clark_engine.behaviors.base import AgentRef, BehaviorRuntime, Status
+from clark_engine.behaviors.declaration import (
+    Behavior,
+    CompileContext,
+    Params,
+    Traits,
+    UseContext,
+    param,
+)
+from clark_engine.behaviors.flight import GuidedLeg, Schedule, Target, distance_m
+from clark_engine.behaviors.shared import (
+    AGENT_NAME_SCHEMA,
+    RESOLVED_AGENT_SCHEMA,
+    TOLERANCE_SCHEMA,
+    check_agents_exist,
+)
 from clark_engine.mission.envelope_checks import (
     goal_distance_range,
     possible_heights,
@@ -22,14 +39,79 @@ from clark_engine.mission.envelope_checks import (
 )
 from clark_engine.mission.findings import Finding, error, warning
 from clark_engine.mission.model import Agent
-from clark_engine.mission.primitives._shared import (
-    AGENT_NAME_SCHEMA,
-    RESOLVED_AGENT_SCHEMA,
-    TOLERANCE_SCHEMA,
-    check_agents_exist,
-)
-from clark_engine.mission.primitives.base import PrimitiveSpec, UseContext
 from clark_engine.mission.schema_source.common import altitude_m, boolean, number, obj, position_m
+
+if TYPE_CHECKING:
+    from clark_engine.link.messages import AgentStatus
+    from clark_engine.runtime.context import PrimitiveContext
+
+
+@dataclass(frozen=True, slots=True)
+class Offset:
+    """Where the follower keeps itself relative to its target.
+
+    Attributes:
+        north_m: Metres north of the target.
+        east_m: Metres east of it.
+        up_m: Metres above it.
+    """
+
+    north_m: float = 0.0
+    east_m: float = 0.0
+    up_m: float = 0.0
+
+    @classmethod
+    def from_config(cls, raw: Mapping[str, Any]) -> Offset:
+        """From a compiled ``offset`` (every key present)."""
+        return cls(float(raw["north_m"]), float(raw["east_m"]), float(raw["up_m"]))
+
+
+@dataclass(frozen=True, kw_only=True)
+class FollowAgentParams(Params):
+    """Parameters of follow_agent."""
+
+    DESCRIPTION = "Parameters of follow_agent."
+    REQUIRED = ("target",)
+
+    target: AgentRef = param(
+        AGENT_NAME_SCHEMA, compiled=lambda: RESOLVED_AGENT_SCHEMA, convert=AgentRef.from_config
+    )
+    offset: Offset | None = param(
+        obj(
+            "Offset from the target's position, in metres north/east/up.",
+            {
+                "north_m": position_m("Metres north of the target.", default=0),
+                "east_m": position_m("Metres east of the target.", default=0),
+                "up_m": altitude_m("Metres above the target.", default=0),
+            },
+        ),
+        convert=Offset.from_config,
+    )
+    retarget_hz: float = param(
+        number(
+            "How often the guided target is moved to the target's latest position.",
+            unit="Hz",
+            exclusive_minimum=0,
+            maximum=50,
+            default=1,
+        )
+    )
+    lead_s: float = param(
+        number(
+            "Aim this many seconds ahead of the target, along the velocity it reports: "
+            "ArduPilot trails a moving guided target (ArduRover by about 2.3 s of its "
+            "speed, measured on SITL), so a follower aimed at where the target is never "
+            "reaches it. 0 aims at the reported position.",
+            unit="s",
+            minimum=0,
+            maximum=30,
+            default=2.5,
+        )
+    )
+    tolerance_m: float = param(TOLERANCE_SCHEMA)
+    continuous: bool = param(
+        boolean("Keep following after reaching the target instead of finishing.", default=False)
+    )
 
 
 def _events(params: Mapping[str, Any]) -> frozenset[str]:
@@ -218,46 +300,140 @@ def _check_envelope(ctx: UseContext, target: Agent, *, reported: bool) -> Iterat
         )
 
 
-SPEC = PrimitiveSpec(
+def _compile(params: dict[str, Any], ctx: CompileContext) -> dict[str, Any]:
+    target = ctx.mission.agents[params["target"]]
+    params["target"] = {"name": target.name, "id": target.id}
+    offset = {"north_m": 0, "east_m": 0, "up_m": 0}
+    offset.update(params.get("offset") or {})
+    params["offset"] = offset
+    return params
+
+
+class FollowAgent(BehaviorRuntime):
+    """What follow_agent commands in flight, tick by tick (its section of docs/runtime.md).
+
+    Go to another agent's reported position plus an offset.
+
+    - The target's position is its latest Agent Status in the fleet table (peeked, so the
+      new-data flag is left to others); the *goal* is that position moved by `offset` north and
+      east, and `offset.up_m` above the target's altitude.
+    - The guided target *leads* the goal: it is the goal moved `lead_s` seconds (default 2.5)
+      ahead along the velocity the target reports (its ground speed and heading), because
+      ArduPilot trails a moving guided target (ArduRover by about 2.3 s of its speed,
+      measured on SITL) and a follower aimed at where the target is never reaches it.
+      `lead_s: 0` aims at the goal itself. Each `Goto` also carries the target's velocity
+      (north and east): ArduCopter flies it as a moving target; ArduRover and ArduPlane get
+      the position only. No speed is requested.
+    - `start`: `SetMode(guided)` and `Arm` as for waypoint, and a `Goto` at once when a status
+      is known.
+    - Re-targeting: until the first `Goto`, each tick looks for a status (none yet: RUNNING,
+      no command). After it, a `Goto` to the latest aim every `1 / retarget_hz` seconds on a
+      fixed schedule counted from the first `Goto` (no drift; a late tick sends one, not a
+      burst), and again as for waypoint (entering guided, armed, flying). A stale status is
+      still followed; `lost:<agent>` is the machine's business.
+    - `update`: DONE (unless `continuous`) once the vehicle is within `tolerance_m` of the
+      goal (not the lead) computed from the latest status; never done without a vehicle
+      state or a status.
+    - Modes and arming are handled as for waypoint.
+
+    Attributes:
+        target_name: The agent followed.
+        target_id: Its id: the fleet table is read by id (loading proved it is a peer's).
+        offset_north_m: Metres north of the target.
+        offset_east_m: Metres east of the target.
+        offset_up_m: Metres above the target.
+        retarget_period_s: Time between Gotos once the target is known.
+        tolerance_m: Distance that counts as arrived.
+        continuous: Never finish; keep following.
+    """
+
+    name = "follow_agent"
+    params_type = FollowAgentParams
+    params: FollowAgentParams
+
+    def __init__(self, params: FollowAgentParams | Mapping[str, Any]) -> None:
+        super().__init__(params)
+        p = self.params
+        self.target_name = p.target.name
+        self.target_id = p.target.agent_id
+        offset = p.offset or Offset()
+        self.offset_north_m = offset.north_m
+        self.offset_east_m = offset.east_m
+        self.offset_up_m = offset.up_m
+        self.retarget_period_s = 1.0 / float(p.retarget_hz)
+        self.lead_s = float(p.lead_s)
+        self.tolerance_m = float(p.tolerance_m)
+        self.continuous = bool(p.continuous)
+        self._leg = GuidedLeg(None)
+        self._three_d = True
+        self._schedule = Schedule(self.retarget_period_s)
+
+    def goal(self, status: AgentStatus) -> Target:
+        """Where to be for a given status of the target: its position plus the offset."""
+        from clark_engine.runtime.context import offset_position
+
+        lat_deg, lon_deg = offset_position(
+            status.lat_deg, status.lon_deg, self.offset_north_m, self.offset_east_m
+        )
+        return Target(lat_deg, lon_deg, status.alt_m + self.offset_up_m)
+
+    @staticmethod
+    def velocity(status: AgentStatus) -> tuple[float, float]:
+        """The target's reported velocity north and east, m/s."""
+        heading = math.radians(status.heading_deg)
+        speed = max(status.ground_speed_m_s, 0.0)
+        return speed * math.cos(heading), speed * math.sin(heading)
+
+    def aim(self, status: AgentStatus) -> Target:
+        """The guided target: the goal moved ``lead_s`` ahead along the target's velocity."""
+        from clark_engine.runtime.context import offset_position
+
+        goal = self.goal(status)
+        north, east = self.velocity(status)
+        lat_deg, lon_deg = offset_position(
+            goal.lat_deg, goal.lon_deg, north * self.lead_s, east * self.lead_s
+        )
+        return Target(lat_deg, lon_deg, goal.alt_m)
+
+    def start(self, ctx: PrimitiveContext) -> None:
+        """Enter guided mode; send the goal at once when the target's status is known."""
+        self._three_d = ctx.config.is_aircraft
+        self._schedule = Schedule(self.retarget_period_s)
+        self._leg.begin(ctx)
+        if not self._leg.failed:
+            self._retarget(ctx, ctx.peer_status_by_id(self.target_id))
+
+    def update(self, ctx: PrimitiveContext) -> Status:
+        """DONE at the goal unless continuous; otherwise re-target when due."""
+        if self._leg.failed:
+            return Status.FAILED
+        status = ctx.peer_status_by_id(self.target_id)
+        if status is not None and not self.continuous:
+            remaining_m = distance_m(ctx, self.goal(status), three_d=self._three_d)
+            if remaining_m is not None and remaining_m <= self.tolerance_m:
+                return Status.DONE
+        self._retarget(ctx, status)
+        self._leg.track(ctx)
+        return Status.RUNNING
+
+    def _retarget(self, ctx: PrimitiveContext, status: AgentStatus | None) -> None:
+        if status is None:
+            return
+        if not self._schedule.started:  # the first Goto: as soon as the target is known
+            self._schedule.begin(ctx.now_s)
+        elif not self._schedule.due(ctx.now_s):
+            return
+        self._leg.go(ctx, self.aim(status), self.velocity(status))
+
+
+BEHAVIOR = Behavior(
     name="follow_agent",
     summary="Go to another agent's reported position plus an offset; done on reaching it.",
-    params=obj(
-        "Parameters of follow_agent.",
-        {
-            "target": AGENT_NAME_SCHEMA,
-            "offset": obj(
-                "Offset from the target's position, in metres north/east/up.",
-                {
-                    "north_m": position_m("Metres north of the target.", default=0),
-                    "east_m": position_m("Metres east of the target.", default=0),
-                    "up_m": altitude_m("Metres above the target.", default=0),
-                },
-            ),
-            "retarget_hz": number(
-                "How often the guided target is moved to the target's latest position.",
-                unit="Hz",
-                exclusive_minimum=0,
-                maximum=50,
-                default=1,
-            ),
-            "lead_s": number(
-                "Aim this many seconds ahead of the target, along the velocity it reports: "
-                "ArduPilot trails a moving guided target (ArduRover by about 2.3 s of its "
-                "speed, measured on SITL), so a follower aimed at where the target is never "
-                "reaches it. 0 aims at the reported position.",
-                unit="s",
-                minimum=0,
-                maximum=30,
-                default=2.5,
-            ),
-            "tolerance_m": TOLERANCE_SCHEMA,
-            "continuous": boolean(
-                "Keep following after reaching the target instead of finishing.", default=False
-            ),
-        },
-        required=["target"],
-    ),
-    compiled=lambda: {"target": RESOLVED_AGENT_SCHEMA},
+    parameters=FollowAgentParams,
+    runtime=FollowAgent,
     events=_events,
+    traits=Traits(guided=True, flies=True),
     check=_check,
+    compile=_compile,
+    agent_params=("target",),
 )
