@@ -23,7 +23,6 @@ fast and never load the flight libraries).
 
 from __future__ import annotations
 
-import dataclasses
 import importlib
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
@@ -91,6 +90,8 @@ def _declared(loaded: Any) -> list[Any]:
     """What an entry point's object declares: one behaviour, a module's, or a list."""
     if isinstance(loaded, ModuleType):
         loaded = getattr(loaded, "BEHAVIORS", None) or getattr(loaded, "BEHAVIOR", None)
+    if isinstance(loaded, Behavior):  # a named tuple itself: not a list of them
+        return [loaded]
     if isinstance(loaded, list | tuple):
         return list(loaded)
     return [loaded]
@@ -127,7 +128,7 @@ def _load_plugins(found: dict[str, Behavior]) -> None:
                     f"{where} declares behaviour {behavior.name!r}, which {owner} "
                     "already declares; rename it in the plugin, or uninstall one of them"
                 )
-            found[behavior.name] = dataclasses.replace(behavior, origin=dist)
+            found[behavior.name] = behavior._replace(origin=dist)
 
 
 def behaviors() -> Mapping[str, Behavior]:

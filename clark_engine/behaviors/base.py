@@ -14,9 +14,8 @@ by ``clark validate``, which must stay fast and free of the flight libraries.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
 from enum import Enum
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 
 from clark_engine.behaviors.declaration import Params
 
@@ -33,8 +32,7 @@ class Status(Enum):
     FAILED = "failed"
 
 
-@dataclass(frozen=True, slots=True)
-class Point:
+class Point(NamedTuple):
     """A compiled point, in both frames.
 
     Attributes:
@@ -71,8 +69,7 @@ def points_from_config(raw: list[Mapping[str, Any]]) -> tuple[Point, ...]:
     return tuple(Point.from_config(p) for p in raw)
 
 
-@dataclass(frozen=True, slots=True)
-class AgentRef:
+class AgentRef(NamedTuple):
     """Another agent as a compiled config names it: its name and its id.
 
     Attributes:
@@ -89,8 +86,7 @@ class AgentRef:
         return cls(str(raw["name"]), int(raw["id"]))
 
 
-@dataclass(frozen=True, slots=True)
-class ChannelMap:
+class ChannelMap(NamedTuple):
     """A control channel as a compiled config holds it.
 
     Attributes:

@@ -18,16 +18,21 @@ one :class:`Behavior` that module exports as ``BEHAVIOR``:
 
 This module imports nothing of the runtime, so ``clark validate`` stays fast and
 never loads the flight libraries; a behaviour's runtime class imports the
-runtime's command and message types where it uses them.
+runtime's command and message types where it uses them. For the same reason the
+declaration's own types are named tuples, and a behaviour's parameter class
+becomes a dataclass only when the runtime first builds one (:meth:`Params.typed`):
+``clark validate`` imports every behaviour module, and generating a dataclass's
+methods costs about a millisecond each, which thirty of them would add to every
+run of it.
 """
 
 from __future__ import annotations
 
 import copy
-import dataclasses
+import inspect
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar, TypeVar
+from dataclasses import Field, dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple, TypeVar, dataclass_transform
 
 from clark_engine.mission.findings import Finding, Location
 
@@ -73,22 +78,40 @@ def param(
     return field(default=default, metadata=metadata)
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
+@dataclass_transform(kw_only_default=True, frozen_default=True, field_specifiers=(param,))
 class Params:
-    """Base of every behaviour's typed parameters (a frozen, keyword-only dataclass).
+    """Base of every behaviour's typed parameters: a frozen, keyword-only dataclass.
 
     Subclasses declare their fields with :func:`param`, in the order the reference
     lists them, and name the required ones in ``REQUIRED`` (in the order the schema
-    lists them).
+    lists them). They are not decorated: the fields are read from the class as
+    written, and the class is made a dataclass the first time an instance is built
+    (validating a mission needs only the schemas).
     """
 
     DESCRIPTION: ClassVar[str] = ""
     REQUIRED: ClassVar[tuple[str, ...]] = ()
+    _FIELDS: ClassVar[tuple[Field[Any], ...]] = ()
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        declared = []
+        for name in inspect.get_annotations(cls):
+            value = cls.__dict__.get(name)
+            if isinstance(value, Field):
+                value.name = name
+                declared.append(value)
+        cls._FIELDS = (*cls._FIELDS, *declared)
+
+    def __new__(cls, *_args: Any, **_kwargs: Any) -> Any:  # noqa: D102
+        if "__dataclass_fields__" not in cls.__dict__:
+            dataclass(frozen=True, kw_only=True)(cls)
+        return super().__new__(cls)
 
     @classmethod
     def schema(cls) -> Schema:
         """JSON Schema of the ``with:`` mapping, defaults included (the mission side)."""
-        return cls._object({f.name: f.metadata[_SCHEMA] for f in dataclasses.fields(cls)})
+        return cls._object({f.name: f.metadata[_SCHEMA] for f in cls._FIELDS})
 
     @classmethod
     def config_schema(cls) -> Schema:
@@ -99,7 +122,7 @@ class Params:
         so a hand-edited or version-skewed config is refused before the first tick.
         """
         properties = {}
-        for f in dataclasses.fields(cls):
+        for f in cls._FIELDS:
             compiled = f.metadata[_COMPILED]
             properties[f.name] = compiled() if compiled is not None else f.metadata[_SCHEMA]
         return cls._object(properties)
@@ -120,7 +143,7 @@ class Params:
     def with_defaults(cls, given: Mapping[str, Any]) -> dict[str, Any]:
         """The parameters with every declared default filled in, in declared order."""
         out: dict[str, Any] = {}
-        for f in dataclasses.fields(cls):
+        for f in cls._FIELDS:
             if f.name in given:
                 out[f.name] = given[f.name]
             elif "default" in f.metadata[_SCHEMA]:
@@ -132,7 +155,7 @@ class Params:
     def from_config(cls: type[P], params: Mapping[str, Any]) -> P:
         """The typed parameters of a compiled state (validated against :meth:`config_schema`)."""
         values: dict[str, Any] = {}
-        for f in dataclasses.fields(cls):
+        for f in cls._FIELDS:
             if f.name not in params:
                 continue
             convert = f.metadata[_CONVERT]
@@ -160,8 +183,7 @@ class UseContext:
     use_location: Location
 
 
-@dataclass(frozen=True, slots=True)
-class CompileContext:
+class CompileContext(NamedTuple):
     """What the compiler gives a behaviour to resolve its parameters for one agent.
 
     Attributes:
@@ -176,8 +198,7 @@ class CompileContext:
     point: Callable[[Any], dict[str, float]]
 
 
-@dataclass(frozen=True, slots=True)
-class Plan:
+class Plan(NamedTuple):
     """Where a behaviour is planned to take its vehicle: its fixed targets, in order.
 
     Attributes:
@@ -196,8 +217,7 @@ class Plan:
     kind: str = "route"
 
 
-@dataclass(frozen=True, slots=True)
-class Traits:
+class Traits(NamedTuple):
     """What the engine's checks, dry run, report and station need to know of a behaviour.
 
     These replace every switch on a behaviour's name. Attributes:
@@ -227,8 +247,7 @@ class Traits:
     drives_channel: bool = False
 
 
-@dataclass(frozen=True, slots=True)
-class Sends:
+class Sends(NamedTuple):
     """A message a behaviour sends over the radio while it runs, for the link budget.
 
     Attributes:
@@ -242,8 +261,7 @@ class Sends:
     to: tuple[str, ...] = ()
 
 
-@dataclass(frozen=True, slots=True)
-class DrivenChannel:
+class DrivenChannel(NamedTuple):
     """The control channel a behaviour drives, as the dry run records it.
 
     Attributes:
@@ -300,8 +318,7 @@ def raises_nothing(_params: Mapping[str, Any]) -> frozenset[str]:
     return frozenset()
 
 
-@dataclass(frozen=True, slots=True)
-class Behavior:
+class Behavior(NamedTuple):
     """The declaration of one behaviour: everything the engine knows about it.
 
     Attributes:

@@ -10,7 +10,6 @@ at least two ticks to exist at all.
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from clark_engine.behaviors.base import BehaviorRuntime, ChannelMap, Status
@@ -37,7 +36,6 @@ if TYPE_CHECKING:
     from clark_engine.runtime.context import PrimitiveContext
 
 
-@dataclass(frozen=True, kw_only=True)
 class DoubletParams(Params):
     """Parameters of doublet."""
 

@@ -12,8 +12,7 @@ used, never when this module is: the behaviour modules import it, and
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 
 from clark_engine.behaviors.base import BehaviorRuntime, ChannelMap, Point
 
@@ -63,8 +62,7 @@ class Schedule:
         return True
 
 
-@dataclass(frozen=True, slots=True)
-class Target:
+class Target(NamedTuple):
     """A position to go to.
 
     Attributes:
@@ -354,8 +352,7 @@ class GuidedLeg:
         )
 
 
-@dataclass(frozen=True, slots=True)
-class ChannelOutput:
+class ChannelOutput(NamedTuple):
     """One control channel as a doublet or sweep drives it.
 
     Attributes:

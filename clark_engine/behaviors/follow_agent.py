@@ -11,8 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from clark_engine.behaviors.base import AgentRef, BehaviorRuntime, Status
 from clark_engine.behaviors.declaration import (
@@ -46,8 +45,7 @@ if TYPE_CHECKING:
     from clark_engine.runtime.context import PrimitiveContext
 
 
-@dataclass(frozen=True, slots=True)
-class Offset:
+class Offset(NamedTuple):
     """Where the follower keeps itself relative to its target.
 
     Attributes:
@@ -66,7 +64,6 @@ class Offset:
         return cls(float(raw["north_m"]), float(raw["east_m"]), float(raw["up_m"]))
 
 
-@dataclass(frozen=True, kw_only=True)
 class FollowAgentParams(Params):
     """Parameters of follow_agent."""
 

@@ -6,7 +6,6 @@ rovers). Never finishes by itself: a transition moves the machine on.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from clark_engine.behaviors.base import Status
@@ -17,7 +16,6 @@ if TYPE_CHECKING:
     from clark_engine.runtime.context import PrimitiveContext
 
 
-@dataclass(frozen=True, kw_only=True)
 class HoldParams(Params):
     """hold takes no parameters."""
 

@@ -11,7 +11,6 @@ with ``return_home`` and its pilot lands it.
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from clark_engine.behaviors.base import Status
@@ -30,7 +29,6 @@ if TYPE_CHECKING:
     from clark_engine.runtime.context import PrimitiveContext
 
 
-@dataclass(frozen=True, kw_only=True)
 class LandParams(Params):
     """land takes no parameters."""
 

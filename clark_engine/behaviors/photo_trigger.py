@@ -9,7 +9,6 @@ pictures when a count is given.
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from clark_engine.behaviors.base import BehaviorRuntime, Status
@@ -33,7 +32,6 @@ if TYPE_CHECKING:
     from clark_engine.runtime.events import PayloadEvent
 
 
-@dataclass(frozen=True, kw_only=True)
 class PhotoTriggerParams(Params):
     """Parameters of photo_trigger."""
 

@@ -12,7 +12,6 @@ landing), ArduPlane circles home, so a fixed-wing aircraft needs a
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from clark_engine.behaviors.base import Status
@@ -33,7 +32,6 @@ if TYPE_CHECKING:
     from clark_engine.runtime.context import PrimitiveContext
 
 
-@dataclass(frozen=True, kw_only=True)
 class ReturnHomeParams(Params):
     """Parameters of return_home."""
 

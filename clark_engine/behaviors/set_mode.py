@@ -7,7 +7,6 @@ The mode is checked against the modes of the agent's autopilot firmware
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from clark_engine.behaviors.base import BehaviorRuntime, Status
@@ -20,7 +19,6 @@ if TYPE_CHECKING:
     from clark_engine.runtime.context import PrimitiveContext
 
 
-@dataclass(frozen=True, kw_only=True)
 class SetModeParams(Params):
     """Parameters of set_mode."""
 

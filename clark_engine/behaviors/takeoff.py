@@ -14,7 +14,6 @@ a vehicle the pilot hands over in flight (``launch.airborne``) needs none.
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Final
 
 from clark_engine.behaviors.base import BehaviorRuntime, Status
@@ -46,7 +45,6 @@ if TYPE_CHECKING:
     from clark_engine.runtime.context import PrimitiveContext
 
 
-@dataclass(frozen=True, kw_only=True)
 class TakeoffParams(Params):
     """Parameters of takeoff."""
 

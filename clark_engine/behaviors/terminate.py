@@ -8,7 +8,6 @@ profile's, or ``mode`` here), closes its interfaces and flushes its logs
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from clark_engine.behaviors.base import BehaviorRuntime, Status
@@ -20,7 +19,6 @@ if TYPE_CHECKING:
     from clark_engine.runtime.context import PrimitiveContext
 
 
-@dataclass(frozen=True, kw_only=True)
 class TerminateParams(Params):
     """Parameters of terminate."""
 

@@ -7,7 +7,6 @@ and raises ``done`` once the vehicle is within ``tolerance_m`` of it.
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from clark_engine.behaviors.base import BehaviorRuntime, Point, Status
@@ -37,7 +36,6 @@ if TYPE_CHECKING:
     from clark_engine.runtime.context import PrimitiveContext
 
 
-@dataclass(frozen=True, kw_only=True)
 class WaypointParams(Params):
     """Parameters of waypoint."""
 

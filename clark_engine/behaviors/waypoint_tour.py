@@ -8,7 +8,6 @@ with it, the tour runs until a transition leaves the state.
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from clark_engine.behaviors.base import BehaviorRuntime, Point, Status, points_from_config
@@ -41,7 +40,6 @@ if TYPE_CHECKING:
 _WAYPOINTS = array("The positions to visit, in order.", POINT_SCHEMA, min_items=1)
 
 
-@dataclass(frozen=True, kw_only=True)
 class WaypointTourParams(Params):
     """Parameters of waypoint_tour."""
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from clark_engine.behaviors import Behavior, Params, Plan, Traits, UseContext, param
@@ -36,7 +35,6 @@ if TYPE_CHECKING:
 EARTH_RADIUS_M = 6_371_000.0
 
 
-@dataclass(frozen=True, kw_only=True)
 class ZigzagParams(Params):
     """Parameters of zigzag."""
 
