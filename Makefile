@@ -55,10 +55,12 @@ format: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy
 
-## schemas: regenerate schemas/*.json and docs/reference.md from their Python source
+## schemas: regenerate schemas/*.json, docs/reference.md and docs/runtime.md's behaviour
+## sections from their Python source
 schemas: $(STAMP)
 	$(BIN)/python -m clark_engine.mission.schema_source
 	$(BIN)/python tools/gen_reference.py
+	$(BIN)/python tools/gen_runtime_doc.py
 
 ## golden: make everything the examples make again (compiled configs, seed-1 dry runs,
 ## generated schemas, docs and protobuf module) and compare it byte for byte with

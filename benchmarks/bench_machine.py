@@ -32,6 +32,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
+from clark_engine.behaviors.base import BehaviorRuntime as Primitive
 from clark_engine.link.fleet import FleetTable
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.validate import validate_path
@@ -39,7 +40,6 @@ from clark_engine.runtime import machine as machine_module
 from clark_engine.runtime.config import AgentConfig, StateSpec, TransitionSpec, config_from_dict
 from clark_engine.runtime.context import PrimitiveContext, Status
 from clark_engine.runtime.machine import BehaviorMachine
-from clark_engine.runtime.primitives.base import Primitive
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -205,6 +205,29 @@ def cmd_schema(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_behaviors(args: argparse.Namespace) -> int:
+    """List every behaviour a mission can use: name, origin (built-in or plugin), summary.
+
+    Plugins are installed Python packages that declare behaviours through the
+    ``clark_engine.behaviors`` entry-point group (docs/plugins.md); a plugin that
+    fails to load is reported here, as everywhere, with exit code 2.
+    """
+    from clark_engine.behaviors import behaviors
+
+    declared = behaviors()
+    if args.json:
+        rows = [
+            {"name": b.name, "origin": b.origin, "summary": b.summary} for b in declared.values()
+        ]
+        print(json.dumps(rows, indent=2))
+        return EXIT_OK
+    name_w = max(len(name) for name in declared)
+    origin_w = max(len(b.origin) for b in declared.values())
+    for b in declared.values():
+        print(f"{b.name:<{name_w}}  {b.origin:<{origin_w}}  {b.summary}")
+    return EXIT_OK
+
+
 def cmd_keygen(args: argparse.Namespace) -> int:
     """Write a new ClarkLink key file (32 random bytes, readable by its owner only)."""
     from clark_engine.link.auth import KeyFileError, generate_key_file
@@ -987,6 +1010,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("name", metavar="NAME", help=f"one of: {', '.join(SCHEMA_NAMES)}")
     p.set_defaults(func=cmd_schema)
+
+    p = sub.add_parser(
+        "behaviors",
+        aliases=["behaviours"],
+        help="list every behaviour a mission can use, built-in or from a plugin",
+    )
+    p.add_argument("--json", action="store_true", help="print JSON: name, origin, summary")
+    p.set_defaults(func=cmd_behaviors)
 
     p = sub.add_parser(
         "payload-sim", help="play a payload (the thesis's camera) against a payload adapter"

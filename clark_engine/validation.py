@@ -14,6 +14,7 @@ from collections import defaultdict
 from pathlib import Path
 from typing import TextIO
 
+from clark_engine.behaviors import behaviors
 from clark_engine.errors import ClarkError, UsageError
 from clark_engine.link import wire
 from clark_engine.link.auth import load_key
@@ -306,17 +307,18 @@ def mission_flows(mission: Mission) -> list[Flow]:
             )
         if agent.behavior is None:
             continue
+        declared = behaviors()
         for state in agent.behavior.walk():
-            if state.primitive == "photo_trigger":
-                interval_s = float(state.params["interval_s"])
+            behavior = declared.get(state.primitive) if state.primitive is not None else None
+            for sent in behavior.sends(state.params) if behavior is not None else ():
                 flows.append(
                     Flow(
                         sender=agent.name,
-                        message="picture_data",
-                        every_ticks=max(1, round(interval_s * mission.loop_hz)),
-                        destinations=tuple(state.params.get("to") or ()),
-                        size_bytes=wire.encoded_size(worst["picture_data"]),
-                        order=_order(worst["picture_data"]),
+                        message=sent.message,
+                        every_ticks=max(1, round(sent.interval_s * mission.loop_hz)),
+                        destinations=sent.to,
+                        size_bytes=wire.encoded_size(worst[sent.message]),
+                        order=_order(worst[sent.message]),
                     )
                 )
     return flows

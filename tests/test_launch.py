@@ -14,10 +14,11 @@ from pathlib import Path
 
 import pytest
 
+from clark_engine.behaviors import UseContext
+from clark_engine.behaviors import behaviors as _behaviors
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.findings import Finding
 from clark_engine.mission.model import Launch, Mission
-from clark_engine.mission.primitives import PRIMITIVES, UseContext
 from clark_engine.mission.schemas import validator
 from clark_engine.mission.validate import Validation, validate_path
 
@@ -244,12 +245,12 @@ def test_the_takeoff_warning_points_at_the_mission_use_of_a_block(tmp_path: Path
 
 def test_the_new_primitives_are_declared_and_finish() -> None:
     for name in ("takeoff", "land", "return_home"):
-        spec = PRIMITIVES[name]
+        spec = _behaviors()[name]
         assert spec.needs_autopilot
         assert spec.events(spec.with_defaults({"alt_m": 10})) == frozenset({"done"})
-    assert PRIMITIVES["takeoff"].with_defaults({"alt_m": 10}) == {"alt_m": 10, "tolerance_m": 1}
-    assert PRIMITIVES["return_home"].with_defaults({}) == {"tolerance_m": 5}
-    assert PRIMITIVES["land"].with_defaults({}) == {}
+    assert _behaviors()["takeoff"].with_defaults({"alt_m": 10}) == {"alt_m": 10, "tolerance_m": 1}
+    assert _behaviors()["return_home"].with_defaults({}) == {"tolerance_m": 5}
+    assert _behaviors()["land"].with_defaults({}) == {}
 
 
 def test_return_home_on_a_fixed_wing_warns_of_its_rtl_circle(tmp_path: Path) -> None:
@@ -279,7 +280,7 @@ def _use_without(mission: Mission, agent: str, role: str, primitive: str) -> lis
     stripped = dataclasses.replace(vehicle, hardware=hardware)
     where = vehicle.location
     ctx = UseContext(mission, stripped, {}, lambda _param: where, where)
-    return list(PRIMITIVES[primitive].check(ctx))
+    return list(_behaviors()[primitive].check(ctx))
 
 
 def test_land_and_return_home_need_their_mode_roles(tmp_path: Path) -> None:

@@ -25,6 +25,7 @@ from typing import Any
 
 import pytest
 
+from clark_engine.behaviors.shared import orbit_radius_m
 from clark_engine.link.codec import Codec
 from clark_engine.link.messages import AgentStatus, AgentType, Heartbeat
 from clark_engine.mission import validate
@@ -32,7 +33,6 @@ from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.fence import Fence
 from clark_engine.mission.geo import LocalPoint, Origin, to_global, to_local
 from clark_engine.mission.model import Mission
-from clark_engine.mission.primitives._shared import orbit_radius_m
 from clark_engine.mission.yaml_loader import decode_text, load_yaml
 from clark_engine.runtime.commands import Command, Goto, RcOverride, SetMode, Takeoff
 from clark_engine.runtime.config import AgentConfig, config_from_dict

@@ -15,6 +15,10 @@ from pathlib import Path
 
 import pytest
 
+from clark_engine.behaviors import make_behavior as make_primitive
+from clark_engine.behaviors.base import BehaviorRuntime as Primitive
+from clark_engine.behaviors.flight import ARM_RETRY_S
+from clark_engine.behaviors.takeoff import TAKEOFF_RETRY_S
 from clark_engine.link.codec import Codec
 from clark_engine.link.fleet import FleetTable
 from clark_engine.link.messages import ActivateController, AgentType, Heartbeat
@@ -32,10 +36,6 @@ from clark_engine.runtime.events import (
     VehicleState,
 )
 from clark_engine.runtime.launch import LaunchGate, is_airborne
-from clark_engine.runtime.primitives import make_primitive
-from clark_engine.runtime.primitives._shared import ARM_RETRY_S
-from clark_engine.runtime.primitives.base import Primitive
-from clark_engine.runtime.primitives.takeoff import TAKEOFF_RETRY_S
 from clark_engine.runtime.runtime import AgentRuntime
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -16,6 +16,7 @@ import pytest
 from transitions.extensions import HierarchicalMachine
 from transitions.extensions.nesting import NestedState
 
+from clark_engine.behaviors.base import BehaviorRuntime as Primitive
 from clark_engine.link.fleet import FleetTable
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.validate import validate_path
@@ -29,7 +30,6 @@ from clark_engine.runtime.config import (
 from clark_engine.runtime.context import PrimitiveContext, Status
 from clark_engine.runtime.events import PayloadEvent
 from clark_engine.runtime.machine import BehaviorMachine, StateChange
-from clark_engine.runtime.primitives.base import Primitive
 
 ROOT = Path(__file__).resolve().parent.parent
 

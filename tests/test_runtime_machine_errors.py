@@ -24,12 +24,12 @@ from typing import Any
 
 import pytest
 
+from clark_engine.behaviors.base import BehaviorRuntime as Primitive
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.validate import validate_path
 from clark_engine.runtime.config import AgentConfig, StateSpec, config_from_dict
 from clark_engine.runtime.context import PrimitiveContext
 from clark_engine.runtime.log_events import RECORD_ATTRIBUTE
-from clark_engine.runtime.primitives.base import Primitive
 from tests.test_runtime_machine import Fake, Harness, leaf, spec
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -12,12 +12,21 @@ from typing import Any
 
 import pytest
 
+from clark_engine.behaviors import behaviors
+from clark_engine.behaviors import make_behavior as make_primitive
+from clark_engine.behaviors.base import BehaviorRuntime as Primitive
+from clark_engine.behaviors.doublet import Doublet
+from clark_engine.behaviors.follow_agent import FollowAgent
+from clark_engine.behaviors.photo_trigger import PhotoTrigger
+from clark_engine.behaviors.sine_sweep import SineSweep
+from clark_engine.behaviors.terminate import Terminate
+from clark_engine.behaviors.waypoint import Waypoint
+from clark_engine.behaviors.waypoint_tour import WaypointTour
 from clark_engine.link.fleet import FleetTable
 from clark_engine.link.messages import AgentStatus, AgentType, Heartbeat, PictureData
 from clark_engine.link.packet import Packet
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.model import Mission
-from clark_engine.mission.primitives import PRIMITIVES
 from clark_engine.mission.validate import validate_path
 from clark_engine.runtime.commands import (
     Command,
@@ -36,15 +45,6 @@ from clark_engine.runtime.context import (
     offset_position,
 )
 from clark_engine.runtime.events import PayloadEvent, VehicleState
-from clark_engine.runtime.primitives import PRIMITIVE_CLASSES, make_primitive
-from clark_engine.runtime.primitives.base import Primitive
-from clark_engine.runtime.primitives.doublet import Doublet
-from clark_engine.runtime.primitives.follow_agent import FollowAgent
-from clark_engine.runtime.primitives.photo_trigger import PhotoTrigger
-from clark_engine.runtime.primitives.sine_sweep import SineSweep
-from clark_engine.runtime.primitives.terminate import Terminate
-from clark_engine.runtime.primitives.waypoint import Waypoint
-from clark_engine.runtime.primitives.waypoint_tour import WaypointTour
 
 ROOT = Path(__file__).resolve().parent.parent
 GPS_MS = 1_400_000_000_000
@@ -174,11 +174,12 @@ class Run:
 # ----------------------------------------------------------------- registry
 
 
-def test_runtime_registry_names_exactly_the_mission_primitives() -> None:
-    assert list(PRIMITIVE_CLASSES) == list(PRIMITIVES)
-    for name, cls in PRIMITIVE_CLASSES.items():
-        assert issubclass(cls, Primitive)
-        assert cls.name == name
+def test_each_behavior_declares_its_runtime_class_and_its_typed_parameters() -> None:
+    # One registry: the declaration names the runtime class, which reads its typed params.
+    for name, behavior in behaviors().items():
+        assert issubclass(behavior.runtime, Primitive)
+        assert behavior.runtime.name == name
+        assert behavior.runtime.params_type is behavior.parameters
 
 
 @pytest.mark.parametrize(
@@ -193,8 +194,9 @@ def test_every_compiled_example_state_builds_its_primitive(mission_file: str) ->
         for state in config.machine.walk():
             if state.primitive is not None:
                 built = make_primitive(state)
-                assert type(built) is PRIMITIVE_CLASSES[state.primitive]
-                assert built.params == state.params
+                behavior = behaviors()[state.primitive]
+                assert type(built) is behavior.runtime
+                assert built.params == behavior.parameters.from_config(state.params)
 
 
 def test_make_primitive_refuses_states_without_a_known_primitive() -> None:

@@ -81,6 +81,22 @@ def test_example_missions_declare_the_schema_for_editors() -> None:
         assert first == "# yaml-language-server: $schema=../schemas/behavior.schema.json", block
 
 
+def test_runtime_behavior_sections_are_generated_from_the_runtime_classes() -> None:
+    # docs/runtime.md's behaviour sections are the runtime classes' docstrings.
+    import subprocess
+    import sys
+
+    proc = subprocess.run(
+        [sys.executable, "tools/gen_runtime_doc.py", "--check"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr + "\nrun `make schemas`"
+
+
 def test_language_reference_is_generated_from_the_schemas() -> None:
     import subprocess
     import sys

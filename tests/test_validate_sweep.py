@@ -31,7 +31,14 @@ agents:
     behavior: {{use: elevator_sweep, with: {{f_start_hz: {f}, f_stop_hz: {f}}}}}
 """
 
-CHANNEL = {"pwm_trim_us": 1500, "pwm_min_us": 1000, "pwm_max_us": 2000, "rc": 2}
+CHANNEL = {
+    "name": "elevator",
+    "rc": 2,
+    "servo": None,
+    "pwm_min_us": 1000,
+    "pwm_trim_us": 1500,
+    "pwm_max_us": 2000,
+}
 
 
 @pytest.mark.parametrize(

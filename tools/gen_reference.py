@@ -4,8 +4,8 @@ The reference is built from what the engine itself reads, so it cannot drift:
 
 * ``schemas/mission.schema.json`` for the file structure, the mission section,
   agents, telemetry, failsafes, dry-run checks, states, transitions and conditions;
-* ``clark_engine.mission.primitives.PRIMITIVES`` for each primitive's summary,
-  parameters and events, and each primitive module's docstring for its prose;
+* ``clark_engine.behaviors`` (the built-in behaviours' declarations) for each
+  primitive's summary, parameters and events, and each module's docstring for its prose;
 * ``behaviors/*.yaml`` for the shipped behaviour blocks;
 * ``clark_engine.mission.checks`` for the event names the engine accepts.
 
@@ -1171,14 +1171,14 @@ def _event_variants(spec: Any) -> list[str]:
     base = spec.with_defaults({})
     default_events = spec.events(base)
     notes = []
-    for key, prop in spec.params.get("properties", {}).items():
+    for key, prop in spec.schema.get("properties", {}).items():
         if not isinstance(prop, Mapping):
             continue
         if prop.get("type") == "boolean":
             value = not prop.get("default", False)
             variant = {**base, key: value}
             shown = f"`{key}: {json.dumps(value)}`"
-        elif "default" not in prop and key not in spec.params.get("required", []):
+        elif "default" not in prop and key not in spec.schema.get("required", []):
             sample = prop.get("minimum", prop.get("exclusiveMinimum", 0)) or 1
             variant = {**base, key: sample}
             shown = f"`{key}` is given"
@@ -1208,10 +1208,11 @@ def _docstring_body(module: ModuleType) -> str:
 
 
 def primitives_section() -> list[str]:
-    """One section per registered primitive."""
-    from clark_engine.mission.primitives import PRIMITIVES
+    """One section per built-in behaviour (a primitive, as the language calls them)."""
+    from clark_engine.behaviors import built_in
 
-    shared = importlib.import_module("clark_engine.mission.primitives._shared")
+    PRIMITIVES = built_in()
+    shared = importlib.import_module("clark_engine.behaviors.shared")
     lines = [
         "## Primitives",
         "",
@@ -1239,7 +1240,7 @@ def primitives_section() -> list[str]:
         "",
     ]
     for name, spec in PRIMITIVES.items():
-        module = importlib.import_module(f"clark_engine.mission.primitives.{name}")
+        module = importlib.import_module(spec.runtime.__module__)
         events = sorted(spec.events(spec.with_defaults({})))
         event_text = ", ".join(f"`{e}`" for e in events) if events else "none"
         variants = _event_variants(spec)
@@ -1265,8 +1266,8 @@ def primitives_section() -> list[str]:
                 + "."
             )
         lines.append("")
-        params = property_table(spec.params)
-        lines += params if params else [md(str(spec.params.get("description", "")))]
+        params = property_table(spec.schema)
+        lines += params if params else [md(str(spec.schema.get("description", "")))]
         lines.append("")
     return lines
 
@@ -1301,8 +1302,10 @@ def _uses(machine: Any) -> list[str]:
 
 def blocks_section(behavior_schema: Schema) -> list[str]:
     """The block file format and every shipped block."""
-    from clark_engine.mission.primitives import PRIMITIVES
+    from clark_engine.behaviors import built_in
     from clark_engine.mission.yaml_loader import decode_text, load_yaml
+
+    PRIMITIVES = built_in()
 
     lines = [
         "## Behaviour blocks",
@@ -1394,7 +1397,7 @@ def generate() -> str:
     sources = [
         "`schemas/mission.schema.json`",
         "`schemas/behavior.schema.json`",
-        "the primitive registry (`clark_engine/mission/primitives/`)",
+        "the behaviour declarations (`clark_engine/behaviors/`)",
         "the event names of `clark_engine/mission/checks.py`",
         "`behaviors/*.yaml`",
     ]

@@ -39,6 +39,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Final
 
+from clark_engine.behaviors import Plan, behaviors
 from clark_engine.gcs.alarms import AlarmChange, AlarmWatch, failsafe_words
 from clark_engine.link.fleet import AgentRecord, Sample
 from clark_engine.link.messages import (
@@ -170,7 +171,7 @@ def _points_in(value: Any) -> list[Any]:
 
 
 def _runs_photos(state: StateSpec) -> bool:
-    return state.primitive == "photo_trigger" or any(_runs_photos(s) for s in state.states)
+    return state.traits.takes_pictures or any(_runs_photos(s) for s in state.states)
 
 
 def plan_of(config: AgentConfig) -> list[Json]:
@@ -194,18 +195,26 @@ def plan_of(config: AgentConfig) -> list[Json]:
         if state.primitive is not None:
             params = state.params
             base: Json = {"state": state.path or "(behavior)", "primitive": state.primitive}
-            if state.primitive == "waypoint_tour":
+            behavior = behaviors().get(state.primitive)
+            plan = behavior.plan(params) if behavior is not None else Plan()
+            if plan.kind == "route" and plan.points:
                 items.append(
                     {
                         **base,
                         "kind": "tour",
-                        "points": [_local(p, origin) for p in params.get("waypoints", [])],
-                        "loop": bool(params.get("loop", False)),
+                        "points": [_local(p, origin) for p, _param in plan.points],
+                        "loop": plan.loop,
                         "survey": photos_beside,
                     }
                 )
-            elif state.primitive == "waypoint" and "to" in params:
-                items.append({**base, "kind": "waypoint", "points": [_local(params["to"], origin)]})
+            elif plan.kind == "target" and plan.points:
+                items.append(
+                    {
+                        **base,
+                        "kind": "waypoint",
+                        "points": [_local(p, origin) for p, _ in plan.points],
+                    }
+                )
             else:
                 found = _points_in(params)
                 if found:

@@ -15,6 +15,8 @@ import re
 from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
 
+from clark_engine.behaviors import UseContext, behaviors
+from clark_engine.behaviors.shared import off_the_globe
 from clark_engine.mission import envelope_checks
 from clark_engine.mission.faults import fault_problems
 from clark_engine.mission.findings import Finding, Location, error, rehome, warning
@@ -26,8 +28,6 @@ from clark_engine.mission.peer_conditions import (
     check_always,
     check_peer_condition,
 )
-from clark_engine.mission.primitives import PRIMITIVES, UseContext
-from clark_engine.mission.primitives._shared import off_the_globe
 from clark_engine.mission.variation import sim_schema as mission_varied_fields_schema
 from clark_engine.mission.variation import variation_problems
 
@@ -446,9 +446,6 @@ def check_launch(agent: Agent) -> Iterator[Finding]:
         )
 
 
-#: Primitives that send the autopilot guided targets.
-GUIDED_PRIMITIVES = ("waypoint", "waypoint_tour", "follow_agent")
-
 #: Why an aircraft on the ground goes nowhere for a guided target, by airframe class.
 _GROUNDED = {
     "multirotor": "ArduCopter ignores guided targets until it has taken off",
@@ -463,9 +460,9 @@ def check_takeoff(agent: Agent, root: State) -> Iterator[Finding]:
     if launch is None or launch.airborne or grounded is None:
         return
     states = root.walk()
-    if any(state.primitive == "takeoff" for state in states):
+    if any(state.traits.takes_off for state in states):
         return
-    guided = next((s for s in states if s.primitive in GUIDED_PRIMITIVES), None)
+    guided = next((s for s in states if s.traits.guided), None)
     if guided is None:
         return
     what = f"state {guided.dotted} ({guided.primitive})" if guided.path else guided.primitive
@@ -498,11 +495,11 @@ def check_launch_flight(agent: Agent, root: State) -> Iterator[Finding]:
         or launch.airborne
         or launch.engine_arms
         or agent.airframe_class != "multirotor"
-        or not any(state.primitive == "takeoff" for state in root.walk())
+        or not any(state.traits.takes_off for state in root.walk())
     ):
         return
     first = entry_leaves(root)
-    if not first or any(leaf.primitive == "takeoff" or leaf.unresolved for leaf in first):
+    if not first or any(leaf.traits.takes_off or leaf.unresolved for leaf in first):
         return
     leaf = first[0]
     what = leaf.primitive or ("a final state" if leaf.final else "an empty state")
@@ -595,7 +592,7 @@ def _can_finish(state: State) -> bool:
     if state.unresolved:
         return True  # unknown after an error reported elsewhere: no guess either way
     if state.primitive is not None:
-        return "done" in PRIMITIVES[state.primitive].events(state.params)
+        return "done" in behaviors()[state.primitive].events(state.params)
     if state.parallel:
         finishing = [_can_finish(c) or c.final for c in state.children.values()]
         return any(finishing) if state.finish == "any" else all(finishing)
@@ -807,7 +804,7 @@ def check_primitives(
     for state in root.walk():
         if state.primitive is None or (agent.name, state.path) in bad_states:
             continue
-        spec = PRIMITIVES[state.primitive]
+        spec = behaviors()[state.primitive]
         use_loc = state.use_location or state.location
         if spec.needs_autopilot and not agent.is_vehicle:
             yield error(
@@ -903,7 +900,7 @@ def _check_possible(
                 "another agent",
             )
         elif agent.behavior is not None and not any(
-            s.primitive == "photo_trigger" or s.unresolved for s in agent.behavior.walk()
+            s.traits.takes_pictures or s.unresolved for s in agent.behavior.walk()
         ):
             yield error(
                 "E-CHECK-IMPOSSIBLE",
@@ -915,6 +912,7 @@ def _check_possible(
 
 def check_expectations(mission: Mission) -> Iterator[Finding]:
     """Dry-run expectations name agents and states that exist."""
+    signals = [name for name, b in behaviors().items() if b.signal is not None]
     for index, check in enumerate(mission.checks):
         where = mission.check_locations[index]
         kinds = [k for k in check if k not in ("name", "by_s")]
@@ -973,14 +971,10 @@ def check_expectations(mission: Mission) -> Iterator[Finding]:
                     f"{agent.name!r} has no state {state_path!r}; "
                     + _hint(state_path, [s.dotted for s in agent.behavior.walk()[1:]]),
                 )
-            elif (
-                kinds[0] == "signal"
-                and not state.unresolved
-                and state.primitive not in ("doublet", "sine_sweep")
-            ):
+            elif kinds[0] == "signal" and not state.unresolved and state.primitive not in signals:
                 yield error(
                     "E-CHECK-SHAPE",
                     where,
                     f"state {state_path!r} runs {state.primitive or 'no primitive'}; a signal "
-                    "check needs a doublet or sine_sweep state",
+                    f"check needs a {' or '.join(signals)} state",
                 )

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from clark_engine import __version__
+from clark_engine.behaviors import CompileContext, behaviors
 from clark_engine.errors import UsageError
 from clark_engine.mission.envelope import DeclaredZone
 from clark_engine.mission.geo import LocalPoint, parse_point, round_coordinate, to_global
@@ -48,33 +49,18 @@ def _point(point: LocalPoint, mission: Mission) -> dict[str, float]:
 
 
 def _params(state: State, agent: Agent, mission: Mission) -> dict[str, Any]:
-    """Parameters with names resolved: points to both frames, channels to their map."""
-    params = dict(state.params)
-    name = state.primitive
-    if name == "waypoint":
-        params["to"] = _point(parse_point(params["to"], mission.origin), mission)
-    elif name == "waypoint_tour":
-        params["waypoints"] = [
-            _point(parse_point(p, mission.origin), mission) for p in params["waypoints"]
-        ]
-    elif name in ("doublet", "sine_sweep"):
-        channel = agent.hardware.channels[params["channel"]]
-        params["channel"] = {
-            "name": channel.name,
-            "rc": channel.rc,
-            "servo": channel.servo,
-            "pwm_min_us": channel.pwm_min_us,
-            "pwm_trim_us": channel.pwm_trim_us,
-            "pwm_max_us": channel.pwm_max_us,
-        }
-    elif name == "follow_agent":
-        target = mission.agents[params["target"]]
-        params["target"] = {"name": target.name, "id": target.id}
-        offset = {"north_m": 0, "east_m": 0, "up_m": 0}
-        offset.update(params.get("offset") or {})
-        params["offset"] = offset
-    elif name == "photo_trigger":
-        params.setdefault("to", [])
+    """Parameters with names resolved, as the behaviour's declaration resolves them.
+
+    Points to both frames, channels to their map, agents to ``{name, id}``
+    (:attr:`clark_engine.behaviors.Behavior.compile`).
+    """
+    assert state.primitive is not None
+    context = CompileContext(
+        mission=mission,
+        agent=agent,
+        point=lambda raw: _point(parse_point(raw, mission.origin), mission),
+    )
+    params = behaviors()[state.primitive].compile(dict(state.params), context)
     return dict(sorted(params.items()))
 
 

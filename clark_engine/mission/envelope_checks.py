@@ -18,7 +18,7 @@ alone:
   than an aircraft's endurance lands it.
 
 Checks of one primitive's own parameters call :func:`check_point` and
-:func:`check_leg` from the primitive (:mod:`.primitives._shared`, and follow_agent's
+:func:`check_leg` from the primitive (:mod:`clark_engine.behaviors.shared`, and follow_agent's
 checks use :func:`possible_heights` and :func:`goal_distance_range`);
 :func:`check_mission` checks what spans states and vehicles, and is run by
 :func:`clark_engine.mission.checks.run_all`. What cannot be proved (reactive
@@ -38,7 +38,6 @@ from clark_engine.mission.envelope import Envelope
 from clark_engine.mission.fence import Fence, Zone
 from clark_engine.mission.findings import Finding, Location, error, rehome, warning
 from clark_engine.mission.flow import (
-    LANDING,
     Spot,
     known_entries,
     point_location,
@@ -47,16 +46,12 @@ from clark_engine.mission.flow import (
     waypoint_label,
     waypoints,
 )
+from clark_engine.mission.flow import (
+    plan as flow_plan,
+)
 from clark_engine.mission.geo import LocalPoint
 from clark_engine.mission.model import Agent, Mission, State
 from clark_engine.mission.variation import value_range
-
-#: Primitives that keep a vehicle moving, so armed, while they run (a hold too, for an
-#: aircraft: it hovers or circles).
-_FLYING = frozenset(
-    {"waypoint", "waypoint_tour", "follow_agent", "takeoff", "doublet", "sine_sweep"}
-)
-
 
 # ----------------------------------------------------------------------------- zones
 
@@ -145,7 +140,7 @@ def check_point(
     """A guided target inside its vehicle's envelope, far enough in to be sent as written.
 
     The ceiling itself, and heights below the origin, are
-    :func:`~clark_engine.mission.primitives._shared.check_ceiling`'s; the floor is
+    :func:`~clark_engine.behaviors.shared.check_ceiling`'s; the floor is
     :func:`check_floor`'s, the margins :func:`check_height_margin`'s, the geofence
     :func:`check_fence_point`'s.
 
@@ -363,7 +358,7 @@ def possible_heights(agent: Agent) -> tuple[float, float]:
         return 0.0, 0.0
     airborne = agent.launch is not None and agent.launch.airborne
     lands = agent.behavior is not None and any(
-        s.primitive in LANDING or s.primitive == "takeoff" for s in reachable_leaves(agent.behavior)
+        s.traits.lands or s.traits.takes_off for s in reachable_leaves(agent.behavior)
     )
     low = envelope.floor_m if airborne and not lands else 0.0
     return low, envelope.ceiling_m
@@ -569,7 +564,12 @@ def _check_first_legs(
 
 
 def _flies(state: State, aircraft: bool) -> bool:
-    return state.primitive in _FLYING or (aircraft and state.primitive == "hold")
+    """True when the state's behaviour keeps the vehicle moving, so armed, while it runs.
+
+    A hold too, for an aircraft: it hovers or circles (the behaviours' traits say which).
+    """
+    traits = state.traits
+    return traits.flies or (aircraft and traits.flies_if_aircraft)
 
 
 def _keeps_flying(state: State, aircraft: bool) -> bool:
@@ -580,7 +580,7 @@ def _keeps_flying(state: State, aircraft: bool) -> bool:
         return _flies(state, aircraft)
     leaves = [s for s in state.walk() if s.primitive is not None]
     flying = [s for s in leaves if _flies(s, aircraft)]
-    return bool(flying) and all(s in flying or s.primitive == "photo_trigger" for s in leaves)
+    return bool(flying) and all(s in flying or s.traits.takes_pictures for s in leaves)
 
 
 def _endurance_source(envelope: Envelope) -> str:
@@ -635,10 +635,10 @@ def _check_duration(mission: Mission, vehicles: list[Agent]) -> Iterator[Finding
         ):
             continue
         leaves = reachable_leaves(root)
-        if any(s.primitive in LANDING or s.unresolved for s in leaves):
+        if any(s.traits.lands or s.unresolved for s in leaves):
             continue
         airborne = agent.launch is not None and agent.launch.airborne
-        if not airborne and not any(s.primitive == "takeoff" for s in leaves):
+        if not airborne and not any(s.traits.takes_off for s in leaves):
             continue  # it never leaves the ground
         behavior_at = agent.locations.get("behavior", agent.location)
         length = "sim.duration_s" if written else "the default sim.duration_s"
@@ -713,9 +713,10 @@ def _plan(
     for state in agent.behavior.walk():
         if state.unresolved:
             continue
-        if state.primitive == "takeoff":
+        plan = flow_plan(state)
+        if plan.climb_to_m is not None:
             for spot in entries.get(state.path, []):
-                top = (spot.point.north_m, spot.point.east_m, float(state.params["alt_m"]))
+                top = (spot.point.north_m, spot.point.east_m, plan.climb_to_m)
                 low = _xyz(spot.point, rover)
                 label = f"takeoff of state {state.dotted}" if state.path else "takeoff"
                 where = state.use_location or state.location
@@ -726,7 +727,7 @@ def _plan(
             where = point_location(state, param)
             name = waypoint_label(state, param).removeprefix("its ")
             pieces.append(_Piece(at, at, name, where, mission_use=state.mission_use))
-            if index + 1 < len(points) or state.params.get("loop"):
+            if index + 1 < len(points) or plan.loop:
                 nxt, nparam = points[(index + 1) % len(points)]
                 leg = f"leg from {name} to {waypoint_label(state, nparam).removeprefix('its ')}"
                 pieces.append(

@@ -21,15 +21,10 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass
 
+from clark_engine.behaviors import Plan, behaviors
 from clark_engine.mission.findings import Location
 from clark_engine.mission.geo import LocalPoint, Origin, parse_point
 from clark_engine.mission.model import Agent, State, Transition
-
-#: Primitives that bring a vehicle down or end its flight.
-LANDING = frozenset({"land", "return_home", "terminate"})
-#: Primitives during which the vehicle stays over the spot it entered them at: a
-#: takeoff climbs straight up, a hold keeps its place, a landing comes straight down.
-_STATIONARY = frozenset({"takeoff", "hold", "land"})
 
 
 @dataclass(frozen=True, slots=True)
@@ -108,18 +103,17 @@ def point_location(state: State, param: str) -> Location:
     return state.param_locations.get(param) or state.param_locations.get(base) or fallback
 
 
+def plan(state: State) -> Plan:
+    """What the state's behaviour plans (its fixed targets, a climb); nothing when unknown."""
+    if state.unresolved or state.primitive is None:
+        return Plan()
+    found = behaviors().get(state.primitive)
+    return found.plan(state.params) if found is not None else Plan()
+
+
 def waypoints(state: State, origin: Origin) -> list[tuple[LocalPoint, str]]:
-    """The fixed targets of a waypoint or tour state, in order: (point, parameter)."""
-    if state.unresolved:
-        return []
-    if state.primitive == "waypoint":
-        return [(parse_point(state.params["to"], origin), "to")]
-    if state.primitive == "waypoint_tour":
-        return [
-            (parse_point(raw, origin), f"waypoints[{i}]")
-            for i, raw in enumerate(state.params["waypoints"])
-        ]
-    return []
+    """The fixed targets of a state's behaviour, in order: (point, parameter)."""
+    return [(parse_point(raw, origin), param) for raw, param in plan(state).points]
 
 
 def waypoint_label(state: State, param: str) -> str:
@@ -171,21 +165,23 @@ def known_entries(agent: Agent, origin: Origin) -> dict[tuple[str, ...], list[Sp
     while pending:
         leaf = pending.pop()
         here = list(entries[leaf.path].values())
+        traits = leaf.traits
         still = (
             leaf.primitive is None
-            or leaf.primitive in _STATIONARY
-            or (leaf.primitive == "wait" and not airborne)
+            or traits.stays_put
+            or (traits.stays_put_on_ground and not airborne)
         )
         during = here if still else []
         done = during
+        planned = plan(leaf)
         points = waypoints(leaf, origin)
-        if points and not (leaf.primitive == "waypoint_tour" and leaf.params.get("loop")):
+        if points and not planned.loop:
             point, param = points[-1]
             done = [Spot(point, waypoint_label(leaf, param), point_location(leaf, param))]
-        elif leaf.primitive == "return_home" and not airborne:
+        elif traits.home_when_done and not airborne:
             done = [start]
-        elif leaf.primitive == "takeoff" and not leaf.unresolved:
-            alt_m = float(leaf.params["alt_m"])
+        elif planned.climb_to_m is not None:
+            alt_m = planned.climb_to_m
             done = [
                 Spot(
                     LocalPoint(s.point.north_m, s.point.east_m, alt_m),

@@ -20,10 +20,10 @@ from typing import Any, Protocol
 
 from jsonschema import Draft202012Validator
 
+from clark_engine.behaviors import behaviors
 from clark_engine.mission.blocks import Block, BlockLibrary
 from clark_engine.mission.findings import DocPath, Finding, Location, error
 from clark_engine.mission.model import State, Transition
-from clark_engine.mission.primitives import PRIMITIVES
 from clark_engine.mission.schema_source.common import TIME_MAX_S
 from clark_engine.mission.schema_source.states import condition_schema
 from clark_engine.mission.schemas import validate_data
@@ -132,7 +132,7 @@ class BehaviorResolver:
         use = raw.get("use")
         if isinstance(use, str):
             state.use_location = frame.locator.location((*src, "use"))
-            if use in PRIMITIVES:
+            if use in behaviors():
                 self._primitive(state, use, raw, src, frame)
             elif use in self.blocks:
                 self._block(state, use, raw, src, frame)
@@ -143,7 +143,7 @@ class BehaviorResolver:
                         "E-BLOCK-UNKNOWN",
                         state.use_location,
                         f"{use!r} is neither a primitive nor a behaviour block; "
-                        + self.blocks.suggest(use, list(PRIMITIVES)),
+                        + self.blocks.suggest(use, list(behaviors())),
                         *frame.use_sites,
                     )
                 )
@@ -322,7 +322,7 @@ class BehaviorResolver:
     def _primitive(
         self, state: State, name: str, raw: Mapping[str, Any], src: DocPath, frame: _Frame
     ) -> None:
-        spec = PRIMITIVES[name]
+        spec = behaviors()[name]
         given = raw.get("with") or {}
         if not isinstance(given, Mapping):
             return  # the schema reported it
@@ -629,4 +629,4 @@ def _condition_checker() -> Draft202012Validator:
 @functools.cache
 def _primitive_checker(name: str) -> Draft202012Validator:
     """Validator of one primitive's parameters; built once, the schemas are constant."""
-    return Draft202012Validator(PRIMITIVES[name].params)
+    return Draft202012Validator(behaviors()[name].schema)

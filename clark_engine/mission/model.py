@@ -14,6 +14,7 @@ from clark_engine.mission.findings import Location
 from clark_engine.mission.geo import LocalPoint, Origin
 
 if TYPE_CHECKING:
+    from clark_engine.behaviors.declaration import Traits
     from clark_engine.mission.envelope import Envelope, EnvelopeDecl
 
 #: Messages an agent may send periodically (its telemetry schedule).
@@ -223,6 +224,16 @@ class State:
         if self.children:
             return "parallel" if self.parallel else "machine"
         return "final" if self.final else "empty"
+
+    @property
+    def traits(self) -> Traits:
+        """What the behaviour it runs is (guided, takes off, lands...); none without one.
+
+        The one way the checks ask what a behaviour does: never by its name.
+        """
+        from clark_engine.behaviors import traits_of  # the behaviours import this module
+
+        return traits_of(self.primitive)
 
     @property
     def dotted(self) -> str:

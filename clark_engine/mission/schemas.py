@@ -48,12 +48,32 @@ _TYPE_WORDS = {
 
 
 def schema_text(name: str) -> str:
-    """The text of a shipped schema by its short name (``mission``, ``agent-config``...).
+    """The text of a schema by its short name (``mission``, ``agent-config``...).
+
+    The shipped file, which describes the built-in behaviours; when a behaviour plugin
+    is installed, the schema is built again from its source with the plugins'
+    behaviours in it, so that editors complete them and loading a config compiled with
+    them checks their parameters.
 
     Raises:
         KeyError: Unknown name.
     """
-    return (data_dir("schemas") / SCHEMA_NAMES[name]).read_text(encoding="utf-8")
+    file_name = SCHEMA_NAMES[name]
+    if name != "hardware-profile":
+        from clark_engine.behaviors import plugins
+
+        if plugins():
+            return _with_plugins(file_name)
+    return (data_dir("schemas") / file_name).read_text(encoding="utf-8")
+
+
+@functools.cache
+def _with_plugins(file_name: str) -> str:
+    from clark_engine.behaviors import plugin_schemas
+    from clark_engine.mission.schema_source.render import render
+
+    with plugin_schemas():
+        return render(file_name)
 
 
 @functools.cache

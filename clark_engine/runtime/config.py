@@ -12,12 +12,15 @@ import json
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from clark_engine.errors import ClarkError, UsageError
 from clark_engine.mission.fence import Fence, Zone
 from clark_engine.mission.model import DEFAULT_COMPUTER_LOST_S, TICK_PHASES
 from clark_engine.mission.peer_conditions import PEER_CONDITIONS
+
+if TYPE_CHECKING:
+    from clark_engine.behaviors.declaration import Traits
 
 
 class ConfigError(ClarkError):
@@ -64,6 +67,13 @@ class StateSpec:
     transitions: tuple[TransitionSpec, ...]
     source: str
     states: tuple[StateSpec, ...]
+
+    @property
+    def traits(self) -> Traits:
+        """What the behaviour it runs is (takes pictures, lands...); none without one."""
+        from clark_engine.behaviors import traits_of
+
+        return traits_of(self.primitive)
 
     def walk(self) -> list[StateSpec]:
         """This state and every descendant, parents first."""
@@ -378,9 +388,9 @@ def _check_schema(data: Mapping[str, Any], where: str) -> None:
         check_tick_phases(phases, where)  # says what is missing, doubled or unknown
     message = first.message
     if path[-1:] == ["primitive"] and first.validator == "enum":
-        from clark_engine.mission.primitives import PRIMITIVES
+        from clark_engine.behaviors import behaviors
 
-        message = f"unknown primitive {first.instance!r}: this engine has {', '.join(PRIMITIVES)}"
+        message = f"unknown primitive {first.instance!r}: this engine has {', '.join(behaviors())}"
     state = _state_of(data, path, primitive=path[-1:] != ["primitive"])
     raise ConfigError(
         f"{message}{state}; {_RECOMPILE}",
@@ -470,16 +480,21 @@ def _check_references(config: AgentConfig, data: Mapping[str, Any], where: str) 
     check_tick_phases(config.tick_phases, where)
     if config.machine is None:
         return
+    from clark_engine.behaviors import behaviors
+
+    declared = behaviors()
     peers = {p.name: p.id for p in config.peers}
     for state, at in _states_with_paths(config.machine, "machine"):
-        target = state.params.get("target") if state.primitive == "follow_agent" else None
-        if isinstance(target, Mapping) and peers.get(target["name"]) != target["id"]:
-            raise ConfigError(
-                f"follows {target['name']!r} (id {target['id']}), which is not a peer of this "
-                f"config{_peer_list(peers)}{_state_hint(state)}; {_RECOMPILE}",
-                file=where,
-                path=f"{at}.params.target",
-            )
+        behavior = declared.get(state.primitive) if state.primitive is not None else None
+        for name in behavior.agent_params if behavior is not None else ():
+            target = state.params.get(name)
+            if isinstance(target, Mapping) and peers.get(target["name"]) != target["id"]:
+                raise ConfigError(
+                    f"follows {target['name']!r} (id {target['id']}), which is not a peer of "
+                    f"this config{_peer_list(peers)}{_state_hint(state)}; {_RECOMPILE}",
+                    file=where,
+                    path=f"{at}.params.{name}",
+                )
         for index, transition in enumerate(state.transitions):
             if transition.when is None:
                 continue
@@ -534,13 +549,13 @@ def _build_primitives(config: AgentConfig, where: str) -> None:
     """
     if config.machine is None:
         return
-    from clark_engine.runtime.primitives import make_primitive
+    from clark_engine.behaviors import make_behavior
 
     for state, at in _states_with_paths(config.machine, "machine"):
         if state.primitive is None:
             continue
         try:
-            make_primitive(state)
+            make_behavior(state)
         except ConfigError as exc:
             raise ConfigError(
                 f"{exc.message}{_state_hint(state)}", file=where, path=f"{at}.params"

@@ -12,8 +12,9 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field
-from enum import Enum
 
+# What ``update`` reports each tick; declared with the behaviours' lifecycle, kept here too.
+from clark_engine.behaviors.base import Status as Status
 from clark_engine.link.fleet import FleetTable
 from clark_engine.link.messages import AgentStatus, Message
 from clark_engine.runtime.commands import Command
@@ -21,14 +22,6 @@ from clark_engine.runtime.config import AgentConfig
 from clark_engine.runtime.events import AutopilotStatus, VehicleState
 
 EARTH_RADIUS_M = 6_371_008.8
-
-
-class Status(Enum):
-    """What ``update`` reports each tick."""
-
-    RUNNING = "running"
-    DONE = "done"
-    FAILED = "failed"
 
 
 @dataclass(slots=True)

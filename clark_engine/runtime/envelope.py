@@ -41,11 +41,11 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Final
 
+from clark_engine.behaviors.shared import orbit_radius_m
 from clark_engine.link.fleet import FleetTable
 from clark_engine.link.messages import AgentStatus
 from clark_engine.mission.fence import Zone
 from clark_engine.mission.geo import LocalPoint, Origin, to_global, to_local
-from clark_engine.mission.primitives._shared import orbit_radius_m
 from clark_engine.runtime.commands import Goto, Takeoff
 from clark_engine.runtime.config import AgentConfig, EnvelopeSpec
 from clark_engine.runtime.events import VehicleState
@@ -280,7 +280,7 @@ def _convex(zone: Zone) -> bool:
 def loiter_radius_m(config: AgentConfig, speed_m_s: float | None = None) -> float:
     """How far from its guided target the vehicle circles it: 0 but for a fixed wing.
 
-    The mission layer's figure (:func:`clark_engine.mission.primitives._shared.
+    The mission layer's figure (:func:`clark_engine.behaviors.shared.
     orbit_radius_m`, the one behind W-ORBIT-TOLERANCE): ArduPlane's WP_LOITER_RAD from
     the autopilot profile's parameters, as flown, or wider when the airframe's speed
     and bank limits force it.

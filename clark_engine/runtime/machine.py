@@ -78,11 +78,11 @@ from typing import Any
 from transitions.extensions import HierarchicalMachine
 from transitions.extensions.nesting import NestedEventData, NestedState, NestedTransition
 
+from clark_engine.behaviors.base import BehaviorRuntime as Primitive
 from clark_engine.runtime.config import ConfigError, StateSpec, TransitionSpec
 from clark_engine.runtime.context import PrimitiveContext, Status
 from clark_engine.runtime.events import PayloadEvent
 from clark_engine.runtime.log_events import LogEvent
-from clark_engine.runtime.primitives.base import Primitive
 
 _LOGGER = logging.getLogger(__name__)
 

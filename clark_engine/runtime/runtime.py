@@ -36,6 +36,7 @@ import math
 from collections.abc import Callable, Mapping
 from typing import Any, Final
 
+from clark_engine.behaviors import make_behavior as make_primitive
 from clark_engine.link.auth import CounterStore, ReplayStore
 from clark_engine.link.codec import Codec
 from clark_engine.link.errors import ClarkLinkError, MalformedPacket, ReplayStoreError
@@ -118,7 +119,6 @@ from clark_engine.runtime.logbook import (
 )
 from clark_engine.runtime.machine import BehaviorMachine, Holds, StateChange
 from clark_engine.runtime.peer_conditions import AlwaysWatch, resolve_peer_condition
-from clark_engine.runtime.primitives import make_primitive
 
 #: Commands that move the vehicle; never sent while the autopilot is lost or after terminate.
 VEHICLE_COMMANDS = (Goto, SetMode, Arm, Takeoff, SetServo, RcOverride)

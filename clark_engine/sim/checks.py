@@ -24,6 +24,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Final, NamedTuple
 
+from clark_engine.behaviors import Behavior, behaviors
 from clark_engine.mission.geo import Origin, parse_point
 from clark_engine.runtime.config import AgentConfig, StateSpec
 from clark_engine.sim.recording import Recording
@@ -331,26 +332,8 @@ def _find_state(spec: StateSpec | None, path: str) -> StateSpec | None:
     return None
 
 
-def _sweep_deviation(params: Mapping[str, Any], t: float) -> float:
-    """The intended sweep at ``t`` seconds into it: pulse width from trim, before clamping.
-
-    The continuous waveform the primitive stands for, not its samples.
-    """
-    amplitude = float(params["amplitude_us"])
-    f0, f1 = float(params["f_start_hz"]), float(params["f_stop_hz"])
-    duration = float(params["duration_s"])
-    fade_in, fade_out = float(params.get("fade_in_s", 0)), float(params.get("fade_out_s", 0))
-    if params.get("law", "linear") == "exponential" and f1 != f0:
-        ratio = f1 / f0
-        phase = 2 * math.pi * f0 * duration * (ratio ** (t / duration) - 1) / math.log(ratio)
-    else:
-        phase = 2 * math.pi * (f0 * t + (f1 - f0) * t * t / (2 * duration))
-    envelope = 1.0
-    if fade_in > 0 and t < fade_in:
-        envelope = t / fade_in
-    if fade_out > 0 and t > duration - fade_out:
-        envelope = min(envelope, (duration - t) / fade_out)
-    return amplitude * envelope * math.sin(phase)
+def _behavior(state: StateSpec) -> Behavior | None:
+    return behaviors().get(state.primitive) if state.primitive is not None else None
 
 
 def _limits(params: Mapping[str, Any]) -> tuple[float, float, float]:
@@ -361,34 +344,13 @@ def _limits(params: Mapping[str, Any]) -> tuple[float, float, float]:
 def expected_signal(state: StateSpec, loop_hz: float) -> list[int]:
     """The pulse widths a doublet or sweep state must command, one per tick.
 
-    Computed here from the primitive's definition (independently of the
-    runtime's implementation), so the check compares the two.
+    Computed from the behaviour's declaration (its ``signal``, written apart from its
+    runtime class), so the check compares the two; empty for a behaviour without one.
     """
-    params = state.params
-    trim, low, high = _limits(params)
-
-    def clamp(value: float) -> int:
-        return int(min(max(round(value), low), high))
-
-    amplitude = float(params["amplitude_us"])
-    if state.primitive == "doublet":
-        n = round(float(params["width_s"]) * loop_hz)
-        sign = 1 if params.get("first", "up") == "up" else -1
-        return (
-            [clamp(trim + sign * amplitude)] * n
-            + [clamp(trim - sign * amplitude)] * n
-            + [int(trim)]
-        )
-    duration = float(params["duration_s"])
-    out = []
-    k = 0
-    while True:
-        t = k / loop_hz
-        if t >= duration - 1e-9:
-            out.append(int(trim))
-            return out
-        out.append(clamp(trim + _sweep_deviation(params, t)))
-        k += 1
+    behavior = _behavior(state)
+    if behavior is None or behavior.signal is None:
+        return []
+    return behavior.signal(behavior.parameters.from_config(state.params), loop_hz)
 
 
 #: A sweep's commanded output must keep at least this share of the intended waveform's
@@ -411,6 +373,11 @@ def sweep_fidelity(state: StateSpec, loop_hz: float, got: Sequence[int]) -> tupl
         (share, start of the worst window in seconds); (1.0, 0.0) when every window holds.
     """
     params = state.params
+    behavior = _behavior(state)
+    if behavior is None or behavior.waveform is None:
+        return 1.0, 0.0
+    waveform = behavior.waveform
+    typed = behavior.parameters.from_config(params)
     trim, low, high = _limits(params)
     duration = float(params["duration_s"])
     ticks = [k for k in range(len(got)) if k / loop_hz < duration - 1e-9]
@@ -421,10 +388,7 @@ def sweep_fidelity(state: StateSpec, loop_hz: float, got: Sequence[int]) -> tupl
         commanded = math.sqrt(sum((got[k] - trim) ** 2 for k in chunk) / len(chunk))
         points = [(k + j / _SUBSAMPLES) / loop_hz for k in chunk for j in range(_SUBSAMPLES)]
         intended = math.sqrt(
-            sum(
-                (min(max(trim + _sweep_deviation(params, t), low), high) - trim) ** 2
-                for t in points
-            )
+            sum((min(max(trim + waveform(typed, t), low), high) - trim) ** 2 for t in points)
             / len(points)
         )
         if intended < 1.0:
@@ -440,11 +404,11 @@ def _signal(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> Chec
     config = run.configs[agent]
     state = _find_state(config.machine, path)
     expected_text = f"{agent} {path}: the autopilot receives the primitive's signal"
-    if state is None or state.primitive not in ("doublet", "sine_sweep"):
+    behavior = _behavior(state) if state is not None else None
+    driven = behavior.driven_channel(state.params) if behavior and state else None
+    if state is None or behavior is None or behavior.signal is None or driven is None:
         return CheckResult(label, expected_text, "no doublet or sweep state there", False)
-    channel = state.params["channel"]
-    via = state.params.get("via", "rc_override")
-    key = f"rc{channel['rc']}" if via == "rc_override" else f"servo{channel['servo']}"
+    key = driven.label
     samples = run.rec.signals.get((agent, key), [])
     intervals = run.rec.intervals(agent, path)
     if not intervals:
@@ -473,9 +437,9 @@ def _signal(label: str, body: Mapping[str, Any], _by_s: float, run: Run) -> Chec
         Figure("samples", len(want), "count"),
         Figure("largest error", worst, "error_us"),
     )
-    shape = "doublet" if state.primitive == "doublet" else "sweep"
+    shape = "sweep" if behavior.waveform is not None else str(state.primitive)
     observed = f"{len(want)} samples, largest error {worst:g} us ({shape} on {key})"
-    if state.primitive == "sine_sweep":
+    if behavior.waveform is not None:
         # Each sample can match the waveform at its tick and still not carry it (a 5 Hz
         # sine at 10 Hz is sampled at its zero crossings): compare with the waveform.
         share, at_s = sweep_fidelity(state, config.loop_hz, aligned)

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from clark_engine.behaviors import behaviors
 from clark_engine.io.autopilot import AutopilotAdapter, AutopilotSettings, gps_time_ms_from_unix_us
 from clark_engine.link.auth import load_key
 from clark_engine.mission.compiler import agent_config
@@ -728,16 +729,16 @@ class DryRun:
             if machine is None:
                 continue
             seen: set[str] = set()
+            declared = behaviors()
             for state in machine.walk():
-                if state.primitive not in ("doublet", "sine_sweep"):
+                behavior = declared.get(state.primitive) if state.primitive is not None else None
+                driven = behavior.driven_channel(state.params) if behavior is not None else None
+                if driven is None or driven.number is None:
                     continue
-                channel = state.params["channel"]
-                via = state.params.get("via", "rc_override")
-                number = channel["rc"] if via == "rc_override" else channel["servo"]
-                label = f"rc{number}" if via == "rc_override" else f"servo{number}"
+                label = driven.label
                 if label not in seen:
                     seen.add(label)
-                    sim_agent.signal_keys.append((label, via, int(number)))
+                    sim_agent.signal_keys.append((label, driven.via, driven.number))
                     self.recording.signals[(sim_agent.name, label)] = []
 
     def _state_listener(self, name: str) -> Callable[[StateChange], None]:

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
+from clark_engine.behaviors import behaviors
 from clark_engine.errors import UsageError
 from clark_engine.mission.compiler import foreign_files, swap_in, write_marker
 from clark_engine.runtime.config import AgentConfig
@@ -331,12 +332,12 @@ def _waypoints(config: AgentConfig) -> list[tuple[float, float]]:
     points: list[tuple[float, float]] = []
     if config.machine is None:
         return points
+    declared = behaviors()
     for state in config.machine.walk():
-        if state.primitive == "waypoint":
-            to = state.params["to"]
-            points.append((to["east_m"], to["north_m"]))
-        elif state.primitive == "waypoint_tour":
-            points.extend((p["east_m"], p["north_m"]) for p in state.params["waypoints"])
+        behavior = declared.get(state.primitive) if state.primitive is not None else None
+        if behavior is not None:
+            plan = behavior.plan(state.params)
+            points.extend((p["east_m"], p["north_m"]) for p, _param in plan.points)
     return points
 
 

@@ -51,9 +51,6 @@ from clark_engine.runtime.config import AgentConfig, EnvelopeSpec, StateSpec
 from clark_engine.sim.checks import CheckResult
 from clark_engine.sim.recording import FlightEntry, Recording, StateEntry
 
-FLOOR_EXEMPT_PRIMITIVES: Final = frozenset({"takeoff", "land", "return_home"})
-"""States whose primitive may take an aircraft below its floor (as the runtime exempts)."""
-
 _EPSILON_M: Final = 1e-6
 """Float noise: a figure this close to its limit is on it, not beyond it."""
 
@@ -324,7 +321,7 @@ def _exempt_paths(machine: StateSpec | None) -> frozenset[str]:
     """Paths of the states whose primitive is exempt from the floor."""
     if machine is None:
         return frozenset()
-    return frozenset(s.path for s in machine.walk() if s.primitive in FLOOR_EXEMPT_PRIMITIVES)
+    return frozenset(s.path for s in machine.walk() if s.traits.floor_exempt)
 
 
 def _is_exempt(entry: StateEntry, exempt: frozenset[str]) -> bool:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from clark_engine.behaviors import in_schemas
 from clark_engine.mission.model import (
     ARMED_BY,
     COMPUTER_LOST_ACTIONS,
@@ -16,7 +17,6 @@ from clark_engine.mission.model import (
     TELEMETRY_MESSAGES,
     TICK_PHASES,
 )
-from clark_engine.mission.primitives import PRIMITIVES
 from clark_engine.mission.schema_source.common import (
     DIALECT,
     NAME_PATTERN,
@@ -173,9 +173,9 @@ def _state() -> Schema:
             ),
             "description": _NULLABLE_STRING | {"description": "The author's note."},
             "primitive": {
-                "enum": [None, *PRIMITIVES],
+                "enum": [None, *in_schemas()],
                 "description": "Primitive the state runs (null for none): "
-                + ", ".join(PRIMITIVES)
+                + ", ".join(in_schemas())
                 + ".",
             },
             "params": {
@@ -221,7 +221,7 @@ def _state() -> Schema:
             "if": {"properties": {"primitive": {"const": name}}},
             "then": {"properties": {"params": {"$ref": f"#/$defs/params_{name}"}}},
         }
-        for name in PRIMITIVES
+        for name in in_schemas()
     ]
     return state
 
@@ -500,6 +500,6 @@ def build() -> dict[str, Any]:
             "state": _state(),
             "envelope": _envelope(),
             "condition": condition_schema(),
-            **{f"params_{name}": spec.config_params() for name, spec in PRIMITIVES.items()},
+            **{f"params_{name}": spec.config_params() for name, spec in in_schemas().items()},
         },
     }

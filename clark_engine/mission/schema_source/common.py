@@ -334,9 +334,9 @@ def resolved_point() -> Schema:
     """A position as a compiled config writes it: in both frames, every field present.
 
     The one definition of a compiled point: the agent-config schema uses it for homes,
-    fence corners and agents' positions, and the primitives for the points the compiler
-    resolves in their parameters (:attr:`PrimitiveSpec.compiled
-    <clark_engine.mission.primitives.base.PrimitiveSpec.compiled>`).
+    fence corners and agents' positions, and the behaviours for the points the compiler
+    resolves in their parameters (:func:`clark_engine.behaviors.declaration.param`'s
+    ``compiled``).
     """
     return obj(
         "A position in both frames.",

@@ -9,6 +9,7 @@ says nothing still flies inside one (docs/safety.md).
 
 from __future__ import annotations
 
+from clark_engine.behaviors.shared import AGENT_NAME_SCHEMA, POINT_SCHEMA
 from clark_engine.mission.envelope import (
     BREACH_ACTIONS,
     DEFAULT_LEGAL_CEILING_M,
@@ -19,7 +20,6 @@ from clark_engine.mission.envelope import (
     MAX_POSITION_ERROR_M,
     OUTSIDE_ACTIONS,
 )
-from clark_engine.mission.primitives._shared import AGENT_NAME_SCHEMA, POINT_SCHEMA
 from clark_engine.mission.schema_source.common import (
     Schema,
     array,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from clark_engine.behaviors.shared import AGENT_NAME_SCHEMA, POINT_SCHEMA
 from clark_engine.mission.model import (
     ARMED_BY,
     COMPUTER_LOST_ACTIONS,
@@ -11,7 +12,6 @@ from clark_engine.mission.model import (
     DEFAULT_COMPUTER_LOST_S,
     TELEMETRY_MESSAGES,
 )
-from clark_engine.mission.primitives._shared import AGENT_NAME_SCHEMA, POINT_SCHEMA
 from clark_engine.mission.schema_source.common import (
     DIALECT,
     NAME_PATTERN,

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from clark_engine.mission.primitives import PRIMITIVES
-from clark_engine.mission.primitives._shared import AGENT_NAME_SCHEMA
+from clark_engine.behaviors import in_schemas
+from clark_engine.behaviors.shared import AGENT_NAME_SCHEMA
 from clark_engine.mission.schema_source.common import (
     NAME_PATTERN,
     Schema,
@@ -219,7 +219,7 @@ def state_schema(*, check_params: bool = True) -> Schema:
             "if": {"properties": {"use": {"const": name}}, "required": ["use"]},
             "then": {"properties": {"with": {"$ref": f"#/$defs/params_{name}"}}},
         }
-        for name in PRIMITIVES
+        for name in in_schemas()
     ]
     schema = obj(
         "A behaviour state: a use of a primitive or block, a machine of states, parallel "
@@ -227,7 +227,7 @@ def state_schema(*, check_params: bool = True) -> Schema:
         {
             "description": string("What this state is for, in your words."),
             "use": string(
-                "Primitive (" + ", ".join(PRIMITIVES) + ") or behaviour block to run.",
+                "Primitive (" + ", ".join(in_schemas()) + ") or behaviour block to run.",
                 pattern=NAME_PATTERN,
             ),
             "with": {"type": "object", "description": "Parameters of the primitive or block."},
@@ -280,6 +280,6 @@ def state_defs(*, check_params: bool = True) -> dict[str, Schema]:
         "condition": condition_schema() if check_params else with_param_refs(condition_schema()),
     }
     if check_params:
-        for name, spec in PRIMITIVES.items():
-            defs[f"params_{name}"] = spec.params
+        for name, spec in in_schemas().items():
+            defs[f"params_{name}"] = spec.schema
     return defs
