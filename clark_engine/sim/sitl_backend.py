@@ -256,7 +256,7 @@ class SitlBackend(VehicleBackend):
         # handed to the engine's adapter (as the bytes it came in) at the run's time it was
         # sent, not before (:meth:`step`).
         self._link_parser = _link_parser()
-        self._live = False  # the run has started: the engine's link is parsed and held
+        self._live = False  # the engine's link is parsed and held (not in a pre-flight)
         self._held: collections.deque[tuple[float, bytes, Any]] = collections.deque()
         self._link_stamp_s: float | None = None  # SITL's time of the last stamped frame
         self.heard: list[Any] = []
@@ -335,6 +335,7 @@ class SitlBackend(VehicleBackend):
         self._sock = self.process.connect(timeout_s=timeout_s)
         self._sock.setblocking(False)
         self._connected_wall = self._last_byte_wall = time.monotonic()
+        self._live = True
         self._own = self.process.connect(timeout_s, port=self.process.ports.serial2_tcp_port)
         self._own.setblocking(False)
         self._duties()
@@ -857,6 +858,7 @@ class SitlBackend(VehicleBackend):
         Raises:
             SitlError: SITL exited, stalled, or did not get there in time.
         """
+        self._live = False  # what the engine's link carries meanwhile is dropped unparsed
         for name in ("SYS_STATUS", "EKF_STATUS_REPORT", "EXTENDED_SYS_STATE"):
             self._streams_wanted[name] = 500_000
         self._streams_wanted["GLOBAL_POSITION_INT"] = 200_000
