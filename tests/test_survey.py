@@ -260,6 +260,20 @@ def test_a_station_cannot_survey(tmp_path: Path) -> None:
     assert any("survey" in m for m in messages)
 
 
+def test_a_rover_cannot_space_lines_from_a_footprint(tmp_path: Path) -> None:
+    text = EXAMPLE.read_text(encoding="utf-8").replace(
+        "profile: dji_f450", "profile: traxxas_slash"
+    )
+    text = text.replace(
+        "        climb: {use: takeoff, with: {alt_m: 25}, transitions: {done: field}}\n", ""
+    )
+    text = text.replace("transitions: {activate: climb}", "transitions: {activate: field}")
+    findings = [f for f in validate_path(_write(tmp_path, text)).findings if f.is_error]
+    spacing = [f for f in findings if f.code == "E-SURVEY-SPACING"]
+    assert len(spacing) == 2, [str(f) for f in findings]
+    assert "is a rover" in spacing[0].message and "give line_spacing_m" in spacing[0].message
+
+
 def test_the_camera_without_optics_says_what_to_add(tmp_path: Path) -> None:
     text = EXAMPLE.read_text(encoding="utf-8")
     start = text.index("{profile: raspberry_pi_camera,")
@@ -399,3 +413,17 @@ def test_a_late_tick_sends_one_request_not_a_burst() -> None:
     assert not [c for c in commands if isinstance(c, PayloadCommand)]
     _status, commands = clock.step(_at(config, a["north_m"] + 50, a["east_m"]))
     assert len([c for c in commands if isinstance(c, PayloadCommand)]) == 1
+
+
+def test_the_station_draws_the_compiled_lines_as_a_survey() -> None:
+    from clark_engine.gcs.model import plan_of
+
+    config = _compiled(EXAMPLE)
+    (item,) = [i for i in plan_of(config) if i["primitive"] == "survey"]
+    lines = _survey_params(config)["lines"]
+    assert item["kind"] == "tour" and item["survey"] is True  # it takes its own pictures
+    assert len(item["points"]) == 2 * len(lines)
+    last = item["points"][-1]
+    assert last["north_m"] == pytest.approx(lines[-1]["end"]["north_m"], abs=0.01)
+    assert last["east_m"] == pytest.approx(lines[-1]["end"]["east_m"], abs=0.01)
+    assert last["up_m"] == 25.0

@@ -402,6 +402,22 @@ def _check_choices(ctx: UseContext) -> Iterator[Finding]:
             "give photo_every_m or forward_overlap, not both",
             ctx.use_location,
         )
+    if ctx.agent.airframe_class == "rover":
+        for key in ("side_overlap", "forward_overlap"):
+            if params.get(key) is not None:
+                yield error(
+                    "E-SURVEY-SPACING",
+                    ctx.locate(key),
+                    f"{ctx.agent.name} ({ctx.agent.profile}) is a rover: its camera looks at "
+                    f"the ground from no height a footprint can be worked out from, so {key} "
+                    "cannot space its "
+                    + (
+                        "lines; give line_spacing_m"
+                        if key == "side_overlap"
+                        else "pictures; give photo_every_m"
+                    ),
+                    ctx.use_location,
+                )
 
 
 def _check_camera(ctx: UseContext) -> Generator[Finding, None, Mapping[str, Any] | None]:
