@@ -427,3 +427,24 @@ def test_the_station_draws_the_compiled_lines_as_a_survey() -> None:
     assert last["north_m"] == pytest.approx(lines[-1]["end"]["north_m"], abs=0.01)
     assert last["east_m"] == pytest.approx(lines[-1]["end"]["east_m"], abs=0.01)
     assert last["up_m"] == 25.0
+
+
+def test_a_compiled_config_without_its_lines_is_refused_at_load() -> None:
+    from clark_engine.runtime.config import ConfigError
+
+    result = validate_path(EXAMPLE)
+    assert result.mission is not None
+    data = json.loads(json.dumps(agent_config(result.mission, result.mission.agents["f450"])))
+
+    def drop_lines(value: Any) -> int:
+        if isinstance(value, dict):
+            dropped = int(value.pop("lines", None) is not None)
+            return dropped + sum(drop_lines(v) for v in value.values())
+        if isinstance(value, list):
+            return sum(drop_lines(v) for v in value)
+        return 0
+
+    assert drop_lines(data) == 1
+    broken = data
+    with pytest.raises(ConfigError, match="lines"):
+        config_from_dict(broken)

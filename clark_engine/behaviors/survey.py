@@ -238,6 +238,13 @@ class SurveyParams(Params):
         del out["properties"]["lines"]
         return out
 
+    @classmethod
+    def config_schema(cls) -> Schema:
+        """The compiled config's schema: ``lines`` is required there (the runtime flies them)."""
+        out = super().config_schema()
+        out["required"] = [*out.get("required", []), "lines"]
+        return out
+
 
 # -------------------------------------------------------------- resolved parameters
 
