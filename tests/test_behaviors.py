@@ -40,6 +40,7 @@ def test_the_built_in_behaviors_in_reference_order() -> None:
         "doublet",
         "sine_sweep",
         "photo_trigger",
+        "survey",
         "hold",
         "set_mode",
         "wait",
@@ -137,16 +138,18 @@ def test_traits_replace_the_name_lists() -> None:
         "waypoint",
         "waypoint_tour",
         "follow_agent",
+        "survey",
     }
     assert {n for n, t in traits.items() if t.floor_exempt} == {"takeoff", "land", "return_home"}
     assert {n for n, t in traits.items() if t.lands} == {"land", "return_home", "terminate"}
     assert {n for n, t in traits.items() if t.takes_off} == {"takeoff"}
-    assert {n for n, t in traits.items() if t.takes_pictures} == {"photo_trigger"}
+    assert {n for n, t in traits.items() if t.takes_pictures} == {"photo_trigger", "survey"}
     assert {n for n, t in traits.items() if t.drives_channel} == {"doublet", "sine_sweep"}
     assert {n for n, t in traits.items() if t.flies} == {
         "waypoint",
         "waypoint_tour",
         "follow_agent",
+        "survey",
         "takeoff",
         "doublet",
         "sine_sweep",

@@ -151,6 +151,8 @@ def on_sitl(mission: Path, tmp_path: Path, *args: str) -> subprocess.CompletedPr
         # moving Slash A, sits at the comparison's edge: docs/autopilot-fidelity.md.)
         "fault_station_loss.yaml",
         "copter_takeoff_land.yaml",  # ArduCopter: engine-armed takeoff, legs, land, disarm
+        # ArduCopter flies a survey's three lines as guided legs; 27 photos by distance.
+        "survey_field.yaml",
     ],
 )
 def test_the_example_flies_on_sitl_as_on_the_simulated_autopilot(

@@ -54,6 +54,7 @@ BUILT_IN = (
     "doublet",
     "sine_sweep",
     "photo_trigger",
+    "survey",
     "hold",
     "set_mode",
     "wait",

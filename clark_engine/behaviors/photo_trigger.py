@@ -166,14 +166,14 @@ class PhotoTrigger(BehaviorRuntime):
         self._pending.clear()
         self._schedule = Schedule(self.interval_s)
         self._schedule.begin(ctx.now_s)
-        self._request(ctx)
+        self.request(ctx)
 
     def update(self, ctx: PrimitiveContext) -> Status:
         """DONE after ``count`` pictures; otherwise request a picture when one is due."""
         if self.count is not None and self.captured >= self.count:
             return Status.DONE
         if self._schedule.due(ctx.now_s):
-            self._request(ctx)
+            self.request(ctx)
         return Status.RUNNING
 
     def on_payload(self, ctx: PrimitiveContext, event: PayloadEvent) -> None:
@@ -229,7 +229,8 @@ class PhotoTrigger(BehaviorRuntime):
                 extra=LogEvent.PHOTO_FAILED.extra,
             )
 
-    def _request(self, ctx: PrimitiveContext) -> None:
+    def request(self, ctx: PrimitiveContext) -> None:
+        """Ask the camera for a picture now (survey asks through this at its photo marks)."""
         from clark_engine.runtime.commands import PayloadCommand
 
         request_id = ctx.next_request_id()

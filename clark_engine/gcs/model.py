@@ -180,8 +180,9 @@ def plan_of(config: AgentConfig) -> list[Json]:
     Each item names the state it belongs to (its dotted path) and its primitive:
 
     - ``{"kind": "tour", "points": [...], "loop": bool, "survey": bool}`` for a
-      ``waypoint_tour``; ``survey`` when a ``photo_trigger`` runs beside it in a
-      parallel state (a survey line: pictures are taken along it);
+      ``waypoint_tour`` or a ``survey``; ``survey`` when it takes pictures itself or a
+      ``photo_trigger`` runs beside it in a parallel state (a survey line: pictures are
+      taken along it);
     - ``{"kind": "waypoint", "points": [one]}`` for a ``waypoint``;
     - ``{"kind": "points", "points": [...]}`` for any point in another primitive's
       parameters.
@@ -204,7 +205,7 @@ def plan_of(config: AgentConfig) -> list[Json]:
                         "kind": "tour",
                         "points": [_local(p, origin) for p, _param in plan.points],
                         "loop": plan.loop,
-                        "survey": photos_beside,
+                        "survey": photos_beside or state.traits.takes_pictures,
                     }
                 )
             elif plan.kind == "target" and plan.points:

@@ -790,6 +790,28 @@ def _payload_properties() -> dict[str, Schema]:
             exclusive_minimum=0,
             maximum=10_000,
         ),
+        # A survey's ground footprint: h * sensor / focal length (clark_engine.behaviors.survey).
+        "sensor_width_mm": number(
+            "Width of the image sensor (the picture's long side, flown across a survey's "
+            "lines), in millimetres (cameras); with sensor_height_mm and focal_length_mm it "
+            "gives the ground a picture covers.",
+            unit="mm",
+            exclusive_minimum=0,
+            maximum=100,
+        ),
+        "sensor_height_mm": number(
+            "Height of the image sensor (the picture's short side, along a survey's lines), "
+            "in millimetres (cameras).",
+            unit="mm",
+            exclusive_minimum=0,
+            maximum=100,
+        ),
+        "focal_length_mm": number(
+            "Focal length of the lens, in millimetres (cameras).",
+            unit="mm",
+            exclusive_minimum=0,
+            maximum=2000,
+        ),
     }
 
 

@@ -1,0 +1,799 @@
+"""survey: fly a lawnmower over an area, taking pictures by distance along each line.
+
+The area is a polygon (local metres or latitude/longitude, as any point is written);
+the lines are parallel, ``line_spacing_m`` apart or as far apart as the camera's
+ground footprint at the survey's height allows with a ``side_overlap``, at
+``heading_deg`` (by default along the area's longest edge). Each line is clipped to
+the area and flown to its ends (a fixed-wing aircraft's lines run ``run_out_m`` past
+the area at each end, so that it turns outside it); the lines alternate direction.
+
+The plan is computed when the mission compiles, deterministically, and the compiled
+config holds it (``lines``): the runtime flies the ends it was given, the report and
+the station draw them. Pictures are asked of the camera payload at marks spaced at
+most ``photo_every_m`` apart along each line inside the area (or from the footprint
+and a ``forward_overlap``), first at the area's edge, last at its far edge; Picture
+Data goes out on each capture, as photo_trigger sends it.
+
+The ground footprint of a camera at a height ``h`` above flat ground at the origin's
+altitude is ``h * sensor_width_mm / focal_length_mm`` across the line and ``h *
+sensor_height_mm / focal_length_mm`` along it (the image's long side across the line);
+the camera's payload profile declares the three figures.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Generator, Iterator, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+from clark_engine.behaviors.base import BehaviorRuntime, Point, Status
+from clark_engine.behaviors.declaration import (
+    Behavior,
+    CompileContext,
+    Params,
+    Plan,
+    Sends,
+    Traits,
+    UseContext,
+    param,
+    raises_done,
+)
+from clark_engine.behaviors.flight import GuidedLeg, Target, distance_m
+from clark_engine.behaviors.lawnmower import (
+    Line,
+    lawnmower,
+    line_count,
+    longest_edge_heading_deg,
+    photo_marks,
+    polygon_area_m2,
+    self_crossing,
+)
+from clark_engine.behaviors.photo_trigger import PhotoTrigger, PhotoTriggerParams
+from clark_engine.behaviors.shared import (
+    AGENT_NAME_SCHEMA,
+    POINT_SCHEMA,
+    RESOLVED_POINT_SCHEMA,
+    SPEED_SCHEMA,
+    TOLERANCE_SCHEMA,
+    check_agents_exist,
+    check_ceiling,
+    check_orbit_tolerance,
+    check_speed,
+    off_the_globe,
+    orbit_radius_m,
+    suggest,
+)
+from clark_engine.mission.envelope_checks import check_leg, check_point
+from clark_engine.mission.findings import Finding, error
+from clark_engine.mission.geo import LocalPoint, parse_point
+from clark_engine.mission.schema_source.common import (
+    Schema,
+    altitude_m,
+    array,
+    number,
+    obj,
+    string,
+)
+from clark_engine.mission.schema_source.common import (
+    distance_m as distance_schema,
+)
+
+if TYPE_CHECKING:
+    from clark_engine.runtime.context import PrimitiveContext
+    from clark_engine.runtime.events import PayloadEvent
+
+#: Most vertices an area may have (a field's outline needs a few dozen at most).
+MAX_VERTICES = 100
+#: Most lines a survey may fly: bounds the compiled config and the work of checking it
+#: (each line's ends and legs are checked against the envelope).
+MAX_LINES = 200
+#: Smallest area, square metres: anything smaller is a mistake (points in degrees
+#: written as metres, a repeated vertex).
+MIN_AREA_M2 = 1.0
+#: A photo mark counts as passed this close before it: the compiled ends are rounded to
+#: 1e-7 degrees (about a centimetre), so a vehicle exactly on a mark may measure a hair short.
+MARK_SLACK_M = 0.05
+#: Camera optics a footprint needs, as the payload profile names them.
+OPTICS = ("sensor_width_mm", "sensor_height_mm", "focal_length_mm")
+
+_OVERLAP = "A share of the picture (0 to 0.9) that the next one covers again"
+_AREA = array(
+    "The area to survey: a polygon of 3 to 100 vertices, in order (clockwise or not), "
+    "not crossing itself; each vertex a point in any form (its height is ignored: the "
+    "survey flies at altitude_m).",
+    POINT_SCHEMA,
+    min_items=3,
+    max_items=MAX_VERTICES,
+)
+_END_SCHEMA: Schema = obj(
+    "One line as flown: where it starts and where it ends (run-outs included), and the "
+    "stretch of it inside the area, where pictures are taken.",
+    {
+        "start": RESOLVED_POINT_SCHEMA,
+        "end": RESOLVED_POINT_SCHEMA,
+        "photo_from_m": distance_schema("Where the area starts, along the line."),
+        "photo_to_m": distance_schema("Where the area ends, along the line."),
+    },
+    required=["start", "end", "photo_from_m", "photo_to_m"],
+)
+
+
+class SurveyLine(NamedTuple):
+    """One compiled line of a survey.
+
+    Attributes:
+        start: Where the line is flown from (its run-out included).
+        end: Where it is flown to.
+        photo_from_m: Distance from ``start`` at which the area begins.
+        photo_to_m: Distance from ``start`` at which the area ends.
+    """
+
+    start: Point
+    end: Point
+    photo_from_m: float
+    photo_to_m: float
+
+    @classmethod
+    def from_config(cls, raw: Mapping[str, Any]) -> SurveyLine:
+        """From a compiled ``{start, end, photo_from_m, photo_to_m}``."""
+        return cls(
+            Point.from_config(raw["start"]),
+            Point.from_config(raw["end"]),
+            float(raw["photo_from_m"]),
+            float(raw["photo_to_m"]),
+        )
+
+
+def _lines_from_config(raw: list[Mapping[str, Any]]) -> tuple[SurveyLine, ...]:
+    return tuple(SurveyLine.from_config(line) for line in raw)
+
+
+class SurveyParams(Params):
+    """Parameters of survey."""
+
+    DESCRIPTION = "Parameters of survey."
+    REQUIRED = ("area", "altitude_m")
+
+    area: tuple[Any, ...] = param(
+        _AREA, compiled=lambda: {**_AREA, "items": RESOLVED_POINT_SCHEMA}, convert=tuple
+    )
+    altitude_m: float = param(
+        altitude_m(
+            "Height to fly the lines at, metres above the mission origin (the engine's one "
+            "datum); the camera's footprint is worked out for flat ground at the origin's "
+            "altitude.",
+            exclusive_minimum=0,
+        )
+    )
+    line_spacing_m: float | None = param(
+        distance_schema(
+            "Distance between neighbouring lines; give this or side_overlap. The compiler "
+            "writes the spacing it worked out here.",
+            exclusive_minimum=0,
+        )
+    )
+    side_overlap: float | None = param(
+        number(
+            _OVERLAP + " across the lines: the spacing is the footprint's width times "
+            "(1 - side_overlap); needs the camera's optics.",
+            minimum=0,
+            maximum=0.9,
+        )
+    )
+    heading_deg: float | None = param(
+        number(
+            "Direction of the lines, degrees clockwise from north; along the area's longest "
+            "edge when omitted (the compiler writes the one it chose).",
+            unit="deg",
+            minimum=0,
+            exclusive_maximum=360,
+        )
+    )
+    speed_m_s: float | None = param(SPEED_SCHEMA)
+    tolerance_m: float = param(TOLERANCE_SCHEMA)
+    run_out_m: float | None = param(
+        distance_schema(
+            "How far each line runs past the area at both ends, so that the vehicle is on "
+            "the line where the area starts and turns outside it; when omitted, tolerance_m "
+            "for a fixed-wing aircraft (it counts a line's end as reached that far away), "
+            "0 for others.",
+            maximum=5000,
+        )
+    )
+    photo_every_m: float | None = param(
+        distance_schema(
+            "Longest distance between two pictures along a line; give this or "
+            "forward_overlap to take pictures, neither for none.",
+            exclusive_minimum=0,
+        )
+    )
+    forward_overlap: float | None = param(
+        number(
+            _OVERLAP + " along the line: pictures at most the footprint's length times "
+            "(1 - forward_overlap) apart; needs the camera's optics.",
+            minimum=0,
+            maximum=0.9,
+        )
+    )
+    payload: str = param(
+        string(
+            "Name of the camera payload on this agent.",
+            pattern="^[a-z][a-z0-9_]*$",
+            default="camera",
+        )
+    )
+    to: tuple[str, ...] | None = param(
+        array("Agents that receive Picture Data; every agent when omitted.", AGENT_NAME_SCHEMA),
+        convert=tuple,
+    )
+    lines: tuple[SurveyLine, ...] | None = param(
+        array("The lines as the compiler planned them, in the order flown.", _END_SCHEMA),
+        convert=_lines_from_config,
+    )
+
+    @classmethod
+    def schema(cls) -> Schema:
+        """The mission's schema: ``lines`` is the compiler's, never written by a mission."""
+        out = super().schema()
+        del out["properties"]["lines"]
+        return out
+
+    @classmethod
+    def config_schema(cls) -> Schema:
+        """The compiled config's schema: ``lines`` is required there (the runtime flies them)."""
+        out = super().config_schema()
+        out["required"] = [*out.get("required", []), "lines"]
+        return out
+
+
+# -------------------------------------------------------------- resolved parameters
+
+
+class Resolved(NamedTuple):
+    """A survey's plan in local metres, worked out from its parameters and its camera.
+
+    Attributes:
+        vertices: The area, (north_m, east_m).
+        spacing_m: Distance between lines.
+        heading_deg: Direction of the lines.
+        run_out_m: Extension past the area at both ends of each line.
+        photo_every_m: Longest distance between pictures; None for no pictures.
+        lines: The lines, in the order flown.
+    """
+
+    vertices: list[tuple[float, float]]
+    spacing_m: float
+    heading_deg: float
+    run_out_m: float
+    photo_every_m: float | None
+    lines: list[Line]
+
+
+def footprint_m(camera: Mapping[str, Any], height_m: float) -> tuple[float, float] | None:
+    """(across, along) the ground a picture covers from ``height_m``; None without optics."""
+    if any(camera.get(key) is None for key in OPTICS):
+        return None
+    focal = float(camera["focal_length_mm"])
+    return (
+        height_m * float(camera["sensor_width_mm"]) / focal,
+        height_m * float(camera["sensor_height_mm"]) / focal,
+    )
+
+
+def _camera(agent: Any, params: Mapping[str, Any]) -> Mapping[str, Any] | None:
+    payload = agent.hardware.payloads.get(str(params["payload"]))
+    return payload if payload is not None and payload.get("payload_kind") == "camera" else None
+
+
+def _wants_photos(params: Mapping[str, Any]) -> bool:
+    return params.get("photo_every_m") is not None or params.get("forward_overlap") is not None
+
+
+def _default_run_out_m(agent: Any, params: Mapping[str, Any]) -> float:
+    if params.get("run_out_m") is not None:
+        return float(params["run_out_m"])
+    return float(params["tolerance_m"]) if agent.airframe_class == "fixed_wing" else 0.0
+
+
+def resolve(
+    params: Mapping[str, Any], agent: Any, vertices: list[tuple[float, float]]
+) -> Resolved | None:
+    """The plan, or None when the parameters or the camera cannot give one (checks say why)."""
+    height = float(params["altitude_m"])
+    camera = _camera(agent, params)
+    footprint = footprint_m(camera, height) if camera is not None else None
+    spacing = params.get("line_spacing_m")
+    if spacing is None:
+        overlap = params.get("side_overlap")
+        if overlap is None or footprint is None:
+            return None
+        spacing = footprint[0] * (1.0 - float(overlap))
+    every = params.get("photo_every_m")
+    if every is None and params.get("forward_overlap") is not None:
+        if footprint is None:
+            return None
+        every = footprint[1] * (1.0 - float(params["forward_overlap"]))
+    if float(spacing) <= 0 or (every is not None and float(every) <= 0):
+        return None
+    if len(vertices) < 3 or polygon_area_m2(vertices) < MIN_AREA_M2 or self_crossing(vertices):
+        return None
+    heading = params.get("heading_deg")
+    heading = float(heading) if heading is not None else longest_edge_heading_deg(vertices)
+    if line_count(vertices, float(spacing), heading) > MAX_LINES:
+        return None
+    run_out = _default_run_out_m(agent, params)
+    lines = lawnmower(vertices, float(spacing), heading, run_out)
+    return Resolved(
+        vertices,
+        float(spacing),
+        heading,
+        run_out,
+        float(every) if every is not None else None,
+        lines,
+    )
+
+
+# ----------------------------------------------------------------------- checks
+
+
+def _check(ctx: UseContext) -> Iterator[Finding]:
+    params = ctx.params
+    origin = ctx.mission.origin
+    points = [parse_point(raw, origin) for raw in params["area"]]
+    vertices = [(p.north_m, p.east_m) for p in points]
+    yield from check_agents_exist(ctx, params.get("to") or [], "to")
+    yield from check_speed(ctx)
+    if ctx.agent.airframe_class == "fixed_wing" and params.get("run_out_m") is None:
+        yield from check_orbit_tolerance(ctx, "a line's end", "a line's end")
+    yield from _check_area(ctx, vertices)
+    yield from _check_choices(ctx)
+    camera = yield from _check_camera(ctx)
+    if camera is None and (
+        params.get("side_overlap") is not None or params.get("forward_overlap") is not None
+    ):
+        return
+    plan = resolve(params, ctx.agent, vertices)
+    if plan is None:
+        return
+    yield from _check_photo_rate(ctx, camera, plan)
+    height = float(params["altitude_m"])
+    yield from check_ceiling(ctx, height, ctx.locate("altitude_m"), "the survey")
+    yield from _check_route(ctx, plan, height)
+
+
+def _check_area(ctx: UseContext, vertices: list[tuple[float, float]]) -> Iterator[Finding]:
+    where = ctx.locate("area")
+    for index, raw in enumerate(ctx.params["area"]):
+        problem = off_the_globe(parse_point(raw, ctx.mission.origin), ctx.mission.origin)
+        if problem:
+            yield error("E-POSITION", ctx.locate(f"area[{index}]"), f"vertex {index} {problem}")
+    crossing = self_crossing(vertices)
+    if crossing is not None:
+        i, j = crossing
+        yield error(
+            "E-SURVEY-AREA",
+            where,
+            f"the area crosses itself: its edge from vertex {i} to {i + 1} meets the edge "
+            f"from vertex {j} to {(j + 1) % len(vertices)}; list the vertices in order round "
+            "the outline",
+            ctx.use_location,
+        )
+        return
+    size = polygon_area_m2(vertices)
+    if size < MIN_AREA_M2:
+        yield error(
+            "E-SURVEY-AREA",
+            where,
+            f"the area covers {size:.3g} m², less than {MIN_AREA_M2:g} m²; give the vertices "
+            "of a real outline (metres from the origin, or {lat, lon})",
+            ctx.use_location,
+        )
+
+
+def _check_choices(ctx: UseContext) -> Iterator[Finding]:
+    params = ctx.params
+    spacing, overlap = params.get("line_spacing_m"), params.get("side_overlap")
+    if (spacing is None) == (overlap is None):
+        yield error(
+            "E-SURVEY-SPACING",
+            ctx.locate("line_spacing_m" if spacing is not None else "side_overlap"),
+            "give exactly one of line_spacing_m (metres between lines) and side_overlap "
+            "(the lines' spacing from the camera's footprint)"
+            + (", not both" if spacing is not None else ""),
+            ctx.use_location,
+        )
+    if params.get("photo_every_m") is not None and params.get("forward_overlap") is not None:
+        yield error(
+            "E-SURVEY-SPACING",
+            ctx.locate("forward_overlap"),
+            "give photo_every_m or forward_overlap, not both",
+            ctx.use_location,
+        )
+    if ctx.agent.airframe_class == "rover":
+        for key in ("side_overlap", "forward_overlap"):
+            if params.get(key) is not None:
+                yield error(
+                    "E-SURVEY-SPACING",
+                    ctx.locate(key),
+                    f"{ctx.agent.name} ({ctx.agent.profile}) is a rover: its camera looks at "
+                    f"the ground from no height a footprint can be worked out from, so {key} "
+                    "cannot space its "
+                    + (
+                        "lines; give line_spacing_m"
+                        if key == "side_overlap"
+                        else "pictures; give photo_every_m"
+                    ),
+                    ctx.use_location,
+                )
+
+
+def _check_camera(ctx: UseContext) -> Generator[Finding, None, Mapping[str, Any] | None]:
+    """The camera must be there when pictures or a footprint are asked; returns it."""
+    params = ctx.params
+    needs_optics = [k for k in ("side_overlap", "forward_overlap") if params.get(k) is not None]
+    if not _wants_photos(params) and not needs_optics:
+        return None
+    name = str(params["payload"])
+    payloads = ctx.agent.hardware.payloads
+    if name not in payloads:
+        yield error(
+            "E-PAYLOAD-MISSING",
+            ctx.locate("payload"),
+            f"agent {ctx.agent.name!r} ({ctx.agent.profile}) has no payload {name!r} "
+            f"({suggest(name, payloads)}); add a camera under its hardware.payloads",
+            ctx.use_location,
+        )
+        return None
+    camera = payloads[name]
+    if camera.get("payload_kind") != "camera":
+        yield error(
+            "E-PAYLOAD-KIND",
+            ctx.locate("payload"),
+            f"payload {name!r} of {ctx.agent.name!r} is a {camera.get('payload_kind')}, "
+            "not a camera; name a camera payload",
+            ctx.use_location,
+        )
+        return None
+    missing = [key for key in OPTICS if camera.get(key) is None]
+    if needs_optics and missing:
+        profile = ctx.agent.hardware.payload_profiles.get(name, name)
+        yield error(
+            "E-CAMERA-FOOTPRINT",
+            ctx.locate(needs_optics[0]),
+            f"{needs_optics[0]} needs the ground footprint of camera {name!r} ({profile}), "
+            f"and its profile does not declare {', '.join(missing)}; add them to the profile "
+            f"or under agents.{ctx.agent.name}.hardware.payloads.{name}, or give "
+            + ("line_spacing_m" if needs_optics[0] == "side_overlap" else "photo_every_m"),
+            ctx.use_location,
+        )
+        return None
+    return camera
+
+
+def _speed_m_s(ctx: UseContext) -> float | None:
+    """The speed the lines are flown at: asked, else the autopilot's cruise, else None."""
+    if ctx.params.get("speed_m_s") is not None:
+        return float(ctx.params["speed_m_s"])
+    autopilot = ctx.agent.hardware.part("autopilot") or {}
+    parameters = autopilot.get("parameters") or {}
+    if ctx.agent.airframe_class == "fixed_wing":
+        return float(parameters.get("AIRSPEED_CRUISE", 15.0))
+    if "WPNAV_SPEED" in parameters:
+        return float(parameters["WPNAV_SPEED"]) / 100.0
+    if "WP_SPEED" in parameters:
+        return float(parameters["WP_SPEED"])
+    return None
+
+
+def _check_photo_rate(
+    ctx: UseContext, camera: Mapping[str, Any] | None, plan: Resolved
+) -> Iterator[Finding]:
+    if camera is None or plan.photo_every_m is None or not plan.lines:
+        return
+    speed = _speed_m_s(ctx)
+    if speed is None:
+        return
+    every_m = min(
+        (marks[1] - marks[0] if len(marks) > 1 else plan.photo_every_m)
+        for marks in (
+            photo_marks(line.photo_from_m, line.photo_to_m, plan.photo_every_m)
+            for line in plan.lines
+        )
+    )
+    interval = every_m / speed
+    given = "photo_every_m" if ctx.params.get("photo_every_m") is not None else "forward_overlap"
+    shortest = float(camera.get("min_interval_s", 0))
+    tick_s = 1.0 / ctx.mission.loop_hz
+    if interval < max(shortest, tick_s):
+        limit = max(shortest, tick_s)
+        yield error(
+            "E-PHOTO-INTERVAL",
+            ctx.locate(given),
+            f"pictures {every_m:.3g} m apart (at most {plan.photo_every_m:.3g} m, evenly along "
+            f"each line) at {speed:g} m/s are one every "
+            f"{interval:.3g} s, more often than camera {ctx.params['payload']!r} can take them "
+            f"(at most one every {limit:g} s); space them at least {limit * speed:.3g} m "
+            "apart or fly slower",
+            ctx.use_location,
+        )
+
+
+def _check_route(ctx: UseContext, plan: Resolved, height: float) -> Iterator[Finding]:
+    """Each line's ends inside the envelope, each line and each turn inside the fence."""
+    where = ctx.locate("area")
+    if not plan.lines:
+        yield error(
+            "E-SURVEY-LINES",
+            where,
+            "no line crosses the area; give a spacing smaller than the area is wide",
+            ctx.use_location,
+        )
+        return
+    airframe = ctx.agent.hardware.part("airframe") or {}
+    autopilot = ctx.agent.hardware.part("autopilot") or {}
+    orbit_m = orbit_radius_m(airframe, autopilot, ctx.params.get("speed_m_s"))
+    route = [LocalPoint(n, e, height) for line in plan.lines for n, e in (line.start, line.end)]
+    for index, point in enumerate(route):
+        label = f"the {'start' if index % 2 == 0 else 'end'} of survey line {index // 2}"
+        yield from check_point(ctx.agent, point, where, label, ctx.use_location, orbit_m=orbit_m)
+        if index:
+            yield from check_leg(
+                ctx.agent,
+                route[index - 1],
+                point,
+                where,
+                f"the survey's leg to {label}",
+                ctx.use_location,
+            )
+
+
+def _check_bounds(ctx: UseContext) -> Iterator[Finding]:
+    """Too many lines is its own error: :func:`resolve` refuses such a plan."""
+    params = ctx.params
+    points = [parse_point(raw, ctx.mission.origin) for raw in params["area"]]
+    vertices = [(p.north_m, p.east_m) for p in points]
+    if self_crossing(vertices) or polygon_area_m2(vertices) < MIN_AREA_M2:
+        return
+    camera = _camera(ctx.agent, params)
+    spacing = params.get("line_spacing_m")
+    if spacing is None and params.get("side_overlap") is not None and camera is not None:
+        footprint = footprint_m(camera, float(params["altitude_m"]))
+        if footprint is not None:
+            spacing = footprint[0] * (1.0 - float(params["side_overlap"]))
+    if spacing is None or float(spacing) <= 0:
+        return
+    heading = params.get("heading_deg")
+    heading = float(heading) if heading is not None else longest_edge_heading_deg(vertices)
+    count = line_count(vertices, float(spacing), heading)
+    if count > MAX_LINES:
+        yield error(
+            "E-SURVEY-LINES",
+            ctx.locate("line_spacing_m" if params.get("line_spacing_m") else "side_overlap"),
+            f"lines {float(spacing):.3g} m apart make {count} lines over this area, more than "
+            f"{MAX_LINES}; space them further apart or split the area between states",
+            ctx.use_location,
+        )
+
+
+def _all_checks(ctx: UseContext) -> Iterator[Finding]:
+    yield from _check(ctx)
+    yield from _check_bounds(ctx)
+
+
+# ---------------------------------------------------------------------- compile
+
+
+def _compile(params: dict[str, Any], ctx: CompileContext) -> dict[str, Any]:
+    origin = ctx.mission.origin
+    height = float(params["altitude_m"])
+    points = [parse_point(raw, origin) for raw in params["area"]]
+    vertices = [(p.north_m, p.east_m) for p in points]
+    plan = resolve(params, ctx.agent, vertices)
+    if plan is None:  # the checks refused the mission before it got here
+        raise ValueError("survey: compiled without a plan; validate the mission first")
+    params["area"] = [ctx.point([n, e, height]) for n, e in vertices]
+    params["line_spacing_m"] = round(plan.spacing_m, 3)
+    params["heading_deg"] = round(plan.heading_deg, 6)
+    params["run_out_m"] = round(plan.run_out_m, 3)
+    if plan.photo_every_m is not None:
+        params["photo_every_m"] = round(plan.photo_every_m, 3)
+    params.setdefault("to", [])
+    params["lines"] = [
+        {
+            "start": ctx.point([line.start[0], line.start[1], height]),
+            "end": ctx.point([line.end[0], line.end[1], height]),
+            "photo_from_m": round(line.photo_from_m, 3),
+            "photo_to_m": round(line.photo_to_m, 3),
+        }
+        for line in plan.lines
+    ]
+    return params
+
+
+def _plan(params: Mapping[str, Any]) -> Plan:
+    """The compiled lines' ends in the order flown; before compiling, the area's outline.
+
+    Before compiling, the spacing may depend on the agent's camera, which a plan
+    cannot see: the outline (at the survey's height) stands for the area; the
+    survey's own checks check every line against the envelope.
+    """
+    lines = params.get("lines")
+    if lines:
+        points = [p for line in lines for p in (line["start"], line["end"])]
+        return Plan(points=[(p, f"waypoints[{i}]") for i, p in enumerate(points)])
+    height = float(params["altitude_m"])
+    outline: list[Any] = []
+    for raw in params["area"]:
+        if isinstance(raw, Mapping) and "lat" in raw:
+            outline.append({"lat": raw["lat"], "lon": raw["lon"], "alt_m": height})
+        elif isinstance(raw, Mapping):
+            outline.append({"north_m": raw["north_m"], "east_m": raw["east_m"], "up_m": height})
+        else:
+            outline.append([raw[0], raw[1], height])
+    return Plan(points=[(p, f"waypoints[{i}]") for i, p in enumerate(outline)])
+
+
+def _sends(params: Mapping[str, Any]) -> Sequence[Sends]:
+    every, speed = params.get("photo_every_m"), params.get("speed_m_s")
+    if every is None or speed is None:
+        return ()
+    return [Sends("picture_data", float(every) / float(speed), tuple(params.get("to") or ()))]
+
+
+# ---------------------------------------------------------------------- runtime
+
+
+class Survey(BehaviorRuntime):
+    """What survey commands in flight, tick by tick (its section of docs/runtime.md).
+
+    Fly the compiled lines in order, a picture at each mark along them; done at the last end.
+
+    - `start`: as for waypoint_tour, with `Goto(start of line 0)`; the route is each
+      line's start then its end, in order, at `altitude_m`.
+    - `update`: when the vehicle is within `tolerance_m` of the current end of the route
+      (3-D for aircraft), the survey moves to the next one and sends its `Goto` in the
+      same tick; after the last line's end it is DONE. At most one end is passed per tick.
+    - Pictures: while a line is flown (from its start to its end), the vehicle's progress
+      along it is measured from its ground distances to both ends; when it passes the next
+      photo mark (marks evenly spaced at most `photo_every_m` apart from `photo_from_m` to
+      `photo_to_m`), one `PayloadCommand(payload, "capture", request_id)` is sent, and the
+      marks it has passed are spent (a late tick sends one request, not a burst). On
+      arriving at a line's end, its last mark is taken if it was not. Answers are handled
+      as for photo_trigger (Picture Data to `to` on each capture, `image_index` counting
+      from 1 in the state).
+    - No pictures are asked on the legs between lines, nor without a vehicle state.
+    - Modes and arming are handled as for waypoint.
+
+    Attributes:
+        lines: The compiled lines, in the order flown.
+        tolerance_m: Distance that counts as arrived at a line's end.
+        speed_m_s: Requested ground speed, None for the autopilot's own.
+        index: The end of the route being flown to (even: a line's start; odd: its end).
+        requested: Pictures asked for since the state was entered.
+    """
+
+    name = "survey"
+    params_type = SurveyParams
+    params: SurveyParams
+
+    def __init__(self, params: SurveyParams | Mapping[str, Any]) -> None:
+        super().__init__(params)
+        self.lines = tuple(self.params.lines or ())
+        self.route = tuple(
+            Target.from_point(p) for line in self.lines for p in (line.start, line.end)
+        )
+        self.tolerance_m = float(self.params.tolerance_m)
+        speed = self.params.speed_m_s
+        self.speed_m_s = float(speed) if speed is not None else None
+        every = self.params.photo_every_m
+        self._marks = tuple(
+            tuple(photo_marks(line.photo_from_m, line.photo_to_m, float(every)))
+            if every is not None
+            else ()
+            for line in self.lines
+        )
+        self._camera_params = PhotoTriggerParams(
+            payload=self.params.payload,
+            interval_s=3600.0,
+            count=None,
+            to=tuple(self.params.to or ()),
+        )
+        self.index = 0
+        self.requested = 0
+        self._next_mark = 0
+        self._leg = GuidedLeg(self.speed_m_s)
+        self._camera = PhotoTrigger(self._camera_params)
+        self._three_d = True
+
+    @property
+    def captured(self) -> int:
+        """Pictures the camera confirmed since the state was entered."""
+        return self._camera.captured
+
+    def start(self, ctx: PrimitiveContext) -> None:
+        """Enter guided mode and send the first line's start."""
+        self._three_d = ctx.config.is_aircraft
+        self.index = 0
+        self.requested = 0
+        self._next_mark = 0
+        self._camera = PhotoTrigger(self._camera_params)
+        self._leg.begin(ctx)
+        if not self._leg.failed and self.route:
+            self._leg.go(ctx, self.route[0])
+
+    def update(self, ctx: PrimitiveContext) -> Status:
+        """Take the pictures due along the line; move on at each end; DONE after the last."""
+        if self._leg.failed:
+            return Status.FAILED
+        if not self.route:
+            return Status.DONE
+        if self.index % 2:
+            self._photograph(ctx)
+        current = self.route[self.index]
+        remaining_m = distance_m(ctx, current, three_d=self._three_d)
+        if remaining_m is not None and remaining_m <= self.tolerance_m:
+            if self.index % 2:
+                self._finish_line(ctx)
+            if self.index + 1 == len(self.route):
+                return Status.DONE
+            self.index += 1
+            self._next_mark = 0
+            if self.route[self.index] != current:
+                self._leg.go(ctx, self.route[self.index])
+        self._leg.track(ctx)
+        return Status.RUNNING
+
+    def on_payload(self, ctx: PrimitiveContext, event: PayloadEvent) -> None:
+        """Count the camera's answer to one of our requests; send Picture Data on a capture."""
+        self._camera.on_payload(ctx, event)
+
+    def _progress_m(self, ctx: PrimitiveContext) -> float | None:
+        """How far along the current line the vehicle is (ground), None without a position."""
+        line = self.lines[self.index // 2]
+        start, end = self.route[self.index - 1], self.route[self.index]
+        from_start = ctx.distance_to_m(start.lat_deg, start.lon_deg)
+        to_end = ctx.distance_to_m(end.lat_deg, end.lon_deg)
+        if from_start is None or to_end is None:
+            return None
+        length = math.hypot(
+            line.end.north_m - line.start.north_m, line.end.east_m - line.start.east_m
+        )
+        if length <= 0:
+            return 0.0
+        return (from_start**2 - to_end**2 + length**2) / (2.0 * length)
+
+    def _photograph(self, ctx: PrimitiveContext) -> None:
+        marks = self._marks[self.index // 2]
+        if self._next_mark >= len(marks):
+            return
+        progress = self._progress_m(ctx)
+        if progress is None or progress + MARK_SLACK_M < marks[self._next_mark]:
+            return
+        while self._next_mark < len(marks) and marks[self._next_mark] <= progress + MARK_SLACK_M:
+            self._next_mark += 1
+        self._request(ctx)
+
+    def _finish_line(self, ctx: PrimitiveContext) -> None:
+        marks = self._marks[self.index // 2]
+        if self._next_mark < len(marks) and ctx.vehicle is not None:
+            self._next_mark = len(marks)
+            self._request(ctx)
+
+    def _request(self, ctx: PrimitiveContext) -> None:
+        self.requested += 1
+        self._camera.request(ctx)
+
+
+BEHAVIOR = Behavior(
+    name="survey",
+    summary="Fly a lawnmower over an area, lines spaced from the camera's footprint, "
+    "pictures by distance; done at the last line's end.",
+    parameters=SurveyParams,
+    runtime=Survey,
+    events=raises_done,
+    traits=Traits(guided=True, flies=True, takes_pictures=True),
+    check=_all_checks,
+    compile=_compile,
+    plan=_plan,
+    sends=_sends,
+)
