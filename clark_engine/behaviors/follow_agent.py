@@ -77,10 +77,11 @@ class Offset(NamedTuple):
         return cls(float(raw["north_m"]), float(raw["east_m"]), float(raw["up_m"]))
 
 
-#: The leader's reported heading is its course only while it moves at least this fast:
-#: standing (or creeping, where a GPS's noise turns its course round), it keeps the
-#: heading it last moved along, so that its followers do not spin round it in place.
-#: A walking pace; ArduRover's own WP_SPEED floor for a course is of this order too.
+#: The leader's reported heading turns its followers' places only while it moves at least
+#: this fast: its Agent Status then carries its course over ground (the autopilot adapter
+#: sends the course from 0.5 m/s, ``io.autopilot.MOVING_SPEED_M_S``, its yaw below). Standing
+#: or creeping (where a GPS's noise turns a course round), it keeps the heading it last
+#: moved along, so that its followers do not spin round it in place.
 COURSE_MIN_SPEED_M_S = 0.5
 
 
@@ -447,9 +448,9 @@ class FollowAgent(BehaviorRuntime):
       new-data flag is left to others); the *goal* is that position moved by `offset` north and
       east, and `offset.up_m` above the target's altitude.
     - A leader-frame offset (`behind_m`, `left_m`, `above_m`) is turned by the target's
-      heading first: the `heading_deg` of its Agent Status (ArduPilot's heading, the way
-      it points) while its `ground_speed_m_s` is at least 0.5 m/s, else the heading last
-      taken while it moved, so that a leader standing still keeps its followers where they
+      heading first: the `heading_deg` of its Agent Status (its course over ground, from
+      the velocity its autopilot reports) while its `ground_speed_m_s` is at least
+      0.5 m/s, else the heading last taken while it moved, so that a leader standing still keeps its followers where they
       were (no spin in place as its reported heading wanders); the first status of a
       leader never seen moving gives its heading as reported. `above_m` is above the
       target's reported altitude, as `up_m`.
