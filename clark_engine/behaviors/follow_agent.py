@@ -5,6 +5,12 @@ send agent_status, to this agent, at least as often as the follower re-targets
 (thesis 5.2.1: Slash B drives to Slash A). The guided target leads the target by
 ``lead_s`` along its reported velocity, so that the follower keeps up with it.
 Done on reaching the target unless ``continuous``.
+
+The offset is in one of two frames: fixed to the ground (``north_m``, ``east_m``,
+``up_m``) or the target's own (``behind_m``, ``left_m``, ``above_m``), which turns
+with the target's heading so that a formation keeps its shape through every turn.
+One module owns both: a formation is a follower keeping its place beside a leader,
+and only the frame of that place differs (docs/tutorial.md, "Formations").
 """
 
 from __future__ import annotations
@@ -38,7 +44,14 @@ from clark_engine.mission.envelope_checks import (
 )
 from clark_engine.mission.findings import Finding, error, warning
 from clark_engine.mission.model import Agent
-from clark_engine.mission.schema_source.common import altitude_m, boolean, number, obj, position_m
+from clark_engine.mission.schema_source.common import (
+    Schema,
+    altitude_m,
+    boolean,
+    number,
+    obj,
+    position_m,
+)
 
 if TYPE_CHECKING:
     from clark_engine.link.messages import AgentStatus
@@ -64,6 +77,112 @@ class Offset(NamedTuple):
         return cls(float(raw["north_m"]), float(raw["east_m"]), float(raw["up_m"]))
 
 
+#: The leader's reported heading turns its followers' places only while it moves at least
+#: this fast: its Agent Status then carries its course over ground (the autopilot adapter
+#: sends the course from 0.5 m/s, ``io.autopilot.MOVING_SPEED_M_S``, its yaw below). Standing
+#: or creeping (where a GPS's noise turns a course round), it keeps the heading it last
+#: moved along, so that its followers do not spin round it in place.
+COURSE_MIN_SPEED_M_S = 0.5
+
+
+class LeaderOffset(NamedTuple):
+    """Where the follower keeps itself in its target's own frame (turning with it).
+
+    Attributes:
+        behind_m: Metres behind the target, along its heading (negative: ahead of it).
+        left_m: Metres to its left (negative: to its right).
+        above_m: Metres above it: the target's reported altitude, as ``up_m``.
+    """
+
+    behind_m: float = 0.0
+    left_m: float = 0.0
+    above_m: float = 0.0
+
+    def north_east_m(self, heading_deg: float) -> tuple[float, float]:
+        """The offset north and east for a target heading ``heading_deg`` (clockwise from north).
+
+        Ahead is (cos h, sin h) north/east, left is ahead turned 90 degrees
+        anticlockwise: (sin h, -cos h).
+        """
+        heading = math.radians(heading_deg)
+        ahead_north, ahead_east = math.cos(heading), math.sin(heading)
+        north = -self.behind_m * ahead_north + self.left_m * ahead_east
+        east = -self.behind_m * ahead_east - self.left_m * ahead_north
+        return north, east
+
+
+def _offset_from_config(raw: Mapping[str, Any]) -> Offset | LeaderOffset:
+    """A compiled ``offset`` in either frame (every key of its frame present)."""
+    if "behind_m" in raw:
+        return LeaderOffset(float(raw["behind_m"]), float(raw["left_m"]), float(raw["above_m"]))
+    return Offset.from_config(raw)
+
+
+#: The two frames' keys, in the order the reference lists them.
+GROUND_KEYS = ("north_m", "east_m", "up_m")
+LEADER_KEYS = ("behind_m", "left_m", "above_m")
+
+
+def _ground_properties() -> dict[str, Schema]:
+    return {
+        "north_m": position_m("Metres north of the target.", default=0),
+        "east_m": position_m("Metres east of the target.", default=0),
+        "up_m": altitude_m("Metres above the target.", default=0),
+    }
+
+
+def _leader_properties() -> dict[str, Schema]:
+    return {
+        "behind_m": position_m(
+            "Metres behind the target, along its heading (negative: ahead of it); turns "
+            "with the target.",
+            default=0,
+        ),
+        "left_m": position_m(
+            "Metres to the target's left (negative: to its right); turns with the target.",
+            default=0,
+        ),
+        "above_m": altitude_m(
+            "Metres above the target's reported altitude (the datum of up_m).", default=0
+        ),
+    }
+
+
+_ONE_FRAME = (
+    "an offset is in one frame: behind_m/left_m/above_m (the target's own, turning with "
+    "it) or north_m/east_m/up_m (fixed to the ground), not both; write above_m for the "
+    "height with behind_m/left_m"
+)
+
+
+def _offset_schema() -> Schema:
+    """The mission's ``offset``: either frame's keys, never both (E-CONFLICT at the key)."""
+    out = obj(
+        "Offset from the target's position, in metres: north_m/east_m/up_m fixed to the "
+        "ground, or behind_m/left_m/above_m in the target's own frame, which turns with "
+        "its heading (its course while it moves at "
+        f"{COURSE_MIN_SPEED_M_S:g} m/s or more, else the heading it last moved along). "
+        "One frame per offset.",
+        {**_ground_properties(), **_leader_properties()},
+    )
+    out["if"] = {"anyOf": [{"required": [key]} for key in LEADER_KEYS]}
+    out["then"] = {
+        "properties": {key: {"not": {}, "description": _ONE_FRAME} for key in GROUND_KEYS}
+    }
+    return out
+
+
+def _compiled_offset_schema() -> Schema:
+    """A compiled ``offset``: every key of exactly one frame."""
+    return {
+        "description": "Offset from the target, every key of one frame present.",
+        "oneOf": [
+            obj("Fixed to the ground.", _ground_properties(), required=list(GROUND_KEYS)),
+            obj("In the target's frame.", _leader_properties(), required=list(LEADER_KEYS)),
+        ],
+    }
+
+
 class FollowAgentParams(Params):
     """Parameters of follow_agent."""
 
@@ -73,16 +192,8 @@ class FollowAgentParams(Params):
     target: AgentRef = param(
         AGENT_NAME_SCHEMA, compiled=lambda: RESOLVED_AGENT_SCHEMA, convert=AgentRef.from_config
     )
-    offset: Offset | None = param(
-        obj(
-            "Offset from the target's position, in metres north/east/up.",
-            {
-                "north_m": position_m("Metres north of the target.", default=0),
-                "east_m": position_m("Metres east of the target.", default=0),
-                "up_m": altitude_m("Metres above the target.", default=0),
-            },
-        ),
-        convert=Offset.from_config,
+    offset: Offset | LeaderOffset | None = param(
+        _offset_schema(), compiled=_compiled_offset_schema, convert=_offset_from_config
     )
     retarget_hz: float = param(
         number(
@@ -177,10 +288,28 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
         )
 
 
-def _offset(ctx: UseContext) -> tuple[float, float, float]:
-    offset = ctx.params.get("offset") or {}
-    north, east, up = (float(offset.get(k, 0.0)) for k in ("north_m", "east_m", "up_m"))
-    return north, east, up
+class _Written(NamedTuple):
+    """The offset as the mission wrote it, for the checks: its frame's names and figures.
+
+    Before flight the target's heading is unknown, so a leader-frame offset's ground
+    part is checked by its length (the same whatever the heading): it is given as
+    ``north_m = -behind_m``, ``east_m = -left_m``, whose norm is the same.
+    """
+
+    north_m: float
+    east_m: float
+    up_m: float
+    up_key: str
+    example: str
+
+    @classmethod
+    def of(cls, ctx: UseContext) -> _Written:
+        offset = ctx.params.get("offset") or {}
+        if any(key in offset for key in LEADER_KEYS):
+            behind, left, above = (float(offset.get(k, 0.0)) for k in LEADER_KEYS)
+            return cls(-behind, -left, above, "above_m", "behind_m: {need:g}")
+        north, east, up = (float(offset.get(k, 0.0)) for k in GROUND_KEYS)
+        return cls(north, east, up, "up_m", "north_m: -{need:g}")
 
 
 def _check_envelope(ctx: UseContext, target: Agent, *, reported: bool) -> Iterator[Finding]:
@@ -198,7 +327,8 @@ def _check_envelope(ctx: UseContext, target: Agent, *, reported: bool) -> Iterat
     mine = me.envelope
     if mine is None or target.envelope is None:
         return
-    north, east, up = _offset(ctx)
+    written = _Written.of(ctx)
+    north, east, up = written.north_m, written.east_m, written.up_m
     offset_at = ctx.locate("offset") if "offset" in ctx.params else ctx.use_location
     low, high = possible_heights(target)
     on_ground = target.airframe_class == "rover"
@@ -212,8 +342,8 @@ def _check_envelope(ctx: UseContext, target: Agent, *, reported: bool) -> Iterat
                 offset_at,
                 f"{me.name} aims {up:g} m above {target.name} ({where_target}), so at least "
                 f"{lowest:g} m above the origin, over its ceiling of "
-                f"{mine.describe_ceiling()} wherever {target.name} goes; lower offset.up_m to "
-                f"at most {mine.ceiling_m - mine.margin_m - low:g} m",
+                f"{mine.describe_ceiling()} wherever {target.name} goes; lower "
+                f"offset.{written.up_key} to at most {mine.ceiling_m - mine.margin_m - low:g} m",
                 ctx.use_location,
             )
             return
@@ -223,7 +353,7 @@ def _check_envelope(ctx: UseContext, target: Agent, *, reported: bool) -> Iterat
                 offset_at,
                 f"{me.name} aims {up:g} m above {target.name} ({where_target}), so at most "
                 f"{highest:g} m above the origin, under its floor of {mine.floor_m:g} m "
-                f"wherever {target.name} goes; raise offset.up_m to at least "
+                f"wherever {target.name} goes; raise offset.{written.up_key} to at least "
                 f"{mine.floor_m + mine.margin_m - high:g} m",
                 ctx.use_location,
             )
@@ -257,8 +387,9 @@ def _check_envelope(ctx: UseContext, target: Agent, *, reported: bool) -> Iterat
                 offset_at,
                 f"{me.name} aims {aimed:.1f} m from {target.name}, inside the {need:g} m the "
                 f"pair keeps apart ({source}), so it drives up to its leader; give an offset "
-                f"of at least {need:g} m (such as offset: {{north_m: -{need:g}}}), or, if the "
-                "two are meant to meet, lower the pair's separation in envelope.separation",
+                f"of at least {need:g} m (such as offset: "
+                f"{{{written.example.format(need=need)}}}), or, if the two are meant to meet, "
+                "lower the pair's separation in envelope.separation",
                 ctx.use_location,
             )
             return
@@ -300,8 +431,10 @@ def _check_envelope(ctx: UseContext, target: Agent, *, reported: bool) -> Iterat
 def _compile(params: dict[str, Any], ctx: CompileContext) -> dict[str, Any]:
     target = ctx.mission.agents[params["target"]]
     params["target"] = {"name": target.name, "id": target.id}
-    offset = {"north_m": 0, "east_m": 0, "up_m": 0}
-    offset.update(params.get("offset") or {})
+    written = params.get("offset") or {}
+    keys = LEADER_KEYS if any(key in written for key in LEADER_KEYS) else GROUND_KEYS
+    offset: dict[str, Any] = dict.fromkeys(keys, 0)
+    offset.update(written)
     params["offset"] = offset
     return params
 
@@ -314,6 +447,13 @@ class FollowAgent(BehaviorRuntime):
     - The target's position is its latest Agent Status in the fleet table (peeked, so the
       new-data flag is left to others); the *goal* is that position moved by `offset` north and
       east, and `offset.up_m` above the target's altitude.
+    - A leader-frame offset (`behind_m`, `left_m`, `above_m`) is turned by the target's
+      heading first: the `heading_deg` of its Agent Status (its course over ground, from
+      the velocity its autopilot reports) while its `ground_speed_m_s` is at least
+      0.5 m/s, else the heading last taken while it moved, so that a leader standing still keeps its followers where they
+      were (no spin in place as its reported heading wanders); the first status of a
+      leader never seen moving gives its heading as reported. `above_m` is above the
+      target's reported altitude, as `up_m`.
     - The guided target *leads* the goal: it is the goal moved `lead_s` seconds (default 2.5)
       ahead along the velocity the target reports (its ground speed and heading), because
       ArduPilot trails a moving guided target (ArduRover by about 2.3 s of its speed,
@@ -339,6 +479,7 @@ class FollowAgent(BehaviorRuntime):
         offset_north_m: Metres north of the target.
         offset_east_m: Metres east of the target.
         offset_up_m: Metres above the target.
+        leader_offset: The offset in the target's frame, or None for a ground-fixed one.
         retarget_period_s: Time between Gotos once the target is known.
         tolerance_m: Distance that counts as arrived.
         continuous: Never finish; keep following.
@@ -354,9 +495,15 @@ class FollowAgent(BehaviorRuntime):
         self.target_name = p.target.name
         self.target_id = p.target.agent_id
         offset = p.offset or Offset()
-        self.offset_north_m = offset.north_m
-        self.offset_east_m = offset.east_m
-        self.offset_up_m = offset.up_m
+        self.leader_offset = offset if isinstance(offset, LeaderOffset) else None
+        if isinstance(offset, LeaderOffset):
+            self.offset_north_m, self.offset_east_m = 0.0, 0.0
+            self.offset_up_m = offset.above_m
+        else:
+            self.offset_north_m = offset.north_m
+            self.offset_east_m = offset.east_m
+            self.offset_up_m = offset.up_m
+        self._leader_heading_deg: float | None = None
         self.retarget_period_s = 1.0 / float(p.retarget_hz)
         self.lead_s = float(p.lead_s)
         self.tolerance_m = float(p.tolerance_m)
@@ -365,13 +512,29 @@ class FollowAgent(BehaviorRuntime):
         self._three_d = True
         self._schedule = Schedule(self.retarget_period_s)
 
+    def leader_heading_deg(self, status: AgentStatus) -> float:
+        """The target's heading for a leader-frame offset: as reported while it moves.
+
+        Below :data:`COURSE_MIN_SPEED_M_S` the heading last taken is kept (a standing
+        leader's reported heading is noise, and a follower turned by it would circle
+        round it); a leader never seen moving gives its heading as first reported.
+        """
+        if self._leader_heading_deg is None or status.ground_speed_m_s >= COURSE_MIN_SPEED_M_S:
+            self._leader_heading_deg = status.heading_deg % 360.0
+        return self._leader_heading_deg
+
+    def offset_north_east_m(self, status: AgentStatus) -> tuple[float, float]:
+        """The offset north and east of the target for a status of it (turned, if need be)."""
+        if self.leader_offset is None:
+            return self.offset_north_m, self.offset_east_m
+        return self.leader_offset.north_east_m(self.leader_heading_deg(status))
+
     def goal(self, status: AgentStatus) -> Target:
         """Where to be for a given status of the target: its position plus the offset."""
         from clark_engine.runtime.context import offset_position
 
-        lat_deg, lon_deg = offset_position(
-            status.lat_deg, status.lon_deg, self.offset_north_m, self.offset_east_m
-        )
+        north_m, east_m = self.offset_north_east_m(status)
+        lat_deg, lon_deg = offset_position(status.lat_deg, status.lon_deg, north_m, east_m)
         return Target(lat_deg, lon_deg, status.alt_m + self.offset_up_m)
 
     @staticmethod
@@ -396,6 +559,7 @@ class FollowAgent(BehaviorRuntime):
         """Enter guided mode; send the goal at once when the target's status is known."""
         self._three_d = ctx.config.is_aircraft
         self._schedule = Schedule(self.retarget_period_s)
+        self._leader_heading_deg = None
         self._leg.begin(ctx)
         if not self._leg.failed:
             self._retarget(ctx, ctx.peer_status_by_id(self.target_id))
