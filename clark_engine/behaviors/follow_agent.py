@@ -450,8 +450,9 @@ class FollowAgent(BehaviorRuntime):
     - A leader-frame offset (`behind_m`, `left_m`, `above_m`) is turned by the target's
       heading first: the `heading_deg` of its Agent Status (its course over ground, from
       the velocity its autopilot reports) while its `ground_speed_m_s` is at least
-      0.5 m/s, else the heading last taken while it moved, so that a leader standing still keeps its followers where they
-      were (no spin in place as its reported heading wanders); the first status of a
+      0.5 m/s, else the heading last taken while it moved, so that a leader standing
+      still keeps its followers where they were (no spin in place as its reported
+      heading wanders); the first status of a
       leader never seen moving gives its heading as reported. `above_m` is above the
       target's reported altitude, as `up_m`.
     - The guided target *leads* the goal: it is the goal moved `lead_s` seconds (default 2.5)
