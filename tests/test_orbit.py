@@ -204,9 +204,24 @@ def test_the_lead_point_is_ahead_on_the_tangent_the_way_it_flies(direction: str,
     (goto,) = start[1:]
     assert isinstance(goto, Goto) and goto.speed_m_s == 4 and goto.alt_m == 15
     distance, bearing = relative(config, goto, 100, 0)
-    # lead_deg 30 round the circle, on the tangent at the vehicle's bearing: r / cos 30
-    assert distance == pytest.approx(15 / math.cos(math.radians(30)), abs=1e-3)
-    assert bearing == pytest.approx((90 + sign * 30) % 360, abs=1e-3)
+    # lead_deg 45 round the circle, on the tangent at the vehicle's bearing: r / cos 45
+    assert distance == pytest.approx(15 / math.cos(math.radians(45)), abs=1e-3)
+    assert bearing == pytest.approx((90 + sign * 45) % 360, abs=1e-3)
+
+
+@pytest.mark.parametrize(("out_m", "aimed_m"), [(2.0, 11.0), (-1.5, 18.0), (9.0, 7.5), (-9, 22.5)])
+def test_the_lead_point_corrects_twice_the_distance_off_the_circle(
+    out_m: float, aimed_m: float
+) -> None:
+    # the autopilot's lag carries the vehicle outwards: aim inside by twice its error,
+    # within half and one and a half radii
+    config = compiled(*COPTER)
+    run = Run(config, point_orbit(config))
+    (goto,) = run.start(on_circle(config, 180, radius_m=15 + out_m))[1:]
+    assert isinstance(goto, Goto)
+    distance, bearing = relative(config, goto, 100, 0)
+    assert distance == pytest.approx(aimed_m / math.cos(math.radians(45)), abs=1e-3)
+    assert bearing == pytest.approx(225, abs=1e-3)
 
 
 def test_targets_stream_at_the_retarget_rate() -> None:
@@ -223,7 +238,7 @@ def test_targets_stream_at_the_retarget_rate() -> None:
             (goto,) = commands
             assert isinstance(goto, Goto)
             _, bearing = relative(config, goto, 100, 0)
-            assert bearing == pytest.approx(tick * 3.0 + 30, abs=1e-3)
+            assert bearing == pytest.approx(tick * 3.0 + 45, abs=1e-3)
     assert ticks == [5, 10, 15, 20]  # every 0.5 s from the first Goto
 
 
@@ -285,7 +300,8 @@ def test_round_an_agent_it_waits_for_its_status_then_circles_where_it_reports() 
     (goto,) = commands
     assert status is Status.RUNNING and isinstance(goto, Goto) and goto.alt_m == 15
     distance, _ = relative(config, goto, 30, 0)
-    assert distance == pytest.approx(15 / math.cos(math.radians(30)), abs=1e-3)
+    # 36 m from the rover, far outside the circle: aimed at half the radius (the clamp)
+    assert distance == pytest.approx(7.5 / math.cos(math.radians(45)), abs=1e-3)
 
 
 def test_wrap_is_the_short_way_round() -> None:

@@ -115,11 +115,13 @@ class OrbitParams(Params):
     )
     lead_deg: float = param(
         number(
-            "How far ahead of the vehicle, round the circle, each guided target is aimed.",
+            "How far ahead of the vehicle, round the circle, each guided target is aimed: "
+            "far enough that the autopilot does not slow down for it (ArduCopter flew 12 m "
+            "circles at 3.5 m/s of 4 with 30 degrees, at 4.0 with 45, on SITL).",
             unit="deg",
             minimum=5,
             maximum=60,
-            default=30,
+            default=45,
         )
     )
     retarget_hz: float = param(
@@ -324,12 +326,15 @@ class Orbit(BehaviorRuntime):
       an agent.
     - `start`: `SetMode(guided)` and `Arm` as for waypoint, and a `Goto` at once when the
       vehicle's position and the centre are known.
-    - The *lead point*: from the vehicle's bearing round the centre, `lead_deg` further
-      round the way it flies, on the line tangent to the circle at the vehicle's bearing
-      (so `radius_m / cos(lead_deg)` from the centre). A vehicle that steers straight at
-      it, again and again, stays on the circle; aiming at a point on the circle itself
-      would shrink the orbit to `radius_m * cos(lead_deg)`. From the centre itself the
-      bearing is taken as north.
+    - The *lead point*: from the vehicle's bearing round the centre, `lead_deg` (default
+      45) further round the way it flies, on the line tangent to the circle at the
+      vehicle's bearing (so `radius_m / cos(lead_deg)` from the centre). A vehicle that
+      steers straight at it, again and again, stays on the circle; aiming at a point on
+      the circle itself would shrink the orbit to `radius_m * cos(lead_deg)`. The radius
+      aimed at is corrected by twice the vehicle's distance outside the circle (inside:
+      the reverse), kept within 0.5-1.5 times `radius_m`, because the autopilot's lag in
+      the turn carries it outwards (ArduCopter SITL flew 15.2 m for 12 m without it, 13.0
+      m with it). From the centre itself the bearing is taken as north.
     - Re-targeting: a `Goto(lead point, speed_m_s)` every `1 / retarget_hz` seconds on a
       fixed schedule counted from the first `Goto` (a late tick sends one, not a burst),
       and again as for waypoint (entering guided, armed, flying).
@@ -392,7 +397,12 @@ class Orbit(BehaviorRuntime):
         """The guided target for a vehicle at (north, east) metres from the centre."""
         sign = 1.0 if self.clockwise else -1.0
         bearing = bearing_rad(north_m, east_m) + sign * self.lead_rad
-        reach_m = self.radius_m / math.cos(self.lead_rad)
+        # twice as far inside the circle as the vehicle is outside it (and the reverse):
+        # the autopilot's lag in a turn carries it outwards, so aiming at the circle
+        # itself leaves it on a wider one (ArduCopter SITL: 15.2 m for 12 m at 45 deg)
+        error_m = math.hypot(north_m, east_m) - self.radius_m
+        aim_m = min(max(self.radius_m - 2.0 * error_m, 0.5 * self.radius_m), 1.5 * self.radius_m)
+        reach_m = aim_m / math.cos(self.lead_rad)
         lat, lon = _shift(
             centre.lat_deg, centre.lon_deg, reach_m * math.cos(bearing), reach_m * math.sin(bearing)
         )
