@@ -7,19 +7,21 @@ behaviours (tests/test_runtime_primitives.py), from the example compiled in-proc
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from clark_engine.behaviors import behaviors
+from clark_engine.behaviors import behaviors, make_behavior
 from clark_engine.behaviors.orbit import Orbit, circle_points, wrap_rad
 from clark_engine.link.messages import AgentStatus, AgentType, Heartbeat
 from clark_engine.link.packet import Packet
+from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.validate import validate_path
 from clark_engine.runtime.commands import Goto
-from clark_engine.runtime.config import AgentConfig
+from clark_engine.runtime.config import AgentConfig, config_from_dict
 from clark_engine.runtime.context import EARTH_RADIUS_M, Status, offset_position
 from tests.test_runtime_primitives import (
     GPS_MS,
@@ -114,7 +116,7 @@ def test_the_schema_bounds_the_radius(tmp_path: Path) -> None:
         assert found and all(c.startswith("E-") for c in codes(found)), (radius, found)
 
 
-def test_a_station_cannot_orbit_and_a_plane_is_refused_at_the_use(tmp_path: Path) -> None:
+def test_a_station_cannot_orbit(tmp_path: Path) -> None:
     station = findings(
         tmp_path,
         **{
@@ -123,8 +125,49 @@ def test_a_station_cannot_orbit_and_a_plane_is_refused_at_the_use(tmp_path: Path
         },
     )
     assert "E-ROLE" in codes(station)
-    plane = findings(tmp_path, **{"profile: dji_f450": "profile: super_cub"})
-    assert "E-AIRFRAME-PRIMITIVE" in codes(plane), plane
+
+
+PLANE = ROOT / "tests" / "dryrun" / "plane_orbit_point.yaml"
+PLANE_LINE = "with: {center: [0, 300, 60], radius_m: 120, direction: ccw, turns: 1}"
+
+
+@pytest.mark.parametrize(
+    ("radius", "speed", "least"),
+    [("40", "", 52), ("51", "", 52), ("90", ", speed_m_s: 25", 96)],
+)
+def test_a_plane_cannot_circle_tighter_than_it_turns(
+    tmp_path: Path, radius: str, speed: str, least: int
+) -> None:
+    # the Super Cub: at 18 m/s cruise and 30 deg/s 34.4 m turns, at 25 m/s and 45 deg bank
+    # 63.7 m: 1.5 times that at least
+    text = PLANE.read_text()
+    assert PLANE_LINE in text
+    path = tmp_path / "plane.yaml"
+    path.write_text(text.replace(PLANE_LINE, PLANE_LINE.replace("120", radius)[:-1] + speed + "}"))
+    found = [(f.code, f.message) for f in validate_path(path).findings]
+    assert [c for c, _ in found] == ["E-ORBIT-RADIUS"], found
+    assert f"give radius_m {least} m or more" in found[0][1]
+    assert validate_path(PLANE).findings == []
+
+
+def test_a_plane_is_sent_the_centre_with_its_loiter_radius_and_direction() -> None:
+    config = compiled_from(PLANE, "cub")
+    (state,) = states_of(config, "orbit")
+    run = Run(config, make_behavior(state))
+    lat, lon = state.params["center"]["lat"], state.params["center"]["lon"]
+    me = at(config, 0, 0, alt_m=60.0)
+    start = run.start(me)
+    assert start == [set_mode(config, "GUIDED"), Goto(lat, lon, 60.0, None, None, None, 120, True)]
+    # a fixed point is sent once: ArduPlane circles it by itself
+    assert all(run.step(me) == (Status.RUNNING, []) for _ in range(30))
+    orbit = run.primitive
+    assert isinstance(orbit, Orbit)
+    # counting starts within tolerance_m of a circle up to 15 % wide (ArduPlane's 126.7 m)
+    # (138 m and tolerance_m 5: 143 m)
+    run.step(at(config, 0, 300 - 145, alt_m=60.0))
+    assert orbit.swept_deg == 0 and orbit._last_bearing is None
+    run.step(at(config, 0, 300 - 141, alt_m=60.0))
+    assert orbit._last_bearing is not None
 
 
 def test_orbit_raises_done_only_with_turns() -> None:
@@ -150,6 +193,14 @@ def test_the_plan_is_the_circle_the_way_it_is_flown() -> None:
 
 
 # ------------------------------------------------------------------ runtime
+
+
+def compiled_from(path: Path, agent: str) -> AgentConfig:
+    """A mission outside missions/ compiled in-process, read back as the runtime reads it."""
+    resolved = validate_path(path).mission
+    assert resolved is not None
+    return config_from_dict(json.loads(json.dumps(agent_config(resolved, resolved.agents[agent]))))
+
 
 COPTER = (EXAMPLE, "f450")
 

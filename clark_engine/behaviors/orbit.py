@@ -8,10 +8,11 @@ transition leaves the state. The centre is a point of the mission (``center``,
 as a waypoint's ``to``) or another agent's reported position (``agent``, which
 must send this agent its agent_status, as for follow_agent).
 
-A fixed-wing aircraft cannot be steered round a circle by points: ArduPlane
-loiters round its own guided target instead, at a radius a DO_REPOSITION can
-set. That is not built yet, so ``clark validate`` refuses orbit on a fixed-wing
-airframe at the ``use:`` (E-AIRFRAME-PRIMITIVE) rather than fly it wrongly.
+A fixed-wing aircraft is not steered by points: ArduPlane's GUIDED loiters round
+its target, at the radius and in the direction a DO_REPOSITION gives (param3,
+param4), so orbit sends it the centre with its radius and direction and counts
+the turns it flies. A plane cannot circle tighter than it can turn: ``clark
+validate`` refuses such a radius at the ``use:`` (E-ORBIT-RADIUS).
 """
 
 from __future__ import annotations
@@ -33,12 +34,15 @@ from clark_engine.behaviors.declaration import (
 from clark_engine.behaviors.flight import GuidedLeg, Schedule, Target
 from clark_engine.behaviors.shared import (
     AGENT_NAME_SCHEMA,
+    DEFAULT_AIRSPEED_CRUISE_M_S,
+    GRAVITY_M_S2,
+    LOITER_RADIUS_FACTOR,
+    ORBIT_FACTOR,
     POINT_SCHEMA,
     RESOLVED_AGENT_SCHEMA,
     RESOLVED_POINT_SCHEMA,
     SPEED_SCHEMA,
     check_agents_exist,
-    check_airframe,
     check_ceiling,
     check_points,
     check_speed,
@@ -139,16 +143,50 @@ def _events(params: Mapping[str, Any]) -> frozenset[str]:
     return frozenset({"done"}) if params.get("turns") is not None else frozenset()
 
 
+def tightest_circle_m(
+    airframe: Mapping[str, Any], autopilot: Mapping[str, Any], speed_m_s: float | None
+) -> float:
+    """The tightest circle a fixed-wing aircraft flies at a speed (its profile's limits).
+
+    :data:`~clark_engine.behaviors.shared.ORBIT_FACTOR` times its tightest turn, by its
+    bank limit (``V^2 / (g tan(max_bank_deg))``) or its turn-rate limit (``V /
+    max_turn_rate_deg_s``), whichever is wider, at ``speed_m_s`` or, without one, its
+    autopilot's AIRSPEED_CRUISE: what the dry run's plane flies at the least and what
+    WP_LOITER_RAD's own floor is (:func:`~clark_engine.behaviors.shared.orbit_radius_m`).
+    """
+    params = autopilot.get("parameters") or {}
+    speed = float(speed_m_s or params.get("AIRSPEED_CRUISE", DEFAULT_AIRSPEED_CRUISE_M_S))
+    bank = math.radians(float(airframe.get("max_bank_deg") or 45.0))
+    by_bank = speed * speed / (GRAVITY_M_S2 * math.tan(bank))
+    rate = math.radians(float(airframe.get("max_turn_rate_deg_s") or 0.0))
+    by_rate = speed / rate if rate > 0 else by_bank
+    return ORBIT_FACTOR * max(by_bank, by_rate)
+
+
+def _check_plane_radius(ctx: UseContext) -> Iterator[Finding]:
+    """A fixed-wing aircraft cannot fly a circle tighter than it turns."""
+    airframe = ctx.agent.hardware.part("airframe") or {}
+    if airframe.get("class") != "fixed_wing":
+        return
+    autopilot = ctx.agent.hardware.part("autopilot") or {}
+    speed = ctx.params.get("speed_m_s")
+    least = tightest_circle_m(airframe, autopilot, speed)
+    radius = float(ctx.params["radius_m"])
+    if radius < least:
+        at = f"{float(speed):g} m/s" if speed is not None else "its cruise airspeed"
+        yield error(
+            "E-ORBIT-RADIUS",
+            ctx.locate("radius_m"),
+            f"{ctx.agent.name} ({ctx.agent.profile}) is a fixed-wing aircraft: at {at} it "
+            f"circles no tighter than {least:.0f} m ({ORBIT_FACTOR:g} times its tightest "
+            f"turn, from its airframe's bank and turn-rate limits), so radius_m {radius:g} m "
+            f"cannot be flown; give radius_m {math.ceil(least)} m or more, or fly slower",
+            ctx.use_location,
+        )
+
+
 def _check(ctx: UseContext) -> Iterator[Finding]:
-    yield from check_airframe(
-        ctx,
-        "orbit",
-        {
-            "fixed_wing": "ArduPlane cannot be steered round a circle by guided points, and "
-            "orbit does not yet fly ArduPlane's own loiter; use hold (ArduPlane loiters) or "
-            "a looping waypoint_tour",
-        },
-    )
+    yield from _check_plane_radius(ctx)
     center, agent = ctx.params.get("center"), ctx.params.get("agent")
     if (center is None) == (agent is None):
         yield error(
@@ -344,6 +382,13 @@ class Orbit(BehaviorRuntime):
       negative the other way. `update` is DONE once that sum reaches `turns * 360`
       degrees; without `turns` it is RUNNING until a transition leaves the state, and
       without a vehicle state or a centre it is RUNNING and sends nothing new.
+    - A fixed-wing aircraft is not steered by lead points: ArduPlane's GUIDED loiters
+      round its target, so the `Goto` is the centre itself with `loiter_radius_m` =
+      `radius_m` and `loiter_ccw` for `ccw` (DO_REPOSITION's param3 and param4, which
+      ArduPlane keeps for later targets until GUIDED is entered again). A `center` point
+      is sent once (and again as for waypoint); an `agent`'s position on the schedule
+      above. Its turns count from the first tick it is within `tolerance_m` of a circle
+      up to 15 % wider than `radius_m` (ArduPlane flies 126.7 m for 120 m on SITL).
     - Modes and arming are handled as for waypoint.
 
     Attributes:
@@ -367,7 +412,9 @@ class Orbit(BehaviorRuntime):
         self.lead_rad = math.radians(float(p.lead_deg))
         self.retarget_period_s = 1.0 / float(p.retarget_hz)
         speed = p.speed_m_s
-        self._leg = GuidedLeg(float(speed) if speed is not None else None)
+        self.speed_m_s = float(speed) if speed is not None else None
+        self._leg = GuidedLeg(self.speed_m_s)
+        self._loiters = False
         self._schedule = Schedule(self.retarget_period_s)
         self.swept_deg = 0.0
         self._last_bearing: float | None = None
@@ -410,6 +457,9 @@ class Orbit(BehaviorRuntime):
 
     def start(self, ctx: PrimitiveContext) -> None:
         """Enter guided mode; aim at the first lead point when position and centre are known."""
+        self._loiters = ctx.config.airframe_class == "fixed_wing"
+        if self._loiters:
+            self._leg = GuidedLeg(self.speed_m_s, self.radius_m, not self.clockwise)
         self._schedule = Schedule(self.retarget_period_s)
         self.swept_deg = 0.0
         self._last_bearing = None
@@ -436,7 +486,10 @@ class Orbit(BehaviorRuntime):
             return
         north, east = relative
         if self._last_bearing is None:
-            if abs(math.hypot(north, east) - self.radius_m) > self.tolerance_m:
+            off_m = math.hypot(north, east) - self.radius_m
+            if self._loiters:  # ArduPlane circles up to 15 % wide, and settles from outside
+                off_m = max(off_m - (LOITER_RADIUS_FACTOR - 1.0) * self.radius_m, 0.0)
+            if abs(off_m) > self.tolerance_m:
                 return
             self._last_bearing = bearing_rad(north, east)
             return
@@ -447,6 +500,13 @@ class Orbit(BehaviorRuntime):
 
     def _retarget(self, ctx: PrimitiveContext, centre: Target | None) -> None:
         if centre is None:
+            return
+        if self._loiters:  # ArduPlane circles its target: the centre itself
+            if not self._schedule.started:
+                self._schedule.begin(ctx.now_s)
+            elif self.params.center is not None or not self._schedule.due(ctx.now_s):
+                return  # a fixed point is sent once (and again as for waypoint)
+            self._leg.go(ctx, centre)
             return
         relative = self._relative(ctx, centre)
         if relative is None:
