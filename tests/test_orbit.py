@@ -164,8 +164,9 @@ def test_a_plane_is_sent_the_centre_with_its_loiter_radius_and_direction() -> No
     assert isinstance(orbit, Orbit)
     # counting starts within tolerance_m of a circle up to 15 % wide (ArduPlane's 126.7 m)
     # (138 m and tolerance_m 5: 143 m)
-    run.step(at(config, 0, 300 - 145, alt_m=60.0))
-    assert orbit.swept_deg == 0 and orbit._last_bearing is None
+    for inside_m in (145, 114, 10):  # too wide, too tight, over the centre: not counted
+        run.step(at(config, 0, 300 - inside_m, alt_m=60.0))
+        assert orbit.swept_deg == 0 and orbit._last_bearing is None
     run.step(at(config, 0, 300 - 141, alt_m=60.0))
     assert orbit._last_bearing is not None
 

@@ -486,10 +486,10 @@ class Orbit(BehaviorRuntime):
             return
         north, east = relative
         if self._last_bearing is None:
-            off_m = math.hypot(north, east) - self.radius_m
-            if self._loiters:  # ArduPlane circles up to 15 % wide, and settles from outside
-                off_m = max(off_m - (LOITER_RADIUS_FACTOR - 1.0) * self.radius_m, 0.0)
-            if abs(off_m) > self.tolerance_m:
+            # ArduPlane circles up to 15 % wide (and settles onto it from outside)
+            widest_m = self.radius_m * (LOITER_RADIUS_FACTOR if self._loiters else 1.0)
+            distance_m = math.hypot(north, east)
+            if not self.radius_m - self.tolerance_m <= distance_m <= widest_m + self.tolerance_m:
                 return
             self._last_bearing = bearing_rad(north, east)
             return
