@@ -80,6 +80,7 @@ def test_the_example_is_valid(tmp_path: Path) -> None:
         ("with: {agent: mcs, alt_m: 15, radius_m: 15}", "E-ORBIT-STATUS", "is a station"),
         ("with: {agent: slsh, alt_m: 15, radius_m: 15}", "E-AGENT-UNKNOWN", "'slash'"),
         ("with: {agent: slash, alt_m: 500, radius_m: 15}", "E-ALTITUDE-CEILING", "ceiling"),
+        ("with: {agent: slash, alt_m: 3, radius_m: 3}", "E-ORBIT-SEPARATION", "radius_m 4 m or"),
         ("with: {agent: slash, alt_m: 15, radius_m: 15, retarget_hz: 20}", "E-RATE", "loop_hz"),
         ("with: {agent: slash, alt_m: 15, radius_m: 15, speed_m_s: 90}", "E-SPEED-RANGE", "90"),
     ],

@@ -47,12 +47,18 @@ from clark_engine.behaviors.shared import (
     check_points,
     check_speed,
 )
-from clark_engine.mission.envelope_checks import check_floor
+from clark_engine.mission.envelope_checks import (
+    check_floor,
+    separation_m,
+    separation_source,
+    vertically_apart,
+)
 from clark_engine.mission.findings import Finding, error, warning
 from clark_engine.mission.geo import EARTH_RADIUS_M
 from clark_engine.mission.schema_source.common import altitude_m, distance_m, number, string
 
 if TYPE_CHECKING:
+    from clark_engine.mission.model import Agent
     from clark_engine.runtime.context import PrimitiveContext
 
 #: How many points of the circle the plan (report, station, envelope checks) draws.
@@ -260,6 +266,7 @@ def _check_agent(ctx: UseContext, name: str) -> Iterator[Finding]:
             ctx.use_location,
         )
         return
+    yield from _check_separation(ctx, centre)
     status = centre.telemetry.get("agent_status")
     retarget_hz = float(ctx.params["retarget_hz"])
     if status is None or not status.reaches(me.name):
@@ -283,6 +290,43 @@ def _check_agent(ctx: UseContext, name: str) -> Iterator[Finding]:
             f"reports its position at only {status.rate_hz:g} Hz; raise its agent_status rate "
             "or lower retarget_hz",
             status.location,
+        )
+
+
+def _check_separation(ctx: UseContext, centre: Agent) -> Iterator[Finding]:
+    """The circle keeps the pair's separation from the agent it circles.
+
+    Round a rover (on the ground) the circle is ``hypot(radius_m, alt_m)`` from it (a
+    rover orbiter: ``radius_m``): under the pair's separation is an error. Round an
+    aircraft the heights may meet, so a radius under the separation is a warning unless
+    the two can never come within it in height.
+    """
+    me = ctx.agent
+    need = separation_m(me, centre)
+    if need is None:
+        return
+    radius = float(ctx.params["radius_m"])
+    source = separation_source(me, centre)
+    if centre.airframe_class == "rover":
+        alt = float(ctx.params.get("alt_m") or 0.0) if me.airframe_class != "rover" else 0.0
+        apart = math.hypot(radius, alt)
+        if apart < need:
+            least = math.ceil(math.sqrt(need * need - alt * alt))
+            yield error(
+                "E-ORBIT-SEPARATION",
+                ctx.locate("radius_m"),
+                f"{me.name} circles {centre.name} {apart:.1f} m from it, inside the {need:g} m "
+                f"the pair keeps apart ({source}); give radius_m {least} m or more",
+                ctx.use_location,
+            )
+    elif radius < need and not vertically_apart(me, centre, need):
+        yield warning(
+            "W-ORBIT-SEPARATION",
+            ctx.locate("radius_m"),
+            f"{me.name} circles {centre.name} at radius_m {radius:g} m, inside the {need:g} m "
+            f"the pair keeps apart ({source}), whenever the two fly at the same height; give "
+            f"radius_m {math.ceil(need)} m or more (the runtime holds the separation in flight)",
+            ctx.use_location,
         )
 
 
