@@ -37,6 +37,7 @@ def test_the_built_in_behaviors_in_reference_order() -> None:
         "waypoint",
         "waypoint_tour",
         "follow_agent",
+        "orbit",
         "doublet",
         "sine_sweep",
         "photo_trigger",
@@ -127,7 +128,7 @@ def test_every_behavior_builds_its_runtime_class_from_typed_parameters() -> None
     assert isinstance(built, BehaviorRuntime)
     assert built.params.channel == ChannelMap("elevator", 2, None, 1000, 1500, 2000)
     assert built.params.via == "rc_override"  # the declared default, typed
-    unknown = dataclasses.replace(spec, primitive="orbit")
+    unknown = dataclasses.replace(spec, primitive="spiral")
     with pytest.raises(ConfigError, match="does not have"):
         make_behavior(unknown)
 
@@ -139,6 +140,7 @@ def test_traits_replace_the_name_lists() -> None:
         "waypoint_tour",
         "follow_agent",
         "survey",
+        "orbit",
     }
     assert {n for n, t in traits.items() if t.floor_exempt} == {"takeoff", "land", "return_home"}
     assert {n for n, t in traits.items() if t.lands} == {"land", "return_home", "terminate"}
@@ -150,6 +152,7 @@ def test_traits_replace_the_name_lists() -> None:
         "waypoint_tour",
         "follow_agent",
         "survey",
+        "orbit",
         "takeoff",
         "doublet",
         "sine_sweep",

@@ -95,9 +95,14 @@ class FakeModel(FakeModelHooks, RcServoBook, VehicleModel):
         self.target: tuple[float, float, float] | None = None
         self.speed_m_s = 10.0
         self.gotos: list[tuple[float, float, float, float | None]] = []
+        self.loiters: list[tuple[float, bool]] = []
         FakeModelHooks.__init__(self)
         RcServoBook.__init__(self, pilot={3: 1100}, servo_count=16)
         self.roll_deg, self.pitch_deg, self.yaw_deg = 5.0, -2.0, 30.0
+
+    def guided_loiter(self, radius_m: float, ccw: bool) -> None:
+        """ArduPlane's DO_REPOSITION loiter radius and direction, as received."""
+        self.loiters.append((radius_m, ccw))
 
     def _cos(self) -> float:
         return math.cos(math.radians(HOME[0]))
@@ -361,6 +366,16 @@ def test_goto_sets_the_guided_target(bench_for: Any, firmware: str) -> None:
     lat, lon, alt, _speed = bench.model.gotos[-1]
     assert (lat, lon, alt) == pytest.approx((30.6329, -96.4816, 25.0), abs=1e-7)
     assert not bench.of(CommandRefused)
+
+
+def test_a_plane_goto_carries_its_loiter_radius_and_direction(bench: Bench) -> None:
+    # DO_REPOSITION param3 (radius; 0: ArduPlane keeps its own) and param4 (NaN: clockwise)
+    bench.command(SetMode("GUIDED", MODES["arduplane"]["GUIDED"]), Goto(30.6329, -96.4816, 25.0))
+    bench.run(0.5)
+    bench.command(Goto(30.6329, -96.4816, 25.0, None, None, None, 120.0, True))
+    bench.run(0.5)
+    assert bench.model.loiters == [(0.0, False), (120.0, True)]
+    assert len(bench.model.gotos) == 2 and not bench.of(CommandRefused)
 
 
 def test_goto_speed_is_sent_once_per_change(bench: Bench) -> None:

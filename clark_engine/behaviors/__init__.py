@@ -51,6 +51,7 @@ BUILT_IN = (
     "waypoint",
     "waypoint_tour",
     "follow_agent",
+    "orbit",
     "doublet",
     "sine_sweep",
     "photo_trigger",

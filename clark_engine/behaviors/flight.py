@@ -283,10 +283,20 @@ class GuidedLeg:
 
     Args:
         speed_m_s: Ground speed to request, None for the autopilot's own.
+        loiter_radius_m: ArduPlane's loiter radius round each target (orbit), None for
+            WP_LOITER_RAD (:class:`~clark_engine.runtime.commands.Goto`).
+        loiter_ccw: Circle the targets counter-clockwise (ArduPlane).
     """
 
-    def __init__(self, speed_m_s: float | None) -> None:
+    def __init__(
+        self,
+        speed_m_s: float | None,
+        loiter_radius_m: float | None = None,
+        loiter_ccw: bool = False,
+    ) -> None:
         self.speed_m_s = speed_m_s
+        self.loiter_radius_m = loiter_radius_m
+        self.loiter_ccw = loiter_ccw
         self.target: Target | None = None
         self._velocity: tuple[float, float] | None = None
         self.failed = False
@@ -326,7 +336,18 @@ class GuidedLeg:
         from clark_engine.runtime.commands import Goto
 
         north, east = velocity_m_s if velocity_m_s is not None else (None, None)
-        ctx.command(Goto(target.lat_deg, target.lon_deg, target.alt_m, self.speed_m_s, north, east))
+        ctx.command(
+            Goto(
+                target.lat_deg,
+                target.lon_deg,
+                target.alt_m,
+                self.speed_m_s,
+                north,
+                east,
+                self.loiter_radius_m,
+                self.loiter_ccw,
+            )
+        )
 
     def track(self, ctx: PrimitiveContext) -> None:
         """Re-send the target when the vehicle enters guided, is armed or lifts off."""

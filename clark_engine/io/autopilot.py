@@ -1700,8 +1700,8 @@ class AutopilotAdapter:
                         0,
                         -1,  # speed: default
                         0,  # flags: no mode change; the runtime owns the mode
-                        0,  # loiter radius: default
-                        math.nan,  # yaw / loiter direction: default
+                        cmd.loiter_radius_m or 0,  # loiter radius (> 0: ModeGuided's)
+                        1.0 if cmd.loiter_ccw else math.nan,  # non-zero: counter-clockwise
                         lat_e7,
                         lon_e7,
                         alt_amsl_m,

@@ -16,6 +16,7 @@ from typing import Any
 
 from jsonschema import Draft202012Validator
 
+from clark_engine.behaviors import behaviors
 from clark_engine.mission.findings import Finding, Location, error
 from clark_engine.mission.schemas import check_schema, validate_data
 from clark_engine.mission.yaml_loader import Document, YamlLoadError, decode_text, load_yaml
@@ -72,6 +73,18 @@ class BlockLibrary:
                             Location(display, 1, 1),
                             f"a block named {file.stem!r} already exists in "
                             f"{self._files[file.stem][1]}; rename one of them",
+                        )
+                    )
+                    continue
+                if file.stem in behaviors():
+                    self.findings.append(
+                        error(
+                            "E-BLOCK-SHADOWED",
+                            Location(display, 1, 1),
+                            f"a block named {file.stem!r} has the name of a behaviour: "
+                            f"`use: {file.stem}` runs the behaviour, never this block "
+                            "(a behaviour added to the engine or by a plugin takes the "
+                            "name); rename the block, file and `block:` alike",
                         )
                     )
                     continue

@@ -121,6 +121,8 @@ def waypoint_label(state: State, param: str) -> str:
     where = f" of state {state.dotted}" if state.path else ""
     if param == "to":
         return f"waypoint{where}" if where else "its waypoint"
+    if not param.startswith("waypoints["):  # another behaviour's points (an orbit's circle)
+        return f"a point round its {param}{where}"
     return f"waypoint {param[len('waypoints[') : -1]}{where}"
 
 

@@ -23,6 +23,10 @@ class Goto:
         velocity_north_m_s: The target's own velocity north, for a target that moves
             (ArduCopter flies it as a position and velocity target); None: a fixed point.
         velocity_east_m_s: The target's own velocity east.
+        loiter_radius_m: For ArduPlane, the radius to circle the target at
+            (DO_REPOSITION's param3: kept by ArduPlane for later targets until GUIDED is
+            entered again); None for WP_LOITER_RAD. Other firmware ignore it.
+        loiter_ccw: For ArduPlane, circle it counter-clockwise (DO_REPOSITION's param4).
     """
 
     lat_deg: float
@@ -31,6 +35,8 @@ class Goto:
     speed_m_s: float | None = None
     velocity_north_m_s: float | None = None
     velocity_east_m_s: float | None = None
+    loiter_radius_m: float | None = None
+    loiter_ccw: bool = False
 
 
 @dataclass(frozen=True, slots=True)

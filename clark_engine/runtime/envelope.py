@@ -38,10 +38,10 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Final
 
-from clark_engine.behaviors.shared import orbit_radius_m
+from clark_engine.behaviors.shared import LOITER_RADIUS_FACTOR, orbit_radius_m
 from clark_engine.link.fleet import FleetTable
 from clark_engine.link.messages import AgentStatus
 from clark_engine.mission.fence import Zone
@@ -441,7 +441,7 @@ class EnvelopeGuard:
                 notes.append(self._height_note(kind, up, kept))
                 up = kept
 
-        inset_m = env.margin_m + self._loiter(goto.speed_m_s)
+        inset_m = env.margin_m + self._loiter(goto.speed_m_s, goto.loiter_radius_m)
         point = self._fence_clamp(start, (north, east), inset_m)
         if point is None:
             self._refuse(
@@ -528,7 +528,14 @@ class EnvelopeGuard:
             "; ".join(notes) + f"; sent to {lat_deg:.7f} {lon_deg:.7f} {alt_m:.1f} m",
             now_s,
         )
-        return Goto(lat_deg, lon_deg, alt_m, goto.speed_m_s, None, None)
+        return replace(
+            goto,
+            lat_deg=lat_deg,
+            lon_deg=lon_deg,
+            alt_m=alt_m,
+            velocity_north_m_s=None,
+            velocity_east_m_s=None,
+        )
 
     # -- geometry ----------------------------------------------------------------------
 
@@ -581,12 +588,14 @@ class EnvelopeGuard:
             f"margin; sent at {kept_m:.1f} m"
         )
 
-    def _loiter(self, speed_m_s: float | None) -> float:
+    def _loiter(self, speed_m_s: float | None, asked_m: float | None = None) -> float:
         if not self._fixed_wing:
             return 0.0
         radius = self._loiter_m.get(speed_m_s)
         if radius is None:
             radius = self._loiter_m[speed_m_s] = loiter_radius_m(self.config, speed_m_s)
+        if asked_m:  # a Goto's own loiter radius (orbit), flown as WP_LOITER_RAD is
+            radius = max(radius, LOITER_RADIUS_FACTOR * asked_m)
         return radius
 
     def _inset_text(self, inset_m: float) -> str:

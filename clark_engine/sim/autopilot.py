@@ -1709,6 +1709,10 @@ class SimAutopilot:
             self._enter_mode(self.guided_mode, now_s)
         if not self._in_guided():
             return _FAILED
+        loiter = getattr(self.model, "guided_loiter", None)  # ArduPlane's (FixedWing)
+        if self.firmware == "arduplane" and loiter is not None:
+            radius_m, ccw = params[2], params[3]
+            loiter(radius_m, math.isfinite(ccw) and ccw != 0.0)
         if not self._goto(lat_e7 / 1e7, lon_e7 / 1e7, alt_m):
             return _FAILED
         if speed > 0:

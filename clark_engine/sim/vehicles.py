@@ -2481,6 +2481,9 @@ class FixedWing(SimulatedVehicle):
         self._cn, self._ce, self._ch = self._n, self._e, self._u
         self._target_speed = self._auto_speed()
         self._radius_param = self._loiter_rad
+        self._guided_radius_m = 0.0  # ModeGuided's active_radius_m: 0 is WP_LOITER_RAD
+        self._guided_ccw = False  # the direction set with it
+        self._target_ccw = False  # the guided target's own loiter_ccw (DO_REPOSITION param4)
         self._radius = self._loiter_radius(self._target_speed)
         if self._flying:
             # Level flight at cruise; a pilot who is flying holds the cruise throttle.
@@ -2628,6 +2631,7 @@ class FixedWing(SimulatedVehicle):
             self._radius_param = abs(self._params["RTL_RADIUS"])
         else:
             self._radius_param = self._loiter_rad
+            self._guided_shape()
         self._radius = self._loiter_radius(self._target_speed)
         if self._behaviour is ModeBehaviour.RTL:
             self._ch = self._clamp_altitude(self.home_m[2] + self._params["RTL_ALTITUDE"])
@@ -2646,6 +2650,10 @@ class FixedWing(SimulatedVehicle):
         self._speed_set = False
         self._target_speed = self._auto_speed()
         self._radius_param = self._loiter_rad
+        # ModeGuided::_enter: "set guided radius to WP_LOITER_RAD on mode change", and its
+        # target (where it was entered) has no loiter_ccw
+        self._guided_radius_m = 0.0
+        self._target_ccw = False
         self._sub = _P_LOITER
         home_n, home_e, home_u = self.home_m
         if behaviour is ModeBehaviour.RTL:
@@ -2684,11 +2692,44 @@ class FixedWing(SimulatedVehicle):
         )
         self._sub = _P_LAND
 
+    def guided_loiter(self, radius_m: float, ccw: bool) -> None:
+        """DO_REPOSITION's loiter radius (param3) and direction (param4), as ArduPlane takes them.
+
+        GCS_MAVLINK_Plane::handle_command_int_do_reposition: the target's ``loiter_ccw`` is
+        param4 (non-zero and not NaN: counter-clockwise), and a param3 above 0 sets
+        ModeGuided's active radius and its direction (``set_radius_and_direction``), kept
+        for later targets until GUIDED is entered again. Plane::update_loiter flies that
+        radius and direction; with none (0, or 1 m and less) WP_LOITER_RAD, counter-clockwise
+        when the target's ``loiter_ccw`` is set, else by WP_LOITER_RAD's sign. Called before
+        the target it comes with (:meth:`goto`), in GUIDED only.
+
+        Args:
+            radius_m: param3 (NaN, or 0 and less: no radius given).
+            ccw: param4 asks for counter-clockwise.
+        """
+        if self._behaviour is not ModeBehaviour.GUIDED:
+            return
+        self._target_ccw = ccw
+        if math.isfinite(radius_m) and radius_m > 0.0:
+            self._guided_radius_m = min(float(int(radius_m)), 65535.0)
+            self._guided_ccw = ccw
+
+    def _guided_shape(self) -> None:
+        """In GUIDED, the radius and direction Plane::update_loiter flies (see guided_loiter)."""
+        if self._behaviour is not ModeBehaviour.GUIDED:
+            return
+        if self._guided_radius_m > 1.0:
+            self._radius_param = self._guided_radius_m
+            self._direction = -1.0 if self._guided_ccw else 1.0
+        elif self._target_ccw:
+            self._direction = -1.0
+
     def _set_target(
         self, north_m: float, east_m: float, alt_m: float, speed_m_s: float | None
     ) -> None:
         self._capture()
         self._radius_param = self._loiter_rad
+        self._guided_shape()
         if speed_m_s is not None:
             self._set_speed(speed_m_s)
         elif not self._speed_set:

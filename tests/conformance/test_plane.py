@@ -538,3 +538,73 @@ def test_plane_loiter_elevator_sine_pitch_and_circle(peer: Peer) -> None:
         assert rate == pytest.approx(rate_deg_s, abs=RESONANCE_RATE_DEG_S), resonance
         assert bank_sd == pytest.approx(bank_sd_deg, rel=RESONANCE_BANK_SHARE), resonance
         assert peer.set_mode("RTL").result == mavlink2.MAV_RESULT_ACCEPTED
+
+
+def reposition_loiter(
+    peer: Peer, lat: float, lon: float, up_m: float, radius_m: float, ccw: bool
+) -> Any:
+    """DO_REPOSITION in GUIDED with a loiter radius (param3) and direction (param4).
+
+    As the engine's adapter sends it: no mode change; param4 NaN for clockwise, 1 for
+    counter-clockwise (ArduPlane: NaN or 0 is clockwise, anything else counter-clockwise).
+    """
+    peer.send(
+        mavlink2.MAVLink_command_int_message(
+            peer.spec.system_id, 1, mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            mavlink2.MAV_CMD_DO_REPOSITION, 0, 0, -1, 0, radius_m,
+            1.0 if ccw else math.nan,
+            round(lat * 1e7), round(lon * 1e7), up_m,
+        )
+    )  # fmt: skip
+    return peer.wait_for(
+        "COMMAND_ACK", 3.0, where=lambda m: m.command == mavlink2.MAV_CMD_DO_REPOSITION
+    )
+
+
+def turning(fixes: list[Any], centre: tuple[float, float]) -> float:
+    """Mean angular rate round ``centre``, deg/s: positive clockwise (seen from above)."""
+    rates = []
+    for fix in fixes:
+        north, east = offset_m(centre[0], centre[1], fix.lat_deg, fix.lon_deg)
+        r2 = north * north + east * east
+        # d(bearing)/dt for bearing = atan2(east, north): (north * ve - east * vn) / r^2
+        rates.append(math.degrees((north * fix.east_m_s - east * fix.north_m_s) / r2))
+    return sum(rates) / len(rates)
+
+
+@backends(kinds=("plane",))
+def test_plane_guided_loiter_radius_and_direction_from_do_reposition(peer: Peer) -> None:
+    """ArduPlane's GUIDED loiters round its target at DO_REPOSITION's radius and direction.
+
+    GCS_MAVLINK_Plane::handle_command_int_do_reposition: param3 > 0 sets ModeGuided's
+    active radius and param4 (non-zero, not NaN) turns it counter-clockwise; a later
+    DO_REPOSITION without param3 keeps that radius (only entering GUIDED resets it to
+    WP_LOITER_RAD). orbit flies a plane this way.
+    """
+    peer.wait_ready()
+    with flight_params(peer, LOITER_PARAMS), streaming(peer):
+        point = circling(peer)  # clockwise round home at WP_LOITER_RAD 60
+        peer.run_for(5.0)
+        ack = reposition_loiter(peer, *point, CIRCLE_UP_M, 120.0, ccw=True)
+        assert ack.result == mavlink2.MAV_RESULT_ACCEPTED
+        peer.run_for(50.0)
+        mark = peer.mark()
+        peer.run_for(40.0)
+        wide, spread = circle_of(peer, mark, point)
+        rate = turning(track(peer, mark), point)
+        # the same point without a radius: the radius is kept
+        ack = reposition_loiter(peer, *point, CIRCLE_UP_M, 0.0, ccw=True)
+        assert ack.result == mavlink2.MAV_RESULT_ACCEPTED
+        mark = peer.mark()
+        peer.run_for(30.0)
+        kept, _ = circle_of(peer, mark, point)
+        assert rate < -3.0  # counter-clockwise, about 15 m/s on 140 m: 6 deg/s
+        assert wide == pytest.approx(ORBIT_120_FLOWN_M, abs=4.0)
+        assert spread < 15.0
+        assert kept == pytest.approx(wide, abs=6.0)
+        assert peer.set_mode("RTL").result == mavlink2.MAV_RESULT_ACCEPTED
+
+
+ORBIT_120_FLOWN_M = 126.7
+"""SITL's circle for a DO_REPOSITION radius of 120 m at 15.2 m/s (126.7 m, 2026-11-29; the
+simulation flew 125.4 m, and 69.8 m clockwise before it took param3 and param4)."""
