@@ -1,5 +1,5 @@
 """Allow ``python -m clark_engine``, the same as the ``clark`` command."""
 
-from clark_engine.cli import main
+from clark_engine.cli import console_main
 
-raise SystemExit(main())
+console_main()

@@ -13,10 +13,12 @@ import argparse
 import dataclasses
 import importlib.metadata
 import json
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 
 from clark_engine import __version__
 from clark_engine.errors import ClarkError, UsageError
@@ -1183,5 +1185,24 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_OK
 
 
+def console_main() -> NoReturn:
+    """The ``clark`` command: :func:`main`, then an exit no signal can turn into a kill.
+
+    Once a command has finished, a late Ctrl-C or SIGTERM (a third one as ``clark run``'s
+    stop ends) landed in the interpreter's shutdown, where Python has put back the
+    default action: the process died of the signal (exit -2) instead of exiting 130 with
+    its stop done. What is left to do then is only the exit, so signals are ignored.
+    (:func:`main` itself leaves the signal handlers alone: tests call it in-process.)
+    """
+    try:
+        code = main()
+    except KeyboardInterrupt:  # between the command's end and main's return
+        code = 130
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, signal.SIG_IGN)
+    sys.exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    console_main()

@@ -134,6 +134,30 @@ def test_explain_invalid_mission_exits_1(tmp_path: Path) -> None:
     assert main(["explain", str(bad)]) == 1
 
 
+def test_the_clark_command_exits_with_signals_ignored() -> None:
+    """A third Ctrl-C as `clark run`'s stop ended landed in the interpreter's shutdown,
+    where Python's default action killed the process (exit -2, not 130; seen in
+    tests/test_cli_run_stop.py). Once the command is done, signals are ignored."""
+    code = (
+        "import atexit, signal, sys\n"
+        "atexit.register(lambda: print('AT EXIT', signal.getsignal(signal.SIGINT) =="
+        " signal.SIG_IGN, signal.getsignal(signal.SIGTERM) == signal.SIG_IGN))\n"
+        f"sys.argv = ['clark', 'validate', {EXAMPLE!r}]\n"
+        "from clark_engine.cli import console_main\n"
+        "console_main()\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "AT EXIT True True" in proc.stdout, proc.stdout
+
+
 def test_validate_does_not_import_flight_libraries() -> None:
     code = (
         "import sys\n"
