@@ -133,12 +133,13 @@ def _waits_on_the_wall_clock(item: pytest.Item) -> bool:
 
 
 def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
-    """``-n auto``: a worker per core, and one for the tests that wait on the wall clock.
+    """``-n auto``: a worker per core, one for the tests that wait on the wall clock, one
+    for the second SITL group.
 
     Those would otherwise hold a core's worker idle for minutes; on their own worker
     they wait beside the CPU-bound tests (7.5 min of waiting on 2 cores).
     """
-    return (os.cpu_count() or 1) + 1
+    return (os.cpu_count() or 1) + 2
 
 
 SPED_UP_SITL_MODULES = ("test_dry_run_sitl.py", "test_sitl.py")
@@ -233,6 +234,13 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         if _waits_on_the_wall_clock(item):
             item.add_marker(pytest.mark.xdist_group("wall-clock"))
         elif _sped_up_sitl(item):
-            item.add_marker(pytest.mark.xdist_group("sitl-speedup"))
+            # Two SITL groups side by side, each on a worker of its own: the conformance
+            # scenarios (one SITL vehicle at a time, about half a core) and the dry runs,
+            # campaigns and set-ups on SITL (the engine governs their pace). One group was
+            # the suite's longest chain (641 s of 668); beside a rest of the same priority
+            # the split failed four SITL tests (session 5), beside a rest that yields
+            # (BATCH_NICE) it is tried again.
+            group = "sitl-conformance" if "[sitl-" in item.nodeid else "sitl-speedup"
+            item.add_marker(pytest.mark.xdist_group(group))
             if rerun_sitl:
                 item.add_marker(pytest.mark.flaky(reruns=SITL_RERUNS))
