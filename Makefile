@@ -4,7 +4,8 @@
 PYTHON ?= $(shell command -v python3.11 2>/dev/null || command -v python3)
 VENV   := .venv
 BIN    := $(VENV)/bin
-# Test processes: one per core and one for the tests that wait on the wall clock by default
+# Test processes: one per core, one for the tests that wait on the wall clock and one for the
+# second group of SITL tests by default
 # (tests/conftest.py); `make test TEST_WORKERS=0` runs in one process.
 TEST_WORKERS ?= auto
 CKSUM  := $(shell cat pyproject.toml | cksum | cut -d' ' -f1)

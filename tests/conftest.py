@@ -199,7 +199,7 @@ def pytest_runtest_setup(item: pytest.Item) -> None:
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Deal the slow tests out first, and run SITL at a speed-up on one worker at a time.
+    """Deal the slow tests out first, and run SITL at a speed-up in two groups, one each.
 
     First of the hooks: pytest-xdist's own, on each worker, reads the ``xdist_group``
     marks to name each test's group, so marks added after it are never seen (they were
@@ -211,8 +211,10 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     others idle, so the longest go first, then the other slow ones. SITL at ten times
     real time needs a core of its own to keep ArduPilot's loops on time: two at once
     beside the rest of the suite made a rover stop short and a stream request race
-    (seen on this 2-core machine), so those tests share one group, which xdist runs on
-    one worker, one after the other. The tests that wait on the wall clock share another
+    (seen on this 2-core machine), so those tests share two groups (the conformance
+    scenarios; the dry runs on SITL), each of which xdist runs on one worker, one test
+    after the other, while the rest yields the CPU to them (:data:`BATCH_NICE`). The
+    tests that wait on the wall clock share another
     group, dealt out first (:func:`pytest_xdist_auto_num_workers` gives them a worker of
     their own). The order of the rest is unchanged (the sort is stable), and every test
     is independent of order. The SITL tests at a speed-up are run once more after a
