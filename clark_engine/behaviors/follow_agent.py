@@ -34,6 +34,7 @@ from clark_engine.behaviors.shared import (
     RESOLVED_AGENT_SCHEMA,
     TOLERANCE_SCHEMA,
     check_agents_exist,
+    status_gap,
 )
 from clark_engine.mission.envelope_checks import (
     goal_distance_range,
@@ -255,12 +256,8 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
     status = target.telemetry.get("agent_status")
     retarget_hz = float(ctx.params["retarget_hz"])
     reported = status is not None and status.reaches(me.name)
-    if status is None or not status.reaches(me.name):
-        why = (
-            "sends no agent_status"
-            if status is None
-            else f"sends agent_status only to {', '.join(status.to)}"
-        )
+    why = status_gap(target, me.name)
+    if status is None or why is not None:
         yield error(
             "E-FOLLOW-STATUS",
             ctx.locate("target"),

@@ -46,6 +46,7 @@ from clark_engine.behaviors.shared import (
     check_ceiling,
     check_points,
     check_speed,
+    status_gap,
 )
 from clark_engine.mission.envelope_checks import (
     check_floor,
@@ -269,12 +270,8 @@ def _check_agent(ctx: UseContext, name: str) -> Iterator[Finding]:
     yield from _check_separation(ctx, centre)
     status = centre.telemetry.get("agent_status")
     retarget_hz = float(ctx.params["retarget_hz"])
-    if status is None or not status.reaches(me.name):
-        why = (
-            "sends no agent_status"
-            if status is None
-            else f"sends agent_status only to {', '.join(status.to)}"
-        )
+    why = status_gap(centre, me.name)
+    if status is None or why is not None:
         yield error(
             "E-ORBIT-STATUS",
             ctx.locate("agent"),

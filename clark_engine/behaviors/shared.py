@@ -18,7 +18,7 @@ from clark_engine.mission.envelope_checks import (
 from clark_engine.mission.envelope_checks import check_leg, check_point
 from clark_engine.mission.findings import Finding, Location, error, warning
 from clark_engine.mission.geo import LocalPoint, Origin, parse_point, to_global
-from clark_engine.mission.model import Channel
+from clark_engine.mission.model import Agent, Channel
 from clark_engine.mission.schema_source.common import (
     NAME_PATTERN,
     Schema,
@@ -542,6 +542,20 @@ def check_mode(ctx: UseContext, param: str = "mode") -> Iterator[Finding]:
             + suggest(str(mode), modes),
             ctx.use_location,
         )
+
+
+def status_gap(sender: Agent, receiver: str) -> str | None:
+    """Why ``receiver`` never hears ``sender``'s position, or None when it does.
+
+    For the behaviours that go by another agent's Agent Status (follow_agent, orbit):
+    the start of their error, ``'slash_a' sends no agent_status`` and the like.
+    """
+    status = sender.telemetry.get("agent_status")
+    if status is None:
+        return "sends no agent_status"
+    if not status.reaches(receiver):
+        return f"sends agent_status only to {', '.join(status.to)}"
+    return None
 
 
 def check_agents_exist(ctx: UseContext, names: Iterable[str], param: str) -> Iterator[Finding]:
