@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any
 
-from clark_engine.behaviors.base import BehaviorRuntime, ChannelMap, Status
+from clark_engine.behaviors.base import ChannelMap, Status
 from clark_engine.behaviors.declaration import (
     Behavior,
     Params,
@@ -21,7 +21,7 @@ from clark_engine.behaviors.declaration import (
     param,
     raises_done,
 )
-from clark_engine.behaviors.flight import ChannelOutput
+from clark_engine.behaviors.flight import ChannelExcitation, ChannelOutput
 from clark_engine.behaviors.shared import (
     CHANNEL_SCHEMA,
     VIA_SCHEMA,
@@ -105,7 +105,7 @@ def _signal(params: DoubletParams, loop_hz: float) -> list[int]:
     return [clamp(trim + sign * amplitude)] * n + [clamp(trim - sign * amplitude)] * n + [int(trim)]
 
 
-class Doublet(BehaviorRuntime):
+class Doublet(ChannelExcitation):
     """What doublet commands in flight, tick by tick (its section of docs/runtime.md).
 
     Trim + amplitude for `width_s`, trim - amplitude for `width_s`, back to trim (thesis 5.3.3).
@@ -179,16 +179,6 @@ class Doublet(BehaviorRuntime):
             return Status.RUNNING
         self._finish(ctx)
         return Status.DONE
-
-    def stop(self, ctx: PrimitiveContext) -> None:
-        """Return the channel to trim and release it if the doublet was cut short."""
-        if self._active:
-            self._finish(ctx)
-
-    def _finish(self, ctx: PrimitiveContext) -> None:
-        self._active = False
-        for command in self.channel.finish():
-            ctx.command(command)
 
 
 BEHAVIOR = Behavior(

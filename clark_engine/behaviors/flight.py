@@ -444,3 +444,24 @@ class ChannelOutput(NamedTuple):
         if self.via != "servo":
             commands.append(RcOverride({self.number: 0}))
         return commands
+
+
+class ChannelExcitation(BehaviorRuntime):
+    """What a doublet and a sine sweep share: a channel driven while active, then let go.
+
+    The subclass sets ``channel`` (:meth:`ChannelOutput.of`) and ``_active`` in its
+    ``__init__`` and ``start``, and calls :meth:`_finish` when its signal is over.
+    """
+
+    channel: ChannelOutput
+    _active: bool
+
+    def stop(self, ctx: PrimitiveContext) -> None:
+        """Return the channel to trim and release it if the excitation was cut short."""
+        if self._active:
+            self._finish(ctx)
+
+    def _finish(self, ctx: PrimitiveContext) -> None:
+        self._active = False
+        for command in self.channel.finish():
+            ctx.command(command)

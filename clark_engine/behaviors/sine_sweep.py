@@ -14,7 +14,7 @@ import math
 from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any
 
-from clark_engine.behaviors.base import BehaviorRuntime, ChannelMap, Status
+from clark_engine.behaviors.base import ChannelMap, Status
 from clark_engine.behaviors.declaration import (
     Behavior,
     Params,
@@ -23,7 +23,7 @@ from clark_engine.behaviors.declaration import (
     param,
     raises_done,
 )
-from clark_engine.behaviors.flight import ChannelOutput
+from clark_engine.behaviors.flight import ChannelExcitation, ChannelOutput
 from clark_engine.behaviors.shared import (
     CHANNEL_SCHEMA,
     VIA_SCHEMA,
@@ -164,7 +164,7 @@ def _signal(params: SineSweepParams, loop_hz: float) -> list[int]:
         k += 1
 
 
-class SineSweep(BehaviorRuntime):
+class SineSweep(ChannelExcitation):
     """What sine_sweep commands in flight, tick by tick (its section of docs/runtime.md).
 
     A frequency sweep (chirp) on one control channel (thesis 5.3.3), with f0 = `f_start_hz`,
@@ -268,16 +268,6 @@ class SineSweep(BehaviorRuntime):
             return Status.RUNNING
         self._finish(ctx)
         return Status.DONE
-
-    def stop(self, ctx: PrimitiveContext) -> None:
-        """Return the channel to trim and release it if the sweep was cut short."""
-        if self._active:
-            self._finish(ctx)
-
-    def _finish(self, ctx: PrimitiveContext) -> None:
-        self._active = False
-        for command in self.channel.finish():
-            ctx.command(command)
 
 
 BEHAVIOR = Behavior(
