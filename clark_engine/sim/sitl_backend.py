@@ -82,7 +82,7 @@ REPORT_STREAMS: Final[Mapping[str, int]] = {
 }
 """...and what it asks for only when a recorded signal is on them
 (:meth:`SitlBackend.want_reports`): at 40 Hz they were half the backend's messages, and
-parsing them was a sixth of the engine's CPU in a copter's run that records no signal."""
+parsing them was 5-9 % of the engine's CPU in a copter's run that records no signal."""
 REQUEST_RETRY_WALL_S: Final = 0.3
 """Stream requests are repeated this often (wall clock) until the stream arrives:
 ArduPilot acknowledges and loses those sent before it is ready (measured)."""
@@ -261,7 +261,7 @@ class SitlBackend(VehicleBackend):
         self._link_stamp_s: float | None = None  # SITL's time of the last stamped frame
         self.heard: list[Any] = []
         """The messages :meth:`step` last handed over, parsed (for the simulated pilot)."""
-        self._truths: collections.deque[tuple[float, Truth]] = collections.deque()
+        self._truths: collections.deque[tuple[float, Truth]] = collections.deque(maxlen=TRUTHS_KEPT)
         self._want_s: float | None = None  # SITL's time of the run's last step
         self._clock_s: float | None = None
         self._connected_wall: float | None = None
@@ -712,8 +712,6 @@ class SitlBackend(VehicleBackend):
         if kind == "SIM_STATE":
             self._truth = self._truth_from(msg)
             self._truths.append((self._clock_s or 0.0, self._truth))
-            while len(self._truths) > TRUTHS_KEPT:
-                self._truths.popleft()
         elif kind == "RC_CHANNELS":
             self._rc = tuple(
                 0 if v == 65535 else int(v)
