@@ -97,7 +97,7 @@ def main() -> None:
     cores = usable_cores()
     runs = args.runs
     print(f"cooperative_follow, {runs} runs, {cores} usable cores")
-    import clark_engine.sim.dryrun  # noqa: F401  (before the pool forks)
+    import clark_engine.dryrun.command  # noqa: F401  (before the pool forks)
 
     if not args.skip_pool:
         print(f"  1 worker (this process): {campaign(runs, InProcess(), 1)}; load {load()}")

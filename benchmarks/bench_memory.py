@@ -26,7 +26,7 @@ DEFAULT_MISSION = ROOT / "missions" / "cooperative_follow.yaml"
 _CHILD = r"""
 import io, json, resource, sys, tempfile
 from pathlib import Path
-from clark_engine.sim import engine
+from clark_engine.dryrun import engine
 
 held = {}
 original_run = engine.DryRun.run
@@ -40,7 +40,7 @@ def run(self):
     return result
 
 engine.DryRun.run = run
-from clark_engine.sim.dryrun import run_dry_run
+from clark_engine.dryrun.command import run_dry_run
 
 mission, until_s, report = Path(sys.argv[1]), float(sys.argv[2]), sys.argv[3] == "1"
 with tempfile.TemporaryDirectory() as tmp:

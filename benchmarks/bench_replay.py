@@ -1,7 +1,7 @@
 """``clark replay``: how long a large run's logs take to load, and a seek to answer.
 
 Why: the replay loads a run once and answers every seek from memory
-(:mod:`clark_engine.gcs.replay`); the issue asks that an hour of 10 agents stay usable:
+(:mod:`clark_engine.station.replay`); the issue asks that an hour of 10 agents stay usable:
 loading in seconds, a seek well under a second.
 
 The logs are generated, as the logbook writes them (docs/logs.md): a station ``mcs``
@@ -15,7 +15,7 @@ again, and is not measured here.
 
 Measured, on this machine:
 
-- **load**: :func:`~clark_engine.gcs.replay.load_replay`, wall-clock, best of
+- **load**: :func:`~clark_engine.station.replay.load_replay`, wall-clock, best of
   ``--repeat``;
 - **seek**: what the server does for a page that jumps to a random time: the
   ``[reset, state]`` frame built and encoded as JSON (the tracks up to then, thinned to
@@ -40,8 +40,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from clark_engine.gcs.replay import load_replay
 from clark_engine.link.fleet import FleetTable
+from clark_engine.station.replay import load_replay
 
 HEADER = ["now_s", *FleetTable.csv_header()]
 GPS_EPOCH_MS = 1_451_260_818_000

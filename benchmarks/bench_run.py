@@ -13,7 +13,7 @@ the telemetry rate.
    fleet table (the ``received`` row's ``now_s``: the moment the shell handed the
    datagram to the runtime). Two figures:
 
-   - ``analyze``: :func:`clark_engine.analyze.analyze_folder`'s latency, i.e. the
+   - ``analyze``: :func:`clark_engine.analysis.latency.analyze_folder`'s latency, i.e. the
      receiver's ``latency_ms`` column (its GPS time minus the message's GPS stamp). Both
      agents take GPS time from this machine's system clock (no autopilot), but in whole
      milliseconds, each end rounded: 0 means under about 1 ms.
@@ -99,7 +99,7 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from clark_engine.analyze import analyze_folder  # noqa: E402
+from clark_engine.analysis.latency import analyze_folder  # noqa: E402
 
 START_TIMEOUT_S = 30.0
 """Longest wait for a process's loop to start (a loaded machine)."""

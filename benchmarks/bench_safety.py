@@ -1,6 +1,6 @@
 """What the dry run's safety judgement costs, on a long run of a 10-vehicle fleet.
 
-Every dry run ends with the safety judgement (:mod:`clark_engine.sim.safety`): one pass
+Every dry run ends with the safety judgement (:mod:`clark_engine.expectations.safety`): one pass
 over every vehicle's track, read back from disk sample by sample, with each vehicle's
 ceiling, floor, fence margin and each pair's distance. This dry-runs the generated
 fleet (``benchmarks/fleet.py``: a station and 10 vehicles of the shipped platforms, 10 Hz)
@@ -47,7 +47,7 @@ POLYGON_FENCE = (
 
 def judge_time(recording: object, configs: object, rounds: int = 3) -> tuple[float, int]:
     """Best wall time of ``rounds`` judgements, and the breaches found."""
-    from clark_engine.sim.safety import judge
+    from clark_engine.expectations.safety import judge
 
     best = math.inf
     breaches = 0
@@ -66,9 +66,9 @@ def main() -> None:
     args = parser.parse_args()
     from fleet import fleet_mission
 
+    from clark_engine.dryrun.engine import DryRun
     from clark_engine.mission.compiler import agent_config
     from clark_engine.runtime.config import config_from_dict
-    from clark_engine.sim.engine import DryRun
     from clark_engine.validation import validate_file
 
     with tempfile.TemporaryDirectory() as tmp:

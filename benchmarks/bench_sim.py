@@ -41,7 +41,7 @@ def one(mission: Path, until_s: float | None, report: bool) -> dict[str, float]:
     With ``report``, every agent's logs and CSV files are written (into a temporary
     folder) as ``--report`` writes them; the plots, drawn after the loop, are not timed.
     """
-    from clark_engine.sim.dryrun import run_dry_run
+    from clark_engine.dryrun.command import run_dry_run
 
     with tempfile.TemporaryDirectory() as tmp:
         outcome = run_dry_run(

@@ -21,7 +21,7 @@ Run the same script against another checkout to compare (its engine first on the
 
     PYTHONPATH=/path/to/other/checkout python benchmarks/bench_sim_params.py
 
-``load`` and ``answer`` are left out where the engine has no ``sim/ap_params.py``.
+``load`` and ``answer`` are left out where the engine has no ``sim/ardupilot/params.py``.
 Figures go to docs/performance.md.
 """
 
@@ -40,7 +40,7 @@ AGENTS = 51
 _BUILD = """
 import io, sys, time
 from pathlib import Path
-from clark_engine.sim.dryrun import run_dry_run
+from clark_engine.dryrun.command import run_dry_run
 start = time.process_time()
 run_dry_run(Path(sys.argv[1]), seed=None, until_s=0.1, report=None, speed=None,
             out=io.StringIO(), err=io.StringIO())
@@ -52,7 +52,7 @@ import sys, time
 from pathlib import Path
 from clark_engine.mission.compiler import agent_config
 from clark_engine.runtime.config import config_from_dict
-from clark_engine.sim.engine import build_vehicle
+from clark_engine.dryrun.engine import build_vehicle
 from clark_engine.validation import validate_file
 mission = validate_file(Path(sys.argv[1])).mission
 agent = mission.agents["vehicle"]
@@ -65,7 +65,7 @@ print((time.process_time() - start) * 1e3)
 
 _LOAD = """
 import time
-from clark_engine.sim.ap_params import sitl_table
+from clark_engine.sim.ardupilot.params import sitl_table
 start = time.process_time()
 sitl_table("arduplane")
 print((time.process_time() - start) * 1e3)
@@ -77,7 +77,7 @@ from pathlib import Path
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from clark_engine.mission.compiler import agent_config
 from clark_engine.runtime.config import config_from_dict
-from clark_engine.sim.engine import build_vehicle
+from clark_engine.dryrun.engine import build_vehicle
 from clark_engine.validation import validate_file
 mission = validate_file(Path(sys.argv[1])).mission
 agent = mission.agents["vehicle"]

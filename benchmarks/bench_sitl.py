@@ -6,7 +6,7 @@ ArduPilot SITL process per vehicle at the given speed-up. Printed per mission: t
 firmwares flown, simulated seconds, wall seconds of the SITL run (SITL sets the pace:
 about the mission's duration over the speed-up, plus the pre-flight of aircraft handed
 over in flight), its own checks passed, and the comparison of the two runs
-(:mod:`clark_engine.sim.timeline`): states compared, its verdict, and the worst time
+(:mod:`clark_engine.dryrun.timeline`): states compared, its verdict, and the worst time
 (against what its leg allowed), position, altitude and check figure; what failed.
 
 Needs SITL: ``--sitl PATH`` or ``$CLARK_SITL`` (the folder with the ``sitl`` launcher).
@@ -26,9 +26,9 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def main() -> int:
+    from clark_engine.dryrun.command import DEFAULT_SITL_SPEEDUP, run_dry_run
     from clark_engine.errors import ClarkError
-    from clark_engine.sim.dryrun import DEFAULT_SITL_SPEEDUP, run_dry_run
-    from clark_engine.sim.sitl import SitlInstall
+    from clark_engine.sitl.launcher import SitlInstall
     from clark_engine.validation import validate_file
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -41,9 +41,9 @@ def main() -> int:
     )
     parser.add_argument("--speedup", type=float, default=10.0)
     args = parser.parse_args()
-    from clark_engine.sim import sitl_backend
-    from clark_engine.sim.dryrun import run_dry_run
-    from clark_engine.sim.sitl import SitlInstall
+    from clark_engine.dryrun import sitl_backend
+    from clark_engine.dryrun.command import run_dry_run
+    from clark_engine.sitl.launcher import SitlInstall
 
     own: collections.Counter[str] = collections.Counter()
     link: collections.Counter[str] = collections.Counter()

@@ -9,7 +9,7 @@ past the run's time (and when), the longest silence of the engine's link to the
 autopilot (SITL's clock), the run's wall time, and the mission's signal and failsafe
 checks on SITL, and the speed-ups the run set SITL to (slowed when it fell behind, sped up
 again once it kept up)
-(:mod:`clark_engine.sim.sitl_pace`). The machine's load average is printed with each run:
+(:mod:`clark_engine.dryrun.sitl_pace`). The machine's load average is printed with each run:
 the figures depend on it. ``--busy N`` keeps N processes spinning meanwhile, as a loaded
 machine (a test suite beside the run) would; ``--runs K`` flies each mission K times.
 
@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from clark_engine.sim.sitl import SitlInstall
+    from clark_engine.sitl.launcher import SitlInstall
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -45,7 +45,7 @@ def _spin() -> None:
 
 def main() -> int:
     from clark_engine.errors import ClarkError
-    from clark_engine.sim.sitl import SitlInstall
+    from clark_engine.sitl.launcher import SitlInstall
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sitl", help="the SITL folder ($CLARK_SITL by default)")
@@ -84,7 +84,7 @@ def main() -> int:
 
 def _fly(path: Path, speedup: float, install: SitlInstall) -> None:
     """One run of ``path`` on SITL at ``speedup``: a line per SITL vehicle."""
-    from clark_engine.sim.dryrun import run_dry_run
+    from clark_engine.dryrun.command import run_dry_run
 
     started = time.perf_counter()
     outcome = run_dry_run(

@@ -2,7 +2,7 @@
 
 Issue 18, item 2. Three processes on loopback:
 
-- **The view**: a :class:`~clark_engine.gcs.server.ViewServer` (cooperative_follow's
+- **The view**: a :class:`~clark_engine.station.server.ViewServer` (cooperative_follow's
   station's ``hello``, a token, 127.0.0.1) in a child process whose soft file limit is
   set to ``--nofile`` (1024, a common default), publishing a small state at 5 Hz as a
   station's loop does. Its stderr goes to a file, to count what a flood writes there.
@@ -61,8 +61,8 @@ VIEW = textwrap.dedent(
     hard = resource.getrlimit(resource.RLIMIT_NOFILE)[1]
     resource.setrlimit(resource.RLIMIT_NOFILE, (nofile, hard))
     logging.basicConfig(stream=sys.stderr, level=logging.INFO)
-    from clark_engine.gcs.model import Snapshot, build_hello
-    from clark_engine.gcs.server import ViewServer
+    from clark_engine.station.view_model import Snapshot, build_hello
+    from clark_engine.station.server import ViewServer
     from clark_engine.mission.compiler import agent_config
     from clark_engine.runtime.config import config_from_dict
     from clark_engine.validation import validate_file

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from fleet import fleet_mission
 
-from clark_engine.sim.engine import DryRun
+from clark_engine.dryrun.engine import DryRun
 from clark_engine.validation import validate_file
 
 ROUNDS = 3

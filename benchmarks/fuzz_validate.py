@@ -33,8 +33,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 import test_fuzz_validate as structure
 import test_number_ranges as extremes
 
+from clark_engine.dryrun.command import run_dry_run
 from clark_engine.mission.compiler import compile_mission
-from clark_engine.sim.dryrun import run_dry_run
 from clark_engine.validation import validate_file
 
 

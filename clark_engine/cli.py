@@ -22,14 +22,14 @@ from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 
 from clark_engine import __version__
 from clark_engine.errors import ClarkError, UsageError
-from clark_engine.gcs.replay_cli import add_replay_parser
 from clark_engine.mission.faults import FAULT_HELP
+from clark_engine.station.replay_command import add_replay_parser
 
 if TYPE_CHECKING:
+    from clark_engine.dryrun.command import LiveView, LiveViewOpener
     from clark_engine.mission.findings import Finding
     from clark_engine.mission.model import Mission
     from clark_engine.mission.validate import Validation
-    from clark_engine.sim.dryrun import LiveView, LiveViewOpener
 
 EXIT_OK = 0
 EXIT_INVALID = 1
@@ -300,15 +300,15 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     """Print the message latency and loss per link from a folder of agents' logs.
 
     With ``--checks MISSION``, instead: the mission's checks judged on the logs
-    (:mod:`clark_engine.log_checks`), exit 1 when one fails.
+    (:mod:`clark_engine.expectations.from_logs`), exit 1 when one fails.
     """
-    from clark_engine.analyze import analyze_folder, format_text
+    from clark_engine.analysis.latency import analyze_folder, format_text
 
     folder = Path(args.logdir)
     if not folder.exists():
         raise UsageError(f"{folder}: no such folder")
     if args.checks is not None:
-        from clark_engine.log_checks import run_log_checks
+        from clark_engine.expectations.from_logs import run_log_checks
 
         if args.period_s is not None:
             raise UsageError("--period-s is for the latency report; it does not go with --checks")
@@ -327,9 +327,9 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 
 def cmd_dry_run(args: argparse.Namespace) -> int:
     """Fly the mission on a simulated fleet (or ArduPilot SITL) and evaluate its checks."""
-    from clark_engine.sim.dryrun import DEFAULT_SITL_SPEEDUP, run_dry_run
-    from clark_engine.sim.realtime import DEFAULT_HOST
-    from clark_engine.sim.sitl import SitlError, SitlInstall
+    from clark_engine.dryrun.command import DEFAULT_SITL_SPEEDUP, run_dry_run
+    from clark_engine.dryrun.rehearsal import DEFAULT_HOST
+    from clark_engine.sitl.launcher import SitlError, SitlInstall
 
     on_sitl = args.autopilot == "sitl"
     station_view = _station_view(args)
@@ -403,7 +403,7 @@ def cmd_dry_run(args: argparse.Namespace) -> int:
 def cmd_campaign(args: argparse.Namespace) -> int:
     """Fly the mission many times, each run its own seed and draw; report the pass rates."""
     from clark_engine.campaign.command import CampaignOptions, run_campaign
-    from clark_engine.sim.sitl import SitlError, SitlInstall
+    from clark_engine.sitl.launcher import SitlError, SitlInstall
 
     on_sitl = args.autopilot == "sitl"
     if not on_sitl:
@@ -503,7 +503,7 @@ def _station_view(args: argparse.Namespace) -> LiveViewOpener | None:
     The opener it returns starts the server once the mission is validated, before
     anything is simulated or written.
     """
-    from clark_engine.gcs.rehearsal import open_rehearsal, rehearsal_settings
+    from clark_engine.station.rehearsal_view import open_rehearsal, rehearsal_settings
 
     view_options = (
         (args.view is not None, "--view"),
@@ -609,7 +609,7 @@ def _version() -> str:
 
 def cmd_payload_sim(args: argparse.Namespace) -> int:
     """Play a simulated payload (the thesis's camera) against a payload adapter."""
-    from clark_engine.sim.payload_sim import run_camera
+    from clark_engine.standins.payload_sim import run_camera
 
     return run_camera(
         args.connect, udp=args.udp, capture_delay_s=args.capture_delay_s, retry_s=args.retry_s
@@ -618,14 +618,14 @@ def cmd_payload_sim(args: argparse.Namespace) -> int:
 
 def cmd_autopilot_sim(args: argparse.Namespace) -> int:
     """Serve one vehicle's autopilot (simulated, or ArduPilot SITL) for `clark run`."""
-    from clark_engine.sim.served import serve_vehicle
+    from clark_engine.standins.autopilot_sim import serve_vehicle
 
     return serve_vehicle(args)
 
 
 def cmd_radio_sim(args: argparse.Namespace) -> int:
     """Emulate the mission's XBee radios on pseudo-terminals for `clark run`."""
-    from clark_engine.sim.xbee_network import serve_network
+    from clark_engine.standins.radio_sim import serve_network
 
     return serve_network(args)
 

@@ -13,7 +13,7 @@ from typing import Any
 import pytest
 from sitl_here import NO_SITL, real_install
 
-from clark_engine.sim.sitl import SitlInstall
+from clark_engine.sitl.launcher import SitlInstall
 
 ROOT = Path(__file__).resolve().parent.parent
 MISSIONS = sorted((ROOT / "missions").glob("*.yaml"))
@@ -172,7 +172,7 @@ BATCH_NICE = 10
 """Niceness a test worker takes before its first test that neither flies SITL at a
 speed-up, nor waits on the wall clock, nor drives a browser: the CPU-bound rest of the
 suite. SITL cannot be paused, so a SITL test starved of CPU by the rest falls behind
-SITL's clock; the engine then slows SITL down (sim/sitl_pace.py) and the test takes two to
+SITL's clock; the engine then slows SITL down (dryrun/sitl_pace.py) and the test takes two to
 three times as long (the suite's critical path), or an ungoverned conformance test fails.
 At niceness 10 the rest gets what SITL and the wall-clock tests leave (a tenth of a core
 beside each of theirs) and still all of an idle core. A worker never goes back to 0

@@ -1,6 +1,6 @@
 """The RC and servo bookkeeping every test's fake vehicle model shares.
 
-A :class:`~clark_engine.sim.model.VehicleModel` test double must keep the
+A :class:`~clark_engine.sim.ardupilot.vehicle_model.VehicleModel` test double must keep the
 pilot's sticks, the autopilot's RC overrides (0 releases a channel, as
 RC_CHANNELS_OVERRIDE does) and the servo outputs exactly as the real models do;
 the fakes differ only in how they move.

@@ -15,11 +15,11 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from clark_engine.dryrun.engine import PHYSICS_STEP_S, build_vehicle
 from clark_engine.mission.compiler import agent_config
 from clark_engine.runtime.config import config_from_dict
-from clark_engine.sim.autopilot import SimAutopilot
-from clark_engine.sim.engine import PHYSICS_STEP_S, build_vehicle
-from clark_engine.sim.model import VehicleModel
+from clark_engine.sim.ardupilot.autopilot import SimAutopilot
+from clark_engine.sim.ardupilot.vehicle_model import VehicleModel
 from clark_engine.validation import validate_file
 
 MISSIONS = Path(__file__).resolve().parent / "conformance" / "missions"

@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from clark_engine.sim.sitl import ENV_SITL, SitlInstall, SitlNotFound
+from clark_engine.sitl.launcher import ENV_SITL, SitlInstall, SitlNotFound
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from clark_engine.sim.dryrun import run_dry_run
-from clark_engine.sim.sitl import SitlInstall
+from clark_engine.dryrun.command import run_dry_run
+from clark_engine.sitl.launcher import SitlInstall
 
 MISSION = """\
 clark: 1

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from clark_engine.analyze import (
+from clark_engine.analysis.latency import (
     AnalyzeError,
     LinkReport,
     analyze_folder,
@@ -499,7 +499,7 @@ def test_a_wall_clock_dry_run_stamps_every_log_on_one_time_base(tmp_path: Path) 
     """--realtime with MAVLink ports: the simulated autopilots give the wall clock's GPS
     time, and the station is anchored to it (before: the station stamped 2026-01-01 and
     every latency between them read as +-days)."""
-    from clark_engine.sim.engine import DryRun
+    from clark_engine.dryrun.engine import DryRun
 
     path = ROOT / "missions" / "cooperative_follow.yaml"
     mission = validate_path(path).mission

@@ -18,8 +18,9 @@ import pytest
 
 from clark_engine.behaviors.base import BehaviorRuntime as Primitive
 from clark_engine.cli import main
+from clark_engine.dryrun.command import run_dry_run
+from clark_engine.expectations.from_logs import NO_SIGNALS, check_folder, entered_states
 from clark_engine.link.fleet import FleetTable
-from clark_engine.log_checks import NO_SIGNALS, check_folder, entered_states
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.geo import LocalPoint, to_global
 from clark_engine.mission.model import Mission
@@ -27,7 +28,6 @@ from clark_engine.mission.validate import validate_path
 from clark_engine.runtime.config import StateSpec, TransitionSpec, config_from_dict
 from clark_engine.runtime.context import PrimitiveContext, Status
 from clark_engine.runtime.machine import BehaviorMachine, StateChange
-from clark_engine.sim.dryrun import run_dry_run
 
 ROOT = Path(__file__).resolve().parent.parent
 MISSIONS = ROOT / "missions"

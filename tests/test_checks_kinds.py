@@ -11,11 +11,11 @@ from typing import Any
 
 import pytest
 
+from clark_engine.expectations.evaluate import CheckResult, evaluate
+from clark_engine.expectations.recording import Recording, Track
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.geo import Origin
 from clark_engine.runtime.config import AgentConfig, config_from_dict
-from clark_engine.sim.checks import CheckResult, evaluate
-from clark_engine.sim.recording import Recording, Track
 from clark_engine.validation import validate_file
 
 MISSION = """\
@@ -204,8 +204,8 @@ def test_clark_analyze_judges_the_new_kinds_from_logs(tmp_path: Path) -> None:
     """The logs of a dry run give its verdicts on ends_at and altitude_m too."""
     import io
 
-    from clark_engine.log_checks import check_folder
-    from clark_engine.sim.dryrun import run_dry_run
+    from clark_engine.dryrun.command import run_dry_run
+    from clark_engine.expectations.from_logs import check_folder
 
     near_miss = Path(__file__).resolve().parent / "dryrun" / "near_miss.yaml"
     report = tmp_path / "report"

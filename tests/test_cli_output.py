@@ -11,8 +11,8 @@ import pytest
 
 from clark_engine.cli import build_parser, main
 from clark_engine.data import data_dir
-from clark_engine.sim import dryrun
-from clark_engine.sim.dryrun import run_dry_run
+from clark_engine.dryrun import command as dryrun
+from clark_engine.dryrun.command import run_dry_run
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = str(ROOT / "missions" / "cooperative_follow.yaml")

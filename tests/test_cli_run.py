@@ -4,7 +4,7 @@ The two-process rehearsal of docs/run.md: cooperative_follow's station (``mcs``)
 ``slash_b`` each run as ``python -m clark_engine run ...`` with a UDP radio on
 127.0.0.1; slash_b's autopilot is the dry run's own simulated ArduRover, served on a
 UDP port from a thread of this process at wall-clock pace by ``clark autopilot-sim``'s
-:class:`~clark_engine.sim.served.ServedSimulated` (it listens and answers whoever sent
+:class:`~clark_engine.standins.autopilot_sim.ServedSimulated` (it listens and answers whoever sent
 it a datagram; ``clark run`` connects with ``udpout:``). Nothing here sleeps to wait
 for a moment: each step waits for a line in a log file or on stdout, with a timeout.
 """
@@ -24,7 +24,7 @@ from pathlib import Path
 import pytest
 
 from clark_engine.cli import main
-from clark_engine.sim.served import ServedSimulated
+from clark_engine.standins.autopilot_sim import ServedSimulated
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent

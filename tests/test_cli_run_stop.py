@@ -25,7 +25,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from test_cli_run import MISSION, TIMEOUT_S, clark_run, free_ports, kill, started, text, wait_for
 
 from clark_engine.link.auth import generate_key_file
-from clark_engine.sim.served import ServedSimulated
+from clark_engine.standins.autopilot_sim import ServedSimulated
 from clark_engine.validation import validate_file
 
 

@@ -20,7 +20,7 @@ from sitl_here import real_install
 
 from clark_engine.cli import main
 from clark_engine.io.xbee import XBeeRadio
-from clark_engine.sim.sitl import ENV_SITL
+from clark_engine.sitl.launcher import ENV_SITL
 
 ROOT = Path(__file__).resolve().parent.parent
 MISSION = ROOT / "missions" / "cooperative_follow.yaml"

@@ -102,7 +102,7 @@ def test_an_older_activation_repeated_does_not_confirm_a_new_one() -> None:
     repeat = BehaviorState(3, GPS0 + 1000, ("chase",), "activate")
     mcs.deliver(PacketReceived(slash_b.heartbeat(1.0, repeat).data), 1.0)
     assert _sent(mcs.tick(1.5), "slash_b") == first
-    # The same rule is the station view's (gcs/model.py calls took_effect too).
+    # The same rule is the station view's (station/view_model.py calls took_effect too).
     record = mcs.fleet.record(3)
     assert record is not None and record.sample(BehaviorState) is not None
     before = record.sample(BehaviorState)

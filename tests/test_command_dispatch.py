@@ -1,7 +1,7 @@
 """Every shell carries out every command type, and refuses one it does not know.
 
 The runtime's commands (:data:`clark_engine.runtime.commands.Command`) are carried out by
-the dry run (``sim/engine.py``), the real-time shell (``shells/realtime.py``) and, for the
+the dry run (``dryrun/engine.py``), the real-time shell (``shells/realtime.py``) and, for the
 autopilot's, the autopilot adapter (``io/autopilot.py``). Each dispatches through one
 table checked against the command types when its module loads; a type a shell does not
 know is an engine bug and raises, naming the type. The dry run used to drop such a
@@ -16,6 +16,7 @@ from typing import get_args
 
 import pytest
 
+from clark_engine.dryrun.engine import _ROUTES, DryRun
 from clark_engine.io.autopilot import _NOT_THE_AUTOPILOTS, AutopilotAdapter, AutopilotSettings
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.validate import validate_path
@@ -32,7 +33,6 @@ from clark_engine.runtime.config import config_from_dict
 from clark_engine.runtime.logbook import Logbook
 from clark_engine.runtime.runtime import AgentRuntime
 from clark_engine.shells.realtime import _CARRY_OUT, RealtimeShell
-from clark_engine.sim.engine import _ROUTES, DryRun
 
 ROOT = Path(__file__).resolve().parent.parent
 MISSION = ROOT / "missions" / "single_vehicle_mode_change.yaml"

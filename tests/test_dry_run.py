@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pytest
 
+from clark_engine.dryrun.command import parse_fault, run_dry_run
+from clark_engine.dryrun.engine import DryRun
 from clark_engine.errors import UsageError
-from clark_engine.sim.dryrun import parse_fault, run_dry_run
-from clark_engine.sim.engine import DryRun
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent

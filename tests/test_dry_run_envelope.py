@@ -14,7 +14,7 @@ from __future__ import annotations
 import io
 from pathlib import Path
 
-from clark_engine.sim.dryrun import run_dry_run
+from clark_engine.dryrun.command import run_dry_run
 
 MISSION = """\
 clark: 1

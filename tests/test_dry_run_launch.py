@@ -13,10 +13,10 @@ from pathlib import Path
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from clark_engine.log_checks import check_folder
-from clark_engine.sim.dryrun import run_dry_run
-from clark_engine.sim.engine import DryRun
-from clark_engine.sim.pilot import SimPilot
+from clark_engine.dryrun.command import run_dry_run
+from clark_engine.dryrun.engine import DryRun
+from clark_engine.dryrun.pilot import SimPilot
+from clark_engine.expectations.from_logs import check_folder
 from clark_engine.validation import validate_file
 
 HERE = Path(__file__).resolve().parent
@@ -184,8 +184,8 @@ def test_not_reached_after_the_autopilot_disarmed_it(tmp_path: Path) -> None:
 
 
 def test_why_a_state_was_not_reached_from_the_recording() -> None:
-    from clark_engine.sim.checks import why_not_entered
-    from clark_engine.sim.recording import FlightEntry, Recording, StateEntry
+    from clark_engine.expectations.evaluate import why_not_entered
+    from clark_engine.expectations.recording import FlightEntry, Recording, StateEntry
 
     rec = Recording(end_s=100.0)
     rec.states["a"] = [StateEntry(40.0, "start", ("go",), ("go",))]

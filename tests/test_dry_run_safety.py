@@ -16,12 +16,12 @@ from pathlib import Path
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
+from clark_engine.dryrun.command import run_dry_run
+from clark_engine.dryrun.report import tracks_figure
+from clark_engine.expectations.recording import FlightEntry, Recording, StateEntry, Track
+from clark_engine.expectations.safety import judge
 from clark_engine.mission.compiler import agent_config
 from clark_engine.runtime.config import AgentConfig, config_from_dict
-from clark_engine.sim.dryrun import run_dry_run
-from clark_engine.sim.recording import FlightEntry, Recording, StateEntry, Track
-from clark_engine.sim.report import tracks_figure
-from clark_engine.sim.safety import judge
 from clark_engine.validation import validate_file
 
 HERE = Path(__file__).resolve().parent

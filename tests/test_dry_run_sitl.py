@@ -1,7 +1,7 @@
 """``clark dry-run --autopilot sitl``: the same mission on real ArduPilot, compared.
 
 The command line's rules are tested without SITL (the comparison of the two runs,
-:mod:`clark_engine.sim.timeline`, in tests/test_sitl_comparison.py). The example missions are
+:mod:`clark_engine.dryrun.timeline`, in tests/test_sitl_comparison.py). The example missions are
 then flown on real ArduPilot SITL (ArduRover, ArduCopter) at its speed-up: each
 passes its checks there too, and enters the same states as on the simulated
 autopilot within the tolerance. Those tests skip without SITL (CI has it).
@@ -19,11 +19,11 @@ from pathlib import Path
 import pytest
 from sitl_here import real_install
 
+from clark_engine.dryrun.engine import DryRun, rc_calibration_params
+from clark_engine.dryrun.sitl_backend import SitlBackend
+from clark_engine.expectations.evaluate import evaluate
 from clark_engine.runtime.config import ChannelSpec
-from clark_engine.sim.checks import evaluate
-from clark_engine.sim.engine import DryRun, rc_calibration_params
-from clark_engine.sim.sitl import ENV_SITL
-from clark_engine.sim.sitl_backend import SitlBackend
+from clark_engine.sitl.launcher import ENV_SITL
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent

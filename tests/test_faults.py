@@ -17,6 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from clark_engine.cli import main
+from clark_engine.dryrun.command import parse_fault
 from clark_engine.errors import UsageError
 from clark_engine.mission.faults import (
     FAULT_KINDS,
@@ -25,7 +26,6 @@ from clark_engine.mission.faults import (
     parse_fault_text,
 )
 from clark_engine.mission.schemas import validator
-from clark_engine.sim.dryrun import parse_fault
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -104,7 +104,7 @@ def test_mission_fault_is_refused_before_the_dry_run(
 
 @pytest.mark.parametrize("rate", ["1e-320", "1e-300", "4e-324"])
 def test_vanishing_telemetry_rate_is_a_finding(rate: str, tmp_path: Path) -> None:
-    """1e-320 Hz overflowed the divider (OverflowError in mission/checks.py)."""
+    """1e-320 Hz overflowed the divider (OverflowError in mission/cross_checks.py)."""
     result = validate_file(_mission(tmp_path, rate=rate), "m.yaml")
     assert [f.code for f in result.errors] == ["E-RATE"]
     assert "once a day" in result.errors[0].message

@@ -1,6 +1,6 @@
 """The station's alarms: breach, near miss and failsafe, raised once per episode, cleared.
 
-First the watch alone (:class:`~clark_engine.gcs.alarms.AlarmWatch`, pure, on made-up
+First the watch alone (:class:`~clark_engine.station.alarms.AlarmWatch`, pure, on made-up
 envelopes), then through the station's view over cooperative_follow's three real
 runtimes (tests/test_gcs_model.py's ``Fleet``): the envelopes it draws, the vehicles'
 health in their rows, and the alarms in the state and, once each, in the mission log.
@@ -14,7 +14,11 @@ from typing import Any
 import pytest
 from test_gcs_model import Fleet, agent
 
-from clark_engine.gcs.alarms import (
+from clark_engine.mission.fence import Fence, Zone
+from clark_engine.mission.geo import LocalPoint
+from clark_engine.runtime.config import EnvelopeSpec
+from clark_engine.runtime.events import AutopilotHealth, AutopilotText
+from clark_engine.station.alarms import (
     BREACH,
     CLEARED_SHOWN_S,
     FAILSAFE,
@@ -22,10 +26,6 @@ from clark_engine.gcs.alarms import (
     AlarmWatch,
     failsafe_words,
 )
-from clark_engine.mission.fence import Fence, Zone
-from clark_engine.mission.geo import LocalPoint
-from clark_engine.runtime.config import EnvelopeSpec
-from clark_engine.runtime.events import AutopilotHealth, AutopilotText
 
 
 def envelope(

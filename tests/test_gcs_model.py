@@ -16,14 +16,6 @@ from typing import Any
 
 import pytest
 
-from clark_engine.gcs.model import (
-    CommandRequest,
-    MissionLogBuffer,
-    StationView,
-    build_hello,
-    plan_of,
-    stale_after_s,
-)
 from clark_engine.link.messages import AgentType, Heartbeat, PictureData
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.geo import LocalPoint, Origin, to_global
@@ -39,6 +31,14 @@ from clark_engine.runtime.events import (
     VehicleState,
 )
 from clark_engine.runtime.runtime import AgentRuntime
+from clark_engine.station.view_model import (
+    CommandRequest,
+    MissionLogBuffer,
+    StationView,
+    build_hello,
+    plan_of,
+    stale_after_s,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 GPS0 = 1_400_000_000_000
@@ -438,8 +438,8 @@ def test_behaviour_names_from_the_air_reach_the_page_escaped() -> None:
     """A forged Behavior State: a right-to-left override (U+202E) that would show the
     operator a reversed state name and a terminal escape; each is escaped, and a flood of
     names is cut."""
-    from clark_engine.gcs.model import agent_row
     from clark_engine.link.messages import BehaviorState
+    from clark_engine.station.view_model import agent_row
 
     forged = BehaviorState(
         3, 0, ("chase\u202edekrap", "idle\x1b[2J", *[f"s{i}" for i in range(100)]), "done\u202e"

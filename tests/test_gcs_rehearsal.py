@@ -28,7 +28,10 @@ from mission_text import with_sim_keys
 from sitl_here import real_install
 
 from clark_engine.cli import main
-from clark_engine.gcs.rehearsal import (
+from clark_engine.dryrun.engine import DryRun
+from clark_engine.expectations.evaluate import evaluate
+from clark_engine.runtime.events import StationCommand
+from clark_engine.station.rehearsal_view import (
     NOT_EVALUATED,
     PASSED,
     PENDING,
@@ -36,9 +39,6 @@ from clark_engine.gcs.rehearsal import (
     final_checks,
     live_checks,
 )
-from clark_engine.runtime.events import StationCommand
-from clark_engine.sim.checks import evaluate
-from clark_engine.sim.engine import DryRun
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent

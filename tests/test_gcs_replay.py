@@ -29,19 +29,19 @@ import aiohttp
 import pytest
 
 from clark_engine.cli import main
-from clark_engine.gcs.replay import (
+from clark_engine.dryrun.command import run_dry_run
+from clark_engine.expectations.from_logs import check_folder
+from clark_engine.expectations.recording import Recording
+from clark_engine.link.fleet import FleetTable
+from clark_engine.mission.model import Mission
+from clark_engine.station.replay import (
     RESET_TRACK_POINTS,
     Replay,
     ReplayError,
     find_log_files,
     load_replay,
 )
-from clark_engine.gcs.server import CommandRejected, ViewServer, parse_replay_control
-from clark_engine.link.fleet import FleetTable
-from clark_engine.log_checks import check_folder
-from clark_engine.mission.model import Mission
-from clark_engine.sim.dryrun import run_dry_run
-from clark_engine.sim.recording import Recording
+from clark_engine.station.server import CommandRejected, ViewServer, parse_replay_control
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -16,9 +16,9 @@ from pathlib import Path
 
 from test_gcs_replay import FLEET_HEADER, _fleet_row, _mission, _row, _state_at
 
-from clark_engine.gcs.alarms import CLEARED_SHOWN_S
-from clark_engine.gcs.replay import load_replay
 from clark_engine.mission.geo import LocalPoint, Origin, to_global
+from clark_engine.station.alarms import CLEARED_SHOWN_S
+from clark_engine.station.replay import load_replay
 
 ORIGIN = Origin(30.6372, -96.4787, 90.0)  # cooperative_follow's
 

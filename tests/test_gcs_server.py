@@ -29,21 +29,6 @@ import pytest
 
 from clark_engine.cli import main
 from clark_engine.errors import UsageError
-from clark_engine.gcs.model import Snapshot, build_hello
-from clark_engine.gcs.server import (
-    MAX_MESSAGE_BYTES,
-    ViewServer,
-    parse_command,
-    parse_view_address,
-)
-from clark_engine.gcs.station import (
-    OpenView,
-    StationViewLink,
-    ViewSettings,
-    fleet_configs,
-    open_view,
-    view_settings,
-)
 from clark_engine.io.udp_radio import UdpRadio
 from clark_engine.link.codec import Codec
 from clark_engine.link.messages import ActivateController, AgentType, Heartbeat
@@ -51,6 +36,21 @@ from clark_engine.mission.compiler import agent_config
 from clark_engine.runtime.config import AgentConfig, config_from_dict
 from clark_engine.runtime.runtime import AgentRuntime
 from clark_engine.shells.realtime import RadioLink, RealtimeShell
+from clark_engine.station.live_view import (
+    OpenView,
+    StationViewLink,
+    ViewSettings,
+    fleet_configs,
+    open_view,
+    view_settings,
+)
+from clark_engine.station.server import (
+    MAX_MESSAGE_BYTES,
+    ViewServer,
+    parse_command,
+    parse_view_address,
+)
+from clark_engine.station.view_model import Snapshot, build_hello
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent

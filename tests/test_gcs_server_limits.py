@@ -28,10 +28,10 @@ from typing import Any
 import aiohttp
 import pytest
 
-from clark_engine.gcs.model import Snapshot, build_hello
-from clark_engine.gcs.server import ViewLimits, ViewServer, view_limits
 from clark_engine.mission.compiler import agent_config
 from clark_engine.runtime.config import config_from_dict
+from clark_engine.station.server import ViewLimits, ViewServer, view_limits
+from clark_engine.station.view_model import Snapshot, build_hello
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -230,7 +230,7 @@ CHILD = textwrap.dedent(
     import logging, resource, sys
     resource.setrlimit(resource.RLIMIT_NOFILE, (256, resource.getrlimit(resource.RLIMIT_NOFILE)[1]))
     logging.basicConfig(stream=sys.stderr, level=logging.INFO)
-    from clark_engine.gcs.server import ViewServer
+    from clark_engine.station.server import ViewServer
     sys.path.insert(0, sys.argv[1])
     from test_gcs_server_limits import HELLO
     server = ViewServer(HELLO, lambda r: None, port=0)

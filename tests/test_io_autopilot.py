@@ -60,8 +60,8 @@ from clark_engine.runtime.commands import (
 )
 from clark_engine.runtime.config import ConfigError, load_config
 from clark_engine.runtime.events import AutopilotHeartbeat, RcChannels, VehicleState
-from clark_engine.sim.autopilot import SimAutopilot
-from clark_engine.sim.model import Truth, VehicleModel
+from clark_engine.sim.ardupilot.autopilot import SimAutopilot
+from clark_engine.sim.ardupilot.vehicle_model import Truth, VehicleModel
 
 ROOT = Path(__file__).resolve().parent.parent
 HOME = (30.6319, -96.4826, 90.0)

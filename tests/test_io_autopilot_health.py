@@ -15,7 +15,7 @@ from test_io_autopilot import HOME, PLANE_MODES, START_UNIX_US, FakeModel
 
 from clark_engine.io.autopilot import AutopilotAdapter, AutopilotSettings
 from clark_engine.runtime.events import AutopilotHealth
-from clark_engine.sim.autopilot import SimAutopilot
+from clark_engine.sim.ardupilot.autopilot import SimAutopilot
 
 PREARM = 0x10000000  # MAV_SYS_STATUS_PREARM_CHECK
 

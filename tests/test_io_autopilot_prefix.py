@@ -19,7 +19,7 @@ from test_io_autopilot import HOME, PLANE_MODES, START_UNIX_US, FakeModel
 
 from clark_engine.io.autopilot import AutopilotAdapter, AutopilotSettings
 from clark_engine.runtime.events import VehicleState
-from clark_engine.sim.autopilot import SimAutopilot
+from clark_engine.sim.ardupilot.autopilot import SimAutopilot
 
 #: (time_boot_ms, lat, lon) of ArduPlane SITL's GLOBAL_POSITION_INT before its GPS fix
 #: (4.7.0-dev, boot at 30.6372, -96.4787; GPS_RAW_INT fix_type 0 throughout).

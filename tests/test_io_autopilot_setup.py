@@ -6,7 +6,7 @@ measured on SITL (docs/sitl-measurements.md, section 5): one PARAM_VALUE echo pe
 accepted PARAM_SET with the value stored in the parameter's own type (integers truncated
 and clamped), silence for an unknown name, "Param write denied" and the old value for an
 internal one; MISSION_REQUEST_INT per item and MISSION_ACK for a fence upload. Then the
-simulated ArduPilot (clark_engine.sim.autopilot), through the same bytes, with the plan
+simulated ArduPilot (clark_engine.sim.ardupilot.autopilot), through the same bytes, with the plan
 the runtime makes from real compiled missions: what each firmware ends up holding.
 """
 
@@ -24,6 +24,7 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from sitl_here import real_install
 
+from clark_engine.dryrun.engine import PHYSICS_STEP_S, build_vehicle
 from clark_engine.io.autopilot import (
     ACK_TIMEOUT_S,
     COMMAND_ATTEMPTS,
@@ -44,8 +45,7 @@ from clark_engine.runtime.commands import (
 )
 from clark_engine.runtime.config import config_from_dict
 from clark_engine.runtime.events import AutopilotSafetyResult
-from clark_engine.sim.engine import PHYSICS_STEP_S, build_vehicle
-from clark_engine.sim.sitl import ENV_SITL
+from clark_engine.sitl.launcher import ENV_SITL
 from clark_engine.validation import load_mission
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import pytest
 
+from clark_engine.dryrun.engine import DryRun
 from clark_engine.io.autopilot import AutopilotAdapter
-from clark_engine.sim.engine import DryRun
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -25,7 +25,7 @@ LEVELS = {"debug", "info", "warning", "error", "critical", "exception", "log"}
 #: (file, receiver) of calls that are not logging into an agent's logs.
 NOT_AGENT_LOGS = {
     ("cli.py", "parser"),  # argparse's error
-    ("gcs/server.py", "self.logger"),  # aiohttp's access logger, throttled
+    ("station/server.py", "self.logger"),  # aiohttp's access logger, throttled
 }
 
 

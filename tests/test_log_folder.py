@@ -12,11 +12,11 @@ from pathlib import Path
 
 import pytest
 
-from clark_engine.analyze import analyze_folder
-from clark_engine.gcs.replay import load_replay
-from clark_engine.log_checks import check_folder
-from clark_engine.log_folder import find_log_files
+from clark_engine.analysis.latency import analyze_folder
+from clark_engine.analysis.log_folder import find_log_files
+from clark_engine.expectations.from_logs import check_folder
 from clark_engine.runtime.logbook import MESSAGE_LOG_COLUMNS
+from clark_engine.station.replay import load_replay
 from tests.test_analyze_checks import COOPERATIVE, mission_at, write_run
 
 AGENTS = ["mcs", "slash_a", "slash_b"]

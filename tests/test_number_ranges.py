@@ -27,9 +27,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from clark_engine.cli import main
+from clark_engine.dryrun.command import run_dry_run
 from clark_engine.mission.compiler import compile_mission
 from clark_engine.mission.schemas import SCHEMA_NAMES, schema_text
-from clark_engine.sim.dryrun import run_dry_run
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -24,11 +24,11 @@ from test_gcs_alarms import envelope as alarm_envelope
 from test_gcs_alarms import kinds
 from test_runtime_envelope import Flight, _leave, compiled, local, of, past_the_proofs
 
-from clark_engine.gcs.alarms import NEAR_MISS, AlarmWatch
+from clark_engine.dryrun.command import run_dry_run
 from clark_engine.mission.compiler import compile_mission
 from clark_engine.mission.envelope_checks import WALK_95_FACTOR
 from clark_engine.runtime.commands import Goto, SetMode
-from clark_engine.sim.dryrun import run_dry_run
+from clark_engine.station.alarms import NEAR_MISS, AlarmWatch
 from clark_engine.validation import validate_file
 
 FOLLOW_UP_3 = "{use: follow_agent, with: {target: rover, offset: {up_m: 3}, continuous: true}}"

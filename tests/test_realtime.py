@@ -26,9 +26,9 @@ from mission_text import with_sim_keys
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.cli import main
+from clark_engine.dryrun.engine import DryRun, DryRunResult
+from clark_engine.dryrun.rehearsal import MavlinkBridge, datagrams, vehicle_names
 from clark_engine.mission.geo import LocalPoint, Origin, parse_point, to_local
-from clark_engine.sim.engine import DryRun, DryRunResult
-from clark_engine.sim.realtime import MavlinkBridge, datagrams, vehicle_names
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -15,10 +15,10 @@ from pathlib import Path
 
 import pytest
 
-from clark_engine.sim import engine
-from clark_engine.sim.checks import evaluate
-from clark_engine.sim.engine import SAMPLE_PERIOD_S, DryRun
-from clark_engine.sim.recording import MAX_TRACK_POINTS, Track
+from clark_engine.dryrun import engine
+from clark_engine.dryrun.engine import SAMPLE_PERIOD_S, DryRun
+from clark_engine.expectations.evaluate import evaluate
+from clark_engine.expectations.recording import MAX_TRACK_POINTS, Track
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -9,9 +9,9 @@ from pathlib import Path
 import pytest
 
 from clark_engine.cli import main
-from clark_engine.sim import dryrun
-from clark_engine.sim.dryrun import run_dry_run
-from clark_engine.sim.report import REPORT_MARKER
+from clark_engine.dryrun import command as dryrun
+from clark_engine.dryrun.command import run_dry_run
+from clark_engine.dryrun.report import REPORT_MARKER
 
 ROOT = Path(__file__).resolve().parent.parent
 FOLLOW = ROOT / "missions" / "cooperative_follow.yaml"

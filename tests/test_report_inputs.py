@@ -5,8 +5,8 @@ from __future__ import annotations
 import io
 from pathlib import Path
 
-from clark_engine.sim.dryrun import run_dry_run
-from clark_engine.sim.report import channel_function, inputs_figure
+from clark_engine.dryrun.command import run_dry_run
+from clark_engine.dryrun.report import channel_function, inputs_figure
 
 ROOT = Path(__file__).resolve().parent.parent
 SYSID = ROOT / "missions" / "supercub_sysid.yaml"

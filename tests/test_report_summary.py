@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from clark_engine.cli import main
-from clark_engine.sim.dryrun import run_dry_run
+from clark_engine.dryrun.command import run_dry_run
 
 ROOT = Path(__file__).resolve().parent.parent
 LOST_PEER = ROOT / "missions" / "fault_lost_peer.yaml"

@@ -7,9 +7,9 @@ from itertools import combinations
 from pathlib import Path
 from typing import Any
 
-from clark_engine.sim.dryrun import parse_fault, run_dry_run
-from clark_engine.sim.recording import Recording, StateEntry
-from clark_engine.sim.report import InjectedFault, timeline_figure
+from clark_engine.dryrun.command import parse_fault, run_dry_run
+from clark_engine.dryrun.report import InjectedFault, timeline_figure
+from clark_engine.expectations.recording import Recording, StateEntry
 
 ROOT = Path(__file__).resolve().parent.parent
 LOST_PEER = ROOT / "missions" / "fault_lost_peer.yaml"

@@ -9,10 +9,10 @@ from __future__ import annotations
 import io
 from pathlib import Path
 
-from clark_engine.sim.dryrun import run_dry_run
-from clark_engine.sim.recording import Recording, Track
-from clark_engine.sim.report import altitude_figure, tracks_figure
-from clark_engine.sim.safety import judge
+from clark_engine.dryrun.command import run_dry_run
+from clark_engine.dryrun.report import altitude_figure, tracks_figure
+from clark_engine.expectations.recording import Recording, Track
+from clark_engine.expectations.safety import judge
 
 ROOT = Path(__file__).resolve().parent.parent
 THREE = ROOT / "missions" / "three_vehicles_payload.yaml"

@@ -30,7 +30,7 @@ from pathlib import Path
 import pytest
 from sitl_here import real_install
 
-from clark_engine.sim.sitl import ENV_SITL
+from clark_engine.sitl.launcher import ENV_SITL
 
 ROOT = Path(__file__).resolve().parent.parent
 MISSION = ROOT / "missions" / "cooperative_follow.yaml"

@@ -20,8 +20,8 @@ from fake_vehicle import FakeModelHooks, RcServoBook
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.io.transports import UdpTransport
-from clark_engine.sim.autopilot import STREAM_GROUPS, SimAutopilot
-from clark_engine.sim.model import Truth, VehicleModel
+from clark_engine.sim.ardupilot.autopilot import STREAM_GROUPS, SimAutopilot
+from clark_engine.sim.ardupilot.vehicle_model import Truth, VehicleModel
 
 ROOT = Path(__file__).resolve().parent.parent
 HOME = (30.6319, -96.4826, 90.0)
@@ -592,7 +592,7 @@ def test_mav_options_bit_0_takes_mavlink_only_from_the_gcs() -> None:
 
 
 def test_empty_mission_and_an_upload_the_mission_protocol_answers() -> None:
-    # The mission protocol itself is clark_engine.sim.mission_protocol's (and its tests);
+    # The mission protocol itself is clark_engine.sim.ardupilot.mission_protocol's (and its tests);
     # here: the autopilot hands it the messages and its home. Home is set (an autopilot
     # booted before the run), so an empty mission counts 1 item, home, as ArduPilot's.
     sim, _ = make_sim()

@@ -17,7 +17,7 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from sim_station import Station
 
-from clark_engine.sim.dryrun import run_dry_run
+from clark_engine.dryrun.command import run_dry_run
 
 ACCEPTED, FAILED = mavlink2.MAV_RESULT_ACCEPTED, mavlink2.MAV_RESULT_FAILED
 WARNING, CRITICAL = 4, 2

@@ -19,7 +19,7 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from clark_engine.sim.mission_protocol import (
+from clark_engine.sim.ardupilot.mission_protocol import (
     ITEM_LIMITS,
     MissionItem,
     MissionItemError,

@@ -1,4 +1,4 @@
-"""The simulated autopilot's parameter list (sim/ap_params.py) and SYS_STATUS bits.
+"""The simulated autopilot's parameter list (sim/ardupilot/params.py) and SYS_STATUS bits.
 
 The list itself is asserted against SITL by tests/conformance/test_params.py; here: the
 shipped data is sound and agrees with the parameters the simulation acts on, it is shared
@@ -16,10 +16,11 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from test_sim_autopilot import Gcs, ask, download, make_sim
 
-from clark_engine.sim import ap_params, ap_sys_status
-from clark_engine.sim.ap_params import ParamStore, sitl_table
-from clark_engine.sim.autopilot import STREAM_RATES
-from clark_engine.sim.firmware import COMMON_PARAMS, FIRMWARES
+from clark_engine.sim.ardupilot import params as ap_params
+from clark_engine.sim.ardupilot import sys_status as ap_sys_status
+from clark_engine.sim.ardupilot.autopilot import STREAM_RATES
+from clark_engine.sim.ardupilot.firmware import COMMON_PARAMS, FIRMWARES
+from clark_engine.sim.ardupilot.params import ParamStore, sitl_table
 
 ROOT = Path(__file__).resolve().parent.parent
 

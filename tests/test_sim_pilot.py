@@ -16,9 +16,9 @@ from pathlib import Path
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from clark_engine.sim.backend import SimulatedBackend
-from clark_engine.sim.engine import DryRun
-from clark_engine.sim.pilot import REACTION_S
+from clark_engine.dryrun.backend import SimulatedBackend
+from clark_engine.dryrun.engine import DryRun
+from clark_engine.dryrun.pilot import REACTION_S
 from clark_engine.validation import validate_file
 
 HERE = Path(__file__).resolve().parent

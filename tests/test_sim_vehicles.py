@@ -25,8 +25,8 @@ from clark_engine.mission.compiler import compile_mission
 from clark_engine.mission.geo import LocalPoint, Origin, to_global, to_local
 from clark_engine.mission.validate import validate_path
 from clark_engine.runtime.config import config_from_dict
-from clark_engine.sim.model import LANDED_STATES, Truth, VehicleModel
-from clark_engine.sim.vehicles import (
+from clark_engine.sim.ardupilot.vehicle_model import LANDED_STATES, Truth, VehicleModel
+from clark_engine.sim.ardupilot.vehicles import (
     COPTER_FALL_TERMINAL_M_S,
     DEFAULT_GPS_NOISE_M,
     G_M_S2,

@@ -23,13 +23,12 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 # The vehicles are built and flown as the point-mass models' own tests build and fly them.
 from test_sim_vehicles import COPTER, CUB, DT_S, ROOT, ROVER, build, goto, run
 
+from clark_engine.dryrun.command import run_dry_run
+from clark_engine.dryrun.engine import build_sitl_vehicle
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.variation import resolve_mission
 from clark_engine.runtime.config import config_from_dict
-from clark_engine.sim.dryrun import run_dry_run
-from clark_engine.sim.engine import build_sitl_vehicle
-from clark_engine.sim.model import Truth, VehicleModel
-from clark_engine.sim.sitl import SitlInstall
+from clark_engine.sim.ardupilot.vehicle_model import Truth, VehicleModel
 from clark_engine.sim.wind import (
     SITL_WIND_PARAMS,
     WindConfig,
@@ -37,6 +36,7 @@ from clark_engine.sim.wind import (
     sitl_wind_params,
     wind_field,
 )
+from clark_engine.sitl.launcher import SitlInstall
 from clark_engine.validation import validate_file
 
 

@@ -1,4 +1,4 @@
-"""clark_engine.sim.sitl: finding SITL, choosing free instances, and never leaving a process.
+"""clark_engine.sitl.launcher: finding SITL, choosing free instances, and never leaving a process.
 
 Most tests run fake launchers (shell scripts in tmp_path that take the real one's
 arguments), so they need no ArduPilot; the last ones, marked ``sitl``, run the real
@@ -24,7 +24,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from sitl_here import real_install
 
 from clark_engine.errors import ClarkError
-from clark_engine.sim.sitl import (
+from clark_engine.sitl.launcher import (
     ENV_SITL,
     ENV_SITL_INSTANCES,
     Home,
@@ -277,7 +277,7 @@ def test_processes_racing_for_instances_never_share(tmp_path: Path) -> None:
         f"""
         import sys
         from pathlib import Path
-        from clark_engine.sim.sitl import reserve_instance
+        from clark_engine.sitl.launcher import reserve_instance
         lock = reserve_instance({candidates!r}, Path({str(tmp_path)!r}))
         print(lock.instance, flush=True)
         sys.stdin.read()  # hold the lock until told to stop
@@ -467,7 +467,7 @@ def test_interpreter_exit_stops_a_forgotten_sitl(listener: SitlInstall) -> None:
     child = run_child(
         f"""
         from pathlib import Path
-        from clark_engine.sim.sitl import Home, SitlInstall, SitlProcess
+        from clark_engine.sitl.launcher import Home, SitlInstall, SitlProcess
         p = SitlProcess(SitlInstall(Path({str(listener.launcher)!r})), "rover",
                         Home(30.0, -96.0, 90.0), instances=range(150, 190))
         p.start()
@@ -485,7 +485,7 @@ def test_a_killed_parent_takes_its_sitl_along(listener: SitlInstall) -> None:
         f"""
         import sys
         from pathlib import Path
-        from clark_engine.sim.sitl import Home, SitlInstall, SitlProcess
+        from clark_engine.sitl.launcher import Home, SitlInstall, SitlProcess
         p = SitlProcess(SitlInstall(Path({str(listener.launcher)!r})), "rover",
                         Home(30.0, -96.0, 90.0), instances=range(150, 190))
         p.start()

@@ -1,4 +1,4 @@
-"""The same mission both ways (:mod:`clark_engine.sim.timeline`), on hand-made recordings.
+"""The same mission both ways (:mod:`clark_engine.dryrun.timeline`), on hand-made recordings.
 
 ``clark dry-run --autopilot sitl`` judges the SITL run against the simulated one: each
 state's entry time against a share of its leg (with a floor), where each vehicle was at
@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from clark_engine.sim.checks import CheckResult, Figure
-from clark_engine.sim.recording import Recording, StateEntry, Track
-from clark_engine.sim.timeline import END_ROW, Tolerance, compare
+from clark_engine.dryrun.timeline import END_ROW, Tolerance, compare
+from clark_engine.expectations.evaluate import CheckResult, Figure
+from clark_engine.expectations.recording import Recording, StateEntry, Track
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -338,8 +338,8 @@ def test_the_simulated_run_sitl_is_compared_with_holds_equal_what_sitl_lacks() -
     """SITL boots on its own time, has no white GPS noise and no gusts: the comparison's
     simulated run has none of them either (seed 1 drew Slash A 2.0 s late, and the noise
     parked Slash B sooner than SITL, issue 19); what acts in the engine stays."""
+    from clark_engine.dryrun.command import as_sitl_flies, held_equal_for_sitl
     from clark_engine.mission.variation import resolve_mission
-    from clark_engine.sim.dryrun import as_sitl_flies, held_equal_for_sitl
     from clark_engine.validation import load_mission
 
     declared = load_mission(str(ROOT / "missions" / "cooperative_follow.yaml"))

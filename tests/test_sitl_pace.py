@@ -16,18 +16,18 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from sitl_here import NO_SITL, real_install
 
-from clark_engine.mission.geo import Origin
-from clark_engine.sim import sitl_pace
-from clark_engine.sim.recording import Pace
-from clark_engine.sim.report import pace_lines
-from clark_engine.sim.sitl import Home, SitlProcess
-from clark_engine.sim.sitl_backend import (
+from clark_engine.dryrun import sitl_pace
+from clark_engine.dryrun.report import pace_lines
+from clark_engine.dryrun.sitl_backend import (
     REPORT_AFTER_S,
     REPORT_STREAMS,
     LaterReport,
     SitlBackend,
 )
-from clark_engine.sim.sitl_pace import GENTLEST, MARGIN, RAISE, RAISE_AFTER_WALL_S, SitlPace
+from clark_engine.dryrun.sitl_pace import GENTLEST, MARGIN, RAISE, RAISE_AFTER_WALL_S, SitlPace
+from clark_engine.expectations.recording import Pace
+from clark_engine.mission.geo import Origin
+from clark_engine.sitl.launcher import Home, SitlProcess
 
 ORIGIN = Origin(30.6372, -96.4787, 90.0)
 
@@ -286,9 +286,9 @@ REAL = real_install()
 def test_an_engine_that_falls_behind_slows_sitl_to_the_pace_it_keeps() -> None:
     """An engine that keeps 4x of SITL's 10x (a sleep at each step) slows SITL to it.
 
-    First by :data:`~clark_engine.sim.sitl_pace.GENTLEST` (the pace kept is not known
-    yet), then to :data:`~clark_engine.sim.sitl_pace.MARGIN` of the pace the run kept
-    (the run falls :data:`~clark_engine.sim.sitl_pace.BEHIND_S` behind in a quarter of a
+    First by :data:`~clark_engine.dryrun.sitl_pace.GENTLEST` (the pace kept is not known
+    yet), then to :data:`~clark_engine.dryrun.sitl_pace.MARGIN` of the pace the run kept
+    (the run falls :data:`~clark_engine.dryrun.sitl_pace.BEHIND_S` behind in a quarter of a
     wall second at 10x, before half a second of the pace it keeps is known).
     Before: SITL ran on at its launch speed-up whatever the engine kept, and a loaded CI
     run fell 10 s behind ArduCopter SITL, whose ground-station failsafe then flew RTL

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pytest
 
+from clark_engine.expectations.evaluate import evaluate
+from clark_engine.expectations.recording import Recording, StateEntry
 from clark_engine.mission.geo import Origin
-from clark_engine.sim.checks import evaluate
-from clark_engine.sim.recording import Recording, StateEntry
 from clark_engine.validation import validate_file
 
 HEAD = """\

@@ -14,10 +14,10 @@ from typing import Any, cast
 
 import pytest
 
+from clark_engine.expectations.evaluate import evaluate, expected_signal, sweep_fidelity
+from clark_engine.expectations.recording import Recording, StateEntry
 from clark_engine.mission.geo import Origin
 from clark_engine.runtime.config import AgentConfig, StateSpec
-from clark_engine.sim.checks import evaluate, expected_signal, sweep_fidelity
-from clark_engine.sim.recording import Recording, StateEntry
 from clark_engine.validation import validate_file
 
 MISSION = """\

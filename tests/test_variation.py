@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from clark_engine.cli import main
+from clark_engine.dryrun.command import run_dry_run
 from clark_engine.errors import UsageError
 from clark_engine.mission.variation import (
     NORMAL_TAIL_SD,
@@ -19,7 +20,6 @@ from clark_engine.mission.variation import (
     resolve_mission,
     sim_schema,
 )
-from clark_engine.sim.dryrun import run_dry_run
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parents[1]

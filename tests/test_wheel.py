@@ -46,17 +46,17 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> Path:
     (wheel,) = dist.glob("clark_engine-*.whl")
     shipped = set(zipfile.ZipFile(wheel).namelist())
     for page_file in (
-        "clark_engine/gcs/static/index.html",
-        "clark_engine/gcs/static/app.js",
-        "clark_engine/gcs/static/style.css",
-        "clark_engine/gcs/static/vendor/leaflet/leaflet.js",
-        "clark_engine/gcs/static/vendor/leaflet/leaflet.css",
-        "clark_engine/gcs/static/vendor/leaflet/LICENSE",
-        "clark_engine/gcs/static/vendor/leaflet/images/marker-icon.png",
-        # ArduPilot's parameter lists the simulated autopilot reports (sim/ap_params.py).
-        "clark_engine/sim/sitl_params/ardurover.csv.gz",
-        "clark_engine/sim/sitl_params/arducopter.csv.gz",
-        "clark_engine/sim/sitl_params/arduplane.csv.gz",
+        "clark_engine/station/static/index.html",
+        "clark_engine/station/static/app.js",
+        "clark_engine/station/static/style.css",
+        "clark_engine/station/static/vendor/leaflet/leaflet.js",
+        "clark_engine/station/static/vendor/leaflet/leaflet.css",
+        "clark_engine/station/static/vendor/leaflet/LICENSE",
+        "clark_engine/station/static/vendor/leaflet/images/marker-icon.png",
+        # ArduPilot's parameter lists the simulated autopilot reports (sim/ardupilot/params.py).
+        "clark_engine/sim/ardupilot/sitl_params/ardurover.csv.gz",
+        "clark_engine/sim/ardupilot/sitl_params/arducopter.csv.gz",
+        "clark_engine/sim/ardupilot/sitl_params/arduplane.csv.gz",
     ):
         assert page_file in shipped, f"{page_file} is not in the wheel"
     env_dir = work / "venv"
@@ -131,7 +131,7 @@ def test_installed_engine_serves_the_station_view_page(installed: Path, tmp_path
     probe = _run(
         installed / "bin" / "python",
         "-c",
-        "from clark_engine.gcs.server import STATIC_DIR; "
+        "from clark_engine.station.server import STATIC_DIR; "
         "print(STATIC_DIR); "
         "print((STATIC_DIR / 'vendor/leaflet/leaflet.js').stat().st_size); "
         "print('data-testid=\"agents\"' in (STATIC_DIR / 'index.html').read_text())",

@@ -19,22 +19,22 @@ import pytest
 from mission_text import with_sim_keys
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from clark_engine.mission.compiler import agent_config
-from clark_engine.mission.geo import EARTH_RADIUS_M
-from clark_engine.mission.model import Mission
-from clark_engine.runtime.config import config_from_dict
-from clark_engine.sim.backend import SimulatedBackend
-from clark_engine.sim.engine import (
+from clark_engine.dryrun.backend import SimulatedBackend
+from clark_engine.dryrun.engine import (
     DryRun,
     DryRunResult,
     build_sitl_vehicle,
     build_vehicle,
     jittered_operator,
 )
-from clark_engine.sim.firmware import FIRMWARES
+from clark_engine.mission.compiler import agent_config
+from clark_engine.mission.geo import EARTH_RADIUS_M
+from clark_engine.mission.model import Mission
+from clark_engine.runtime.config import config_from_dict
+from clark_engine.sim.ardupilot.firmware import FIRMWARES
 from clark_engine.sim.gps_error import WALK_STEP_S, GpsError, GpsErrorSettings
 from clark_engine.sim.radio import BurstChain, BurstSettings, RadioMesh
-from clark_engine.sim.sitl import SitlInstall
+from clark_engine.sitl.launcher import SitlInstall
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent

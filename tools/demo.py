@@ -13,9 +13,9 @@ import time
 from pathlib import Path
 
 from clark_engine.data import data_dir
+from clark_engine.dryrun.command import run_dry_run
 from clark_engine.mission.compiler import compile_mission, write_configs
 from clark_engine.mission.validate import display_path
-from clark_engine.sim.dryrun import run_dry_run
 from clark_engine.validation import validate_file
 
 OUTPUT = Path("demo-output")

@@ -10,10 +10,10 @@ SITL build of ``../shared/ardupilot-sitl`` as ``clark dry-run --autopilot sitl``
 (a fresh vehicle with SITL's own default parameter file, at the missions' origin), waits
 until the parameters it sets by itself at boot have settled (10 s of autopilot time),
 downloads the whole list (PARAM_REQUEST_LIST, the missing ones asked for by index) and
-writes it to ``clark_engine/sim/sitl_params/<firmware>.csv.gz``: one ``name,type,value``
+writes it to ``clark_engine/sim/ardupilot/sitl_params/<firmware>.csv.gz``: one ``name,type,value``
 line per parameter in ArduPilot's index order (type: MAV_PARAM_TYPE; value: the float a
 PARAM_VALUE carries, written so that it reads back exactly). The files are package data,
-loaded lazily by ``clark_engine.sim.ap_params``.
+loaded lazily by ``clark_engine.sim.ardupilot.params``.
 
 ``--check`` reads the shipped files back and checks them (every firmware present, names
 unique, types known) without SITL. Run the generator again for a new SITL build, and say
@@ -35,8 +35,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tools" / "sitl_measurements"))
 
-from clark_engine.sim import ap_params  # noqa: E402
-from clark_engine.sim.sitl import VEHICLES, SitlInstall, SitlNotFound  # noqa: E402
+from clark_engine.sim.ardupilot import params as ap_params  # noqa: E402
+from clark_engine.sitl.launcher import VEHICLES, SitlInstall, SitlNotFound  # noqa: E402
 
 SETTLE_S = 10.0
 """Autopilot seconds after boot before the download: SITL sets EK3_SRC1_POSXY and

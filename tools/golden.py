@@ -310,8 +310,8 @@ def make_compile(name: str, out: Path) -> dict[str, bytes]:
 
 def make_dry_run(name: str, out: Path) -> dict[str, bytes]:
     """``clark dry-run missions/<name>.yaml --seed 1 --report ...``, its outputs normalised."""
+    from clark_engine.dryrun.command import run_dry_run
     from clark_engine.errors import ClarkError
-    from clark_engine.sim.dryrun import run_dry_run
 
     report = out / "dry-run" / name / "report"
     stdout, stderr = io.StringIO(), io.StringIO()

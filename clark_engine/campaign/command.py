@@ -37,9 +37,9 @@ from clark_engine.campaign.runs import (
     run_seed,
     unpack,
 )
+from clark_engine.dryrun.report import REPORT_MARKER, ReportFolder, vary_value_text
 from clark_engine.errors import ClarkError, UsageError
 from clark_engine.mission.model import Mission
-from clark_engine.sim.report import REPORT_MARKER, ReportFolder, vary_value_text
 
 DEFAULT_RUNS: Final = 100
 """Runs when neither ``--runs`` nor the mission's ``campaign.runs`` says."""
@@ -55,7 +55,7 @@ DEFAULT_SITL_RUN_TIMEOUT_S: Final = 1800.0
 mission takes about 20 s at 10x; half an hour means it hangs)."""
 
 COMPARISON_CHECK: Final = "the same mission on ArduPilot SITL"
-"""The comparison row a SITL run adds to its checks (:mod:`clark_engine.sim.timeline`)."""
+"""The comparison row a SITL run adds to its checks (:mod:`clark_engine.dryrun.timeline`)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -139,7 +139,7 @@ class Progress:
 def check_labels(mission: Mission) -> list[str]:
     """Every row name a run's checks table may have.
 
-    The mission's checks (named as :mod:`clark_engine.sim.checks` names them), the SITL
+    The mission's checks (named as :mod:`clark_engine.expectations.evaluate` names them), the SITL
     comparison, and the safety judgement's rows.
     """
     names = []
@@ -191,7 +191,7 @@ def _check_vary(mission: Mission, vary: Sequence[str]) -> None:
 
 def _check_faults(mission: Mission, faults: Sequence[str]) -> None:
     """Refuse a malformed ``--fault`` or one naming an unknown agent (exit 2)."""
-    from clark_engine.sim.dryrun import parse_fault
+    from clark_engine.dryrun.command import parse_fault
 
     for text in faults:
         ((kind, body),) = parse_fault(text).items()
@@ -272,7 +272,7 @@ def run_campaign(
         for i in range(runs)
     ]
     # Import the engine here, before a pool forks: each worker starts with it loaded.
-    import clark_engine.sim.dryrun  # noqa: F401
+    import clark_engine.dryrun.command  # noqa: F401
 
     backend = backend_for(
         options.scheduler, options.workers, sitl_spec is not None, options.sitl_per_worker, runs

@@ -16,8 +16,8 @@ from typing import Final
 
 from clark_engine.campaign.runs import FIGURE_KINDS, Figure, RunResult
 from clark_engine.campaign.stats import spread, wilson_interval
-from clark_engine.sim.report import equivalent_command
-from clark_engine.sim.report import vary_value_text as value_text
+from clark_engine.dryrun.report import equivalent_command
+from clark_engine.dryrun.report import vary_value_text as value_text
 
 RUN_VERDICT: Final = "every check (the run's verdict)"
 """The first row of the checks table: runs that held every check and their safety."""
@@ -279,7 +279,7 @@ def plot_name(path: str) -> str:
 
 def plot_factor(target: Path, factor: Factor) -> None:
     """A bar per bin: its pass rate, with its 95 % Wilson interval and its run count."""
-    from clark_engine.sim.report import _pyplot, _save
+    from clark_engine.dryrun.report import _pyplot, _save
 
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 3.6))

@@ -11,7 +11,7 @@ worker). A run on ArduPilot SITL, and any run given a timeout, is flown in a chi
 process of its own, in its own process group (:func:`run_in_group`): when the timeout
 passes the group is stopped (SIGTERM, then SIGKILL), and the SITL processes the run
 started die with it (they stop on the run's SIGTERM, and the kernel kills them when the
-process that started them dies: :func:`clark_engine.sim.sitl._death_pact`).
+process that started them dies: :func:`clark_engine.sitl.launcher._death_pact`).
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
 if TYPE_CHECKING:
-    from clark_engine.sim.dryrun import Outcome
+    from clark_engine.dryrun.command import Outcome
 
 STOP_GRACE_S: Final = 10.0
 """Seconds between SIGTERM and SIGKILL when a run's process group is stopped: time for
@@ -244,7 +244,7 @@ def mission_sha256(path: Path) -> str:
 
 def _accepts_vary() -> bool:
     """True when this engine's dry run takes ``vary`` (the world's variations)."""
-    from clark_engine.sim.dryrun import run_dry_run
+    from clark_engine.dryrun.command import run_dry_run
 
     return "vary" in inspect.signature(run_dry_run).parameters
 
@@ -279,9 +279,9 @@ def fly(spec: RunSpec) -> RunResult:
 
 def fly_here(spec: RunSpec) -> RunResult:
     """Fly one run in this process (the engine imported once per worker)."""
+    from clark_engine.dryrun.command import run_dry_run
     from clark_engine.errors import ClarkError
-    from clark_engine.sim.dryrun import run_dry_run
-    from clark_engine.sim.sitl import SitlInstall
+    from clark_engine.sitl.launcher import SitlInstall
 
     start = time.perf_counter()
     cpu_start = time.process_time()
@@ -388,7 +388,7 @@ def run_in_group(
     Returns:
         Its exit code, or None when the timeout passed and the group was stopped.
     """
-    from clark_engine.sim.sitl import _death_pact
+    from clark_engine.sitl.launcher import _death_pact
 
     in_child = _death_pact(os.getpid())
     with contextlib.ExitStack() as stack:

@@ -9,7 +9,7 @@ the thesis's autopilot interface (requirements 4.3.1-4.3.6 and 7.1.1-7.1.5)
 without DroneKit, and it is pure: it owns no socket, no thread and no clock.
 The shell that owns the link hands it bytes and the time they arrived, and
 sends what it returns; the dry run drives the same adapter through an
-in-memory pipe to :class:`~clark_engine.sim.autopilot.SimAutopilot`, so the
+in-memory pipe to :class:`~clark_engine.sim.ardupilot.autopilot.SimAutopilot`, so the
 flight code path is the tested code path.
 
 Lifecycle, for a shell::

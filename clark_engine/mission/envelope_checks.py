@@ -21,7 +21,7 @@ Checks of one primitive's own parameters call :func:`check_point` and
 :func:`check_leg` from the primitive (:mod:`clark_engine.behaviors.shared`, and follow_agent's
 checks use :func:`possible_heights` and :func:`goal_distance_range`);
 :func:`check_mission` checks what spans states and vehicles, and is run by
-:func:`clark_engine.mission.checks.run_all`. What cannot be proved (reactive
+:func:`clark_engine.mission.cross_checks.run_all`. What cannot be proved (reactive
 behaviours) is said once per case as ``W-ENVELOPE-REACTIVE``: the runtime holds the
 envelope in flight and the dry run judges it.
 """

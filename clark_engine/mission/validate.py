@@ -19,10 +19,9 @@ from clark_engine.data import data_dir
 from clark_engine.errors import UsageError
 from clark_engine.mission import envelope
 from clark_engine.mission.blocks import BlockLibrary
-from clark_engine.mission.checks import run_all
+from clark_engine.mission.cross_checks import run_all
 from clark_engine.mission.findings import DocPath, Finding, Location, error, warning
 from clark_engine.mission.geo import LocalPoint, Origin, parse_point
-from clark_engine.mission.machine import BehaviorResolver
 from clark_engine.mission.model import (
     ARMED_BY,
     DEFAULT_COMPUTER_LOST_S,
@@ -35,6 +34,7 @@ from clark_engine.mission.model import (
 from clark_engine.mission.paths import confine, too_long
 from clark_engine.mission.profiles import HardwareResolver, ProfileLibrary
 from clark_engine.mission.schemas import validate_data
+from clark_engine.mission.state_tree import BehaviorResolver
 from clark_engine.mission.yaml_loader import Document, YamlLoadError, decode_text, load_yaml
 
 

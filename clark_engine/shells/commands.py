@@ -137,7 +137,7 @@ def run(args: Any, out: TextIO | None = None) -> int:
     """``clark run``: the agent on its interfaces until stopped.
 
     With ``--view`` (a station only), the station's live web view is served alongside
-    (:mod:`clark_engine.gcs`, docs/station-view.md): its server starts before any link
+    (:mod:`clark_engine.station`, docs/station-view.md): its server starts before any link
     opens and stops after the loop, its clients sent the last state.
     """
     out = out if out is not None else sys.stdout
@@ -149,8 +149,8 @@ def run(args: Any, out: TextIO | None = None) -> int:
     if args.script and config.role != "mcs":
         raise UsageError("--script plays the station's operator script: run it on the station")
     options = run_options(args, config, key_folder)
-    from clark_engine.gcs.station import fleet_configs, open_view, view_settings
     from clark_engine.io.radio import RadioError
+    from clark_engine.station.live_view import fleet_configs, open_view, view_settings
 
     settings = view_settings(
         getattr(args, "view", None),

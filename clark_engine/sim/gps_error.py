@@ -23,7 +23,7 @@ the error. :class:`GpsError` models that error on each horizontal axis:
 
 The dry run's vehicle model is the autopilot's estimate (what it reports and
 flies by); the vehicle's TRUE position is the estimate minus this error
-(:class:`~clark_engine.sim.backend.SimulatedBackend`). When the error changes,
+(:class:`~clark_engine.dryrun.backend.SimulatedBackend`). When the error changes,
 the estimate moves and the truth does not; the autopilot then flies the
 estimate back to its target, which moves the truth. The white ``gps_noise_m``
 of each fix comes on top, as before. ArduPilot's EKF rejects a GPS jump larger

@@ -8,7 +8,7 @@ under test through a link:
   exactly as ``clark dry-run`` builds it (see :func:`build_sim_link`), on a
   virtual clock: every pump steps the vehicle model by the dry run's physics step
   and collects what the autopilot emits, so a scenario runs in milliseconds.
-- :class:`SitlLink`: real ArduPilot SITL (:mod:`clark_engine.sim.sitl`) over TCP,
+- :class:`SitlLink`: real ArduPilot SITL (:mod:`clark_engine.sitl.launcher`) over TCP,
   with wall-clock deadlines derived from the vehicle-time ones and the speed-up.
 
 Scenarios are written once, in the autopilot's time: ``now_s`` is the latest
@@ -34,13 +34,13 @@ from typing import Any, Protocol
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from clark_engine.dryrun.engine import PHYSICS_STEP_S, build_vehicle
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.model import Mission
 from clark_engine.runtime.config import config_from_dict
-from clark_engine.sim.autopilot import SimAutopilot
-from clark_engine.sim.engine import PHYSICS_STEP_S, build_vehicle
-from clark_engine.sim.model import VehicleModel
-from clark_engine.sim.sitl import ENV_SITL, Home, SitlError, SitlInstall, SitlProcess
+from clark_engine.sim.ardupilot.autopilot import SimAutopilot
+from clark_engine.sim.ardupilot.vehicle_model import VehicleModel
+from clark_engine.sitl.launcher import ENV_SITL, Home, SitlError, SitlInstall, SitlProcess
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -7,7 +7,7 @@ from collections.abc import Iterator
 import pytest
 from harness import AGENT, KINDS, Peer, build_sim_link, open_peer, vehicle_spec
 
-from clark_engine.sim.engine import PHYSICS_STEP_S, DryRun
+from clark_engine.dryrun.engine import PHYSICS_STEP_S, DryRun
 
 
 @pytest.mark.parametrize("kind", KINDS)

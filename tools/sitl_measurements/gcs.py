@@ -1,7 +1,7 @@
 """The small ground station every measurement script in this folder flies with.
 
 Each script boots one fresh ArduPilot SITL vehicle through
-:class:`clark_engine.sim.sitl.SitlProcess` (a free instance, held under its lock and always
+:class:`clark_engine.sitl.launcher.SitlProcess` (a free instance, held under its lock and always
 stopped), talks MAVLink 2 (ardupilotmega) to it as system 255 / component 190, and keeps
 its own clock from the autopilot's ``time_boot_ms`` (SYSTEM_TIME is asked for at 10 Hz, so
 every time is the autopilot's, to about 0.1 s, whatever the wall clock or the machine's
@@ -33,7 +33,7 @@ from typing import IO, Any
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
 import clark_engine
-from clark_engine.sim.sitl import (
+from clark_engine.sitl.launcher import (
     ENV_SPEEDUP,
     VEHICLES,
     Home,

@@ -448,7 +448,7 @@ def _sim() -> Schema:
 
 def _sitl_tolerance() -> Schema:
     # The defaults and their reasons: docs/autopilot-fidelity.md, "The same mission both
-    # ways"; clark_engine/sim/timeline.py applies them.
+    # ways"; clark_engine/dryrun/timeline.py applies them.
     return obj(
         "With clark dry-run --autopilot sitl: how close the mission on ArduPilot SITL must "
         "come to the same mission on the simulated autopilot for the comparison to pass. "

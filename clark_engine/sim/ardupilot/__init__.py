@@ -1,0 +1,1 @@
+"""The simulated ArduPilot: what a dry run's vehicles fly with, met only as MAVLink bytes."""

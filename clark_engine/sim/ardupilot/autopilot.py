@@ -1,0 +1,2716 @@
+"""A simulated ArduPilot: a MAVLink endpoint in front of a :class:`VehicleModel`.
+
+:class:`SimAutopilot` speaks MAVLink 2 as ArduPilot does, so that the engine's
+real :class:`~clark_engine.io.autopilot.AutopilotAdapter` (and pymavlink,
+MAVProxy, MAVSDK or a ground station, in real-time mode) can fly a simulated
+vehicle without knowing it is one. It wraps a
+:class:`~clark_engine.sim.ardupilot.vehicle_model.VehicleModel` (the physics and flight modes) and
+adds what ArduPilot's own logic does around them: it boots, gets ready, checks
+before it arms, refuses what ArduPilot refuses with ArduPilot's words, keeps home,
+disarms a landed copter, streams at requested intervals and answers commands.
+
+It is never kinder than ArduPilot where the engine or a ground station can tell.
+The facts it follows are per firmware in :mod:`clark_engine.sim.ardupilot.firmware`, each
+measured on ArduPilot SITL; ``tests/conformance`` runs the same scenarios against
+this class and against SITL, and docs/autopilot-fidelity.md tables the result.
+
+It is pure and deterministic: no clock, no socket, no randomness. The simulator
+hands it incoming bytes with :meth:`SimAutopilot.receive` and collects what it
+emits with :meth:`SimAutopilot.advance`; both take the virtual time. Replies to
+requests are queued by ``receive`` and leave with the next ``advance``.
+
+What it does, in ArduPilot's order:
+
+- **Boot** (:class:`~clark_engine.sim.ardupilot.firmware.BootTimes`, counted from ``boot_s``):
+  HEARTBEAT from power-on (INITIALISING for a second where the firmware has it),
+  its boot STATUSTEXTs, then the streams from "ArduPilot Ready"; a stream request
+  that arrives before the first HEARTBEAT is acknowledged and lost, as ArduPilot's
+  is (one after it is kept, and starts with the streams). No position (0, 0) and
+  GPS fix 0 until the fix; SYSTEM_TIME's Unix time 0 until then; home set when the
+  firmware sets it (HOME_POSITION sent then); the EKF's flags step from
+  uninitialised to attitude to an absolute position; SYS_STATUS's sensor bits as
+  ArduPilot sets them (:mod:`clark_engine.sim.ardupilot.sys_status`), its pre-arm check bit
+  set once arming would pass in the current mode.
+- **Arming** (MAV_CMD_COMPONENT_ARM_DISARM): refused with CRITICAL ``Arm: ...``
+  texts and FAILED while a check fails (the boot phase, a mode that is not armable,
+  a mode that needs a position before the EKF has one); while checks fail a
+  ``PreArm: ...`` text every 30 s; the throttle must be at zero. Forced arming
+  skips the checks. Home moves where each firmware moves it (ArduCopter at arming,
+  ArduRover at disarming, ArduPlane with its GPS while disarmed) unless a ground
+  station set it. Disarming in the air is refused (FAILED, no text) unless forced.
+  ArduCopter disarms by itself DISARM_DELAY after arming if it has not taken off,
+  and 2 s after touching down in LAND, RTL or AUTO. Arming a plane in TAKEOFF (or
+  AUTO with a takeoff first) launches it. Two internal errors SITL showed block
+  arming until a reboot: ArduRover's RTL before its EKF origin and ArduCopter's
+  second SMART_RTL entry while disarmed.
+- **Modes** (MAV_CMD_DO_SET_MODE acknowledged; the SET_MODE message is not, as in
+  ArduPilot 4.7): an unknown number is FAILED with "No such mode N"; every
+  refusal of every mode of the profiles, disarmed and armed, before and after the
+  vehicle is ready, is ArduPilot's, with its texts (the firmware's facts, measured
+  mode by mode); ArduPlane's AUTO without a mission becomes RTL at once;
+  ArduCopter's LAND on the ground disarms it.
+- **Missions** (:class:`~clark_engine.sim.ardupilot.mission_protocol.MissionProtocol`):
+  upload, download, clear, partial update and the current item of the mission,
+  fence and rally lists, as ArduPilot answers them; MISSION_CURRENT; AUTO entered
+  as each firmware allows it (ArduRover and ArduCopter armed on the ground need a
+  mission, ArduCopter one that starts with a takeoff), MAV_CMD_MISSION_START and
+  DO_SET_MISSION_CURRENT. AUTO flies the mission's navigation items one after the
+  other (takeoff, waypoints and loiters as points, land, return to launch; any
+  other item is passed), saying what ArduPilot says at each, and ends as each
+  firmware ends it (ArduRover stops, "Mission Complete"; ArduCopter holds, or
+  lands, disarms and starts the mission over; ArduPlane turns to RTL).
+- **Commands**: DO_CHANGE_SPEED as each firmware accepts it; NAV_TAKEOFF
+  (ArduCopter: guided, armed, landed; COMMAND_INT in the relative-altitude frame);
+  NAV_LAND; NAV_RETURN_TO_LAUNCH; NAV_LOITER_UNLIM; DO_SET_HOME; GET_HOME_POSITION;
+  DO_REPOSITION (COMMAND_INT); DO_SET_SERVO; SET_MESSAGE_INTERVAL,
+  GET_MESSAGE_INTERVAL, REQUEST_MESSAGE, REQUEST_AUTOPILOT_CAPABILITIES; anything
+  else UNSUPPORTED. SET_POSITION_TARGET_GLOBAL_INT in guided (position, or position
+  and velocity, which ArduCopter extrapolates; ArduPlane takes only the altitude);
+  RC_CHANNELS_OVERRIDE from MAV_GCS_SYSID, lapsing after RC_OVERRIDE_TIME; the
+  guided-mode MISSION_ITEM(_INT) of MAVProxy's ``guided``; PARAM_* as ArduPilot 4.7
+  answers them, over its whole list (:mod:`clark_engine.sim.ardupilot.params`: SITL's names,
+  types, values and order; a list paced at PARAM_LIST_RATE_HZ; a PARAM_VALUE
+  answering a read by name or a set carries index 65535;
+  a set is echoed with the stored value in the parameter's own type, integers
+  truncated and clamped to their C type, never clamped to the documented range;
+  unknown names, NaN and infinities get no answer);
+  FILE_TRANSFER_PROTOCOL (a NAK, so stations fall back to parameters); TIMESYNC.
+- **Streams**: HEARTBEAT at 1 Hz; SYS_STATUS, GPS_RAW_INT, GLOBAL_POSITION_INT,
+  ATTITUDE (with body rates), VFR_HUD, SYSTEM_TIME, RC_CHANNELS, SERVO_OUTPUT_RAW,
+  EKF_STATUS_REPORT, EXTENDED_SYS_STATE (ArduCopter, ArduPlane), MISSION_CURRENT,
+  BATTERY_STATUS, NAV_CONTROLLER_OUTPUT and POSITION_TARGET_GLOBAL_INT (while the
+  mode flies to a target) at rates from the MAV1_* stream parameters (ArduCopter
+  streams nothing until asked), overridden per message by
+  MAV_CMD_SET_MESSAGE_INTERVAL (-1 stops, 0 restores the default) or per group by
+  REQUEST_DATA_STREAM. STATUSTEXT whenever ArduPilot would speak.
+
+- **The fence** (:mod:`clark_engine.sim.ardupilot.fence`): FENCE_* and the uploaded fence list,
+  checked at each firmware's rate against the position the autopilot believes (its
+  altitude above home as it reports it), breach texts and FENCE_ACTION, manual
+  recovery, pre-arm refusals, guided destinations refused (ArduCopter, ArduPlane),
+  ArduRover's avoidance stopping short, SYS_STATUS's geofence bit, FENCE_STATUS,
+  MAV_CMD_DO_FENCE_ENABLE.
+- **The ground-station failsafe** (:mod:`clark_engine.sim.ardupilot.gcs_failsafe`): the silence of
+  MAV_GCS_SYSID's heartbeats (and RC overrides, MANUAL_CONTROL), each firmware's
+  timeouts, actions and texts.
+- **Altitudes** as each firmware fills GLOBAL_POSITION_INT while it boots: ArduCopter
+  all zero before its fix; ArduRover and ArduPlane their barometer's height until their
+  estimate has one above sea level (ArduRover's home set at that height). Positions
+  before the fix are 0, 0, but ArduPlane's, which drift away from there as its DCM
+  dead-reckons (SITL: 35 m in 6 s) while GPS_RAW_INT says no fix.
+
+Not simulated (docs/autopilot-fidelity.md): flying by rally points (they are kept,
+never used), mission DO items other than DO_CHANGE_SPEED, DO_SET_SERVO and
+DO_SET_HOME, signing, terrain, failsafes other than the ground station's and the fence
+(radio, battery; of the EKF's, only ArduRover's refusal of modes that need a position),
+AUTOLAND, and more than one MAVLink channel (all peers share one byte stream, as behind
+a router).
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, Final
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from clark_engine.mission.fence import Fence, Zone
+from clark_engine.mission.geo import EARTH_RADIUS_M
+from clark_engine.sim.ardupilot import sys_status as ap_sys_status
+from clark_engine.sim.ardupilot.fence import (
+    ALL_FENCES,
+    ALT_MIN,
+    CHECK_PERIOD_S,
+    CIRCLE,
+    POLYGON,
+    ArduFence,
+    FencePosition,
+    FenceZones,
+    Point2,
+    react,
+)
+from clark_engine.sim.ardupilot.firmware import (
+    COMMON_PARAMS,
+    FIRMWARES,
+    FORCE_MAGIC,
+    BootTimes,
+    Firmware,
+)
+from clark_engine.sim.ardupilot.gcs_failsafe import GcsFailsafe
+from clark_engine.sim.ardupilot.mission_protocol import MissionItem, MissionProtocol, MissionState
+from clark_engine.sim.ardupilot.params import INT16, Param, ParamStore, sitl_table
+from clark_engine.sim.ardupilot.vehicle_model import Truth, VehicleModel
+from clark_engine.sim.ardupilot.vehicle_safety import ModeReason
+
+FIRMWARE_TYPES: Final[Mapping[str, int]] = {
+    "arduplane": mavlink2.MAV_TYPE_FIXED_WING,
+    "arducopter": mavlink2.MAV_TYPE_QUADROTOR,
+    "ardurover": mavlink2.MAV_TYPE_GROUND_ROVER,
+}
+"""HEARTBEAT vehicle type per firmware."""
+
+FIRMWARE_VERSION: Final = (4, 7, 0)
+"""The ArduPilot version the simulation claims in AUTOPILOT_VERSION: the SITL build its
+facts were measured on (4.7.0-dev), whose parameter names it has (MAV_SYSID,
+MAV_GCS_SYSID, MAV1_*; 4.5's SYSID_THISMAV, SYSID_MYGCS and SR0_* are unknown to it)."""
+FIRMWARE_VERSION_TYPE: Final = int(mavlink2.FIRMWARE_VERSION_TYPE_DEV)
+"""A development build, as SITL's master build reports itself."""
+
+CAPABILITIES: Final[Mapping[str, int]] = {
+    "ardurover": 0xF1EF,
+    "arducopter": 0xFBEF,
+    "arduplane": 0xF36F,
+}
+"""AUTOPILOT_VERSION capabilities, exactly as the SITL builds report them."""
+
+_M_PER_DEG_LAT: Final = math.radians(1.0) * EARTH_RADIUS_M
+"""Metres per degree of latitude, on the sphere the vehicle models use."""
+
+HEARTBEAT_INTERVAL_US: Final = 1_000_000
+INITIALISING_S: Final = 1.0
+"""How long a firmware with an INITIALISING mode reports it after power-on."""
+INTERNAL_ERROR_TEXT: Final = "Arm: Internal errors 0x100000 l:{line} flow_of_ctrl"
+"""The arming refusal after an internal error (AP_InternalError's flow_of_control, raised
+at a line of ArduPilot's source: ArduRover's AR_WPNav 239, ArduCopter's SmartRTL 130)."""
+THROTTLE_DEAD_ZONE_US: Final = 30
+"""RC3_DZ: a throttle this close to zero counts as zero for arming (measured: SITL armed
+at its 1000 us minimum and refused 1200 us; the rover armed at its 1500 us trim)."""
+MISSION_POLL_S: Final = 0.1
+"""How often an upload's resends and timeout are looked at (their times are whole seconds)."""
+_AUTO_IDLE, _AUTO_WAITING, _AUTO_FLYING, _AUTO_HOLDING, _AUTO_DONE = range(5)
+_TARGET_COMMANDS: Final = frozenset(
+    {
+        int(mavlink2.MAV_CMD_NAV_WAYPOINT),
+        int(mavlink2.MAV_CMD_NAV_LOITER_UNLIM),
+        int(mavlink2.MAV_CMD_NAV_LOITER_TIME),
+        int(mavlink2.MAV_CMD_NAV_LOITER_TURNS),
+        int(mavlink2.MAV_CMD_NAV_LOITER_TO_ALT),
+        int(mavlink2.MAV_CMD_NAV_SPLINE_WAYPOINT),
+        int(mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH),
+    }
+)
+"""Mission items flown as a point to go to (loiters and splines as a plain waypoint)."""
+_HOLDING_COMMANDS: Final = frozenset(
+    {int(mavlink2.MAV_CMD_NAV_WAYPOINT), int(mavlink2.MAV_CMD_NAV_LOITER_TIME)}
+)
+"""Items whose param1 is a time to stay at their point (seconds)."""
+"""AUTO's executor: no item, item not begun (disarmed, or a copter on the ground before
+MISSION_START), flying it, holding at it (its hold time), done (LOITER_UNLIM)."""
+PLANE_LAUNCH_S: Final = 0.2
+"""ArduPlane, armed in TAKEOFF: "Triggered AUTO" this long after arming (measured)."""
+PLANE_TAKEOFF_STARTS_S: Final = 1.2
+"""ArduPlane, armed in TAKEOFF: "Takeoff to ..." and landed_state TAKEOFF this long after
+arming (measured 1.2 s; the ground roll has begun)."""
+ROVER_STOPPED_M_S: Final = 0.1
+"""ArduRover says "Reached destination" in RTL once stopped there (ATC_STOP_SPEED; SITL
+said it 0.4 m from home, at 0.38 m/s after overshooting, 17.5 s into a 25 m return)."""
+STATUSTEXT_CHUNK: Final = 50
+"""Characters per STATUSTEXT; ArduPilot sends a longer text as several with one id."""
+PREARM_REPORT_PERIOD_S: Final = 30.0
+"""ArduPilot prints failing pre-arm checks this often (AP_Arming's PREARM_DISPLAY_PERIOD)."""
+LANDED_REPORT_DELAY_S: Final = 1.6
+"""ArduCopter's land detector: on the ground this long after touchdown (measured 1.6 s)."""
+LAND_DISARM_DELAY_S: Final = 2.05
+"""ArduCopter disarms this long after touching down in LAND or RTL (measured)."""
+COPTER_AUTO_TAKEOFF_DELAY_S: Final = 0.5
+"""From MISSION_START to the climb of a copter armed for several seconds (measured)."""
+SPOOLED_AFTER_S: Final = 4.7
+"""A copter armed this long ago has its motors spooled up for a takeoff (measured)."""
+TAKEOFF_DELAY_SPOOLING_S: Final = 3.25
+"""From NAV_TAKEOFF to the climb when the motors still spool up (measured 3.25-3.35 s)."""
+TAKEOFF_DELAY_SPOOLED_S: Final = 1.5
+"""From NAV_TAKEOFF to the climb when already spooled (measured 1.55 s)."""
+GUIDED_TIMEOUT_S: Final = 3.0
+"""ArduCopter's GUID_TIMEOUT: a velocity target lapses this long after the last one."""
+MIN_INTERVAL_US: Final = 25_000
+"""The fastest stream ArduPilot grants (40 Hz; a faster request is DENIED, measured)."""
+PLANE_HOME_PERIOD_S: Final = 6.0
+"""ArduPlane re-sends HOME_POSITION this often while disarmed (measured)."""
+FENCE_UPDATE_S: Final = 0.1
+"""ArduPilot looks at FENCE_ENABLE and FENCE_AUTOENABLE at 10 Hz (AC_Fence::update)."""
+ROVER_HOME_CHECK_PERIOD_S: Final = 1.0
+"""ArduRover looks at moving home once a second while disarmed (Rover::one_second_loop)."""
+ROVER_HOME_MIN_CHANGE_M: Final = 0.5
+"""ArduRover's DISTANCE_HOME_MINCHANGE: home moves once the rover is this far from it."""
+EKF_CHECK_PERIOD_S: Final = 0.1
+"""ArduRover checks its EKF at 10 Hz (Rover::ekf_check)."""
+EKF_CHECK_ITERATIONS: Final = 10
+"""EKF_CHECK_ITERATIONS_MAX: a second of failed checks turns ArduRover's EKF failsafe on,
+and as many good ones turn it off."""
+BATTERY_VOLTAGE_MV: Final = 12600
+"""The battery's voltage (SITL's SIM_BATT_VOLTAGE; it does not sag in SITL either)."""
+FULL_THROTTLE_CURRENT_A: Final[Mapping[str, float]] = {
+    "arducopter": 56.0,
+    "arduplane": 23.0,
+    "ardurover": 10.0,
+}
+"""Battery current at full throttle, so a hovering copter draws ~28 A and a cruising
+plane ~11 A, as SITL's do."""
+
+UINT16_MAX: Final = 65535
+_RC_RELEASE_HIGH: Final = UINT16_MAX - 1
+_FTP_OP_NAK: Final = 129
+_FTP_ERR_UNKNOWN_COMMAND: Final = 7
+_FTP_HEADER: Final = struct.Struct("<HBBBBBBI")
+_FTP_PAYLOAD_BYTES: Final = 251
+_PARAM_INDEX_BY_NAME: Final = 65535
+PARAM_LIST_RATE_HZ: Final = 1000.0
+"""PARAM_VALUEs a second in answer to PARAM_REQUEST_LIST (see _send_param_list)."""
+
+_INFO, _NOTICE, _WARNING, _CRITICAL = (
+    mavlink2.MAV_SEVERITY_INFO,
+    mavlink2.MAV_SEVERITY_NOTICE,
+    mavlink2.MAV_SEVERITY_WARNING,
+    mavlink2.MAV_SEVERITY_CRITICAL,
+)
+
+STREAM_GROUPS: Final[Mapping[str, str | None]] = {
+    "HEARTBEAT": None,
+    "SYS_STATUS": "MAV1_EXT_STAT",
+    "GPS_RAW_INT": "MAV1_EXT_STAT",
+    "MISSION_CURRENT": "MAV1_EXT_STAT",
+    "NAV_CONTROLLER_OUTPUT": "MAV1_EXT_STAT",
+    "FENCE_STATUS": "MAV1_EXT_STAT",
+    "POSITION_TARGET_GLOBAL_INT": "MAV1_EXT_STAT",
+    "EXTENDED_SYS_STATE": "MAV1_EXT_STAT",
+    "GLOBAL_POSITION_INT": "MAV1_POSITION",
+    "ATTITUDE": "MAV1_EXTRA1",
+    "VFR_HUD": "MAV1_EXTRA2",
+    "SYSTEM_TIME": "MAV1_EXTRA3",
+    "EKF_STATUS_REPORT": "MAV1_EXTRA3",
+    "BATTERY_STATUS": "MAV1_EXTRA3",
+    "RC_CHANNELS": "MAV1_RC_CHAN",
+    "SERVO_OUTPUT_RAW": "MAV1_RC_CHAN",
+}
+"""Streamed messages, in emission order, and the MAV1_* parameter (Hz) that sets each
+one's default rate (None: HEARTBEAT, always 1 Hz by default), as ArduPilot groups them."""
+
+_NOT_STREAMED: Final[Mapping[str, frozenset[str]]] = {}
+"""Streams a firmware does not have (none yet: ArduRover streams EXTENDED_SYS_STATE too,
+with an undefined landed state)."""
+
+_DATA_STREAM_PARAMS: Final[Mapping[int, str]] = {
+    mavlink2.MAV_DATA_STREAM_RAW_SENSORS: "MAV1_RAW_SENS",
+    mavlink2.MAV_DATA_STREAM_EXTENDED_STATUS: "MAV1_EXT_STAT",
+    mavlink2.MAV_DATA_STREAM_RC_CHANNELS: "MAV1_RC_CHAN",
+    mavlink2.MAV_DATA_STREAM_RAW_CONTROLLER: "MAV1_RAW_CTRL",
+    mavlink2.MAV_DATA_STREAM_POSITION: "MAV1_POSITION",
+    mavlink2.MAV_DATA_STREAM_EXTRA1: "MAV1_EXTRA1",
+    mavlink2.MAV_DATA_STREAM_EXTRA2: "MAV1_EXTRA2",
+    mavlink2.MAV_DATA_STREAM_EXTRA3: "MAV1_EXTRA3",
+}
+STREAM_RATES: Final = frozenset(_DATA_STREAM_PARAMS.values())
+"""The stream-rate parameters REQUEST_DATA_STREAM sets (those of the groups it streams start
+at the firmware's default rate)."""
+_MAV_OPTION_GCS_ONLY: Final = 1
+"""MAV_OPTIONS bit 0: accept MAVLink only from MAV_GCS_SYSID (and our own system)."""
+
+_AUTO_MODES: Final = frozenset({"AUTO", "RTL", "SMART_RTL", "LAND", "LOITER", "TAKEOFF"})
+"""Modes that fly themselves (HEARTBEAT's GUIDED_ENABLED flag)."""
+
+_LANDED: Final[Mapping[str, int]] = {
+    "on_ground": mavlink2.MAV_LANDED_STATE_ON_GROUND,
+    "in_air": mavlink2.MAV_LANDED_STATE_IN_AIR,
+    "taking_off": mavlink2.MAV_LANDED_STATE_TAKEOFF,
+    "landing": mavlink2.MAV_LANDED_STATE_LANDING,
+}
+
+_PREARM_BIT: Final = ap_sys_status.PREARM
+
+_EKF_UNINITIALISED: Final = 0x400
+_EKF_ATTITUDE_ONLY: Final = 0xA7  # attitude, velocities, vertical position, constant position
+_EKF_POSITION: Final = 0x33F  # ... and absolute and relative horizontal position
+_EKF_UNINITIALISED_S: Final = 3.6
+"""EKF_STATUS_REPORT says uninitialised until this long after power-on (measured 3.6-4 s)."""
+
+PLANE_PRE_FIX_DRIFT_START: Final = 0.37
+"""ArduPlane's dead reckoning before its GPS fix starts at this share of the time to the
+fix (SITL: 3.5 s of 9.3 s, once "Airspeed 1 calibrated"): its DCM integrates the airspeed
+sensor's reading along the heading from 0, 0, so GLOBAL_POSITION_INT drifts away from
+(0, 0) while GPS_RAW_INT says no fix. Measured (4.7.0-dev, on the ground): 11.6 m after
+0.2 s, 24.4 m after 0.6 s, 33.2 m after 1.6 s, 35.7 m at the fix (at up to 58 m/s between
+reports, 3-26 m/s averaged over a second), velocities 0. The shape below reproduces it."""
+PLANE_PRE_FIX_DRIFT_M: Final = 33.3
+"""The fast part of that drift, m: it covers 1 - exp(-t / tau) of it."""
+PLANE_PRE_FIX_DRIFT_TAU_S: Final = 0.47
+"""Its time constant, s (fitted: 0.46-0.48 over the first 0.6 s)."""
+PLANE_PRE_FIX_CREEP_M_S: Final = 0.55
+"""The slow drift that follows, until the fix, m/s (2.3 m over the last 4 s)."""
+GPS_DETECTED_BEFORE_FIX_S: Final = 0.3
+"""GPS_RAW_INT says NO_GPS (0) until the receiver is detected ("GPS 1: detected u-blox"),
+this long before its fix, then NO_FIX (1) until the fix (SITL, every firmware)."""
+
+_BOOT_TEXTS: Final[tuple[tuple[str, float, int, str], ...]] = (
+    ("streams_s", 0.0, _INFO, "ArduPilot Ready"),
+    ("streams_s", 0.0, _INFO, "AHRS: DCM active"),
+    ("gps_fix_s", -0.3, _INFO, "GPS 1: detected u-blox"),
+    ("origin_s", 0.0, _INFO, "EKF3 IMU0 origin set"),
+    ("origin_s", 0.0, _INFO, "EKF3 IMU1 origin set"),
+    ("position_s", 0.0, _INFO, "EKF3 IMU0 is using GPS"),
+    ("position_s", 0.0, _INFO, "EKF3 IMU1 is using GPS"),
+    ("position_s", 0.0, _INFO, "AHRS: EKF3 active"),
+)
+"""STATUSTEXTs ArduPilot prints as it boots: (step of BootTimes, offset s, severity, text)."""
+
+
+@dataclass(frozen=True, slots=True)
+class _Asker:
+    """Who sent the message being answered."""
+
+    system_id: int
+    component_id: int
+
+
+class _Outbox:
+    def __init__(self) -> None:
+        self.data = bytearray()
+
+    def write(self, data: bytes) -> None:
+        self.data += data
+
+
+def _msg_id(name: str) -> int:
+    return int(getattr(mavlink2, f"MAVLINK_MSG_ID_{name}"))
+
+
+def _clamp(value: float, low: int, high: int) -> int:
+    rounded = round(value)  # (comparisons, not min and max: several per streamed message)
+    return low if rounded < low else high if rounded > high else rounded
+
+
+_ACCEPTED, _DENIED, _FAILED, _UNSUPPORTED = (
+    int(mavlink2.MAV_RESULT_ACCEPTED),
+    int(mavlink2.MAV_RESULT_DENIED),
+    int(mavlink2.MAV_RESULT_FAILED),
+    int(mavlink2.MAV_RESULT_UNSUPPORTED),
+)
+
+
+class SimAutopilot:
+    """One simulated ArduPilot autopilot; see the module docstring for what it does.
+
+    Args:
+        model: The vehicle it flies.
+        firmware: ``arduplane``, ``arducopter`` or ``ardurover``.
+        system_id: Its MAVLink system id (MAV_SYSID).
+        component_id: Its component id (1).
+        modes: Mode name -> custom_mode number; the model's by default.
+        guided_mode: The mode in which position targets are flown.
+        origin_lat_deg: Latitude of the mission origin (the model's local frame).
+        origin_lon_deg: Longitude of the mission origin.
+        origin_alt_amsl_m: Altitude of the origin above mean sea level; the model's
+            heights are above it.
+        start_time_unix_us: Unix time at the simulator's time 0, as its GPS would know
+            it; None for a GPS without time (SYSTEM_TIME then carries 0).
+        boot_s: The simulator time at which it powers on. An autopilot that powered
+            on long before the run starts (a vehicle the pilot flew up) is ready from
+            the run's first instant.
+        boot: Its boot timeline; the firmware's (measured on SITL) by default.
+        params: Parameter values to start from instead of the defaults (names must
+            exist in its table).
+        throttle: The throttle's RC input channel and its zero (the pulse width of no
+            throttle: the minimum, or the trim of a centred rover throttle), for the
+            arming check that the throttle is at zero; None: no such check.
+        unix_clock_us: The wall clock in Unix microseconds, for SYSTEM_TIME in real
+            time; None: the simulated clock from ``start_time_unix_us``.
+
+    Raises:
+        ValueError: Unknown firmware or parameter name.
+    """
+
+    def __init__(
+        self,
+        model: VehicleModel,
+        *,
+        firmware: str,
+        system_id: int = 1,
+        component_id: int = 1,
+        modes: Mapping[str, int] | None = None,
+        guided_mode: str = "GUIDED",
+        origin_lat_deg: float,
+        origin_lon_deg: float,
+        origin_alt_amsl_m: float = 0.0,
+        start_time_unix_us: int | None = None,
+        boot_s: float = 0.0,
+        boot: BootTimes | None = None,
+        params: Mapping[str, float] | None = None,
+        unix_clock_us: Callable[[], int] | None = None,
+        throttle: tuple[int, int] | None = None,
+    ) -> None:
+        if firmware not in FIRMWARE_TYPES:
+            raise ValueError(f"unknown firmware {firmware!r}; use one of {sorted(FIRMWARE_TYPES)}")
+        self.model = model
+        self.firmware = firmware
+        self.fw: Firmware = FIRMWARES[firmware]
+        self.boot_times = boot if boot is not None else self.fw.boot
+        self._sysid = system_id
+        self._compid = component_id
+        self.modes: Mapping[str, int] = dict(modes if modes is not None else model.modes)
+        self._mode_names = {number: name for name, number in reversed(self.modes.items())}
+        self.guided_mode = guided_mode
+        self.origin_lat_deg = origin_lat_deg
+        self.origin_lon_deg = origin_lon_deg
+        self.origin_alt_amsl_m = origin_alt_amsl_m
+        self.start_time_unix_us = start_time_unix_us
+        self.boot_s = boot_s
+        self._unix_clock_us = unix_clock_us
+        self._throttle = throttle
+
+        self._outbox = _Outbox()
+        self._mav = mavlink2.MAVLink(self._outbox, srcSystem=system_id, srcComponent=component_id)
+        self._parser = mavlink2.MAVLink(None, system_id, component_id)
+        self._parser.robust_parsing = True
+        self.missions = MissionProtocol(
+            self._mav,
+            lambda: self._home,
+            self._text,
+            firmware=firmware,
+            in_auto=lambda: self.model.mode == "AUTO",
+        )
+        """The mission, fence and rally lists and their protocol; AUTO flies the mission."""
+        self._mission_poll_s = 0.0
+        # AUTO's executor: the mission item it flies (seq), and how far it got with it.
+        self._auto_seq: int | None = None
+        self._auto_phase = _AUTO_IDLE
+        self._auto_until_s = 0.0
+        self._auto_go = False  # ArduCopter on the ground: MISSION_START came
+        self._auto_landing = False  # the item flown is a landing (ArduCopter disarms after)
+        self._throttle_up_s: float | None = None  # last seen off zero (holds the idle disarm)
+        self._auto_land_there = False  # a land item with a place: flying there first
+        self._started_seen: tuple[MissionItem, ...] = ()  # DO items already carried out
+        self._mission_changes = 0  # MissionProtocol.changed when last looked at
+
+        self._interval_us: dict[str, int | None] = {}  # per-message overrides; None: stopped
+        self._due_us: dict[str, int] = {}
+        self._next_due_us = 0  # earliest due time over every stream (0: look again)
+        # Every stream's interval, in emission order, for advance() to go through whenever
+        # something is due; None: to be worked out again (a parameter or an interval changed).
+        self._schedule: tuple[tuple[str, int | None], ...] | None = None
+        self._absent = _NOT_STREAMED.get(firmware, frozenset())
+        # Message name -> the method that builds it, looked up once rather than per message.
+        self._builders: dict[str, Callable[[float], Any]] = {
+            name: getattr(self, f"_msg_{name.lower()}")
+            for name in (*STREAM_GROUPS, "HOME_POSITION", "AUTOPILOT_VERSION")
+        }
+        self._boot_ms_at_s = math.nan  # _boot_ms' last time (never equal to a time) and value
+        self._boot_ms_value = 0
+        # The truth every message built by one advance() call reports (see _truth).
+        self._advancing = False
+        self._advance_truth: Truth | None = None
+        # The RC inputs RC_CHANNELS last reported, and that message, to send again.
+        self._rc_key: tuple[int, ...] | None = None
+        self._rc_message: Any = None
+        # Messages sent again and again with new values (see _msg_global_position_int).
+        self._position_message = self._mav.global_position_int_encode(0, 0, 0, 0, 0, 0, 0, 0, 0)
+        self._attitude_message = self._mav.attitude_encode(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        self._hud_message = self._mav.vfr_hud_encode(0.0, 0.0, 0, 0, 0.0, 0.0)
+        self._deferred: list[str] = []  # messages asked for, sent after the acknowledgement
+        self._heartbeat_sent = False  # stream requests before the first one are lost
+        # The source line of an internal error that blocks arming until a reboot (None:
+        # none), and whether ArduCopter entered SMART_RTL disarmed since it last armed.
+        self._internal_error: int | None = None
+        self._smart_rtl_entered = False
+        self._guided_arrival_due = False  # MISSION_ITEM_REACHED due at the guided target
+        self._home_locked = False  # set by a ground station: ArduPilot moves it no more
+        self._rtl_arrival_due = False  # ArduRover's "Reached destination" still to say
+        self._takeoff_starts_s = -math.inf  # ArduPlane's takeoff proper starts then
+        self._guided_wp_active = False  # ArduCopter flies guided position targets now
+        self._text_id = 0  # id of the last STATUSTEXT sent in chunks
+        # The parameters the simulation acts on (read on hot paths by name), and the whole
+        # list ArduPilot's firmware reports, over them (ap_params: the firmware's values
+        # win over SITL's default-parameter file; a profile's over both).
+        self._params: dict[str, Param] = {"MAV_SYSID": Param(system_id, INT16)}
+        for name, (value, kind) in {**COMMON_PARAMS, **self.fw.params}.items():
+            if name in STREAM_RATES:
+                value = self.fw.default_stream_hz if value else 0.0
+            self._params[name] = Param(float(value), kind)
+        self.params = ParamStore(firmware, self._params)
+        """Every parameter a ground station can read and set, in ArduPilot's order."""
+        self._param_list_from_s: float | None = None  # PARAM_REQUEST_LIST being answered since
+        self._param_list_sent = 0  # how many of the list were sent
+        for name, value in (params or {}).items():
+            if name not in self.params:
+                raise ValueError(f"no parameter {name!r} in the simulated {firmware}")
+            self._set_param(name, value)
+        self._logging_until_s = -math.inf  # AP_Logger logs on this long after a disarm
+        self.model.configure(self.param_values())
+
+        self._mode_reason: ModeReason = "autopilot"  # why the current mode was entered
+        self.fence = ArduFence(firmware, self._param_value, self._text, self._fence_status_due)
+        """ArduPilot's geofence (FENCE_* and the uploaded fence list)."""
+        self._fence_list_changes = -1  # MissionProtocol.changed when the zones were built
+        # The fence was idle at its last check and nothing it reads changed since (a
+        # parameter, the fence list, DO_FENCE_ENABLE, arming): checks are skipped.
+        self._fence_quiet = False
+        self._next_fence_check_s = 0.0
+        self._next_fence_update_s = 0.0
+        self.gcs_failsafe = GcsFailsafe(firmware, boot_s)
+        """ArduPilot's ground-station failsafe (MAV_GCS_SYSID's heartbeats)."""
+        self._hooks = _Hooks(self)
+        self._plane_climbing = False  # ArduPlane in its TAKEOFF climb at the last look
+        # ArduRover's simple avoidance: the point the model drives to instead of the
+        # target, when the straight line to the target would cross the fence margin.
+        self._avoid_cut = False
+        self._avoid_key: tuple[int, float, float] | None = None
+
+        self._overrides: dict[int, tuple[int, float]] = {}  # channel -> (width, set at)
+        self._target: tuple[float, float, float] | None = None  # guided lat, lon, rel alt
+        # A velocity target (ArduCopter extrapolates it): position, velocity n/e, set at.
+        self._velocity_target: tuple[float, float, float, float, float, float] | None = None
+        self._peers: dict[tuple[int, int], float] = {}
+        # Readiness and arming.
+        self._home: tuple[float, float, float] | None = None  # lat, lon, alt AMSL
+        self._home_sent_s = -math.inf
+        self._next_home_check_s = 0.0
+        self._next_ekf_check_s = 0.0
+        self._ekf_fail_count = 0  # ArduRover's EKF check (_rover_ekf_check)
+        self._ekf_failsafe = False
+        self._armed_s: float | None = self._boot_armed()
+        self._ground_since_s: float | None = None  # armed and on the ground since
+        self._was_flying = self.model.airborne
+        self._touchdown_s: float | None = None
+        self._texts_due = self._boot_text_schedule()
+        self._next_prearm_report_s = boot_s + PREARM_REPORT_PERIOD_S
+        self._last_mode = self.model.mode
+        if boot_s + self.boot_times.home_s <= 0.0:
+            self._home_here(0.0)  # powered on long enough before time 0 to have a home
+        # ATTITUDE body rates from successive attitudes: (time, roll, pitch, yaw) in rad.
+        self._attitude_before: tuple[float, float, float, float] | None = None
+        self._battery_mah = 0.0
+        self._battery_s: float | None = None
+
+        self.bad_frames = 0
+        """Garbage and corrupted frames received."""
+
+    @classmethod
+    def from_profile(
+        cls,
+        model: VehicleModel,
+        autopilot: Mapping[str, Any],
+        *,
+        origin_lat_deg: float,
+        origin_lon_deg: float,
+        origin_alt_amsl_m: float = 0.0,
+        start_time_unix_us: int | None = None,
+        boot_s: float = 0.0,
+        boot: BootTimes | None = None,
+        unix_clock_us: Callable[[], int] | None = None,
+    ) -> SimAutopilot:
+        """The autopilot a resolved profile (``agent.hardware.autopilot``) describes.
+
+        Firmware, ids, modes, guided mode and parameters come from the profile, so the
+        engine's adapter, built from the same profile, finds it where it expects it.
+        Profile parameters ArduPilot's list has are stored (a ground station reads them
+        back) even where the simulation does not act on them; names the firmware does not
+        have are left out.
+        """
+        mav = autopilot.get("mavlink") or {}
+        firmware = str(autopilot["firmware"])
+        channel = (autopilot.get("channels") or {}).get("throttle") or {}
+        throttle = None
+        if channel.get("rc") is not None:
+            zero = channel.get("pwm_trim_us" if firmware == "ardurover" else "pwm_min_us")
+            throttle = (int(channel["rc"]), int(zero if zero is not None else 1100))
+        known = {"MAV_SYSID", *COMMON_PARAMS, *FIRMWARES[firmware].params}
+        listed = sitl_table(firmware).types
+        params = {
+            str(name): float(value)
+            for name, value in (autopilot.get("parameters") or {}).items()
+            if name in known or name in listed
+        }
+        return cls(
+            model,
+            firmware=firmware,
+            system_id=int(mav.get("system_id", 1)),
+            component_id=int(mav.get("component_id", 1)),
+            modes=dict(autopilot.get("modes") or model.modes),
+            guided_mode=str(autopilot.get("guided_mode", "GUIDED")),
+            origin_lat_deg=origin_lat_deg,
+            origin_lon_deg=origin_lon_deg,
+            origin_alt_amsl_m=origin_alt_amsl_m,
+            start_time_unix_us=start_time_unix_us,
+            boot_s=boot_s,
+            boot=boot,
+            params=params,
+            unix_clock_us=unix_clock_us,
+            throttle=throttle,
+        )
+
+    # -- public -----------------------------------------------------------------------------
+
+    @property
+    def sysid(self) -> int:
+        """Its MAVLink system id."""
+        return self._sysid
+
+    @property
+    def gcs_peers(self) -> Mapping[tuple[int, int], float]:
+        """Ground stations heard: (system id, component id) -> time of their last heartbeat."""
+        return dict(self._peers)
+
+    @property
+    def home(self) -> tuple[float, float, float] | None:
+        """Home (latitude, longitude, altitude above mean sea level), None until set."""
+        return self._home
+
+    def param(self, name: str) -> float | None:
+        """A parameter's value, None if it has no such parameter."""
+        found = self.params.get(name)
+        return None if found is None else found[0]
+
+    def _param_value(self, name: str) -> float:
+        return self._params[name].value
+
+    def param_values(self) -> dict[str, float]:
+        """Every parameter's value by name (what the vehicle model is configured from)."""
+        return {name: entry.value for name, entry in self._params.items()}
+
+    def set_home(self, lat_deg: float, lon_deg: float, alt_m: float, now_s: float) -> None:
+        """Set home (as DO_SET_HOME does), e.g. where a pilot took off before the run."""
+        self._home = (lat_deg, lon_deg, alt_m)
+        north = (lat_deg - self.origin_lat_deg) * _M_PER_DEG_LAT
+        east = (
+            (lon_deg - self.origin_lon_deg)
+            * _M_PER_DEG_LAT
+            * math.cos(math.radians(self.origin_lat_deg))
+        )
+        self.model.set_home(north, east, alt_m - self.origin_alt_amsl_m)
+        self.missions.write_home()
+        if "HOME_POSITION" not in self._deferred:
+            self._deferred.append("HOME_POSITION")
+        self._next_due_us = 0
+
+    def receive(self, data: bytes, now_s: float) -> None:
+        """Take bytes from the ground station side and act on every complete message.
+
+        Garbage and corrupted frames are counted and skipped. Answers leave with the
+        next :meth:`advance`.
+        """
+        for msg in self._parser.parse_buffer(data) or []:
+            if msg.get_type() == "BAD_DATA":
+                self.bad_frames += 1
+                continue
+            self._handle(msg, now_s)
+
+    def advance(self, now_s: float) -> bytes:
+        """Everything due by ``now_s``: ArduPilot's own doings, queued answers, the streams due.
+
+        Each stream is due on its own grid of intervals from its first emission
+        (integer microseconds, so a virtual clock keeps exact rates); a message is
+        sent at most once per call, so call at least as often as the fastest rate.
+        RC overrides older than RC_OVERRIDE_TIME are released first.
+        """
+        if self._overrides:  # (usually there are none: a call saved at every step)
+            self._expire_overrides(now_s)
+        if now_s >= self._mission_poll_s:  # resends and timeouts of an upload
+            self._mission_poll_s = now_s + MISSION_POLL_S
+            self.missions.poll(now_s)
+        self._supervise(now_s)
+        if self._deferred:
+            self._send_deferred(now_s)
+        if self._param_list_from_s is not None:
+            self._send_param_list(now_s)
+        now_us = round(now_s * 1e6)
+        if now_us < self._next_due_us and not self._outbox.data:
+            return b""  # nothing due and no answer queued: the common case, kept cheap
+        due_us, send, builders = self._due_us, self._mav.send, self._builders
+        self._advancing = True
+        streaming = now_s - self.boot_s >= self.boot_times.streams_s
+        for name, interval in self._stream_schedule():
+            if interval is None or (not streaming and name != "HEARTBEAT"):
+                due_us.pop(name, None)
+                continue
+            due = due_us.setdefault(name, now_us)
+            if now_us < due:
+                continue
+            message = builders[name](now_s)
+            if message is not None:
+                send(message)
+            due += interval
+            due_us[name] = due if due > now_us else now_us + interval
+        self._advancing = False
+        self._advance_truth = None
+        self._next_due_us = min(due_us.values(), default=now_us)
+        if not streaming:
+            self._next_due_us = min(
+                self._next_due_us, round((self.boot_s + self.boot_times.streams_s) * 1e6)
+            )
+        data, self._outbox.data = bytes(self._outbox.data), bytearray()
+        return data
+
+    # -- ArduPilot's own doings ---------------------------------------------------------------
+
+    def _boot_armed(self) -> float | None:
+        """When an autopilot built armed was armed (a vehicle the pilot flies already)."""
+        return self.boot_s if self.model.armed else None
+
+    def _boot_text_schedule(self) -> list[tuple[float, int, str]]:
+        texts = [
+            (self.boot_s + getattr(self.boot_times, step) + offset, severity, text)
+            for step, offset, severity, text in _BOOT_TEXTS
+        ]
+        # An autopilot that booted before the run said these before anyone listened.
+        return sorted((t for t in texts if t[0] >= 0.0), key=lambda t: t[0])
+
+    def _age_s(self, now_s: float) -> float:
+        return now_s - self.boot_s
+
+    def _gps_fix(self, now_s: float) -> bool:
+        return self._age_s(now_s) >= self.boot_times.gps_fix_s
+
+    def _origin_set(self, now_s: float) -> bool:
+        return self._age_s(now_s) >= self.boot_times.origin_s
+
+    def _position_ok(self, now_s: float) -> bool:
+        return self._age_s(now_s) >= self.boot_times.position_s
+
+    def _supervise(self, now_s: float) -> None:
+        """What ArduPilot does by itself: boot texts, home, pre-arm reports, auto-disarm.
+
+        Also its fence and its ground-station failsafe, each at its firmware's rate.
+        """
+        self._hooks.now_s = now_s
+        if self._texts_due and self._texts_due[0][0] <= now_s:
+            while self._texts_due and self._texts_due[0][0] <= now_s:
+                _at, severity, text = self._texts_due.pop(0)
+                self._text(severity, text)
+        if self._home is None and self._age_s(now_s) >= self.boot_times.home_s:
+            self._home_here(now_s)
+        elif (
+            self.fw.home_at == "while_disarmed"
+            and self._home is not None
+            and not self.model.armed
+            and now_s - self._home_sent_s >= PLANE_HOME_PERIOD_S
+            and "HOME_POSITION" not in self._deferred
+        ):
+            # ArduPlane's home follows its GPS until it arms (and is sent again, unmoved,
+            # once a ground station has set it).
+            if self._home_locked:
+                self.set_home(*self._home, now_s)
+            else:
+                self._home_here(now_s)
+        elif (
+            self.fw.home_at == "disarming"
+            and self._home is not None
+            and not self._home_locked
+            and not self.model.armed
+            and now_s >= self._next_home_check_s
+        ):
+            # ArduRover's one-second loop: while disarmed, home follows the vehicle once
+            # it is DISTANCE_HOME_MINCHANGE away (a rover still rolling after its disarm).
+            self._next_home_check_s = now_s + ROVER_HOME_CHECK_PERIOD_S
+            if self._distance_from_home_m() >= ROVER_HOME_MIN_CHANGE_M:
+                self._home_here(now_s)
+        if self.firmware == "ardurover" and now_s >= self._next_ekf_check_s:
+            self._rover_ekf_check(now_s)
+        if now_s >= self._next_prearm_report_s:
+            self._next_prearm_report_s = now_s + PREARM_REPORT_PERIOD_S
+            if not self.model.armed:
+                for reason in self._arm_refusals(now_s, self.model.mode):
+                    self._text(_CRITICAL, "Pre" + reason)
+        if self._velocity_target is not None:
+            self._fly_velocity_target(now_s)
+        if self.model.mode == "AUTO":
+            self._fly_mission(now_s)
+        if (
+            self._guided_arrival_due
+            and self.model.target_reached
+            and self._in_guided()
+            and not self._avoid_cut
+        ):
+            self._guided_arrival_due = False
+            self._mav.send(self._mav.mission_item_reached_encode(0))
+        if (
+            self._rtl_arrival_due
+            and self.model.armed
+            and self.model.target_reached
+            and self.model.truth().ground_speed_m_s < ROVER_STOPPED_M_S
+        ):
+            self._rtl_arrival_due = False  # ArduRover's RTL and SMART_RTL stop there
+            self._text(_INFO, "Reached destination")
+        if now_s >= self._next_fence_update_s:
+            # AC_Fence::update at 10 Hz: a FENCE_ENABLE changed and changed back between
+            # two of them goes unnoticed, as on ArduPilot (measured).
+            self._next_fence_update_s = max(self._next_fence_update_s + FENCE_UPDATE_S, now_s)
+            if not self._fence_quiet:
+                self.fence.update()
+        if now_s >= self._next_fence_check_s:
+            self._fence_check(now_s)
+        if now_s >= self.gcs_failsafe.next_check_s:
+            self.gcs_failsafe.check(self._hooks, now_s)
+        if self._plane_climbing or (self.firmware == "arduplane" and self.model.mode == "TAKEOFF"):
+            climbing = self._hooks.initial_climb
+            if self._plane_climbing and not climbing and self.model.mode == "TAKEOFF":
+                self.gcs_failsafe.takeoff_climb_over(self._hooks)
+            self._plane_climbing = climbing
+        self._landing_and_disarm(now_s)
+
+    # -- the fence ----------------------------------------------------------------------
+
+    def _to_local(self, lat_deg: float, lon_deg: float) -> Point2:
+        """(north_m, east_m) from the mission origin (the model's frame)."""
+        north = (lat_deg - self.origin_lat_deg) * _M_PER_DEG_LAT
+        east = (
+            (lon_deg - self.origin_lon_deg)
+            * _M_PER_DEG_LAT
+            * math.cos(math.radians(self.origin_lat_deg))
+        )
+        return north, east
+
+    def _fence_zones(self) -> FenceZones:
+        """The uploaded fence as zones, built again whenever the lists changed."""
+        if self.missions.changed != self._fence_list_changes:
+            self._fence_list_changes = self.missions.changed
+            self.fence.zones = FenceZones.from_items(self.missions.fence_items, self._to_local)
+        return self.fence.zones
+
+    def _fence_position(self, now_s: float) -> FencePosition:
+        """Where the fence sees the vehicle: its true position through the firmware's datum."""
+        truth = self.model.truth()
+        alt_above_home_m = self._alt_above_home_m(now_s, truth.up_m)
+        if not self._gps_fix(now_s):
+            return FencePosition(alt_above_home_m, None, None)
+        here = (truth.north_m, truth.east_m)
+        from_home = None
+        if self._home is not None:
+            home = self._to_local(self._home[0], self._home[1])
+            from_home = (here[0] - home[0], here[1] - home[1])
+        return FencePosition(alt_above_home_m, from_home, here)
+
+    def _fence_check(self, now_s: float) -> None:
+        """Each firmware's fence_checks_async and fence_check, at its rate (25, 10, 3 Hz)."""
+        self._next_fence_check_s = now_s + CHECK_PERIOD_S[self.firmware]
+        if self._fence_quiet and self.missions.changed == self._fence_list_changes:
+            return
+        fence = self.fence
+        self._fence_zones()
+        if fence.idle and not fence.update_pending:
+            if self.firmware == "ardurover":
+                self._avoidance(now_s)
+            self._fence_quiet = True
+            return
+        orig = fence.breaches
+        model = self.model
+        if self.firmware == "arducopter":
+            landing = self._hooks.landing or self._hooks.landed or not model.armed
+        elif self.firmware == "arduplane":
+            landing = not model.armed or self._hooks.landing
+        else:
+            landing = False
+        new = fence.check(self._fence_position(now_s), now_s, landing)
+        react(self._hooks, fence, new, orig, self._fence_guide)
+        if self.firmware == "ardurover":
+            self._avoidance(now_s)
+
+    def _fence_status_due(self) -> None:
+        if "FENCE_STATUS" not in self._deferred:
+            self._deferred.append("FENCE_STATUS")
+        self._next_due_us = 0
+
+    def _fence_guide(self, point: Point2 | None, alt_above_home_m: float) -> None:
+        """ArduPlane's GUIDED fence action: to the fence's return point (or home)."""
+        if point is None:
+            if self._home is None:
+                return
+            lat, lon = self._home[0], self._home[1]
+        else:
+            lat, lon = self._from_local(*point)
+        alt_m = alt_above_home_m + self._home_alt_m() - self.origin_alt_amsl_m
+        self._goto(lat, lon, alt_m)
+
+    def _from_local(self, north_m: float, east_m: float) -> tuple[float, float]:
+        lat = self.origin_lat_deg + north_m / _M_PER_DEG_LAT
+        lon = self.origin_lon_deg + east_m / (
+            _M_PER_DEG_LAT * math.cos(math.radians(self.origin_lat_deg))
+        )
+        return lat, lon
+
+    def _target_inside_fence(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
+        """AC_Fence::check_destination_within_fence for a target (its height above the origin)."""
+        here = self._to_local(lat_deg, lon_deg)
+        from_home = None
+        above_home_m = None
+        if self._home is not None:
+            home = self._to_local(self._home[0], self._home[1])
+            from_home = (here[0] - home[0], here[1] - home[1])
+            above_home_m = alt_m + self.origin_alt_amsl_m - self._home[2]
+        self._fence_zones()
+        return self.fence.destination_inside(above_home_m, from_home, here)
+
+    # -- ArduRover's simple avoidance ----------------------------------------------------------
+
+    def _avoidance_fence(self) -> Fence | None:
+        """The fence ArduRover's avoidance keeps inside of (AVOID_ENABLE bit 0), if any.
+
+        AC_Avoid stops the rover FENCE_MARGIN short of the enabled circle fence and
+        uploaded zones (measured: 48.09 m on a 50 m circle with the default margin 2).
+        """
+        if not int(self._params["AVOID_ENABLE"].value) & 1 or self._home is None:
+            return None
+        enabled = self.fence.enabled_fences()
+        include: list[Zone] = []
+        exclude: list[Zone] = []
+        if enabled & CIRCLE:
+            home = self._to_local(self._home[0], self._home[1])
+            include.append(Zone.circle(home, self._params["FENCE_RADIUS"].value))
+        if enabled & POLYGON:
+            include.extend(self.fence.zones.inclusions)
+            exclude.extend(self.fence.zones.exclusions)
+        if not include and not exclude:
+            return None
+        return Fence(tuple(include), tuple(exclude))
+
+    def _avoided(self, end: Point2) -> Point2 | None:
+        """Where ArduRover stops short of the fence on its way to ``end``; None: not short.
+
+        Sets :attr:`_avoid_key` to the fence's state it was worked out for.
+        """
+        self._avoid_key = (
+            self.fence.enabled_fences(),
+            self.fence.margin_m,
+            self._params["AVOID_ENABLE"].value,
+        )
+        fence = self._avoidance_fence()
+        if fence is None:
+            return None
+        truth = self.model.truth()
+        start = (truth.north_m, truth.east_m)
+        cut = fence.leaves_at(start, end, self.fence.margin_m)
+        if cut is None:
+            return None
+        return start[0] + (end[0] - start[0]) * cut, start[1] + (end[1] - start[1]) * cut
+
+    def _drive_to(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
+        """The model goes to a guided target, or where ArduRover's avoidance stops it short."""
+        self._avoid_cut = False
+        if self.firmware == "ardurover":
+            short = self._avoided(self._to_local(lat_deg, lon_deg))
+            if short is not None:
+                self._avoid_cut = True
+                lat_deg, lon_deg = self._from_local(*short)
+        return self.model.goto(lat_deg, lon_deg, alt_m, None)
+
+    def _avoidance(self, now_s: float) -> None:
+        """Cut the guided target short again when the fence's state changed on the way."""
+        if not self._in_guided() or self._target is None:
+            return
+        key = (self.fence.enabled_fences(), self.fence.margin_m, self._params["AVOID_ENABLE"].value)
+        if key != self._avoid_key:
+            self._drive_to(*self._target)
+
+    def _landing_and_disarm(self, now_s: float) -> None:
+        """Touchdowns, and ArduCopter's disarms after one or after an idle arm."""
+        model = self.model
+        flying = model.airborne
+        if self._was_flying and not flying:
+            self._touchdown_s = now_s
+            if model.armed:
+                self._ground_since_s = now_s
+        self._was_flying = flying
+        delay_s = self.fw.auto_disarm_s
+        if delay_s is None or not model.armed or flying or self._ground_since_s is None:
+            return
+        landed_in = self._touchdown_s is not None and self._touchdown_s >= self._ground_since_s
+        landing_mode = self._landing_mode()
+        if landed_in and landing_mode:
+            if now_s - self._ground_since_s >= LAND_DISARM_DELAY_S:
+                self._disarm(now_s)
+            return
+        # The idle disarm (Copter::auto_disarm_check): DISARM_DELAY after the land
+        # detector says landed (LANDED_REPORT_DELAY_S after a touchdown), counted only
+        # while the throttle stick is at zero: a pilot holding it up keeps it armed.
+        if "DISARM_DELAY" in self._params:
+            delay_s = self._params["DISARM_DELAY"].value  # 0 turns the idle disarm off
+        if not self._throttle_at_zero():
+            self._throttle_up_s = now_s
+            return
+        since_s = self._ground_since_s + (LANDED_REPORT_DELAY_S if landed_in else 0.0)
+        if self._throttle_up_s is not None and self._throttle_up_s > since_s:
+            since_s = self._throttle_up_s
+        if delay_s > 0 and now_s - since_s >= delay_s:
+            self._disarm(now_s)
+
+    def _landing_mode(self) -> bool:
+        """The mode lands the copter (LAND, RTL's descent, AUTO's land item)."""
+        mode = self.model.mode
+        return mode in ("LAND", "RTL", "SMART_RTL") or (mode == "AUTO" and self._auto_landing)
+
+    def _text(self, severity: int, text: str) -> None:
+        """A STATUSTEXT, as ArduPilot's gcs().send_text.
+
+        A text longer than 50 characters goes in 50-character chunks that share an id
+        (1-255, counting up), each with its chunk_seq; a short one has id 0.
+        """
+        data = text.encode("ascii", "replace")
+        if len(data) <= STATUSTEXT_CHUNK:
+            self._mav.send(self._mav.statustext_encode(severity, data))
+            return
+        self._text_id = self._text_id % 255 + 1
+        for seq, start in enumerate(range(0, len(data), STATUSTEXT_CHUNK)):
+            chunk = data[start : start + STATUSTEXT_CHUNK]
+            self._mav.send(self._mav.statustext_encode(severity, chunk, self._text_id, seq))
+
+    # -- arming ------------------------------------------------------------------------------
+
+    def _arm_refusals(self, now_s: float, mode: str) -> list[str]:
+        """Why arming in ``mode`` is refused now ("Arm: ..." texts); empty when it is not.
+
+        As ArduPilot, every failing check says so: the boot phase's sensor check, a
+        position the mode needs, and the mode itself.
+        """
+        age, boot, fw = self._age_s(now_s), self.boot_times, self.fw
+        reasons: list[str] = []
+        if self._internal_error is not None:
+            return [INTERNAL_ERROR_TEXT.format(line=self._internal_error)]
+        if age < boot.attitude_s:
+            reasons.append("Arm: EKF attitude is bad")
+        elif age < boot.gps_fix_s:
+            reasons.append("Arm: GPS 1: Bad fix")
+        elif self._home is None:
+            reasons.append("Arm: AHRS: waiting for home")
+        elif age < boot.prearm_s:
+            reasons.append("Arm: Gyros inconsistent")
+        self._fence_zones()
+        fence_problem = self.fence.pre_arm_failure(self._fence_position(now_s), now_s)
+        if fence_problem is not None:
+            reasons.append(f"Arm: {fence_problem}")
+        if self.firmware == "arducopter" and self.gcs_failsafe.active:
+            reasons.append("Arm: GCS failsafe on")
+        if not self._throttle_at_zero():
+            reasons.append(
+                "Arm: Throttle too high"
+                if mode in fw.throttle_too_high_modes
+                else "Arm: Throttle (RC3) is not neutral"
+            )
+        if mode in fw.arm_needs_position and not self._position_ok(now_s):
+            reasons.append(fw.no_position_text)
+        if mode == "AUTO" and fw.name == "arducopter" and not self._mission_has_items():
+            reasons.append("Arm: Mode requires mission")
+        elif mode in fw.not_armable:
+            reasons.append(fw.not_armable_text.format(mode=fw.spell(mode)))
+        return reasons
+
+    def _throttle_at_zero(self) -> bool:
+        """The throttle input is within its dead zone of zero (RC3_DZ, 30 us in SITL).
+
+        ArduPilot constrains a pulse to RC3_MIN..RC3_MAX before reading it, so on a
+        throttle whose zero is its minimum (copter, plane) anything below the minimum
+        is zero too: an RC override of 1000 us arms where the minimum is 1100 us, as
+        ArduCopter SITL arms with it. A rover's zero is its trim (a centred throttle).
+        """
+        if self._throttle is None:
+            return True
+        rc, zero_us = self._throttle
+        inputs = self.model.rc_inputs()
+        if not 1 <= rc <= len(inputs):
+            return True
+        pwm_us = inputs[rc - 1]
+        if self.firmware != "ardurover" and pwm_us < zero_us:
+            return True
+        return abs(pwm_us - zero_us) <= THROTTLE_DEAD_ZONE_US
+
+    def _prearm_healthy(self, now_s: float) -> bool:
+        return not self._arm_refusals(now_s, self.model.mode)
+
+    def _arm_command(self, p1: float, p2: float, now_s: float) -> int:
+        if p1 not in (0.0, 1.0):
+            return _UNSUPPORTED
+        force = p2 in FORCE_MAGIC
+        model = self.model
+        if p1 == 0.0:
+            if not model.armed:
+                return _ACCEPTED
+            if model.airborne and not force:
+                return _FAILED  # ArduPilot: no disarming in the air, and no text
+            self._disarm(now_s, force=force)
+            return _ACCEPTED
+        if model.armed:
+            return _ACCEPTED
+        if not force:
+            refusals = self._arm_refusals(now_s, model.mode)
+            if refusals:
+                for reason in refusals:
+                    self._text(_CRITICAL, reason)
+                self._logging_until_s = now_s + ap_sys_status.LOG_PERSIST_S
+                return _FAILED
+        if not model.arm(True):
+            return _FAILED
+        self._armed_s = now_s
+        self._ground_since_s = None if model.airborne else now_s
+        self._smart_rtl_entered = False  # arming starts a new SmartRTL path
+        self._fence_quiet = False
+        self.fence.auto_enable_on_arming()
+        self._text(_INFO, self.fw.armed_text)
+        for severity, text in self.fw.arm_texts.get(model.mode, ()):
+            self._text(severity, text)
+        if self.fw.home_at == "arming" and not self._home_locked:
+            self._home_here(now_s)
+        if self.firmware == "arduplane" and (
+            model.mode == "TAKEOFF"
+            or (model.mode == "AUTO" and self._current_nav_is(mavlink2.MAV_CMD_NAV_TAKEOFF))
+        ):
+            self._plane_launch(now_s)
+        return _ACCEPTED
+
+    def _plane_launch(self, now_s: float) -> None:
+        """ArduPlane's texts as an armed TAKEOFF (or AUTO takeoff) launches, at SITL's times.
+
+        The takeoff proper (landed_state TAKEOFF) starts with "Takeoff to ..." 1.2 s
+        after arming; "Autoland direction" is the heading it takes off along.
+        """
+        self._text(_INFO, "Armed AUTO, xaccel = -0.0 m/s/s, waiting 0.2 sec")
+        self._say_at(now_s + PLANE_LAUNCH_S, _INFO, "Triggered AUTO. GPS speed = 0.0")
+        heading = self.model.truth().heading_deg
+        alt, dist = self._params["TKOFF_ALT"].value, self._params["TKOFF_DIST"].value
+        started_s = now_s + PLANE_TAKEOFF_STARTS_S
+        self._say_at(
+            started_s, _INFO, f"Takeoff to {alt:.0f}m for {dist:.1f}m heading {heading:.1f} deg"
+        )
+        self._say_at(started_s, _INFO, f"Autoland direction= {int(heading) % 360}")
+        self._takeoff_starts_s = started_s
+
+    def _say_at(self, at_s: float, severity: int, text: str) -> None:
+        """A STATUSTEXT to send at ``at_s`` (with the boot texts' schedule)."""
+        self._texts_due.append((at_s, severity, text))
+        self._texts_due.sort(key=lambda due: due[0])
+
+    def _disarm(self, now_s: float, *, force: bool = False) -> None:
+        if self.model.arm(False, force=force):
+            self._armed_s = None
+            self._logging_until_s = now_s + ap_sys_status.LOG_PERSIST_S
+            self._ground_since_s = None
+            self._text(_INFO, self.fw.disarmed_text)
+            self._fence_quiet = False
+            self.fence.auto_disable_on_disarming()
+            if self.firmware == "arducopter" and self.model.mode == "AUTO":
+                # ArduCopter resets its mission at disarming, and AUTO starts it over:
+                # "Mission: 1 Takeoff" again, waiting for the next arming and start.
+                self._auto_go = False
+                self._auto_seq = None
+                if self._mission_has_items():
+                    self.missions.start()
+            if self.fw.home_at == "disarming" and not self._home_locked:
+                self._home_here(now_s)
+
+    def _rover_ekf_check(self, now_s: float) -> None:
+        """ArduRover's EKF check (Rover::ekf_check, 10 Hz): its failsafe refuses modes.
+
+        Armed without an EKF position (a rover armed in MANUAL before its EKF uses the
+        GPS), a count rises by one per check; at 10 the EKF failsafe is on. Once the
+        position is good the count falls by one per check, and at 0 the failsafe ends
+        with CRITICAL "EKF failsafe cleared". While it is on, every mode that needs a
+        position is refused ("Flight mode change failed"). Measured on SITL: position
+        good at 41.57 s, GUIDED refused at 42.08 s, "EKF failsafe cleared" at 42.57 s.
+        The rover cannot be in a mode that needs a position when it starts (it was
+        refused them), so the failsafe's own switch to HOLD is not simulated.
+        """
+        self._next_ekf_check_s = max(self._next_ekf_check_s + EKF_CHECK_PERIOD_S, now_s)
+        if not self._origin_set(now_s):
+            return  # no origin yet: ArduRover does not look
+        if not self.model.armed:
+            self._ekf_fail_count = 0
+            self._ekf_failsafe_off()
+            return
+        if not self._position_ok(now_s):
+            self._ekf_fail_count = min(self._ekf_fail_count + 1, EKF_CHECK_ITERATIONS)
+            if self._ekf_fail_count >= EKF_CHECK_ITERATIONS:
+                self._ekf_failsafe = True
+        elif self._ekf_fail_count > 0:
+            self._ekf_fail_count -= 1
+            if self._ekf_fail_count == 0:
+                self._ekf_failsafe_off()
+
+    def _ekf_failsafe_off(self) -> None:
+        if self._ekf_failsafe:
+            self._ekf_failsafe = False
+            self._text(_CRITICAL, "EKF failsafe cleared")
+
+    def _distance_from_home_m(self) -> float:
+        """Horizontal distance from the vehicle to home (m); home must be set."""
+        assert self._home is not None
+        truth = self.model.truth()
+        north_m = (truth.lat_deg - self._home[0]) * _M_PER_DEG_LAT
+        east_m = (
+            (truth.lon_deg - self._home[1]) * _M_PER_DEG_LAT * math.cos(math.radians(self._home[0]))
+        )
+        return math.hypot(north_m, east_m)
+
+    def _home_here(self, now_s: float) -> None:
+        """Home where the vehicle is now (ArduPilot's own re-setting of home).
+
+        Until its EKF takes over from DCM, ArduRover's position has no altitude above
+        sea level: the home it sets then is at its barometer's height (about 0 m; SITL:
+        0.19 m), so a rover on the ground reads 90 m above such a home (measured).
+        ArduCopter and ArduPlane set home with the GPS's altitude.
+        """
+        truth = self.model.truth()
+        alt_m = self.origin_alt_amsl_m + truth.up_m
+        if self.fw.baro_alt_until == "position":
+            alt_m = self._fused_alt_m(now_s, truth.up_m)
+        self.set_home(truth.lat_deg, truth.lon_deg, alt_m, now_s)
+
+    def _baro_only(self, now_s: float) -> bool:
+        """The firmware's position still has no height above sea level (its barometer's)."""
+        until = self.fw.baro_alt_until
+        if until == "position":
+            return not self._position_ok(now_s)
+        if until == "home":
+            return self._home is None
+        return False
+
+    def _fused_alt_m(self, now_s: float, up_m: float) -> float:
+        """GLOBAL_POSITION_INT.alt's height (m) for a height above the origin.
+
+        Above sea level, or the barometer's height (relative to where it booted, on the
+        ground: about the height above the origin) while the firmware has no better.
+        """
+        if self._baro_only(now_s) or not self._gps_fix(now_s):
+            return up_m
+        return self.origin_alt_amsl_m + up_m
+
+    def _alt_above_home_m(self, now_s: float, up_m: float) -> float:
+        """GLOBAL_POSITION_INT.relative_alt's height (m): the barometer's before home."""
+        if self._home is None:
+            return up_m
+        return self._fused_alt_m(now_s, up_m) - self._home[2]
+
+    # -- modes -------------------------------------------------------------------------------
+
+    def _set_mode(self, base_mode: int, custom_mode: int, now_s: float) -> int:
+        # Like ArduPilot: only custom modes; a number the build lacks is FAILED with a
+        # warning.
+        if not base_mode & mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            return _DENIED
+        name = self._mode_names.get(custom_mode)
+        if name is None or name in self.fw.absent_modes:
+            self._text(_WARNING, f"No such mode {custom_mode}")
+            return _FAILED
+        return self._enter_mode(name, now_s)
+
+    def _enter_mode(self, name: str, now_s: float, reason: ModeReason = "gcs") -> int:
+        """Change mode as ArduPilot's set_mode does, for ``reason``; returns MAV_RESULT.
+
+        After a change during a fence breach, the fence ignores new breaches for ten
+        seconds ("Manual recovery started"; ArduCopter only with a FENCE_ACTION).
+        """
+        model, fw = self.model, self.fw
+        if name == model.mode:
+            return _ACCEPTED
+        left = model.mode
+        refusal = self._mode_refusal(name, now_s)
+        if refusal is not None or not model.set_mode(name):
+            for severity, text in refusal or [(_WARNING, fw.mode_refused_text)]:
+                self._text(severity, text.format(mode=fw.spell(name)))
+            return _FAILED
+        self._target = None  # ArduPilot forgets the guided target on changing mode
+        self._velocity_target = None
+        self._guided_wp_active = False
+        self._avoid_cut = False
+        self._last_mode = name
+        self._mode_reason = reason
+        self.gcs_failsafe.mode_changed()
+        if fw.name != "arducopter" or self.fence.action != 0:
+            self.fence.manual_recovery_start(now_s)
+        for severity, text in fw.enter_texts.get(name, ()):
+            self._text(severity, text)
+        self._rtl_arrival_due = fw.name == "ardurover" and name in ("RTL", "SMART_RTL")
+        if fw.name == "arducopter" and name == "SMART_RTL" and not model.armed:
+            # Measured: entering it disarmed a second time without arming in between is an
+            # internal error (the mode is entered; arming is refused until a reboot).
+            if self._smart_rtl_entered:
+                self._internal_error = 130
+                self._text(_CRITICAL, "Internal Errors 0x100000")
+            self._smart_rtl_entered = True
+        if fw.name == "arducopter" and name == "LAND" and model.armed and not model.airborne:
+            self._disarm(now_s)  # LAND on the ground: landed at once
+        if left == "AUTO":
+            self._auto_left()
+        if name == "AUTO":
+            if fw.name == "arduplane" and not self._mission_has_items():
+                self.missions.start()  # empty: complete at once
+                self._text(_INFO, "Mission complete, changing mode to RTL")
+                model.set_mode("RTL")
+                self._last_mode = "RTL"
+            else:
+                self._auto_entered()
+        return _ACCEPTED
+
+    def _mode_refusal(self, name: str, now_s: float) -> list[tuple[int, str]] | None:
+        """ArduPilot's refusal of entering ``name`` now, as (severity, text)s; None: allowed.
+
+        In ArduPilot's order: a mode that needs a position the EKF lacks while armed
+        (Mode::enter, before the mode's own init), a mode whose init always fails here,
+        then each firmware's own conditions.
+        """
+        fw, model = self.fw, self.model
+        refused = [(_WARNING, fw.mode_refused_text)]
+        if fw.name == "arduplane" and self._in_fence_recovery() and not name.startswith("Q"):
+            return [(_NOTICE, "Mode change to {mode} denied, in fence recovery")]
+        if (
+            model.armed
+            and name in fw.set_needs_position_armed
+            and (not self._position_ok(now_s) or self._ekf_failsafe)
+        ):
+            return [(_WARNING, fw.position_refused_text)]
+        if fw.name == "arducopter" and self._in_fence_recovery() and model.airborne:
+            return [(_WARNING, "Mode change to {mode} failed: in fence recovery")]
+        if name in fw.refused_modes:
+            return list(fw.refused_modes[name])
+        if model.armed and not model.airborne and name in fw.refused_armed_on_ground:
+            return list(fw.refused_armed_on_ground[name])
+        if fw.name == "ardurover":
+            if name == "AUTO" and not self._mission_has_items():
+                return [(_NOTICE, "No Mission. Can't set AUTO."), *refused]
+            if not model.armed and name in fw.set_needs_origin and not self._origin_set(now_s):
+                if name == "RTL" and self._home is not None:
+                    # Home without an EKF origin: AR_WPNav fails an internal check, and
+                    # ArduRover refuses to arm from then on until it reboots (measured).
+                    self._internal_error = 239
+                    return [*refused, (_CRITICAL, "Internal Errors 0x100000")]
+                return refused
+        elif fw.name == "arducopter":
+            if name in fw.set_needs_origin and not self._position_ok(now_s):
+                return refused
+            if name == "AUTO" and model.armed and not model.airborne:
+                first = self._first_nav()
+                if first is None:
+                    return refused  # nothing to fly
+                if first.command != mavlink2.MAV_CMD_NAV_TAKEOFF:
+                    return [(_CRITICAL, "Auto: Missing Takeoff Cmd"), *refused]
+        elif fw.name == "arduplane" and name == "AUTOLAND" and not model.airborne:
+            return [(_WARNING, "Must already be flying!"), *refused]
+        return None
+
+    def _in_guided(self) -> bool:
+        return self.model.mode == self.guided_mode
+
+    def _in_fence_recovery(self) -> bool:
+        """Whether a mode change is refused now, as in a fence's recovery.
+
+        FENCE_OPTIONS bit 0 (ArduPlane's default), armed, breached, and in the mode the
+        fence chose (ArduCopter and ArduPlane).
+        """
+        fence = self.fence
+        return (
+            self.model.armed
+            and fence.enabled
+            and fence.option(1)
+            and bool(fence.breaches)
+            and self._mode_reason == "fence"
+        )
+
+    # -- handling ---------------------------------------------------------------------------
+
+    def _handle(self, msg: Any, now_s: float) -> None:
+        self._hooks.now_s = now_s
+        source = (msg.get_srcSystem(), msg.get_srcComponent())
+        if source == (self._sysid, self._compid):
+            return  # our own frames echoed back by a shared link
+        target_system = getattr(msg, "target_system", 0)
+        target_component = getattr(msg, "target_component", 0)
+        if target_system not in (0, self._sysid) or target_component not in (0, self._compid):
+            return  # addressed to another vehicle or component
+        asker = _Asker(*source)
+        kind = msg.get_type()
+        if not self._accepts(msg):
+            return
+        if kind == "HEARTBEAT":
+            if msg.type == mavlink2.MAV_TYPE_GCS or msg.autopilot == mavlink2.MAV_AUTOPILOT_INVALID:
+                self._peers[source] = now_s
+            if source[0] == self._gcs_sysid():  # any type, any component
+                self.gcs_failsafe.seen(now_s)
+        elif kind == "MANUAL_CONTROL":
+            # Not flown here, but ArduPilot counts it as its ground station's heartbeat.
+            if source[0] == self._gcs_sysid() and msg.target == self._sysid:
+                self.gcs_failsafe.seen(now_s)
+        elif kind == "COMMAND_LONG":
+            params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6)
+            result = self._command(msg.command, params, msg.param7, None, now_s)
+            self._ack(msg.command, result, asker)
+            self._send_deferred(now_s)
+        elif kind == "COMMAND_INT":
+            params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.x, msg.y)
+            result = self._command(msg.command, params, msg.z, msg.frame, now_s)
+            self._ack(msg.command, result, asker)
+            self._send_deferred(now_s)
+        elif kind == "SET_MODE":
+            self._set_mode(msg.base_mode, msg.custom_mode, now_s)  # ArduPilot 4.7: no ack
+        elif kind == "SET_POSITION_TARGET_GLOBAL_INT":
+            self._position_target(msg, now_s)
+        elif kind == "RC_CHANNELS_OVERRIDE":
+            self._rc_override(msg, now_s)
+        elif kind == "PARAM_REQUEST_LIST":  # (a second one starts the list again)
+            self._param_list_from_s, self._param_list_sent = now_s, 0
+        elif kind == "PARAM_REQUEST_READ":
+            self._param_read(msg)
+        elif kind == "PARAM_SET":
+            self._param_set(msg)
+        elif kind == "REQUEST_DATA_STREAM":
+            self._request_data_stream(msg)
+        elif kind.startswith("MISSION_") and self.missions.handle(msg, now_s):
+            pass  # the mission protocol answered (the executor sees what changed)
+        elif kind in ("MISSION_ITEM_INT", "MISSION_ITEM"):
+            # A guided-mode waypoint (current 2) or altitude change (current 3).
+            result = self._mission_item(msg, now_s, integer=kind == "MISSION_ITEM_INT")
+            self._mav.send(
+                self._mav.mission_ack_encode(
+                    asker.system_id, asker.component_id, result, msg.mission_type
+                )
+            )
+        elif kind == "FILE_TRANSFER_PROTOCOL":
+            self._ftp_nak(msg, asker)
+        elif kind == "TIMESYNC" and msg.tc1 == 0:
+            self._mav.send(self._mav.timesync_encode(round((now_s - self.boot_s) * 1e9), msg.ts1))
+
+    def _accepts(self, msg: Any) -> bool:
+        """Whether ArduPilot takes this message (GCS_MAVLINK::accept_packet).
+
+        With MAV_OPTIONS bit 0 only our own system, MAV_GCS_SYSID, and radio status
+        messages are taken; otherwise everyone.
+        """
+        if not int(self._params["MAV_OPTIONS"].value) & _MAV_OPTION_GCS_ONLY:
+            return True
+        sysid = msg.get_srcSystem()
+        return sysid in (self._sysid, self._gcs_sysid()) or msg.get_type() in (
+            "RADIO",
+            "RADIO_STATUS",
+        )
+
+    def _gcs_sysid(self) -> int:
+        """MAV_GCS_SYSID: the system whose heartbeats and RC overrides are the GCS's."""
+        return int(self._params["MAV_GCS_SYSID"].value)
+
+    def _ack(self, command: int, result: int, asker: _Asker) -> None:
+        self._mav.send(
+            self._mav.command_ack_encode(command, result, 0, 0, asker.system_id, asker.component_id)
+        )
+
+    def _send_deferred(self, now_s: float) -> None:
+        for name in self._deferred:
+            message = self._build(name, now_s)
+            if message is not None:
+                self._mav.send(message)
+        self._deferred.clear()
+
+    def _command(
+        self, command: int, params: tuple[float, ...], z: float, frame: int | None, now_s: float
+    ) -> int:
+        """Carry out one COMMAND_LONG (``frame`` None) or COMMAND_INT; returns MAV_RESULT."""
+        p1, p2 = params[0], params[1]
+        if command == mavlink2.MAV_CMD_DO_SET_MODE:
+            return self._set_mode(int(p1), int(p2), now_s)
+        if command == mavlink2.MAV_CMD_COMPONENT_ARM_DISARM:
+            return self._arm_command(p1, p2, now_s)
+        if command == mavlink2.MAV_CMD_DO_SET_SERVO:
+            servo = int(p1)
+            if not self._servo_free(servo):
+                self._text(_INFO, f"ServoRelayEvent: Channel {servo} is already in use")
+                return _FAILED
+            self.model.set_servo(servo, int(p2))
+            return _ACCEPTED
+        if command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
+            return self._change_speed(int(p1), p2)
+        if command == mavlink2.MAV_CMD_NAV_TAKEOFF:
+            return self._takeoff(z, frame, now_s)
+        if command == mavlink2.MAV_CMD_NAV_LAND:
+            if self.firmware != "arducopter":
+                return _UNSUPPORTED
+            return self._enter_mode("LAND", now_s)
+        if command == mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+            return self._enter_mode("RTL", now_s)
+        if command == mavlink2.MAV_CMD_NAV_LOITER_UNLIM and self.firmware == "arducopter":
+            return self._enter_mode("LOITER", now_s)
+        if command == mavlink2.MAV_CMD_DO_SET_HOME:
+            return self._set_home_command(params, z, frame, now_s)
+        if command == mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL:
+            return self._message_interval(int(p1), int(p2), now_s)
+        if command == mavlink2.MAV_CMD_GET_MESSAGE_INTERVAL:
+            name = self._streamed_name(int(p1))
+            if name is None:
+                return _FAILED
+            interval = self._stream_interval_us(name)
+            self._mav.send(
+                self._mav.message_interval_encode(int(p1), -1 if interval is None else interval)
+            )
+            return _ACCEPTED
+        if command == mavlink2.MAV_CMD_REQUEST_MESSAGE:
+            return self._request_message(int(p1))
+        if command == mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
+            if p1 != 1.0:
+                return _DENIED
+            return self._request_message(_msg_id("AUTOPILOT_VERSION"))
+        if command == mavlink2.MAV_CMD_GET_HOME_POSITION:
+            if self._home is None:
+                return _FAILED
+            return self._request_message(_msg_id("HOME_POSITION"))
+        if command == mavlink2.MAV_CMD_DO_SET_MISSION_CURRENT:
+            if not self.missions.set_current(int(p1)):
+                return _DENIED
+            self._deferred.append("MISSION_CURRENT")
+            return _ACCEPTED
+        if command == mavlink2.MAV_CMD_MISSION_START:
+            return self._mission_start(p1, p2, now_s)
+        if command == mavlink2.MAV_CMD_DO_REPOSITION and frame is not None:
+            return self._reposition(params, z, frame, now_s)
+        if command == mavlink2.MAV_CMD_DO_FENCE_ENABLE:
+            return self._fence_enable(int(p1), int(p2) & 0xFF)
+        return _UNSUPPORTED
+
+    def _fence_enable(self, action: int, fences: int) -> int:
+        """MAV_CMD_DO_FENCE_ENABLE: 0 off, 1 on (FAILED if none of them exists), 2 floor off.
+
+        The fences asked for (param2; 0: all) change, FENCE_ENABLE does not.
+        """
+        fences = fences or ALL_FENCES
+        self._fence_quiet = False
+        self._fence_zones()
+        if action == 0:
+            self.fence.enable(False, fences)
+        elif action == 1:
+            if not self.fence.present() & fences:
+                return _FAILED
+            self.fence.enable(True, fences)
+        elif action == 2:
+            self.fence.enable(False, ALT_MIN)
+        else:
+            return _FAILED
+        return _ACCEPTED
+
+    def _servo_free(self, servo: int) -> bool:
+        """An output DO_SET_SERVO may drive: 1-16, with no function (ArduPilot's rule)."""
+        in_use = getattr(self.model, "servo_function", None)
+        return 1 <= servo <= 16 and (in_use is None or in_use(servo) is None)
+
+    def _takeoff(self, alt_m: float, frame: int | None, now_s: float) -> int:
+        """MAV_CMD_NAV_TAKEOFF: ArduCopter's guided takeoff; ArduPlane's is quadplane-only."""
+        if self.firmware != "arducopter":
+            if self.firmware == "arduplane":
+                return _DENIED if frame is not None else _FAILED
+            return _UNSUPPORTED
+        if frame is not None and frame != mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT:
+            return _DENIED
+        model = self.model
+        if not (alt_m > 0) or not model.armed or model.airborne or not self._in_guided():
+            return _FAILED
+        armed_for_s = now_s - (self._armed_s if self._armed_s is not None else now_s)
+        delay_s = (
+            TAKEOFF_DELAY_SPOOLED_S
+            if armed_for_s >= SPOOLED_AFTER_S
+            else (TAKEOFF_DELAY_SPOOLING_S)
+        )
+        if not model.takeoff(float(alt_m), delay_s):
+            return _FAILED
+        self._guided_wp_active = False
+        self._ground_since_s = None  # taking off: no auto-disarm
+        return _ACCEPTED
+
+    def _set_home_command(
+        self, params: tuple[float, ...], z: float, frame: int | None, now_s: float
+    ) -> int:
+        """MAV_CMD_DO_SET_HOME: here (param1 1), or a point.
+
+        A home set so is locked: ArduPilot's own re-setting at arming or disarming
+        leaves it alone.
+        """
+        if params[0] == 1.0:
+            if not self._gps_fix(now_s):
+                return _FAILED
+            truth = self.model.truth()
+            lat, lon, alt = truth.lat_deg, truth.lon_deg, self.origin_alt_amsl_m + truth.up_m
+        else:
+            lat, lon, alt = params[4], params[5], z
+            if frame is not None:  # COMMAND_INT: degrees * 1e7
+                lat, lon = lat / 1e7, lon / 1e7
+            if not (abs(lat) <= 90 and abs(lon) <= 180) or (lat == 0 and lon == 0):
+                return _FAILED
+        self.set_home(float(lat), float(lon), float(alt), now_s)
+        self._home_locked = True
+        if self.fw.set_home_text:
+            self._text(_INFO, f"Set HOME to {lat:.5f} {lon:.5f} at {alt:.2f}m")
+        return _ACCEPTED
+
+    def _change_speed(self, speed_type: int, speed_m_s: float) -> int:
+        """MAV_CMD_DO_CHANGE_SPEED, accepted where each firmware accepts it (measured)."""
+        mode, model = self.model.mode, self.model
+        if self.firmware == "arducopter":
+            if speed_m_s <= 0:
+                return _DENIED
+            if mode not in (self.guided_mode, "AUTO"):
+                return _FAILED
+            # ArduCopter takes an airspeed as a ground speed. In GUIDED the speed goes to
+            # its waypoint controller, which a position target after a takeoff (or on
+            # entering GUIDED) starts afresh at WPNAV_SPEED: until one has been flown, an
+            # accepted change is lost (measured).
+            if speed_type in (0, 1) and (mode == "AUTO" or self._guided_wp_active):
+                model.set_speed(float(speed_m_s))
+            return _ACCEPTED
+        if self.firmware == "ardurover":
+            if speed_type not in (0, 1):
+                return _DENIED
+            if speed_m_s <= 0.05:
+                return _FAILED
+            guided_leg = mode == self.guided_mode and self._target is not None
+            if not (guided_leg or mode == "AUTO"):
+                return _FAILED  # MANUAL, HOLD, and guided before its first target
+            model.set_speed(float(speed_m_s))
+            return _ACCEPTED
+        # ArduPlane: guided and auto only; an airspeed within its limits.
+        if mode not in (self.guided_mode, "AUTO"):
+            return _FAILED
+        if speed_type == 1:
+            if speed_m_s < 0:
+                return _FAILED
+            self._text(_INFO, f"Set groundspeed {speed_m_s:g}")
+            return _ACCEPTED
+        low, high = self._params["AIRSPEED_MIN"].value, self._params["AIRSPEED_MAX"].value
+        if not low <= speed_m_s <= high:
+            return _FAILED
+        model.set_speed(float(speed_m_s))
+        self._text(_INFO, f"Set airspeed {speed_m_s:g} m/s")
+        return _ACCEPTED
+
+    def _goto(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
+        self._target = (lat_deg, lon_deg, alt_m)
+        self._guided_arrival_due = self.fw.guided_reached_text
+        taken = self._drive_to(lat_deg, lon_deg, alt_m)
+        self._guided_wp_active = taken and self.model.airborne
+        return taken
+
+    def _relative_alt_m(self, alt: float, frame: int) -> float | None:
+        """A target's height above the origin (the model's frame) from its frame's altitude."""
+        home_alt = self._home[2] if self._home is not None else self.origin_alt_amsl_m
+        if frame in (
+            mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+            mavlink2.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT,  # flat terrain at home's altitude
+            mavlink2.MAV_FRAME_GLOBAL_TERRAIN_ALT,
+        ):
+            return float(alt) + home_alt - self.origin_alt_amsl_m
+        if frame in (mavlink2.MAV_FRAME_GLOBAL_INT, mavlink2.MAV_FRAME_GLOBAL):
+            return float(alt) - self.origin_alt_amsl_m
+        return None
+
+    def _reposition(self, params: tuple[float, ...], z: float, frame: int, now_s: float) -> int:
+        speed, flags, lat_e7, lon_e7 = params[0], int(params[1]), params[4], params[5]
+        alt_m = self._relative_alt_m(z, frame)
+        if alt_m is None or not (abs(lat_e7) <= 90e7 and abs(lon_e7) <= 180e7):
+            return _DENIED
+        change_mode = bool(flags & mavlink2.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE)
+        if self.firmware != "ardurover" and not self._target_inside_fence(
+            lat_e7 / 1e7, lon_e7 / 1e7, alt_m
+        ):
+            # ArduPlane DENIED, ArduCopter FAILED (its guided destination check), before
+            # any mode change; ArduRover does not check (measured).
+            return _DENIED if self.firmware == "arduplane" else _FAILED
+        if change_mode and not self._in_guided():
+            self._enter_mode(self.guided_mode, now_s)
+        if not self._in_guided():
+            return _FAILED
+        loiter = getattr(self.model, "guided_loiter", None)  # ArduPlane's (FixedWing)
+        if self.firmware == "arduplane" and loiter is not None:
+            radius_m, ccw = params[2], params[3]
+            loiter(radius_m, math.isfinite(ccw) and ccw != 0.0)
+        if not self._goto(lat_e7 / 1e7, lon_e7 / 1e7, alt_m):
+            return _FAILED
+        if speed > 0:
+            self.model.set_speed(float(speed))
+        return _ACCEPTED
+
+    def _mission_item(self, msg: Any, now_s: float, *, integer: bool) -> int:
+        """A mission item outside an upload: ArduPilot's guided waypoint and altitude change.
+
+        As ArduPilot's GCS_MAVLINK::handle_mission_item: ``current`` 2 is a guided-mode
+        waypoint (accepted in the guided mode only; MAVProxy's ``guided LAT LON ALT``
+        sends one), ``current`` 3 an altitude change (always accepted); any other item
+        arrives outside an upload, which is an error. (Items of an upload, and of the
+        fence and rally lists, are the mission protocol's, which sees them first.)
+        """
+        if msg.mission_type != mavlink2.MAV_MISSION_TYPE_MISSION:
+            return int(mavlink2.MAV_MISSION_UNSUPPORTED)
+        if msg.current not in (2, 3):
+            return int(mavlink2.MAV_MISSION_ERROR)
+        alt_m = self._relative_alt_m(msg.z, msg.frame)
+        lat_deg, lon_deg = (msg.x / 1e7, msg.y / 1e7) if integer else (msg.x, msg.y)
+        if alt_m is None or not (abs(lat_deg) <= 90 and abs(lon_deg) <= 180):
+            return int(mavlink2.MAV_MISSION_UNSUPPORTED_FRAME)
+        if msg.current == 3:
+            if self._target is not None and self._in_guided():
+                if not self._copter_may_go(self._target[0], self._target[1], alt_m):
+                    return int(mavlink2.MAV_MISSION_ERROR)
+                self._goto(self._target[0], self._target[1], alt_m)
+            return int(mavlink2.MAV_MISSION_ACCEPTED)
+        if not self._copter_may_go(lat_deg, lon_deg, alt_m):
+            return int(mavlink2.MAV_MISSION_ERROR)
+        if not self._in_guided() or not self._goto(lat_deg, lon_deg, alt_m):
+            return int(mavlink2.MAV_MISSION_ERROR)
+        return int(mavlink2.MAV_MISSION_ACCEPTED)
+
+    def _position_target(self, msg: Any, now_s: float) -> None:
+        if not self._in_guided():
+            return  # ArduPilot drops position targets outside guided
+        alt_m = self._relative_alt_m(msg.alt, msg.coordinate_frame)
+        if alt_m is None:
+            return
+        mask = msg.type_mask
+        position_ignored = mask & (
+            mavlink2.POSITION_TARGET_TYPEMASK_X_IGNORE | mavlink2.POSITION_TARGET_TYPEMASK_Y_IGNORE
+        )
+        if self.firmware == "arduplane":
+            # ArduPlane takes only the altitude of this message (its GCS_Mavlink.cpp).
+            if mask & mavlink2.POSITION_TARGET_TYPEMASK_Z_IGNORE:
+                return
+            if self._target is not None:
+                lat_deg, lon_deg, _ = self._target
+            else:
+                truth: Truth = self.model.truth()
+                lat_deg, lon_deg = truth.lat_deg, truth.lon_deg
+            self._goto(lat_deg, lon_deg, alt_m)
+            return
+        if position_ignored:
+            return  # velocity-only and acceleration targets are not simulated
+        lat_deg, lon_deg = msg.lat_int / 1e7, msg.lon_int / 1e7
+        velocity_ignored = mask & (
+            mavlink2.POSITION_TARGET_TYPEMASK_VX_IGNORE
+            | mavlink2.POSITION_TARGET_TYPEMASK_VY_IGNORE
+        )
+        if not self._copter_may_go(lat_deg, lon_deg, alt_m):
+            return  # ArduCopter refuses a target outside its fence without a word (measured)
+        self._velocity_target = None
+        if not velocity_ignored and self.firmware == "arducopter":
+            # ArduCopter's guided position and velocity target: the position moves on
+            # with the velocity until the next one (or GUID_TIMEOUT).
+            self._velocity_target = (lat_deg, lon_deg, alt_m, msg.vx, msg.vy, now_s)
+        self._goto(lat_deg, lon_deg, alt_m)
+
+    def _copter_may_go(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
+        """ArduCopter's guided destinations must be inside its fence (set_destination)."""
+        return self.firmware != "arducopter" or self._target_inside_fence(lat_deg, lon_deg, alt_m)
+
+    def _fly_velocity_target(self, now_s: float) -> None:
+        assert self._velocity_target is not None
+        lat_deg, lon_deg, alt_m, vn, ve, at_s = self._velocity_target
+        elapsed_s = now_s - at_s
+        if elapsed_s > GUIDED_TIMEOUT_S or not self._in_guided():
+            self._velocity_target = None
+            return
+        lat = lat_deg + vn * elapsed_s / _M_PER_DEG_LAT
+        lon = lon_deg + ve * elapsed_s / (_M_PER_DEG_LAT * math.cos(math.radians(lat_deg)))
+        self._target = (lat, lon, alt_m)
+        self.model.goto(lat, lon, alt_m, None)
+
+    # -- AUTO: the mission executor ------------------------------------------------------------
+
+    def _mission_has_items(self) -> bool:
+        return self.missions.count > 1  # item 0 is home
+
+    def _first_nav(self) -> MissionItem | None:
+        return next((item for item in self.missions.items[1:] if item.is_nav), None)
+
+    def _current_nav_is(self, command: int) -> bool:
+        item = self.missions.nav_item
+        return item is not None and item.command == command
+
+    def _auto_entered(self) -> None:
+        """AUTO entered: the mission goes on where it stopped (ArduPilot's MIS_RESTART 0)."""
+        self._auto_seq = None
+        self._auto_phase = _AUTO_IDLE
+        self._auto_go = self.model.airborne  # a copter in the air needs no MISSION_START
+        if self._mission_has_items():
+            self.missions.resume()
+        else:
+            # Nothing to fly: the (empty) mission is complete at once, and stays complete
+            # across a later upload until it is started again (measured).
+            self.missions.start()
+
+    def _auto_left(self) -> None:
+        self.missions.stop()
+        self._auto_seq = None
+        self._auto_phase = _AUTO_IDLE
+        self._auto_go = self._auto_landing = self._auto_land_there = False
+
+    def _mission_start(self, first: float, last: float, now_s: float) -> int:
+        """MAV_CMD_MISSION_START: into AUTO if not there; ArduCopter's launch from the ground.
+
+        Measured: param1 other than 0 is DENIED (ArduCopter); from another mode it
+        switches to AUTO (ArduCopter starting the mission again: "Mission: 1 Takeoff"
+        twice), disarmed too; in AUTO, armed on the ground, ArduCopter climbs within a
+        second; a rover's finished mission stays finished.
+        """
+        if first != 0 or last != 0:
+            return _DENIED
+        entered = self.model.mode != "AUTO"
+        if entered:
+            result = self._enter_mode("AUTO", now_s)
+            if result != _ACCEPTED or self.model.mode != "AUTO":
+                return _FAILED if result == _ACCEPTED else result
+        if not self._mission_has_items():
+            return _FAILED
+        if self.firmware == "arducopter":
+            if entered or self.missions.state != MissionState.RUNNING:
+                self.missions.start()
+                self._auto_seq = None
+            self._auto_go = True
+        return _ACCEPTED
+
+    def _item_alt_m(self, item: MissionItem) -> float:
+        """A mission item's altitude above the origin (the model's frame)."""
+        alt = self._relative_alt_m(item.z, item.frame)
+        return self._truth().up_m if alt is None else alt
+
+    def _item_place(self, item: MissionItem) -> tuple[float, float]:
+        """A mission item's (north, east) from the origin; here when it has no place."""
+        if item.x == 0 and item.y == 0:
+            truth = self._truth()
+            return truth.north_m, truth.east_m
+        north = (item.x / 1e7 - self.origin_lat_deg) * _M_PER_DEG_LAT
+        east = (
+            (item.y / 1e7 - self.origin_lon_deg)
+            * _M_PER_DEG_LAT
+            * math.cos(math.radians(self.origin_lat_deg))
+        )
+        return north, east
+
+    def _do_items(self, now_s: float) -> None:
+        """Carry out the DO items the mission just started (those this simulation has)."""
+        for item in self.missions.started:
+            if item.is_nav:
+                continue
+            command = item.command
+            if command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
+                self._change_speed(int(item.param1), item.param2)
+            elif command == mavlink2.MAV_CMD_DO_SET_SERVO:
+                servo = int(item.param1)
+                if self._servo_free(servo):
+                    self.model.set_servo(servo, int(item.param2))
+            elif command == mavlink2.MAV_CMD_DO_SET_HOME:
+                params = (item.param1, 0.0, 0.0, 0.0, float(item.x), float(item.y))
+                self._set_home_command(params, item.z, item.frame, now_s)
+        self._started_seen = self.missions.started
+
+    def _fly_mission(self, now_s: float) -> None:
+        """AUTO: fly the mission's current navigation item; on to the next when it is done."""
+        missions, model = self.missions, self.model
+        if missions.changed != self._mission_changes:
+            self._mission_changes = missions.changed
+            if missions.started != self._started_seen:
+                self._do_items(now_s)
+        if missions.state != MissionState.RUNNING:
+            self._auto_seq = None
+            return
+        item = missions.nav_item
+        if item is None:
+            return
+        if item.seq != self._auto_seq:
+            self._auto_seq = item.seq
+            self._auto_phase = _AUTO_WAITING
+            self._auto_landing = self._auto_land_there = False
+        if self._auto_phase == _AUTO_WAITING:
+            if not model.armed:
+                return
+            if self.firmware == "arducopter" and not model.airborne and not self._auto_go:
+                return  # armed on the ground in AUTO: waits for MISSION_START (measured)
+            self._begin_item(item, now_s)
+        if self._auto_phase == _AUTO_FLYING and model.target_reached and not self._avoid_cut:
+            if self._auto_landing and self.firmware == "arducopter":
+                return  # landed: its disarm ends the item, and starts the mission over
+            if self._auto_land_there:  # over the land item's place: now land
+                self._auto_land_there = False
+                self._auto_landing = True
+                model.auto_land()
+                return
+            hold_s = item.param1 if item.command in _HOLDING_COMMANDS else 0.0
+            self._auto_phase = _AUTO_HOLDING
+            self._auto_until_s = now_s + max(hold_s, 0.0)
+            if item.command == mavlink2.MAV_CMD_NAV_LOITER_UNLIM:
+                self._auto_phase = _AUTO_DONE  # loiters until told otherwise
+        if self._auto_phase == _AUTO_HOLDING and now_s >= self._auto_until_s:
+            self._item_done(item, now_s)
+
+    def _begin_item(self, item: MissionItem, now_s: float) -> None:
+        """Command the model to fly ``item``; an item it cannot fly is done at once."""
+        model, command = self.model, item.command
+        self._auto_phase = _AUTO_FLYING
+        if command == mavlink2.MAV_CMD_NAV_TAKEOFF:
+            above_home_m = self._item_alt_m(item) - (self._home_alt_m() - self.origin_alt_amsl_m)
+            if self.firmware == "arducopter":
+                armed_for_s = now_s - (self._armed_s if self._armed_s is not None else now_s)
+                delay_s = (
+                    COPTER_AUTO_TAKEOFF_DELAY_S
+                    if armed_for_s >= SPOOLED_AFTER_S
+                    else TAKEOFF_DELAY_SPOOLING_S
+                )
+                taken = model.auto_takeoff(above_home_m, delay_s)  # type: ignore[call-arg]
+                self._ground_since_s = None
+            else:
+                taken = model.auto_takeoff(above_home_m)
+            if not taken:
+                self._auto_phase = _AUTO_HOLDING  # (a rover; or already there)
+                self._auto_until_s = now_s
+        elif command == mavlink2.MAV_CMD_NAV_LAND:
+            north, east = self._item_place(item)
+            truth = self._truth()
+            far = math.hypot(north - truth.north_m, east - truth.east_m) > 1.0
+            if far and (item.x or item.y) and self.firmware == "arducopter":
+                self._auto_land_there = True
+                model.auto_target(north, east, truth.up_m, None)
+            else:
+                self._auto_landing = True
+                model.auto_land()
+        elif command in _TARGET_COMMANDS:
+            if command == mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH and self._home is not None:
+                home = self._home
+                north = (home[0] - self.origin_lat_deg) * _M_PER_DEG_LAT
+                east = (
+                    (home[1] - self.origin_lon_deg)
+                    * _M_PER_DEG_LAT
+                    * math.cos(math.radians(self.origin_lat_deg))
+                )
+                alt = self._truth().up_m
+            else:
+                north, east = self._item_place(item)
+                alt = self._item_alt_m(item)
+            self._avoid_cut = False
+            if self.firmware == "ardurover":
+                short = self._avoided((north, east))
+                if short is not None:  # ArduRover's avoidance: it stops short, item not done
+                    self._avoid_cut = True
+                    north, east = short
+            model.auto_target(north, east, alt, None)
+        else:  # not simulated: done at once
+            self._auto_phase = _AUTO_HOLDING
+            self._auto_until_s = now_s
+
+    def _item_done(self, item: MissionItem, now_s: float) -> None:
+        """The current item is done: say so as each firmware does, and go on."""
+        command, seq = item.command, item.seq
+        self._mav.send(self._mav.mission_item_reached_encode(seq))
+        if self.firmware == "ardurover" and command in _TARGET_COMMANDS:
+            self._text(_INFO, f"Reached waypoint #{seq}")
+        elif self.firmware == "arducopter" and command in _TARGET_COMMANDS:
+            self._text(_INFO, f"Reached command #{seq}")
+        elif self.firmware == "arduplane":
+            if command == mavlink2.MAV_CMD_NAV_TAKEOFF:
+                self._text(_INFO, f"Takeoff complete at {self._truth().up_m:.2f}m")
+            elif command in _TARGET_COMMANDS:
+                self._text(_INFO, f"Reached waypoint #{seq} dist 0m")
+        self._auto_phase = _AUTO_IDLE
+        if self.missions.advance() is None and self.missions.state == MissionState.COMPLETE:
+            self._mission_complete(now_s)
+
+    def _mission_complete(self, now_s: float) -> None:
+        """The last item is done.
+
+        ArduRover stops there ("Mission Complete", still in AUTO), ArduCopter holds (or
+        has landed), ArduPlane turns to RTL.
+        """
+        self._auto_seq = None
+        if self.firmware == "ardurover":
+            self._text(_NOTICE, "Mission Complete")
+        elif self.firmware == "arduplane":
+            self._text(_INFO, "Mission complete, changing mode to RTL")
+            self._enter_mode("RTL", now_s, "autopilot")
+
+    def _rc_override(self, msg: Any, now_s: float) -> None:
+        if msg.get_srcSystem() != self._gcs_sysid():
+            return  # ArduPilot takes overrides only from its ground station
+        self.gcs_failsafe.seen(now_s)  # (an override is its heartbeat too)
+        if self._params["RC_OVERRIDE_TIME"].value == 0:
+            return  # overrides disabled
+        changes: dict[int, int] = {}
+        for channel in range(1, 19):
+            value = getattr(msg, f"chan{channel}_raw")
+            if channel <= 8:
+                if value == UINT16_MAX:
+                    continue
+                release = value == 0
+            else:
+                if value in (0, UINT16_MAX):
+                    continue
+                release = value == _RC_RELEASE_HIGH
+            if release:
+                if self._overrides.pop(channel, None) is not None:
+                    changes[channel] = 0
+            else:
+                self._overrides[channel] = (int(value), now_s)
+                changes[channel] = int(value)
+        if changes:
+            self.model.set_rc_override(changes)
+
+    def _expire_overrides(self, now_s: float) -> None:
+        timeout_s = self._params["RC_OVERRIDE_TIME"].value
+        if timeout_s < 0 or not self._overrides:
+            return  # negative: overrides never time out
+        expired = {
+            ch: 0 for ch, (_pwm, at_s) in self._overrides.items() if now_s - at_s > timeout_s
+        }
+        for channel in expired:
+            del self._overrides[channel]
+        if expired:
+            self.model.set_rc_override(expired)
+
+    # -- parameters --------------------------------------------------------------------------
+
+    def _param_set(self, msg: Any) -> None:
+        """PARAM_SET as ArduPilot's GCS_MAVLINK::handle_param_set.
+
+        An unknown name, NaN or an infinity: no answer at all, nothing changes.
+        Otherwise the value is stored (as :meth:`_set_param` converts it) and echoed in
+        one PARAM_VALUE with the parameter's own type, index 65535, even when unchanged.
+        """
+        name = str(msg.param_id)
+        value = float(msg.param_value)
+        if name not in self.params or not math.isfinite(value):
+            return
+        self._set_param(name, value)
+        self._send_param(name, _PARAM_INDEX_BY_NAME)
+
+    def _set_param(self, name: str, value: float) -> None:
+        """Store a value as AP_Param::set_float does (:func:`ap_params.stored`).
+
+        The stored type decides, whatever type the sender said. A parameter the
+        simulation acts on takes effect at once (stream rates, the fence, the model).
+        """
+        if not math.isfinite(value) or not self.params.set(name, value):
+            return  # (a parameter only listed: stored, nothing acts on it)
+        self._next_due_us = 0  # a stream-rate parameter may have changed
+        self._schedule = None
+        self._fence_quiet = False  # a fence parameter may have changed
+        if name in STREAM_RATES:  # a new group rate replaces the per-message intervals
+            for stream, group in STREAM_GROUPS.items():
+                if group == name:
+                    self._interval_us.pop(stream, None)
+                    self._due_us.pop(stream, None)
+        elif hasattr(self, "model"):
+            self.model.configure(self.param_values())  # the whole table, as configure wants
+
+    def _send_param(self, name: str, index: int) -> None:
+        found = self.params.get(name)
+        if found is None:
+            return
+        value, param_type = found
+        self._mav.send(
+            self._mav.param_value_encode(
+                name.encode("ascii"), value, param_type, self.params.count, index
+            )
+        )
+
+    def _send_param_list(self, now_s: float) -> None:
+        """The next part of the list a PARAM_REQUEST_LIST asked for, PARAM_LIST_RATE_HZ paced.
+
+        ArduPilot sends the list a few at a time from its main loop (SITL's TCP link took
+        0.4 s for 1,354); sent in one go it would be one 50 kB burst, more than a ground
+        station's UDP socket takes at once.
+        """
+        start_s = self._param_list_from_s
+        assert start_s is not None
+        due = min(self.params.count, 1 + int((now_s - start_s) * PARAM_LIST_RATE_HZ))
+        for index in range(self._param_list_sent, due):
+            name = self.params.name_at(index)
+            if name is not None:
+                self._send_param(name, index)
+        self._param_list_sent = due
+        if due >= self.params.count:
+            self._param_list_from_s = None
+
+    def _param_read(self, msg: Any) -> None:
+        if msg.param_index >= 0:
+            name = self.params.name_at(msg.param_index)
+            if name is not None:
+                self._send_param(name, msg.param_index)
+            return
+        name = str(msg.param_id)
+        if name in self.params:
+            self._send_param(name, _PARAM_INDEX_BY_NAME)
+
+    def _request_data_stream(self, msg: Any) -> None:
+        rate_hz = msg.req_message_rate if msg.start_stop else 0
+        if msg.req_stream_id == mavlink2.MAV_DATA_STREAM_ALL:
+            params = list(_DATA_STREAM_PARAMS.values())
+        else:
+            param = _DATA_STREAM_PARAMS.get(msg.req_stream_id)
+            params = [] if param is None else [param]
+        for param in params:
+            self._set_param(param, rate_hz)
+
+    # -- message requests ---------------------------------------------------------------------
+
+    def _streamed_name(self, msg_id: int) -> str | None:
+        entry = mavlink2.mavlink_map.get(msg_id)
+        name = None if entry is None else str(entry.msgname)
+        return name if name in STREAM_GROUPS and name not in self._absent else None
+
+    def _message_interval(self, msg_id: int, interval_us: int, now_s: float) -> int:
+        name = self._streamed_name(msg_id)
+        if name is None:
+            self._text(_INFO, f"No ap_message for mavlink id ({msg_id})")
+            return _DENIED  # ArduPilot: no such message to stream
+        if 0 < interval_us < MIN_INTERVAL_US:
+            self._text(
+                _INFO, f"Requested rate for message ID {msg_id} too fast. Increase SCHED_LOOP_RATE"
+            )
+            return _DENIED
+        if self.fw.early_stream_requests_lost and not self._heartbeat_sent and now_s <= self.boot_s:
+            return _ACCEPTED  # before the first HEARTBEAT: acknowledged, and lost (measured)
+        if interval_us == 0:
+            self._interval_us.pop(name, None)
+            self._schedule = None
+            default = self._default_interval_us(name)
+            if default is not None:
+                self._due_us[name] = round(now_s * 1e6) + default
+        elif interval_us < 0:
+            self._set_interval(name, None, now_s)
+        else:
+            self._set_interval(name, interval_us, now_s)
+        return _ACCEPTED
+
+    def _request_message(self, msg_id: int) -> int:
+        entry = mavlink2.mavlink_map.get(msg_id)
+        name = None if entry is None else str(entry.msgname)
+        if (
+            name not in (*STREAM_GROUPS, "HOME_POSITION", "AUTOPILOT_VERSION")
+            or name in self._absent
+        ):
+            return _FAILED
+        # ArduPilot acknowledges first and sends the message from its next update (and
+        # HOME_POSITION only once home is set).
+        self._deferred.append(str(name))
+        return _ACCEPTED
+
+    def _ftp_nak(self, msg: Any, asker: _Asker) -> None:
+        seq, session, opcode = struct.unpack_from("<HBB", bytes(msg.payload[:4]))
+        header = _FTP_HEADER.pack((seq + 1) & 0xFFFF, session, _FTP_OP_NAK, 1, opcode, 0, 0, 0)
+        payload = [*header, _FTP_ERR_UNKNOWN_COMMAND]
+        payload += [0] * (_FTP_PAYLOAD_BYTES - len(payload))
+        self._mav.send(
+            self._mav.file_transfer_protocol_encode(
+                msg.target_network, asker.system_id, asker.component_id, payload
+            )
+        )
+
+    # -- streams -----------------------------------------------------------------------------
+
+    def _stream_schedule(self) -> tuple[tuple[str, int | None], ...]:
+        """(message, interval in us or None when stopped) for every stream, in emission order."""
+        if self._schedule is None:
+            self._schedule = tuple(
+                (name, None if name in self._absent else self._stream_interval_us(name))
+                for name in STREAM_GROUPS
+            )
+        return self._schedule
+
+    def _stream_interval_us(self, name: str) -> int | None:
+        if name in self._interval_us:
+            return self._interval_us[name]
+        return self._default_interval_us(name)
+
+    def _default_interval_us(self, name: str) -> int | None:
+        group = STREAM_GROUPS.get(name)
+        if group is None:
+            return HEARTBEAT_INTERVAL_US if name == "HEARTBEAT" else None
+        rate_hz = self._params[group].value
+        return round(1e6 / rate_hz) if rate_hz > 0 else None
+
+    def _set_interval(self, name: str, interval_us: int | None, now_s: float) -> None:
+        self._next_due_us = 0  # the schedule changed: look at every stream next time
+        self._schedule = None
+        self._interval_us[name] = interval_us
+        if interval_us is not None:
+            self._due_us[name] = round(now_s * 1e6) + interval_us
+
+    def _boot_ms(self, now_s: float) -> int:
+        # Kept for the next call at the same time: up to four messages of one advance()
+        # carry it.
+        if now_s != self._boot_ms_at_s:
+            self._boot_ms_at_s = now_s
+            self._boot_ms_value = max(0, round((now_s - self.boot_s) * 1000)) & 0xFFFFFFFF
+        return self._boot_ms_value
+
+    def _unix_us(self, now_s: float) -> int:
+        """The GPS's Unix time: 0 before its fix, then the wall clock or the simulated one."""
+        if not self._gps_fix(now_s):
+            return 0
+        if self._unix_clock_us is not None:
+            return self._unix_clock_us()
+        if self.start_time_unix_us is None:
+            return 0
+        return self.start_time_unix_us + round(now_s * 1e6)
+
+    def _build(self, name: str, now_s: float) -> Any:
+        return self._builders[name](now_s)
+
+    def _truth(self) -> Truth:
+        """The model's true state, for the message builders.
+
+        Within one :meth:`advance` call the model does not move, and up to five of the
+        messages it sends report its state: it is read once per call. Outside one
+        (answers to requests, which follow commands that may change the model) it is
+        read afresh.
+        """
+        truth = self._advance_truth
+        if truth is None:
+            truth = self.model.truth()
+            if self._advancing:
+                self._advance_truth = truth
+        return truth
+
+    def _landed_state(self, now_s: float) -> int:
+        """MAV_LANDED_STATE, with ArduCopter's land detector lag after a touchdown."""
+        state = self.model.landed_state
+        if state == "taking_off" and now_s < self._takeoff_starts_s:
+            state = "on_ground"  # ArduPlane: rolling, but its takeoff not yet started
+        if (
+            state == "on_ground"
+            and self._touchdown_s is not None
+            and now_s - self._touchdown_s < LANDED_REPORT_DELAY_S
+            and self.model.armed
+        ):
+            # Until the land detector says landed: LANDING in a mode that lands, IN_AIR in
+            # any other (a copter sunk to the ground in LOITER, measured on SITL).
+            state = "landing" if self._landing_mode() else "in_air"
+        return _LANDED[state]
+
+    def _msg_heartbeat(self, now_s: float) -> Any:
+        self._heartbeat_sent = True
+        model = self.model
+        armed = model.armed
+        booting = self._age_s(now_s) < INITIALISING_S
+        custom_mode = (
+            self.fw.initialising_mode
+            if booting and self.fw.initialising_mode is not None
+            else self.modes.get(model.mode, 0)
+        )
+        base_mode = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+        auto = model.mode == self.guided_mode or model.mode in _AUTO_MODES
+        if self.firmware == "ardurover":
+            # Measured: MANUAL 0x41, HOLD 0x01, GUIDED/RTL/AUTO 0x09.
+            if auto:
+                base_mode |= mavlink2.MAV_MODE_FLAG_GUIDED_ENABLED
+            elif model.mode != "HOLD":
+                base_mode |= mavlink2.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
+        else:
+            base_mode |= (
+                mavlink2.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
+                | mavlink2.MAV_MODE_FLAG_STABILIZE_ENABLED
+            )
+            if auto:
+                base_mode |= mavlink2.MAV_MODE_FLAG_GUIDED_ENABLED
+        if armed:
+            base_mode |= mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
+        if self._age_s(now_s) < self.boot_times.streams_s:
+            status = mavlink2.MAV_STATE_BOOT
+        elif self.firmware == "ardurover":
+            hold = model.mode == "HOLD"
+            status = mavlink2.MAV_STATE_STANDBY if hold else mavlink2.MAV_STATE_ACTIVE
+        elif model.airborne:
+            status = mavlink2.MAV_STATE_ACTIVE
+        else:
+            status = mavlink2.MAV_STATE_STANDBY
+        return self._mav.heartbeat_encode(
+            FIRMWARE_TYPES[self.firmware],
+            mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA,
+            base_mode,
+            custom_mode,
+            status,
+        )
+
+    def _msg_sys_status(self, now_s: float) -> Any:
+        """SYS_STATUS, its sensor bits as ArduPilot sets them (``ap_sys_status``)."""
+        # The geofence: present with any fence configured that exists, enabled with a
+        # fence on and an action, healthy unless breached (AC_Fence::sys_status_*).
+        self._fence_zones()
+        now = ap_sys_status.Inputs(
+            since_boot_s=now_s - self.boot_s,
+            mode=self.model.mode,
+            gps_fixed=self._gps_fix(now_s),
+            ekf_origin=self._origin_set(now_s),
+            ekf_position=self._position_ok(now_s),
+            prearm_ok=self.model.armed or self._prearm_healthy(now_s),
+            logging=self.model.armed or now_s < self._logging_until_s,
+            fence=self.fence.sys_status(),
+        )
+        present, enabled, health = ap_sys_status.sensor_bits(self.firmware, now)
+        current_ca, remaining = self._battery(now_s)
+        return self._mav.sys_status_encode(
+            present, enabled, health, 0, BATTERY_VOLTAGE_MV, current_ca, remaining, 0, 0, 0, 0, 0, 0
+        )
+
+    def _battery(self, now_s: float) -> tuple[int, int]:
+        """Current (cA) and remaining charge (%), drawn at the throttle the model reports."""
+        throttle = max(0.0, min(1.0, abs(self._truth().throttle_pct) / 100.0))
+        current_a = FULL_THROTTLE_CURRENT_A[self.firmware] * throttle if self.model.armed else 0.0
+        if self._battery_s is not None and now_s > self._battery_s:
+            self._battery_mah += current_a * (now_s - self._battery_s) / 3.6
+        self._battery_s = now_s
+        capacity = max(self._params["BATT_CAPACITY"].value, 1.0)
+        remaining = max(0, round(100.0 * (1.0 - self._battery_mah / capacity)))
+        return round(current_a * 100), remaining
+
+    def _position(self, now_s: float, raw: bool = False) -> tuple[float, float, float]:
+        """Latitude, longitude and height above the origin as the autopilot reports them.
+
+        Before the GPS has a fix ArduPilot reports 0, 0 (ArduPlane: its dead reckoning
+        from there, :meth:`_dead_reckoned_m`), and a height from its barometer (taken
+        here as the height with the receiver's vertical error: a little noise around
+        the truth). A model with a GPS is read through it: ``raw`` the receiver's fix
+        (``gps_fix``: seeded noise at the receiver's rate, GPS_RAW_INT), otherwise its
+        estimate (``position_estimate``: that noise smoothed as ArduPilot's EKF smooths
+        it, GLOBAL_POSITION_INT); a model without one reports the truth.
+        """
+        fix = getattr(self.model, "gps_fix" if raw else "position_estimate", None)
+        if fix is not None:
+            lat, lon, alt = fix()
+        else:
+            t = self._truth()
+            lat, lon, alt = t.lat_deg, t.lon_deg, t.up_m
+        if not self._gps_fix(now_s):
+            north_m, east_m = self._dead_reckoned_m(now_s)
+            return north_m / _M_PER_DEG_LAT, east_m / _M_PER_DEG_LAT, float(alt)
+        return float(lat), float(lon), float(alt)
+
+    def _dead_reckoned_m(self, now_s: float) -> tuple[float, float]:
+        """North and east of (0, 0), m, where ArduPlane's DCM puts itself before a fix.
+
+        ArduPlane integrates its airspeed sensor from 0, 0 along its heading (SITL:
+        :data:`PLANE_PRE_FIX_DRIFT_START`); the other firmwares stay at 0, 0. An engine
+        must not take these for the vehicle's position (GPS_RAW_INT says no fix).
+        """
+        if self.firmware != "arduplane":
+            return 0.0, 0.0
+        fix_s = self.boot_times.gps_fix_s
+        since_s = self._age_s(now_s) - PLANE_PRE_FIX_DRIFT_START * fix_s
+        if since_s <= 0.0:
+            return 0.0, 0.0
+        drift_m = PLANE_PRE_FIX_DRIFT_M * -math.expm1(-since_s / PLANE_PRE_FIX_DRIFT_TAU_S)
+        drift_m += PLANE_PRE_FIX_CREEP_M_S * since_s
+        yaw = math.radians(self._truth().yaw_deg)
+        return drift_m * math.cos(yaw), drift_m * math.sin(yaw)
+
+    def _home_alt_m(self) -> float:
+        return self._home[2] if self._home is not None else self.origin_alt_amsl_m
+
+    def _msg_gps_raw_int(self, now_s: float) -> Any:
+        t = self._truth()
+        lat, lon, up = self._position(now_s, raw=True)
+        fixed = self._gps_fix(now_s)
+        if not fixed:
+            lat = lon = 0.0  # the receiver's own report: nothing (the DCM's is not its)
+        unix_us = self._unix_us(now_s)
+        return self._mav.gps_raw_int_encode(
+            unix_us if unix_us else round((now_s - self.boot_s) * 1e6),
+            mavlink2.GPS_FIX_TYPE_3D_FIX
+            if fixed
+            else mavlink2.GPS_FIX_TYPE_NO_FIX
+            if self._age_s(now_s) >= self.boot_times.gps_fix_s - GPS_DETECTED_BEFORE_FIX_S
+            else mavlink2.GPS_FIX_TYPE_NO_GPS,
+            round(lat * 1e7),
+            round(lon * 1e7),
+            round((self.origin_alt_amsl_m + up) * 1000) if fixed else 0,
+            121 if fixed else UINT16_MAX,  # HDOP 1.21
+            200 if fixed else UINT16_MAX,  # VDOP 2.00
+            _clamp(t.ground_speed_m_s * 100, 0, UINT16_MAX - 1) if fixed else 0,
+            round((t.heading_deg % 360.0) * 100) % 36000 if fixed else 0,
+            10 if fixed else 0,
+        )
+
+    # GLOBAL_POSITION_INT, ATTITUDE and VFR_HUD go out at the telemetry rate: each is one
+    # pymavlink message object (built in __init__) whose fields are set before every send,
+    # which packs it anew, rather than a new object each time.
+
+    def _msg_global_position_int(self, now_s: float) -> Any:
+        """The fused position (see :meth:`_fused_alt_m` for its altitudes).
+
+        Before the GPS fix ArduCopter sends its never-filled location (all zero); the
+        others 0, 0 and their barometer's height in both altitudes.
+        """
+        t = self._truth()
+        lat, lon, up = self._position(now_s)
+        msg = self._position_message
+        msg.time_boot_ms = self._boot_ms(now_s)
+        msg.lat = round(lat * 1e7)
+        msg.lon = round(lon * 1e7)
+        if self.fw.zero_before_fix and not self._gps_fix(now_s):
+            msg.alt = msg.relative_alt = 0
+        else:
+            msg.alt = round(self._fused_alt_m(now_s, up) * 1000)
+            msg.relative_alt = round(self._alt_above_home_m(now_s, up) * 1000)
+        msg.vx = _clamp(t.velocity_north_m_s * 100, -32768, 32767)
+        msg.vy = _clamp(t.velocity_east_m_s * 100, -32768, 32767)
+        msg.vz = _clamp(-t.climb_rate_m_s * 100, -32768, 32767)
+        msg.hdg = round((t.yaw_deg % 360.0) * 100) % 36000
+        return msg
+
+    def _msg_attitude(self, now_s: float) -> Any:
+        t = self._truth()
+        msg = self._attitude_message
+        roll, pitch = math.radians(t.roll_deg), math.radians(t.pitch_deg)
+        yaw = math.radians(math.remainder(t.yaw_deg, 360.0))
+        # Body rates from the change since the last ATTITUDE (Euler rates: close enough
+        # to body rates at the modest angles these models fly).
+        rates = (0.0, 0.0, 0.0)
+        before = self._attitude_before
+        if before is not None and now_s > before[0]:
+            dt_s = now_s - before[0]
+            rates = (
+                (roll - before[1]) / dt_s,
+                (pitch - before[2]) / dt_s,
+                math.remainder(yaw - before[3], math.tau) / dt_s,
+            )
+        self._attitude_before = (now_s, roll, pitch, yaw)
+        msg.time_boot_ms = self._boot_ms(now_s)
+        msg.roll, msg.pitch, msg.yaw = roll, pitch, yaw
+        msg.rollspeed, msg.pitchspeed, msg.yawspeed = rates
+        return msg
+
+    def _msg_vfr_hud(self, now_s: float) -> Any:
+        t = self._truth()
+        msg = self._hud_message
+        msg.airspeed = t.airspeed_m_s
+        msg.groundspeed = t.ground_speed_m_s
+        msg.heading = int(t.yaw_deg % 360.0)
+        msg.throttle = _clamp(t.throttle_pct, 0, 100)
+        msg.alt = self._fused_alt_m(now_s, t.up_m)
+        msg.climb = t.climb_rate_m_s
+        return msg
+
+    def _msg_system_time(self, now_s: float) -> Any:
+        return self._mav.system_time_encode(self._unix_us(now_s), self._boot_ms(now_s))
+
+    def _msg_rc_channels(self, now_s: float) -> Any:
+        # The inputs change only when a stick or an override moves: the message is built
+        # anew then, and otherwise sent again with only its time updated (21 fields).
+        inputs = tuple(self.model.rc_inputs())
+        if inputs != self._rc_key or self._rc_message is None:
+            used = list(inputs)[:18]
+            values = [_clamp(v, 0, UINT16_MAX) if v else UINT16_MAX for v in used]
+            values += [UINT16_MAX] * (18 - len(values))
+            self._rc_key = inputs
+            self._rc_message = self._mav.rc_channels_encode(0, len(used), *values, 255)
+        self._rc_message.time_boot_ms = self._boot_ms(now_s)
+        return self._rc_message
+
+    def _msg_servo_output_raw(self, now_s: float) -> Any:
+        outputs = [_clamp(v, 0, UINT16_MAX) for v in list(self.model.servo_outputs())[:16]]
+        outputs += [0] * (16 - len(outputs))
+        time_us = max(0, round((now_s - self.boot_s) * 1e6)) & 0xFFFFFFFF
+        return self._mav.servo_output_raw_encode(time_us, 0, *outputs)
+
+    def _msg_ekf_status_report(self, now_s: float) -> Any:
+        age = self._age_s(now_s)
+        if age < _EKF_UNINITIALISED_S:
+            flags = _EKF_UNINITIALISED
+        elif age < self.boot_times.attitude_s:
+            flags = 0
+        elif age < self.boot_times.position_s:
+            flags = _EKF_ATTITUDE_ONLY
+        else:
+            flags = _EKF_POSITION
+        return self._mav.ekf_status_report_encode(flags, 0.02, 0.01, 0.01, 0.03, 0.0, 0.0)
+
+    def _msg_extended_sys_state(self, now_s: float) -> Any:
+        if self.firmware == "ardurover":  # no landed state (measured: 0, 0)
+            return self._mav.extended_sys_state_encode(
+                mavlink2.MAV_VTOL_STATE_UNDEFINED, mavlink2.MAV_LANDED_STATE_UNDEFINED
+            )
+        vtol = (
+            mavlink2.MAV_VTOL_STATE_MC
+            if self.firmware == "arducopter"
+            else mavlink2.MAV_VTOL_STATE_UNDEFINED
+        )
+        return self._mav.extended_sys_state_encode(vtol, self._landed_state(now_s))
+
+    def _msg_mission_current(self, now_s: float) -> Any:
+        seq, total, state, mode = self.missions.mission_current(self.model.mode == "AUTO")
+        return self._mav.mission_current_encode(seq, total, state, mode)
+
+    def _msg_battery_status(self, now_s: float) -> Any:
+        current_ca, remaining = self._battery(now_s)
+        return self._mav.battery_status_encode(
+            0,
+            mavlink2.MAV_BATTERY_FUNCTION_UNKNOWN,
+            mavlink2.MAV_BATTERY_TYPE_UNKNOWN,
+            32767,
+            [BATTERY_VOLTAGE_MV] + [UINT16_MAX] * 9,
+            current_ca,
+            round(self._battery_mah),
+            -1,
+            remaining,
+        )
+
+    def _waypoint_target(self) -> tuple[float, float, float] | None:
+        """The point the current mode flies to (lat, lon, height above origin), if any."""
+        mode = self.model.mode
+        if mode == self.guided_mode:
+            return self._target
+        if mode in ("RTL", "SMART_RTL") and self._home is not None:
+            return self._home[0], self._home[1], self._home[2] - self.origin_alt_amsl_m
+        return None
+
+    def _msg_nav_controller_output(self, now_s: float) -> Any:
+        t = self._truth()
+        target = self._waypoint_target()
+        bearing_deg, distance_m, alt_error_m = 0.0, 0.0, 0.0
+        if target is not None:
+            north = (target[0] - t.lat_deg) * _M_PER_DEG_LAT
+            east = (target[1] - t.lon_deg) * _M_PER_DEG_LAT * math.cos(math.radians(t.lat_deg))
+            bearing_deg = math.degrees(math.atan2(east, north)) % 360.0
+            distance_m = math.hypot(north, east)
+            alt_error_m = target[2] - t.up_m
+        nav_roll_deg, nav_pitch_deg = self.model.nav_attitude_deg()
+        return self._mav.nav_controller_output_encode(
+            nav_roll_deg,
+            nav_pitch_deg,
+            round(t.heading_deg) % 360,
+            round(bearing_deg) % 360,
+            min(round(distance_m), UINT16_MAX),
+            alt_error_m,
+            0.0,
+            0.0,
+        )
+
+    def _msg_fence_status(self, now_s: float) -> Any:
+        """FENCE_STATUS while a fence is enabled (and at once on a new breach).
+
+        The mitigation is ArduRover's and ArduCopter's avoidance (velocity limited while
+        it holds the rover short of the fence, else none); ArduPlane reports unknown.
+        """
+        status = self.fence.status()
+        if status is None:
+            return None
+        breached, count, kind, at_s = status
+        if self.firmware == "arduplane":
+            mitigation = mavlink2.FENCE_MITIGATE_UNKNOWN
+        elif self._avoid_cut and self.model.target_reached:
+            mitigation = mavlink2.FENCE_MITIGATE_VEL_LIMIT
+        else:
+            mitigation = mavlink2.FENCE_MITIGATE_NONE
+        time_ms = max(0, round((at_s - self.boot_s) * 1000)) if count else 0
+        return self._mav.fence_status_encode(breached, count, kind, time_ms, mitigation)
+
+    def _msg_position_target_global_int(self, now_s: float) -> Any:
+        target = self._waypoint_target()
+        if target is None:
+            return None  # ArduPilot sends it only while the mode flies to a target
+        return self._mav.position_target_global_int_encode(
+            self._boot_ms(now_s),
+            mavlink2.MAV_FRAME_GLOBAL,
+            0xFDF8,
+            round(target[0] * 1e7),
+            round(target[1] * 1e7),
+            self.origin_alt_amsl_m + target[2],
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+        )
+
+    def _msg_home_position(self, now_s: float) -> Any:
+        if self._home is None:
+            return None  # ArduPilot acknowledges the request and sends nothing
+        self._home_sent_s = now_s
+        lat, lon, alt = self._home
+        truth = self._truth()
+        north = (truth.lat_deg - lat) * _M_PER_DEG_LAT
+        east = (truth.lon_deg - lon) * _M_PER_DEG_LAT * math.cos(math.radians(lat))
+        return self._mav.home_position_encode(
+            round(lat * 1e7),
+            round(lon * 1e7),
+            round(alt * 1000),
+            -north,
+            -east,
+            0.0,
+            [math.nan] * 4,
+            0.0,
+            0.0,
+            0.0,
+            round((now_s - self.boot_s) * 1e6),
+        )
+
+    def _msg_autopilot_version(self, now_s: float) -> Any:
+        major, minor, patch = FIRMWARE_VERSION
+        version = (major << 24) | (minor << 16) | (patch << 8) | FIRMWARE_VERSION_TYPE
+        zeros8 = [0] * 8
+        uid = int.from_bytes(b"CLARK", "big") << 16 | self._sysid << 8 | self._compid
+        return self._mav.autopilot_version_encode(
+            CAPABILITIES[self.firmware], version, 0, 0, 0, zeros8, zeros8, zeros8, 0, 0, uid
+        )
+
+
+class _Hooks:
+    """The autopilot as ArduPilot's fence and failsafes see it (:class:`ApVehicle`)."""
+
+    def __init__(self, autopilot: SimAutopilot) -> None:
+        self._ap = autopilot
+        self.now_s = 0.0
+        """The time of the advance or message being handled."""
+
+    @property
+    def firmware(self) -> str:
+        return self._ap.firmware
+
+    @property
+    def mode(self) -> str:
+        return self._ap.model.mode
+
+    @property
+    def mode_reason(self) -> ModeReason:
+        return self._ap._mode_reason
+
+    @property
+    def armed(self) -> bool:
+        return self._ap.model.armed
+
+    @property
+    def landed(self) -> bool:
+        return not self._ap.model.airborne
+
+    @property
+    def landing(self) -> bool:
+        ap, model = self._ap, self._ap.model
+        if model.mode == "LAND":
+            return True
+        if model.mode == "AUTO" and ap._auto_landing:
+            return True
+        return model.mode in ("RTL", "SMART_RTL") and model.landed_state == "landing"
+
+    @property
+    def initial_climb(self) -> bool:
+        model = self._ap.model
+        return model.mode == "TAKEOFF" and model.landed_state == "taking_off"
+
+    @property
+    def throttle_zero(self) -> bool:
+        return self._ap._throttle_at_zero()
+
+    def param(self, name: str) -> float:
+        return self._ap._params[name].value
+
+    def text(self, severity: int, text: str) -> None:
+        self._ap._text(severity, text)
+
+    def try_mode(self, mode: str, reason: ModeReason) -> bool:
+        ap = self._ap
+        if mode not in ap.modes:
+            return False  # the profile has no such mode: nothing to try
+        if mode == ap.model.mode:
+            return True
+        return ap._enter_mode(mode, self.now_s, reason) == _ACCEPTED and ap.model.mode == mode
+
+    def disarm(self) -> None:
+        self._ap._disarm(self.now_s, force=True)
+
+    def clear_overrides(self) -> None:
+        ap = self._ap
+        if ap._overrides:
+            released = dict.fromkeys(ap._overrides, 0)
+            ap._overrides.clear()
+            ap.model.set_rc_override(released)
+
+    def spell(self, mode: str) -> str:
+        return self._ap.fw.spell(mode)

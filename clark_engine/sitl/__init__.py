@@ -1,0 +1,1 @@
+"""Real ArduPilot SITL: its processes and the pace a dry run holds them to."""
