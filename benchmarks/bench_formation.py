@@ -18,7 +18,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from clark_engine.behaviors.follow_agent import FollowAgent
+from clark_engine.behaviors.follow_agent import FollowAgentBehavior
 from clark_engine.link.messages import AgentStatus
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.validate import validate_path
@@ -49,8 +49,8 @@ def main() -> None:
     config = config_from_dict(data)
     assert config.machine is not None
     params = dict(config.machine.params)
-    leader_frame = FollowAgent(params)
-    ground = FollowAgent({**params, "offset": {"north_m": -8, "east_m": -8, "up_m": 0}})
+    leader_frame = FollowAgentBehavior(params)
+    ground = FollowAgentBehavior({**params, "offset": {"north_m": -8, "east_m": -8, "up_m": 0}})
     moving = AgentStatus(2, 0, 30.6375, -96.4787, 0.0, 1.5, 0.0, 90.0, 15)
     still = AgentStatus(2, 0, 30.6375, -96.4787, 0.0, 0.0, 0.0, 211.0, 15)
     print(f"microseconds per call, best / median of {ROUNDS} rounds of {CALLS:,} calls")

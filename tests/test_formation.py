@@ -31,7 +31,11 @@ from test_runtime_primitives import (
     set_mode,
 )
 
-from clark_engine.behaviors.follow_agent import COURSE_MIN_SPEED_M_S, FollowAgent, LeaderOffset
+from clark_engine.behaviors.follow_agent import (
+    COURSE_MIN_SPEED_M_S,
+    FollowAgentBehavior,
+    LeaderOffset,
+)
 from clark_engine.link.fleet import FleetTable
 from clark_engine.link.messages import AgentStatus, AgentType, Heartbeat
 from clark_engine.link.packet import Packet
@@ -108,7 +112,7 @@ def test_the_follower_keeps_its_place_through_a_turn_on_a_virtual_clock() -> Non
     assert params["lead_s"] == 0 and params["retarget_hz"] == 2 and config.loop_hz == 10
     fleet = fleet_for(config)
     leader = Leader(config, fleet)
-    run = Run(config, FollowAgent(params), fleet)
+    run = Run(config, FollowAgentBehavior(params), fleet)
     leader.report(30, 0, now_s=0.0, heading_deg=0.0, speed_m_s=1.5)  # driving north
     assert run.start(at(config, 22, -8)) == [
         set_mode(config, "GUIDED"),
@@ -127,7 +131,7 @@ def test_a_leader_standing_still_keeps_the_heading_it_last_moved_along() -> None
     config = compiled(*CONVOY)
     fleet = fleet_for(config)
     leader = Leader(config, fleet)
-    run = Run(config, FollowAgent(params_of(config, "follow_agent")), fleet)
+    run = Run(config, FollowAgentBehavior(params_of(config, "follow_agent")), fleet)
     leader.report(30, 30, now_s=0.0, heading_deg=90.0, speed_m_s=1.5)
     run.start(at(config, 38, 22))
     gotos: list[Goto] = []
@@ -150,7 +154,7 @@ def test_a_leader_never_seen_moving_gives_its_heading_as_reported() -> None:
     config = compiled(*CONVOY)
     fleet = fleet_for(config)
     Leader(config, fleet).report(0, 0, now_s=0.0, heading_deg=180.0, speed_m_s=0.0)
-    run = Run(config, FollowAgent(params_of(config, "follow_agent")), fleet)
+    run = Run(config, FollowAgentBehavior(params_of(config, "follow_agent")), fleet)
     assert run.start() == [set_mode(config, "GUIDED"), goal(config, 8, 8)]
 
 
@@ -159,7 +163,7 @@ def test_the_follower_is_done_at_its_place_in_the_leaders_frame() -> None:
     fleet = fleet_for(config)
     Leader(config, fleet).report(0, 0, now_s=0.0, heading_deg=270.0, speed_m_s=0.0)
     params = params_of(config, "follow_agent", continuous=False, tolerance_m=2)
-    run = Run(config, FollowAgent(params), fleet)
+    run = Run(config, FollowAgentBehavior(params), fleet)
     run.start(at(config, -8, -8))  # behind-left of a leader facing north: not its place
     assert run.step(at(config, -8, -8))[0] is Status.RUNNING
     assert run.step(at(config, -8, 5))[0] is Status.RUNNING  # 3 m short

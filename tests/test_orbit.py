@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from clark_engine.behaviors import behaviors, make_behavior
-from clark_engine.behaviors.orbit import Orbit, circle_points, wrap_rad
+from clark_engine.behaviors.orbit import OrbitBehavior, circle_points, wrap_rad
 from clark_engine.link.messages import AgentStatus, AgentType, Heartbeat
 from clark_engine.link.packet import Packet
 from clark_engine.mission.compiler import agent_config
@@ -162,7 +162,7 @@ def test_a_plane_is_sent_the_centre_with_its_loiter_radius_and_direction() -> No
     # a fixed point is sent once: ArduPlane circles it by itself
     assert all(run.step(me) == (Status.RUNNING, []) for _ in range(30))
     orbit = run.primitive
-    assert isinstance(orbit, Orbit)
+    assert isinstance(orbit, OrbitBehavior)
     # counting starts within tolerance_m of a circle up to 15 % wide (ArduPlane's 126.7 m)
     # (138 m and tolerance_m 5: 143 m)
     for inside_m in (145, 114, 10):  # too wide, too tight, over the centre: not counted
@@ -228,7 +228,7 @@ def relative(config: AgentConfig, goto: Goto, north_m: float, east_m: float) -> 
     return math.hypot(n, e), math.degrees(math.atan2(e, n)) % 360
 
 
-def point_orbit(config: AgentConfig, **changes: Any) -> Orbit:
+def point_orbit(config: AgentConfig, **changes: Any) -> OrbitBehavior:
     """The example's orbit made to circle a point 15 m up at (north 100, east 0)."""
     params = params_of(config, "orbit", agent=None, alt_m=None, **changes)
     lat, lon = local(config, 100, 0)
@@ -240,7 +240,7 @@ def point_orbit(config: AgentConfig, **changes: Any) -> Orbit:
         "lon": lon,
         "alt_m": 15,
     }
-    return Orbit(params)
+    return OrbitBehavior(params)
 
 
 def on_circle(config: AgentConfig, bearing_deg: float, radius_m: float = 15.0) -> Any:
@@ -295,7 +295,9 @@ def test_targets_stream_at_the_retarget_rate() -> None:
     assert ticks == [5, 10, 15, 20]  # every 0.5 s from the first Goto
 
 
-def fly(orbit: Orbit, config: AgentConfig, bearings: list[float], **kw: Any) -> list[Status]:
+def fly(
+    orbit: OrbitBehavior, config: AgentConfig, bearings: list[float], **kw: Any
+) -> list[Status]:
     run = Run(config, orbit)
     run.start(on_circle(config, bearings[0], **kw))
     return [run.step(on_circle(config, b, **kw))[0] for b in bearings[1:]]
@@ -344,7 +346,7 @@ def test_without_turns_it_circles_until_a_transition() -> None:
 def test_round_an_agent_it_waits_for_its_status_then_circles_where_it_reports() -> None:
     config = compiled(*COPTER)
     fleet = fleet_for(config)
-    run = Run(config, Orbit(params_of(config, "orbit")), fleet)
+    run = Run(config, OrbitBehavior(params_of(config, "orbit")), fleet)
     me = at(config, 0, -20, alt_m=15.0)
     assert run.start(me) == [set_mode(config, "GUIDED")]  # no status yet: no target
     assert run.step(me) == (Status.RUNNING, [])

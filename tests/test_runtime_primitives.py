@@ -15,13 +15,13 @@ import pytest
 from clark_engine.behaviors import behaviors
 from clark_engine.behaviors import make_behavior as make_primitive
 from clark_engine.behaviors.base import BehaviorRuntime as Primitive
-from clark_engine.behaviors.doublet import Doublet
-from clark_engine.behaviors.follow_agent import FollowAgent
-from clark_engine.behaviors.photo_trigger import PhotoTrigger
-from clark_engine.behaviors.sine_sweep import SineSweep
-from clark_engine.behaviors.terminate import Terminate
-from clark_engine.behaviors.waypoint import Waypoint
-from clark_engine.behaviors.waypoint_tour import WaypointTour
+from clark_engine.behaviors.doublet import DoubletBehavior
+from clark_engine.behaviors.follow_agent import FollowAgentBehavior
+from clark_engine.behaviors.photo_trigger import PhotoTriggerBehavior
+from clark_engine.behaviors.sine_sweep import SineSweepBehavior
+from clark_engine.behaviors.terminate import TerminateBehavior
+from clark_engine.behaviors.waypoint import WaypointBehavior
+from clark_engine.behaviors.waypoint_tour import WaypointTourBehavior
 from clark_engine.link.fleet import FleetTable
 from clark_engine.link.messages import AgentStatus, AgentType, Heartbeat, PictureData
 from clark_engine.link.packet import Packet
@@ -214,7 +214,7 @@ def test_a_channel_without_an_output_for_via_fails_when_built() -> None:
     params = params_of(config, "doublet")
     params["channel"] = {**params["channel"], "servo": None}
     with pytest.raises(ConfigError, match="no servo output"):
-        Doublet({**params, "via": "servo"})
+        DoubletBehavior({**params, "via": "servo"})
 
 
 # ----------------------------------------------------------------- waypoint
@@ -265,7 +265,7 @@ def test_waypoint_does_not_fight_a_mode_change_and_resumes_on_guided() -> None:
 def test_waypoint_air_vehicle_counts_the_altitude_difference() -> None:
     config = compiled("anaconda_survey.yaml", "anaconda")
     point = params_of(config, "waypoint_tour")["waypoints"][1]  # 300 m north, 60 m up
-    run = Run(config, Waypoint({"to": point, "tolerance_m": 5, "speed_m_s": 18}))
+    run = Run(config, WaypointBehavior({"to": point, "tolerance_m": 5, "speed_m_s": 18}))
     assert run.start() == [set_mode(config, "GUIDED"), goto(point, 18.0)]
     overhead = (point["lat"], point["lon"])
     assert run.step(vehicle(*overhead, alt_m=40)) == (Status.RUNNING, [goto(point, 18.0)])
@@ -289,7 +289,7 @@ def test_tour_visits_in_order_and_loops() -> None:
     waypoints, speed = params["waypoints"], params["speed_m_s"]
     assert len(waypoints) == 8 and speed == 1
     # Slash A's tour, looped (the example drives it once round, to keep clear of Slash B)
-    run = Run(config, WaypointTour(params_of(config, "waypoint_tour", loop=True)))
+    run = Run(config, WaypointTourBehavior(params_of(config, "waypoint_tour", loop=True)))
     assert run.start(at(config, -5, -5)) == [
         set_mode(config, "GUIDED"),
         goto(waypoints[0], speed),
@@ -321,7 +321,7 @@ def test_tour_without_loop_is_done_at_the_last_waypoint() -> None:
 def test_looping_single_point_tour_does_not_repeat_its_goto() -> None:
     config = compiled("cooperative_follow.yaml", "slash_a")
     point = params_of(config, "waypoint_tour")["waypoints"][2]
-    run = Run(config, WaypointTour({"waypoints": [point], "loop": True, "tolerance_m": 2}))
+    run = Run(config, WaypointTourBehavior({"waypoints": [point], "loop": True, "tolerance_m": 2}))
     there = vehicle(point["lat"], point["lon"])
     assert run.start(there) == [set_mode(config, "GUIDED"), goto(point)]
     for _ in range(4):
@@ -423,7 +423,7 @@ def test_follow_applies_the_offset_and_finishes_at_the_offset_goal() -> None:
     params = params_of(
         config, "follow_agent", offset={"north_m": -8, "east_m": 3, "up_m": 0}, tolerance_m=6
     )
-    run = Run(config, FollowAgent(params), fleet)
+    run = Run(config, FollowAgentBehavior(params), fleet)
     goal = Goto(*offset_position(*local(config, 40 + LEAD_M, 10), -8, 3), 1.0, None, 2.0, 0.0)
     start = run.start(at(config, 0, 0, mode="HOLD"))
     assert start == [set_mode(config, "GUIDED"), Near(goal)]
@@ -437,7 +437,9 @@ def test_continuous_follow_never_finishes() -> None:
     config = compiled(*FOLLOW)
     fleet = fleet_for(config)
     Leader(config, fleet).report(40, 10, now_s=0.0)
-    run = Run(config, FollowAgent(params_of(config, "follow_agent", continuous=True)), fleet)
+    run = Run(
+        config, FollowAgentBehavior(params_of(config, "follow_agent", continuous=True)), fleet
+    )
     run.start()
     for _ in range(12):
         status, _commands = run.step(at(config, 40, 10))
@@ -473,7 +475,7 @@ def test_doublet_pwm_sequence_tick_by_tick(loop_hz: float, via: str, first: str)
     params = params_of(config, "doublet", via=via, first=first)
     assert params["width_s"] == 0.5 and params["amplitude_us"] == 150
     assert params["channel"]["rc"] == params["channel"]["servo"] == 1  # the aileron
-    run = Run(config, Doublet(params))
+    run = Run(config, DoubletBehavior(params))
     assert run.start() == []
     n = {10.0: 5, 20.0: 10}[loop_hz]
     high, low = (1650, 1350) if first == "up" else (1350, 1650)
@@ -492,14 +494,14 @@ def test_doublet_pwm_sequence_tick_by_tick(loop_hz: float, via: str, first: str)
 def test_doublet_values_are_clamped_integers() -> None:
     config = compiled(*CUB)
     params = params_of(config, "doublet", amplitude_us=450.4)
-    doublet = Doublet(params)
+    doublet = DoubletBehavior(params)
     assert [doublet.pwm_us(k, 10.0) for k in (0, 5, 10)] == [1900, 1100, 1500]
-    assert Doublet(params_of(config, "doublet", amplitude_us=100.6)).pwm_us(0, 10.0) == 1601
+    assert DoubletBehavior(params_of(config, "doublet", amplitude_us=100.6)).pwm_us(0, 10.0) == 1601
 
 
 def test_doublet_cut_short_returns_to_trim_and_releases() -> None:
     config = compiled(*CUB)
-    run = Run(config, Doublet(params_of(config, "doublet")))
+    run = Run(config, DoubletBehavior(params_of(config, "doublet")))
     run.start()
     run.step()
     run.step()
@@ -517,7 +519,7 @@ def test_sine_sweep_follows_its_frequency_law_at_every_tick(law: str, via: str) 
     params = params_of(config, "sine_sweep", law=law, via=via)
     channel = params["channel"]
     number = channel["rc"] if via == "rc_override" else channel["servo"]
-    sweep = SineSweep(params)
+    sweep = SineSweepBehavior(params)
     f0, f1, duration_s = params["f_start_hz"], params["f_stop_hz"], params["duration_s"]
     assert (f0, f1, duration_s) == (0.2, 2.0, 30)
     assert sweep.frequency_hz(0.0) == pytest.approx(f0, rel=1e-12)
@@ -561,7 +563,7 @@ def test_sine_sweep_follows_its_frequency_law_at_every_tick(law: str, via: str) 
 def test_sine_sweep_phase_is_the_integral_of_its_frequency() -> None:
     config = compiled(*CUB)
     for law in ("linear", "exponential"):
-        sweep = SineSweep(params_of(config, "sine_sweep", law=law))
+        sweep = SineSweepBehavior(params_of(config, "sine_sweep", law=law))
         steps = 30_000
         h = 30.0 / steps
         integral = sum(sweep.frequency_hz((i + 0.5) * h) * h for i in range(steps))
@@ -570,8 +572,8 @@ def test_sine_sweep_phase_is_the_integral_of_its_frequency() -> None:
 
 def test_sine_sweep_exponential_with_equal_frequencies_is_a_plain_sine() -> None:
     config = compiled(*CUB)
-    sweep = SineSweep(params_of(config, "sine_sweep", f_start_hz=1.0, f_stop_hz=1.0))
-    sweep_exp = SineSweep(
+    sweep = SineSweepBehavior(params_of(config, "sine_sweep", f_start_hz=1.0, f_stop_hz=1.0))
+    sweep_exp = SineSweepBehavior(
         params_of(config, "sine_sweep", f_start_hz=1.0, f_stop_hz=1.0, law="exponential")
     )
     for t_s in (0.0, 0.3, 7.25, 30.0):
@@ -581,7 +583,7 @@ def test_sine_sweep_exponential_with_equal_frequencies_is_a_plain_sine() -> None
 
 def test_sine_sweep_starts_at_trim_and_fades() -> None:
     config = compiled(*CUB)
-    sweep = SineSweep(params_of(config, "sine_sweep"))
+    sweep = SineSweepBehavior(params_of(config, "sine_sweep"))
     assert sweep.pwm_us(0.0) == 1500
     assert sweep.envelope(1.0) == 0.5
     assert sweep.envelope(15.0) == 1.0
@@ -591,7 +593,7 @@ def test_sine_sweep_starts_at_trim_and_fades() -> None:
 
 def test_sine_sweep_cut_short_returns_to_trim_and_releases() -> None:
     config = compiled(*CUB)
-    run = Run(config, SineSweep(params_of(config, "sine_sweep")))
+    run = Run(config, SineSweepBehavior(params_of(config, "sine_sweep")))
     run.start()
     for _ in range(30):
         run.step()
@@ -635,13 +637,13 @@ def test_photo_trigger_requests_every_interval_and_reports_captures() -> None:
     assert run.payload(PayloadEvent("camera", "refused", 3, "too soon")) == ([], [])
     assert run.payload(PayloadEvent("camera", "error", 4, "disk full")) == ([], [])
     primitive = run.primitive
-    assert isinstance(primitive, PhotoTrigger)
+    assert isinstance(primitive, PhotoTriggerBehavior)
     assert (primitive.captured, primitive.refused, primitive.errors) == (1, 1, 1)
 
 
 def test_photo_trigger_is_done_after_count_and_sends_to_the_named_agents() -> None:
     config = compiled(*ANACONDA)
-    run = Run(config, PhotoTrigger(params_of(config, "photo_trigger", count=2, to=["mcs"])))
+    run = Run(config, PhotoTriggerBehavior(params_of(config, "photo_trigger", count=2, to=["mcs"])))
     assert run.start(at(config, 0, 0, alt_m=60)) == [PayloadCommand("camera", "capture", 1)]
     _, messages = run.payload(PayloadEvent("camera", "captured", 1))
     assert [(m.image_index, to) for m, to in messages] == [(1, ("mcs",))]
@@ -655,7 +657,7 @@ def test_photo_trigger_is_done_after_count_and_sends_to_the_named_agents() -> No
 
 def test_photo_trigger_without_a_position_still_captures_but_sends_nothing() -> None:
     config = compiled(*ANACONDA)
-    run = Run(config, PhotoTrigger(params_of(config, "photo_trigger", count=1)))
+    run = Run(config, PhotoTriggerBehavior(params_of(config, "photo_trigger", count=1)))
     assert run.start() == [PayloadCommand("camera", "capture", 1)]
     assert run.payload(PayloadEvent("camera", "captured", 1)) == ([], [])
     assert run.step() == (Status.DONE, [])
@@ -754,7 +756,7 @@ def test_wait_without_duration_waits_forever_and_commands_nothing() -> None:
 @pytest.mark.parametrize("mode", [None, "RTL"])
 def test_terminate_asks_the_runtime_to_terminate(mode: str | None) -> None:
     config = compiled(*CUB)
-    run = Run(config, Terminate({} if mode is None else {"mode": mode}))
+    run = Run(config, TerminateBehavior({} if mode is None else {"mode": mode}))
     assert run.start() == []
     assert run.ctx.terminate_requested
     assert run.ctx.terminal_mode == mode

@@ -22,7 +22,7 @@ from clark_engine.behaviors.lawnmower import (
     polygon_area_m2,
     self_crossing,
 )
-from clark_engine.behaviors.survey import Survey, SurveyParams, footprint_m
+from clark_engine.behaviors.survey import SurveyBehavior, SurveyParams, footprint_m
 from clark_engine.link.fleet import FleetTable
 from clark_engine.link.messages import PictureData
 from clark_engine.mission.compiler import agent_config
@@ -312,7 +312,7 @@ def _at(config: AgentConfig, north_m: float, east_m: float, alt_m: float = 25.0)
 class _Clock:
     """One behaviour on a virtual clock: one update per tick at the config's loop rate."""
 
-    def __init__(self, config: AgentConfig, survey: Survey) -> None:
+    def __init__(self, config: AgentConfig, survey: SurveyBehavior) -> None:
         fleet = FleetTable(
             config.agent_id,
             config.mission_id,
@@ -344,7 +344,7 @@ class _Clock:
 def test_flies_the_lines_in_order_photographs_by_distance_and_is_done_at_the_end() -> None:
     config = _compiled(EXAMPLE)
     params = _survey_params(config)
-    survey = Survey(params)
+    survey = SurveyBehavior(params)
     clock = _Clock(config, survey)
     lines = params["lines"]
     first = lines[0]["start"]
@@ -383,7 +383,7 @@ def test_flies_the_lines_in_order_photographs_by_distance_and_is_done_at_the_end
 def test_a_confirmed_capture_sends_picture_data_to_the_station() -> None:
     config = _compiled(EXAMPLE)
     params = _survey_params(config)
-    survey = Survey(params)
+    survey = SurveyBehavior(params)
     clock = _Clock(config, survey)
     a = params["lines"][0]["start"]
     clock.start(_at(config, 0, 0))
@@ -402,7 +402,7 @@ def test_a_confirmed_capture_sends_picture_data_to_the_station() -> None:
 def test_a_late_tick_sends_one_request_not_a_burst() -> None:
     config = _compiled(EXAMPLE)
     params = _survey_params(config)
-    survey = Survey(params)
+    survey = SurveyBehavior(params)
     clock = _Clock(config, survey)
     a = params["lines"][0]["start"]
     clock.start(_at(config, 0, 0))

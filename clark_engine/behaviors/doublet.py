@@ -105,7 +105,7 @@ def _signal(params: DoubletParams, loop_hz: float) -> list[int]:
     return [clamp(trim + sign * amplitude)] * n + [clamp(trim - sign * amplitude)] * n + [int(trim)]
 
 
-class Doublet(ChannelExcitation):
+class DoubletBehavior(ChannelExcitation):
     """What doublet commands in flight, tick by tick (its section of docs/runtime.md).
 
     Trim + amplitude for `width_s`, trim - amplitude for `width_s`, back to trim (thesis 5.3.3).
@@ -185,7 +185,7 @@ BEHAVIOR = Behavior(
     name="doublet",
     summary="Trim+amplitude for width_s, trim-amplitude for width_s, back to trim; then done.",
     parameters=DoubletParams,
-    runtime=Doublet,
+    runtime=DoubletBehavior,
     events=raises_done,
     traits=Traits(flies=True, drives_channel=True),
     check=_check,

@@ -165,7 +165,7 @@ class ModeRequest:
         ctx.command(mode_command(ctx, self.mode))
 
 
-class ProfileModePrimitive(BehaviorRuntime):
+class ProfileModeBehavior(BehaviorRuntime):
     """A primitive flown in a mode its autopilot profile names (hold, land, RTL).
 
     ``start`` asks for the mode the profile's ``mode_key`` names, through a

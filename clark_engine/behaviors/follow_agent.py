@@ -436,7 +436,7 @@ def _compile(params: dict[str, Any], ctx: CompileContext) -> dict[str, Any]:
     return params
 
 
-class FollowAgent(BehaviorRuntime):
+class FollowAgentBehavior(BehaviorRuntime):
     """What follow_agent commands in flight, tick by tick (its section of docs/runtime.md).
 
     Go to another agent's reported position plus an offset.
@@ -589,7 +589,7 @@ BEHAVIOR = Behavior(
     name="follow_agent",
     summary="Go to another agent's reported position plus an offset; done on reaching it.",
     parameters=FollowAgentParams,
-    runtime=FollowAgent,
+    runtime=FollowAgentBehavior,
     events=_events,
     traits=Traits(guided=True, flies=True),
     check=_check,

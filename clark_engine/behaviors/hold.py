@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 from clark_engine.behaviors.base import Status
 from clark_engine.behaviors.declaration import Behavior, Params, Traits, raises_nothing
-from clark_engine.behaviors.flight import ProfileModePrimitive
+from clark_engine.behaviors.flight import ProfileModeBehavior
 
 if TYPE_CHECKING:
     from clark_engine.runtime.context import PrimitiveContext
@@ -22,7 +22,7 @@ class HoldParams(Params):
     DESCRIPTION = "hold takes no parameters."
 
 
-class Hold(ProfileModePrimitive):
+class HoldBehavior(ProfileModeBehavior):
     """What hold commands in flight, tick by tick (its section of docs/runtime.md).
 
     Keep the vehicle where it is; never finishes. `start` sends `SetMode(hold mode)` (the
@@ -46,7 +46,7 @@ BEHAVIOR = Behavior(
     name="hold",
     summary="Hold position in the autopilot's hold mode until a transition moves on.",
     parameters=HoldParams,
-    runtime=Hold,
+    runtime=HoldBehavior,
     events=raises_nothing,
     traits=Traits(flies_if_aircraft=True, stays_put=True),
 )

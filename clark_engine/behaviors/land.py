@@ -21,7 +21,7 @@ from clark_engine.behaviors.declaration import (
     UseContext,
     raises_done,
 )
-from clark_engine.behaviors.flight import ProfileModePrimitive, is_airborne
+from clark_engine.behaviors.flight import ProfileModeBehavior, is_airborne
 from clark_engine.behaviors.shared import check_airframe, check_mode_role
 from clark_engine.mission.findings import Finding
 
@@ -52,7 +52,7 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
         yield from check_mode_role(ctx, "land", "land_mode", "LAND", "lands on the spot")
 
 
-class Land(ProfileModePrimitive):
+class LandBehavior(ProfileModeBehavior):
     """What land commands in flight, tick by tick (its section of docs/runtime.md).
 
     Land where the vehicle is, in the autopilot's land mode; done on the ground.
@@ -88,7 +88,7 @@ BEHAVIOR = Behavior(
         "Land where the vehicle is in the autopilot's land mode; done once it is on the ground."
     ),
     parameters=LandParams,
-    runtime=Land,
+    runtime=LandBehavior,
     events=raises_done,
     traits=Traits(lands=True, floor_exempt=True, stays_put=True),
     check=_check,

@@ -395,7 +395,7 @@ def wrap_rad(angle: float) -> float:
     return math.pi if wrapped == -math.pi else wrapped
 
 
-class Orbit(BehaviorRuntime):
+class OrbitBehavior(BehaviorRuntime):
     """What orbit commands in flight, tick by tick (its section of docs/runtime.md).
 
     Circle a point or another agent at `radius_m`, `cw` or `ccw`; done after `turns`.
@@ -563,7 +563,7 @@ BEHAVIOR = Behavior(
     name="orbit",
     summary="Circle a point or another agent at a radius, cw or ccw; done after turns if given.",
     parameters=OrbitParams,
-    runtime=Orbit,
+    runtime=OrbitBehavior,
     events=_events,
     traits=Traits(guided=True, flies=True),
     check=_check,

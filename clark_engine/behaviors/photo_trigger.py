@@ -114,7 +114,7 @@ def _compile(params: dict[str, Any], _ctx: CompileContext) -> dict[str, Any]:
 MAX_PENDING_REQUESTS = 64
 
 
-class PhotoTrigger(BehaviorRuntime):
+class PhotoTriggerBehavior(BehaviorRuntime):
     """What photo_trigger commands in flight, tick by tick (its section of docs/runtime.md).
 
     Ask a camera for a picture every `interval_s`; send Picture Data on each (thesis 5.3.2).
@@ -244,7 +244,7 @@ BEHAVIOR = Behavior(
     name="photo_trigger",
     summary="Request a picture every interval_s and send Picture Data on each capture.",
     parameters=PhotoTriggerParams,
-    runtime=PhotoTrigger,
+    runtime=PhotoTriggerBehavior,
     events=_events,
     traits=Traits(takes_pictures=True),
     check=_check,

@@ -23,7 +23,7 @@ from clark_engine.behaviors.declaration import (
     param,
     raises_done,
 )
-from clark_engine.behaviors.flight import ProfileModePrimitive
+from clark_engine.behaviors.flight import ProfileModeBehavior
 from clark_engine.behaviors.shared import check_mode_role, check_orbit_tolerance
 from clark_engine.mission.findings import Finding
 from clark_engine.mission.schema_source.common import number
@@ -53,7 +53,7 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
     yield from check_orbit_tolerance(ctx, circled="home in RTL", reached="home")
 
 
-class ReturnHome(ProfileModePrimitive):
+class ReturnHomeBehavior(ProfileModeBehavior):
     """What return_home commands in flight, tick by tick (its section of docs/runtime.md).
 
     Go home in the autopilot's return-to-launch mode; done within `tolerance_m` (default
@@ -103,7 +103,7 @@ BEHAVIOR = Behavior(
         "(ArduCopter goes on to land there)."
     ),
     parameters=ReturnHomeParams,
-    runtime=ReturnHome,
+    runtime=ReturnHomeBehavior,
     events=raises_done,
     traits=Traits(lands=True, floor_exempt=True, home_when_done=True),
     check=_check,

@@ -32,7 +32,7 @@ class SetModeParams(Params):
 RESEND_INTERVAL_S = 1.0
 
 
-class SetMode(BehaviorRuntime):
+class SetModeBehavior(BehaviorRuntime):
     """What set_mode commands in flight, tick by tick (its section of docs/runtime.md).
 
     Put the autopilot in a mode; done once it reports it. `start` sends `SetMode(mode)`;
@@ -75,7 +75,7 @@ BEHAVIOR = Behavior(
     name="set_mode",
     summary="Set the autopilot's flight mode; done when the autopilot reports it.",
     parameters=SetModeParams,
-    runtime=SetMode,
+    runtime=SetModeBehavior,
     events=raises_done,
     check=check_mode,
 )

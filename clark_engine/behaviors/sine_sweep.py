@@ -164,7 +164,7 @@ def _signal(params: SineSweepParams, loop_hz: float) -> list[int]:
         k += 1
 
 
-class SineSweep(ChannelExcitation):
+class SineSweepBehavior(ChannelExcitation):
     """What sine_sweep commands in flight, tick by tick (its section of docs/runtime.md).
 
     A frequency sweep (chirp) on one control channel (thesis 5.3.3), with f0 = `f_start_hz`,
@@ -274,7 +274,7 @@ BEHAVIOR = Behavior(
     name="sine_sweep",
     summary="Sinusoid sweeping from f_start_hz to f_stop_hz over duration_s; then done.",
     parameters=SineSweepParams,
-    runtime=SineSweep,
+    runtime=SineSweepBehavior,
     events=raises_done,
     traits=Traits(flies=True, drives_channel=True),
     check=_check,

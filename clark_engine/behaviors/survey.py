@@ -48,7 +48,7 @@ from clark_engine.behaviors.lawnmower import (
     polygon_area_m2,
     self_crossing,
 )
-from clark_engine.behaviors.photo_trigger import PhotoTrigger, PhotoTriggerParams
+from clark_engine.behaviors.photo_trigger import PhotoTriggerBehavior, PhotoTriggerParams
 from clark_engine.behaviors.shared import (
     AGENT_NAME_SCHEMA,
     POINT_SCHEMA,
@@ -643,7 +643,7 @@ def _sends(params: Mapping[str, Any]) -> Sequence[Sends]:
 # ---------------------------------------------------------------------- runtime
 
 
-class Survey(BehaviorRuntime):
+class SurveyBehavior(BehaviorRuntime):
     """What survey commands in flight, tick by tick (its section of docs/runtime.md).
 
     Fly the compiled lines in order, a picture at each mark along them; done at the last end.
@@ -702,7 +702,7 @@ class Survey(BehaviorRuntime):
         self.requested = 0
         self._next_mark = 0
         self._leg = GuidedLeg(self.speed_m_s)
-        self._camera = PhotoTrigger(self._camera_params)
+        self._camera = PhotoTriggerBehavior(self._camera_params)
         self._three_d = True
 
     @property
@@ -716,7 +716,7 @@ class Survey(BehaviorRuntime):
         self.index = 0
         self.requested = 0
         self._next_mark = 0
-        self._camera = PhotoTrigger(self._camera_params)
+        self._camera = PhotoTriggerBehavior(self._camera_params)
         self._leg.begin(ctx)
         if not self._leg.failed and self.route:
             self._leg.go(ctx, self.route[0])
@@ -789,7 +789,7 @@ BEHAVIOR = Behavior(
     summary="Fly a lawnmower over an area, lines spaced from the camera's footprint, "
     "pictures by distance; done at the last line's end.",
     parameters=SurveyParams,
-    runtime=Survey,
+    runtime=SurveyBehavior,
     events=raises_done,
     traits=Traits(guided=True, flies=True, takes_pictures=True),
     check=_all_checks,

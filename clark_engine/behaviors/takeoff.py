@@ -85,7 +85,7 @@ and its landed state (EXTENDED_SYS_STATE) comes once a second: asked again soone
 copter already climbing refuses the repeat (measured on SITL)."""
 
 
-class Takeoff(BehaviorRuntime):
+class TakeoffBehavior(BehaviorRuntime):
     """What takeoff commands in flight, tick by tick (its section of docs/runtime.md).
 
     Lift off and climb to `alt_m` above the mission origin; done within `tolerance_m`
@@ -200,7 +200,7 @@ BEHAVIOR = Behavior(
         "its TAKEOFF mode); done within tolerance_m of it."
     ),
     parameters=TakeoffParams,
-    runtime=Takeoff,
+    runtime=TakeoffBehavior,
     events=raises_done,
     traits=Traits(takes_off=True, floor_exempt=True, flies=True, stays_put=True),
     check=_check,

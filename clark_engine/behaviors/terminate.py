@@ -29,7 +29,7 @@ class TerminateParams(Params):
     )
 
 
-class Terminate(BehaviorRuntime):
+class TerminateBehavior(BehaviorRuntime):
     """What terminate commands in flight, tick by tick (its section of docs/runtime.md).
 
     End this agent's part in the mission. `start` asks the runtime to terminate, with the
@@ -62,7 +62,7 @@ BEHAVIOR = Behavior(
     name="terminate",
     summary="Stop commanding, switch to the terminal mode, close interfaces and flush logs.",
     parameters=TerminateParams,
-    runtime=Terminate,
+    runtime=TerminateBehavior,
     events=raises_nothing,
     traits=Traits(lands=True),
     check=check_mode,

@@ -38,7 +38,7 @@ def _events(params: Mapping[str, Any]) -> frozenset[str]:
     return frozenset({"done"}) if params.get("duration_s") is not None else frozenset()
 
 
-class Wait(BehaviorRuntime):
+class WaitBehavior(BehaviorRuntime):
     """What wait commands in flight, tick by tick (its section of docs/runtime.md).
 
     Command nothing. With `duration_s`, DONE at the first `update` at least that long after
@@ -76,7 +76,7 @@ BEHAVIOR = Behavior(
     name="wait",
     summary="Command nothing; done after duration_s, or wait for an event when omitted.",
     parameters=WaitParams,
-    runtime=Wait,
+    runtime=WaitBehavior,
     events=_events,
     needs_autopilot=False,
     traits=Traits(stays_put_on_ground=True),

@@ -64,7 +64,7 @@ def _plan(params: Mapping[str, Any]) -> Plan:
     return Plan(points=[(params["to"], "to")], kind="target")
 
 
-class Waypoint(BehaviorRuntime):
+class WaypointBehavior(BehaviorRuntime):
     """What waypoint commands in flight, tick by tick (its section of docs/runtime.md).
 
     Go to one position in guided mode; done within `tolerance_m` of it.
@@ -129,7 +129,7 @@ BEHAVIOR = Behavior(
     name="waypoint",
     summary="Go to one position in guided mode; done within tolerance_m of it.",
     parameters=WaypointParams,
-    runtime=Waypoint,
+    runtime=WaypointBehavior,
     events=raises_done,
     traits=Traits(guided=True, flies=True),
     check=_check,

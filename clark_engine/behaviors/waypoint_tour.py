@@ -79,7 +79,7 @@ def _plan(params: Mapping[str, Any]) -> Plan:
     )
 
 
-class WaypointTour(BehaviorRuntime):
+class WaypointTourBehavior(BehaviorRuntime):
     """What waypoint_tour commands in flight, tick by tick (its section of docs/runtime.md).
 
     Visit positions in order, optionally looping; done at the last unless `loop`.
@@ -146,7 +146,7 @@ BEHAVIOR = Behavior(
     name="waypoint_tour",
     summary="Visit waypoints in order (optionally forever); done at the last one unless loop.",
     parameters=WaypointTourParams,
-    runtime=WaypointTour,
+    runtime=WaypointTourBehavior,
     events=_events,
     traits=Traits(guided=True, flies=True),
     check=_check,
