@@ -86,15 +86,9 @@ from clark_engine.runtime.commands import (
 )
 from clark_engine.runtime.config import AgentConfig, PeerSpec, check_tick_phases
 from clark_engine.runtime.context import PrimitiveContext, ground_distance_m
-from clark_engine.runtime.envelope import (
-    Breach,
-    EnvelopeCounts,
-    EnvelopeGuard,
-    EnvelopeWatch,
-    ModeOwner,
-    PeerPositions,
-    largest_separation_m,
-)
+from clark_engine.runtime.envelope import PeerPositions, largest_separation_m
+from clark_engine.runtime.envelope_guard import EnvelopeCounts, EnvelopeGuard
+from clark_engine.runtime.envelope_watch import Breach, EnvelopeWatch
 from clark_engine.runtime.events import (
     AutopilotHealth,
     AutopilotHeartbeat,
@@ -118,6 +112,7 @@ from clark_engine.runtime.logbook import (
     Logbook,
 )
 from clark_engine.runtime.machine import BehaviorMachine, Holds, StateChange
+from clark_engine.runtime.mode_owner import ModeOwner
 from clark_engine.runtime.peer_conditions import AlwaysWatch, resolve_peer_condition
 
 #: Commands that move the vehicle; never sent while the autopilot is lost or after terminate.
