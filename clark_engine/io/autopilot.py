@@ -63,13 +63,21 @@ from __future__ import annotations
 
 import logging
 import math
-import operator
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from typing import Any, Final
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from clark_engine.io.autopilot_decode import (
+    RC_OVERRIDE_CHANNELS,
+    REASON_WINDOW_S,
+    UINT16_MAX,
+    AutopilotEvent,
+    MessageDecoder,
+    message_fields,
+)
+from clark_engine.io.autopilot_settings import AutopilotSettings
 from clark_engine.io.autopilot_setup import ParamAnswer, SafetySetup
 from clark_engine.io.mission_upload import MissionUpload, fence_items
 from clark_engine.runtime.commands import (
@@ -89,27 +97,16 @@ from clark_engine.runtime.commands import (
     check_dispatch,
     unknown_command,
 )
-from clark_engine.runtime.config import AgentConfig, ConfigError
 from clark_engine.runtime.events import (
     AutopilotHealth,
     AutopilotHeartbeat,
     AutopilotSafetyResult,
     AutopilotStatus,
-    AutopilotText,
     CommandRefused,
-    LandedState,
-    RcChannels,
     VehicleState,
 )
 from clark_engine.runtime.log_events import LogEvent
 from clark_engine.untrusted import printable
-
-GPS_EPOCH_UNIX_MS: Final = 315_964_800_000
-"""The GPS epoch, 1980-01-06 00:00:00 UTC, in milliseconds of Unix time."""
-
-GPS_LEAP_SECONDS: Final = 18
-"""GPS time minus UTC, in seconds: constant since 2017-01-01 (no leap second has been
-announced since, and the IERS plans none before their abolition)."""
 
 GCS_HEARTBEAT_PERIOD_S: Final = 1.0
 """Our own HEARTBEAT period; ArduPilot's GCS failsafe (FS_GCS_ENABLE) expects 1 Hz."""
@@ -134,15 +131,6 @@ ArduPilot acknowledges a SET_MESSAGE_INTERVAL sent before its first HEARTBEAT an
 streams at its own default (ArduRover SITL: GLOBAL_POSITION_INT at 1 Hz, measured), so an
 acknowledgement does not prove the rate: a mission computer powered up with its
 autopilot drove on 1 Hz positions, sending its guided targets up to a second late."""
-
-FALLBACK_ALT_GAP_M: Final = 20.0
-"""GLOBAL_POSITION_INT's ``alt`` this far from a 3-D fix's GPS_RAW_INT ``alt`` is the
-barometer's height of an autopilot whose EKF has not taken over yet (ArduRover, ArduPlane;
-measured on SITL): the GPS's height above sea level is used instead. GPS and EKF heights
-of a working vehicle differ by a few metres."""
-
-MOVING_SPEED_M_S: Final = 0.5
-"""Below this ground speed the course over ground is noise, and the heading is the yaw."""
 
 STREAMED_MESSAGES: Final = (
     "GLOBAL_POSITION_INT",
@@ -178,10 +166,6 @@ HOME_REQUEST_PERIOD_S: Final = 2.0
 """HOME_POSITION is asked for this often until it arrives. ArduPilot sends it by itself
 when home is set, but not to a ground station that connects afterwards."""
 
-REASON_WINDOW_S: Final = 1.0
-"""STATUSTEXT warnings this long before a refusal are its reason (ArduPilot explains a
-refused arm or mode change in a STATUSTEXT, queued around the COMMAND_ACK)."""
-
 REASON_WAIT_S: Final = 0.5
 """A refusal waits this long for its STATUSTEXT before it is reported."""
 
@@ -189,52 +173,17 @@ SPEED_RETRY_S: Final = 1.0
 """A refused speed change is sent again this long after (ArduRover refuses one until its
 guided mode has a target; it is never dropped)."""
 
-EKF_POS_HORIZ_ABS: Final = 0x10
-"""EKF_STATUS_REPORT flag: the EKF estimates an absolute horizontal position."""
-
-EKF_CONST_POS_MODE: Final = 0x80
-"""EKF_STATUS_REPORT flag: no position source; the EKF assumes the vehicle is still."""
-
-PREARM_CHECK_BIT: Final = 0x10000000
-"""MAV_SYS_STATUS_PREARM_CHECK in SYS_STATUS: present when the autopilot reports it,
-healthy when its pre-arm checks pass."""
-
-_LANDED_STATES: Final[Mapping[int, LandedState]] = {
-    0: LandedState.UNKNOWN,
-    1: LandedState.ON_GROUND,
-    2: LandedState.IN_AIR,
-    3: LandedState.TAKING_OFF,
-    4: LandedState.LANDING,
-}
-
-RC_OVERRIDE_CHANNELS: Final = 18
-"""RC_CHANNELS_OVERRIDE carries channels 1-18."""
-
-_UINT16_MAX: Final = 65535
 #: The commands that reach the adapter but are not the autopilot's: answered with ``b""``.
 _NOT_THE_AUTOPILOTS: Final = (SendPacket, PayloadCommand, CloseInterfaces)
 # AutopilotAdapter.command carries out AUTOPILOT_COMMANDS and answers these with nothing;
 # any other type raises, and a command type added without a place here fails on import.
 check_dispatch((*AUTOPILOT_COMMANDS, *_NOT_THE_AUTOPILOTS), "the autopilot adapter")
-_RC_IGNORE: Final = _UINT16_MAX  # "no change" for every channel
+_RC_IGNORE: Final = UINT16_MAX  # "no change" for every channel
 _RC_RELEASE_LOW: Final = 0  # channels 1-8: give the channel back to the pilot
-_RC_RELEASE_HIGH: Final = _UINT16_MAX - 1  # channels 9-18: 0 means "ignore" there
+_RC_RELEASE_HIGH: Final = UINT16_MAX - 1  # channels 9-18: 0 means "ignore" there
 _FORCE_ARM_MAGIC: Final = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2: skip pre-arm checks
-_STATUS_MESSAGES: Final = frozenset(
-    {"GPS_RAW_INT", "EKF_STATUS_REPORT", "SYS_STATUS", "HOME_POSITION", "EXTENDED_SYS_STATE"}
-)
-"""Messages :attr:`AutopilotAdapter.status` is made of."""
-_MISSION_ANSWERS: Final = frozenset({"MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"})
-"""The autopilot's side of an upload (the safety set-up's fence list)."""
-_HEALTH_MESSAGES: Final = frozenset({"SYS_STATUS", "GPS_RAW_INT"})
-"""Messages :class:`AutopilotHealth` is made of; one is sent each time either arrives."""
 _NOT_MEASURED_MV: Final = 65535  # SYS_STATUS.voltage_battery: UINT16_MAX
 _UNKNOWN_SATELLITES: Final = 255  # GPS_RAW_INT.satellites_visible: UINT8_MAX
-_RC_CHANNEL_FIELDS: Final = operator.attrgetter(
-    *(f"chan{i}_raw" for i in range(1, RC_OVERRIDE_CHANNELS + 1))
-)
-"""RC_CHANNELS' 18 widths as a tuple, read in one call (it arrives at the stream rate)."""
-
 POSITION_ONLY_TYPE_MASK: Final = (
     mavlink2.POSITION_TARGET_TYPEMASK_VX_IGNORE
     | mavlink2.POSITION_TARGET_TYPEMASK_VY_IGNORE
@@ -257,164 +206,6 @@ POSITION_VELOCITY_TYPE_MASK: Final = (
 """The same with the target's velocity too (0x0DC0): ArduCopter moves the target on
 with it between messages, so a moving target is followed without lag. ArduRover ignores
 the velocity of a position target (measured), so it gets position only."""
-
-
-FIRMWARE_VEHICLE_TYPES: Final[Mapping[str, frozenset[int]]] = {
-    # Numbers, not names: MAVLink renamed the VTOL types 19-25 between releases.
-    "arduplane": frozenset({1, *range(19, 26)}),  # FIXED_WING; QuadPlane VTOL types
-    # QUADROTOR, COAXIAL, HELICOPTER, HEXAROTOR, OCTOROTOR, TRICOPTER, DODECAROTOR, DECAROTOR
-    "arducopter": frozenset({2, 3, 4, 13, 14, 15, 29, 35}),
-    "ardurover": frozenset({10, 11}),  # GROUND_ROVER, SURFACE_BOAT
-}
-"""HEARTBEAT vehicle types each ArduPilot firmware reports; a mismatch with the profile
-means the mode numbers would be read in the wrong table."""
-
-
-def gps_time_ms_from_unix_us(time_unix_usec: int) -> int:
-    """GPS time in milliseconds since the GPS epoch, from Unix time in microseconds.
-
-    GPS time does not count leap seconds, so it runs :data:`GPS_LEAP_SECONDS` ahead
-    of UTC. Integer arithmetic, so the result is exact to the millisecond (truncated).
-    """
-    return time_unix_usec // 1000 - GPS_EPOCH_UNIX_MS + GPS_LEAP_SECONDS * 1000
-
-
-# -- events this adapter adds to the runtime's ------------------------------------------
-
-
-@dataclass(frozen=True, slots=True)
-class ParamValue:
-    """An autopilot parameter's value (PARAM_VALUE), answering a read or echoing a set.
-
-    Attributes:
-        name: Parameter name (``RC_OVERRIDE_TIME``).
-        value: Its value; integer parameters arrive as their value in a float.
-        param_type: MAVLink's MAV_PARAM_TYPE of the parameter.
-        index: Its index in the autopilot's table.
-        count: Number of parameters the autopilot has.
-    """
-
-    name: str
-    value: float
-    param_type: int
-    index: int
-    count: int
-
-
-@dataclass(frozen=True, slots=True)
-class AutopilotMessage:
-    """A message asked for with :meth:`AutopilotAdapter.request_message` (thesis 7.1.5).
-
-    Attributes:
-        name: MAVLink message name (``HOME_POSITION``).
-        fields: Its fields as plain Python values, by MAVLink field name.
-    """
-
-    name: str
-    fields: Mapping[str, Any]
-
-
-AutopilotEvent = (
-    VehicleState
-    | AutopilotHeartbeat
-    | AutopilotStatus
-    | AutopilotHealth
-    | AutopilotText
-    | RcChannels
-    | ParamValue
-    | CommandRefused
-    | AutopilotMessage
-    | AutopilotSafetyResult
-)
-"""Everything :meth:`AutopilotAdapter.receive` returns."""
-
-
-# -- configuration ----------------------------------------------------------------------
-
-
-@dataclass(frozen=True, slots=True)
-class AutopilotSettings:
-    """What the adapter needs to know about one autopilot, from the agent's profile.
-
-    Attributes:
-        modes: Mode name -> ArduPilot custom_mode number, from the autopilot profile.
-        firmware: ``arduplane``, ``arducopter`` or ``ardurover``; decides how a Goto is
-            sent and which HEARTBEAT vehicle types are accepted. None: any ArduPilot.
-        system_id: The autopilot's MAVLink system id (SYSID_THISMAV).
-        component_id: The autopilot's component id (1, MAV_COMP_ID_AUTOPILOT1).
-        source_system_id: Ours. The safety set-up makes it the autopilot's ground-station
-            id (MAV_GCS_SYSID): ArduPilot takes RC overrides, and counts heartbeats for its
-            failsafe, only from that id.
-        source_component_id: Ours (191, MAV_COMP_ID_ONBOARD_COMPUTER).
-        stream_rate_hz: Rate asked for each of :data:`STREAMED_MESSAGES`.
-        heartbeat_timeout_s: Autopilot silence after which :meth:`AutopilotAdapter.lost`.
-        origin_alt_amsl_m: The mission origin's height above mean sea level: altitudes
-            above the origin are the autopilot's AMSL altitudes less this.
-    """
-
-    modes: Mapping[str, int]
-    firmware: str | None = None
-    system_id: int = 1
-    component_id: int = 1
-    source_system_id: int = 255
-    source_component_id: int = 191
-    stream_rate_hz: float = 10.0
-    heartbeat_timeout_s: float = 3.0
-    origin_alt_amsl_m: float = 0.0
-
-    def __post_init__(self) -> None:
-        for name in ("system_id", "source_system_id"):
-            if not 1 <= getattr(self, name) <= 255:
-                raise ValueError(f"{name} must be 1..255, not {getattr(self, name)}")
-        for name in ("component_id", "source_component_id"):
-            if not 0 <= getattr(self, name) <= 255:
-                raise ValueError(f"{name} must be 0..255, not {getattr(self, name)}")
-        if not self.stream_rate_hz > 0:
-            raise ValueError(f"stream_rate_hz must be positive, not {self.stream_rate_hz}")
-        if not self.heartbeat_timeout_s > 0:
-            raise ValueError(
-                f"heartbeat_timeout_s must be positive, not {self.heartbeat_timeout_s}"
-            )
-        if self.firmware is not None and self.firmware not in FIRMWARE_VEHICLE_TYPES:
-            raise ValueError(f"unknown firmware {self.firmware!r}")
-
-    @classmethod
-    def from_profile(
-        cls, autopilot: Mapping[str, Any], origin_alt_amsl_m: float = 0.0
-    ) -> AutopilotSettings:
-        """Settings from a resolved autopilot profile (``agent.hardware.autopilot``).
-
-        Args:
-            autopilot: The resolved autopilot profile.
-            origin_alt_amsl_m: The mission origin's height above mean sea level.
-        """
-        mav = autopilot.get("mavlink") or {}
-        return cls(
-            modes=dict(autopilot.get("modes") or {}),
-            firmware=autopilot.get("firmware"),
-            system_id=int(mav.get("system_id", 1)),
-            component_id=int(mav.get("component_id", 1)),
-            source_system_id=int(mav.get("source_system_id", 255)),
-            source_component_id=int(mav.get("source_component_id", 191)),
-            stream_rate_hz=float(autopilot.get("stream_rate_hz", 10.0)),
-            heartbeat_timeout_s=float(autopilot.get("heartbeat_timeout_s", 3.0)),
-            origin_alt_amsl_m=float(origin_alt_amsl_m),
-        )
-
-    @classmethod
-    def from_config(cls, config: AgentConfig) -> AutopilotSettings:
-        """Settings from a compiled agent config.
-
-        Raises:
-            ConfigError: The agent has no autopilot (a station).
-        """
-        autopilot = (config.raw.get("agent", {}).get("hardware") or {}).get("autopilot")
-        if not autopilot:
-            raise ConfigError(
-                f"agent {config.agent} has no autopilot in its hardware profile; "
-                "only vehicles connect to one"
-            )
-        return cls.from_profile(autopilot, config.origin_alt_amsl_m)
 
 
 # -- internals ---------------------------------------------------------------------------
@@ -514,6 +305,8 @@ class AutopilotAdapter:
             srcComponent=settings.source_component_id,
         )
         self._parser = self._new_parser()
+        #: Each message received, into this adapter's state and the runtime's events.
+        self._decoder = MessageDecoder(self)
         # (system, component) the messages used come from; settings are frozen
         self._autopilot_ids = (settings.system_id, settings.component_id)
         self._mode_names: dict[int, str] = {}
@@ -643,7 +436,7 @@ class AutopilotAdapter:
         ``GPS_RAW_INT``, ``SERVO_OUTPUT_RAW``...); None if none has arrived.
         """
         msg = self._latest.get(name)
-        return None if msg is None else self._fields(msg)
+        return None if msg is None else message_fields(msg)
 
     # -- connection ------------------------------------------------------------------------
 
@@ -1104,7 +897,7 @@ class AutopilotAdapter:
             self._parser = self._new_parser()
             messages = []
         for msg in messages:
-            self._handle(msg, now_s, events)
+            self._decoder.handle(msg, now_s, events)
         if self._late_events:  # what the messages ended (a safety set-up's result)
             events.extend(self._late_events)
             self._late_events = []
@@ -1117,130 +910,6 @@ class AutopilotAdapter:
         parser = mavlink2.MAVLink(None, self.settings.source_system_id, 0)
         parser.robust_parsing = True  # garbage becomes BAD_DATA messages, never exceptions
         return parser
-
-    def _handle(self, msg: Any, now_s: float, events: list[AutopilotEvent]) -> None:
-        kind = msg.get_type()
-        if kind == "BAD_DATA":
-            self.bad_frames += 1
-            return
-        if (msg.get_srcSystem(), msg.get_srcComponent()) != self._autopilot_ids:
-            self.foreign_messages += 1
-            return
-        self._latest[kind] = msg
-        if kind == "HEARTBEAT":
-            beat = self._on_heartbeat(msg, now_s)
-            if beat is not None:
-                events.append(beat)
-        elif kind == "GLOBAL_POSITION_INT":
-            self._check_boot(msg.time_boot_ms)
-            state = self._on_position(msg, now_s)
-            if state is not None:
-                events.append(state)
-        elif kind == "ATTITUDE":
-            self._attitude = msg
-        elif kind == "VFR_HUD":
-            self._vfr_hud = msg
-        elif kind == "SYSTEM_TIME":
-            self._check_boot(msg.time_boot_ms)
-            self._gps_at_boot_ms = (
-                (gps_time_ms_from_unix_us(msg.time_unix_usec), msg.time_boot_ms)
-                if msg.time_unix_usec
-                else None
-            )
-        elif kind == "RC_CHANNELS":
-            events.append(RcChannels(self._rc_values(_RC_CHANNEL_FIELDS(msg))))
-        elif kind == "PARAM_VALUE":
-            events.append(self._on_param(msg, now_s))
-        elif kind in _MISSION_ANSWERS:
-            if self._safety is not None:
-                own = (self.settings.source_system_id, self.settings.source_component_id)
-                self._safety.on_mission(msg, own, now_s)
-        elif kind == "COMMAND_ACK":
-            self._on_ack(msg, now_s, events)
-        elif kind == "STATUSTEXT":
-            events.append(self._on_text(msg, now_s))
-        elif kind in _STATUS_MESSAGES:
-            status = self._on_status(kind, msg)
-            if status is not None:
-                events.append(status)
-            if kind in _HEALTH_MESSAGES:
-                events.append(self.health)
-        elif kind == "AUTOPILOT_VERSION":
-            first = self._version is None
-            self._version = int(msg.flight_sw_version)
-            if first:
-                self._log.info(
-                    "autopilot %d answers: ArduPilot %s",
-                    self.settings.system_id,
-                    self.flight_sw_version,
-                    extra=LogEvent.AUTOPILOT_FOUND.extra,
-                )
-        if kind in self._wanted:
-            self._wanted.discard(kind)
-            events.append(AutopilotMessage(kind, self._fields(msg)))
-
-    def _on_text(self, msg: Any, now_s: float) -> AutopilotText:
-        severity = int(msg.severity)
-        text = str(msg.text)
-        shown = printable(text)
-        if severity <= mavlink2.MAV_SEVERITY_WARNING:
-            self._warnings = [w for w in self._warnings if now_s - w[0] <= REASON_WINDOW_S]
-            self._warnings.append((now_s, shown))
-        level = (
-            logging.WARNING
-            if severity <= mavlink2.MAV_SEVERITY_WARNING
-            else logging.INFO
-            if severity <= mavlink2.MAV_SEVERITY_INFO
-            else logging.DEBUG
-        )
-        self._log.log(
-            level,
-            "autopilot %d says: %s",
-            self.settings.system_id,
-            shown,
-            extra=LogEvent.AUTOPILOT_TEXT.extra,
-        )
-        return AutopilotText(severity, text)
-
-    def _on_status(self, kind: str, msg: Any) -> AutopilotStatus | None:
-        """Fold one readiness message into :attr:`status`; the new status when it changed."""
-        old = self._status
-        if kind == "GPS_RAW_INT":
-            fixed = int(msg.fix_type) >= mavlink2.GPS_FIX_TYPE_3D_FIX
-            self._gps_alt_amsl_m = msg.alt / 1000.0 if fixed else None
-            new = replace(old, gps_fix_type=int(msg.fix_type))
-        elif kind == "EKF_STATUS_REPORT":
-            flags = int(msg.flags)
-            ok = bool(flags & EKF_POS_HORIZ_ABS) and not flags & EKF_CONST_POS_MODE
-            new = replace(old, position_ok=ok)
-        elif kind == "SYS_STATUS":
-            reported = int(msg.onboard_control_sensors_present) & PREARM_CHECK_BIT
-            healthy = int(msg.onboard_control_sensors_health) & PREARM_CHECK_BIT
-            new = replace(old, prearm_ok=bool(healthy) if reported else None)
-        elif kind == "HOME_POSITION":
-            home = (msg.latitude / 1e7, msg.longitude / 1e7, msg.altitude / 1000.0)
-            new = replace(old, home=home)
-        else:  # EXTENDED_SYS_STATE
-            landed = _LANDED_STATES.get(int(msg.landed_state), LandedState.UNKNOWN)
-            new = replace(old, landed=landed)
-        if new == old:
-            return None
-        self._status = new
-        if new.ready != old.ready or new.waiting_for != old.waiting_for:
-            if new.ready:
-                self._log.info(
-                    "autopilot %d is ready",
-                    self.settings.system_id,
-                    extra=LogEvent.AUTOPILOT_READINESS.extra,
-                )
-            else:
-                self._log.info(
-                    "autopilot %d waits for %s",
-                    self.settings.system_id,
-                    ", ".join(new.waiting_for),
-                    extra=LogEvent.AUTOPILOT_READINESS.extra,
-                )
-        return new
 
     @property
     def health(self) -> AutopilotHealth:
@@ -1275,56 +944,6 @@ class AutopilotAdapter:
             satellites=satellites,
             prearm_ok=self._status.prearm_ok,
         )
-
-    def _on_heartbeat(self, msg: Any, now_s: float) -> AutopilotHeartbeat | None:
-        if msg.autopilot == mavlink2.MAV_AUTOPILOT_INVALID:
-            return None  # not a flight controller's heartbeat (a companion sharing the id)
-        if self._heartbeat_s is not None and now_s - self._heartbeat_s > (
-            self.settings.heartbeat_timeout_s
-        ):
-            self._reconnected(f"heard again after {now_s - self._heartbeat_s:.1f} s")
-        self._heartbeat_s = now_s
-        self._check_identity(msg)
-        custom_mode = int(msg.custom_mode)
-        if self._heartbeat is not None and custom_mode != self._heartbeat.custom_mode:
-            # A new mode starts at its default speed, with no guided target.
-            self._speed_accepted = None
-            self._targeted = False
-        beat = AutopilotHeartbeat(
-            mode=self._mode_names.get(custom_mode, f"UNKNOWN_{custom_mode}"),
-            custom_mode=custom_mode,
-            armed=bool(msg.base_mode & mavlink2.MAV_MODE_FLAG_SAFETY_ARMED),
-        )
-        self._heartbeat = beat
-        return beat
-
-    def _check_identity(self, msg: Any) -> None:
-        problem = None
-        if msg.autopilot != mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA:
-            problem = f"autopilot type {msg.autopilot} is not ArduPilot (3)"
-        elif self.settings.firmware is not None:
-            allowed = FIRMWARE_VEHICLE_TYPES[self.settings.firmware]
-            if msg.type not in allowed:
-                problem = (
-                    f"vehicle type {msg.type} in HEARTBEAT is not {self.settings.firmware}'s; "
-                    "check the autopilot profile (mode numbers differ between firmwares)"
-                )
-        if problem != self._problem:
-            if problem is not None:
-                self._log.error(
-                    "autopilot %d: %s",
-                    self.settings.system_id,
-                    problem,
-                    extra=LogEvent.AUTOPILOT_IDENTITY.extra,
-                )
-            self._problem = problem
-
-    def _check_boot(self, time_boot_ms: int) -> None:
-        # The boot clock running backwards means the autopilot rebooted: its stream
-        # intervals are back to defaults and its SYSTEM_TIME reference is void.
-        if self._last_boot_ms is not None and time_boot_ms + 1000 < self._last_boot_ms:
-            self._reconnected("rebooted")
-        self._last_boot_ms = time_boot_ms
 
     def _reconnected(self, why: str) -> None:
         """Heard again after a loss, or rebooted: set it up again, and forget every command.
@@ -1376,86 +995,6 @@ class AutopilotAdapter:
         self._gps_alt_amsl_m = None
         self._next_home_request_s = -math.inf
 
-    def _alt_amsl_m(self, msg: Any) -> float:
-        """The vehicle's height above sea level, GLOBAL_POSITION_INT's or the GPS's.
-
-        The GPS's while GLOBAL_POSITION_INT's is a fallback estimator's barometer height
-        (see :data:`FALLBACK_ALT_GAP_M`).
-        """
-        fused = float(msg.alt) / 1000.0
-        gps = self._gps_alt_amsl_m
-        if gps is not None and abs(fused - gps) > FALLBACK_ALT_GAP_M:
-            return gps
-        return fused
-
-    def _on_position(self, msg: Any, now_s: float) -> VehicleState | None:
-        self._position_s = now_s
-        self._positions_counted += 1
-        if self._heartbeat is None or self._attitude is None:
-            return None
-        if msg.lat == 0 and msg.lon == 0:
-            return None  # ArduPilot's "no position yet" (before its first GPS fix)
-        status = self._status
-        if status.gps_fix_type < mavlink2.GPS_FIX_TYPE_3D_FIX and not status.position_ok:
-            # Not a position yet: ArduPlane dead-reckons from 0, 0 before its fix (SITL
-            # drifted 35 m from there, at up to 26 m/s), with no fix and no EKF position.
-            return None
-        vx_m_s, vy_m_s = msg.vx / 100.0, msg.vy / 100.0
-        speed_m_s = math.hypot(vx_m_s, vy_m_s)
-        yaw_deg = math.degrees(self._attitude.yaw) % 360.0
-        if speed_m_s >= MOVING_SPEED_M_S:
-            heading_deg = math.degrees(math.atan2(vy_m_s, vx_m_s)) % 360.0
-        else:
-            heading_deg = yaw_deg
-        gps_ms: int | None = None
-        if self._gps_at_boot_ms is not None:
-            gps_at, boot_at = self._gps_at_boot_ms
-            gps_ms = gps_at + (msg.time_boot_ms - boot_at)
-        hud = self._vfr_hud
-        state = VehicleState(
-            gps_time_ms=gps_ms,
-            lat_deg=msg.lat / 1e7,
-            lon_deg=msg.lon / 1e7,
-            alt_m=self._alt_amsl_m(msg) - self.settings.origin_alt_amsl_m,
-            ground_speed_m_s=float(hud.groundspeed) if hud is not None else speed_m_s,
-            climb_rate_m_s=float(hud.climb) if hud is not None else -msg.vz / 100.0,
-            heading_deg=heading_deg,
-            roll_deg=math.degrees(self._attitude.roll),
-            pitch_deg=math.degrees(self._attitude.pitch),
-            yaw_deg=yaw_deg,
-            mode=self._heartbeat.mode,
-            custom_mode=self._heartbeat.custom_mode,
-            armed=self._heartbeat.armed,
-        )
-        self._state = state
-        return state
-
-    def _rc_values(self, raw: tuple[int, ...]) -> tuple[int, ...]:
-        """RC_CHANNELS' widths with "unused" as 0; the last answer again while they repeat.
-
-        They arrive at the stream rate and change only when a stick or an override moves.
-        """
-        if raw != self._rc_raw:
-            self._rc_raw = raw
-            self._rc = tuple(0 if v == _UINT16_MAX else int(v) for v in raw)
-        return self._rc
-
-    def _on_param(self, msg: Any, now_s: float) -> ParamValue:
-        name = str(msg.param_id)
-        self._param_types[name] = int(msg.param_type)
-        self._requests = [
-            r for r in self._requests if not (isinstance(r.key, str) and r.key == name)
-        ]
-        for answer in self._param_answers.pop(name, ()):
-            answer(float(msg.param_value), int(msg.param_type), now_s)
-        return ParamValue(
-            name=name,
-            value=float(msg.param_value),
-            param_type=int(msg.param_type),
-            index=int(msg.param_index),
-            count=int(msg.param_count),
-        )
-
     def _on_ack(self, msg: Any, now_s: float, events: list[AutopilotEvent]) -> None:
         s = self.settings
         if msg.target_system not in (0, s.source_system_id) or msg.target_component not in (
@@ -1501,12 +1040,6 @@ class AutopilotAdapter:
                 extra=LogEvent.AUTOPILOT_REFUSED.extra,
             )
             events.append(replace(refusal, reason=reason))
-
-    @staticmethod
-    def _fields(msg: Any) -> dict[str, Any]:
-        fields = dict(msg.to_dict())
-        fields.pop("mavpackettype", None)
-        return fields
 
     # -- internals: sending ------------------------------------------------------------------
 
