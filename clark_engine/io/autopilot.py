@@ -64,18 +64,24 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any, Final
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.io.autopilot_decode import (
-    RC_OVERRIDE_CHANNELS,
     REASON_WINDOW_S,
-    UINT16_MAX,
     AutopilotEvent,
     MessageDecoder,
     message_fields,
+)
+from clark_engine.io.autopilot_flight import FlightCommands
+from clark_engine.io.autopilot_requests import (
+    ACK_TIMEOUT_S,
+    COMMAND_ATTEMPTS,
+    Request,
+    command_name,
+    result_name,
 )
 from clark_engine.io.autopilot_settings import AutopilotSettings
 from clark_engine.io.autopilot_setup import ParamAnswer, SafetySetup
@@ -113,12 +119,6 @@ GCS_HEARTBEAT_PERIOD_S: Final = 1.0
 
 OVERRIDE_REFRESH_S: Final = 0.5
 """Active RC overrides are resent this often, well inside ArduPilot's RC_OVERRIDE_TIME (3 s)."""
-
-ACK_TIMEOUT_S: Final = 1.0
-"""How long an acknowledged request waits for its answer before it is resent."""
-
-COMMAND_ATTEMPTS: Final = 3
-"""Sends of one command (the first and two retries) before it is reported unanswered."""
 
 STREAM_SILENCE_S: Final = 3.0
 """No GLOBAL_POSITION_INT for this long while heartbeats arrive: ask for the streams again
@@ -169,45 +169,14 @@ when home is set, but not to a ground station that connects afterwards."""
 REASON_WAIT_S: Final = 0.5
 """A refusal waits this long for its STATUSTEXT before it is reported."""
 
-SPEED_RETRY_S: Final = 1.0
-"""A refused speed change is sent again this long after (ArduRover refuses one until its
-guided mode has a target; it is never dropped)."""
-
 #: The commands that reach the adapter but are not the autopilot's: answered with ``b""``.
 _NOT_THE_AUTOPILOTS: Final = (SendPacket, PayloadCommand, CloseInterfaces)
 # AutopilotAdapter.command carries out AUTOPILOT_COMMANDS and answers these with nothing;
 # any other type raises, and a command type added without a place here fails on import.
 check_dispatch((*AUTOPILOT_COMMANDS, *_NOT_THE_AUTOPILOTS), "the autopilot adapter")
-_RC_IGNORE: Final = UINT16_MAX  # "no change" for every channel
-_RC_RELEASE_LOW: Final = 0  # channels 1-8: give the channel back to the pilot
-_RC_RELEASE_HIGH: Final = UINT16_MAX - 1  # channels 9-18: 0 means "ignore" there
 _FORCE_ARM_MAGIC: Final = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2: skip pre-arm checks
 _NOT_MEASURED_MV: Final = 65535  # SYS_STATUS.voltage_battery: UINT16_MAX
 _UNKNOWN_SATELLITES: Final = 255  # GPS_RAW_INT.satellites_visible: UINT8_MAX
-POSITION_ONLY_TYPE_MASK: Final = (
-    mavlink2.POSITION_TARGET_TYPEMASK_VX_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_VY_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_VZ_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_AX_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_AY_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_AZ_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_YAW_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
-)
-"""SET_POSITION_TARGET_GLOBAL_INT type_mask using lat, lon and alt only (0x0DF8)."""
-
-POSITION_VELOCITY_TYPE_MASK: Final = (
-    mavlink2.POSITION_TARGET_TYPEMASK_AX_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_AY_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_AZ_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_YAW_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
-)
-"""The same with the target's velocity too (0x0DC0): ArduCopter moves the target on
-with it between messages, so a moving target is followed without lag. ArduRover ignores
-the velocity of a position target (measured), so it gets position only."""
-
-
 # -- internals ---------------------------------------------------------------------------
 
 
@@ -225,40 +194,6 @@ class _Outbox:
             return b""  # most polls send nothing
         data, self._data = bytes(self._data), bytearray()
         return data
-
-
-@dataclass(slots=True)
-class _Request:
-    """One request waiting for the autopilot's answer.
-
-    ``key`` is the MAV_CMD number for commands (answered by COMMAND_ACK) and the
-    parameter name for parameter requests (answered by PARAM_VALUE). ``build``
-    makes the message for a given attempt (1 first). ``setup`` marks the stream
-    requests, which are retried for as long as the autopilot is heard. ``answered``,
-    when given, hears how it ended (the MAV_RESULT, or None when it was given up
-    unanswered) and reports a refusal itself; without it a refusal is reported as
-    :class:`CommandRefused`.
-    """
-
-    command: str
-    key: int | str
-    request: str
-    build: Callable[[int], Any]
-    setup: bool = False
-    answered: Callable[[int | None, float], None] | None = None
-    attempts: int = 0
-    due_s: float = 0.0
-
-
-def _result_name(result: int) -> str:
-    entry = mavlink2.enums["MAV_RESULT"].get(result)
-    name = entry.name if entry is not None else f"MAV_RESULT_{result}"
-    return str(name).removeprefix("MAV_RESULT_")
-
-
-def _command_name(command: int) -> str:
-    entry = mavlink2.enums["MAV_CMD"].get(command)
-    return str(entry.name) if entry is not None else f"MAV_CMD_{command}"
 
 
 def _message_id(name: str) -> int:
@@ -307,6 +242,8 @@ class AutopilotAdapter:
         self._parser = self._new_parser()
         #: Each message received, into this adapter's state and the runtime's events.
         self._decoder = MessageDecoder(self)
+        #: The runtime's flight commands (Goto and its speed, Takeoff, RC overrides) out.
+        self._flight = FlightCommands(self)
         # (system, component) the messages used come from; settings are frozen
         self._autopilot_ids = (settings.system_id, settings.component_id)
         self._mode_names: dict[int, str] = {}
@@ -316,7 +253,7 @@ class AutopilotAdapter:
 
         self._start_s: float | None = None
         self._next_heartbeat_s = 0.0
-        self._requests: list[_Request] = []
+        self._requests: list[Request] = []
         self._late_events: list[AutopilotEvent] = []
         self._overrides: dict[int, int] = {}
         self._override_sent_s = -math.inf
@@ -497,7 +434,7 @@ class AutopilotAdapter:
             # Not while lost: ArduPilot hands the channels back to the pilot
             # RC_OVERRIDE_TIME after the last override, and an override kept alive
             # through a silence would act again, stale, the moment the link returns.
-            self._override_out(dict(self._overrides), now_s)
+            self._flight.override_out(dict(self._overrides), now_s)
         heard = self._heartbeat_s is not None and not self.lost(now_s)
         if heard:
             last_position_s = -math.inf if self._position_s is None else self._position_s
@@ -529,7 +466,7 @@ class AutopilotAdapter:
         if self._requests:
             self._send_due(now_s, heard=heard)
         if heard:
-            self._speed(now_s)
+            self._flight.speed(now_s)
         if self._safety is not None:
             self._safety.poll(now_s)
         self._release_refusals(now_s, self._late_events)
@@ -546,7 +483,7 @@ class AutopilotAdapter:
         """
         self._stopping = True
         if self._overrides:
-            self._override_out(dict.fromkeys(self._overrides, 0), now_s)
+            self._flight.override_out(dict.fromkeys(self._overrides, 0), now_s)
             self._overrides.clear()
         self._requests.clear()
         self._param_answers.clear()
@@ -564,7 +501,7 @@ class AutopilotAdapter:
         (:meth:`poll` resends them); closing the transport is the shell's part.
         """
         if self._overrides:
-            self._override_out(dict.fromkeys(self._overrides, 0), now_s)
+            self._flight.override_out(dict.fromkeys(self._overrides, 0), now_s)
             self._overrides.clear()
         self._stopping = True
         self._safety_close(now_s)
@@ -611,12 +548,12 @@ class AutopilotAdapter:
             UnknownCommandError: Any other type (an engine bug, never dropped).
         """
         if isinstance(cmd, Goto):
-            self._goto(cmd, now_s)
-            self._speed(now_s)
+            self._flight.goto(cmd, now_s)
+            self._flight.speed(now_s)
         elif isinstance(cmd, Arm):
             return self.arm(cmd.armed, now_s)
         elif isinstance(cmd, Takeoff):
-            self._takeoff(cmd, now_s)
+            self._flight.takeoff(cmd, now_s)
         elif isinstance(cmd, SetMode):
             number = int(self.settings.modes.get(cmd.mode, cmd.custom_mode))
             if cmd.mode in self.settings.modes and number != cmd.custom_mode:
@@ -644,7 +581,7 @@ class AutopilotAdapter:
                 cmd.pwm_us,
             )
         elif isinstance(cmd, RcOverride):
-            self._rc_override(cmd, now_s)
+            self._flight.rc_override(cmd, now_s)
         elif isinstance(cmd, SetUpAutopilotSafety):
             self._safety_start(cmd, now_s)
         elif not isinstance(cmd, _NOT_THE_AUTOPILOTS):
@@ -671,7 +608,7 @@ class AutopilotAdapter:
         param_id = _param_id(name)
         s = self.settings
         self._track(
-            _Request(
+            Request(
                 "PARAM_REQUEST_READ",
                 name,
                 f"read {name}",
@@ -707,7 +644,7 @@ class AutopilotAdapter:
         known = self._param_types.get(name, mavlink2.MAV_PARAM_TYPE_REAL32)
         s = self.settings
         self._track(
-            _Request(
+            Request(
                 "PARAM_SET",
                 name,
                 f"set {name} = {value:g}",
@@ -798,7 +735,7 @@ class AutopilotAdapter:
         param_id = _param_id(name)
         s = self.settings
         self._track(
-            _Request(
+            Request(
                 "PARAM_REQUEST_READ",
                 name,
                 f"read {name}",
@@ -979,7 +916,7 @@ class AutopilotAdapter:
             )
             released = dict.fromkeys(self._overrides, 0)
             self._overrides.clear()
-            self._override_out(released, self._override_sent_s)
+            self._flight.override_out(released, self._override_sent_s)
         if self._safety is not None:
             self._param_answers.clear()
             self._safety.interrupted("went silent" if why.startswith("heard again") else why)
@@ -1013,7 +950,7 @@ class AutopilotAdapter:
             request.answered(int(msg.result), now_s)
         elif msg.result != mavlink2.MAV_RESULT_ACCEPTED:
             # Reported once its STATUSTEXT, if any, has had time to arrive.
-            refusal = CommandRefused(request.command, _result_name(msg.result), request.request)
+            refusal = CommandRefused(request.command, result_name(msg.result), request.request)
             self._refusals.append((now_s + REASON_WAIT_S, refusal, now_s))
         if (
             request.setup
@@ -1133,7 +1070,7 @@ class AutopilotAdapter:
             if name in SLOW_STREAMS:
                 interval_us = max(interval_us, round(1e6 / SLOW_STREAMS[name]))
             self._requests.append(
-                _Request(
+                Request(
                     "MAV_CMD_SET_MESSAGE_INTERVAL",
                     mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL,
                     f"stream {name} every {interval_us} us",
@@ -1149,7 +1086,7 @@ class AutopilotAdapter:
     def _optional_stream(self, name: str) -> Callable[[int | None, float], None]:
         def answered(result: int | None, _now_s: float) -> None:
             if result != mavlink2.MAV_RESULT_ACCEPTED:
-                why = "no answer" if result is None else _result_name(result)
+                why = "no answer" if result is None else result_name(result)
                 self._log.info(
                     "autopilot does not stream %s (%s)",
                     name,
@@ -1172,11 +1109,11 @@ class AutopilotAdapter:
 
     def _command_long(self, command: int, request: str, now_s: float, *params: float) -> None:
         self._track(
-            _Request(_command_name(command), command, request, self._long_builder(command, params)),
+            Request(command_name(command), command, request, self._long_builder(command, params)),
             now_s,
         )
 
-    def _track(self, request: _Request, now_s: float) -> None:
+    def _track(self, request: Request, now_s: float) -> None:
         request.attempts = 1
         request.due_s = now_s + ACK_TIMEOUT_S
         self._mav.send(request.build(1))
@@ -1208,198 +1145,3 @@ class AutopilotAdapter:
             request.attempts += 1
             request.due_s = now_s + ACK_TIMEOUT_S
             self._mav.send(request.build(request.attempts))
-
-    def _goto(self, cmd: Goto, now_s: float) -> None:
-        s = self.settings
-        lat_e7, lon_e7 = round(cmd.lat_deg * 1e7), round(cmd.lon_deg * 1e7)
-        plane = s.firmware == "arduplane"
-        self._speed_wanted = cmd.speed_m_s
-        self._targeted = True
-        where = f"Goto {cmd.lat_deg:.7f} {cmd.lon_deg:.7f} {cmd.alt_m:g} m above the origin"
-        alt_amsl_m = float(cmd.alt_m) + s.origin_alt_amsl_m
-        frame = mavlink2.MAV_FRAME_GLOBAL_INT
-        if plane:
-            self._track(
-                _Request(
-                    "MAV_CMD_DO_REPOSITION",
-                    mavlink2.MAV_CMD_DO_REPOSITION,
-                    where,
-                    lambda _attempt: self._mav.command_int_encode(
-                        s.system_id,
-                        s.component_id,
-                        frame,
-                        mavlink2.MAV_CMD_DO_REPOSITION,
-                        0,
-                        0,
-                        -1,  # speed: default
-                        0,  # flags: no mode change; the runtime owns the mode
-                        cmd.loiter_radius_m or 0,  # loiter radius (> 0: ModeGuided's)
-                        1.0 if cmd.loiter_ccw else math.nan,  # non-zero: counter-clockwise
-                        lat_e7,
-                        lon_e7,
-                        alt_amsl_m,
-                    ),
-                ),
-                now_s,
-            )
-            return
-        time_boot_ms = round((now_s - (self._start_s or 0.0)) * 1000) & 0xFFFFFFFF
-        moving = (
-            s.firmware == "arducopter"
-            and cmd.velocity_north_m_s is not None
-            and cmd.velocity_east_m_s is not None
-        )
-        vn_m_s = float(cmd.velocity_north_m_s or 0.0) if moving else 0.0
-        ve_m_s = float(cmd.velocity_east_m_s or 0.0) if moving else 0.0
-        self._mav.send(
-            self._mav.set_position_target_global_int_encode(
-                time_boot_ms,
-                s.system_id,
-                s.component_id,
-                frame,
-                POSITION_VELOCITY_TYPE_MASK if moving else POSITION_ONLY_TYPE_MASK,
-                lat_e7,
-                lon_e7,
-                alt_amsl_m,
-                vn_m_s,
-                ve_m_s,
-                0,
-                0,
-                0,
-                0,
-                0,
-                0,
-            )
-        )
-
-    def _takeoff(self, cmd: Takeoff, now_s: float) -> None:
-        """ArduCopter: MAV_CMD_NAV_TAKEOFF. ArduPlane: TKOFF_ALT, then its TAKEOFF mode.
-
-        ArduPlane's NAV_TAKEOFF is for quadplanes only (FAILED on a fixed wing); a
-        fixed wing takes off in its TAKEOFF mode, armed, to TKOFF_ALT, so that
-        parameter is set to the altitude asked for first (it is written to the
-        autopilot's storage, as any PARAM_SET is). Both take their height above home,
-        so the Takeoff's height above the origin is converted with home's altitude.
-        """
-        above_home_m = self.above_home_m(cmd.alt_m)
-        if self.settings.firmware == "arduplane":
-            number = self.settings.modes.get("TAKEOFF")
-            if number is None:
-                self._log.error(
-                    "Takeoff: the autopilot profile has no TAKEOFF mode",
-                    extra=LogEvent.AUTOPILOT_COMMAND.extra,
-                )
-                return
-            self._param_set("TKOFF_ALT", round(above_home_m), now_s)
-            self._command_long(
-                mavlink2.MAV_CMD_DO_SET_MODE,
-                f"SetMode TAKEOFF ({number}) to take off to {cmd.alt_m:g} m above the origin "
-                f"({above_home_m:g} m above home)",
-                now_s,
-                mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
-                int(number),
-            )
-            return
-        self._command_long(
-            mavlink2.MAV_CMD_NAV_TAKEOFF,
-            f"takeoff to {cmd.alt_m:g} m above the origin ({above_home_m:g} m above home)",
-            now_s,
-            0,
-            0,
-            0,
-            math.nan,  # yaw: unchanged
-            0,
-            0,
-            above_home_m,
-        )
-
-    def above_home_m(self, alt_m: float) -> float:
-        """A height above the origin as a height above home (HOME_POSITION's altitude).
-
-        Before the autopilot reports home, home is taken to be at the origin's height
-        (the engine's flat field).
-        """
-        home = self._status.home
-        if home is None:
-            return float(alt_m)
-        return float(alt_m) - (home[2] - self.settings.origin_alt_amsl_m)
-
-    def _speed(self, now_s: float) -> None:
-        """Send the speed the runtime wants, until the autopilot accepts it.
-
-        After the position target, not before: ArduRover refuses a speed change in
-        its guided mode until that mode has a target. A refusal or no answer is
-        retried :data:`SPEED_RETRY_S` later (by :meth:`poll`); a mode change forgets
-        the accepted speed, because ArduPilot starts every mode at its default speed.
-        """
-        wanted = self._speed_wanted
-        if (
-            wanted is None
-            or wanted == self._speed_accepted
-            or not self._targeted
-            or now_s < self._speed_retry_s
-        ):
-            return
-        self._speed_retry_s = math.inf  # until answered
-        plane = self.settings.firmware == "arduplane"
-        self._track(
-            _Request(
-                "MAV_CMD_DO_CHANGE_SPEED",
-                mavlink2.MAV_CMD_DO_CHANGE_SPEED,
-                f"speed {wanted:g} m/s",
-                self._long_builder(
-                    mavlink2.MAV_CMD_DO_CHANGE_SPEED,
-                    # SPEED_TYPE_AIRSPEED for ArduPlane (its ground-speed type sets only a
-                    # minimum), SPEED_TYPE_GROUNDSPEED otherwise; throttle -1: no change.
-                    (0 if plane else 1, wanted, -1),
-                ),
-                answered=lambda result, at_s: self._speed_answered(wanted, result, at_s),
-            ),
-            now_s,
-        )
-
-    def _speed_answered(self, speed_m_s: float, result: int | None, now_s: float) -> None:
-        if result == mavlink2.MAV_RESULT_ACCEPTED:
-            self._speed_accepted = speed_m_s
-            self._speed_retry_s = -math.inf
-            return
-        why = "no answer" if result is None else _result_name(result)
-        if self._speed_retry_s != now_s + SPEED_RETRY_S:
-            self._log.info(
-                "autopilot did not take speed %g m/s (%s); sending it again in %g s",
-                speed_m_s,
-                why,
-                SPEED_RETRY_S,
-                extra=LogEvent.AUTOPILOT_COMMAND.extra,
-            )
-        self._speed_retry_s = now_s + SPEED_RETRY_S
-
-    def _rc_override(self, cmd: RcOverride, now_s: float) -> None:
-        changes: dict[int, int] = {}
-        for channel, pwm_us in cmd.pwm_us.items():
-            if not 1 <= channel <= RC_OVERRIDE_CHANNELS or not 0 <= pwm_us < _RC_RELEASE_HIGH:
-                self._log.error(
-                    "RcOverride channel %d width %d us is outside MAVLink's range; ignored",
-                    channel,
-                    pwm_us,
-                    extra=LogEvent.AUTOPILOT_COMMAND.extra,
-                )
-                continue
-            changes[channel] = pwm_us
-            if pwm_us == 0:
-                self._overrides.pop(channel, None)
-            else:
-                self._overrides[channel] = pwm_us
-        if changes:
-            self._override_out({**self._overrides, **changes}, now_s)
-
-    def _override_out(self, channels: Mapping[int, int], now_s: float) -> None:
-        values = [_RC_IGNORE] * RC_OVERRIDE_CHANNELS
-        for channel, pwm_us in channels.items():
-            if pwm_us == 0:
-                values[channel - 1] = _RC_RELEASE_LOW if channel <= 8 else _RC_RELEASE_HIGH
-            else:
-                values[channel - 1] = pwm_us
-        s = self.settings
-        self._mav.send(self._mav.rc_channels_override_encode(s.system_id, s.component_id, *values))
-        self._override_sent_s = now_s
