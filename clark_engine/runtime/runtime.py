@@ -31,7 +31,6 @@ the codec rejects every other packet before anything is looked at.
 
 from __future__ import annotations
 
-import logging
 import math
 from collections.abc import Callable, Mapping
 from typing import Any, Final
@@ -45,10 +44,9 @@ from clark_engine.link.messages import (
     MAX_SEVERITY_SENT,
     BehaviorState,
 )
-from clark_engine.mission.geo import Origin, to_local
+from clark_engine.mission.geo import Origin
 from clark_engine.mission.model import TICK_PHASES
 from clark_engine.mission.peer_conditions import ALWAYS_EVENT
-from clark_engine.runtime.autopilot_safety import SafetyPlanError, safety_setup
 from clark_engine.runtime.commands import (
     Arm,
     CloseInterfaces,
@@ -80,7 +78,7 @@ from clark_engine.runtime.events import (
     StationCommand,
     VehicleState,
 )
-from clark_engine.runtime.launch import LaunchGate, is_airborne
+from clark_engine.runtime.launch import LaunchGate
 from clark_engine.runtime.log_events import LogEvent
 from clark_engine.runtime.logbook import (
     Logbook,
@@ -89,26 +87,19 @@ from clark_engine.runtime.machine import BehaviorMachine, Holds, StateChange
 from clark_engine.runtime.mode_owner import ModeOwner
 from clark_engine.runtime.packets_in import PacketIntake
 from clark_engine.runtime.peer_conditions import AlwaysWatch
+from clark_engine.runtime.safety import GUARDED, Safety
 from clark_engine.runtime.station_commands import StationCommands
 from clark_engine.runtime.telemetry import Telemetry
 
 #: Commands that move the vehicle; never sent while the autopilot is lost or after terminate.
 VEHICLE_COMMANDS = (Goto, SetMode, Arm, Takeoff, SetServo, RcOverride)
-#: Commands the envelope guard checks as they leave (AgentRuntime._guard).
 _STATION_EVENTS: Final = frozenset({"activate", "deactivate"})
 """Events a station's Activate Controller raises: one that does nothing is logged so."""
 
-_GUARDED = (Goto, Takeoff)
 #: An RC input above this is a switch in its high position, below the low one (ArduPilot's
 #: auxiliary-switch thresholds); the events fire on crossing, not while held.
 RC_HIGH_US = 1800
 RC_LOW_US = 1200
-#: The behaviour's one-off requests, not carried out after an autopilot loss by the states
-#: that made them before or during it (AgentRuntime._void_requests).
-_REQUESTS = (SetMode, Arm, Takeoff)
-#: An autopilot safety set-up cut short by the autopilot's silence is asked for again no
-#: sooner than this after, once the autopilot is back.
-SAFETY_RETRY_S = 5.0
 
 
 class AgentRuntime:
@@ -186,6 +177,8 @@ class AgentRuntime:
         )
         self.logbook = logbook if logbook is not None else Logbook.in_memory(config)
         self.context = PrimitiveContext(config, self.fleet, log=self.logbook.mission)
+        #: The safety rules: failsafes, the envelope in flight, the autopilot's set-up.
+        self._safety = Safety(self)
         #: What this agent sends each tick, and the packets it sends.
         self._telemetry = Telemetry(self)
         #: The tick's phases, resolved to methods once (:meth:`_resolve_phases`).
@@ -224,7 +217,6 @@ class AgentRuntime:
         self._origin = Origin(
             config.origin_lat_deg, config.origin_lon_deg, config.origin_alt_amsl_m
         )
-        self._here_cache: tuple[VehicleState, tuple[float, float]] | None = None
         #: Whether the vehicle is in a mode the engine put it in (a breach never fights
         #: a pilot or a station who took it).
         self._modes = ModeOwner()
@@ -232,7 +224,7 @@ class AgentRuntime:
         #: watched only in guided flight to a Goto, never in a take-off's climb).
         self._last_navigation: str | None = None
         if envelope is not None:
-            self.logbook.closing.append(self._envelope_summary)
+            self.logbook.closing.append(self._safety.envelope_summary)
         elif config.is_vehicle:
             self.logbook.mission.warning(
                 "no envelope in this config: targets are not checked and nothing is "
@@ -386,7 +378,7 @@ class AgentRuntime:
         elif isinstance(event, AutopilotStatus):
             self.context.autopilot = event
         elif isinstance(event, AutopilotSafetyResult):
-            self._safety_result(event, now_s)
+            self._safety.set_up_result(event, now_s)
         elif isinstance(event, AutopilotHealth):
             self._health = event
         elif isinstance(event, AutopilotText):
@@ -522,7 +514,7 @@ class AgentRuntime:
             if self._stations_silent_since_s is None and not self._stations_in_contact:
                 self._stations_silent_since_s = now_s
         if not self._started and self._safety_state == "due":
-            self._autopilot_safety(now_s)
+            self._safety.set_up_autopilot(now_s)
         self._trim_replay_marks()
         opening = (
             not self._started
@@ -535,7 +527,7 @@ class AgentRuntime:
         if self.envelope_watch is not None:
             # Before the machine starts: a breach in force as the gate opens is acted on
             # instead of starting a behaviour that its failsafe would stop at once.
-            self._watch(now_s)
+            self._safety.watch(now_s)
         if opening and self.failsafe is None and self.machine is not None:
             self.machine.start(self.context)
             self._collect_outbox()
@@ -601,51 +593,13 @@ class AgentRuntime:
                 for item in sorted(due):
                     self._intake.scheduled.remove(item)
                     self._events.append(item[1])
-        silent_since = self._stations_silent_since_s
-        if (
-            silent_since is not None
-            and self._started_s is not None
-            and not self._mcs_lost_raised
-            and self._stations
-        ):
-            # No station in contact: silent since it was last heard, or since the first
-            # tick when none ever was; counted from the behaviour's start at the earliest,
-            # because before it the behaviour commands nothing a failsafe would stop.
-            silent_s = now_s - max(silent_since, self._started_s)
-            if silent_s > self.config.heartbeat_timeout_s:
-                self.logbook.mission.error(
-                    "no station heard for %.1f s", silent_s, extra=LogEvent.STATION_SILENT.extra
-                )
-                self._mcs_lost()
-        if not self.config.is_vehicle or self._autopilot_lost:
-            return
-        seen = self._autopilot_seen_s
-        if seen is None:
-            # Counted from the first tick: an autopilot that never speaks is lost too.
-            seen = self._first_tick_s if self._first_tick_s is not None else now_s
-        if now_s - seen > self.config.autopilot_timeout_s:
-            self._autopilot_lost = True
-            self._requests_void = True
-            self._events.append("autopilot_lost")
-            if self._autopilot_connected:
-                self.logbook.interface.error(
-                    "autopilot silent for %.1f s: lost; no more commands to it",
-                    now_s - seen,
-                    extra=LogEvent.AUTOPILOT_LOST.extra,
-                )
-            else:
-                self.logbook.interface.info(
-                    "no autopilot (testing mode): treated as lost after %.1f s; commands "
-                    "to it are dropped",
-                    now_s - seen,
-                    extra=LogEvent.AUTOPILOT_LOST.extra,
-                )
+        self._safety.silences(now_s)
 
     def _machine_phase(self, now_s: float = 0.0) -> None:
         """Events, then the state machine and its primitives (``now_s`` is the context's)."""
         if self.machine is None or not self._started:
             if "mcs_lost" in self._events:
-                self._apply_failsafe()
+                self._safety.apply_failsafe()
             ignored = [e for e in self._events if e != "mcs_lost"]
             if self.machine is not None and ignored:
                 # An activation before the vehicle can fly must not act minutes later.
@@ -668,7 +622,7 @@ class AgentRuntime:
                         "mcs_lost handled by the behaviour", extra=LogEvent.FAILSAFE_HANDLED.extra
                     )
                 else:
-                    self._apply_failsafe()
+                    self._safety.apply_failsafe()
             elif not taken and event in _STATION_EVENTS:
                 self._say_ignored(event)
             if self.terminated:
@@ -715,7 +669,7 @@ class AgentRuntime:
     def _collect_outbox(self) -> None:
         outbox = self.context.outbox
         if self._requests_void and outbox.commands:
-            outbox.commands = self._void_requests(outbox.commands)
+            outbox.commands = self._safety.void_requests(outbox.commands)
         for command in outbox.commands:
             if isinstance(command, SetMode):
                 self._modes.engine_asked(command.mode)
@@ -728,184 +682,6 @@ class AgentRuntime:
             outbox.messages = []
 
     # -- safety --------------------------------------------------------------------------
-
-    def _mcs_lost(self) -> None:
-        """Queue mcs_lost; the machine phase gives the behaviour the first chance at it."""
-        if self._mcs_lost_raised:
-            return
-        self._mcs_lost_raised = True
-        self._events.append("mcs_lost")
-        self.logbook.mission.error(
-            "every station is silent: mcs_lost", extra=LogEvent.STATION_LOST.extra
-        )
-
-    def _void_requests(self, commands: list[Command]) -> list[Command]:
-        """The behaviour's commands without the requests of states active across a loss.
-
-        A primitive asks for a mode, an arm or a takeoff when its state starts and asks
-        again while the vehicle reports what it reported then; a state entered before or
-        during an autopilot loss asked while nobody heard, from a view of the vehicle
-        that is stale now, so its asking again after the return would carry out a
-        request of the silent time. Targets, servos and overrides still go: the
-        autopilot acts on a target only in its guided mode, whoever chose it.
-        """
-        kept: list[Command] = [c for c in commands if not isinstance(c, _REQUESTS)]
-        if len(kept) != len(commands) and not self._autopilot_lost:
-            self.logbook.mission.info(
-                "not sent, asked for by a state active while the autopilot was lost: %s",
-                ", ".join(type(c).__name__ for c in commands if isinstance(c, _REQUESTS)),
-                extra=LogEvent.COMMAND_VOIDED.extra,
-            )
-        return kept
-
-    def _apply_failsafe(self, action: str | None = None, *, breach: Breach | None = None) -> None:
-        """A failsafe: the machine stopped, then the action's mode; never applied twice.
-
-        Args:
-            action: ``hold``, ``rtl``, ``land`` or ``continue``; None: the declared
-                mcs_lost failsafe (when the behaviour does not handle the event).
-            breach: The envelope breach this failsafe answers. Its mode is sent only
-                when the vehicle is in a mode the engine put it in: a pilot, a station
-                or the autopilot's own failsafe that took the vehicle is not fought.
-        """
-        if action is None:
-            action = (
-                self.config.failsafe.get("mcs_lost", "hold")
-                if self.config.is_vehicle
-                else "continue"
-            )
-        # `clark analyze --checks` and `clark replay` read this line (log_checks): keep it.
-        self.logbook.mission.error("failsafe %s", action, extra=LogEvent.FAILSAFE_ACT.extra)
-        if action == "continue" or self.failsafe is not None:
-            return
-        mode = {
-            "hold": self.config.hold_mode,
-            "rtl": self.config.rtl_mode,
-            "land": self.config.land_mode,
-        }.get(action)
-        self.failsafe = action
-        self.failsafe_reason = (
-            "mcs_lost"
-            if breach is None
-            else f"{breach.kind} {breach.peer}"
-            if breach.peer
-            else breach.kind
-        )
-        if self.machine is not None:
-            self.machine.stop(self.context)
-            self._collect_outbox()
-        if self.envelope_guard is not None:
-            self.envelope_guard.end_episode()  # the behaviour sends no more targets
-        if breach is not None and not self._modes.engine_holds:
-            reported = self._modes.reported or "an unknown mode"
-            self.logbook.mission.warning(
-                "failsafe %s: no mode sent: the vehicle is in %s, a mode the engine did not "
-                "put it in (its pilot, the station or the autopilot chose it); the "
-                "behaviour is stopped",
-                action,
-                reported,
-                extra=LogEvent.FAILSAFE_NO_MODE.extra,
-            )
-            return
-        if mode is not None and mode in self.config.modes:
-            command = SetMode(mode, int(self.config.modes[mode]))
-            self._modes.engine_asked(mode)
-            self._commands.append(command)
-            if self._autopilot_lost:
-                self._failsafe_unsent = command  # sent when the autopilot returns
-
-    def _here(self, vehicle: VehicleState) -> tuple[float, float]:
-        """The vehicle's position on the local plane (north, east), once per state."""
-        cached = self._here_cache
-        if cached is not None and cached[0] is vehicle:
-            return cached[1]
-        point = to_local(vehicle.lat_deg, vehicle.lon_deg, 0.0, self._origin)
-        here = (point.north_m, point.east_m)
-        self._here_cache = (vehicle, here)
-        return here
-
-    def _watch(self, now_s: float) -> None:
-        """The vehicle and its peers against the envelope; a breach's action, once.
-
-        Run at the start of every tick, before the machine phase. Before the behaviour
-        starts the engine commands nothing, so a breach then is logged only; from the
-        tick the launch gate opens, the first breach in force (begun then or before)
-        applies its action as a failsafe, and any later one is logged only.
-        """
-        watch, vehicle = self.envelope_watch, self.context.vehicle
-        if watch is None or vehicle is None:
-            return
-        result = watch.look(
-            vehicle,
-            self._peer_positions.fixes(now_s, self._here(vehicle)),
-            now_s,
-            guided_flight=self._guided_flight(vehicle),
-        )
-        for ended in result.ended:
-            self.logbook.mission.info(
-                "envelope breach over: %s",
-                ended.describe(),
-                extra=LogEvent.ENVELOPE_BREACH_OVER.extra,
-            )
-        acting = result.active and self._started and self.failsafe is None
-        act = result.active[0] if acting else None
-        if act is not None:
-            self.breach = act
-            self.logbook.mission.error(
-                "envelope breach: %s: %s",
-                act.describe(),
-                act.action,
-                extra=LogEvent.ENVELOPE_BREACH.extra,
-            )
-            self._apply_failsafe(act.action, breach=act)
-        for breach in result.began:
-            if breach is act:
-                continue
-            if not self._started:
-                self.logbook.mission.warning(
-                    "envelope breach: %s: logged only (the behaviour has not started, "
-                    "the engine commands nothing)",
-                    breach.describe(),
-                    extra=LogEvent.ENVELOPE_BREACH.extra,
-                )
-            else:
-                self.logbook.mission.error(
-                    "envelope breach: %s: %s not applied (the failsafe %s holds; a failsafe "
-                    "is applied once)",
-                    breach.describe(),
-                    breach.action,
-                    self.failsafe,
-                    extra=LogEvent.ENVELOPE_BREACH.extra,
-                )
-
-    def _guided_flight(self, vehicle: VehicleState) -> bool:
-        """An aircraft in the air, in the guided mode, flying to a Goto (not taking off)."""
-        return (
-            self.config.is_aircraft
-            and vehicle.mode == self.config.guided_mode
-            and self._last_navigation == "goto"
-            and is_airborne(self.context.autopilot, vehicle)
-        )
-
-    def _envelope_summary(self) -> None:
-        """The mission log's closing line: what the guard did, and the breach, if any."""
-        guard = self.envelope_guard
-        if guard is None:
-            return
-        guard.end_episode()
-        counts = guard.counts
-        breach = self.breach
-        self.logbook.mission.log(
-            logging.WARNING if counts.clamped or counts.refused or breach else logging.INFO,
-            "envelope: %s; %s",
-            counts.describe(),
-            (
-                f"breach at t={breach.began_s:.3f}: {breach.describe()}: {breach.action}"
-                if breach is not None
-                else "no breach acted on"
-            ),
-            extra=LogEvent.ENVELOPE_SUMMARY.extra,
-        )
 
     def _terminate(self, now_s: float, mode: str | None) -> None:
         """Thesis 7.3.5: stop commanding, terminal mode, close interfaces, flush logs."""
@@ -936,73 +712,6 @@ class AgentRuntime:
             self.logbook.close()
 
     # -- the autopilot's safety set-up -----------------------------------------------------
-
-    def _autopilot_safety(self, now_s: float) -> None:
-        """Ask the autopilot to hold the envelope itself, once it can (before the start).
-
-        Sent once the vehicle reports where it is and, when the profile waits for
-        readiness, its home (FENCE_ALT_MAX and the return altitude are above home): not
-        after its pre-arm checks, which a fence left on the autopilot by an earlier
-        mission may fail until this set-up replaces it.
-        """
-        status = self.context.autopilot
-        if (
-            self._autopilot_lost
-            or self.terminated
-            or self.context.vehicle is None
-            or now_s < self._safety_due_s
-            or (self.config.wait_ready and (status is None or status.home is None))
-        ):
-            return
-        try:
-            command = safety_setup(self.config, status.home if status is not None else None)
-        except SafetyPlanError as exc:
-            self._safety_state = "failed"
-            self.launch.safety_result(str(exc))
-            self.logbook.mission.error(
-                "the autopilot's safety set-up cannot be made: %s; the behaviour will not start",
-                exc,
-                extra=LogEvent.SAFETY_SETUP.extra,
-            )
-            return
-        self._safety_state = "sent"
-        self._commands.append(command)
-        self.logbook.mission.info(
-            "setting up the autopilot's own safety (the behaviour waits for it): %s",
-            command.summary,
-            extra=LogEvent.SAFETY_SETUP.extra,
-        )
-
-    def _safety_result(self, result: AutopilotSafetyResult, now_s: float) -> None:
-        """The adapter's answer: the gate may open, or says why it will not."""
-        if self._safety_state != "sent":
-            return  # an answer to nothing asked (a set-up already ended)
-        self.launch.safety_result(result.problem)
-        if result.ok:
-            self._safety_state = "done"
-            self.logbook.mission.info(
-                "the autopilot's fence and its reaction to a dead mission computer are set "
-                "and read back",
-                extra=LogEvent.SAFETY_SETUP.extra,
-            )
-            return
-        if result.retry:
-            self._safety_state = "due"
-            self._safety_due_s = now_s + SAFETY_RETRY_S
-            self.logbook.mission.error(
-                "the autopilot's safety set-up was cut short: %s; asked again once the "
-                "autopilot is back",
-                result.problem,
-                extra=LogEvent.SAFETY_SETUP.extra,
-            )
-            return
-        self._safety_state = "failed"
-        self.logbook.mission.error(
-            "the autopilot's safety set-up failed: %s; the behaviour will not start: fix "
-            "the autopilot (or its profile) and start again",
-            result.problem,
-            extra=LogEvent.SAFETY_SETUP.extra,
-        )
 
     # -- machine callbacks ---------------------------------------------------------------
 
@@ -1102,28 +811,9 @@ class AgentRuntime:
             commands = [c for c in commands if not isinstance(c, VEHICLE_COMMANDS)]
         elif self.envelope_guard is not None:
             for command in commands:
-                if isinstance(command, _GUARDED):
-                    return self._guard(commands)
+                if isinstance(command, GUARDED):
+                    return self._safety.guard(commands)
         return commands
-
-    def _guard(self, commands: list[Command]) -> list[Command]:
-        """The last step before commands leave: every Goto and Takeoff kept in the envelope."""
-        guard = self.envelope_guard
-        assert guard is not None
-        vehicle = self.context.vehicle
-        peers = self._peer_positions.fixes(
-            self.context.now_s, self._here(vehicle) if vehicle is not None else None
-        )
-        out: list[Command] = []
-        for command in commands:
-            if isinstance(command, _GUARDED):
-                kept = guard.check(command, self.context.vehicle, peers, self.context.now_s)
-                if kept is None:
-                    continue
-                self._last_navigation = "goto" if isinstance(kept, Goto) else "takeoff"
-                command = kept
-            out.append(command)
-        return out
 
     @staticmethod
     def _closing(commands: list[Command]) -> bool:
