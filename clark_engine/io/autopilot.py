@@ -81,11 +81,12 @@ from clark_engine.io.autopilot_requests import (
     COMMAND_ATTEMPTS,
     Request,
     command_name,
+    param_id_bytes,
     result_name,
 )
 from clark_engine.io.autopilot_settings import AutopilotSettings
 from clark_engine.io.autopilot_setup import ParamAnswer, SafetySetup
-from clark_engine.io.mission_upload import MissionUpload, fence_items
+from clark_engine.io.autopilot_setup_link import AdapterSetupLink
 from clark_engine.runtime.commands import (
     AUTOPILOT_COMMANDS,
     Arm,
@@ -99,20 +100,17 @@ from clark_engine.runtime.commands import (
     SetServo,
     SetUpAutopilotSafety,
     Takeoff,
-    UploadFence,
     check_dispatch,
     unknown_command,
 )
 from clark_engine.runtime.events import (
     AutopilotHealth,
     AutopilotHeartbeat,
-    AutopilotSafetyResult,
     AutopilotStatus,
     CommandRefused,
     VehicleState,
 )
 from clark_engine.runtime.log_events import LogEvent
-from clark_engine.untrusted import printable
 
 GCS_HEARTBEAT_PERIOD_S: Final = 1.0
 """Our own HEARTBEAT period; ArduPilot's GCS failsafe (FS_GCS_ENABLE) expects 1 Hz."""
@@ -203,13 +201,6 @@ def _message_id(name: str) -> int:
     return msg_id
 
 
-def _param_id(name: str) -> bytes:
-    raw = name.encode("ascii", errors="strict") if name.isascii() else b""
-    if not raw or len(raw) > 16:
-        raise ValueError(f"parameter name {name!r} must be 1-16 ASCII characters")
-    return raw
-
-
 class AutopilotAdapter:
     """MAVLink bytes <-> typed events and commands for one ArduPilot autopilot.
 
@@ -244,6 +235,8 @@ class AutopilotAdapter:
         self._decoder = MessageDecoder(self)
         #: The runtime's flight commands (Goto and its speed, Takeoff, RC overrides) out.
         self._flight = FlightCommands(self)
+        #: The safety set-up's link to this adapter (parameters, upload, the set-up's hooks).
+        self._setup_link = AdapterSetupLink(self)
         # (system, component) the messages used come from; settings are frozen
         self._autopilot_ids = (settings.system_id, settings.component_id)
         self._mode_names: dict[int, str] = {}
@@ -504,7 +497,7 @@ class AutopilotAdapter:
             self._flight.override_out(dict.fromkeys(self._overrides, 0), now_s)
             self._overrides.clear()
         self._stopping = True
-        self._safety_close(now_s)
+        self._setup_link.close(now_s)
         return self._outbox.take()
 
     @property
@@ -583,7 +576,7 @@ class AutopilotAdapter:
         elif isinstance(cmd, RcOverride):
             self._flight.rc_override(cmd, now_s)
         elif isinstance(cmd, SetUpAutopilotSafety):
-            self._safety_start(cmd, now_s)
+            self._setup_link.start(cmd, now_s)
         elif not isinstance(cmd, _NOT_THE_AUTOPILOTS):
             raise unknown_command(cmd, "the autopilot adapter")
         return self._outbox.take()
@@ -605,7 +598,7 @@ class AutopilotAdapter:
         Raises:
             ValueError: The name is not 1-16 ASCII characters.
         """
-        param_id = _param_id(name)
+        param_id = param_id_bytes(name)
         s = self.settings
         self._track(
             Request(
@@ -640,7 +633,7 @@ class AutopilotAdapter:
         now_s: float,
         answered: Callable[[int | None, float], None] | None = None,
     ) -> None:
-        param_id = _param_id(name)
+        param_id = param_id_bytes(name)
         known = self._param_types.get(name, mavlink2.MAV_PARAM_TYPE_REAL32)
         s = self.settings
         self._track(
@@ -669,125 +662,6 @@ class AutopilotAdapter:
         self._wanted.add(name)
         self._command_long(mavlink2.MAV_CMD_REQUEST_MESSAGE, f"request {name}", now_s, msg_id)
         return self._outbox.take()
-
-    # -- the safety set-up (SetUpAutopilotSafety; see io/autopilot_setup.py) ----------------
-
-    def _safety_start(self, cmd: SetUpAutopilotSafety, now_s: float) -> None:
-        """Start a safety set-up; one under way is dropped (the runtime asks once at a time)."""
-        if self._safety is not None:
-            self._log.warning(
-                "a new safety set-up replaces the one under way",
-                extra=LogEvent.AUTOPILOT_SAFETY.extra,
-            )
-            self._param_answers.clear()
-        self._log.info(
-            "safety set-up: %s",
-            cmd.summary or "(no summary)",
-            extra=LogEvent.AUTOPILOT_SAFETY.extra,
-        )
-        self._safety = SafetySetup(cmd, self, self._safety_over)
-        self._safety.start(now_s)
-
-    def _safety_over(self, result: AutopilotSafetyResult) -> None:
-        safety, self._safety = self._safety, None
-        if safety is not None:
-            # What it switched on, a clean stop switches off, whether or not the rest took.
-            close = dict(self._on_close)
-            close.update(
-                (p.name, p.value) for p in safety.command.on_close if p.name in safety.took_names
-            )
-            self._on_close = tuple(close.items())
-        if result.ok:
-            self._log.info(
-                "safety set-up: every parameter took", extra=LogEvent.AUTOPILOT_SAFETY.extra
-            )
-        else:
-            self._log.error(
-                "safety set-up failed: %s",
-                printable(result.problem),
-                extra=LogEvent.AUTOPILOT_SAFETY.extra,
-            )
-        self._late_events.append(result)
-
-    def _safety_close(self, now_s: float) -> None:
-        """A clean stop: write the set-up's on_close (the failsafe switched off).
-
-        Only what a set-up switched on (its value read back) is switched off, whether or
-        not the set-up as a whole took. Sent at once and tracked: the autopilot's echo
-        answers it, :meth:`poll` resends it meanwhile, and a shell that may wait does
-        (:attr:`unanswered`); one that may not has sent it once.
-        """
-        for name, value in self._on_close:
-            self._log.info(
-                "leaving on purpose: %s = %g", name, value, extra=LogEvent.AUTOPILOT_SAFETY.extra
-            )
-            self._param_set(name, value, now_s, lambda _result, _at_s: None)
-        self.left_on_purpose = tuple(name for name, _value in self._on_close)
-        self._on_close = ()
-
-    def _param_silent(self, name: str, now_s: float) -> None:
-        for answer in self._param_answers.pop(name, ()):
-            answer(None, None, now_s)
-
-    def setup_read(self, name: str, now_s: float, answer: ParamAnswer) -> None:
-        """Read a parameter for the safety set-up; ``answer`` hears it or its silence."""
-        self._param_answers.setdefault(name, []).append(answer)
-        param_id = _param_id(name)
-        s = self.settings
-        self._track(
-            Request(
-                "PARAM_REQUEST_READ",
-                name,
-                f"read {name}",
-                lambda _attempt: self._mav.param_request_read_encode(
-                    s.system_id, s.component_id, param_id, -1
-                ),
-                answered=lambda _result, at_s: self._param_silent(name, at_s),
-            ),
-            now_s,
-        )
-
-    def setup_write(self, name: str, value: float, now_s: float, answer: ParamAnswer) -> None:
-        """Set a parameter for the safety set-up; ``answer`` hears its echo or its silence."""
-        self._param_answers.setdefault(name, []).append(answer)
-        self._param_set(name, value, now_s, lambda _result, at_s: self._param_silent(name, at_s))
-
-    def setup_forget(self, name: str) -> None:
-        """Stop asking for a parameter the set-up no longer needs."""
-        self._param_answers.pop(name, None)
-        self._requests = [r for r in self._requests if r.key != name]
-
-    def setup_heartbeat(self, now_s: float) -> None:
-        """Send our HEARTBEAT now, off its 1 Hz grid."""
-        self._heartbeat_out(now_s)
-
-    def setup_upload(self, zones: UploadFence, now_s: float) -> MissionUpload:
-        """Start replacing the autopilot's fence list."""
-        s = self.settings
-        return MissionUpload(
-            self._mav,
-            (s.system_id, s.component_id),
-            fence_items(zones.zones),
-            int(mavlink2.MAV_MISSION_TYPE_FENCE),
-            now_s,
-        )
-
-    def setup_heard_since(self, t_s: float) -> bool:
-        """True when a HEARTBEAT from the autopilot arrived at or after ``t_s``."""
-        return self._heartbeat_s is not None and self._heartbeat_s >= t_s
-
-    def setup_reasons(self, since_s: float, now_s: float) -> str:
-        """The autopilot's warnings since ``since_s`` (escaped), joined by ``; ``."""
-        return "; ".join(text for t, text in self._warnings if since_s <= t <= now_s)
-
-    def setup_note(self, text: str) -> None:
-        """A line of the safety set-up for the interface log."""
-        self._log.info("safety set-up: %s", text, extra=LogEvent.AUTOPILOT_SAFETY.extra)
-
-    @property
-    def own_system_id(self) -> int:
-        """Our MAVLink system id: the one the autopilot's ground-station failsafe watches."""
-        return self.settings.source_system_id
 
     # -- bytes in ---------------------------------------------------------------------------
 

@@ -58,3 +58,11 @@ def command_name(command: int) -> str:
     """A MAV_CMD's name (``MAV_CMD_DO_SET_MODE``), or its number's."""
     entry = mavlink2.enums["MAV_CMD"].get(command)
     return str(entry.name) if entry is not None else f"MAV_CMD_{command}"
+
+
+def param_id_bytes(name: str) -> bytes:
+    """A parameter's name as MAVLink's param_id bytes (1-16 ASCII characters)."""
+    raw = name.encode("ascii", errors="strict") if name.isascii() else b""
+    if not raw or len(raw) > 16:
+        raise ValueError(f"parameter name {name!r} must be 1-16 ASCII characters")
+    return raw
