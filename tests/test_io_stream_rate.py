@@ -6,7 +6,7 @@ streams GLOBAL_POSITION_INT at its own 1 Hz (measured on SITL, and so simulated)
 adapter asked once, was answered, and drove the whole mission on 1 Hz positions: its
 guided targets went up to a second late (found by comparing fault_station_loss's rovers
 with ArduRover SITL's). It now counts what comes and asks again while it is under half
-the rate (io/autopilot.py, STREAM_RATE_CHECK_S).
+the rate (io/autopilot_streams.py, STREAM_RATE_CHECK_S).
 """
 
 from __future__ import annotations

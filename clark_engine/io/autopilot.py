@@ -81,12 +81,14 @@ from clark_engine.io.autopilot_requests import (
     COMMAND_ATTEMPTS,
     Request,
     command_name,
+    message_id,
     param_id_bytes,
     result_name,
 )
 from clark_engine.io.autopilot_settings import AutopilotSettings
 from clark_engine.io.autopilot_setup import ParamAnswer, SafetySetup
 from clark_engine.io.autopilot_setup_link import AdapterSetupLink
+from clark_engine.io.autopilot_streams import StreamRequests
 from clark_engine.runtime.commands import (
     AUTOPILOT_COMMANDS,
     Arm,
@@ -118,52 +120,6 @@ GCS_HEARTBEAT_PERIOD_S: Final = 1.0
 OVERRIDE_REFRESH_S: Final = 0.5
 """Active RC overrides are resent this often, well inside ArduPilot's RC_OVERRIDE_TIME (3 s)."""
 
-STREAM_SILENCE_S: Final = 3.0
-"""No GLOBAL_POSITION_INT for this long while heartbeats arrive: ask for the streams again
-(the autopilot rebooted, or another ground station turned them off)."""
-
-STREAM_RATE_CHECK_S: Final = 2.0
-"""Every this long, once the stream requests are answered, the positions that came are
-counted: fewer than half the rate asked for, and the streams are asked for again.
-ArduPilot acknowledges a SET_MESSAGE_INTERVAL sent before its first HEARTBEAT and then
-streams at its own default (ArduRover SITL: GLOBAL_POSITION_INT at 1 Hz, measured), so an
-acknowledgement does not prove the rate: a mission computer powered up with its
-autopilot drove on 1 Hz positions, sending its guided targets up to a second late."""
-
-STREAMED_MESSAGES: Final = (
-    "GLOBAL_POSITION_INT",
-    "ATTITUDE",
-    "VFR_HUD",
-    "SYSTEM_TIME",
-    "RC_CHANNELS",
-    "SERVO_OUTPUT_RAW",
-    "SYS_STATUS",
-    "GPS_RAW_INT",
-    "EKF_STATUS_REPORT",
-    "EXTENDED_SYS_STATE",
-)
-"""Messages :meth:`AutopilotAdapter.start` asks for."""
-
-SLOW_STREAMS: Final = {
-    "SYSTEM_TIME": 1.0,
-    "SYS_STATUS": 1.0,
-    "GPS_RAW_INT": 2.0,
-    "SERVO_OUTPUT_RAW": 2.0,
-    "EKF_STATUS_REPORT": 1.0,
-    "EXTENDED_SYS_STATE": 1.0,
-}
-"""Messages the runtime needs only now and then, asked for at these rates (Hz) or the
-profile's ``stream_rate_hz`` when slower: the clock's sync, health, readiness and raw
-GPS do not need the loop rate, and a serial link at 57600 baud has little to spare."""
-
-OPTIONAL_STREAMS: Final = frozenset({"EXTENDED_SYS_STATE"})
-"""Streams an ArduPilot firmware may not have (ArduRover has no landed state): a refusal
-is noted in the interface log, not reported as a refused command."""
-
-HOME_REQUEST_PERIOD_S: Final = 2.0
-"""HOME_POSITION is asked for this often until it arrives. ArduPilot sends it by itself
-when home is set, but not to a ground station that connects afterwards."""
-
 REASON_WAIT_S: Final = 0.5
 """A refusal waits this long for its STATUSTEXT before it is reported."""
 
@@ -192,13 +148,6 @@ class _Outbox:
             return b""  # most polls send nothing
         data, self._data = bytes(self._data), bytearray()
         return data
-
-
-def _message_id(name: str) -> int:
-    msg_id = getattr(mavlink2, f"MAVLINK_MSG_ID_{name}", None)
-    if not isinstance(msg_id, int):
-        raise ValueError(f"{name!r} is not a MAVLink message of the ardupilotmega dialect")
-    return msg_id
 
 
 class AutopilotAdapter:
@@ -237,6 +186,8 @@ class AutopilotAdapter:
         self._flight = FlightCommands(self)
         #: The safety set-up's link to this adapter (parameters, upload, the set-up's hooks).
         self._setup_link = AdapterSetupLink(self)
+        #: The streams and the one-off messages asked of the autopilot.
+        self._streams = StreamRequests(self)
         # (system, component) the messages used come from; settings are frozen
         self._autopilot_ids = (settings.system_id, settings.component_id)
         self._mode_names: dict[int, str] = {}
@@ -373,15 +324,16 @@ class AutopilotAdapter:
     def start(self, now_s: float) -> bytes:
         """Open the conversation (thesis 4.3.1): what to send first.
 
-        Our HEARTBEAT; SET_MESSAGE_INTERVAL for each of :data:`STREAMED_MESSAGES`
-        at ``stream_rate_hz``; and MAV_CMD_REQUEST_MESSAGE for AUTOPILOT_VERSION,
-        whose answer completes :attr:`verified`. Whatever is lost (an autopilot
-        still booting, a UDP link with no peer yet) :meth:`poll` sends again.
+        Our HEARTBEAT; SET_MESSAGE_INTERVAL for each of
+        :data:`~.autopilot_streams.STREAMED_MESSAGES` at ``stream_rate_hz``; and
+        MAV_CMD_REQUEST_MESSAGE for AUTOPILOT_VERSION, whose answer completes
+        :attr:`verified`. Whatever is lost (an autopilot still booting, a UDP link with no
+        peer yet) :meth:`poll` sends again.
         """
         self._start_s = now_s
         self._heartbeat_out(now_s)
-        self._queue_setup(now_s)
-        self._verify(now_s)
+        self._streams.queue(now_s)
+        self._streams.verify(now_s)
         self._send_due(now_s)
         return self._outbox.take()
 
@@ -406,7 +358,8 @@ class AutopilotAdapter:
           requests retried for as long as the autopilot is heard.
         - The AUTOPILOT_VERSION request repeated every second until answered.
         - The streams asked for again after a reconnection or a reboot, or when no
-          GLOBAL_POSITION_INT came for :data:`STREAM_SILENCE_S` while heartbeats do.
+          GLOBAL_POSITION_INT came for :data:`~.autopilot_streams.STREAM_SILENCE_S` while
+          heartbeats do.
         """
         if self._start_s is None:
             return self.start(now_s)
@@ -430,32 +383,11 @@ class AutopilotAdapter:
             self._flight.override_out(dict(self._overrides), now_s)
         heard = self._heartbeat_s is not None and not self.lost(now_s)
         if heard:
-            last_position_s = -math.inf if self._position_s is None else self._position_s
-            if self._setup_due:
-                self._queue_setup(now_s)
-            elif now_s - max(self._setup_s, last_position_s) >= STREAM_SILENCE_S:
-                self._log.info(
-                    "autopilot sends no position; asking for the streams again",
-                    extra=LogEvent.AUTOPILOT_STREAMS.extra,
-                )
-                self._queue_setup(now_s)
-            elif now_s - self._rate_check_s >= STREAM_RATE_CHECK_S - 1e-9:
-                self._check_stream_rate(now_s)
-            if self._legacy_streams_due:
-                self._legacy_streams_due = False
-                self._mav.send(
-                    self._mav.request_data_stream_encode(
-                        self.settings.system_id,
-                        self.settings.component_id,
-                        mavlink2.MAV_DATA_STREAM_ALL,
-                        max(1, round(self.settings.stream_rate_hz)),
-                        1,
-                    )
-                )
+            self._streams.keep_up(now_s)
         if self._version is None and now_s >= self._next_verify_s:
-            self._verify(now_s)
+            self._streams.verify(now_s)
         elif heard and self._status.home is None and now_s >= self._next_home_request_s:
-            self._request_home(now_s)
+            self._streams.request_home(now_s)
         if self._requests:
             self._send_due(now_s, heard=heard)
         if heard:
@@ -658,7 +590,7 @@ class AutopilotAdapter:
         Raises:
             ValueError: No message of that name in the dialect.
         """
-        msg_id = _message_id(name)
+        msg_id = message_id(name)
         self._wanted.add(name)
         self._command_long(mavlink2.MAV_CMD_REQUEST_MESSAGE, f"request {name}", now_s, msg_id)
         return self._outbox.take()
@@ -868,107 +800,6 @@ class AutopilotAdapter:
         self._next_heartbeat_s += GCS_HEARTBEAT_PERIOD_S
         if self._next_heartbeat_s <= now_s:
             self._next_heartbeat_s = now_s + GCS_HEARTBEAT_PERIOD_S
-
-    def _verify(self, now_s: float) -> None:
-        # Untracked on purpose: it repeats until AUTOPILOT_VERSION arrives. Every other
-        # attempt uses the older MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, for firmware
-        # that predates MAV_CMD_REQUEST_MESSAGE.
-        s = self.settings
-        if self._verify_attempts % 2 == 0:
-            command, p1 = (
-                mavlink2.MAV_CMD_REQUEST_MESSAGE,
-                mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
-            )
-        else:
-            command, p1 = mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, 1
-        self._mav.send(
-            self._mav.command_long_encode(
-                s.system_id, s.component_id, command, 0, p1, 0, 0, 0, 0, 0, 0
-            )
-        )
-        self._verify_attempts += 1
-        self._next_verify_s = now_s + ACK_TIMEOUT_S
-
-    def _request_home(self, now_s: float) -> None:
-        # Untracked, like the version probe: until home is set ArduPilot has none to send.
-        s = self.settings
-        self._mav.send(
-            self._mav.command_long_encode(
-                s.system_id,
-                s.component_id,
-                mavlink2.MAV_CMD_REQUEST_MESSAGE,
-                0,
-                mavlink2.MAVLINK_MSG_ID_HOME_POSITION,
-                0,
-                0,
-                0,
-                0,
-                0,
-                0,
-            )
-        )
-        self._next_home_request_s = now_s + HOME_REQUEST_PERIOD_S
-
-    def _check_stream_rate(self, now_s: float) -> None:
-        """Ask for the streams again when positions come at under half the rate asked for.
-
-        Counted over the :data:`STREAM_RATE_CHECK_S` since the last check, and only once
-        every stream request has been answered (until then the rate is not yet asked for).
-        """
-        window_s = now_s - self._rate_check_s
-        counted, self._positions_counted = self._positions_counted, 0
-        self._rate_check_s = now_s
-        if any(r.setup for r in self._requests) or not math.isfinite(window_s):
-            return
-        rate_hz = counted / window_s
-        asked_hz = 1e6 / self._interval_us
-        if counted and rate_hz < 0.5 * asked_hz:
-            self._log.info(
-                "autopilot streams positions at %.1f Hz where %.1f Hz was asked for; "
-                "asking for the streams again",
-                rate_hz,
-                asked_hz,
-                extra=LogEvent.AUTOPILOT_STREAMS.extra,
-            )
-            self._queue_setup(now_s)
-
-    def _queue_setup(self, now_s: float) -> None:
-        self._setup_s = now_s
-        self._rate_check_s = now_s
-        self._positions_counted = 0
-        self._setup_due = False
-        self._requests = [r for r in self._requests if not r.setup]
-        for name in STREAMED_MESSAGES:
-            msg_id = _message_id(name)
-            interval_us = self._interval_us
-            if name in SLOW_STREAMS:
-                interval_us = max(interval_us, round(1e6 / SLOW_STREAMS[name]))
-            self._requests.append(
-                Request(
-                    "MAV_CMD_SET_MESSAGE_INTERVAL",
-                    mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL,
-                    f"stream {name} every {interval_us} us",
-                    self._long_builder(
-                        mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, (msg_id, interval_us)
-                    ),
-                    setup=True,
-                    answered=self._optional_stream(name) if name in OPTIONAL_STREAMS else None,
-                    due_s=now_s,
-                )
-            )
-
-    def _optional_stream(self, name: str) -> Callable[[int | None, float], None]:
-        def answered(result: int | None, _now_s: float) -> None:
-            if result != mavlink2.MAV_RESULT_ACCEPTED:
-                why = "no answer" if result is None else result_name(result)
-                self._log.info(
-                    "autopilot does not stream %s (%s)",
-                    name,
-                    why,
-                    extra=LogEvent.AUTOPILOT_STREAMS.extra,
-                )
-
-        return answered
 
     def _long_builder(self, command: int, params: tuple[float, ...]) -> Callable[[int], Any]:
         s = self.settings

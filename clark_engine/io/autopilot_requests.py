@@ -66,3 +66,11 @@ def param_id_bytes(name: str) -> bytes:
     if not raw or len(raw) > 16:
         raise ValueError(f"parameter name {name!r} must be 1-16 ASCII characters")
     return raw
+
+
+def message_id(name: str) -> int:
+    """A message's id in the ardupilotmega dialect, by name."""
+    msg_id = getattr(mavlink2, f"MAVLINK_MSG_ID_{name}", None)
+    if not isinstance(msg_id, int):
+        raise ValueError(f"{name!r} is not a MAVLink message of the ardupilotmega dialect")
+    return msg_id

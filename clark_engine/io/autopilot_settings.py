@@ -39,7 +39,7 @@ class AutopilotSettings:
             id (MAV_GCS_SYSID): ArduPilot takes RC overrides, and counts heartbeats for its
             failsafe, only from that id.
         source_component_id: Ours (191, MAV_COMP_ID_ONBOARD_COMPUTER).
-        stream_rate_hz: Rate asked for each of :data:`STREAMED_MESSAGES`.
+        stream_rate_hz: Rate asked for each of :data:`~.autopilot_streams.STREAMED_MESSAGES`.
         heartbeat_timeout_s: Autopilot silence after which :meth:`AutopilotAdapter.lost`.
         origin_alt_amsl_m: The mission origin's height above mean sea level: altitudes
             above the origin are the autopilot's AMSL altitudes less this.
