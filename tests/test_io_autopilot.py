@@ -25,7 +25,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from clark_engine.io.autopilot import REASON_WAIT_S, AutopilotAdapter
+from clark_engine.io.autopilot import AutopilotAdapter
 from clark_engine.io.autopilot_decode import (
     AutopilotEvent,
     AutopilotMessage,
@@ -33,7 +33,7 @@ from clark_engine.io.autopilot_decode import (
     gps_time_ms_from_unix_us,
 )
 from clark_engine.io.autopilot_flight import POSITION_ONLY_TYPE_MASK, POSITION_VELOCITY_TYPE_MASK
-from clark_engine.io.autopilot_requests import ACK_TIMEOUT_S, COMMAND_ATTEMPTS
+from clark_engine.io.autopilot_requests import ACK_TIMEOUT_S, COMMAND_ATTEMPTS, REASON_WAIT_S
 from clark_engine.io.autopilot_settings import AutopilotSettings
 from clark_engine.io.transports import (
     MemoryPipe,

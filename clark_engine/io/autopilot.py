@@ -64,26 +64,21 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import replace
 from typing import Any, Final
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.io.autopilot_decode import (
-    REASON_WINDOW_S,
     AutopilotEvent,
     MessageDecoder,
     message_fields,
 )
 from clark_engine.io.autopilot_flight import FlightCommands
 from clark_engine.io.autopilot_requests import (
-    ACK_TIMEOUT_S,
-    COMMAND_ATTEMPTS,
     Request,
-    command_name,
+    RequestTracker,
     message_id,
     param_id_bytes,
-    result_name,
 )
 from clark_engine.io.autopilot_settings import AutopilotSettings
 from clark_engine.io.autopilot_setup import ParamAnswer, SafetySetup
@@ -119,9 +114,6 @@ GCS_HEARTBEAT_PERIOD_S: Final = 1.0
 
 OVERRIDE_REFRESH_S: Final = 0.5
 """Active RC overrides are resent this often, well inside ArduPilot's RC_OVERRIDE_TIME (3 s)."""
-
-REASON_WAIT_S: Final = 0.5
-"""A refusal waits this long for its STATUSTEXT before it is reported."""
 
 #: The commands that reach the adapter but are not the autopilot's: answered with ``b""``.
 _NOT_THE_AUTOPILOTS: Final = (SendPacket, PayloadCommand, CloseInterfaces)
@@ -185,6 +177,8 @@ class AutopilotAdapter:
         #: The runtime's flight commands (Goto and its speed, Takeoff, RC overrides) out.
         self._flight = FlightCommands(self)
         #: The safety set-up's link to this adapter (parameters, upload, the set-up's hooks).
+        #: Every request the autopilot must answer: sent, resent, given up, its refusals.
+        self._tracker = RequestTracker(self)
         self._setup_link = AdapterSetupLink(self)
         #: The streams and the one-off messages asked of the autopilot.
         self._streams = StreamRequests(self)
@@ -334,7 +328,7 @@ class AutopilotAdapter:
         self._heartbeat_out(now_s)
         self._streams.queue(now_s)
         self._streams.verify(now_s)
-        self._send_due(now_s)
+        self._tracker.send_due(now_s)
         return self._outbox.take()
 
     def flush(self) -> bytes:
@@ -369,8 +363,8 @@ class AutopilotAdapter:
             # The stop's requests (the terminal mode, the failsafe switched off) are
             # resent until answered; nothing else is asked or kept alive.
             if self._requests:
-                self._send_due(now_s, heard=not self.lost(now_s))
-            self._release_refusals(now_s, self._late_events)
+                self._tracker.send_due(now_s, heard=not self.lost(now_s))
+            self._tracker.release_refusals(now_s, self._late_events)
             return self._outbox.take()
         if (
             self._overrides
@@ -389,12 +383,12 @@ class AutopilotAdapter:
         elif heard and self._status.home is None and now_s >= self._next_home_request_s:
             self._streams.request_home(now_s)
         if self._requests:
-            self._send_due(now_s, heard=heard)
+            self._tracker.send_due(now_s, heard=heard)
         if heard:
             self._flight.speed(now_s)
         if self._safety is not None:
             self._safety.poll(now_s)
-        self._release_refusals(now_s, self._late_events)
+        self._tracker.release_refusals(now_s, self._late_events)
         return self._outbox.take()
 
     def stop_commanding(self, now_s: float) -> bytes:
@@ -490,7 +484,7 @@ class AutopilotAdapter:
                     number,
                     extra=LogEvent.AUTOPILOT_MODE.extra,
                 )
-            self._command_long(
+            self._tracker.command_long(
                 mavlink2.MAV_CMD_DO_SET_MODE,
                 f"SetMode {cmd.mode} ({number})",
                 now_s,
@@ -498,7 +492,7 @@ class AutopilotAdapter:
                 number,
             )
         elif isinstance(cmd, SetServo):
-            self._command_long(
+            self._tracker.command_long(
                 mavlink2.MAV_CMD_DO_SET_SERVO,
                 f"SetServo {cmd.servo} {cmd.pwm_us} us",
                 now_s,
@@ -515,7 +509,7 @@ class AutopilotAdapter:
 
     def arm(self, armed: bool, now_s: float, *, force: bool = False) -> bytes:
         """Arm or disarm (MAV_CMD_COMPONENT_ARM_DISARM); ``force`` skips pre-arm checks."""
-        self._command_long(
+        self._tracker.command_long(
             mavlink2.MAV_CMD_COMPONENT_ARM_DISARM,
             ("arm" if armed else "disarm") + (" (forced)" if force else ""),
             now_s,
@@ -532,7 +526,7 @@ class AutopilotAdapter:
         """
         param_id = param_id_bytes(name)
         s = self.settings
-        self._track(
+        self._tracker.track(
             Request(
                 "PARAM_REQUEST_READ",
                 name,
@@ -568,7 +562,7 @@ class AutopilotAdapter:
         param_id = param_id_bytes(name)
         known = self._param_types.get(name, mavlink2.MAV_PARAM_TYPE_REAL32)
         s = self.settings
-        self._track(
+        self._tracker.track(
             Request(
                 "PARAM_SET",
                 name,
@@ -592,7 +586,9 @@ class AutopilotAdapter:
         """
         msg_id = message_id(name)
         self._wanted.add(name)
-        self._command_long(mavlink2.MAV_CMD_REQUEST_MESSAGE, f"request {name}", now_s, msg_id)
+        self._tracker.command_long(
+            mavlink2.MAV_CMD_REQUEST_MESSAGE, f"request {name}", now_s, msg_id
+        )
         return self._outbox.take()
 
     # -- bytes in ---------------------------------------------------------------------------
@@ -644,7 +640,7 @@ class AutopilotAdapter:
         if self._late_events:  # what the messages ended (a safety set-up's result)
             events.extend(self._late_events)
             self._late_events = []
-        self._release_refusals(now_s, events)
+        self._tracker.release_refusals(now_s, events)
         return events
 
     # -- internals: receiving ----------------------------------------------------------------
@@ -738,52 +734,6 @@ class AutopilotAdapter:
         self._gps_alt_amsl_m = None
         self._next_home_request_s = -math.inf
 
-    def _on_ack(self, msg: Any, now_s: float, events: list[AutopilotEvent]) -> None:
-        s = self.settings
-        if msg.target_system not in (0, s.source_system_id) or msg.target_component not in (
-            0,
-            s.source_component_id,
-        ):
-            return  # another ground station's answer
-        request = next((r for r in self._requests if r.key == msg.command), None)
-        if request is None:
-            return  # the version probe, or a late duplicate of a retried command
-        if msg.result == mavlink2.MAV_RESULT_IN_PROGRESS:
-            request.due_s = now_s + ACK_TIMEOUT_S  # alive; wait for the final answer
-            return
-        self._requests.remove(request)
-        if request.answered is not None:
-            request.answered(int(msg.result), now_s)
-        elif msg.result != mavlink2.MAV_RESULT_ACCEPTED:
-            # Reported once its STATUSTEXT, if any, has had time to arrive.
-            refusal = CommandRefused(request.command, result_name(msg.result), request.request)
-            self._refusals.append((now_s + REASON_WAIT_S, refusal, now_s))
-        if (
-            request.setup
-            and msg.command == mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL
-            and msg.result == mavlink2.MAV_RESULT_UNSUPPORTED
-        ):
-            self._legacy_streams_due = True  # firmware older than SET_MESSAGE_INTERVAL
-
-    def _release_refusals(self, now_s: float, events: list[AutopilotEvent]) -> None:
-        """Report the refusals whose wait for a reason is over, with their reasons."""
-        if not self._refusals or self._refusals[0][0] > now_s:
-            return
-        while self._refusals and self._refusals[0][0] <= now_s:
-            _due, refusal, at_s = self._refusals.pop(0)
-            reason = "; ".join(
-                text for t, text in self._warnings if at_s - REASON_WINDOW_S <= t <= now_s
-            )
-            self._log.warning(
-                "autopilot refused %s (%s): %s%s",
-                refusal.request,
-                refusal.command,
-                refusal.result,
-                f": {reason}" if reason else "",
-                extra=LogEvent.AUTOPILOT_REFUSED.extra,
-            )
-            events.append(replace(refusal, reason=reason))
-
     # -- internals: sending ------------------------------------------------------------------
 
     def _heartbeat_out(self, now_s: float) -> None:
@@ -800,53 +750,3 @@ class AutopilotAdapter:
         self._next_heartbeat_s += GCS_HEARTBEAT_PERIOD_S
         if self._next_heartbeat_s <= now_s:
             self._next_heartbeat_s = now_s + GCS_HEARTBEAT_PERIOD_S
-
-    def _long_builder(self, command: int, params: tuple[float, ...]) -> Callable[[int], Any]:
-        s = self.settings
-        p = (*params, *(0.0,) * (7 - len(params)))
-
-        def build(attempt: int) -> Any:
-            return self._mav.command_long_encode(
-                s.system_id, s.component_id, command, min(attempt - 1, 255), *p
-            )
-
-        return build
-
-    def _command_long(self, command: int, request: str, now_s: float, *params: float) -> None:
-        self._track(
-            Request(command_name(command), command, request, self._long_builder(command, params)),
-            now_s,
-        )
-
-    def _track(self, request: Request, now_s: float) -> None:
-        request.attempts = 1
-        request.due_s = now_s + ACK_TIMEOUT_S
-        self._mav.send(request.build(1))
-        self._requests.append(request)
-
-    def _send_due(self, now_s: float, *, heard: bool = True) -> None:
-        for request in list(self._requests):
-            if request.due_s > now_s:
-                continue
-            if request.setup:
-                if not heard and request.attempts > 0:
-                    continue  # nobody to ask; the setup is redone when it is heard
-            elif request.attempts >= COMMAND_ATTEMPTS:
-                self._requests.remove(request)
-                self._log.warning(
-                    "autopilot did not answer %s (%s) after %d sends",
-                    request.request,
-                    request.command,
-                    request.attempts,
-                    extra=LogEvent.AUTOPILOT_UNANSWERED.extra,
-                )
-                if request.answered is not None:
-                    request.answered(None, now_s)
-                else:
-                    self._late_events.append(
-                        CommandRefused(request.command, "NO_ANSWER", request.request)
-                    )
-                continue
-            request.attempts += 1
-            request.due_s = now_s + ACK_TIMEOUT_S
-            self._mav.send(request.build(request.attempts))

@@ -218,7 +218,7 @@ class MessageDecoder:
                 own = (self._settings.source_system_id, self._settings.source_component_id)
                 self._adapter._safety.on_mission(msg, own, now_s)
         elif kind == "COMMAND_ACK":
-            self._adapter._on_ack(msg, now_s, events)
+            self._adapter._tracker.on_ack(msg, now_s, events)
         elif kind == "STATUSTEXT":
             events.append(self._on_text(msg, now_s))
         elif kind in _STATUS_MESSAGES:

@@ -86,7 +86,7 @@ class FlightCommands:
         alt_amsl_m = float(cmd.alt_m) + s.origin_alt_amsl_m
         frame = mavlink2.MAV_FRAME_GLOBAL_INT
         if plane:
-            self._adapter._track(
+            self._adapter._tracker.track(
                 Request(
                     "MAV_CMD_DO_REPOSITION",
                     mavlink2.MAV_CMD_DO_REPOSITION,
@@ -158,7 +158,7 @@ class FlightCommands:
                 )
                 return
             self._adapter._param_set("TKOFF_ALT", round(above_home_m), now_s)
-            self._adapter._command_long(
+            self._adapter._tracker.command_long(
                 mavlink2.MAV_CMD_DO_SET_MODE,
                 f"SetMode TAKEOFF ({number}) to take off to {cmd.alt_m:g} m above the origin "
                 f"({above_home_m:g} m above home)",
@@ -167,7 +167,7 @@ class FlightCommands:
                 int(number),
             )
             return
-        self._adapter._command_long(
+        self._adapter._tracker.command_long(
             mavlink2.MAV_CMD_NAV_TAKEOFF,
             f"takeoff to {cmd.alt_m:g} m above the origin ({above_home_m:g} m above home)",
             now_s,
@@ -209,12 +209,12 @@ class FlightCommands:
             return
         self._adapter._speed_retry_s = math.inf  # until answered
         plane = self._settings.firmware == "arduplane"
-        self._adapter._track(
+        self._adapter._tracker.track(
             Request(
                 "MAV_CMD_DO_CHANGE_SPEED",
                 mavlink2.MAV_CMD_DO_CHANGE_SPEED,
                 f"speed {wanted:g} m/s",
-                self._adapter._long_builder(
+                self._adapter._tracker.long_builder(
                     mavlink2.MAV_CMD_DO_CHANGE_SPEED,
                     # SPEED_TYPE_AIRSPEED for ArduPlane (its ground-speed type sets only a
                     # minimum), SPEED_TYPE_GROUNDSPEED otherwise; throttle -1: no change.

@@ -106,7 +106,7 @@ class AdapterSetupLink:
         self._adapter._param_answers.setdefault(name, []).append(answer)
         param_id = param_id_bytes(name)
         s = self._settings
-        self._adapter._track(
+        self._adapter._tracker.track(
             Request(
                 "PARAM_REQUEST_READ",
                 name,

@@ -195,7 +195,7 @@ class StreamRequests:
                     "MAV_CMD_SET_MESSAGE_INTERVAL",
                     mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL,
                     f"stream {name} every {interval_us} us",
-                    self._adapter._long_builder(
+                    self._adapter._tracker.long_builder(
                         mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, (msg_id, interval_us)
                     ),
                     setup=True,
