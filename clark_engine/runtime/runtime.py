@@ -27,6 +27,14 @@ flushes the logs.
 Commands (mode change, activate, terminate) are acted on only when they come
 from a station of this mission and, when the mission has a key, authenticated:
 the codec rejects every other packet before anything is looked at.
+
+The runtime owns a helper object per concern, each in a module of its own and each
+reading and changing the runtime's state through a back-reference (one agent's state,
+one owner): :class:`~clark_engine.runtime.safety.Safety` (the rules above),
+:class:`~clark_engine.runtime.packets_in.PacketIntake` (packets in, who may command),
+:class:`~clark_engine.runtime.station_commands.StationCommands` (a station's commands
+out) and :class:`~clark_engine.runtime.telemetry.Telemetry` (messages and packets out).
+This module keeps the events in, the tick's phases and what leaves.
 """
 
 from __future__ import annotations
@@ -681,7 +689,7 @@ class AgentRuntime:
             self._telemetry.pending.extend(outbox.messages)
             outbox.messages = []
 
-    # -- safety --------------------------------------------------------------------------
+    # -- terminate -----------------------------------------------------------------------
 
     def _terminate(self, now_s: float, mode: str | None) -> None:
         """Thesis 7.3.5: stop commanding, terminal mode, close interfaces, flush logs."""
@@ -710,8 +718,6 @@ class AgentRuntime:
         )
         if self.close_logbook_on_terminate:
             self.logbook.close()
-
-    # -- the autopilot's safety set-up -----------------------------------------------------
 
     # -- machine callbacks ---------------------------------------------------------------
 
