@@ -15,12 +15,13 @@ the peers' packets delivered that tick, and ticks per second of the pure core.
 Compare with the thesis: 13 Hz maximum loop on a Raspberry Pi 2 and 98 Hz on an
 i5 laptop, two agents (5.1.1).
 
-Then the envelope's share (runtime/envelope.py), measured apart because it is a few
-per cent of a tick and a busy machine's noise is more: per N, the watch's CPU time per
-tick (the peers' latest reports on the local plane, then the vehicle and every fresh
-report against the envelope: what ``AgentRuntime`` runs at the start of each tick),
-and the guard's per Goto: one inside the default circle fence, and one past the edge
-of a four-corner polygon, moved inside along the line from the vehicle.
+Then the envelope's share (runtime/envelope_guard.py and envelope_watch.py), measured
+apart because it is a few per cent of a tick and a busy machine's noise is more: per N,
+the watch's CPU time per tick (the peers' latest reports on the local plane, then the
+vehicle and every fresh report against the envelope: what ``AgentRuntime`` runs at the
+start of each tick), and the guard's per Goto: one inside the default circle fence, and
+one past the edge of a four-corner polygon, moved inside along the line from the
+vehicle.
 
 Run: python benchmarks/bench_runtime.py
 """
@@ -37,7 +38,8 @@ from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.validate import validate_path
 from clark_engine.runtime.commands import Goto, SetUpAutopilotSafety
 from clark_engine.runtime.config import config_from_dict, envelope_from_dict
-from clark_engine.runtime.envelope import EnvelopeGuard, PeerPositions
+from clark_engine.runtime.envelope import PeerPositions
+from clark_engine.runtime.envelope_guard import EnvelopeGuard
 from clark_engine.runtime.events import (
     AutopilotHeartbeat,
     AutopilotSafetyResult,

@@ -293,7 +293,7 @@ def generate(spec: dict[str, Any]) -> None:
     station's first), ``agent_status_hz``, ``key_file`` (None: unauthenticated),
     ``seconds`` (the longest it runs), ``health`` (Vehicle Health every 2 s).
     """
-    from clark_engine.io.autopilot import gps_time_ms_from_unix_us
+    from clark_engine.io.autopilot_decode import gps_time_ms_from_unix_us
     from clark_engine.link import (
         AgentStatus,
         AgentType,

@@ -98,7 +98,7 @@ class Scene:
 
     def held(self) -> int:
         """Timed activations held (the runtime's private list, read for the figure)."""
-        return len(self.runtime._scheduled)
+        return len(self.runtime._intake.scheduled)
 
     def log_figures(self) -> str:
         names = self.runtime.config.log_files

@@ -17,7 +17,8 @@ from typing import get_args
 import pytest
 
 from clark_engine.dryrun.engine import _ROUTES, DryRun
-from clark_engine.io.autopilot import _NOT_THE_AUTOPILOTS, AutopilotAdapter, AutopilotSettings
+from clark_engine.io.autopilot import _NOT_THE_AUTOPILOTS, AutopilotAdapter
+from clark_engine.io.autopilot_settings import AutopilotSettings
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.validate import validate_path
 from clark_engine.runtime.commands import (

@@ -25,20 +25,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from clark_engine.io.autopilot import (
-    ACK_TIMEOUT_S,
-    COMMAND_ATTEMPTS,
-    POSITION_ONLY_TYPE_MASK,
-    POSITION_VELOCITY_TYPE_MASK,
-    REASON_WAIT_S,
-    AutopilotAdapter,
+from clark_engine.io.autopilot import AutopilotAdapter
+from clark_engine.io.autopilot_decode import (
     AutopilotEvent,
     AutopilotMessage,
-    AutopilotSettings,
-    CommandRefused,
     ParamValue,
     gps_time_ms_from_unix_us,
 )
+from clark_engine.io.autopilot_flight import POSITION_ONLY_TYPE_MASK, POSITION_VELOCITY_TYPE_MASK
+from clark_engine.io.autopilot_requests import ACK_TIMEOUT_S, COMMAND_ATTEMPTS, REASON_WAIT_S
+from clark_engine.io.autopilot_settings import AutopilotSettings
 from clark_engine.io.transports import (
     MemoryPipe,
     SerialTransport,
@@ -59,7 +55,7 @@ from clark_engine.runtime.commands import (
     SetServo,
 )
 from clark_engine.runtime.config import ConfigError, load_config
-from clark_engine.runtime.events import AutopilotHeartbeat, RcChannels, VehicleState
+from clark_engine.runtime.events import AutopilotHeartbeat, CommandRefused, RcChannels, VehicleState
 from clark_engine.sim.ardupilot.autopilot import SimAutopilot
 from clark_engine.sim.ardupilot.vehicle_model import Truth, VehicleModel
 

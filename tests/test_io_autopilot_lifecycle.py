@@ -14,13 +14,10 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from clark_engine.io.autopilot import (
-    ACK_TIMEOUT_S,
-    REASON_WAIT_S,
-    SPEED_RETRY_S,
-    AutopilotAdapter,
-    AutopilotSettings,
-)
+from clark_engine.io.autopilot import AutopilotAdapter
+from clark_engine.io.autopilot_flight import SPEED_RETRY_S
+from clark_engine.io.autopilot_requests import ACK_TIMEOUT_S, REASON_WAIT_S
+from clark_engine.io.autopilot_settings import AutopilotSettings
 from clark_engine.runtime.commands import Arm, Goto, Takeoff
 from clark_engine.runtime.events import (
     AutopilotStatus,

@@ -17,7 +17,8 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from test_io_autopilot import HOME, PLANE_MODES, START_UNIX_US, FakeModel
 
-from clark_engine.io.autopilot import AutopilotAdapter, AutopilotSettings
+from clark_engine.io.autopilot import AutopilotAdapter
+from clark_engine.io.autopilot_settings import AutopilotSettings
 from clark_engine.runtime.events import VehicleState
 from clark_engine.sim.ardupilot.autopilot import SimAutopilot
 

@@ -25,12 +25,9 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from sitl_here import real_install
 
 from clark_engine.dryrun.engine import PHYSICS_STEP_S, build_vehicle
-from clark_engine.io.autopilot import (
-    ACK_TIMEOUT_S,
-    COMMAND_ATTEMPTS,
-    AutopilotAdapter,
-    AutopilotSettings,
-)
+from clark_engine.io.autopilot import AutopilotAdapter
+from clark_engine.io.autopilot_requests import ACK_TIMEOUT_S, COMMAND_ATTEMPTS
+from clark_engine.io.autopilot_settings import AutopilotSettings
 from clark_engine.io.autopilot_setup import took
 from clark_engine.io.mission_upload import UPLOAD_ATTEMPTS, UPLOAD_SILENCE_S
 from clark_engine.mission.compiler import agent_config

@@ -6,7 +6,7 @@ streams GLOBAL_POSITION_INT at its own 1 Hz (measured on SITL, and so simulated)
 adapter asked once, was answered, and drove the whole mission on 1 Hz positions: its
 guided targets went up to a second late (found by comparing fault_station_loss's rovers
 with ArduRover SITL's). It now counts what comes and asks again while it is under half
-the rate (io/autopilot.py, STREAM_RATE_CHECK_S).
+the rate (io/autopilot_streams.py, STREAM_RATE_CHECK_S).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from clark_engine.dryrun.engine import DryRun
-from clark_engine.io.autopilot import AutopilotAdapter
+from clark_engine.io.autopilot_decode import MessageDecoder
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -27,13 +27,13 @@ def test_positions_come_at_the_rate_asked_for_after_a_power_up_together(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     seen_s: list[float] = []
-    on_position = AutopilotAdapter._on_position
+    on_position = MessageDecoder._on_position
 
-    def counted(adapter: AutopilotAdapter, msg: object, now_s: float) -> object:
+    def counted(decoder: MessageDecoder, msg: object, now_s: float) -> object:
         seen_s.append(now_s)
-        return on_position(adapter, msg, now_s)
+        return on_position(decoder, msg, now_s)
 
-    monkeypatch.setattr(AutopilotAdapter, "_on_position", counted)
+    monkeypatch.setattr(MessageDecoder, "_on_position", counted)
     mission = validate_file(ONE_ROVER).mission
     assert mission is not None
     run = DryRun(mission, ONE_ROVER, seed=1, until_s=15.0)

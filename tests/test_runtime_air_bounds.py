@@ -28,7 +28,8 @@ from clark_engine.link.messages import (
 from clark_engine.runtime.commands import SetMode
 from clark_engine.runtime.events import AutopilotHeartbeat, PacketReceived
 from clark_engine.runtime.logbook import AIR_LINES_PER_INTERVAL, AIR_SUMMARY_S
-from clark_engine.runtime.runtime import MAX_SCHEDULED_ACTIVATIONS, AgentRuntime
+from clark_engine.runtime.packets_in import MAX_SCHEDULED_ACTIVATIONS
+from clark_engine.runtime.runtime import AgentRuntime
 
 FLOOD = 10_000
 
@@ -88,9 +89,11 @@ def test_forged_timed_activations_stay_bounded_and_the_genuine_one_still_fires()
     for k in range(FLOOD):
         target = (0, 3)[k % 2]
         runtime.deliver(activation(forger, target, k % 3 != 0, GPS0 + 60_000 + k), t)
-    assert len(runtime._scheduled) <= MAX_SCHEDULED_ACTIVATIONS
+    assert len(runtime._intake.scheduled) <= MAX_SCHEDULED_ACTIVATIONS
     # The genuine one was received first and is never evicted by the flood.
-    assert any(when == GPS0 + 2_000 and what == "activate" for when, what, *_ in runtime._scheduled)
+    assert any(
+        when == GPS0 + 2_000 and what == "activate" for when, what, *_ in runtime._intake.scheduled
+    )
     for k in range(3, 22):
         tick(runtime, k / 10, station.heartbeat(k / 10))
     assert runtime.machine is not None and runtime.machine.active_paths() == ("chase",)
@@ -104,10 +107,10 @@ def test_repeated_timed_activations_coalesce_into_one() -> None:
     t = started(runtime, station)
     for _ in range(FLOOD):
         runtime.deliver(activation(station.codec, 3, True, GPS0 + 5_000), t)
-    assert len(runtime._scheduled) == 1
+    assert len(runtime._intake.scheduled) == 1
     runtime.tick(t)
     # A tick's work does not grow with the flood: what it scans is the bounded list.
-    assert len(runtime._events) == 0 and len(runtime._scheduled) == 1
+    assert len(runtime._events) == 0 and len(runtime._intake.scheduled) == 1
 
 
 def test_a_flood_of_immediate_activations_queues_each_kind_once_per_tick() -> None:

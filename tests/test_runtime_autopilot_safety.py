@@ -36,7 +36,8 @@ from clark_engine.runtime.events import (
     LandedState,
     VehicleState,
 )
-from clark_engine.runtime.runtime import SAFETY_RETRY_S, AgentRuntime
+from clark_engine.runtime.runtime import AgentRuntime
+from clark_engine.runtime.safety import SAFETY_RETRY_S
 
 ROOT = Path(__file__).resolve().parent.parent
 ORIGIN = (30.6372, -96.4787, 90.0)

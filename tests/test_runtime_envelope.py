@@ -36,7 +36,8 @@ from clark_engine.mission.model import Mission
 from clark_engine.mission.yaml_loader import decode_text, load_yaml
 from clark_engine.runtime.commands import Command, Goto, RcOverride, SetMode, Takeoff
 from clark_engine.runtime.config import AgentConfig, config_from_dict
-from clark_engine.runtime.envelope import BREACH_CLEAR_M, EnvelopeGuard, ModeOwner
+from clark_engine.runtime.envelope import BREACH_CLEAR_M
+from clark_engine.runtime.envelope_guard import EnvelopeGuard
 from clark_engine.runtime.events import (
     AutopilotHeartbeat,
     AutopilotStatus,
@@ -44,6 +45,7 @@ from clark_engine.runtime.events import (
     PacketReceived,
     VehicleState,
 )
+from clark_engine.runtime.mode_owner import ModeOwner
 from clark_engine.runtime.runtime import AgentRuntime
 
 GPS0 = 1_400_000_000_000

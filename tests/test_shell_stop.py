@@ -20,7 +20,8 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from test_shell_realtime import FakeClock, FakeSelector
 
-from clark_engine.io.autopilot import AutopilotAdapter, AutopilotSettings
+from clark_engine.io.autopilot import AutopilotAdapter
+from clark_engine.io.autopilot_settings import AutopilotSettings
 from clark_engine.io.transports import MemoryPipe
 from clark_engine.mission.compiler import agent_config
 from clark_engine.runtime.commands import RcOverride

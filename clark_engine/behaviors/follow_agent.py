@@ -80,9 +80,9 @@ class Offset(NamedTuple):
 
 #: The leader's reported heading turns its followers' places only while it moves at least
 #: this fast: its Agent Status then carries its course over ground (the autopilot adapter
-#: sends the course from 0.5 m/s, ``io.autopilot.MOVING_SPEED_M_S``, its yaw below). Standing
-#: or creeping (where a GPS's noise turns a course round), it keeps the heading it last
-#: moved along, so that its followers do not spin round it in place.
+#: sends the course from 0.5 m/s, ``io.autopilot_decode.MOVING_SPEED_M_S``, its yaw
+#: below). Standing or creeping (where a GPS's noise turns a course round), it keeps the
+#: heading it last moved along, so that its followers do not spin round it in place.
 COURSE_MIN_SPEED_M_S = 0.5
 
 

@@ -45,7 +45,9 @@ from clark_engine.dryrun.sitl_backend import (
 )
 from clark_engine.dryrun.sitl_pace import SitlPace
 from clark_engine.expectations.recording import FlightEntry, Photo, Recording, StateEntry, Track
-from clark_engine.io.autopilot import AutopilotAdapter, AutopilotSettings, gps_time_ms_from_unix_us
+from clark_engine.io.autopilot import AutopilotAdapter
+from clark_engine.io.autopilot_decode import gps_time_ms_from_unix_us
+from clark_engine.io.autopilot_settings import AutopilotSettings
 from clark_engine.link.auth import load_key
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.geo import parse_point

@@ -63,15 +63,27 @@ from __future__ import annotations
 
 import logging
 import math
-import operator
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
 from typing import Any, Final
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from clark_engine.io.autopilot_decode import (
+    AutopilotEvent,
+    MessageDecoder,
+    message_fields,
+)
+from clark_engine.io.autopilot_flight import FlightCommands
+from clark_engine.io.autopilot_requests import (
+    Request,
+    RequestTracker,
+    message_id,
+    param_id_bytes,
+)
+from clark_engine.io.autopilot_settings import AutopilotSettings
 from clark_engine.io.autopilot_setup import ParamAnswer, SafetySetup
-from clark_engine.io.mission_upload import MissionUpload, fence_items
+from clark_engine.io.autopilot_setup_link import AdapterSetupLink
+from clark_engine.io.autopilot_streams import StreamRequests
 from clark_engine.runtime.commands import (
     AUTOPILOT_COMMANDS,
     Arm,
@@ -85,31 +97,17 @@ from clark_engine.runtime.commands import (
     SetServo,
     SetUpAutopilotSafety,
     Takeoff,
-    UploadFence,
     check_dispatch,
     unknown_command,
 )
-from clark_engine.runtime.config import AgentConfig, ConfigError
 from clark_engine.runtime.events import (
     AutopilotHealth,
     AutopilotHeartbeat,
-    AutopilotSafetyResult,
     AutopilotStatus,
-    AutopilotText,
     CommandRefused,
-    LandedState,
-    RcChannels,
     VehicleState,
 )
 from clark_engine.runtime.log_events import LogEvent
-from clark_engine.untrusted import printable
-
-GPS_EPOCH_UNIX_MS: Final = 315_964_800_000
-"""The GPS epoch, 1980-01-06 00:00:00 UTC, in milliseconds of Unix time."""
-
-GPS_LEAP_SECONDS: Final = 18
-"""GPS time minus UTC, in seconds: constant since 2017-01-01 (no leap second has been
-announced since, and the IERS plans none before their abolition)."""
 
 GCS_HEARTBEAT_PERIOD_S: Final = 1.0
 """Our own HEARTBEAT period; ArduPilot's GCS failsafe (FS_GCS_ENABLE) expects 1 Hz."""
@@ -117,306 +115,14 @@ GCS_HEARTBEAT_PERIOD_S: Final = 1.0
 OVERRIDE_REFRESH_S: Final = 0.5
 """Active RC overrides are resent this often, well inside ArduPilot's RC_OVERRIDE_TIME (3 s)."""
 
-ACK_TIMEOUT_S: Final = 1.0
-"""How long an acknowledged request waits for its answer before it is resent."""
-
-COMMAND_ATTEMPTS: Final = 3
-"""Sends of one command (the first and two retries) before it is reported unanswered."""
-
-STREAM_SILENCE_S: Final = 3.0
-"""No GLOBAL_POSITION_INT for this long while heartbeats arrive: ask for the streams again
-(the autopilot rebooted, or another ground station turned them off)."""
-
-STREAM_RATE_CHECK_S: Final = 2.0
-"""Every this long, once the stream requests are answered, the positions that came are
-counted: fewer than half the rate asked for, and the streams are asked for again.
-ArduPilot acknowledges a SET_MESSAGE_INTERVAL sent before its first HEARTBEAT and then
-streams at its own default (ArduRover SITL: GLOBAL_POSITION_INT at 1 Hz, measured), so an
-acknowledgement does not prove the rate: a mission computer powered up with its
-autopilot drove on 1 Hz positions, sending its guided targets up to a second late."""
-
-FALLBACK_ALT_GAP_M: Final = 20.0
-"""GLOBAL_POSITION_INT's ``alt`` this far from a 3-D fix's GPS_RAW_INT ``alt`` is the
-barometer's height of an autopilot whose EKF has not taken over yet (ArduRover, ArduPlane;
-measured on SITL): the GPS's height above sea level is used instead. GPS and EKF heights
-of a working vehicle differ by a few metres."""
-
-MOVING_SPEED_M_S: Final = 0.5
-"""Below this ground speed the course over ground is noise, and the heading is the yaw."""
-
-STREAMED_MESSAGES: Final = (
-    "GLOBAL_POSITION_INT",
-    "ATTITUDE",
-    "VFR_HUD",
-    "SYSTEM_TIME",
-    "RC_CHANNELS",
-    "SERVO_OUTPUT_RAW",
-    "SYS_STATUS",
-    "GPS_RAW_INT",
-    "EKF_STATUS_REPORT",
-    "EXTENDED_SYS_STATE",
-)
-"""Messages :meth:`AutopilotAdapter.start` asks for."""
-
-SLOW_STREAMS: Final = {
-    "SYSTEM_TIME": 1.0,
-    "SYS_STATUS": 1.0,
-    "GPS_RAW_INT": 2.0,
-    "SERVO_OUTPUT_RAW": 2.0,
-    "EKF_STATUS_REPORT": 1.0,
-    "EXTENDED_SYS_STATE": 1.0,
-}
-"""Messages the runtime needs only now and then, asked for at these rates (Hz) or the
-profile's ``stream_rate_hz`` when slower: the clock's sync, health, readiness and raw
-GPS do not need the loop rate, and a serial link at 57600 baud has little to spare."""
-
-OPTIONAL_STREAMS: Final = frozenset({"EXTENDED_SYS_STATE"})
-"""Streams an ArduPilot firmware may not have (ArduRover has no landed state): a refusal
-is noted in the interface log, not reported as a refused command."""
-
-HOME_REQUEST_PERIOD_S: Final = 2.0
-"""HOME_POSITION is asked for this often until it arrives. ArduPilot sends it by itself
-when home is set, but not to a ground station that connects afterwards."""
-
-REASON_WINDOW_S: Final = 1.0
-"""STATUSTEXT warnings this long before a refusal are its reason (ArduPilot explains a
-refused arm or mode change in a STATUSTEXT, queued around the COMMAND_ACK)."""
-
-REASON_WAIT_S: Final = 0.5
-"""A refusal waits this long for its STATUSTEXT before it is reported."""
-
-SPEED_RETRY_S: Final = 1.0
-"""A refused speed change is sent again this long after (ArduRover refuses one until its
-guided mode has a target; it is never dropped)."""
-
-EKF_POS_HORIZ_ABS: Final = 0x10
-"""EKF_STATUS_REPORT flag: the EKF estimates an absolute horizontal position."""
-
-EKF_CONST_POS_MODE: Final = 0x80
-"""EKF_STATUS_REPORT flag: no position source; the EKF assumes the vehicle is still."""
-
-PREARM_CHECK_BIT: Final = 0x10000000
-"""MAV_SYS_STATUS_PREARM_CHECK in SYS_STATUS: present when the autopilot reports it,
-healthy when its pre-arm checks pass."""
-
-_LANDED_STATES: Final[Mapping[int, LandedState]] = {
-    0: LandedState.UNKNOWN,
-    1: LandedState.ON_GROUND,
-    2: LandedState.IN_AIR,
-    3: LandedState.TAKING_OFF,
-    4: LandedState.LANDING,
-}
-
-RC_OVERRIDE_CHANNELS: Final = 18
-"""RC_CHANNELS_OVERRIDE carries channels 1-18."""
-
-_UINT16_MAX: Final = 65535
 #: The commands that reach the adapter but are not the autopilot's: answered with ``b""``.
 _NOT_THE_AUTOPILOTS: Final = (SendPacket, PayloadCommand, CloseInterfaces)
 # AutopilotAdapter.command carries out AUTOPILOT_COMMANDS and answers these with nothing;
 # any other type raises, and a command type added without a place here fails on import.
 check_dispatch((*AUTOPILOT_COMMANDS, *_NOT_THE_AUTOPILOTS), "the autopilot adapter")
-_RC_IGNORE: Final = _UINT16_MAX  # "no change" for every channel
-_RC_RELEASE_LOW: Final = 0  # channels 1-8: give the channel back to the pilot
-_RC_RELEASE_HIGH: Final = _UINT16_MAX - 1  # channels 9-18: 0 means "ignore" there
 _FORCE_ARM_MAGIC: Final = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2: skip pre-arm checks
-_STATUS_MESSAGES: Final = frozenset(
-    {"GPS_RAW_INT", "EKF_STATUS_REPORT", "SYS_STATUS", "HOME_POSITION", "EXTENDED_SYS_STATE"}
-)
-"""Messages :attr:`AutopilotAdapter.status` is made of."""
-_MISSION_ANSWERS: Final = frozenset({"MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"})
-"""The autopilot's side of an upload (the safety set-up's fence list)."""
-_HEALTH_MESSAGES: Final = frozenset({"SYS_STATUS", "GPS_RAW_INT"})
-"""Messages :class:`AutopilotHealth` is made of; one is sent each time either arrives."""
 _NOT_MEASURED_MV: Final = 65535  # SYS_STATUS.voltage_battery: UINT16_MAX
 _UNKNOWN_SATELLITES: Final = 255  # GPS_RAW_INT.satellites_visible: UINT8_MAX
-_RC_CHANNEL_FIELDS: Final = operator.attrgetter(
-    *(f"chan{i}_raw" for i in range(1, RC_OVERRIDE_CHANNELS + 1))
-)
-"""RC_CHANNELS' 18 widths as a tuple, read in one call (it arrives at the stream rate)."""
-
-POSITION_ONLY_TYPE_MASK: Final = (
-    mavlink2.POSITION_TARGET_TYPEMASK_VX_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_VY_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_VZ_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_AX_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_AY_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_AZ_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_YAW_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
-)
-"""SET_POSITION_TARGET_GLOBAL_INT type_mask using lat, lon and alt only (0x0DF8)."""
-
-POSITION_VELOCITY_TYPE_MASK: Final = (
-    mavlink2.POSITION_TARGET_TYPEMASK_AX_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_AY_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_AZ_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_YAW_IGNORE
-    | mavlink2.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
-)
-"""The same with the target's velocity too (0x0DC0): ArduCopter moves the target on
-with it between messages, so a moving target is followed without lag. ArduRover ignores
-the velocity of a position target (measured), so it gets position only."""
-
-
-FIRMWARE_VEHICLE_TYPES: Final[Mapping[str, frozenset[int]]] = {
-    # Numbers, not names: MAVLink renamed the VTOL types 19-25 between releases.
-    "arduplane": frozenset({1, *range(19, 26)}),  # FIXED_WING; QuadPlane VTOL types
-    # QUADROTOR, COAXIAL, HELICOPTER, HEXAROTOR, OCTOROTOR, TRICOPTER, DODECAROTOR, DECAROTOR
-    "arducopter": frozenset({2, 3, 4, 13, 14, 15, 29, 35}),
-    "ardurover": frozenset({10, 11}),  # GROUND_ROVER, SURFACE_BOAT
-}
-"""HEARTBEAT vehicle types each ArduPilot firmware reports; a mismatch with the profile
-means the mode numbers would be read in the wrong table."""
-
-
-def gps_time_ms_from_unix_us(time_unix_usec: int) -> int:
-    """GPS time in milliseconds since the GPS epoch, from Unix time in microseconds.
-
-    GPS time does not count leap seconds, so it runs :data:`GPS_LEAP_SECONDS` ahead
-    of UTC. Integer arithmetic, so the result is exact to the millisecond (truncated).
-    """
-    return time_unix_usec // 1000 - GPS_EPOCH_UNIX_MS + GPS_LEAP_SECONDS * 1000
-
-
-# -- events this adapter adds to the runtime's ------------------------------------------
-
-
-@dataclass(frozen=True, slots=True)
-class ParamValue:
-    """An autopilot parameter's value (PARAM_VALUE), answering a read or echoing a set.
-
-    Attributes:
-        name: Parameter name (``RC_OVERRIDE_TIME``).
-        value: Its value; integer parameters arrive as their value in a float.
-        param_type: MAVLink's MAV_PARAM_TYPE of the parameter.
-        index: Its index in the autopilot's table.
-        count: Number of parameters the autopilot has.
-    """
-
-    name: str
-    value: float
-    param_type: int
-    index: int
-    count: int
-
-
-@dataclass(frozen=True, slots=True)
-class AutopilotMessage:
-    """A message asked for with :meth:`AutopilotAdapter.request_message` (thesis 7.1.5).
-
-    Attributes:
-        name: MAVLink message name (``HOME_POSITION``).
-        fields: Its fields as plain Python values, by MAVLink field name.
-    """
-
-    name: str
-    fields: Mapping[str, Any]
-
-
-AutopilotEvent = (
-    VehicleState
-    | AutopilotHeartbeat
-    | AutopilotStatus
-    | AutopilotHealth
-    | AutopilotText
-    | RcChannels
-    | ParamValue
-    | CommandRefused
-    | AutopilotMessage
-    | AutopilotSafetyResult
-)
-"""Everything :meth:`AutopilotAdapter.receive` returns."""
-
-
-# -- configuration ----------------------------------------------------------------------
-
-
-@dataclass(frozen=True, slots=True)
-class AutopilotSettings:
-    """What the adapter needs to know about one autopilot, from the agent's profile.
-
-    Attributes:
-        modes: Mode name -> ArduPilot custom_mode number, from the autopilot profile.
-        firmware: ``arduplane``, ``arducopter`` or ``ardurover``; decides how a Goto is
-            sent and which HEARTBEAT vehicle types are accepted. None: any ArduPilot.
-        system_id: The autopilot's MAVLink system id (SYSID_THISMAV).
-        component_id: The autopilot's component id (1, MAV_COMP_ID_AUTOPILOT1).
-        source_system_id: Ours. The safety set-up makes it the autopilot's ground-station
-            id (MAV_GCS_SYSID): ArduPilot takes RC overrides, and counts heartbeats for its
-            failsafe, only from that id.
-        source_component_id: Ours (191, MAV_COMP_ID_ONBOARD_COMPUTER).
-        stream_rate_hz: Rate asked for each of :data:`STREAMED_MESSAGES`.
-        heartbeat_timeout_s: Autopilot silence after which :meth:`AutopilotAdapter.lost`.
-        origin_alt_amsl_m: The mission origin's height above mean sea level: altitudes
-            above the origin are the autopilot's AMSL altitudes less this.
-    """
-
-    modes: Mapping[str, int]
-    firmware: str | None = None
-    system_id: int = 1
-    component_id: int = 1
-    source_system_id: int = 255
-    source_component_id: int = 191
-    stream_rate_hz: float = 10.0
-    heartbeat_timeout_s: float = 3.0
-    origin_alt_amsl_m: float = 0.0
-
-    def __post_init__(self) -> None:
-        for name in ("system_id", "source_system_id"):
-            if not 1 <= getattr(self, name) <= 255:
-                raise ValueError(f"{name} must be 1..255, not {getattr(self, name)}")
-        for name in ("component_id", "source_component_id"):
-            if not 0 <= getattr(self, name) <= 255:
-                raise ValueError(f"{name} must be 0..255, not {getattr(self, name)}")
-        if not self.stream_rate_hz > 0:
-            raise ValueError(f"stream_rate_hz must be positive, not {self.stream_rate_hz}")
-        if not self.heartbeat_timeout_s > 0:
-            raise ValueError(
-                f"heartbeat_timeout_s must be positive, not {self.heartbeat_timeout_s}"
-            )
-        if self.firmware is not None and self.firmware not in FIRMWARE_VEHICLE_TYPES:
-            raise ValueError(f"unknown firmware {self.firmware!r}")
-
-    @classmethod
-    def from_profile(
-        cls, autopilot: Mapping[str, Any], origin_alt_amsl_m: float = 0.0
-    ) -> AutopilotSettings:
-        """Settings from a resolved autopilot profile (``agent.hardware.autopilot``).
-
-        Args:
-            autopilot: The resolved autopilot profile.
-            origin_alt_amsl_m: The mission origin's height above mean sea level.
-        """
-        mav = autopilot.get("mavlink") or {}
-        return cls(
-            modes=dict(autopilot.get("modes") or {}),
-            firmware=autopilot.get("firmware"),
-            system_id=int(mav.get("system_id", 1)),
-            component_id=int(mav.get("component_id", 1)),
-            source_system_id=int(mav.get("source_system_id", 255)),
-            source_component_id=int(mav.get("source_component_id", 191)),
-            stream_rate_hz=float(autopilot.get("stream_rate_hz", 10.0)),
-            heartbeat_timeout_s=float(autopilot.get("heartbeat_timeout_s", 3.0)),
-            origin_alt_amsl_m=float(origin_alt_amsl_m),
-        )
-
-    @classmethod
-    def from_config(cls, config: AgentConfig) -> AutopilotSettings:
-        """Settings from a compiled agent config.
-
-        Raises:
-            ConfigError: The agent has no autopilot (a station).
-        """
-        autopilot = (config.raw.get("agent", {}).get("hardware") or {}).get("autopilot")
-        if not autopilot:
-            raise ConfigError(
-                f"agent {config.agent} has no autopilot in its hardware profile; "
-                "only vehicles connect to one"
-            )
-        return cls.from_profile(autopilot, config.origin_alt_amsl_m)
-
-
 # -- internals ---------------------------------------------------------------------------
 
 
@@ -434,54 +140,6 @@ class _Outbox:
             return b""  # most polls send nothing
         data, self._data = bytes(self._data), bytearray()
         return data
-
-
-@dataclass(slots=True)
-class _Request:
-    """One request waiting for the autopilot's answer.
-
-    ``key`` is the MAV_CMD number for commands (answered by COMMAND_ACK) and the
-    parameter name for parameter requests (answered by PARAM_VALUE). ``build``
-    makes the message for a given attempt (1 first). ``setup`` marks the stream
-    requests, which are retried for as long as the autopilot is heard. ``answered``,
-    when given, hears how it ended (the MAV_RESULT, or None when it was given up
-    unanswered) and reports a refusal itself; without it a refusal is reported as
-    :class:`CommandRefused`.
-    """
-
-    command: str
-    key: int | str
-    request: str
-    build: Callable[[int], Any]
-    setup: bool = False
-    answered: Callable[[int | None, float], None] | None = None
-    attempts: int = 0
-    due_s: float = 0.0
-
-
-def _result_name(result: int) -> str:
-    entry = mavlink2.enums["MAV_RESULT"].get(result)
-    name = entry.name if entry is not None else f"MAV_RESULT_{result}"
-    return str(name).removeprefix("MAV_RESULT_")
-
-
-def _command_name(command: int) -> str:
-    entry = mavlink2.enums["MAV_CMD"].get(command)
-    return str(entry.name) if entry is not None else f"MAV_CMD_{command}"
-
-
-def _message_id(name: str) -> int:
-    msg_id = getattr(mavlink2, f"MAVLINK_MSG_ID_{name}", None)
-    if not isinstance(msg_id, int):
-        raise ValueError(f"{name!r} is not a MAVLink message of the ardupilotmega dialect")
-    return msg_id
-
-
-def _param_id(name: str) -> bytes:
-    raw = name.encode("ascii", errors="strict") if name.isascii() else b""
-    if not raw or len(raw) > 16:
-        raise ValueError(f"parameter name {name!r} must be 1-16 ASCII characters")
-    return raw
 
 
 class AutopilotAdapter:
@@ -514,6 +172,16 @@ class AutopilotAdapter:
             srcComponent=settings.source_component_id,
         )
         self._parser = self._new_parser()
+        #: Each message received, into this adapter's state and the runtime's events.
+        self._decoder = MessageDecoder(self)
+        #: The runtime's flight commands (Goto and its speed, Takeoff, RC overrides) out.
+        self._flight = FlightCommands(self)
+        #: The safety set-up's link to this adapter (parameters, upload, the set-up's hooks).
+        #: Every request the autopilot must answer: sent, resent, given up, its refusals.
+        self._tracker = RequestTracker(self)
+        self._setup_link = AdapterSetupLink(self)
+        #: The streams and the one-off messages asked of the autopilot.
+        self._streams = StreamRequests(self)
         # (system, component) the messages used come from; settings are frozen
         self._autopilot_ids = (settings.system_id, settings.component_id)
         self._mode_names: dict[int, str] = {}
@@ -523,7 +191,7 @@ class AutopilotAdapter:
 
         self._start_s: float | None = None
         self._next_heartbeat_s = 0.0
-        self._requests: list[_Request] = []
+        self._requests: list[Request] = []
         self._late_events: list[AutopilotEvent] = []
         self._overrides: dict[int, int] = {}
         self._override_sent_s = -math.inf
@@ -643,23 +311,24 @@ class AutopilotAdapter:
         ``GPS_RAW_INT``, ``SERVO_OUTPUT_RAW``...); None if none has arrived.
         """
         msg = self._latest.get(name)
-        return None if msg is None else self._fields(msg)
+        return None if msg is None else message_fields(msg)
 
     # -- connection ------------------------------------------------------------------------
 
     def start(self, now_s: float) -> bytes:
         """Open the conversation (thesis 4.3.1): what to send first.
 
-        Our HEARTBEAT; SET_MESSAGE_INTERVAL for each of :data:`STREAMED_MESSAGES`
-        at ``stream_rate_hz``; and MAV_CMD_REQUEST_MESSAGE for AUTOPILOT_VERSION,
-        whose answer completes :attr:`verified`. Whatever is lost (an autopilot
-        still booting, a UDP link with no peer yet) :meth:`poll` sends again.
+        Our HEARTBEAT; SET_MESSAGE_INTERVAL for each of
+        :data:`~.autopilot_streams.STREAMED_MESSAGES` at ``stream_rate_hz``; and
+        MAV_CMD_REQUEST_MESSAGE for AUTOPILOT_VERSION, whose answer completes
+        :attr:`verified`. Whatever is lost (an autopilot still booting, a UDP link with no
+        peer yet) :meth:`poll` sends again.
         """
         self._start_s = now_s
         self._heartbeat_out(now_s)
-        self._queue_setup(now_s)
-        self._verify(now_s)
-        self._send_due(now_s)
+        self._streams.queue(now_s)
+        self._streams.verify(now_s)
+        self._tracker.send_due(now_s)
         return self._outbox.take()
 
     def flush(self) -> bytes:
@@ -683,7 +352,8 @@ class AutopilotAdapter:
           requests retried for as long as the autopilot is heard.
         - The AUTOPILOT_VERSION request repeated every second until answered.
         - The streams asked for again after a reconnection or a reboot, or when no
-          GLOBAL_POSITION_INT came for :data:`STREAM_SILENCE_S` while heartbeats do.
+          GLOBAL_POSITION_INT came for :data:`~.autopilot_streams.STREAM_SILENCE_S` while
+          heartbeats do.
         """
         if self._start_s is None:
             return self.start(now_s)
@@ -693,8 +363,8 @@ class AutopilotAdapter:
             # The stop's requests (the terminal mode, the failsafe switched off) are
             # resent until answered; nothing else is asked or kept alive.
             if self._requests:
-                self._send_due(now_s, heard=not self.lost(now_s))
-            self._release_refusals(now_s, self._late_events)
+                self._tracker.send_due(now_s, heard=not self.lost(now_s))
+            self._tracker.release_refusals(now_s, self._late_events)
             return self._outbox.take()
         if (
             self._overrides
@@ -704,42 +374,21 @@ class AutopilotAdapter:
             # Not while lost: ArduPilot hands the channels back to the pilot
             # RC_OVERRIDE_TIME after the last override, and an override kept alive
             # through a silence would act again, stale, the moment the link returns.
-            self._override_out(dict(self._overrides), now_s)
+            self._flight.override_out(dict(self._overrides), now_s)
         heard = self._heartbeat_s is not None and not self.lost(now_s)
         if heard:
-            last_position_s = -math.inf if self._position_s is None else self._position_s
-            if self._setup_due:
-                self._queue_setup(now_s)
-            elif now_s - max(self._setup_s, last_position_s) >= STREAM_SILENCE_S:
-                self._log.info(
-                    "autopilot sends no position; asking for the streams again",
-                    extra=LogEvent.AUTOPILOT_STREAMS.extra,
-                )
-                self._queue_setup(now_s)
-            elif now_s - self._rate_check_s >= STREAM_RATE_CHECK_S - 1e-9:
-                self._check_stream_rate(now_s)
-            if self._legacy_streams_due:
-                self._legacy_streams_due = False
-                self._mav.send(
-                    self._mav.request_data_stream_encode(
-                        self.settings.system_id,
-                        self.settings.component_id,
-                        mavlink2.MAV_DATA_STREAM_ALL,
-                        max(1, round(self.settings.stream_rate_hz)),
-                        1,
-                    )
-                )
+            self._streams.keep_up(now_s)
         if self._version is None and now_s >= self._next_verify_s:
-            self._verify(now_s)
+            self._streams.verify(now_s)
         elif heard and self._status.home is None and now_s >= self._next_home_request_s:
-            self._request_home(now_s)
+            self._streams.request_home(now_s)
         if self._requests:
-            self._send_due(now_s, heard=heard)
+            self._tracker.send_due(now_s, heard=heard)
         if heard:
-            self._speed(now_s)
+            self._flight.speed(now_s)
         if self._safety is not None:
             self._safety.poll(now_s)
-        self._release_refusals(now_s, self._late_events)
+        self._tracker.release_refusals(now_s, self._late_events)
         return self._outbox.take()
 
     def stop_commanding(self, now_s: float) -> bytes:
@@ -753,7 +402,7 @@ class AutopilotAdapter:
         """
         self._stopping = True
         if self._overrides:
-            self._override_out(dict.fromkeys(self._overrides, 0), now_s)
+            self._flight.override_out(dict.fromkeys(self._overrides, 0), now_s)
             self._overrides.clear()
         self._requests.clear()
         self._param_answers.clear()
@@ -771,10 +420,10 @@ class AutopilotAdapter:
         (:meth:`poll` resends them); closing the transport is the shell's part.
         """
         if self._overrides:
-            self._override_out(dict.fromkeys(self._overrides, 0), now_s)
+            self._flight.override_out(dict.fromkeys(self._overrides, 0), now_s)
             self._overrides.clear()
         self._stopping = True
-        self._safety_close(now_s)
+        self._setup_link.close(now_s)
         return self._outbox.take()
 
     @property
@@ -818,12 +467,12 @@ class AutopilotAdapter:
             UnknownCommandError: Any other type (an engine bug, never dropped).
         """
         if isinstance(cmd, Goto):
-            self._goto(cmd, now_s)
-            self._speed(now_s)
+            self._flight.goto(cmd, now_s)
+            self._flight.speed(now_s)
         elif isinstance(cmd, Arm):
             return self.arm(cmd.armed, now_s)
         elif isinstance(cmd, Takeoff):
-            self._takeoff(cmd, now_s)
+            self._flight.takeoff(cmd, now_s)
         elif isinstance(cmd, SetMode):
             number = int(self.settings.modes.get(cmd.mode, cmd.custom_mode))
             if cmd.mode in self.settings.modes and number != cmd.custom_mode:
@@ -835,7 +484,7 @@ class AutopilotAdapter:
                     number,
                     extra=LogEvent.AUTOPILOT_MODE.extra,
                 )
-            self._command_long(
+            self._tracker.command_long(
                 mavlink2.MAV_CMD_DO_SET_MODE,
                 f"SetMode {cmd.mode} ({number})",
                 now_s,
@@ -843,7 +492,7 @@ class AutopilotAdapter:
                 number,
             )
         elif isinstance(cmd, SetServo):
-            self._command_long(
+            self._tracker.command_long(
                 mavlink2.MAV_CMD_DO_SET_SERVO,
                 f"SetServo {cmd.servo} {cmd.pwm_us} us",
                 now_s,
@@ -851,16 +500,16 @@ class AutopilotAdapter:
                 cmd.pwm_us,
             )
         elif isinstance(cmd, RcOverride):
-            self._rc_override(cmd, now_s)
+            self._flight.rc_override(cmd, now_s)
         elif isinstance(cmd, SetUpAutopilotSafety):
-            self._safety_start(cmd, now_s)
+            self._setup_link.start(cmd, now_s)
         elif not isinstance(cmd, _NOT_THE_AUTOPILOTS):
             raise unknown_command(cmd, "the autopilot adapter")
         return self._outbox.take()
 
     def arm(self, armed: bool, now_s: float, *, force: bool = False) -> bytes:
         """Arm or disarm (MAV_CMD_COMPONENT_ARM_DISARM); ``force`` skips pre-arm checks."""
-        self._command_long(
+        self._tracker.command_long(
             mavlink2.MAV_CMD_COMPONENT_ARM_DISARM,
             ("arm" if armed else "disarm") + (" (forced)" if force else ""),
             now_s,
@@ -875,10 +524,10 @@ class AutopilotAdapter:
         Raises:
             ValueError: The name is not 1-16 ASCII characters.
         """
-        param_id = _param_id(name)
+        param_id = param_id_bytes(name)
         s = self.settings
-        self._track(
-            _Request(
+        self._tracker.track(
+            Request(
                 "PARAM_REQUEST_READ",
                 name,
                 f"read {name}",
@@ -910,11 +559,11 @@ class AutopilotAdapter:
         now_s: float,
         answered: Callable[[int | None, float], None] | None = None,
     ) -> None:
-        param_id = _param_id(name)
+        param_id = param_id_bytes(name)
         known = self._param_types.get(name, mavlink2.MAV_PARAM_TYPE_REAL32)
         s = self.settings
-        self._track(
-            _Request(
+        self._tracker.track(
+            Request(
                 "PARAM_SET",
                 name,
                 f"set {name} = {value:g}",
@@ -935,129 +584,12 @@ class AutopilotAdapter:
         Raises:
             ValueError: No message of that name in the dialect.
         """
-        msg_id = _message_id(name)
+        msg_id = message_id(name)
         self._wanted.add(name)
-        self._command_long(mavlink2.MAV_CMD_REQUEST_MESSAGE, f"request {name}", now_s, msg_id)
+        self._tracker.command_long(
+            mavlink2.MAV_CMD_REQUEST_MESSAGE, f"request {name}", now_s, msg_id
+        )
         return self._outbox.take()
-
-    # -- the safety set-up (SetUpAutopilotSafety; see io/autopilot_setup.py) ----------------
-
-    def _safety_start(self, cmd: SetUpAutopilotSafety, now_s: float) -> None:
-        """Start a safety set-up; one under way is dropped (the runtime asks once at a time)."""
-        if self._safety is not None:
-            self._log.warning(
-                "a new safety set-up replaces the one under way",
-                extra=LogEvent.AUTOPILOT_SAFETY.extra,
-            )
-            self._param_answers.clear()
-        self._log.info(
-            "safety set-up: %s",
-            cmd.summary or "(no summary)",
-            extra=LogEvent.AUTOPILOT_SAFETY.extra,
-        )
-        self._safety = SafetySetup(cmd, self, self._safety_over)
-        self._safety.start(now_s)
-
-    def _safety_over(self, result: AutopilotSafetyResult) -> None:
-        safety, self._safety = self._safety, None
-        if safety is not None:
-            # What it switched on, a clean stop switches off, whether or not the rest took.
-            close = dict(self._on_close)
-            close.update(
-                (p.name, p.value) for p in safety.command.on_close if p.name in safety.took_names
-            )
-            self._on_close = tuple(close.items())
-        if result.ok:
-            self._log.info(
-                "safety set-up: every parameter took", extra=LogEvent.AUTOPILOT_SAFETY.extra
-            )
-        else:
-            self._log.error(
-                "safety set-up failed: %s",
-                printable(result.problem),
-                extra=LogEvent.AUTOPILOT_SAFETY.extra,
-            )
-        self._late_events.append(result)
-
-    def _safety_close(self, now_s: float) -> None:
-        """A clean stop: write the set-up's on_close (the failsafe switched off).
-
-        Only what a set-up switched on (its value read back) is switched off, whether or
-        not the set-up as a whole took. Sent at once and tracked: the autopilot's echo
-        answers it, :meth:`poll` resends it meanwhile, and a shell that may wait does
-        (:attr:`unanswered`); one that may not has sent it once.
-        """
-        for name, value in self._on_close:
-            self._log.info(
-                "leaving on purpose: %s = %g", name, value, extra=LogEvent.AUTOPILOT_SAFETY.extra
-            )
-            self._param_set(name, value, now_s, lambda _result, _at_s: None)
-        self.left_on_purpose = tuple(name for name, _value in self._on_close)
-        self._on_close = ()
-
-    def _param_silent(self, name: str, now_s: float) -> None:
-        for answer in self._param_answers.pop(name, ()):
-            answer(None, None, now_s)
-
-    def setup_read(self, name: str, now_s: float, answer: ParamAnswer) -> None:
-        """Read a parameter for the safety set-up; ``answer`` hears it or its silence."""
-        self._param_answers.setdefault(name, []).append(answer)
-        param_id = _param_id(name)
-        s = self.settings
-        self._track(
-            _Request(
-                "PARAM_REQUEST_READ",
-                name,
-                f"read {name}",
-                lambda _attempt: self._mav.param_request_read_encode(
-                    s.system_id, s.component_id, param_id, -1
-                ),
-                answered=lambda _result, at_s: self._param_silent(name, at_s),
-            ),
-            now_s,
-        )
-
-    def setup_write(self, name: str, value: float, now_s: float, answer: ParamAnswer) -> None:
-        """Set a parameter for the safety set-up; ``answer`` hears its echo or its silence."""
-        self._param_answers.setdefault(name, []).append(answer)
-        self._param_set(name, value, now_s, lambda _result, at_s: self._param_silent(name, at_s))
-
-    def setup_forget(self, name: str) -> None:
-        """Stop asking for a parameter the set-up no longer needs."""
-        self._param_answers.pop(name, None)
-        self._requests = [r for r in self._requests if r.key != name]
-
-    def setup_heartbeat(self, now_s: float) -> None:
-        """Send our HEARTBEAT now, off its 1 Hz grid."""
-        self._heartbeat_out(now_s)
-
-    def setup_upload(self, zones: UploadFence, now_s: float) -> MissionUpload:
-        """Start replacing the autopilot's fence list."""
-        s = self.settings
-        return MissionUpload(
-            self._mav,
-            (s.system_id, s.component_id),
-            fence_items(zones.zones),
-            int(mavlink2.MAV_MISSION_TYPE_FENCE),
-            now_s,
-        )
-
-    def setup_heard_since(self, t_s: float) -> bool:
-        """True when a HEARTBEAT from the autopilot arrived at or after ``t_s``."""
-        return self._heartbeat_s is not None and self._heartbeat_s >= t_s
-
-    def setup_reasons(self, since_s: float, now_s: float) -> str:
-        """The autopilot's warnings since ``since_s`` (escaped), joined by ``; ``."""
-        return "; ".join(text for t, text in self._warnings if since_s <= t <= now_s)
-
-    def setup_note(self, text: str) -> None:
-        """A line of the safety set-up for the interface log."""
-        self._log.info("safety set-up: %s", text, extra=LogEvent.AUTOPILOT_SAFETY.extra)
-
-    @property
-    def own_system_id(self) -> int:
-        """Our MAVLink system id: the one the autopilot's ground-station failsafe watches."""
-        return self.settings.source_system_id
 
     # -- bytes in ---------------------------------------------------------------------------
 
@@ -1104,11 +636,11 @@ class AutopilotAdapter:
             self._parser = self._new_parser()
             messages = []
         for msg in messages:
-            self._handle(msg, now_s, events)
+            self._decoder.handle(msg, now_s, events)
         if self._late_events:  # what the messages ended (a safety set-up's result)
             events.extend(self._late_events)
             self._late_events = []
-        self._release_refusals(now_s, events)
+        self._tracker.release_refusals(now_s, events)
         return events
 
     # -- internals: receiving ----------------------------------------------------------------
@@ -1117,130 +649,6 @@ class AutopilotAdapter:
         parser = mavlink2.MAVLink(None, self.settings.source_system_id, 0)
         parser.robust_parsing = True  # garbage becomes BAD_DATA messages, never exceptions
         return parser
-
-    def _handle(self, msg: Any, now_s: float, events: list[AutopilotEvent]) -> None:
-        kind = msg.get_type()
-        if kind == "BAD_DATA":
-            self.bad_frames += 1
-            return
-        if (msg.get_srcSystem(), msg.get_srcComponent()) != self._autopilot_ids:
-            self.foreign_messages += 1
-            return
-        self._latest[kind] = msg
-        if kind == "HEARTBEAT":
-            beat = self._on_heartbeat(msg, now_s)
-            if beat is not None:
-                events.append(beat)
-        elif kind == "GLOBAL_POSITION_INT":
-            self._check_boot(msg.time_boot_ms)
-            state = self._on_position(msg, now_s)
-            if state is not None:
-                events.append(state)
-        elif kind == "ATTITUDE":
-            self._attitude = msg
-        elif kind == "VFR_HUD":
-            self._vfr_hud = msg
-        elif kind == "SYSTEM_TIME":
-            self._check_boot(msg.time_boot_ms)
-            self._gps_at_boot_ms = (
-                (gps_time_ms_from_unix_us(msg.time_unix_usec), msg.time_boot_ms)
-                if msg.time_unix_usec
-                else None
-            )
-        elif kind == "RC_CHANNELS":
-            events.append(RcChannels(self._rc_values(_RC_CHANNEL_FIELDS(msg))))
-        elif kind == "PARAM_VALUE":
-            events.append(self._on_param(msg, now_s))
-        elif kind in _MISSION_ANSWERS:
-            if self._safety is not None:
-                own = (self.settings.source_system_id, self.settings.source_component_id)
-                self._safety.on_mission(msg, own, now_s)
-        elif kind == "COMMAND_ACK":
-            self._on_ack(msg, now_s, events)
-        elif kind == "STATUSTEXT":
-            events.append(self._on_text(msg, now_s))
-        elif kind in _STATUS_MESSAGES:
-            status = self._on_status(kind, msg)
-            if status is not None:
-                events.append(status)
-            if kind in _HEALTH_MESSAGES:
-                events.append(self.health)
-        elif kind == "AUTOPILOT_VERSION":
-            first = self._version is None
-            self._version = int(msg.flight_sw_version)
-            if first:
-                self._log.info(
-                    "autopilot %d answers: ArduPilot %s",
-                    self.settings.system_id,
-                    self.flight_sw_version,
-                    extra=LogEvent.AUTOPILOT_FOUND.extra,
-                )
-        if kind in self._wanted:
-            self._wanted.discard(kind)
-            events.append(AutopilotMessage(kind, self._fields(msg)))
-
-    def _on_text(self, msg: Any, now_s: float) -> AutopilotText:
-        severity = int(msg.severity)
-        text = str(msg.text)
-        shown = printable(text)
-        if severity <= mavlink2.MAV_SEVERITY_WARNING:
-            self._warnings = [w for w in self._warnings if now_s - w[0] <= REASON_WINDOW_S]
-            self._warnings.append((now_s, shown))
-        level = (
-            logging.WARNING
-            if severity <= mavlink2.MAV_SEVERITY_WARNING
-            else logging.INFO
-            if severity <= mavlink2.MAV_SEVERITY_INFO
-            else logging.DEBUG
-        )
-        self._log.log(
-            level,
-            "autopilot %d says: %s",
-            self.settings.system_id,
-            shown,
-            extra=LogEvent.AUTOPILOT_TEXT.extra,
-        )
-        return AutopilotText(severity, text)
-
-    def _on_status(self, kind: str, msg: Any) -> AutopilotStatus | None:
-        """Fold one readiness message into :attr:`status`; the new status when it changed."""
-        old = self._status
-        if kind == "GPS_RAW_INT":
-            fixed = int(msg.fix_type) >= mavlink2.GPS_FIX_TYPE_3D_FIX
-            self._gps_alt_amsl_m = msg.alt / 1000.0 if fixed else None
-            new = replace(old, gps_fix_type=int(msg.fix_type))
-        elif kind == "EKF_STATUS_REPORT":
-            flags = int(msg.flags)
-            ok = bool(flags & EKF_POS_HORIZ_ABS) and not flags & EKF_CONST_POS_MODE
-            new = replace(old, position_ok=ok)
-        elif kind == "SYS_STATUS":
-            reported = int(msg.onboard_control_sensors_present) & PREARM_CHECK_BIT
-            healthy = int(msg.onboard_control_sensors_health) & PREARM_CHECK_BIT
-            new = replace(old, prearm_ok=bool(healthy) if reported else None)
-        elif kind == "HOME_POSITION":
-            home = (msg.latitude / 1e7, msg.longitude / 1e7, msg.altitude / 1000.0)
-            new = replace(old, home=home)
-        else:  # EXTENDED_SYS_STATE
-            landed = _LANDED_STATES.get(int(msg.landed_state), LandedState.UNKNOWN)
-            new = replace(old, landed=landed)
-        if new == old:
-            return None
-        self._status = new
-        if new.ready != old.ready or new.waiting_for != old.waiting_for:
-            if new.ready:
-                self._log.info(
-                    "autopilot %d is ready",
-                    self.settings.system_id,
-                    extra=LogEvent.AUTOPILOT_READINESS.extra,
-                )
-            else:
-                self._log.info(
-                    "autopilot %d waits for %s",
-                    self.settings.system_id,
-                    ", ".join(new.waiting_for),
-                    extra=LogEvent.AUTOPILOT_READINESS.extra,
-                )
-        return new
 
     @property
     def health(self) -> AutopilotHealth:
@@ -1276,56 +684,6 @@ class AutopilotAdapter:
             prearm_ok=self._status.prearm_ok,
         )
 
-    def _on_heartbeat(self, msg: Any, now_s: float) -> AutopilotHeartbeat | None:
-        if msg.autopilot == mavlink2.MAV_AUTOPILOT_INVALID:
-            return None  # not a flight controller's heartbeat (a companion sharing the id)
-        if self._heartbeat_s is not None and now_s - self._heartbeat_s > (
-            self.settings.heartbeat_timeout_s
-        ):
-            self._reconnected(f"heard again after {now_s - self._heartbeat_s:.1f} s")
-        self._heartbeat_s = now_s
-        self._check_identity(msg)
-        custom_mode = int(msg.custom_mode)
-        if self._heartbeat is not None and custom_mode != self._heartbeat.custom_mode:
-            # A new mode starts at its default speed, with no guided target.
-            self._speed_accepted = None
-            self._targeted = False
-        beat = AutopilotHeartbeat(
-            mode=self._mode_names.get(custom_mode, f"UNKNOWN_{custom_mode}"),
-            custom_mode=custom_mode,
-            armed=bool(msg.base_mode & mavlink2.MAV_MODE_FLAG_SAFETY_ARMED),
-        )
-        self._heartbeat = beat
-        return beat
-
-    def _check_identity(self, msg: Any) -> None:
-        problem = None
-        if msg.autopilot != mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA:
-            problem = f"autopilot type {msg.autopilot} is not ArduPilot (3)"
-        elif self.settings.firmware is not None:
-            allowed = FIRMWARE_VEHICLE_TYPES[self.settings.firmware]
-            if msg.type not in allowed:
-                problem = (
-                    f"vehicle type {msg.type} in HEARTBEAT is not {self.settings.firmware}'s; "
-                    "check the autopilot profile (mode numbers differ between firmwares)"
-                )
-        if problem != self._problem:
-            if problem is not None:
-                self._log.error(
-                    "autopilot %d: %s",
-                    self.settings.system_id,
-                    problem,
-                    extra=LogEvent.AUTOPILOT_IDENTITY.extra,
-                )
-            self._problem = problem
-
-    def _check_boot(self, time_boot_ms: int) -> None:
-        # The boot clock running backwards means the autopilot rebooted: its stream
-        # intervals are back to defaults and its SYSTEM_TIME reference is void.
-        if self._last_boot_ms is not None and time_boot_ms + 1000 < self._last_boot_ms:
-            self._reconnected("rebooted")
-        self._last_boot_ms = time_boot_ms
-
     def _reconnected(self, why: str) -> None:
         """Heard again after a loss, or rebooted: set it up again, and forget every command.
 
@@ -1360,7 +718,7 @@ class AutopilotAdapter:
             )
             released = dict.fromkeys(self._overrides, 0)
             self._overrides.clear()
-            self._override_out(released, self._override_sent_s)
+            self._flight.override_out(released, self._override_sent_s)
         if self._safety is not None:
             self._param_answers.clear()
             self._safety.interrupted("went silent" if why.startswith("heard again") else why)
@@ -1375,138 +733,6 @@ class AutopilotAdapter:
         self._status = AutopilotStatus()  # a rebooted autopilot gets ready again
         self._gps_alt_amsl_m = None
         self._next_home_request_s = -math.inf
-
-    def _alt_amsl_m(self, msg: Any) -> float:
-        """The vehicle's height above sea level, GLOBAL_POSITION_INT's or the GPS's.
-
-        The GPS's while GLOBAL_POSITION_INT's is a fallback estimator's barometer height
-        (see :data:`FALLBACK_ALT_GAP_M`).
-        """
-        fused = float(msg.alt) / 1000.0
-        gps = self._gps_alt_amsl_m
-        if gps is not None and abs(fused - gps) > FALLBACK_ALT_GAP_M:
-            return gps
-        return fused
-
-    def _on_position(self, msg: Any, now_s: float) -> VehicleState | None:
-        self._position_s = now_s
-        self._positions_counted += 1
-        if self._heartbeat is None or self._attitude is None:
-            return None
-        if msg.lat == 0 and msg.lon == 0:
-            return None  # ArduPilot's "no position yet" (before its first GPS fix)
-        status = self._status
-        if status.gps_fix_type < mavlink2.GPS_FIX_TYPE_3D_FIX and not status.position_ok:
-            # Not a position yet: ArduPlane dead-reckons from 0, 0 before its fix (SITL
-            # drifted 35 m from there, at up to 26 m/s), with no fix and no EKF position.
-            return None
-        vx_m_s, vy_m_s = msg.vx / 100.0, msg.vy / 100.0
-        speed_m_s = math.hypot(vx_m_s, vy_m_s)
-        yaw_deg = math.degrees(self._attitude.yaw) % 360.0
-        if speed_m_s >= MOVING_SPEED_M_S:
-            heading_deg = math.degrees(math.atan2(vy_m_s, vx_m_s)) % 360.0
-        else:
-            heading_deg = yaw_deg
-        gps_ms: int | None = None
-        if self._gps_at_boot_ms is not None:
-            gps_at, boot_at = self._gps_at_boot_ms
-            gps_ms = gps_at + (msg.time_boot_ms - boot_at)
-        hud = self._vfr_hud
-        state = VehicleState(
-            gps_time_ms=gps_ms,
-            lat_deg=msg.lat / 1e7,
-            lon_deg=msg.lon / 1e7,
-            alt_m=self._alt_amsl_m(msg) - self.settings.origin_alt_amsl_m,
-            ground_speed_m_s=float(hud.groundspeed) if hud is not None else speed_m_s,
-            climb_rate_m_s=float(hud.climb) if hud is not None else -msg.vz / 100.0,
-            heading_deg=heading_deg,
-            roll_deg=math.degrees(self._attitude.roll),
-            pitch_deg=math.degrees(self._attitude.pitch),
-            yaw_deg=yaw_deg,
-            mode=self._heartbeat.mode,
-            custom_mode=self._heartbeat.custom_mode,
-            armed=self._heartbeat.armed,
-        )
-        self._state = state
-        return state
-
-    def _rc_values(self, raw: tuple[int, ...]) -> tuple[int, ...]:
-        """RC_CHANNELS' widths with "unused" as 0; the last answer again while they repeat.
-
-        They arrive at the stream rate and change only when a stick or an override moves.
-        """
-        if raw != self._rc_raw:
-            self._rc_raw = raw
-            self._rc = tuple(0 if v == _UINT16_MAX else int(v) for v in raw)
-        return self._rc
-
-    def _on_param(self, msg: Any, now_s: float) -> ParamValue:
-        name = str(msg.param_id)
-        self._param_types[name] = int(msg.param_type)
-        self._requests = [
-            r for r in self._requests if not (isinstance(r.key, str) and r.key == name)
-        ]
-        for answer in self._param_answers.pop(name, ()):
-            answer(float(msg.param_value), int(msg.param_type), now_s)
-        return ParamValue(
-            name=name,
-            value=float(msg.param_value),
-            param_type=int(msg.param_type),
-            index=int(msg.param_index),
-            count=int(msg.param_count),
-        )
-
-    def _on_ack(self, msg: Any, now_s: float, events: list[AutopilotEvent]) -> None:
-        s = self.settings
-        if msg.target_system not in (0, s.source_system_id) or msg.target_component not in (
-            0,
-            s.source_component_id,
-        ):
-            return  # another ground station's answer
-        request = next((r for r in self._requests if r.key == msg.command), None)
-        if request is None:
-            return  # the version probe, or a late duplicate of a retried command
-        if msg.result == mavlink2.MAV_RESULT_IN_PROGRESS:
-            request.due_s = now_s + ACK_TIMEOUT_S  # alive; wait for the final answer
-            return
-        self._requests.remove(request)
-        if request.answered is not None:
-            request.answered(int(msg.result), now_s)
-        elif msg.result != mavlink2.MAV_RESULT_ACCEPTED:
-            # Reported once its STATUSTEXT, if any, has had time to arrive.
-            refusal = CommandRefused(request.command, _result_name(msg.result), request.request)
-            self._refusals.append((now_s + REASON_WAIT_S, refusal, now_s))
-        if (
-            request.setup
-            and msg.command == mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL
-            and msg.result == mavlink2.MAV_RESULT_UNSUPPORTED
-        ):
-            self._legacy_streams_due = True  # firmware older than SET_MESSAGE_INTERVAL
-
-    def _release_refusals(self, now_s: float, events: list[AutopilotEvent]) -> None:
-        """Report the refusals whose wait for a reason is over, with their reasons."""
-        if not self._refusals or self._refusals[0][0] > now_s:
-            return
-        while self._refusals and self._refusals[0][0] <= now_s:
-            _due, refusal, at_s = self._refusals.pop(0)
-            reason = "; ".join(
-                text for t, text in self._warnings if at_s - REASON_WINDOW_S <= t <= now_s
-            )
-            self._log.warning(
-                "autopilot refused %s (%s): %s%s",
-                refusal.request,
-                refusal.command,
-                refusal.result,
-                f": {reason}" if reason else "",
-                extra=LogEvent.AUTOPILOT_REFUSED.extra,
-            )
-            events.append(replace(refusal, reason=reason))
-
-    @staticmethod
-    def _fields(msg: Any) -> dict[str, Any]:
-        fields = dict(msg.to_dict())
-        fields.pop("mavpackettype", None)
-        return fields
 
     # -- internals: sending ------------------------------------------------------------------
 
@@ -1524,349 +750,3 @@ class AutopilotAdapter:
         self._next_heartbeat_s += GCS_HEARTBEAT_PERIOD_S
         if self._next_heartbeat_s <= now_s:
             self._next_heartbeat_s = now_s + GCS_HEARTBEAT_PERIOD_S
-
-    def _verify(self, now_s: float) -> None:
-        # Untracked on purpose: it repeats until AUTOPILOT_VERSION arrives. Every other
-        # attempt uses the older MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, for firmware
-        # that predates MAV_CMD_REQUEST_MESSAGE.
-        s = self.settings
-        if self._verify_attempts % 2 == 0:
-            command, p1 = (
-                mavlink2.MAV_CMD_REQUEST_MESSAGE,
-                mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
-            )
-        else:
-            command, p1 = mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, 1
-        self._mav.send(
-            self._mav.command_long_encode(
-                s.system_id, s.component_id, command, 0, p1, 0, 0, 0, 0, 0, 0
-            )
-        )
-        self._verify_attempts += 1
-        self._next_verify_s = now_s + ACK_TIMEOUT_S
-
-    def _request_home(self, now_s: float) -> None:
-        # Untracked, like the version probe: until home is set ArduPilot has none to send.
-        s = self.settings
-        self._mav.send(
-            self._mav.command_long_encode(
-                s.system_id,
-                s.component_id,
-                mavlink2.MAV_CMD_REQUEST_MESSAGE,
-                0,
-                mavlink2.MAVLINK_MSG_ID_HOME_POSITION,
-                0,
-                0,
-                0,
-                0,
-                0,
-                0,
-            )
-        )
-        self._next_home_request_s = now_s + HOME_REQUEST_PERIOD_S
-
-    def _check_stream_rate(self, now_s: float) -> None:
-        """Ask for the streams again when positions come at under half the rate asked for.
-
-        Counted over the :data:`STREAM_RATE_CHECK_S` since the last check, and only once
-        every stream request has been answered (until then the rate is not yet asked for).
-        """
-        window_s = now_s - self._rate_check_s
-        counted, self._positions_counted = self._positions_counted, 0
-        self._rate_check_s = now_s
-        if any(r.setup for r in self._requests) or not math.isfinite(window_s):
-            return
-        rate_hz = counted / window_s
-        asked_hz = 1e6 / self._interval_us
-        if counted and rate_hz < 0.5 * asked_hz:
-            self._log.info(
-                "autopilot streams positions at %.1f Hz where %.1f Hz was asked for; "
-                "asking for the streams again",
-                rate_hz,
-                asked_hz,
-                extra=LogEvent.AUTOPILOT_STREAMS.extra,
-            )
-            self._queue_setup(now_s)
-
-    def _queue_setup(self, now_s: float) -> None:
-        self._setup_s = now_s
-        self._rate_check_s = now_s
-        self._positions_counted = 0
-        self._setup_due = False
-        self._requests = [r for r in self._requests if not r.setup]
-        for name in STREAMED_MESSAGES:
-            msg_id = _message_id(name)
-            interval_us = self._interval_us
-            if name in SLOW_STREAMS:
-                interval_us = max(interval_us, round(1e6 / SLOW_STREAMS[name]))
-            self._requests.append(
-                _Request(
-                    "MAV_CMD_SET_MESSAGE_INTERVAL",
-                    mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL,
-                    f"stream {name} every {interval_us} us",
-                    self._long_builder(
-                        mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, (msg_id, interval_us)
-                    ),
-                    setup=True,
-                    answered=self._optional_stream(name) if name in OPTIONAL_STREAMS else None,
-                    due_s=now_s,
-                )
-            )
-
-    def _optional_stream(self, name: str) -> Callable[[int | None, float], None]:
-        def answered(result: int | None, _now_s: float) -> None:
-            if result != mavlink2.MAV_RESULT_ACCEPTED:
-                why = "no answer" if result is None else _result_name(result)
-                self._log.info(
-                    "autopilot does not stream %s (%s)",
-                    name,
-                    why,
-                    extra=LogEvent.AUTOPILOT_STREAMS.extra,
-                )
-
-        return answered
-
-    def _long_builder(self, command: int, params: tuple[float, ...]) -> Callable[[int], Any]:
-        s = self.settings
-        p = (*params, *(0.0,) * (7 - len(params)))
-
-        def build(attempt: int) -> Any:
-            return self._mav.command_long_encode(
-                s.system_id, s.component_id, command, min(attempt - 1, 255), *p
-            )
-
-        return build
-
-    def _command_long(self, command: int, request: str, now_s: float, *params: float) -> None:
-        self._track(
-            _Request(_command_name(command), command, request, self._long_builder(command, params)),
-            now_s,
-        )
-
-    def _track(self, request: _Request, now_s: float) -> None:
-        request.attempts = 1
-        request.due_s = now_s + ACK_TIMEOUT_S
-        self._mav.send(request.build(1))
-        self._requests.append(request)
-
-    def _send_due(self, now_s: float, *, heard: bool = True) -> None:
-        for request in list(self._requests):
-            if request.due_s > now_s:
-                continue
-            if request.setup:
-                if not heard and request.attempts > 0:
-                    continue  # nobody to ask; the setup is redone when it is heard
-            elif request.attempts >= COMMAND_ATTEMPTS:
-                self._requests.remove(request)
-                self._log.warning(
-                    "autopilot did not answer %s (%s) after %d sends",
-                    request.request,
-                    request.command,
-                    request.attempts,
-                    extra=LogEvent.AUTOPILOT_UNANSWERED.extra,
-                )
-                if request.answered is not None:
-                    request.answered(None, now_s)
-                else:
-                    self._late_events.append(
-                        CommandRefused(request.command, "NO_ANSWER", request.request)
-                    )
-                continue
-            request.attempts += 1
-            request.due_s = now_s + ACK_TIMEOUT_S
-            self._mav.send(request.build(request.attempts))
-
-    def _goto(self, cmd: Goto, now_s: float) -> None:
-        s = self.settings
-        lat_e7, lon_e7 = round(cmd.lat_deg * 1e7), round(cmd.lon_deg * 1e7)
-        plane = s.firmware == "arduplane"
-        self._speed_wanted = cmd.speed_m_s
-        self._targeted = True
-        where = f"Goto {cmd.lat_deg:.7f} {cmd.lon_deg:.7f} {cmd.alt_m:g} m above the origin"
-        alt_amsl_m = float(cmd.alt_m) + s.origin_alt_amsl_m
-        frame = mavlink2.MAV_FRAME_GLOBAL_INT
-        if plane:
-            self._track(
-                _Request(
-                    "MAV_CMD_DO_REPOSITION",
-                    mavlink2.MAV_CMD_DO_REPOSITION,
-                    where,
-                    lambda _attempt: self._mav.command_int_encode(
-                        s.system_id,
-                        s.component_id,
-                        frame,
-                        mavlink2.MAV_CMD_DO_REPOSITION,
-                        0,
-                        0,
-                        -1,  # speed: default
-                        0,  # flags: no mode change; the runtime owns the mode
-                        cmd.loiter_radius_m or 0,  # loiter radius (> 0: ModeGuided's)
-                        1.0 if cmd.loiter_ccw else math.nan,  # non-zero: counter-clockwise
-                        lat_e7,
-                        lon_e7,
-                        alt_amsl_m,
-                    ),
-                ),
-                now_s,
-            )
-            return
-        time_boot_ms = round((now_s - (self._start_s or 0.0)) * 1000) & 0xFFFFFFFF
-        moving = (
-            s.firmware == "arducopter"
-            and cmd.velocity_north_m_s is not None
-            and cmd.velocity_east_m_s is not None
-        )
-        vn_m_s = float(cmd.velocity_north_m_s or 0.0) if moving else 0.0
-        ve_m_s = float(cmd.velocity_east_m_s or 0.0) if moving else 0.0
-        self._mav.send(
-            self._mav.set_position_target_global_int_encode(
-                time_boot_ms,
-                s.system_id,
-                s.component_id,
-                frame,
-                POSITION_VELOCITY_TYPE_MASK if moving else POSITION_ONLY_TYPE_MASK,
-                lat_e7,
-                lon_e7,
-                alt_amsl_m,
-                vn_m_s,
-                ve_m_s,
-                0,
-                0,
-                0,
-                0,
-                0,
-                0,
-            )
-        )
-
-    def _takeoff(self, cmd: Takeoff, now_s: float) -> None:
-        """ArduCopter: MAV_CMD_NAV_TAKEOFF. ArduPlane: TKOFF_ALT, then its TAKEOFF mode.
-
-        ArduPlane's NAV_TAKEOFF is for quadplanes only (FAILED on a fixed wing); a
-        fixed wing takes off in its TAKEOFF mode, armed, to TKOFF_ALT, so that
-        parameter is set to the altitude asked for first (it is written to the
-        autopilot's storage, as any PARAM_SET is). Both take their height above home,
-        so the Takeoff's height above the origin is converted with home's altitude.
-        """
-        above_home_m = self.above_home_m(cmd.alt_m)
-        if self.settings.firmware == "arduplane":
-            number = self.settings.modes.get("TAKEOFF")
-            if number is None:
-                self._log.error(
-                    "Takeoff: the autopilot profile has no TAKEOFF mode",
-                    extra=LogEvent.AUTOPILOT_COMMAND.extra,
-                )
-                return
-            self._param_set("TKOFF_ALT", round(above_home_m), now_s)
-            self._command_long(
-                mavlink2.MAV_CMD_DO_SET_MODE,
-                f"SetMode TAKEOFF ({number}) to take off to {cmd.alt_m:g} m above the origin "
-                f"({above_home_m:g} m above home)",
-                now_s,
-                mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
-                int(number),
-            )
-            return
-        self._command_long(
-            mavlink2.MAV_CMD_NAV_TAKEOFF,
-            f"takeoff to {cmd.alt_m:g} m above the origin ({above_home_m:g} m above home)",
-            now_s,
-            0,
-            0,
-            0,
-            math.nan,  # yaw: unchanged
-            0,
-            0,
-            above_home_m,
-        )
-
-    def above_home_m(self, alt_m: float) -> float:
-        """A height above the origin as a height above home (HOME_POSITION's altitude).
-
-        Before the autopilot reports home, home is taken to be at the origin's height
-        (the engine's flat field).
-        """
-        home = self._status.home
-        if home is None:
-            return float(alt_m)
-        return float(alt_m) - (home[2] - self.settings.origin_alt_amsl_m)
-
-    def _speed(self, now_s: float) -> None:
-        """Send the speed the runtime wants, until the autopilot accepts it.
-
-        After the position target, not before: ArduRover refuses a speed change in
-        its guided mode until that mode has a target. A refusal or no answer is
-        retried :data:`SPEED_RETRY_S` later (by :meth:`poll`); a mode change forgets
-        the accepted speed, because ArduPilot starts every mode at its default speed.
-        """
-        wanted = self._speed_wanted
-        if (
-            wanted is None
-            or wanted == self._speed_accepted
-            or not self._targeted
-            or now_s < self._speed_retry_s
-        ):
-            return
-        self._speed_retry_s = math.inf  # until answered
-        plane = self.settings.firmware == "arduplane"
-        self._track(
-            _Request(
-                "MAV_CMD_DO_CHANGE_SPEED",
-                mavlink2.MAV_CMD_DO_CHANGE_SPEED,
-                f"speed {wanted:g} m/s",
-                self._long_builder(
-                    mavlink2.MAV_CMD_DO_CHANGE_SPEED,
-                    # SPEED_TYPE_AIRSPEED for ArduPlane (its ground-speed type sets only a
-                    # minimum), SPEED_TYPE_GROUNDSPEED otherwise; throttle -1: no change.
-                    (0 if plane else 1, wanted, -1),
-                ),
-                answered=lambda result, at_s: self._speed_answered(wanted, result, at_s),
-            ),
-            now_s,
-        )
-
-    def _speed_answered(self, speed_m_s: float, result: int | None, now_s: float) -> None:
-        if result == mavlink2.MAV_RESULT_ACCEPTED:
-            self._speed_accepted = speed_m_s
-            self._speed_retry_s = -math.inf
-            return
-        why = "no answer" if result is None else _result_name(result)
-        if self._speed_retry_s != now_s + SPEED_RETRY_S:
-            self._log.info(
-                "autopilot did not take speed %g m/s (%s); sending it again in %g s",
-                speed_m_s,
-                why,
-                SPEED_RETRY_S,
-                extra=LogEvent.AUTOPILOT_COMMAND.extra,
-            )
-        self._speed_retry_s = now_s + SPEED_RETRY_S
-
-    def _rc_override(self, cmd: RcOverride, now_s: float) -> None:
-        changes: dict[int, int] = {}
-        for channel, pwm_us in cmd.pwm_us.items():
-            if not 1 <= channel <= RC_OVERRIDE_CHANNELS or not 0 <= pwm_us < _RC_RELEASE_HIGH:
-                self._log.error(
-                    "RcOverride channel %d width %d us is outside MAVLink's range; ignored",
-                    channel,
-                    pwm_us,
-                    extra=LogEvent.AUTOPILOT_COMMAND.extra,
-                )
-                continue
-            changes[channel] = pwm_us
-            if pwm_us == 0:
-                self._overrides.pop(channel, None)
-            else:
-                self._overrides[channel] = pwm_us
-        if changes:
-            self._override_out({**self._overrides, **changes}, now_s)
-
-    def _override_out(self, channels: Mapping[int, int], now_s: float) -> None:
-        values = [_RC_IGNORE] * RC_OVERRIDE_CHANNELS
-        for channel, pwm_us in channels.items():
-            if pwm_us == 0:
-                values[channel - 1] = _RC_RELEASE_LOW if channel <= 8 else _RC_RELEASE_HIGH
-            else:
-                values[channel - 1] = pwm_us
-        s = self.settings
-        self._mav.send(self._mav.rc_channels_override_encode(s.system_id, s.component_id, *values))
-        self._override_sent_s = now_s

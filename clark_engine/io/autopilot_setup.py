@@ -59,7 +59,7 @@ ParamAnswer = Callable[[float | None, int | None, float], None]
 
 
 class SetupLink(Protocol):
-    """What the set-up needs of the adapter (implemented by AutopilotAdapter)."""
+    """What the set-up needs of the adapter (implemented by ``AdapterSetupLink``)."""
 
     def setup_read(self, name: str, now_s: float, answer: ParamAnswer) -> None:
         """Read a parameter (tracked, resent); ``answer`` hears its value or its silence."""
@@ -105,7 +105,7 @@ class SafetySetup:
 
     Args:
         command: What to set up.
-        link: The adapter.
+        link: The adapter's link (:class:`~clark_engine.io.autopilot_setup_link.AdapterSetupLink`).
         report: Called once with the result.
     """
 

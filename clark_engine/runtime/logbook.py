@@ -80,12 +80,14 @@ from clark_engine import __version__
 from clark_engine.errors import ClarkError
 from clark_engine.runtime.config import AgentConfig
 from clark_engine.runtime.log_events import RECORD_ATTRIBUTE, UNDECLARED, LogEvent
-from clark_engine.untrusted import printable
+from clark_engine.runtime.log_lines import (
+    MAX_LOGGED_LINE_CHARS,
+    line_safe,
+    plain_cell,
+    plain_lines,
+    safe_arg,
+)
 
-#: Longest text argument or CSV cell written as it is; a longer one is cut (``...``).
-MAX_LOGGED_TEXT_CHARS = 500
-#: Longest log message written whole when it had to be escaped.
-MAX_LOGGED_LINE_CHARS = 2000
 #: Per-packet lines from the air are summarised once per this many seconds (runtime clock).
 AIR_SUMMARY_S = 10.0
 #: Per-packet lines from the air written whole in each summary interval, per kind of line
@@ -195,27 +197,6 @@ class LogStreams:
         return (self.mission, self.interface, self.fleet, self.messages)
 
 
-def line_safe(text: str, limit: int = MAX_LOGGED_TEXT_CHARS) -> str:
-    """``text`` when it is printable and at most ``limit`` long, else :func:`printable`'s escape.
-
-    Printable text (an agent's name, an already escaped STATUSTEXT) is written as it is,
-    so nothing is escaped twice; text with a newline, a control character or a terminal
-    escape, or a long one, is escaped whole (backslashes too, so it reads back) and cut.
-    """
-    if len(text) <= limit and text.isprintable():
-        return text
-    return printable(text, limit)
-
-
-def _safe_arg(arg: object) -> object:
-    """A log record argument that cannot break its line: numbers pass, the rest is escaped."""
-    if isinstance(arg, str):
-        return line_safe(arg)
-    if arg is None or isinstance(arg, int | float):
-        return arg
-    return line_safe(str(arg))
-
-
 class _Stamp(logging.Filter):
     """Adds the logbook's current runtime time to every record its loggers handle, escaped.
 
@@ -239,9 +220,9 @@ class _Stamp(logging.Filter):
         args = record.args
         if args:
             if isinstance(args, tuple):
-                record.args = tuple(_safe_arg(a) for a in args)
+                record.args = tuple(safe_arg(a) for a in args)
             else:  # a mapping, for %(name)s formats
-                record.args = {k: _safe_arg(v) for k, v in args.items()}
+                record.args = {k: safe_arg(v) for k, v in args.items()}
         msg = record.msg
         if isinstance(msg, str) and not msg.isprintable():
             record.msg = line_safe(msg, MAX_LOGGED_LINE_CHARS)
@@ -281,33 +262,6 @@ class _Handler(logging.StreamHandler[TextIO]):
         self._logbook._write_failed(f"{record.name}: {exc}")
 
 
-def _plain(text: str) -> str:
-    """One CSV cell on one line, inert and bounded (:func:`line_safe`).
-
-    A row must never span lines, so grep and a crash cut cleanly, and a cell must
-    never carry a control character or a terminal escape to whoever reads the file.
-    """
-    return line_safe(text)
-
-
-#: ASCII control characters but the newline, deleted by bytes.translate to find any.
-_CONTROL_BYTES = bytes(range(32)).replace(b"\n", b"") + b"\x7f"
-
-
-def _plain_lines(text: str, lines: int) -> bool:
-    """True when ``text`` is ``lines`` lines of plain ASCII without a control character.
-
-    The fleet CSV's every-tick check, in C and a few microseconds for 100 rows
-    (``str.isprintable`` takes seven times as long); anything else, rare, is written
-    again cell by cell through :func:`line_safe`.
-    """
-    return (
-        text.count("\n") == lines
-        and text.isascii()
-        and len(text.encode("ascii").translate(None, _CONTROL_BYTES)) == len(text)
-    )
-
-
 def _csv_text(
     now_s: float,
     header: Sequence[str] | None,
@@ -317,7 +271,8 @@ def _csv_text(
 ) -> str:
     """The fleet CSV's lines for one tick: the header when given, then ``now_s`` and each row.
 
-    With ``plain``, line breaks inside text cells become spaces (:func:`_plain`).
+    With ``plain``, line breaks inside text cells become spaces
+    (:func:`~clark_engine.runtime.log_lines.plain_cell`).
     """
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
@@ -326,7 +281,7 @@ def _csv_text(
     now = repr(now_s)  # as the csv module writes a float, once for every row of the tick
     if plain:
         writer.writerows(
-            [now, *(_plain(c) if isinstance(c, str) else c for c in row)] for row in rows
+            [now, *(plain_cell(c) if isinstance(c, str) else c for c in row)] for row in rows
         )
     else:
         writer.writerows([now, *row] for row in rows)
@@ -590,7 +545,7 @@ class Logbook:
             # agent), so the rows are written as they are and only re-written cell by cell
             # in the rare case that a cell would have broken a line.
             text = _csv_text(now_s, header if first else None, rows, plain=False)
-            if not _plain_lines(text, lines):
+            if not plain_lines(text, lines):
                 text = _csv_text(now_s, header if first else None, rows, plain=True)
             self._write(self.streams.fleet, text)
 
@@ -648,13 +603,13 @@ class Logbook:
                     direction,
                     now_s,
                     _cell(gps_time_ms),
-                    _plain(peer),
+                    plain_cell(peer),
                     _cell(counter),
                     size_bytes,
-                    _plain(message_type),
+                    plain_cell(message_type),
                     _cell(message_gps_time_ms),
                     _cell(latency_ms),
-                    _plain(detail),
+                    plain_cell(detail),
                 )
             )
             self._write(self.streams.messages, buffer.getvalue())

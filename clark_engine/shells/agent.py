@@ -26,7 +26,8 @@ from pathlib import Path
 from typing import Any
 
 from clark_engine.errors import UsageError
-from clark_engine.io.autopilot import AutopilotAdapter, AutopilotSettings
+from clark_engine.io.autopilot import AutopilotAdapter
+from clark_engine.io.autopilot_settings import AutopilotSettings
 from clark_engine.io.payload import PayloadAdapter, PayloadError, open_payload
 from clark_engine.io.radio import Radio
 from clark_engine.io.transports import (

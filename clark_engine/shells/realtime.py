@@ -85,7 +85,8 @@ from dataclasses import dataclass, field
 from types import FrameType
 from typing import Any, Final, cast
 
-from clark_engine.io.autopilot import AutopilotAdapter, gps_time_ms_from_unix_us
+from clark_engine.io.autopilot import AutopilotAdapter
+from clark_engine.io.autopilot_decode import gps_time_ms_from_unix_us
 from clark_engine.io.payload import PayloadAdapter
 from clark_engine.io.radio import LinkEvent, Radio, RadioError
 from clark_engine.io.transports import Transport, TransportError

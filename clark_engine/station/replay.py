@@ -34,7 +34,7 @@ What comes from where (each agent's four files, docs/logs.md, "The files"):
   :func:`clark_engine.expectations.from_logs.judge`, as ``clark analyze --checks`` judges them.
 
 Everything read is data: every text goes to the page escaped and bounded
-(:func:`~clark_engine.runtime.logbook.line_safe`) and the page writes it as text; names
+(:func:`~clark_engine.runtime.log_lines.line_safe`) and the page writes it as text; names
 are bounded; a row or line that cannot be read is a warning with its file and line and
 is skipped; a folder with nothing to replay is an error (:class:`ReplayError`, exit 1).
 """
@@ -80,7 +80,7 @@ from clark_engine.link.messages import (
 from clark_engine.mission.geo import Origin, to_local
 from clark_engine.mission.model import Mission
 from clark_engine.runtime.config import AgentConfig
-from clark_engine.runtime.logbook import line_safe
+from clark_engine.runtime.log_lines import line_safe
 from clark_engine.station.alarms import CLEARED_SHOWN_S, Alarm, AlarmWatch, failsafe_words
 from clark_engine.station.view_model import (
     MAX_LOG_LINES,

@@ -55,7 +55,7 @@ from clark_engine.runtime.command_delivery import took_effect
 from clark_engine.runtime.config import AgentConfig, EnvelopeSpec, StateSpec
 from clark_engine.runtime.events import StationCommand
 from clark_engine.runtime.log_events import RECORD_ATTRIBUTE, UNDECLARED, LogEvent
-from clark_engine.runtime.logbook import line_safe
+from clark_engine.runtime.log_lines import line_safe
 from clark_engine.runtime.runtime import AgentRuntime
 from clark_engine.station.alarms import AlarmChange, AlarmWatch, failsafe_words
 
