@@ -40,12 +40,8 @@ from clark_engine.runtime.config import AgentConfig, load_config
 from clark_engine.runtime.events import StationCommand
 from clark_engine.runtime.log_events import LogEvent
 from clark_engine.runtime.runtime import AgentRuntime
-from clark_engine.station.server import (
-    ViewServer,
-    check_token,
-    is_loopback_host,
-    parse_view_address,
-)
+from clark_engine.station.access import check_token, is_loopback_host, parse_view_address
+from clark_engine.station.server import ViewServer
 from clark_engine.station.view_model import (
     CommandRequest,
     Json,

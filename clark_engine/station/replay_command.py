@@ -78,8 +78,8 @@ def _served_at(args: argparse.Namespace) -> tuple[str, int, str | None]:
     Raises:
         UsageError: A bad address or token, both token options, or no token off loopback.
     """
+    from clark_engine.station.access import check_token, is_loopback_host, parse_view_address
     from clark_engine.station.live_view import load_token
-    from clark_engine.station.server import check_token, is_loopback_host, parse_view_address
 
     if args.view_token is not None and args.view_token_file is not None:
         raise UsageError("give --view-token or --view-token-file, not both")
