@@ -189,7 +189,7 @@ class _Client:
 
 
 class ReplaySource(Protocol):
-    """What the server needs of a replay (:class:`clark_engine.station.replay.Replay`).
+    """What the server needs of a replay (:class:`clark_engine.station.replay_frames.Replay`).
 
     Attributes:
         start_s: The earliest mission time of the run.
