@@ -47,7 +47,8 @@ from clark_engine.station.live_view import (
 )
 from clark_engine.station.page_messages import MAX_MESSAGE_BYTES, parse_command
 from clark_engine.station.server import ViewServer
-from clark_engine.station.view_model import Snapshot, build_hello
+from clark_engine.station.view_hello import build_hello
+from clark_engine.station.view_model import Snapshot
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent

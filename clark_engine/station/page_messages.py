@@ -13,7 +13,8 @@ import math
 from collections.abc import Mapping
 from typing import Any, Final
 
-from clark_engine.station.view_model import ACTIONS, CommandRequest, agent_names, modes_of
+from clark_engine.station.view_commands import CommandRequest
+from clark_engine.station.view_protocol import ACTIONS, agent_names, modes_of
 from clark_engine.untrusted import printable
 
 MAX_MESSAGE_BYTES: Final = 16 * 1024

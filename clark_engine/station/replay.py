@@ -5,7 +5,7 @@ the operator, the team and the examiner want to see it again, moment by moment, 
 what the agents logged (docs/logs.md). This module loads a run's log folder once into
 time-indexed arrays and builds, for any mission time ``t``, the same messages the live
 view sends (docs/station-view.md, "Replay"): the ``state`` at ``t`` (its agent rows by
-:func:`~clark_engine.station.view_model.agent_row`, as the live view builds them) and, when the
+:func:`~clark_engine.station.view_rows.agent_row`, as the live view builds them) and, when the
 page jumps, a ``reset`` with the tracks, photos and mission-log lines up to ``t``.
 
 What comes from where (each agent's four files, docs/logs.md, "The files"):
@@ -73,9 +73,7 @@ from clark_engine.expectations.from_logs import (
     rebuild,
     text_lines,
 )
-from clark_engine.link.messages import (
-    PictureData,
-)
+from clark_engine.link.messages import PictureData
 from clark_engine.mission.geo import Origin, to_local
 from clark_engine.mission.model import Mission
 from clark_engine.runtime.config import AgentConfig
@@ -94,13 +92,9 @@ from clark_engine.station.replay_fleet import (
     shown_name,
 )
 from clark_engine.station.replay_frames import Replay, ReplayAgent
-from clark_engine.station.view_model import (
-    MAX_LOG_TEXT_CHARS,
-    PROTOCOL_VERSION,
-    Json,
-    build_hello,
-    photo_json,
-)
+from clark_engine.station.view_hello import build_hello
+from clark_engine.station.view_protocol import MAX_LOG_TEXT_CHARS, PROTOCOL_VERSION, Json
+from clark_engine.station.view_rows import photo_json
 from clark_engine.untrusted import printable
 
 SPEEDS: Final = (1, 2, 5, 10, 20, 60, 120)

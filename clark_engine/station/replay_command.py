@@ -28,7 +28,7 @@ from clark_engine.errors import UsageError
 
 if TYPE_CHECKING:  # the engine's layers load when the command runs: `clark validate` stays fast
     from clark_engine.mission.model import Mission
-    from clark_engine.station.view_model import CommandRequest
+    from clark_engine.station.view_commands import CommandRequest
 
 DEFAULT_VIEW: str = "127.0.0.1:0"
 """Where the replay is served unless ``--view`` says: loopback, a free port (printed)."""

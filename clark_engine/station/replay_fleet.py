@@ -21,7 +21,7 @@ from typing import Final
 from clark_engine.analysis.latency import Problem
 from clark_engine.expectations.from_logs import fleet_csv
 from clark_engine.runtime.logbook import line_safe
-from clark_engine.station.view_model import MAX_LOG_TEXT_CHARS
+from clark_engine.station.view_protocol import MAX_LOG_TEXT_CHARS
 from clark_engine.untrusted import printable
 
 MAX_NAME_CHARS: Final = 64

@@ -3,7 +3,7 @@
 Separate from the loading (:mod:`clark_engine.station.replay`) because this is what the
 server calls for every client as it seeks and plays, from its event loop: immutable,
 built once, answering each time with bisections into the arrays the loading made. The
-agent rows are built by :func:`~clark_engine.station.view_model.agent_row`, as the live
+agent rows are built by :func:`~clark_engine.station.view_rows.agent_row`, as the live
 view builds them, from the fleet-table columns (:mod:`clark_engine.station.replay_fleet`).
 """
 
@@ -60,7 +60,8 @@ from clark_engine.station.replay_fleet import (
     YAW,
     FleetRows,
 )
-from clark_engine.station.view_model import MAX_LOG_LINES, Json, agent_row, link_json, mode_name
+from clark_engine.station.view_protocol import MAX_LOG_LINES, Json
+from clark_engine.station.view_rows import agent_row, link_json, mode_name
 
 RESET_TRACK_POINTS: Final = 2_000
 """Most track points per agent a ``reset`` sends; a longer track is evenly thinned

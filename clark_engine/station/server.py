@@ -12,7 +12,7 @@ its own :mod:`asyncio` loop, and the two meet at two points only:
 - **commands out** (the ``on_command`` callback, called on the server's thread): every
   command the page sends is checked here (every string from a browser is hostile:
   bounded, known agents and modes only) and handed on as a
-  :class:`~clark_engine.station.view_model.CommandRequest`; :mod:`clark_engine.station.live_view`
+  :class:`~clark_engine.station.view_commands.CommandRequest`; :mod:`clark_engine.station.live_view`
   queues it for the loop and wakes the loop through a pipe.
 
 Each WebSocket client has one sender task that sends ``hello``, then the newest state
@@ -75,18 +75,8 @@ from aiohttp import WSMsgType, web
 from aiohttp.typedefs import Handler
 
 from clark_engine.errors import UsageError
-from clark_engine.station.access import (
-    MAX_TOKEN_CHARS,
-    TOKEN_HEADER,
-    check_token,
-    is_loopback_host,
-)
-from clark_engine.station.connections import (
-    Admitted,
-    ConnectionCaps,
-    ViewLimits,
-    view_limits,
-)
+from clark_engine.station.access import MAX_TOKEN_CHARS, TOKEN_HEADER, check_token, is_loopback_host
+from clark_engine.station.connections import Admitted, ConnectionCaps, ViewLimits, view_limits
 from clark_engine.station.log_throttle import Throttle, ThrottledLogger
 from clark_engine.station.page_messages import (
     MAX_MESSAGE_BYTES,
@@ -94,12 +84,9 @@ from clark_engine.station.page_messages import (
     parse_command,
     parse_replay_control,
 )
-from clark_engine.station.view_model import (
-    MAX_LOG_LINES,
-    CommandRequest,
-    Json,
-    Snapshot,
-)
+from clark_engine.station.view_commands import CommandRequest
+from clark_engine.station.view_model import Snapshot
+from clark_engine.station.view_protocol import MAX_LOG_LINES, Json
 
 STATIC_DIR: Final = Path(__file__).resolve().parent / "static"
 """The page, its script and style, and the vendored Leaflet."""
@@ -230,7 +217,7 @@ class ViewServer:
     """The station view's HTTP and WebSocket server, on a thread of its own.
 
     Args:
-        hello: The ``hello`` message (:func:`~clark_engine.station.view_model.build_hello`); the
+        hello: The ``hello`` message (:func:`~clark_engine.station.view_hello.build_hello`); the
             agents and modes a command may name come from it.
         on_command: Called on the server's thread with each checked command; it must
             not block (:class:`~clark_engine.station.live_view.StationViewLink.submit` queues
