@@ -1,7 +1,7 @@
 """``clark replay LOGS``: the command that serves a finished run's replay (docs/station-view.md).
 
 Kept apart from :mod:`clark_engine.cli` so that the command's options, its checks and
-its serving loop live beside the replay they serve; ``cli.py`` only adds the parser
+its serving loop live beside the replay they serve; ``clark_engine.cli`` only adds the parser
 (:func:`add_replay_parser`).
 
 Order of business, so that a mistake costs nothing: the options are checked (address,
