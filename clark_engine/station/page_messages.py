@@ -1,16 +1,20 @@
-"""The messages a station view's page sends, checked: commands, and a replay's controls.
+"""The messages a station view's page sends, checked: commands, a replay's controls, their rate.
 
 Separate from the server because every string from a browser is hostile, and the rules
 that bound it (known agents and modes only, bounded lengths, ``terminate`` confirmed)
 are a protocol of their own, tested without a socket: the server hands each text it
 receives to :func:`parse_command` (live) or :func:`parse_replay_control` (replay).
+Each client's messages are held to a rate (:class:`RateBucket`, :data:`COMMANDS_PER_S`,
+:data:`CONTROLS_PER_S`).
 """
 
 from __future__ import annotations
 
 import json
 import math
+import time
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import Any, Final
 
 from clark_engine.station.view_commands import CommandRequest
@@ -29,8 +33,41 @@ MAX_OPERATOR_CHARS: Final = 40
 MAX_REF_CHARS: Final = 32
 """Longest ``ref`` a page may attach to a command (echoed in the answer)."""
 
+COMMANDS_PER_S: Final = 5.0
+"""Sustained commands a client may send; a burst of :data:`COMMAND_BURST` is allowed."""
+
+COMMAND_BURST: Final = 10
+
+CONTROLS_PER_S: Final = 20.0
+"""Sustained replay controls (seek, play, pause, speed) a client may send; bursts of
+:data:`CONTROLS_BURST` (a dragged slider sends a few a second)."""
+
+CONTROLS_BURST: Final = 40
+
 REPLAY_ACTIONS: Final = ("seek", "play", "pause", "speed")
 """What a replay's page may send."""
+
+
+@dataclass
+class RateBucket:
+    """A token bucket: ``rate_per_s`` messages a second, bursts of ``burst``."""
+
+    rate_per_s: float
+    burst: float
+    tokens: float = -1.0
+    refilled_s: float = field(default_factory=time.monotonic)
+
+    def allow(self) -> bool:
+        """Whether one more message fits the rate (and take its token)."""
+        now = time.monotonic()
+        if self.tokens < 0:
+            self.tokens = self.burst
+        self.tokens = min(self.burst, self.tokens + (now - self.refilled_s) * self.rate_per_s)
+        self.refilled_s = now
+        if self.tokens < 1.0:
+            return False
+        self.tokens -= 1.0
+        return True
 
 
 class CommandRejected(ValueError):
@@ -169,12 +206,17 @@ def parse_replay_control(
 
 
 __all__ = [
+    "COMMANDS_PER_S",
+    "COMMAND_BURST",
+    "CONTROLS_BURST",
+    "CONTROLS_PER_S",
     "MAX_MESSAGE_BYTES",
     "MAX_NAME_CHARS",
     "MAX_OPERATOR_CHARS",
     "MAX_REF_CHARS",
     "REPLAY_ACTIONS",
     "CommandRejected",
+    "RateBucket",
     "parse_command",
     "parse_replay_control",
 ]

@@ -59,7 +59,6 @@ import hmac
 import itertools
 import json
 import logging
-import math
 import resource
 import socket
 import threading
@@ -79,14 +78,19 @@ from clark_engine.station.access import MAX_TOKEN_CHARS, TOKEN_HEADER, check_tok
 from clark_engine.station.connections import Admitted, ConnectionCaps, ViewLimits, view_limits
 from clark_engine.station.log_throttle import Throttle, ThrottledLogger
 from clark_engine.station.page_messages import (
+    COMMAND_BURST,
+    COMMANDS_PER_S,
+    CONTROLS_BURST,
+    CONTROLS_PER_S,
     MAX_MESSAGE_BYTES,
     CommandRejected,
+    RateBucket,
     parse_command,
     parse_replay_control,
 )
 from clark_engine.station.view_commands import CommandRequest
 from clark_engine.station.view_model import Snapshot
-from clark_engine.station.view_protocol import MAX_LOG_LINES, Json
+from clark_engine.station.view_protocol import MAX_LOG_LINES, Json, page_json
 
 STATIC_DIR: Final = Path(__file__).resolve().parent / "static"
 """The page, its script and style, and the vendored Leaflet."""
@@ -103,17 +107,6 @@ MAX_PHOTOS: Final = 2_000
 MAX_CLIENTS: Final = 32
 """WebSocket clients served at once; more are closed at once (code 1013)."""
 
-COMMANDS_PER_S: Final = 5.0
-"""Sustained commands a client may send; a burst of :data:`COMMAND_BURST` is allowed."""
-
-COMMAND_BURST: Final = 10
-
-CONTROLS_PER_S: Final = 20.0
-"""Sustained replay controls (seek, play, pause, speed) a client may send; bursts of
-:data:`CONTROLS_BURST` (a dragged slider sends a few a second)."""
-
-CONTROLS_BURST: Final = 40
-
 STOP_FLUSH_S: Final = 1.0
 """How long the server, when it stops, gives its clients to receive the last state."""
 
@@ -122,27 +115,6 @@ LISTEN_BACKLOG: Final = 128
 _NO_RESOURCE: Final = frozenset({errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM})
 
 _LOG = logging.getLogger(__name__)
-
-
-@dataclass
-class _Bucket:
-    """A token bucket: ``rate_per_s`` messages a second, bursts of ``burst``."""
-
-    rate_per_s: float
-    burst: float
-    tokens: float = -1.0
-    refilled_s: float = field(default_factory=time.monotonic)
-
-    def allow(self) -> bool:
-        now = time.monotonic()
-        if self.tokens < 0:
-            self.tokens = self.burst
-        self.tokens = min(self.burst, self.tokens + (now - self.refilled_s) * self.rate_per_s)
-        self.refilled_s = now
-        if self.tokens < 1.0:
-            return False
-        self.tokens -= 1.0
-        return True
 
 
 @dataclass(eq=False)
@@ -162,8 +134,8 @@ class _Client:
     track_seq: int = 0
     photo_seq: int = 0
     log_seq: int = 0
-    commands: _Bucket = field(default_factory=lambda: _Bucket(COMMANDS_PER_S, COMMAND_BURST))
-    controls: _Bucket = field(default_factory=lambda: _Bucket(CONTROLS_PER_S, CONTROLS_BURST))
+    commands: RateBucket = field(default_factory=lambda: RateBucket(COMMANDS_PER_S, COMMAND_BURST))
+    controls: RateBucket = field(default_factory=lambda: RateBucket(CONTROLS_PER_S, CONTROLS_BURST))
     replay_t: float = 0.0
     sent_t: float | None = None
     playing: bool = False
@@ -203,14 +175,6 @@ class _Pending:
     track: deque[Json] = field(default_factory=lambda: deque(maxlen=MAX_TRACK_POINTS))
     photos: deque[Json] = field(default_factory=lambda: deque(maxlen=MAX_PHOTOS))
     log: deque[Json] = field(default_factory=lambda: deque(maxlen=MAX_LOG_LINES))
-
-
-def _dumps(message: Json) -> str:
-    """A message as compact JSON; a NaN or infinity (JSON has none) becomes null."""
-    try:
-        return json.dumps(message, separators=(",", ":"), allow_nan=False)
-    except ValueError:
-        return json.dumps(_finite(message), separators=(",", ":"), allow_nan=False)
 
 
 class ViewServer:
@@ -755,7 +719,7 @@ class ViewServer:
                         "playing": client.playing,
                         "speed": client.speed,
                     }
-                await ws.send_str(_dumps(message))
+                await ws.send_str(page_json(message))
             client.sent_t = client.replay_t
 
     async def _send(self, client: _Client) -> None:
@@ -793,7 +757,7 @@ class ViewServer:
             client.photo_seq = int(self._photos[-1]["seq"])
         if self._log:
             client.log_seq = int(self._log[-1]["seq"])
-        return _dumps(message)
+        return page_json(message)
 
 
 def _after(items: deque[Json], seq: int) -> list[Json]:
@@ -805,17 +769,6 @@ def _after(items: deque[Json], seq: int) -> list[Json]:
         out.append(item)
     out.reverse()
     return out
-
-
-def _finite(value: Any) -> Any:
-    """``value`` with every NaN and infinity, however deep, replaced by None."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(v) for v in value]
-    return value
 
 
 __all__ = [

@@ -1,4 +1,4 @@
-"""The station view's protocol basics: the JSON type, its version, its bounds, the actions.
+"""The station view's protocol basics: the JSON type and its encoding, version, bounds, actions.
 
 Separate from the builders because every module of the view (the hello, the rows, the
 commands, the server, the replay) speaks this protocol (docs/station-view.md, "The
@@ -8,6 +8,7 @@ other in a circle.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping
 from typing import Any, Final
@@ -34,6 +35,25 @@ def rounded(value: float | None, digits: int = 2) -> float | None:
     return round(value, digits)
 
 
+def page_json(message: Json) -> str:
+    """A message as compact JSON; a NaN or infinity (JSON has none) becomes null."""
+    try:
+        return json.dumps(message, separators=(",", ":"), allow_nan=False)
+    except ValueError:
+        return json.dumps(_finite(message), separators=(",", ":"), allow_nan=False)
+
+
+def _finite(value: Any) -> Any:
+    """``value`` with every NaN and infinity, however deep, replaced by None."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    return value
+
+
 def agent_names(hello: Mapping[str, Any], *, vehicles_only: bool = False) -> list[str]:
     """The agents' names in a hello message."""
     return [str(a["name"]) for a in hello["agents"] if not vehicles_only or a.get("role") != "mcs"]
@@ -52,5 +72,6 @@ __all__ = [
     "Json",
     "agent_names",
     "modes_of",
+    "page_json",
     "rounded",
 ]
