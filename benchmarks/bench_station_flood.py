@@ -61,7 +61,8 @@ VIEW = textwrap.dedent(
     hard = resource.getrlimit(resource.RLIMIT_NOFILE)[1]
     resource.setrlimit(resource.RLIMIT_NOFILE, (nofile, hard))
     logging.basicConfig(stream=sys.stderr, level=logging.INFO)
-    from clark_engine.station.view_model import Snapshot, build_hello
+    from clark_engine.station.view_hello import build_hello
+    from clark_engine.station.view_model import Snapshot
     from clark_engine.station.server import ViewServer
     from clark_engine.mission.compiler import agent_config
     from clark_engine.runtime.config import config_from_dict

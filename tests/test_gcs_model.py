@@ -31,14 +31,10 @@ from clark_engine.runtime.events import (
     VehicleState,
 )
 from clark_engine.runtime.runtime import AgentRuntime
-from clark_engine.station.view_model import (
-    CommandRequest,
-    MissionLogBuffer,
-    StationView,
-    build_hello,
-    plan_of,
-    stale_after_s,
-)
+from clark_engine.station.view_commands import CommandRequest
+from clark_engine.station.view_hello import build_hello, plan_of, stale_after_s
+from clark_engine.station.view_log import MissionLogBuffer
+from clark_engine.station.view_model import StationView
 
 ROOT = Path(__file__).resolve().parent.parent
 GPS0 = 1_400_000_000_000
@@ -439,7 +435,7 @@ def test_behaviour_names_from_the_air_reach_the_page_escaped() -> None:
     operator a reversed state name and a terminal escape; each is escaped, and a flood of
     names is cut."""
     from clark_engine.link.messages import BehaviorState
-    from clark_engine.station.view_model import agent_row
+    from clark_engine.station.view_rows import agent_row
 
     forged = BehaviorState(
         3, 0, ("chase\u202edekrap", "idle\x1b[2J", *[f"s{i}" for i in range(100)]), "done\u202e"

@@ -34,14 +34,10 @@ from clark_engine.expectations.from_logs import check_folder
 from clark_engine.expectations.recording import Recording
 from clark_engine.link.fleet import FleetTable
 from clark_engine.mission.model import Mission
-from clark_engine.station.replay import (
-    RESET_TRACK_POINTS,
-    Replay,
-    ReplayError,
-    find_log_files,
-    load_replay,
-)
-from clark_engine.station.server import CommandRejected, ViewServer, parse_replay_control
+from clark_engine.station.page_messages import CommandRejected, parse_replay_control
+from clark_engine.station.replay import ReplayError, find_log_files, load_replay
+from clark_engine.station.replay_frames import RESET_TRACK_POINTS, Replay
+from clark_engine.station.server import ViewServer
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent

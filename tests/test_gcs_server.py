@@ -36,6 +36,7 @@ from clark_engine.mission.compiler import agent_config
 from clark_engine.runtime.config import AgentConfig, config_from_dict
 from clark_engine.runtime.runtime import AgentRuntime
 from clark_engine.shells.realtime import RadioLink, RealtimeShell
+from clark_engine.station.access import parse_view_address
 from clark_engine.station.live_view import (
     OpenView,
     StationViewLink,
@@ -44,13 +45,10 @@ from clark_engine.station.live_view import (
     open_view,
     view_settings,
 )
-from clark_engine.station.server import (
-    MAX_MESSAGE_BYTES,
-    ViewServer,
-    parse_command,
-    parse_view_address,
-)
-from clark_engine.station.view_model import Snapshot, build_hello
+from clark_engine.station.page_messages import MAX_MESSAGE_BYTES, parse_command
+from clark_engine.station.server import ViewServer
+from clark_engine.station.view_hello import build_hello
+from clark_engine.station.view_model import Snapshot
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -30,8 +30,10 @@ import pytest
 
 from clark_engine.mission.compiler import agent_config
 from clark_engine.runtime.config import config_from_dict
-from clark_engine.station.server import ViewLimits, ViewServer, view_limits
-from clark_engine.station.view_model import Snapshot, build_hello
+from clark_engine.station.connections import ViewLimits, view_limits
+from clark_engine.station.server import ViewServer
+from clark_engine.station.view_hello import build_hello
+from clark_engine.station.view_model import Snapshot
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent

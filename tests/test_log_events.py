@@ -24,8 +24,8 @@ LEVELS = {"debug", "info", "warning", "error", "critical", "exception", "log"}
 
 #: (file, receiver) of calls that are not logging into an agent's logs.
 NOT_AGENT_LOGS = {
-    ("cli.py", "parser"),  # argparse's error
-    ("station/server.py", "self.logger"),  # aiohttp's access logger, throttled
+    ("cli/arguments.py", "parser"),  # argparse's error
+    ("station/log_throttle.py", "self.logger"),  # aiohttp's access logger, throttled
 }
 
 

@@ -416,7 +416,7 @@ def test_a_late_tick_sends_one_request_not_a_burst() -> None:
 
 
 def test_the_station_draws_the_compiled_lines_as_a_survey() -> None:
-    from clark_engine.station.view_model import plan_of
+    from clark_engine.station.view_hello import plan_of
 
     config = _compiled(EXAMPLE)
     (item,) = [i for i in plan_of(config) if i["primitive"] == "survey"]

@@ -40,19 +40,13 @@ from clark_engine.runtime.config import AgentConfig, load_config
 from clark_engine.runtime.events import StationCommand
 from clark_engine.runtime.log_events import LogEvent
 from clark_engine.runtime.runtime import AgentRuntime
-from clark_engine.station.server import (
-    ViewServer,
-    check_token,
-    is_loopback_host,
-    parse_view_address,
-)
-from clark_engine.station.view_model import (
-    CommandRequest,
-    Json,
-    MissionLogBuffer,
-    StationView,
-    build_hello,
-)
+from clark_engine.station.access import check_token, is_loopback_host, parse_view_address
+from clark_engine.station.server import ViewServer
+from clark_engine.station.view_commands import CommandRequest
+from clark_engine.station.view_hello import build_hello
+from clark_engine.station.view_log import MissionLogBuffer
+from clark_engine.station.view_model import StationView
+from clark_engine.station.view_protocol import Json
 
 DEFAULT_UPDATE_HZ: Final = 5.0
 """How often the page is sent the state, unless ``--view-hz`` says otherwise."""

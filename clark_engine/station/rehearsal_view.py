@@ -52,7 +52,7 @@ from clark_engine.station.live_view import (
     open_view,
     settings_from_options,
 )
-from clark_engine.station.view_model import Json
+from clark_engine.station.view_protocol import Json
 
 DEFAULT_VIEW: Final = "127.0.0.1:8080"
 """Where ``--station`` serves the view when ``--view`` is not given: loopback, port 8080."""

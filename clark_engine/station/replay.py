@@ -5,7 +5,7 @@ the operator, the team and the examiner want to see it again, moment by moment, 
 what the agents logged (docs/logs.md). This module loads a run's log folder once into
 time-indexed arrays and builds, for any mission time ``t``, the same messages the live
 view sends (docs/station-view.md, "Replay"): the ``state`` at ``t`` (its agent rows by
-:func:`~clark_engine.station.view_model.agent_row`, as the live view builds them) and, when the
+:func:`~clark_engine.station.view_rows.agent_row`, as the live view builds them) and, when the
 page jumps, a ``reset`` with the tracks, photos and mission-log lines up to ``t``.
 
 What comes from where (each agent's four files, docs/logs.md, "The files"):
@@ -37,18 +37,23 @@ Everything read is data: every text goes to the page escaped and bounded
 (:func:`~clark_engine.runtime.log_lines.line_safe`) and the page writes it as text; names
 are bounded; a row or line that cannot be read is a warning with its file and line and
 is skipped; a folder with nothing to replay is an error (:class:`ReplayError`, exit 1).
+
+Reading the fleet CSVs into columns is :mod:`clark_engine.station.replay_fleet`; the
+loaded replay, which answers the page at any time, is
+:mod:`clark_engine.station.replay_frames`'s :class:`~clark_engine.station.replay_frames.Replay`;
+this module finds and reads the folder's files and puts them together
+(:func:`load_replay`).
 """
 
 from __future__ import annotations
 
 import bisect
 import math
-import operator
 import re
 import shlex
 import statistics
 from array import array
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
@@ -61,7 +66,6 @@ from clark_engine.expectations.from_logs import (
     LogChecksError,
     align_clocks,
     file_names,
-    fleet_csv,
     judge,
     read_interface_log,
     read_message_log,
@@ -69,156 +73,48 @@ from clark_engine.expectations.from_logs import (
     rebuild,
     text_lines,
 )
-from clark_engine.link.messages import (
-    AgentAttitude,
-    AgentStatus,
-    BehaviorState,
-    PictureData,
-    PrearmState,
-    VehicleHealth,
-)
+from clark_engine.link.messages import PictureData
 from clark_engine.mission.geo import Origin, to_local
 from clark_engine.mission.model import Mission
 from clark_engine.runtime.config import AgentConfig
 from clark_engine.runtime.log_lines import line_safe
-from clark_engine.station.alarms import CLEARED_SHOWN_S, Alarm, AlarmWatch, failsafe_words
-from clark_engine.station.view_model import (
-    MAX_LOG_LINES,
-    MAX_LOG_TEXT_CHARS,
-    PROTOCOL_VERSION,
-    Json,
-    agent_row,
-    build_hello,
-    link_json,
-    mode_name,
-    photo_json,
+from clark_engine.station.alarms import Alarm, AlarmWatch, failsafe_words
+from clark_engine.station.replay_fleet import (
+    ALT,
+    CONDITIONS,
+    FAILSAFE,
+    LAT,
+    LON,
+    MAX_AGENTS,
+    STATUS_AGE,
+    FleetRows,
+    read_fleet_csv,
+    shown_name,
 )
+from clark_engine.station.replay_frames import Replay, ReplayAgent
+from clark_engine.station.view_hello import build_hello
+from clark_engine.station.view_protocol import MAX_LOG_TEXT_CHARS, PROTOCOL_VERSION, Json
+from clark_engine.station.view_rows import photo_json
 from clark_engine.untrusted import printable
 
 SPEEDS: Final = (1, 2, 5, 10, 20, 60, 120)
 """Replay speeds the page offers (mission seconds per wall-clock second)."""
 
-RESET_TRACK_POINTS: Final = 2_000
-"""Most track points per agent a ``reset`` sends; a longer track is evenly thinned
-(its first and latest points kept), so the whole path shows at any time."""
-
-RESET_PHOTOS: Final = 2_000
-"""Most photos a ``reset`` sends (the latest)."""
-
-MAX_DELTA_ITEMS: Final = 5_000
-"""More new track points than this between two states is sent as a ``reset`` instead."""
-
-MAX_NAME_CHARS: Final = 64
-"""Longest agent name taken from a file name or a log (longer ones are cut, escaped)."""
-
-MAX_AGENTS: Final = 256
-"""Most agents a replay shows; the logs of more are ignored (with a warning)."""
-
 MAX_SUBFOLDERS: Final = log_folder.MAX_SUBFOLDERS
 """Most sub-folders searched for agents' logs."""
 
-MAX_FLEET_ROWS: Final = 5_000_000
-"""Most rows read from one fleet CSV (an hour of 100 agents at 10 Hz is 3.6 million)."""
-
 _DRY_RUN_LINE: Final = re.compile(r"^Command line: `(?P<command>clark dry-run [^`]*)`", re.M)
-
-#: Fleet CSV columns kept per row, in this order (docs/logs.md, "The fleet CSV").
-_NUMBERS: Final = (
-    "since_heartbeat_s",
-    "lat_deg",
-    "lon_deg",
-    "alt_m",
-    "ground_speed_m_s",
-    "climb_rate_m_s",
-    "heading_deg",
-    "mode",
-    "status_age_s",
-    "roll_deg",
-    "pitch_deg",
-    "yaw_deg",
-    "packets",
-    "lost_packets",
-    "loss_ratio",
-    "latency_mean_ms",
-    "bad_tags",
-    "malformed",
-    "duplicates",
-    "armed",
-    "battery_v",
-    "battery_pct",
-    "gps_fix_type",
-    "satellites",
-    "autopilot_severity",
-    "autopilot_text_age_s",
-    "autopilot_lost",
-    "health_age_s",
-)
-#: Fleet CSV text columns kept per row (Vehicle Health's), interned.
-_TEXTS: Final = ("prearm", "autopilot_text", "failsafe")
-_PREARM, _AP_TEXT, _FAILSAFE = range(len(_TEXTS))
-MAX_TEXTS: Final = 10_000
-"""Distinct Vehicle Health texts kept per fleet CSV; the rest read as a note saying so."""
-_TOO_MANY_TEXTS: Final = "(more distinct texts than the replay keeps)"
-_REQUIRED: Final = ("now_s", "name", "condition", "lost", "since_heartbeat_s")
-_CONDITIONS: Final = ("ok", "degraded", "failsafe", "terminated")
-(
-    _SINCE_HB,
-    _LAT,
-    _LON,
-    _ALT,
-    _SPEED,
-    _CLIMB,
-    _HEADING,
-    _MODE,
-    _STATUS_AGE,
-    _ROLL,
-    _PITCH,
-    _YAW,
-    _PACKETS,
-    _LOST_PACKETS,
-    _LOSS_RATIO,
-    _LATENCY,
-    _BAD_TAGS,
-    _MALFORMED,
-    _DUPLICATES,
-    _ARMED,
-    _BATTERY_V,
-    _BATTERY_PCT,
-    _GPS_FIX,
-    _SATELLITES,
-    _AP_SEVERITY,
-    _AP_TEXT_AGE,
-    _AP_LOST,
-    _HEALTH_AGE,
-) = range(len(_NUMBERS))
 
 
 class ReplayError(ClarkError):
     """A folder with nothing to replay, or logs of another mission (exit code 1)."""
 
 
-def _name(text: str) -> str:
-    """An agent's name from a file name or a log, bounded and escaped."""
-    return printable(text, MAX_NAME_CHARS)
-
-
-def _int(value: float) -> int:
-    return int(value) if math.isfinite(value) else 0
-
-
-def _opt(value: float) -> float | None:
-    return value if math.isfinite(value) else None
-
-
-def _int_opt(value: float) -> int | None:
-    return int(value) if math.isfinite(value) else None
-
-
-_PREARM_STATES: Final = {state.name.lower(): state for state in PrearmState}
 MAX_ALARMS: Final = 10_000
 """Alarm episodes a replay keeps (the earliest); a run with more is noted."""
 
 
+# -- finding the files -----------------------------------------------------------------------
 # -- finding the files -----------------------------------------------------------------------
 
 
@@ -271,187 +167,6 @@ def mission_from_report(folder: Path) -> Path | None:
     return None
 
 
-# -- the fleet CSV ---------------------------------------------------------------------------
-
-
-@dataclass(slots=True)
-class _Rows:
-    """One observer's fleet-table rows of one agent, as columns (its own clock)."""
-
-    agent_id: int
-    now_s: array[float] = field(default_factory=lambda: array("d"))
-    numbers: list[array[float]] = field(default_factory=list)
-    """One array per column of :data:`_NUMBERS` (NaN for an empty cell), once read."""
-    condition: array[int] = field(default_factory=lambda: array("b"))
-    lost: array[int] = field(default_factory=lambda: array("b"))
-    flat: array[float] = field(default_factory=lambda: array("d"))
-    """While reading: every row's numbers one after the other (one append per row)."""
-    texts: list[array[int]] = field(default_factory=lambda: [array("l") for _ in _TEXTS])
-    """One array per column of :data:`_TEXTS`: each row's index in :attr:`strings`."""
-    strings: list[str] = field(default_factory=lambda: [""])
-    """The distinct texts of :attr:`texts`, escaped and bounded; index 0 is empty."""
-    lookup: dict[str, int] = field(default_factory=dict)
-    """A text as read -> its index in :attr:`strings` (while reading)."""
-
-    def __len__(self) -> int:
-        return len(self.now_s)
-
-    def columns(self) -> None:
-        """Turn the rows read (:attr:`flat`) into :attr:`numbers`' columns."""
-        width = len(_NUMBERS)
-        self.numbers = [self.flat[c::width] for c in range(width)]
-        self.flat = array("d")
-        self.lookup = {}
-
-
-def _bad_cell(row: list[str], columns: Sequence[tuple[str, int | None]]) -> str:
-    """Which of ``columns`` in ``row`` is not a number, in words."""
-    for column, index in columns:
-        if index is None or row[index] == "":
-            continue
-        try:
-            float(row[index])
-        except ValueError:
-            return f"{column} is {printable(row[index], 40)!r}, not a number"
-    return "a value is not a number"
-
-
-def read_fleet_csv(
-    path: Path, names: Mapping[str, int] | None, problems: list[Problem]
-) -> dict[str, _Rows]:
-    """Observed agent -> its rows in one agent's fleet CSV (docs/logs.md, "The fleet CSV").
-
-    Args:
-        path: The file.
-        names: The mission's agents by name with their ids; rows of others are skipped.
-            None takes every name (bounded and escaped).
-        problems: Where rows and files that cannot be read go.
-
-    Raises:
-        UsageError: The file cannot be read.
-    """
-    shown = str(path)
-    opened = fleet_csv(path, _REQUIRED, problems)
-    if opened is None:
-        return {}
-    header, rows = opened
-    width = len(header)
-    at = {column: header.index(column) for column in header}
-    now_at, name_at, id_at = at["now_s"], at["name"], at.get("agent_id")
-    condition_at, lost_at = at["condition"], at["lost"]
-    indexes = [at.get(column) for column in _NUMBERS]
-    text_at = [at.get(column) for column in _TEXTS]
-    labelled = list(zip(_NUMBERS, indexes, strict=True))
-    missing = None in indexes  # an older logbook's header: those columns are empty
-    cells = operator.itemgetter(*(width if i is None else i for i in indexes))
-    out: dict[str, _Rows] = {}
-    escaped: dict[str, str] = {}  # a name as written -> as shown (bounded, escaped)
-    strangers: set[str] = set()
-    nan = math.nan
-    count = 0
-    for number, row in rows:
-        count += 1
-        if count > MAX_FLEET_ROWS:
-            problems.append(Problem(shown, number, f"more than {MAX_FLEET_ROWS} rows; the rest"))
-            break
-        if len(row) != width:
-            problems.append(Problem(shown, number, f"expected {width} fields, found {len(row)}"))
-            continue
-        name = row[name_at]
-        if names is None:
-            name = escaped.get(name) or escaped.setdefault(name, _name(name))
-        elif name not in names:
-            strangers.add(name)
-            continue
-        if missing:
-            row.append("")
-        try:
-            now_s = float(row[now_at])
-            values = [float(cell) if cell else nan for cell in cells(row)]
-        except ValueError:
-            bad = _bad_cell(row, [("now_s", now_at), *labelled])
-            problems.append(Problem(shown, number, bad))
-            continue
-        if not math.isfinite(now_s):
-            problems.append(Problem(shown, number, f"now_s is {row[now_at]!r}, not finite"))
-            continue
-        condition = row[condition_at]
-        if condition not in _CONDITIONS and condition != "":
-            what = printable(condition, 40)
-            problems.append(Problem(shown, number, f"condition {what!r} is not a condition"))
-            continue
-        agent = out.get(name)
-        if agent is None:
-            if names is None:
-                if not name or len(out) >= MAX_AGENTS:
-                    continue
-                try:
-                    agent_id = int(row[id_at]) if id_at is not None else 0
-                except ValueError:
-                    agent_id = 0
-            else:
-                agent_id = names[name]
-            agent = out[name] = _Rows(agent_id)
-        if len(agent.now_s) and now_s < agent.now_s[-1]:
-            problems.append(Problem(shown, number, "now_s goes back in time"))
-            continue
-        agent.now_s.append(now_s)
-        agent.flat.extend(values)
-        for column, index in zip(agent.texts, text_at, strict=True):
-            column.append(_intern(agent, row[index]) if index is not None and row[index] else 0)
-        agent.condition.append(_CONDITIONS.index(condition) if condition else -1)
-        agent.lost.append(1 if row[lost_at] == "1" else 0)
-    for agent in out.values():
-        agent.columns()
-    if strangers:
-        problems.append(
-            Problem(
-                shown,
-                None,
-                "rows of agents not in the mission: "
-                + ", ".join(sorted(printable(s, 40) for s in strangers)[:5]),
-            )
-        )
-    return out
-
-
-def _intern(rows: _Rows, cell: str) -> int:
-    """The index of a Vehicle Health text in ``rows.strings``, escaped and bounded.
-
-    The texts came over the air and through a file: each is escaped (its CSV cell was
-    already, by the logbook) and cut; at most :data:`MAX_TEXTS` distinct ones are kept.
-    """
-    index = rows.lookup.get(cell)
-    if index is None:
-        if len(rows.strings) > MAX_TEXTS:
-            cell = _TOO_MANY_TEXTS
-            index = rows.lookup.get(cell)
-            if index is not None:
-                return index
-        index = len(rows.strings)
-        rows.strings.append(line_safe(cell, MAX_LOG_TEXT_CHARS))
-        rows.lookup[cell] = index
-    return index
-
-
-# -- the replay ------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True, slots=True)
-class _Agent:
-    """What the replay knows of one agent shown in the table."""
-
-    info: Json
-    rows: _Rows | None
-    shift_s: float  # the observer's clock to mission time
-    observer: str | None
-    modes: Mapping[str, int]
-    changes_t: list[float]
-    changes: list[tuple[str, tuple[str, ...]]]  # (event, active leaves)
-    track_t: list[float]  # mission time of each of its track points
-    track_index: array[int]  # their indexes in the replay's track arrays
-
-
 @dataclass(slots=True)
 class ReplayLoad:
     """What loading said besides the replay: warnings, and where things came from."""
@@ -463,278 +178,6 @@ class ReplayLoad:
     def warnings(self) -> list[str]:
         """Every problem and note, as the command prints them (after ``warning:``)."""
         return [p.format_text() for p in self.problems] + self.notes
-
-
-class Replay:
-    """A finished run, loaded once, that gives the page's messages at any time.
-
-    Build it with :func:`load_replay`. Immutable once built: the server's clients call
-    :meth:`frame` from its event loop, each at its own time.
-
-    Attributes:
-        hello: The ``hello`` message, with ``"mode": "replay"``, no actions, and the
-            replay's span, speeds and sources under ``"replay"``.
-        start_s: The earliest mission time in the logs.
-        end_s: The latest.
-    """
-
-    def __init__(
-        self,
-        hello: Json,
-        origin: Origin,
-        agents: list[_Agent],
-        track: tuple[array[float], array[float], array[float], array[float], array[int]],
-        photos: list[Json],
-        log: list[tuple[float, str, str]],
-        checks: list[Json] | None,
-        station: Json,
-        station_gps_ms: float | None,
-        span: tuple[float, float],
-        alarms: Sequence[Alarm] = (),
-    ) -> None:
-        self.hello = hello
-        self.origin = origin
-        self._agents = agents
-        self._track_t, self._north, self._east, self._alt, self._track_agent = track
-        self._photos = photos
-        self._photo_t = [float(p["t"]) for p in photos]
-        self._log = log
-        self._log_t = [line[0] for line in log]
-        self.checks = checks
-        self._station = station
-        self._station_gps_ms = station_gps_ms
-        self.start_s, self.end_s = span
-        self._alarms = sorted(alarms, key=lambda a: (a.raised_s, a.id))
-        self._alarm_t = [a.raised_s for a in self._alarms]
-
-    # -- time ----------------------------------------------------------------------------
-
-    def clamp(self, t_s: float) -> float:
-        """``t_s`` within the run's span (a NaN is its start)."""
-        if not math.isfinite(t_s):
-            return self.start_s if not t_s > 0 else self.end_s
-        return min(max(t_s, self.start_s), self.end_s)
-
-    # -- messages ------------------------------------------------------------------------
-
-    def frame(self, t_s: float, after_s: float | None) -> list[Json]:
-        """The messages that bring a page that has everything up to ``after_s`` to ``t_s``.
-
-        ``[state]`` when the page moves forward by a little (the state carries the
-        track points, photos and log lines after ``after_s``); ``[reset, state]`` when
-        it has nothing yet (``after_s`` None), goes back, or jumps so far ahead that a
-        reset is smaller.
-        """
-        t = self.clamp(t_s)
-        if (
-            after_s is None
-            or t < after_s
-            or self._count(self._track_t, after_s, t) > (MAX_DELTA_ITEMS)
-        ):
-            return [self.reset(t), self.state(t, t)]
-        log_new = self._count(self._log_t, after_s, t)
-        photos_new = self._count(self._photo_t, after_s, t)
-        if log_new > MAX_LOG_LINES or photos_new > RESET_PHOTOS:
-            return [self.reset(t), self.state(t, t)]
-        return [self.state(t, after_s)]
-
-    @staticmethod
-    def _count(times: Sequence[float], after_s: float, t_s: float) -> int:
-        return bisect.bisect_right(times, t_s) - bisect.bisect_right(times, after_s)
-
-    def reset(self, t_s: float) -> Json:
-        """Everything up to ``t_s`` the page draws from the start: tracks, photos, log.
-
-        Each agent's track is thinned evenly to :data:`RESET_TRACK_POINTS` (first and
-        latest points kept); the latest :data:`RESET_PHOTOS` photos and
-        :data:`MAX_LOG_LINES` log lines.
-        """
-        t = self.clamp(t_s)
-        indexes: list[int] = []
-        for agent in self._agents:
-            n = bisect.bisect_right(agent.track_t, t)
-            if n == 0:
-                continue
-            stride = max(1, math.ceil(n / RESET_TRACK_POINTS))
-            chosen = list(agent.track_index[0:n:stride])
-            if chosen[-1] != agent.track_index[n - 1]:
-                chosen.append(agent.track_index[n - 1])
-            indexes += chosen
-        indexes.sort()
-        photos_end = bisect.bisect_right(self._photo_t, t)
-        log_end = bisect.bisect_right(self._log_t, t)
-        return {
-            "type": "reset",
-            "t": round(t, 3),
-            "track": [self._point(i) for i in indexes],
-            "photos": self._photos[max(0, photos_end - RESET_PHOTOS) : photos_end],
-            "log": self._lines(max(0, log_end - MAX_LOG_LINES), log_end),
-        }
-
-    def state(self, t_s: float, after_s: float) -> Json:
-        """The ``state`` message at ``t_s``, with the items after ``after_s`` (up to ``t_s``)."""
-        t = self.clamp(t_s)
-        start = bisect.bisect_right(self._track_t, after_s)
-        end = bisect.bisect_right(self._track_t, t)
-        photos = self._photos[
-            bisect.bisect_right(self._photo_t, after_s) : bisect.bisect_right(self._photo_t, t)
-        ]
-        log = self._lines(
-            bisect.bisect_right(self._log_t, after_s), bisect.bisect_right(self._log_t, t)
-        )
-        station = dict(self._station)
-        if self._station_gps_ms is not None:
-            station["gps_time_ms"] = int(self._station_gps_ms + 1000 * t)
-        alarms = self.alarms_at(t)
-        alarmed = {name for a in alarms if a["cleared_s"] is None for name in a["agents"]}
-        rows = [self._row(agent, t) for agent in self._agents]
-        for row in rows:
-            row["alarm"] = row["name"] in alarmed
-        return {
-            "type": "state",
-            "t": round(t, 3),
-            "station": station,
-            "agents": rows,
-            "alarms": alarms,
-            "track": [self._point(i) for i in range(start, end)],
-            "photos": photos,
-            "log": log,
-            "commands": [],
-            "checks": self.checks,
-            "replay": {"t": round(t, 3), "start_s": self.start_s, "end_s": self.end_s},
-        }
-
-    def alarms_at(self, t_s: float) -> list[Json]:
-        """The banner at ``t_s``: alarms in force then, and those cleared just before.
-
-        An alarm cleared after ``t_s`` is shown in force (``cleared_s`` null), as the
-        operator saw it then.
-        """
-        out: list[Json] = []
-        for alarm in self._alarms[: bisect.bisect_right(self._alarm_t, t_s)]:
-            cleared = alarm.cleared_s
-            if cleared is not None and cleared <= t_s:
-                if t_s - cleared >= CLEARED_SHOWN_S:
-                    continue
-                out.append(alarm.to_json())
-            else:
-                item = alarm.to_json()
-                item["cleared_s"] = None
-                out.append(item)
-        return out
-
-    def _point(self, i: int) -> Json:
-        return {
-            "seq": i + 1,
-            "agent": self._track_agent[i],
-            "t": round(self._track_t[i], 3),
-            "north_m": self._north[i],
-            "east_m": self._east[i],
-            "alt_m": self._alt[i],
-        }
-
-    def _lines(self, start: int, end: int) -> list[Json]:
-        return [
-            {"seq": i + 1, "t": round(t, 3), "level": level, "text": text}
-            for i, (t, level, text) in enumerate(self._log[start:end], start=start)
-        ]
-
-    def _row(self, agent: _Agent, t_s: float) -> Json:
-        """The agent's row at ``t_s``: its latest fleet-table row, its ages grown since."""
-        info = agent.info
-        behaviour: BehaviorState | None = None
-        behaviour_age: float | None = None
-        k = bisect.bisect_right(agent.changes_t, t_s) - 1
-        if k >= 0:
-            event, active = agent.changes[k]
-            behaviour = BehaviorState(int(info["id"]), 0, active, event)
-            behaviour_age = t_s - agent.changes_t[k]
-        rows = agent.rows
-        i = -1 if rows is None else bisect.bisect_right(rows.now_s, t_s - agent.shift_s) - 1
-        if rows is None or i < 0:
-            row = agent_row(info, self.origin, heard=False)
-            if behaviour is not None:  # its own log says so, though the station heard nothing
-                row["behaviour"] = agent_row(
-                    info,
-                    self.origin,
-                    heard=True,
-                    behaviour=behaviour,
-                    behaviour_age_s=behaviour_age,
-                )["behaviour"]
-            return row
-        n = rows.numbers
-        grown = t_s - agent.shift_s - rows.now_s[i]
-        status: AgentStatus | None = None
-        status_age: float | None = None
-        mode: str | None = None
-        if math.isfinite(n[_LAT][i]) and math.isfinite(n[_LON][i]):
-            number = _int(n[_MODE][i])
-            status = AgentStatus(
-                int(info["id"]),
-                0,
-                n[_LAT][i],
-                n[_LON][i],
-                n[_ALT][i] if math.isfinite(n[_ALT][i]) else 0.0,
-                n[_SPEED][i],
-                n[_CLIMB][i],
-                n[_HEADING][i],
-                number,
-            )
-            status_age = n[_STATUS_AGE][i] + grown if math.isfinite(n[_STATUS_AGE][i]) else None
-            mode = mode_name(agent.modes, number)
-        attitude: AgentAttitude | None = None
-        if math.isfinite(n[_ROLL][i]):
-            attitude = AgentAttitude(int(info["id"]), 0, n[_ROLL][i], n[_PITCH][i], n[_YAW][i])
-        link = None
-        if math.isfinite(n[_PACKETS][i]):
-            link = link_json(
-                packets=_int(n[_PACKETS][i]),
-                lost_packets=_int(n[_LOST_PACKETS][i]),
-                loss_ratio=_opt(n[_LOSS_RATIO][i]),
-                latency_mean_ms=_opt(n[_LATENCY][i]),
-                bad_tags=_int(n[_BAD_TAGS][i]),
-                malformed=_int(n[_MALFORMED][i]),
-                duplicates=_int(n[_DUPLICATES][i]),
-            )
-        since = n[_SINCE_HB][i]
-        code = rows.condition[i]
-        health: VehicleHealth | None = None
-        health_age: float | None = None
-        if math.isfinite(n[_HEALTH_AGE][i]):
-            texts = rows.texts
-            health = VehicleHealth(
-                int(info["id"]),
-                0,
-                armed=n[_ARMED][i] == 1,
-                battery_v=_opt(n[_BATTERY_V][i]),
-                battery_pct=_int_opt(n[_BATTERY_PCT][i]),
-                gps_fix_type=_int(n[_GPS_FIX][i]),
-                satellites=_int_opt(n[_SATELLITES][i]),
-                prearm=_PREARM_STATES.get(rows.strings[texts[_PREARM][i]], PrearmState.UNKNOWN),
-                text_severity=_int(n[_AP_SEVERITY][i]),
-                text=rows.strings[texts[_AP_TEXT][i]],
-                failsafe=rows.strings[texts[_FAILSAFE][i]],
-                autopilot_lost=n[_AP_LOST][i] == 1,
-                text_age_s=_int(n[_AP_TEXT_AGE][i]),
-            )
-            health_age = n[_HEALTH_AGE][i] + grown
-        return agent_row(
-            info,
-            self.origin,
-            heard=True,
-            link=link,
-            lost=bool(rows.lost[i]),
-            since_heartbeat_s=since + grown if math.isfinite(since) else None,
-            condition=_CONDITIONS[code] if code >= 0 else None,
-            status=status,
-            status_age_s=status_age,
-            mode=mode,
-            behaviour=behaviour,
-            behaviour_age_s=behaviour_age,
-            attitude=attitude,
-            health=health,
-            health_age_s=health_age,
-        )
 
 
 # -- loading ---------------------------------------------------------------------------------
@@ -779,7 +222,7 @@ def _hello_from_logs(
             {
                 "name": name,
                 "id": agent_id if agent_id is not None else seen.get(name, 0),
-                "role": _name(logs.header.get("role", "vehicle")) if logs else "vehicle",
+                "role": shown_name(logs.header.get("role", "vehicle")) if logs else "vehicle",
                 "airframe": None,
                 "modes": [],
                 "heartbeat_hz": None,
@@ -794,7 +237,7 @@ def _hello_from_logs(
         "type": "hello",
         "protocol": PROTOCOL_VERSION,
         "mission": {
-            "name": _name(header.get("mission", "(unknown mission)")),
+            "name": shown_name(header.get("mission", "(unknown mission)")),
             "id": _header_int(next(iter(agents.values()), None), "mission_id"),
             "description": None,
             "origin": {
@@ -820,16 +263,16 @@ def _hello_from_logs(
     }
 
 
-def _first_position(rows: Mapping[str, Mapping[str, _Rows]]) -> Origin:
+def _first_position(rows: Mapping[str, Mapping[str, FleetRows]]) -> Origin:
     """Without a mission, the map's origin: the first position in any fleet table."""
     best: tuple[float, float, float, float] | None = None
     for seen in rows.values():
         for agent in seen.values():
-            lat, lon = agent.numbers[_LAT], agent.numbers[_LON]
+            lat, lon = agent.numbers[LAT], agent.numbers[LON]
             for i in range(len(agent)):
                 if math.isfinite(lat[i]) and math.isfinite(lon[i]):
                     if best is None or agent.now_s[i] < best[0]:
-                        alt = agent.numbers[_ALT][i]
+                        alt = agent.numbers[ALT][i]
                         best = (agent.now_s[i], lat[i], lon[i], alt if math.isfinite(alt) else 0.0)
                     break
     return Origin(best[1], best[2], 0.0) if best is not None else Origin(0.0, 0.0, 0.0)
@@ -878,7 +321,7 @@ def _changes(logs: AgentLogs | None) -> tuple[list[float], list[tuple[str, tuple
 
 
 def _tracks(
-    chosen: Mapping[str, tuple[_Rows, float]], ids: Mapping[str, int], origin: Origin
+    chosen: Mapping[str, tuple[FleetRows, float]], ids: Mapping[str, int], origin: Origin
 ) -> tuple[
     tuple[array[float], array[float], array[float], array[float], array[int]],
     dict[str, tuple[list[float], array[int]]],
@@ -889,14 +332,14 @@ def _tracks(
         n = rows.numbers
         last = math.nan
         for i in range(len(rows)):
-            lat, lon, age = n[_LAT][i], n[_LON][i], n[_STATUS_AGE][i]
+            lat, lon, age = n[LAT][i], n[LON][i], n[STATUS_AGE][i]
             if not (math.isfinite(lat) and math.isfinite(lon)):
                 continue
             arrival = rows.now_s[i] - (age if math.isfinite(age) else 0.0)
             if abs(arrival - last) < 1e-6:
                 continue
             last = arrival
-            alt_m = n[_ALT][i] if math.isfinite(n[_ALT][i]) else 0.0
+            alt_m = n[ALT][i] if math.isfinite(n[ALT][i]) else 0.0
             local = to_local(lat, lon, alt_m, origin)
             points.append((arrival + shift, ids[name], local.north_m, local.east_m, alt_m, name))
     points.sort(key=lambda p: p[0])
@@ -917,7 +360,7 @@ def _tracks(
 def _photos(
     agents: Mapping[str, AgentLogs],
     ids: Mapping[str, int],
-    chosen: Mapping[str, tuple[_Rows, float]],
+    chosen: Mapping[str, tuple[FleetRows, float]],
     origin: Origin,
 ) -> list[Json]:
     """The pictures each agent sent, at its position then (those without one left out)."""
@@ -933,10 +376,10 @@ def _photos(
             rows, shift = rows_shift
             i = bisect.bisect_right(rows.now_s, t_s - shift) - 1
             n = rows.numbers
-            if i < 0 or not math.isfinite(n[_LAT][i]):
+            if i < 0 or not math.isfinite(n[LAT][i]):
                 continue  # before its first position: nowhere to draw it
-            alt = n[_ALT][i] if math.isfinite(n[_ALT][i]) else 0.0
-            out.append((t_s, ids[name], PictureData(ids[name], 0, n[_LAT][i], n[_LON][i], alt, k)))
+            alt = n[ALT][i] if math.isfinite(n[ALT][i]) else 0.0
+            out.append((t_s, ids[name], PictureData(ids[name], 0, n[LAT][i], n[LON][i], alt, k)))
     out.sort(key=lambda item: item[0])
     return [
         photo_json(seq, agent_id, t_s, picture, origin)
@@ -945,7 +388,7 @@ def _photos(
 
 
 def _alarm_episodes(
-    chosen: Mapping[str, tuple[_Rows, float]],
+    chosen: Mapping[str, tuple[FleetRows, float]],
     station: AgentConfig,
     origin: Origin,
     notes: list[str],
@@ -972,20 +415,20 @@ def _alarm_episodes(
             t_s = rows.now_s[i] + shift
             code = rows.condition[i]
             words = failsafe_words(
-                _CONDITIONS[code] if code >= 0 else None,
-                rows.strings[rows.texts[_FAILSAFE][i]] or None,
+                CONDITIONS[code] if code >= 0 else None,
+                rows.strings[rows.texts[FAILSAFE][i]] or None,
             )
             if words != last_words:
                 last_words = words
                 events.append((t_s, 0, name, words))
-            lat, lon, age = n[_LAT][i], n[_LON][i], n[_STATUS_AGE][i]
+            lat, lon, age = n[LAT][i], n[LON][i], n[STATUS_AGE][i]
             if not (math.isfinite(lat) and math.isfinite(lon)):
                 continue
             arrival = rows.now_s[i] - (age if math.isfinite(age) else 0.0)
             if abs(arrival - last_arrival) < 1e-6:
                 continue
             last_arrival = arrival
-            alt_m = n[_ALT][i] if math.isfinite(n[_ALT][i]) else 0.0
+            alt_m = n[ALT][i] if math.isfinite(n[ALT][i]) else 0.0
             local = to_local(lat, lon, alt_m, origin)
             events.append((t_s, 1, name, (local.north_m, local.east_m, alt_m, arrival + shift)))
     events.sort(key=lambda e: (e[0], e[1], e[2]))
@@ -1081,13 +524,13 @@ def load_replay(
         (n for n in agents if "fleet_csv" in agents[n].files),
         key=lambda n: (n != station, n),
     )
-    fleet: dict[str, dict[str, _Rows]] = {}
+    fleet: dict[str, dict[str, FleetRows]] = {}
     wanted = (set(configs) if configs else set(agents)) - {station}
     for observer in observers:
         if fleet and not (wanted - _covered(fleet)):
             break  # every agent has rows already: no need to read further tables
         fleet[observer] = read_fleet_csv(agents[observer].files["fleet_csv"], ids, problems)
-    chosen: dict[str, tuple[_Rows, float]] = {}
+    chosen: dict[str, tuple[FleetRows, float]] = {}
     observer_of: dict[str, str] = {}
     for observed in sorted(_covered(fleet)):
         if observed == station:
@@ -1126,14 +569,14 @@ def load_replay(
     track, per_agent = _tracks(
         {n: c for n, c in chosen.items() if n in ids_by_name}, ids_by_name, origin
     )
-    shown: list[_Agent] = []
+    shown: list[ReplayAgent] = []
     for info in hello["agents"]:
         name = str(info["name"])
         rows_shift = chosen.get(name)
         times, indexes = per_agent.get(name, ([], array("q")))
         changes_t, changes = _changes(agents.get(name))
         shown.append(
-            _Agent(
+            ReplayAgent(
                 info=info,
                 rows=rows_shift[0] if rows_shift else None,
                 shift_s=rows_shift[1] if rows_shift else 0.0,
@@ -1216,7 +659,7 @@ def load_replay(
     return replay, load
 
 
-def _covered(fleet: Mapping[str, Mapping[str, _Rows]]) -> set[str]:
+def _covered(fleet: Mapping[str, Mapping[str, FleetRows]]) -> set[str]:
     return {name for seen in fleet.values() for name in seen}
 
 
@@ -1230,12 +673,10 @@ def iter_warnings(load: ReplayLoad, limit: int = 50) -> Iterator[str]:
 
 __all__ = [
     "SPEEDS",
-    "Replay",
     "ReplayError",
     "ReplayLoad",
     "find_log_files",
     "iter_warnings",
     "load_replay",
     "mission_from_report",
-    "read_fleet_csv",
 ]

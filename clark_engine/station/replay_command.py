@@ -1,7 +1,7 @@
 """``clark replay LOGS``: the command that serves a finished run's replay (docs/station-view.md).
 
 Kept apart from :mod:`clark_engine.cli` so that the command's options, its checks and
-its serving loop live beside the replay they serve; ``cli.py`` only adds the parser
+its serving loop live beside the replay they serve; ``clark_engine.cli`` only adds the parser
 (:func:`add_replay_parser`).
 
 Order of business, so that a mistake costs nothing: the options are checked (address,
@@ -28,7 +28,7 @@ from clark_engine.errors import UsageError
 
 if TYPE_CHECKING:  # the engine's layers load when the command runs: `clark validate` stays fast
     from clark_engine.mission.model import Mission
-    from clark_engine.station.view_model import CommandRequest
+    from clark_engine.station.view_commands import CommandRequest
 
 DEFAULT_VIEW: str = "127.0.0.1:0"
 """Where the replay is served unless ``--view`` says: loopback, a free port (printed)."""
@@ -78,8 +78,8 @@ def _served_at(args: argparse.Namespace) -> tuple[str, int, str | None]:
     Raises:
         UsageError: A bad address or token, both token options, or no token off loopback.
     """
+    from clark_engine.station.access import check_token, is_loopback_host, parse_view_address
     from clark_engine.station.live_view import load_token
-    from clark_engine.station.server import check_token, is_loopback_host, parse_view_address
 
     if args.view_token is not None and args.view_token_file is not None:
         raise UsageError("give --view-token or --view-token-file, not both")
