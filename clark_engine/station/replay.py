@@ -11,7 +11,7 @@ page jumps, a ``reset`` with the tracks, photos and mission-log lines up to ``t`
 What comes from where (each agent's four files, docs/logs.md, "The files"):
 
 - **Mission time** is ``clark analyze --checks``'s
-  (:func:`clark_engine.expectations.from_logs.align_clocks`):
+  (:func:`clark_engine.expectations.log_clocks.align_clocks`):
   t = 0 is the start of the station's runtime clock, every agent's clock mapped onto it
   by GPS time.
 - **Agent rows** (heartbeat age, lost, condition, position, speed, heading, mode,
@@ -56,19 +56,18 @@ from typing import Any, Final
 from clark_engine.analysis import log_folder
 from clark_engine.analysis.latency import Problem
 from clark_engine.errors import ClarkError
-from clark_engine.expectations.from_logs import (
+from clark_engine.expectations.from_logs import judge
+from clark_engine.expectations.log_clocks import align_clocks
+from clark_engine.expectations.log_readers import (
     AgentLogs,
-    LogChecksError,
-    align_clocks,
     file_names,
     fleet_csv,
-    judge,
     read_interface_log,
     read_message_log,
     read_mission_log,
-    rebuild,
     text_lines,
 )
+from clark_engine.expectations.log_run import LogChecksError, rebuild
 from clark_engine.link.messages import (
     AgentAttitude,
     AgentStatus,
