@@ -467,7 +467,7 @@ def _count(text: str) -> int:
 
 def _runs(text: str) -> int:
     """A number of runs: 1 to the most a campaign may fly."""
-    from clark_engine.mission.schema_source.mission import MAX_CAMPAIGN_RUNS
+    from clark_engine.mission.schema_source.dry_run import MAX_CAMPAIGN_RUNS
 
     value = _count(text)
     if value > MAX_CAMPAIGN_RUNS:
