@@ -28,7 +28,7 @@ MAX_COUNTED_GAP = 10_000
 _WINDOW_MASK = (1 << COUNTER_WINDOW) - 1
 
 
-class Order(Enum):
+class _Order(Enum):
     """Where a packet's counter falls relative to those already seen from its sender."""
 
     NEW = 1  # above every counter seen
@@ -39,11 +39,11 @@ class Order(Enum):
 
 # Looking a member up on an Enum class costs a descriptor call in Python 3.11, and every
 # packet every agent receives is placed: the hot path uses these names.
-NEW, LATE, DUPLICATE, OUT_OF_WINDOW = (
-    Order.NEW,
-    Order.LATE,
-    Order.DUPLICATE,
-    Order.OUT_OF_WINDOW,
+NEW, LATE, DUPLICATE, _OUT_OF_WINDOW = (
+    _Order.NEW,
+    _Order.LATE,
+    _Order.DUPLICATE,
+    _Order.OUT_OF_WINDOW,
 )
 
 
@@ -149,7 +149,7 @@ class LinkStats:
             return None
         return math.sqrt(self._latency_m2 / (self.latency_count - 1))
 
-    def _order(self, counter: int, authenticated: bool = True) -> Order:
+    def _order(self, counter: int, authenticated: bool = True) -> _Order:
         """Place ``counter`` in the sequence and update losses; O(1).
 
         Args:
@@ -184,7 +184,7 @@ class LinkStats:
             self.out_of_window += 1  # taken back if the next packet confirms a new sequence
             if not authenticated:
                 self._candidate = counter
-            return OUT_OF_WINDOW
+            return _OUT_OF_WINDOW
         bit = 1 << behind
         if self._seen & bit:
             self.duplicates += 1
