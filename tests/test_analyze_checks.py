@@ -19,7 +19,8 @@ import pytest
 from clark_engine.behaviors.base import BehaviorRuntime as Primitive
 from clark_engine.cli import main
 from clark_engine.dryrun.command import run_dry_run
-from clark_engine.expectations.from_logs import NO_SIGNALS, check_folder, entered_states
+from clark_engine.expectations.from_logs import NO_SIGNALS, check_folder
+from clark_engine.expectations.log_run import entered_states
 from clark_engine.link.fleet import FleetTable
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.geo import LocalPoint, to_global

@@ -104,7 +104,7 @@ def test_mission_fault_is_refused_before_the_dry_run(
 
 @pytest.mark.parametrize("rate", ["1e-320", "1e-300", "4e-324"])
 def test_vanishing_telemetry_rate_is_a_finding(rate: str, tmp_path: Path) -> None:
-    """1e-320 Hz overflowed the divider (OverflowError in mission/cross_checks.py)."""
+    """1e-320 Hz overflowed the divider (OverflowError in mission/agent_checks.py)."""
     result = validate_file(_mission(tmp_path, rate=rate), "m.yaml")
     assert [f.code for f in result.errors] == ["E-RATE"]
     assert "once a day" in result.errors[0].message

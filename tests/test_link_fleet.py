@@ -19,8 +19,6 @@ from clark_engine.link.errors import (
     TruncatedPacket,
 )
 from clark_engine.link.fleet import (
-    COUNTER_WINDOW,
-    MAX_COUNTED_GAP,
     MAX_FOREIGN_REPORTS,
     MAX_RECENT_UNKNOWN,
     AgentFound,
@@ -28,8 +26,8 @@ from clark_engine.link.fleet import (
     CsvValue,
     FleetTable,
     ForeignAgent,
-    LinkStats,
 )
+from clark_engine.link.link_stats import COUNTER_WINDOW, MAX_COUNTED_GAP, LinkStats
 from clark_engine.link.messages import (
     MESSAGE_NAMES,
     AgentAttitude,

@@ -26,7 +26,7 @@ from test_runtime_envelope import Flight, _leave, compiled, local, of, past_the_
 
 from clark_engine.dryrun.command import run_dry_run
 from clark_engine.mission.compiler import compile_mission
-from clark_engine.mission.envelope_checks import WALK_95_FACTOR
+from clark_engine.mission.envelope_mission_checks import WALK_95_FACTOR
 from clark_engine.runtime.commands import Goto, SetMode
 from clark_engine.station.alarms import NEAR_MISS, AlarmWatch
 from clark_engine.validation import validate_file

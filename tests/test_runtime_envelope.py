@@ -128,8 +128,9 @@ def compiled(
     return replace(config_from_dict(data), safety_setup=False)
 
 
-#: What `clark validate` proves of the envelope (mission/envelope_checks.py): a mission
-#: here may break these on purpose, as a hand-edited config or a reactive behaviour would.
+#: What `clark validate` proves of the envelope (mission/envelope_checks.py and
+#: envelope_mission_checks.py): a mission here may break these on purpose, as a hand-edited
+#: config or a reactive behaviour would.
 PROOFS = frozenset(
     {
         "E-ALTITUDE-CEILING",

@@ -33,7 +33,8 @@ from clark_engine.mission.model import Mission
 from clark_engine.runtime.config import config_from_dict
 from clark_engine.sim.ardupilot.firmware import FIRMWARES
 from clark_engine.sim.gps_error import WALK_STEP_S, GpsError, GpsErrorSettings
-from clark_engine.sim.radio import BurstChain, BurstSettings, RadioMesh
+from clark_engine.sim.radio import RadioMesh
+from clark_engine.sim.radio_bursts import BurstChain, BurstSettings
 from clark_engine.sitl.launcher import SitlInstall
 from clark_engine.validation import validate_file
 

@@ -7,7 +7,7 @@ The reference is built from what the engine itself reads, so it cannot drift:
 * ``clark_engine.behaviors`` (the built-in behaviours' declarations) for each
   primitive's summary, parameters and events, and each module's docstring for its prose;
 * ``behaviors/*.yaml`` for the shipped behaviour blocks;
-* ``clark_engine.mission.cross_checks`` for the event names the engine accepts.
+* ``clark_engine.mission.state_checks`` for the event names the engine accepts.
 
 Usage, from the repository root::
 
@@ -1040,7 +1040,7 @@ def transitions_section(schema: Schema) -> list[str]:
 
 def events_section() -> list[str]:
     """Every event name and its meaning, cross-checked against the engine."""
-    from clark_engine.mission import cross_checks as checks
+    from clark_engine.mission import state_checks as checks
     from clark_engine.mission.schema_source import states
 
     documented = {name for name, _ in EVENTS}
@@ -1398,7 +1398,7 @@ def generate() -> str:
         "`schemas/mission.schema.json`",
         "`schemas/behavior.schema.json`",
         "the behaviour declarations (`clark_engine/behaviors/`)",
-        "the event names of `clark_engine/mission/cross_checks.py`",
+        "the event names of `clark_engine/mission/state_checks.py`",
         "`behaviors/*.yaml`",
     ]
     lines: list[str] = []

@@ -98,7 +98,7 @@ def resolved_channel_schema() -> Schema:
     The hardware-profile schema's own entry, every field present. A function: that
     schema's module takes a while to import, and only the schema generator needs this.
     """
-    from clark_engine.mission.schema_source.hardware_profile import CHANNEL_SCHEMA
+    from clark_engine.mission.schema_source.hardware_parts import CHANNEL_SCHEMA
 
     return {
         **CHANNEL_SCHEMA,

@@ -39,7 +39,7 @@ def count_arg(text: str) -> int:
 
 def runs_arg(text: str) -> int:
     """A number of runs: 1 to the most a campaign may fly."""
-    from clark_engine.mission.schema_source.mission import MAX_CAMPAIGN_RUNS
+    from clark_engine.mission.schema_source.dry_run import MAX_CAMPAIGN_RUNS
 
     value = count_arg(text)
     if value > MAX_CAMPAIGN_RUNS:

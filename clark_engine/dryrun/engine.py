@@ -76,7 +76,8 @@ from clark_engine.sim.ardupilot.vehicle_model import VehicleModel
 from clark_engine.sim.ardupilot.vehicles import make_vehicle
 from clark_engine.sim.camera import SimCamera
 from clark_engine.sim.gps_error import GpsError, GpsErrorSettings
-from clark_engine.sim.radio import BurstSettings, Position, RadioMesh
+from clark_engine.sim.radio import Position, RadioMesh
+from clark_engine.sim.radio_bursts import BurstSettings
 from clark_engine.sim.wind import sitl_wind_params, wind_field
 from clark_engine.sitl.launcher import Home, SitlInstall, SitlProcess, vehicle_for_firmware
 

@@ -21,7 +21,8 @@ What the table holds, following the thesis (section 3.7, requirements 7.2.1-7.2.
   by reading (:meth:`FleetTable.read`); :meth:`FleetTable.peek` reads without
   clearing. "Latest" means latest sent: a reordered packet does not overwrite a
   value that came in a newer one.
-- Per-peer link statistics (:class:`LinkStats`) in O(1) memory per peer.
+- Per-peer link statistics (:class:`~clark_engine.link.link_stats.LinkStats`) in O(1)
+  memory per peer.
 
 The table stores every message type, commands included (7.2.4), but acts on
 none: whether a Mode Change Request or a Terminate is obeyed (authenticated,
@@ -40,7 +41,6 @@ import operator
 from collections import OrderedDict
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
-from enum import Enum
 from typing import Any, Generic, TypeVar
 
 from clark_engine.link.errors import (
@@ -49,6 +49,7 @@ from clark_engine.link.errors import (
     ForeignMission,
     ReplayedPacket,
 )
+from clark_engine.link.link_stats import DUPLICATE, LATE, NEW, LinkStats
 from clark_engine.link.messages import (
     MESSAGE_NAMES,
     AgentAttitude,
@@ -65,17 +66,6 @@ from clark_engine.untrusted import printable
 
 M = TypeVar("M", bound=Message)
 
-#: Counters below the highest one seen that the loss tracker still tells apart
-#: (seen or not). A packet later than this is counted as ``out_of_window``.
-COUNTER_WINDOW = 64
-
-#: A forward counter jump larger than this is taken as the sender restarting or
-#: moving its counter on (a time-based counter jumps by the time it was down),
-#: not as that many lost packets: it is counted in ``resyncs`` and loss counting
-#: starts again from the new counter. At 10 packets/s this is over 16 minutes of
-#: packets, far beyond any outage a heartbeat timeout would not already report.
-MAX_COUNTED_GAP = 10_000
-
 #: Distinct (sender, mission) pairs reported as foreign; further ones are only
 #: counted, so a stream of corrupted headers cannot grow the table without bound.
 MAX_FOREIGN_REPORTS = 256
@@ -84,8 +74,6 @@ MAX_FOREIGN_REPORTS = 256
 #: packet counts) for diagnostics; older ones are only counted in
 #: :attr:`FleetTable.unknown_packets`, so forged ids cannot grow the table.
 MAX_RECENT_UNKNOWN = 16
-
-_WINDOW_MASK = (1 << COUNTER_WINDOW) - 1
 
 
 # --------------------------------------------------------------------- events
@@ -132,223 +120,6 @@ class ForeignAgent:
 
 
 FleetEvent = AgentFound | AgentLost | ForeignAgent
-
-
-# ---------------------------------------------------------------- link stats
-
-
-class _Order(Enum):
-    """Where a packet's counter falls relative to those already seen from its sender."""
-
-    NEW = 1  # above every counter seen
-    LATE = 2  # below the highest, inside the window, not seen before: fills a gap
-    DUPLICATE = 3  # seen before
-    OUT_OF_WINDOW = 4  # too far below the highest to tell
-
-
-# Looking a member up on an Enum class costs a descriptor call in Python 3.11, and every
-# packet every agent receives is placed: the hot path uses these names.
-_NEW, _LATE, _DUPLICATE, _OUT_OF_WINDOW = (
-    _Order.NEW,
-    _Order.LATE,
-    _Order.DUPLICATE,
-    _Order.OUT_OF_WINDOW,
-)
-
-
-@dataclass(slots=True)
-class LinkStats:
-    """How the link from one peer is doing, in O(1) memory.
-
-    Losses are inferred from the sender's packet counter: a jump of k > 1 over
-    the highest counter seen counts k - 1 losses, and a late packet that fills
-    one of those gaps takes one back, so reordering is never counted as loss.
-    A bitmap of the last :data:`COUNTER_WINDOW` counters tells a late packet
-    from a duplicate. Counters are 48-bit and never reused by a sender, so they
-    never wrap.
-
-    An unauthenticated counter proves nothing: one garbled on the way can land
-    anywhere in the 48 bits. So on an unauthenticated packet a counter more than
-    :data:`COUNTER_WINDOW` away from the sequence (ahead of it, or behind its
-    window) is held as a *candidate* and becomes the new baseline only when the
-    next packet continues from it (a sender that restarted or moved its counter
-    on). Otherwise the candidate was an outlier (``outliers``, or
-    ``out_of_window`` when behind) and the old sequence carries on, so one bad
-    counter costs one count, never the rest of the run. This is the replay
-    window's recovery (the codec restarts its window on the next genuine
-    packet) applied to the accounting. A tagged counter is trusted at once.
-
-    Latency is the receiver's GPS time minus a message's GPS stamp, in
-    milliseconds, over every message received except Picture Data (whose stamp
-    is the capture time, not the send time) and unstamped ones. It is kept
-    signed: a negative figure shows the two GPS clocks disagree. Count, mean, standard
-    deviation, minimum and maximum are kept with Welford's algorithm; the
-    median needs every sample, so the log analyzer computes it offline from
-    the logs.
-
-    Attributes:
-        packets: Packets accepted from this peer (duplicates excluded).
-        bytes: Their total size on the wire.
-        messages: Messages received, by message name (``"agent_status"``).
-        misattributed: Messages whose agent id is not the packet's sender; dropped.
-        lost: Packets inferred lost from counter gaps, net of late arrivals.
-        duplicates: Counters seen again, whether the codec rejected them as
-            replays or they reached the table.
-        out_of_window: Packets too late to tell from duplicates; their data is
-            still applied, in arrival order.
-        resyncs: Counter jumps above :data:`MAX_COUNTED_GAP`, and unauthenticated
-            counters far from the sequence that the next packet confirmed (a
-            sender that restarted): loss counting starts again there.
-        outliers: Unauthenticated counters far ahead of the sequence that the next
-            packet did not confirm (garbled on the way, or forged): counted here
-            only, never as loss nor as the new baseline.
-        bad_tags: Packets that failed authentication.
-        malformed: Packets the codec could not read (truncated, malformed,
-            oversize, unknown protocol version).
-        foreign: Packets or heartbeats claiming another mission.
-        last_packet_s: Receive time of the last accepted packet, or None.
-        last_rejected_s: Receive time of the last packet the codec rejected, or None.
-        latency_count: Latency samples.
-        latency_mean_ms: Their mean, or None before the first.
-        latency_min_ms: Smallest sample, or None.
-        latency_max_ms: Largest sample, or None.
-    """
-
-    packets: int = 0
-    bytes: int = 0
-    messages: dict[str, int] = field(default_factory=dict)
-    misattributed: int = 0
-    lost: int = 0
-    duplicates: int = 0
-    out_of_window: int = 0
-    resyncs: int = 0
-    outliers: int = 0
-    bad_tags: int = 0
-    malformed: int = 0
-    foreign: int = 0
-    last_packet_s: float | None = None
-    last_rejected_s: float | None = None
-    latency_count: int = 0
-    latency_mean_ms: float | None = None
-    latency_min_ms: float | None = None
-    latency_max_ms: float | None = None
-    _latency_m2: float = field(default=0.0, repr=False)
-    # packets placed in the counter sequence (new, or filling a counted gap)
-    _sequenced: int = field(default=0, repr=False)
-    _highest: int = field(default=-1, repr=False)  # highest counter seen; -1 before any
-    # counter from which gaps are counted: the first seen, or the last resync
-    _floor: int = field(default=0, repr=False)
-    _seen: int = field(default=0, repr=False)  # bit i set: counter _highest - i was seen
-    # unauthenticated counter far from the sequence, awaiting confirmation; -1 when none
-    _candidate: int = field(default=-1, repr=False)
-
-    @property
-    def loss_ratio(self) -> float | None:
-        """Lost packets over packets the sender sent (lost + received), or None before any."""
-        sent = self.lost + self._sequenced
-        return self.lost / sent if sent else None
-
-    @property
-    def latency_std_ms(self) -> float | None:
-        """Sample standard deviation of latency (n - 1, as ``statistics.stdev``), or None.
-
-        None below two samples, where it is undefined.
-        """
-        if self.latency_count < 2:
-            return None
-        return math.sqrt(self._latency_m2 / (self.latency_count - 1))
-
-    def _order(self, counter: int, authenticated: bool = True) -> _Order:
-        """Place ``counter`` in the sequence and update losses; O(1).
-
-        Args:
-            counter: The packet's counter.
-            authenticated: True when a tag vouches for it; otherwise a counter far
-                from the sequence waits for the next packet to confirm it.
-        """
-        if self._candidate >= 0:
-            self._settle(counter)
-        highest = self._highest
-        if counter > highest:
-            if highest < 0:
-                self._floor = counter
-                self._seen = 1
-            else:
-                jump = counter - highest
-                if jump > COUNTER_WINDOW and not authenticated:
-                    self._candidate = counter  # placed (or not) by the next packet
-                    return _NEW
-                if jump > MAX_COUNTED_GAP:
-                    self.resyncs += 1
-                    self._floor = counter
-                    self._seen = 1
-                else:
-                    self.lost += jump - 1
-                    self._seen = ((self._seen << jump) | 1) & _WINDOW_MASK
-            self._highest = counter
-            self._sequenced += 1
-            return _NEW
-        behind = highest - counter
-        if behind >= COUNTER_WINDOW:
-            self.out_of_window += 1  # taken back if the next packet confirms a new sequence
-            if not authenticated:
-                self._candidate = counter
-            return _OUT_OF_WINDOW
-        bit = 1 << behind
-        if self._seen & bit:
-            self.duplicates += 1
-            return _DUPLICATE
-        self._seen |= bit
-        if counter > self._floor:  # inside a gap that was counted as loss
-            self.lost -= 1
-            self._sequenced += 1
-        return _LATE
-
-    def _settle(self, counter: int) -> None:
-        """Adopt or drop the candidate baseline, now that ``counter`` follows it.
-
-        ``counter`` confirms the candidate when it continues from it (above it, by
-        no more than the window): the sender's sequence really moved there. Else
-        the candidate was a lone bad counter and the old sequence stands.
-        """
-        candidate = self._candidate
-        self._candidate = -1
-        highest = self._highest
-        if not candidate < counter <= candidate + COUNTER_WINDOW:
-            if candidate > highest:
-                self.outliers += 1
-            return  # one behind stays counted as out_of_window, like a straggler
-        if candidate < highest:
-            self.out_of_window -= 1  # not a straggler: the start of a new sequence
-            self.resyncs += 1
-            self._floor = candidate
-        elif candidate - highest > MAX_COUNTED_GAP:
-            self.resyncs += 1
-            self._floor = candidate
-        else:
-            self.lost += candidate - highest - 1  # more than the window: no bit survives
-        self._seen = 1
-        self._highest = candidate
-        self._sequenced += 1
-
-    def _add_latency(self, latency_ms: float) -> None:
-        """Welford's update: exact running mean and variance in O(1) memory."""
-        n = self.latency_count + 1
-        self.latency_count = n
-        if n == 1:
-            self.latency_mean_ms = self.latency_min_ms = self.latency_max_ms = latency_ms
-            return
-        # Set by the first sample. (Type comments, not typing.cast: this runs for every
-        # message every agent receives, and cast is a function call.)
-        mean: float = self.latency_mean_ms  # type: ignore[assignment]
-        delta = latency_ms - mean
-        mean += delta / n
-        self.latency_mean_ms = mean
-        self._latency_m2 += delta * (latency_ms - mean)
-        if latency_ms < self.latency_min_ms:  # type: ignore[operator]
-            self.latency_min_ms = latency_ms
-        if latency_ms > self.latency_max_ms:  # type: ignore[operator]
-            self.latency_max_ms = latency_ms
 
 
 # ------------------------------------------------------------------- records
@@ -654,12 +425,12 @@ class FleetTable:
             return []
         counter = packet.counter
         stats = self._stats.get(sender)
-        order = _NEW
+        order = NEW
         events: list[FleetEvent] = []
         messages = packet.messages
         if stats is not None:
             order = stats._order(counter, packet.authenticated)
-            if order is _DUPLICATE:
+            if order is DUPLICATE:
                 return []
         elif self._closed:  # not in the mission: counted, never recorded
             self._note_unknown(sender)
@@ -682,7 +453,7 @@ class FleetTable:
         record = None if sender in self._banned else self._records.get(sender)
         messages = packet.messages
         samples = None if record is None else record._samples
-        late = order is _LATE  # a late packet replaces only values from older ones
+        late = order is LATE  # a late packet replaces only values from older ones
         for message in messages:
             if message.agent_id != sender:
                 stats.misattributed += 1

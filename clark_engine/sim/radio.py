@@ -62,18 +62,10 @@ The smoothstep has zero slope at both ends, so loss neither jumps at the range
 nor kinks at the fade's end. Taking the smaller range makes every link
 symmetric: the weaker radio limits both directions.
 
-Bursts (``sim.radio_bursts``). Real links lose packets in runs (a fade, a body in
-the way, another transmitter), not one by one. Each link (pair of agents, both
-directions) has its own two-state Gilbert-Elliott chain in simulated time: it stays
-in its good state for an exponentially distributed time of mean ``good_s`` and in
-its bad state for one of mean ``bad_s``, losing ``loss_good`` and ``loss_bad`` of the
-packets in each. It starts in the bad state with the stationary probability
-``bad_s / (good_s + bad_s)``, so the long-run loss share of a link within range is
-``radio_loss + (1 - radio_loss) * (good_s * loss_good + bad_s * loss_bad) / (good_s +
-bad_s)``. Each chain draws its sojourns from its own generator, seeded from the run's
-seed and the link's two names (``{seed}:radio-burst:{a}:{b}``), lazily as simulated
-time reaches them: its state at a time depends on nothing but that time (and the seed),
-not on how many packets crossed the link before.
+Bursts (``sim.radio_bursts``). Real links lose packets in runs, not one by one: each
+link (pair of agents, both directions) has its own Gilbert-Elliott chain in simulated
+time (:mod:`clark_engine.sim.radio_bursts`), whose state at the send time gives ``b``
+in step 6.
 
 Not modelled: DigiMesh relaying (every agent is assumed to hear every other
 directly, and a relayed packet would cost the channel air time twice), MAC
@@ -119,6 +111,8 @@ import struct
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, fields, replace
 from typing import Any, NamedTuple
+
+from clark_engine.sim.radio_bursts import BurstChain, BurstSettings
 
 #: Fixed latency after the air time when the mesh is built without one, in seconds.
 DEFAULT_LATENCY_S = 0.005
@@ -224,90 +218,12 @@ class Delivery(NamedTuple):
     corrupted: bool = False
 
 
-@dataclass(frozen=True, slots=True)
-class BurstSettings:
-    """The mission's ``sim.radio_bursts``: a Gilbert-Elliott chain on every link.
-
-    Attributes:
-        good_s: Mean time a link stays in its good state.
-        bad_s: Mean time a link stays in its bad state (a burst).
-        loss_good: Share of packets the good state loses.
-        loss_bad: Share of packets the bad state loses.
-    """
-
-    good_s: float = 60.0
-    bad_s: float = 2.0
-    loss_good: float = 0.0
-    loss_bad: float = 1.0
-
-    def __post_init__(self) -> None:
-        if not (self.good_s > 0 and self.bad_s > 0):
-            raise ValueError("radio bursts: good_s and bad_s must be above 0")
-        if not (0.0 <= self.loss_good <= 1.0 and 0.0 <= self.loss_bad <= 1.0):
-            raise ValueError("radio bursts: loss_good and loss_bad must be within 0..1")
-
-    @classmethod
-    def from_sim(cls, sim: Mapping[str, Any]) -> BurstSettings | None:
-        """Read ``sim.radio_bursts``; None when the mission does not declare it."""
-        raw = sim.get("radio_bursts")
-        if raw is None:
-            return None
-        defaults = cls()
-        return cls(
-            good_s=float(raw.get("good_s", defaults.good_s)),
-            bad_s=float(raw.get("bad_s", defaults.bad_s)),
-            loss_good=float(raw.get("loss_good", defaults.loss_good)),
-            loss_bad=float(raw.get("loss_bad", defaults.loss_bad)),
-        )
-
-    @property
-    def bad_share(self) -> float:
-        """Long-run share of the time a link spends in its bad state."""
-        return self.bad_s / (self.good_s + self.bad_s)
-
-    @property
-    def mean_loss(self) -> float:
-        """Long-run share of packets the chain alone loses."""
-        bad = self.bad_share
-        return (1.0 - bad) * self.loss_good + bad * self.loss_bad
-
-
-class BurstChain:
-    """One link's Gilbert-Elliott chain in simulated time (see the module docstring).
-
-    Args:
-        settings: The chain's means and losses.
-        rng: The link's own generator; the chain alone draws from it.
-    """
-
-    __slots__ = ("_last_s", "_rng", "_settings", "_until_s", "bad")
-
-    def __init__(self, settings: BurstSettings, rng: random.Random) -> None:
-        self._settings = settings
-        self._rng = rng
-        self.bad = rng.random() < settings.bad_share
-        self._until_s = self._sojourn_s()
-        self._last_s = -math.inf
-
-    def _sojourn_s(self) -> float:
-        mean_s = self._settings.bad_s if self.bad else self._settings.good_s
-        return self._rng.expovariate(1.0 / mean_s)
-
-    def loss_at(self, t_s: float) -> float:
-        """The share of packets the link loses at ``t_s`` (times must not go back)."""
-        if t_s < self._last_s:
-            raise ValueError(f"time went back: a burst state at {t_s} s after {self._last_s} s")
-        self._last_s = t_s
-        while t_s >= self._until_s:
-            self.bad = not self.bad
-            self._until_s += self._sojourn_s()
-        settings = self._settings
-        return settings.loss_bad if self.bad else settings.loss_good
-
-
 @dataclass(slots=True)
-class LinkStats:
-    """Counts for one directed link (sender -> receiver).
+class LinkOutcomes:
+    """What became of the packets addressed over one directed link (sender -> receiver).
+
+    The medium's truth, which only a simulation knows; not what a receiver infers of a
+    peer's link (:class:`clark_engine.link.link_stats.LinkStats`, in its fleet table).
 
     A broadcast counts once on every link it was addressed to. Outcomes are
     exclusive except ``corrupted``, which is a subset of ``delivered``; once
@@ -384,7 +300,7 @@ class _Window:
 #: unique per item (one receiver per send sequence), so comparisons never reach the rest.
 #: Plain tuples, built and compared in C: a broadcast to 49 receivers makes 49 of them and costs
 #: hundreds of comparisons. ``link`` is the link's statistics, counted on arrival.
-_Pending = tuple[float, str, str, int, bytes, float, float, str, int, LinkStats, float]
+_Pending = tuple[float, str, str, int, bytes, float, float, str, int, LinkOutcomes, float]
 #: A packet's own values at one receiver: (loss uniform, corruption uniform, flip seed).
 _Fate = tuple[float, float, int]
 
@@ -477,7 +393,7 @@ class RadioMesh:
         self._dropped_links: dict[frozenset[str], list[_Window]] = {}
         self._silenced: dict[str, list[_Window]] = {}
         self._corruption: list[tuple[_Window, float]] = []
-        self._links: dict[tuple[str, str], LinkStats] = {}
+        self._links: dict[tuple[str, str], LinkOutcomes] = {}
         self._queue = QueueStats()
         self._queue_by_sender: dict[str, QueueStats] = {}
 
@@ -698,20 +614,20 @@ class RadioMesh:
 
     # -- statistics ----------------------------------------------------------
 
-    def link_stats(self, sender: str, receiver: str) -> LinkStats:
+    def link_stats(self, sender: str, receiver: str) -> LinkOutcomes:
         """A copy of the counts of the link ``sender`` -> ``receiver`` (zeros if unused)."""
         stats = self._links.get((sender, receiver))
-        return LinkStats() if stats is None else _copy_link(stats)
+        return LinkOutcomes() if stats is None else _copy_link(stats)
 
-    def links(self) -> dict[tuple[str, str], LinkStats]:
+    def links(self) -> dict[tuple[str, str], LinkOutcomes]:
         """Copies of the counts of every link used so far, keyed (sender, receiver), sorted."""
         return {key: _copy_link(self._links[key]) for key in sorted(self._links)}
 
-    def totals(self) -> LinkStats:
+    def totals(self) -> LinkOutcomes:
         """The counts of every link added up."""
-        total = LinkStats()
+        total = LinkOutcomes()
         for stats in self._links.values():
-            for item in fields(LinkStats):
+            for item in fields(LinkOutcomes):
                 setattr(total, item.name, getattr(total, item.name) + getattr(stats, item.name))
         return total
 
@@ -733,10 +649,10 @@ class RadioMesh:
             raise ValueError(f"time went back: deliveries up to {now_s} s after {self._clock_s} s")
         self._clock_s = now_s
 
-    def _link(self, sender: str, receiver: str) -> LinkStats:
+    def _link(self, sender: str, receiver: str) -> LinkOutcomes:
         stats = self._links.get((sender, receiver))
         if stats is None:
-            stats = self._links[(sender, receiver)] = LinkStats()
+            stats = self._links[(sender, receiver)] = LinkOutcomes()
         return stats
 
     def _chain(self, a: str, b: str) -> BurstChain:
@@ -847,5 +763,5 @@ def _flip_bytes(packet: bytes, seed: int) -> bytes:
     return bytes(data)
 
 
-def _copy_link(stats: LinkStats) -> LinkStats:
+def _copy_link(stats: LinkOutcomes) -> LinkOutcomes:
     return replace(stats)

@@ -11,7 +11,7 @@ page jumps, a ``reset`` with the tracks, photos and mission-log lines up to ``t`
 What comes from where (each agent's four files, docs/logs.md, "The files"):
 
 - **Mission time** is ``clark analyze --checks``'s
-  (:func:`clark_engine.expectations.from_logs.align_clocks`):
+  (:func:`clark_engine.expectations.log_clocks.align_clocks`):
   t = 0 is the start of the station's runtime clock, every agent's clock mapped onto it
   by GPS time.
 - **Agent rows** (heartbeat age, lost, condition, position, speed, heading, mode,
@@ -61,18 +61,17 @@ from typing import Any, Final
 from clark_engine.analysis import log_folder
 from clark_engine.analysis.latency import Problem
 from clark_engine.errors import ClarkError
-from clark_engine.expectations.from_logs import (
+from clark_engine.expectations.from_logs import judge
+from clark_engine.expectations.log_clocks import align_clocks
+from clark_engine.expectations.log_readers import (
     AgentLogs,
-    LogChecksError,
-    align_clocks,
     file_names,
-    judge,
     read_interface_log,
     read_message_log,
     read_mission_log,
-    rebuild,
     text_lines,
 )
+from clark_engine.expectations.log_run import LogChecksError, rebuild
 from clark_engine.link.messages import PictureData
 from clark_engine.mission.geo import Origin, to_local
 from clark_engine.mission.model import Mission
@@ -88,7 +87,7 @@ from clark_engine.station.replay_fleet import (
     MAX_AGENTS,
     STATUS_AGE,
     FleetRows,
-    read_fleet_csv,
+    read_fleet_columns,
     shown_name,
 )
 from clark_engine.station.replay_frames import Replay, ReplayAgent
@@ -529,7 +528,7 @@ def load_replay(
     for observer in observers:
         if fleet and not (wanted - _covered(fleet)):
             break  # every agent has rows already: no need to read further tables
-        fleet[observer] = read_fleet_csv(agents[observer].files["fleet_csv"], ids, problems)
+        fleet[observer] = read_fleet_columns(agents[observer].files["fleet_csv"], ids, problems)
     chosen: dict[str, tuple[FleetRows, float]] = {}
     observer_of: dict[str, str] = {}
     for observed in sorted(_covered(fleet)):

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Final
 
 from clark_engine.analysis.latency import Problem
-from clark_engine.expectations.from_logs import fleet_csv
+from clark_engine.expectations.log_readers import fleet_csv
 from clark_engine.runtime.log_lines import line_safe
 from clark_engine.station.view_protocol import MAX_LOG_TEXT_CHARS
 from clark_engine.untrusted import printable
@@ -151,7 +151,7 @@ def _bad_cell(row: list[str], columns: Sequence[tuple[str, int | None]]) -> str:
     return "a value is not a number"
 
 
-def read_fleet_csv(
+def read_fleet_columns(
     path: Path, names: Mapping[str, int] | None, problems: list[Problem]
 ) -> dict[str, FleetRows]:
     """Observed agent -> its rows in one agent's fleet CSV (docs/logs.md, "The fleet CSV").
@@ -275,6 +275,6 @@ __all__ = [
     "MAX_NAME_CHARS",
     "MAX_TEXTS",
     "FleetRows",
-    "read_fleet_csv",
+    "read_fleet_columns",
     "shown_name",
 ]
