@@ -140,7 +140,8 @@ from clark_engine.sim.ardupilot.firmware import (
     Firmware,
 )
 from clark_engine.sim.ardupilot.gcs_failsafe import GcsFailsafe
-from clark_engine.sim.ardupilot.mission_protocol import MissionItem, MissionProtocol, MissionState
+from clark_engine.sim.ardupilot.mission_items import MissionItem
+from clark_engine.sim.ardupilot.mission_protocol import MissionProtocol, MissionState
 from clark_engine.sim.ardupilot.params import INT16, Param, ParamStore, sitl_table
 from clark_engine.sim.ardupilot.vehicle_model import Truth, VehicleModel
 from clark_engine.sim.ardupilot.vehicle_safety import ModeReason
