@@ -139,8 +139,12 @@ from clark_engine.sim.ardupilot.firmware import (
     Firmware,
 )
 from clark_engine.sim.ardupilot.gcs_failsafe import GcsFailsafe
-from clark_engine.sim.ardupilot.mission_items import MissionItem
-from clark_engine.sim.ardupilot.mission_protocol import MissionProtocol, MissionState
+from clark_engine.sim.ardupilot.mission_executor import (
+    SPOOLED_AFTER_S,
+    TAKEOFF_DELAY_SPOOLING_S,
+    MissionExecutor,
+)
+from clark_engine.sim.ardupilot.mission_protocol import MissionProtocol
 from clark_engine.sim.ardupilot.params import INT16, Param, ParamStore, sitl_table
 from clark_engine.sim.ardupilot.telemetry import (
     FIRMWARE_TYPES,
@@ -162,25 +166,6 @@ THROTTLE_DEAD_ZONE_US: Final = 30
 at its 1000 us minimum and refused 1200 us; the rover armed at its 1500 us trim)."""
 MISSION_POLL_S: Final = 0.1
 """How often an upload's resends and timeout are looked at (their times are whole seconds)."""
-_AUTO_IDLE, _AUTO_WAITING, _AUTO_FLYING, _AUTO_HOLDING, _AUTO_DONE = range(5)
-_TARGET_COMMANDS: Final = frozenset(
-    {
-        int(mavlink2.MAV_CMD_NAV_WAYPOINT),
-        int(mavlink2.MAV_CMD_NAV_LOITER_UNLIM),
-        int(mavlink2.MAV_CMD_NAV_LOITER_TIME),
-        int(mavlink2.MAV_CMD_NAV_LOITER_TURNS),
-        int(mavlink2.MAV_CMD_NAV_LOITER_TO_ALT),
-        int(mavlink2.MAV_CMD_NAV_SPLINE_WAYPOINT),
-        int(mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH),
-    }
-)
-"""Mission items flown as a point to go to (loiters and splines as a plain waypoint)."""
-_HOLDING_COMMANDS: Final = frozenset(
-    {int(mavlink2.MAV_CMD_NAV_WAYPOINT), int(mavlink2.MAV_CMD_NAV_LOITER_TIME)}
-)
-"""Items whose param1 is a time to stay at their point (seconds)."""
-"""AUTO's executor: no item, item not begun (disarmed, or a copter on the ground before
-MISSION_START), flying it, holding at it (its hold time), done (LOITER_UNLIM)."""
 PLANE_LAUNCH_S: Final = 0.2
 """ArduPlane, armed in TAKEOFF: "Triggered AUTO" this long after arming (measured)."""
 PLANE_TAKEOFF_STARTS_S: Final = 1.2
@@ -195,12 +180,6 @@ PREARM_REPORT_PERIOD_S: Final = 30.0
 """ArduPilot prints failing pre-arm checks this often (AP_Arming's PREARM_DISPLAY_PERIOD)."""
 LAND_DISARM_DELAY_S: Final = 2.05
 """ArduCopter disarms this long after touching down in LAND or RTL (measured)."""
-COPTER_AUTO_TAKEOFF_DELAY_S: Final = 0.5
-"""From MISSION_START to the climb of a copter armed for several seconds (measured)."""
-SPOOLED_AFTER_S: Final = 4.7
-"""A copter armed this long ago has its motors spooled up for a takeoff (measured)."""
-TAKEOFF_DELAY_SPOOLING_S: Final = 3.25
-"""From NAV_TAKEOFF to the climb when the motors still spool up (measured 3.25-3.35 s)."""
 TAKEOFF_DELAY_SPOOLED_S: Final = 1.5
 """From NAV_TAKEOFF to the climb when already spooled (measured 1.55 s)."""
 GUIDED_TIMEOUT_S: Final = 3.0
@@ -388,14 +367,11 @@ class SimAutopilot:
         self._mission_poll_s = 0.0
         # AUTO's executor: the mission item it flies (seq), and how far it got with it.
         self._auto_seq: int | None = None
-        self._auto_phase = _AUTO_IDLE
-        self._auto_until_s = 0.0
+        self.auto = MissionExecutor(self)
+        """AUTO: the executor that flies the mission, item by item."""
         self._auto_go = False  # ArduCopter on the ground: MISSION_START came
         self._auto_landing = False  # the item flown is a landing (ArduCopter disarms after)
         self._throttle_up_s: float | None = None  # last seen off zero (holds the idle disarm)
-        self._auto_land_there = False  # a land item with a place: flying there first
-        self._started_seen: tuple[MissionItem, ...] = ()  # DO items already carried out
-        self._mission_changes = 0  # MissionProtocol.changed when last looked at
 
         self._interval_us: dict[str, int | None] = {}  # per-message overrides; None: stopped
         self._due_us: dict[str, int] = {}
@@ -716,7 +692,7 @@ class SimAutopilot:
         if self._velocity_target is not None:
             self._fly_velocity_target(now_s)
         if self.model.mode == "AUTO":
-            self._fly_mission(now_s)
+            self.auto.fly(now_s)
         if (
             self._guided_arrival_due
             and self.model.target_reached
@@ -989,7 +965,7 @@ class SimAutopilot:
             )
         if mode in fw.arm_needs_position and not self._position_ok(now_s):
             reasons.append(fw.no_position_text)
-        if mode == "AUTO" and fw.name == "arducopter" and not self._mission_has_items():
+        if mode == "AUTO" and fw.name == "arducopter" and not self.auto.has_items():
             reasons.append("Arm: Mode requires mission")
         elif mode in fw.not_armable:
             reasons.append(fw.not_armable_text.format(mode=fw.spell(mode)))
@@ -1052,7 +1028,7 @@ class SimAutopilot:
             self._home_here(now_s)
         if self.firmware == "arduplane" and (
             model.mode == "TAKEOFF"
-            or (model.mode == "AUTO" and self._current_nav_is(mavlink2.MAV_CMD_NAV_TAKEOFF))
+            or (model.mode == "AUTO" and self.auto.current_nav_is(mavlink2.MAV_CMD_NAV_TAKEOFF))
         ):
             self._plane_launch(now_s)
         return _ACCEPTED
@@ -1092,7 +1068,7 @@ class SimAutopilot:
                 # "Mission: 1 Takeoff" again, waiting for the next arming and start.
                 self._auto_go = False
                 self._auto_seq = None
-                if self._mission_has_items():
+                if self.auto.has_items():
                     self.missions.start()
             if self.fw.home_at == "disarming" and not self._home_locked:
                 self._home_here(now_s)
@@ -1229,15 +1205,15 @@ class SimAutopilot:
         if fw.name == "arducopter" and name == "LAND" and model.armed and not model.airborne:
             self._disarm(now_s)  # LAND on the ground: landed at once
         if left == "AUTO":
-            self._auto_left()
+            self.auto.left()
         if name == "AUTO":
-            if fw.name == "arduplane" and not self._mission_has_items():
+            if fw.name == "arduplane" and not self.auto.has_items():
                 self.missions.start()  # empty: complete at once
                 self._text(_INFO, "Mission complete, changing mode to RTL")
                 model.set_mode("RTL")
                 self._last_mode = "RTL"
             else:
-                self._auto_entered()
+                self.auto.entered()
         return _ACCEPTED
 
     def _mode_refusal(self, name: str, now_s: float) -> list[tuple[int, str]] | None:
@@ -1264,7 +1240,7 @@ class SimAutopilot:
         if model.armed and not model.airborne and name in fw.refused_armed_on_ground:
             return list(fw.refused_armed_on_ground[name])
         if fw.name == "ardurover":
-            if name == "AUTO" and not self._mission_has_items():
+            if name == "AUTO" and not self.auto.has_items():
                 return [(_NOTICE, "No Mission. Can't set AUTO."), *refused]
             if not model.armed and name in fw.set_needs_origin and not self._origin_set(now_s):
                 if name == "RTL" and self._home is not None:
@@ -1277,7 +1253,7 @@ class SimAutopilot:
             if name in fw.set_needs_origin and not self._position_ok(now_s):
                 return refused
             if name == "AUTO" and model.armed and not model.airborne:
-                first = self._first_nav()
+                first = self.auto.first_nav()
                 if first is None:
                     return refused  # nothing to fly
                 if first.command != mavlink2.MAV_CMD_NAV_TAKEOFF:
@@ -1454,7 +1430,7 @@ class SimAutopilot:
             self._deferred.append("MISSION_CURRENT")
             return _ACCEPTED
         if command == mavlink2.MAV_CMD_MISSION_START:
-            return self._mission_start(p1, p2, now_s)
+            return self.auto.start(p1, p2, now_s)
         if command == mavlink2.MAV_CMD_DO_REPOSITION and frame is not None:
             return self._reposition(params, z, frame, now_s)
         if command == mavlink2.MAV_CMD_DO_FENCE_ENABLE:
@@ -1704,216 +1680,6 @@ class SimAutopilot:
         self.model.goto(lat, lon, alt_m, None)
 
     # -- AUTO: the mission executor ------------------------------------------------------------
-
-    def _mission_has_items(self) -> bool:
-        return self.missions.count > 1  # item 0 is home
-
-    def _first_nav(self) -> MissionItem | None:
-        return next((item for item in self.missions.items[1:] if item.is_nav), None)
-
-    def _current_nav_is(self, command: int) -> bool:
-        item = self.missions.nav_item
-        return item is not None and item.command == command
-
-    def _auto_entered(self) -> None:
-        """AUTO entered: the mission goes on where it stopped (ArduPilot's MIS_RESTART 0)."""
-        self._auto_seq = None
-        self._auto_phase = _AUTO_IDLE
-        self._auto_go = self.model.airborne  # a copter in the air needs no MISSION_START
-        if self._mission_has_items():
-            self.missions.resume()
-        else:
-            # Nothing to fly: the (empty) mission is complete at once, and stays complete
-            # across a later upload until it is started again (measured).
-            self.missions.start()
-
-    def _auto_left(self) -> None:
-        self.missions.stop()
-        self._auto_seq = None
-        self._auto_phase = _AUTO_IDLE
-        self._auto_go = self._auto_landing = self._auto_land_there = False
-
-    def _mission_start(self, first: float, last: float, now_s: float) -> int:
-        """MAV_CMD_MISSION_START: into AUTO if not there; ArduCopter's launch from the ground.
-
-        Measured: param1 other than 0 is DENIED (ArduCopter); from another mode it
-        switches to AUTO (ArduCopter starting the mission again: "Mission: 1 Takeoff"
-        twice), disarmed too; in AUTO, armed on the ground, ArduCopter climbs within a
-        second; a rover's finished mission stays finished.
-        """
-        if first != 0 or last != 0:
-            return _DENIED
-        entered = self.model.mode != "AUTO"
-        if entered:
-            result = self._enter_mode("AUTO", now_s)
-            if result != _ACCEPTED or self.model.mode != "AUTO":
-                return _FAILED if result == _ACCEPTED else result
-        if not self._mission_has_items():
-            return _FAILED
-        if self.firmware == "arducopter":
-            if entered or self.missions.state != MissionState.RUNNING:
-                self.missions.start()
-                self._auto_seq = None
-            self._auto_go = True
-        return _ACCEPTED
-
-    def _item_alt_m(self, item: MissionItem) -> float:
-        """A mission item's altitude above the origin (the model's frame)."""
-        alt = self._relative_alt_m(item.z, item.frame)
-        return self._truth().up_m if alt is None else alt
-
-    def _item_place(self, item: MissionItem) -> tuple[float, float]:
-        """A mission item's (north, east) from the origin; here when it has no place."""
-        if item.x == 0 and item.y == 0:
-            truth = self._truth()
-            return truth.north_m, truth.east_m
-        north = (item.x / 1e7 - self.origin_lat_deg) * M_PER_DEG_LAT
-        east = (
-            (item.y / 1e7 - self.origin_lon_deg)
-            * M_PER_DEG_LAT
-            * math.cos(math.radians(self.origin_lat_deg))
-        )
-        return north, east
-
-    def _do_items(self, now_s: float) -> None:
-        """Carry out the DO items the mission just started (those this simulation has)."""
-        for item in self.missions.started:
-            if item.is_nav:
-                continue
-            command = item.command
-            if command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
-                self._change_speed(int(item.param1), item.param2)
-            elif command == mavlink2.MAV_CMD_DO_SET_SERVO:
-                servo = int(item.param1)
-                if self._servo_free(servo):
-                    self.model.set_servo(servo, int(item.param2))
-            elif command == mavlink2.MAV_CMD_DO_SET_HOME:
-                params = (item.param1, 0.0, 0.0, 0.0, float(item.x), float(item.y))
-                self._set_home_command(params, item.z, item.frame, now_s)
-        self._started_seen = self.missions.started
-
-    def _fly_mission(self, now_s: float) -> None:
-        """AUTO: fly the mission's current navigation item; on to the next when it is done."""
-        missions, model = self.missions, self.model
-        if missions.changed != self._mission_changes:
-            self._mission_changes = missions.changed
-            if missions.started != self._started_seen:
-                self._do_items(now_s)
-        if missions.state != MissionState.RUNNING:
-            self._auto_seq = None
-            return
-        item = missions.nav_item
-        if item is None:
-            return
-        if item.seq != self._auto_seq:
-            self._auto_seq = item.seq
-            self._auto_phase = _AUTO_WAITING
-            self._auto_landing = self._auto_land_there = False
-        if self._auto_phase == _AUTO_WAITING:
-            if not model.armed:
-                return
-            if self.firmware == "arducopter" and not model.airborne and not self._auto_go:
-                return  # armed on the ground in AUTO: waits for MISSION_START (measured)
-            self._begin_item(item, now_s)
-        if self._auto_phase == _AUTO_FLYING and model.target_reached and not self._avoid_cut:
-            if self._auto_landing and self.firmware == "arducopter":
-                return  # landed: its disarm ends the item, and starts the mission over
-            if self._auto_land_there:  # over the land item's place: now land
-                self._auto_land_there = False
-                self._auto_landing = True
-                model.auto_land()
-                return
-            hold_s = item.param1 if item.command in _HOLDING_COMMANDS else 0.0
-            self._auto_phase = _AUTO_HOLDING
-            self._auto_until_s = now_s + max(hold_s, 0.0)
-            if item.command == mavlink2.MAV_CMD_NAV_LOITER_UNLIM:
-                self._auto_phase = _AUTO_DONE  # loiters until told otherwise
-        if self._auto_phase == _AUTO_HOLDING and now_s >= self._auto_until_s:
-            self._item_done(item, now_s)
-
-    def _begin_item(self, item: MissionItem, now_s: float) -> None:
-        """Command the model to fly ``item``; an item it cannot fly is done at once."""
-        model, command = self.model, item.command
-        self._auto_phase = _AUTO_FLYING
-        if command == mavlink2.MAV_CMD_NAV_TAKEOFF:
-            above_home_m = self._item_alt_m(item) - (self._home_alt_m() - self.origin_alt_amsl_m)
-            if self.firmware == "arducopter":
-                armed_for_s = now_s - (self._armed_s if self._armed_s is not None else now_s)
-                delay_s = (
-                    COPTER_AUTO_TAKEOFF_DELAY_S
-                    if armed_for_s >= SPOOLED_AFTER_S
-                    else TAKEOFF_DELAY_SPOOLING_S
-                )
-                taken = model.auto_takeoff(above_home_m, delay_s)  # type: ignore[call-arg]
-                self._ground_since_s = None
-            else:
-                taken = model.auto_takeoff(above_home_m)
-            if not taken:
-                self._auto_phase = _AUTO_HOLDING  # (a rover; or already there)
-                self._auto_until_s = now_s
-        elif command == mavlink2.MAV_CMD_NAV_LAND:
-            north, east = self._item_place(item)
-            truth = self._truth()
-            far = math.hypot(north - truth.north_m, east - truth.east_m) > 1.0
-            if far and (item.x or item.y) and self.firmware == "arducopter":
-                self._auto_land_there = True
-                model.auto_target(north, east, truth.up_m, None)
-            else:
-                self._auto_landing = True
-                model.auto_land()
-        elif command in _TARGET_COMMANDS:
-            if command == mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH and self._home is not None:
-                home = self._home
-                north = (home[0] - self.origin_lat_deg) * M_PER_DEG_LAT
-                east = (
-                    (home[1] - self.origin_lon_deg)
-                    * M_PER_DEG_LAT
-                    * math.cos(math.radians(self.origin_lat_deg))
-                )
-                alt = self._truth().up_m
-            else:
-                north, east = self._item_place(item)
-                alt = self._item_alt_m(item)
-            self._avoid_cut = False
-            if self.firmware == "ardurover":
-                short = self._avoided((north, east))
-                if short is not None:  # ArduRover's avoidance: it stops short, item not done
-                    self._avoid_cut = True
-                    north, east = short
-            model.auto_target(north, east, alt, None)
-        else:  # not simulated: done at once
-            self._auto_phase = _AUTO_HOLDING
-            self._auto_until_s = now_s
-
-    def _item_done(self, item: MissionItem, now_s: float) -> None:
-        """The current item is done: say so as each firmware does, and go on."""
-        command, seq = item.command, item.seq
-        self._mav.send(self._mav.mission_item_reached_encode(seq))
-        if self.firmware == "ardurover" and command in _TARGET_COMMANDS:
-            self._text(_INFO, f"Reached waypoint #{seq}")
-        elif self.firmware == "arducopter" and command in _TARGET_COMMANDS:
-            self._text(_INFO, f"Reached command #{seq}")
-        elif self.firmware == "arduplane":
-            if command == mavlink2.MAV_CMD_NAV_TAKEOFF:
-                self._text(_INFO, f"Takeoff complete at {self._truth().up_m:.2f}m")
-            elif command in _TARGET_COMMANDS:
-                self._text(_INFO, f"Reached waypoint #{seq} dist 0m")
-        self._auto_phase = _AUTO_IDLE
-        if self.missions.advance() is None and self.missions.state == MissionState.COMPLETE:
-            self._mission_complete(now_s)
-
-    def _mission_complete(self, now_s: float) -> None:
-        """The last item is done.
-
-        ArduRover stops there ("Mission Complete", still in AUTO), ArduCopter holds (or
-        has landed), ArduPlane turns to RTL.
-        """
-        self._auto_seq = None
-        if self.firmware == "ardurover":
-            self._text(_NOTICE, "Mission Complete")
-        elif self.firmware == "arduplane":
-            self._text(_INFO, "Mission complete, changing mode to RTL")
-            self._enter_mode("RTL", now_s, "autopilot")
 
     def _rc_override(self, msg: Any, now_s: float) -> None:
         if msg.get_srcSystem() != self._gcs_sysid():
