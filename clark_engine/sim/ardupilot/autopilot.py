@@ -105,6 +105,17 @@ DO_SET_HOME, signing, terrain, failsafes other than the ground station's and the
 (radio, battery; of the EKF's, only ArduRover's refusal of modes that need a position),
 AUTOLAND, and more than one MAVLink channel (all peers share one byte stream, as behind
 a router).
+
+Two concepts are helper objects it owns, in modules of their own:
+:class:`~clark_engine.sim.ardupilot.telemetry.Telemetry` (``telemetry``) builds every
+message it sends, and :class:`~clark_engine.sim.ardupilot.mission_executor.MissionExecutor`
+(``auto``) flies AUTO's mission.
+
+Over 800 lines because what is left is ArduPilot's logic around the vehicle (boot and
+readiness, arming, modes, the commands it answers, parameters, stream requests, the fence's
+and failsafes' plumbing), whose parts read and change one shared state at every step; the
+next seams to take out the same way are the commands (COMMAND_LONG/INT and the guided
+targets) and the parameters.
 """
 
 from __future__ import annotations
