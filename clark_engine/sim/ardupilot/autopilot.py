@@ -1690,7 +1690,7 @@ class SimAutopilot:
         self._target = (lat, lon, alt_m)
         self.model.goto(lat, lon, alt_m, None)
 
-    # -- AUTO: the mission executor ------------------------------------------------------------
+    # -- RC overrides ---------------------------------------------------------------------------
 
     def _rc_override(self, msg: Any, now_s: float) -> None:
         if msg.get_srcSystem() != self._gcs_sysid():
