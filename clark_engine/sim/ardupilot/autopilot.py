@@ -106,16 +106,17 @@ DO_SET_HOME, signing, terrain, failsafes other than the ground station's and the
 AUTOLAND, and more than one MAVLink channel (all peers share one byte stream, as behind
 a router).
 
-Two concepts are helper objects it owns, in modules of their own:
+Three concepts are helper objects it owns, in modules of their own:
 :class:`~clark_engine.sim.ardupilot.telemetry.Telemetry` (``telemetry``) builds every
-message it sends, and :class:`~clark_engine.sim.ardupilot.mission_executor.MissionExecutor`
-(``auto``) flies AUTO's mission.
+message it sends, :class:`~clark_engine.sim.ardupilot.commands.Commands` (``commands``)
+carries out the commands and guided targets it is sent, and
+:class:`~clark_engine.sim.ardupilot.mission_executor.MissionExecutor` (``auto``) flies AUTO's
+mission.
 
 Over 800 lines because what is left is ArduPilot's logic around the vehicle (boot and
-readiness, arming, modes, the commands it answers, parameters, stream requests, the fence's
-and failsafes' plumbing), whose parts read and change one shared state at every step; the
-next seams to take out the same way are the commands (COMMAND_LONG/INT and the guided
-targets) and the parameters.
+readiness, arming, modes, parameters, stream requests and their schedule, the fence's and
+failsafes' plumbing, RC overrides), whose parts read and change one shared state at every
+step; the next seams to take out the same way are the parameters and arming.
 """
 
 from __future__ import annotations
@@ -130,9 +131,8 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.mission.fence import Fence, Zone
 from clark_engine.sim.ardupilot import sys_status as ap_sys_status
+from clark_engine.sim.ardupilot.commands import Commands
 from clark_engine.sim.ardupilot.fence import (
-    ALL_FENCES,
-    ALT_MIN,
     CHECK_PERIOD_S,
     CIRCLE,
     POLYGON,
@@ -151,8 +151,6 @@ from clark_engine.sim.ardupilot.firmware import (
 )
 from clark_engine.sim.ardupilot.gcs_failsafe import GcsFailsafe
 from clark_engine.sim.ardupilot.mission_executor import (
-    SPOOLED_AFTER_S,
-    TAKEOFF_DELAY_SPOOLING_S,
     MissionExecutor,
 )
 from clark_engine.sim.ardupilot.mission_protocol import MissionProtocol
@@ -191,10 +189,6 @@ PREARM_REPORT_PERIOD_S: Final = 30.0
 """ArduPilot prints failing pre-arm checks this often (AP_Arming's PREARM_DISPLAY_PERIOD)."""
 LAND_DISARM_DELAY_S: Final = 2.05
 """ArduCopter disarms this long after touching down in LAND or RTL (measured)."""
-TAKEOFF_DELAY_SPOOLED_S: Final = 1.5
-"""From NAV_TAKEOFF to the climb when already spooled (measured 1.55 s)."""
-GUIDED_TIMEOUT_S: Final = 3.0
-"""ArduCopter's GUID_TIMEOUT: a velocity target lapses this long after the last one."""
 MIN_INTERVAL_US: Final = 25_000
 """The fastest stream ArduPilot grants (40 Hz; a faster request is DENIED, measured)."""
 PLANE_HOME_PERIOD_S: Final = 6.0
@@ -279,10 +273,6 @@ class _Outbox:
 
     def write(self, data: bytes) -> None:
         self.data += data
-
-
-def _msg_id(name: str) -> int:
-    return int(getattr(mavlink2, f"MAVLINK_MSG_ID_{name}"))
 
 
 _ACCEPTED, _DENIED, _FAILED, _UNSUPPORTED = (
@@ -380,6 +370,8 @@ class SimAutopilot:
         self._auto_seq: int | None = None
         self.auto = MissionExecutor(self)
         """AUTO: the executor that flies the mission, item by item."""
+        self.commands = Commands(self)
+        """The commands it answers (COMMAND_LONG/INT, guided targets, DO items)."""
         self._auto_go = False  # ArduCopter on the ground: MISSION_START came
         self._auto_landing = False  # the item flown is a landing (ArduCopter disarms after)
         self._throttle_up_s: float | None = None  # last seen off zero (holds the idle disarm)
@@ -701,7 +693,7 @@ class SimAutopilot:
                 for reason in self._arm_refusals(now_s, self.model.mode):
                     self._text(_CRITICAL, "Pre" + reason)
         if self._velocity_target is not None:
-            self._fly_velocity_target(now_s)
+            self.commands.fly_velocity_target(now_s)
         if self.model.mode == "AUTO":
             self.auto.fly(now_s)
         if (
@@ -1317,18 +1309,18 @@ class SimAutopilot:
                 self.gcs_failsafe.seen(now_s)
         elif kind == "COMMAND_LONG":
             params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6)
-            result = self._command(msg.command, params, msg.param7, None, now_s)
+            result = self.commands.command(msg.command, params, msg.param7, None, now_s)
             self._ack(msg.command, result, asker)
             self._send_deferred(now_s)
         elif kind == "COMMAND_INT":
             params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.x, msg.y)
-            result = self._command(msg.command, params, msg.z, msg.frame, now_s)
+            result = self.commands.command(msg.command, params, msg.z, msg.frame, now_s)
             self._ack(msg.command, result, asker)
             self._send_deferred(now_s)
         elif kind == "SET_MODE":
             self._set_mode(msg.base_mode, msg.custom_mode, now_s)  # ArduPilot 4.7: no ack
         elif kind == "SET_POSITION_TARGET_GLOBAL_INT":
-            self._position_target(msg, now_s)
+            self.commands.position_target(msg, now_s)
         elif kind == "RC_CHANNELS_OVERRIDE":
             self._rc_override(msg, now_s)
         elif kind == "PARAM_REQUEST_LIST":  # (a second one starts the list again)
@@ -1343,7 +1335,7 @@ class SimAutopilot:
             pass  # the mission protocol answered (the executor sees what changed)
         elif kind in ("MISSION_ITEM_INT", "MISSION_ITEM"):
             # A guided-mode waypoint (current 2) or altitude change (current 3).
-            result = self._mission_item(msg, now_s, integer=kind == "MISSION_ITEM_INT")
+            result = self.commands.mission_item(msg, now_s, integer=kind == "MISSION_ITEM_INT")
             self._mav.send(
                 self._mav.mission_ack_encode(
                     asker.system_id, asker.component_id, result, msg.mission_type
@@ -1384,183 +1376,6 @@ class SimAutopilot:
                 self._mav.send(message)
         self._deferred.clear()
 
-    def _command(
-        self, command: int, params: tuple[float, ...], z: float, frame: int | None, now_s: float
-    ) -> int:
-        """Carry out one COMMAND_LONG (``frame`` None) or COMMAND_INT; returns MAV_RESULT."""
-        p1, p2 = params[0], params[1]
-        if command == mavlink2.MAV_CMD_DO_SET_MODE:
-            return self._set_mode(int(p1), int(p2), now_s)
-        if command == mavlink2.MAV_CMD_COMPONENT_ARM_DISARM:
-            return self._arm_command(p1, p2, now_s)
-        if command == mavlink2.MAV_CMD_DO_SET_SERVO:
-            servo = int(p1)
-            if not self._servo_free(servo):
-                self._text(_INFO, f"ServoRelayEvent: Channel {servo} is already in use")
-                return _FAILED
-            self.model.set_servo(servo, int(p2))
-            return _ACCEPTED
-        if command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
-            return self._change_speed(int(p1), p2)
-        if command == mavlink2.MAV_CMD_NAV_TAKEOFF:
-            return self._takeoff(z, frame, now_s)
-        if command == mavlink2.MAV_CMD_NAV_LAND:
-            if self.firmware != "arducopter":
-                return _UNSUPPORTED
-            return self._enter_mode("LAND", now_s)
-        if command == mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH:
-            return self._enter_mode("RTL", now_s)
-        if command == mavlink2.MAV_CMD_NAV_LOITER_UNLIM and self.firmware == "arducopter":
-            return self._enter_mode("LOITER", now_s)
-        if command == mavlink2.MAV_CMD_DO_SET_HOME:
-            return self._set_home_command(params, z, frame, now_s)
-        if command == mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL:
-            return self._message_interval(int(p1), int(p2), now_s)
-        if command == mavlink2.MAV_CMD_GET_MESSAGE_INTERVAL:
-            name = self._streamed_name(int(p1))
-            if name is None:
-                return _FAILED
-            interval = self._stream_interval_us(name)
-            self._mav.send(
-                self._mav.message_interval_encode(int(p1), -1 if interval is None else interval)
-            )
-            return _ACCEPTED
-        if command == mavlink2.MAV_CMD_REQUEST_MESSAGE:
-            return self._request_message(int(p1))
-        if command == mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
-            if p1 != 1.0:
-                return _DENIED
-            return self._request_message(_msg_id("AUTOPILOT_VERSION"))
-        if command == mavlink2.MAV_CMD_GET_HOME_POSITION:
-            if self._home is None:
-                return _FAILED
-            return self._request_message(_msg_id("HOME_POSITION"))
-        if command == mavlink2.MAV_CMD_DO_SET_MISSION_CURRENT:
-            if not self.missions.set_current(int(p1)):
-                return _DENIED
-            self._deferred.append("MISSION_CURRENT")
-            return _ACCEPTED
-        if command == mavlink2.MAV_CMD_MISSION_START:
-            return self.auto.start(p1, p2, now_s)
-        if command == mavlink2.MAV_CMD_DO_REPOSITION and frame is not None:
-            return self._reposition(params, z, frame, now_s)
-        if command == mavlink2.MAV_CMD_DO_FENCE_ENABLE:
-            return self._fence_enable(int(p1), int(p2) & 0xFF)
-        return _UNSUPPORTED
-
-    def _fence_enable(self, action: int, fences: int) -> int:
-        """MAV_CMD_DO_FENCE_ENABLE: 0 off, 1 on (FAILED if none of them exists), 2 floor off.
-
-        The fences asked for (param2; 0: all) change, FENCE_ENABLE does not.
-        """
-        fences = fences or ALL_FENCES
-        self._fence_quiet = False
-        self._fence_zones()
-        if action == 0:
-            self.fence.enable(False, fences)
-        elif action == 1:
-            if not self.fence.present() & fences:
-                return _FAILED
-            self.fence.enable(True, fences)
-        elif action == 2:
-            self.fence.enable(False, ALT_MIN)
-        else:
-            return _FAILED
-        return _ACCEPTED
-
-    def _servo_free(self, servo: int) -> bool:
-        """An output DO_SET_SERVO may drive: 1-16, with no function (ArduPilot's rule)."""
-        in_use = getattr(self.model, "servo_function", None)
-        return 1 <= servo <= 16 and (in_use is None or in_use(servo) is None)
-
-    def _takeoff(self, alt_m: float, frame: int | None, now_s: float) -> int:
-        """MAV_CMD_NAV_TAKEOFF: ArduCopter's guided takeoff; ArduPlane's is quadplane-only."""
-        if self.firmware != "arducopter":
-            if self.firmware == "arduplane":
-                return _DENIED if frame is not None else _FAILED
-            return _UNSUPPORTED
-        if frame is not None and frame != mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT:
-            return _DENIED
-        model = self.model
-        if not (alt_m > 0) or not model.armed or model.airborne or not self._in_guided():
-            return _FAILED
-        armed_for_s = now_s - (self._armed_s if self._armed_s is not None else now_s)
-        delay_s = (
-            TAKEOFF_DELAY_SPOOLED_S
-            if armed_for_s >= SPOOLED_AFTER_S
-            else (TAKEOFF_DELAY_SPOOLING_S)
-        )
-        if not model.takeoff(float(alt_m), delay_s):
-            return _FAILED
-        self._guided_wp_active = False
-        self._ground_since_s = None  # taking off: no auto-disarm
-        return _ACCEPTED
-
-    def _set_home_command(
-        self, params: tuple[float, ...], z: float, frame: int | None, now_s: float
-    ) -> int:
-        """MAV_CMD_DO_SET_HOME: here (param1 1), or a point.
-
-        A home set so is locked: ArduPilot's own re-setting at arming or disarming
-        leaves it alone.
-        """
-        if params[0] == 1.0:
-            if not self._gps_fix(now_s):
-                return _FAILED
-            truth = self.model.truth()
-            lat, lon, alt = truth.lat_deg, truth.lon_deg, self.origin_alt_amsl_m + truth.up_m
-        else:
-            lat, lon, alt = params[4], params[5], z
-            if frame is not None:  # COMMAND_INT: degrees * 1e7
-                lat, lon = lat / 1e7, lon / 1e7
-            if not (abs(lat) <= 90 and abs(lon) <= 180) or (lat == 0 and lon == 0):
-                return _FAILED
-        self.set_home(float(lat), float(lon), float(alt), now_s)
-        self._home_locked = True
-        if self.fw.set_home_text:
-            self._text(_INFO, f"Set HOME to {lat:.5f} {lon:.5f} at {alt:.2f}m")
-        return _ACCEPTED
-
-    def _change_speed(self, speed_type: int, speed_m_s: float) -> int:
-        """MAV_CMD_DO_CHANGE_SPEED, accepted where each firmware accepts it (measured)."""
-        mode, model = self.model.mode, self.model
-        if self.firmware == "arducopter":
-            if speed_m_s <= 0:
-                return _DENIED
-            if mode not in (self.guided_mode, "AUTO"):
-                return _FAILED
-            # ArduCopter takes an airspeed as a ground speed. In GUIDED the speed goes to
-            # its waypoint controller, which a position target after a takeoff (or on
-            # entering GUIDED) starts afresh at WPNAV_SPEED: until one has been flown, an
-            # accepted change is lost (measured).
-            if speed_type in (0, 1) and (mode == "AUTO" or self._guided_wp_active):
-                model.set_speed(float(speed_m_s))
-            return _ACCEPTED
-        if self.firmware == "ardurover":
-            if speed_type not in (0, 1):
-                return _DENIED
-            if speed_m_s <= 0.05:
-                return _FAILED
-            guided_leg = mode == self.guided_mode and self._target is not None
-            if not (guided_leg or mode == "AUTO"):
-                return _FAILED  # MANUAL, HOLD, and guided before its first target
-            model.set_speed(float(speed_m_s))
-            return _ACCEPTED
-        # ArduPlane: guided and auto only; an airspeed within its limits.
-        if mode not in (self.guided_mode, "AUTO"):
-            return _FAILED
-        if speed_type == 1:
-            if speed_m_s < 0:
-                return _FAILED
-            self._text(_INFO, f"Set groundspeed {speed_m_s:g}")
-            return _ACCEPTED
-        low, high = self._params["AIRSPEED_MIN"].value, self._params["AIRSPEED_MAX"].value
-        if not low <= speed_m_s <= high:
-            return _FAILED
-        model.set_speed(float(speed_m_s))
-        self._text(_INFO, f"Set airspeed {speed_m_s:g} m/s")
-        return _ACCEPTED
-
     def _goto(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
         self._target = (lat_deg, lon_deg, alt_m)
         self._guided_arrival_due = self.fw.guided_reached_text
@@ -1581,114 +1396,6 @@ class SimAutopilot:
         if frame in (mavlink2.MAV_FRAME_GLOBAL_INT, mavlink2.MAV_FRAME_GLOBAL):
             return float(alt) - self.origin_alt_amsl_m
         return None
-
-    def _reposition(self, params: tuple[float, ...], z: float, frame: int, now_s: float) -> int:
-        speed, flags, lat_e7, lon_e7 = params[0], int(params[1]), params[4], params[5]
-        alt_m = self._relative_alt_m(z, frame)
-        if alt_m is None or not (abs(lat_e7) <= 90e7 and abs(lon_e7) <= 180e7):
-            return _DENIED
-        change_mode = bool(flags & mavlink2.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE)
-        if self.firmware != "ardurover" and not self._target_inside_fence(
-            lat_e7 / 1e7, lon_e7 / 1e7, alt_m
-        ):
-            # ArduPlane DENIED, ArduCopter FAILED (its guided destination check), before
-            # any mode change; ArduRover does not check (measured).
-            return _DENIED if self.firmware == "arduplane" else _FAILED
-        if change_mode and not self._in_guided():
-            self._enter_mode(self.guided_mode, now_s)
-        if not self._in_guided():
-            return _FAILED
-        loiter = getattr(self.model, "guided_loiter", None)  # ArduPlane's (FixedWing)
-        if self.firmware == "arduplane" and loiter is not None:
-            radius_m, ccw = params[2], params[3]
-            loiter(radius_m, math.isfinite(ccw) and ccw != 0.0)
-        if not self._goto(lat_e7 / 1e7, lon_e7 / 1e7, alt_m):
-            return _FAILED
-        if speed > 0:
-            self.model.set_speed(float(speed))
-        return _ACCEPTED
-
-    def _mission_item(self, msg: Any, now_s: float, *, integer: bool) -> int:
-        """A mission item outside an upload: ArduPilot's guided waypoint and altitude change.
-
-        As ArduPilot's GCS_MAVLINK::handle_mission_item: ``current`` 2 is a guided-mode
-        waypoint (accepted in the guided mode only; MAVProxy's ``guided LAT LON ALT``
-        sends one), ``current`` 3 an altitude change (always accepted); any other item
-        arrives outside an upload, which is an error. (Items of an upload, and of the
-        fence and rally lists, are the mission protocol's, which sees them first.)
-        """
-        if msg.mission_type != mavlink2.MAV_MISSION_TYPE_MISSION:
-            return int(mavlink2.MAV_MISSION_UNSUPPORTED)
-        if msg.current not in (2, 3):
-            return int(mavlink2.MAV_MISSION_ERROR)
-        alt_m = self._relative_alt_m(msg.z, msg.frame)
-        lat_deg, lon_deg = (msg.x / 1e7, msg.y / 1e7) if integer else (msg.x, msg.y)
-        if alt_m is None or not (abs(lat_deg) <= 90 and abs(lon_deg) <= 180):
-            return int(mavlink2.MAV_MISSION_UNSUPPORTED_FRAME)
-        if msg.current == 3:
-            if self._target is not None and self._in_guided():
-                if not self._copter_may_go(self._target[0], self._target[1], alt_m):
-                    return int(mavlink2.MAV_MISSION_ERROR)
-                self._goto(self._target[0], self._target[1], alt_m)
-            return int(mavlink2.MAV_MISSION_ACCEPTED)
-        if not self._copter_may_go(lat_deg, lon_deg, alt_m):
-            return int(mavlink2.MAV_MISSION_ERROR)
-        if not self._in_guided() or not self._goto(lat_deg, lon_deg, alt_m):
-            return int(mavlink2.MAV_MISSION_ERROR)
-        return int(mavlink2.MAV_MISSION_ACCEPTED)
-
-    def _position_target(self, msg: Any, now_s: float) -> None:
-        if not self._in_guided():
-            return  # ArduPilot drops position targets outside guided
-        alt_m = self._relative_alt_m(msg.alt, msg.coordinate_frame)
-        if alt_m is None:
-            return
-        mask = msg.type_mask
-        position_ignored = mask & (
-            mavlink2.POSITION_TARGET_TYPEMASK_X_IGNORE | mavlink2.POSITION_TARGET_TYPEMASK_Y_IGNORE
-        )
-        if self.firmware == "arduplane":
-            # ArduPlane takes only the altitude of this message (its GCS_Mavlink.cpp).
-            if mask & mavlink2.POSITION_TARGET_TYPEMASK_Z_IGNORE:
-                return
-            if self._target is not None:
-                lat_deg, lon_deg, _ = self._target
-            else:
-                truth: Truth = self.model.truth()
-                lat_deg, lon_deg = truth.lat_deg, truth.lon_deg
-            self._goto(lat_deg, lon_deg, alt_m)
-            return
-        if position_ignored:
-            return  # velocity-only and acceleration targets are not simulated
-        lat_deg, lon_deg = msg.lat_int / 1e7, msg.lon_int / 1e7
-        velocity_ignored = mask & (
-            mavlink2.POSITION_TARGET_TYPEMASK_VX_IGNORE
-            | mavlink2.POSITION_TARGET_TYPEMASK_VY_IGNORE
-        )
-        if not self._copter_may_go(lat_deg, lon_deg, alt_m):
-            return  # ArduCopter refuses a target outside its fence without a word (measured)
-        self._velocity_target = None
-        if not velocity_ignored and self.firmware == "arducopter":
-            # ArduCopter's guided position and velocity target: the position moves on
-            # with the velocity until the next one (or GUID_TIMEOUT).
-            self._velocity_target = (lat_deg, lon_deg, alt_m, msg.vx, msg.vy, now_s)
-        self._goto(lat_deg, lon_deg, alt_m)
-
-    def _copter_may_go(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
-        """ArduCopter's guided destinations must be inside its fence (set_destination)."""
-        return self.firmware != "arducopter" or self._target_inside_fence(lat_deg, lon_deg, alt_m)
-
-    def _fly_velocity_target(self, now_s: float) -> None:
-        assert self._velocity_target is not None
-        lat_deg, lon_deg, alt_m, vn, ve, at_s = self._velocity_target
-        elapsed_s = now_s - at_s
-        if elapsed_s > GUIDED_TIMEOUT_S or not self._in_guided():
-            self._velocity_target = None
-            return
-        lat = lat_deg + vn * elapsed_s / M_PER_DEG_LAT
-        lon = lon_deg + ve * elapsed_s / (M_PER_DEG_LAT * math.cos(math.radians(lat_deg)))
-        self._target = (lat, lon, alt_m)
-        self.model.goto(lat, lon, alt_m, None)
 
     # -- RC overrides ---------------------------------------------------------------------------
 

@@ -163,14 +163,14 @@ class MissionExecutor:
                 continue
             command = item.command
             if command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
-                self._ap._change_speed(int(item.param1), item.param2)
+                self._ap.commands.change_speed(int(item.param1), item.param2)
             elif command == mavlink2.MAV_CMD_DO_SET_SERVO:
                 servo = int(item.param1)
-                if self._ap._servo_free(servo):
+                if self._ap.commands.servo_free(servo):
                     self._ap.model.set_servo(servo, int(item.param2))
             elif command == mavlink2.MAV_CMD_DO_SET_HOME:
                 params = (item.param1, 0.0, 0.0, 0.0, float(item.x), float(item.y))
-                self._ap._set_home_command(params, item.z, item.frame, now_s)
+                self._ap.commands.set_home_command(params, item.z, item.frame, now_s)
         self._started_seen = self._ap.missions.started
 
     def fly(self, now_s: float) -> None:
