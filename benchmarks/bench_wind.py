@@ -14,7 +14,7 @@ from pathlib import Path
 import yaml
 
 from clark_engine.mission.geo import LocalPoint, Origin, to_global
-from clark_engine.sim.ardupilot.vehicles import make_vehicle
+from clark_engine.sim.ardupilot.airframes.factory import make_vehicle
 from clark_engine.sim.wind import WindConfig, WindField
 
 ROOT = Path(__file__).resolve().parent.parent

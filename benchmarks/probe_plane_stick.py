@@ -16,7 +16,8 @@ flown straight north at 60 m above home (150 m above sea level), then LOITER. Pr
   turns (amplitude in degrees, phase in degrees).
 
 Used to fit the simulated plane's equivalent airspeed, stick mixing and stick-pitch band-pass
-(clark_engine/sim/ardupilot/vehicles.py; docs/performance.md, "The plane under stick mixing").
+(clark_engine/sim/ardupilot/airframes/stick_mixing.py; docs/performance.md, "The plane under
+stick mixing").
 
     PYTHONPATH=.:tests/conformance python benchmarks/probe_plane_stick.py sitl-plane
 """

@@ -231,7 +231,7 @@ def step_cost(out: dict[str, Any]) -> None:
     import yaml
 
     from clark_engine.mission.geo import LocalPoint, Origin, to_global
-    from clark_engine.sim.ardupilot.vehicles import make_vehicle
+    from clark_engine.sim.ardupilot.airframes.factory import make_vehicle
 
     profiles = Path(__file__).resolve().parents[1] / "hardware_profiles"
     airframe = yaml.safe_load((profiles / "airframes/traxxas_slash_airframe.yaml").read_text())

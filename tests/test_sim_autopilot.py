@@ -20,7 +20,8 @@ from fake_vehicle import FakeModelHooks, RcServoBook
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.io.transports import UdpTransport
-from clark_engine.sim.ardupilot.autopilot import STREAM_GROUPS, SimAutopilot
+from clark_engine.sim.ardupilot.autopilot import SimAutopilot
+from clark_engine.sim.ardupilot.telemetry import STREAM_GROUPS
 from clark_engine.sim.ardupilot.vehicle_model import Truth, VehicleModel
 
 ROOT = Path(__file__).resolve().parent.parent

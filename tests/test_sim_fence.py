@@ -14,7 +14,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from sim_station import Station
 
 from clark_engine.sim.ardupilot.fence import FenceZones, fence_names
-from clark_engine.sim.ardupilot.mission_protocol import MissionItem
+from clark_engine.sim.ardupilot.mission_items import MissionItem
 
 ACCEPTED, FAILED = mavlink2.MAV_RESULT_ACCEPTED, mavlink2.MAV_RESULT_FAILED
 NOTICE, INFO, CRITICAL = 5, 6, 2

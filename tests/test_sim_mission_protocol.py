@@ -19,15 +19,14 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from clark_engine.sim.ardupilot.mission_protocol import (
-    ITEM_LIMITS,
+from clark_engine.sim.ardupilot.mission_items import (
     MissionItem,
     MissionItemError,
-    MissionProtocol,
-    MissionState,
     command_name,
     stored_mission_item,
 )
+from clark_engine.sim.ardupilot.mission_lists import ITEM_LIMITS
+from clark_engine.sim.ardupilot.mission_protocol import MissionProtocol, MissionState
 
 HOME = (30.6372, -96.4786999, 90.09)
 GCS_IDS = (255, 190)

@@ -25,23 +25,23 @@ from clark_engine.mission.compiler import compile_mission
 from clark_engine.mission.geo import LocalPoint, Origin, to_global, to_local
 from clark_engine.mission.validate import validate_path
 from clark_engine.runtime.config import config_from_dict
-from clark_engine.sim.ardupilot.vehicle_model import LANDED_STATES, Truth, VehicleModel
-from clark_engine.sim.ardupilot.vehicles import (
-    COPTER_FALL_TERMINAL_M_S,
+from clark_engine.sim.ardupilot.airframes.atmosphere import PLANE_AIRSPEED_SENSOR_SCALE, eas2tas
+from clark_engine.sim.ardupilot.airframes.base import (
     DEFAULT_GPS_NOISE_M,
     G_M_S2,
-    PLANE_AIRSPEED_SENSOR_SCALE,
+    ModeBehaviour,
+    SimulatedVehicle,
+)
+from clark_engine.sim.ardupilot.airframes.factory import make_vehicle
+from clark_engine.sim.ardupilot.airframes.fixed_wing import (
     PLANE_PULL_MAX_G,
     PLANE_TURN_EFFICIENCY,
     FixedWing,
-    ModeBehaviour,
-    Multirotor,
-    Rover,
-    SimulatedVehicle,
-    VehicleSetupError,
-    eas2tas,
-    make_vehicle,
 )
+from clark_engine.sim.ardupilot.airframes.multirotor import COPTER_FALL_TERMINAL_M_S, Multirotor
+from clark_engine.sim.ardupilot.airframes.profile import VehicleSetupError
+from clark_engine.sim.ardupilot.airframes.rover import Rover
+from clark_engine.sim.ardupilot.vehicle_model import LANDED_STATES, Truth, VehicleModel
 
 ROOT = Path(__file__).resolve().parent.parent
 PROFILES = ROOT / "hardware_profiles"

@@ -442,7 +442,7 @@ def _check_range_to_peers(
 
 
 #: A fixed-wing aircraft never orbits tighter than this multiple of its tightest turn
-#: radius (the dry run's model does the same: clark_engine.sim.ardupilot.vehicles).
+#: radius (the dry run's model does the same: clark_engine.sim.ardupilot.airframes.fixed_wing).
 ORBIT_FACTOR = 1.5
 #: ArduPlane flies its loiter circle about this much wider than WP_LOITER_RAD (92-93 m
 #: for 80 m at 22 m/s on ArduPlane SITL; the dry run's model uses the same factor).

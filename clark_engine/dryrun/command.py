@@ -66,7 +66,7 @@ from clark_engine.mission.variation import (
     parse_vary,
     resolve_mission,
 )
-from clark_engine.sim.ardupilot.vehicles import DEFAULT_GPS_NOISE_M
+from clark_engine.sim.ardupilot.airframes.base import DEFAULT_GPS_NOISE_M
 from clark_engine.sitl.launcher import SitlError, SitlInstall
 from clark_engine.validation import mission_to_fly
 

@@ -70,10 +70,10 @@ from clark_engine.runtime.log_events import LogEvent
 from clark_engine.runtime.logbook import Logbook
 from clark_engine.runtime.machine import StateChange
 from clark_engine.runtime.runtime import AgentRuntime
+from clark_engine.sim.ardupilot.airframes.factory import make_vehicle
 from clark_engine.sim.ardupilot.autopilot import SimAutopilot
 from clark_engine.sim.ardupilot.firmware import FIRMWARES
 from clark_engine.sim.ardupilot.vehicle_model import VehicleModel
-from clark_engine.sim.ardupilot.vehicles import make_vehicle
 from clark_engine.sim.camera import SimCamera
 from clark_engine.sim.gps_error import GpsError, GpsErrorSettings
 from clark_engine.sim.radio import Position, RadioMesh

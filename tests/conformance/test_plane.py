@@ -429,8 +429,9 @@ Probes of the same kind (benchmarks/probe_plane_stick.py): 3.89 degrees at 0.45 
 at 0.75, 10.05 at 0.85, 7.08 at 0.95, 2.46 at 1.2; at 0.75-0.95 Hz the bank swung by 3-7
 degrees (s.d.) and the circle tightened to 68.3-70.5 m, turning at up to 17.0 deg/s. The
 simulated plane's pitch answers as SITL's (the fit of
-clark_engine.sim.ardupilot.vehicles.PLANE_STICK_PITCH_GAIN, with the flight path PLANE_PATH_LAG_S
-behind): 2.76, 5.83, 5.14 and 0.95 degrees; its circle now speeds up as SITL's (below).
+clark_engine.sim.ardupilot.airframes.stick_mixing.PLANE_STICK_PITCH_GAIN, with the flight path
+PLANE_PATH_LAG_S behind): 2.76, 5.83, 5.14 and 0.95 degrees; its circle now speeds up as SITL's
+(below).
 Before the fit its pitch was a 0.3 s lag behind the stick: 3.6, 2.7, 1.8
 and 1.3 degrees."""
 PITCH_AMPLITUDE_SHARE = 0.3

@@ -105,6 +105,18 @@ DO_SET_HOME, signing, terrain, failsafes other than the ground station's and the
 (radio, battery; of the EKF's, only ArduRover's refusal of modes that need a position),
 AUTOLAND, and more than one MAVLink channel (all peers share one byte stream, as behind
 a router).
+
+Three concepts are helper objects it owns, in modules of their own:
+:class:`~clark_engine.sim.ardupilot.telemetry.Telemetry` (``telemetry``) builds every
+message it sends, :class:`~clark_engine.sim.ardupilot.commands.Commands` (``commands``)
+carries out the commands and guided targets it is sent, and
+:class:`~clark_engine.sim.ardupilot.mission_executor.MissionExecutor` (``auto``) flies AUTO's
+mission.
+
+Over 800 lines because what is left is ArduPilot's logic around the vehicle (boot and
+readiness, arming, modes, parameters, stream requests and their schedule, the fence's and
+failsafes' plumbing, RC overrides), whose parts read and change one shared state at every
+step; the next seams to take out the same way are the parameters and arming.
 """
 
 from __future__ import annotations
@@ -118,11 +130,9 @@ from typing import Any, Final
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.mission.fence import Fence, Zone
-from clark_engine.mission.geo import EARTH_RADIUS_M
 from clark_engine.sim.ardupilot import sys_status as ap_sys_status
+from clark_engine.sim.ardupilot.commands import Commands
 from clark_engine.sim.ardupilot.fence import (
-    ALL_FENCES,
-    ALT_MIN,
     CHECK_PERIOD_S,
     CIRCLE,
     POLYGON,
@@ -140,38 +150,23 @@ from clark_engine.sim.ardupilot.firmware import (
     Firmware,
 )
 from clark_engine.sim.ardupilot.gcs_failsafe import GcsFailsafe
-from clark_engine.sim.ardupilot.mission_protocol import MissionItem, MissionProtocol, MissionState
+from clark_engine.sim.ardupilot.mission_executor import (
+    MissionExecutor,
+)
+from clark_engine.sim.ardupilot.mission_protocol import MissionProtocol
 from clark_engine.sim.ardupilot.params import INT16, Param, ParamStore, sitl_table
+from clark_engine.sim.ardupilot.telemetry import (
+    FIRMWARE_TYPES,
+    LANDED_REPORT_DELAY_S,
+    M_PER_DEG_LAT,
+    STREAM_GROUPS,
+    UINT16_MAX,
+    Telemetry,
+)
 from clark_engine.sim.ardupilot.vehicle_model import Truth, VehicleModel
 from clark_engine.sim.ardupilot.vehicle_safety import ModeReason
 
-FIRMWARE_TYPES: Final[Mapping[str, int]] = {
-    "arduplane": mavlink2.MAV_TYPE_FIXED_WING,
-    "arducopter": mavlink2.MAV_TYPE_QUADROTOR,
-    "ardurover": mavlink2.MAV_TYPE_GROUND_ROVER,
-}
-"""HEARTBEAT vehicle type per firmware."""
-
-FIRMWARE_VERSION: Final = (4, 7, 0)
-"""The ArduPilot version the simulation claims in AUTOPILOT_VERSION: the SITL build its
-facts were measured on (4.7.0-dev), whose parameter names it has (MAV_SYSID,
-MAV_GCS_SYSID, MAV1_*; 4.5's SYSID_THISMAV, SYSID_MYGCS and SR0_* are unknown to it)."""
-FIRMWARE_VERSION_TYPE: Final = int(mavlink2.FIRMWARE_VERSION_TYPE_DEV)
-"""A development build, as SITL's master build reports itself."""
-
-CAPABILITIES: Final[Mapping[str, int]] = {
-    "ardurover": 0xF1EF,
-    "arducopter": 0xFBEF,
-    "arduplane": 0xF36F,
-}
-"""AUTOPILOT_VERSION capabilities, exactly as the SITL builds report them."""
-
-_M_PER_DEG_LAT: Final = math.radians(1.0) * EARTH_RADIUS_M
-"""Metres per degree of latitude, on the sphere the vehicle models use."""
-
 HEARTBEAT_INTERVAL_US: Final = 1_000_000
-INITIALISING_S: Final = 1.0
-"""How long a firmware with an INITIALISING mode reports it after power-on."""
 INTERNAL_ERROR_TEXT: Final = "Arm: Internal errors 0x100000 l:{line} flow_of_ctrl"
 """The arming refusal after an internal error (AP_InternalError's flow_of_control, raised
 at a line of ArduPilot's source: ArduRover's AR_WPNav 239, ArduCopter's SmartRTL 130)."""
@@ -180,25 +175,6 @@ THROTTLE_DEAD_ZONE_US: Final = 30
 at its 1000 us minimum and refused 1200 us; the rover armed at its 1500 us trim)."""
 MISSION_POLL_S: Final = 0.1
 """How often an upload's resends and timeout are looked at (their times are whole seconds)."""
-_AUTO_IDLE, _AUTO_WAITING, _AUTO_FLYING, _AUTO_HOLDING, _AUTO_DONE = range(5)
-_TARGET_COMMANDS: Final = frozenset(
-    {
-        int(mavlink2.MAV_CMD_NAV_WAYPOINT),
-        int(mavlink2.MAV_CMD_NAV_LOITER_UNLIM),
-        int(mavlink2.MAV_CMD_NAV_LOITER_TIME),
-        int(mavlink2.MAV_CMD_NAV_LOITER_TURNS),
-        int(mavlink2.MAV_CMD_NAV_LOITER_TO_ALT),
-        int(mavlink2.MAV_CMD_NAV_SPLINE_WAYPOINT),
-        int(mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH),
-    }
-)
-"""Mission items flown as a point to go to (loiters and splines as a plain waypoint)."""
-_HOLDING_COMMANDS: Final = frozenset(
-    {int(mavlink2.MAV_CMD_NAV_WAYPOINT), int(mavlink2.MAV_CMD_NAV_LOITER_TIME)}
-)
-"""Items whose param1 is a time to stay at their point (seconds)."""
-"""AUTO's executor: no item, item not begun (disarmed, or a copter on the ground before
-MISSION_START), flying it, holding at it (its hold time), done (LOITER_UNLIM)."""
 PLANE_LAUNCH_S: Final = 0.2
 """ArduPlane, armed in TAKEOFF: "Triggered AUTO" this long after arming (measured)."""
 PLANE_TAKEOFF_STARTS_S: Final = 1.2
@@ -211,20 +187,8 @@ STATUSTEXT_CHUNK: Final = 50
 """Characters per STATUSTEXT; ArduPilot sends a longer text as several with one id."""
 PREARM_REPORT_PERIOD_S: Final = 30.0
 """ArduPilot prints failing pre-arm checks this often (AP_Arming's PREARM_DISPLAY_PERIOD)."""
-LANDED_REPORT_DELAY_S: Final = 1.6
-"""ArduCopter's land detector: on the ground this long after touchdown (measured 1.6 s)."""
 LAND_DISARM_DELAY_S: Final = 2.05
 """ArduCopter disarms this long after touching down in LAND or RTL (measured)."""
-COPTER_AUTO_TAKEOFF_DELAY_S: Final = 0.5
-"""From MISSION_START to the climb of a copter armed for several seconds (measured)."""
-SPOOLED_AFTER_S: Final = 4.7
-"""A copter armed this long ago has its motors spooled up for a takeoff (measured)."""
-TAKEOFF_DELAY_SPOOLING_S: Final = 3.25
-"""From NAV_TAKEOFF to the climb when the motors still spool up (measured 3.25-3.35 s)."""
-TAKEOFF_DELAY_SPOOLED_S: Final = 1.5
-"""From NAV_TAKEOFF to the climb when already spooled (measured 1.55 s)."""
-GUIDED_TIMEOUT_S: Final = 3.0
-"""ArduCopter's GUID_TIMEOUT: a velocity target lapses this long after the last one."""
 MIN_INTERVAL_US: Final = 25_000
 """The fastest stream ArduPilot grants (40 Hz; a faster request is DENIED, measured)."""
 PLANE_HOME_PERIOD_S: Final = 6.0
@@ -240,17 +204,7 @@ EKF_CHECK_PERIOD_S: Final = 0.1
 EKF_CHECK_ITERATIONS: Final = 10
 """EKF_CHECK_ITERATIONS_MAX: a second of failed checks turns ArduRover's EKF failsafe on,
 and as many good ones turn it off."""
-BATTERY_VOLTAGE_MV: Final = 12600
-"""The battery's voltage (SITL's SIM_BATT_VOLTAGE; it does not sag in SITL either)."""
-FULL_THROTTLE_CURRENT_A: Final[Mapping[str, float]] = {
-    "arducopter": 56.0,
-    "arduplane": 23.0,
-    "ardurover": 10.0,
-}
-"""Battery current at full throttle, so a hovering copter draws ~28 A and a cruising
-plane ~11 A, as SITL's do."""
 
-UINT16_MAX: Final = 65535
 _RC_RELEASE_HIGH: Final = UINT16_MAX - 1
 _FTP_OP_NAK: Final = 129
 _FTP_ERR_UNKNOWN_COMMAND: Final = 7
@@ -267,26 +221,6 @@ _INFO, _NOTICE, _WARNING, _CRITICAL = (
     mavlink2.MAV_SEVERITY_CRITICAL,
 )
 
-STREAM_GROUPS: Final[Mapping[str, str | None]] = {
-    "HEARTBEAT": None,
-    "SYS_STATUS": "MAV1_EXT_STAT",
-    "GPS_RAW_INT": "MAV1_EXT_STAT",
-    "MISSION_CURRENT": "MAV1_EXT_STAT",
-    "NAV_CONTROLLER_OUTPUT": "MAV1_EXT_STAT",
-    "FENCE_STATUS": "MAV1_EXT_STAT",
-    "POSITION_TARGET_GLOBAL_INT": "MAV1_EXT_STAT",
-    "EXTENDED_SYS_STATE": "MAV1_EXT_STAT",
-    "GLOBAL_POSITION_INT": "MAV1_POSITION",
-    "ATTITUDE": "MAV1_EXTRA1",
-    "VFR_HUD": "MAV1_EXTRA2",
-    "SYSTEM_TIME": "MAV1_EXTRA3",
-    "EKF_STATUS_REPORT": "MAV1_EXTRA3",
-    "BATTERY_STATUS": "MAV1_EXTRA3",
-    "RC_CHANNELS": "MAV1_RC_CHAN",
-    "SERVO_OUTPUT_RAW": "MAV1_RC_CHAN",
-}
-"""Streamed messages, in emission order, and the MAV1_* parameter (Hz) that sets each
-one's default rate (None: HEARTBEAT, always 1 Hz by default), as ArduPilot groups them."""
 
 _NOT_STREAMED: Final[Mapping[str, frozenset[str]]] = {}
 """Streams a firmware does not have (none yet: ArduRover streams EXTENDED_SYS_STATE too,
@@ -308,40 +242,9 @@ at the firmware's default rate)."""
 _MAV_OPTION_GCS_ONLY: Final = 1
 """MAV_OPTIONS bit 0: accept MAVLink only from MAV_GCS_SYSID (and our own system)."""
 
-_AUTO_MODES: Final = frozenset({"AUTO", "RTL", "SMART_RTL", "LAND", "LOITER", "TAKEOFF"})
-"""Modes that fly themselves (HEARTBEAT's GUIDED_ENABLED flag)."""
-
-_LANDED: Final[Mapping[str, int]] = {
-    "on_ground": mavlink2.MAV_LANDED_STATE_ON_GROUND,
-    "in_air": mavlink2.MAV_LANDED_STATE_IN_AIR,
-    "taking_off": mavlink2.MAV_LANDED_STATE_TAKEOFF,
-    "landing": mavlink2.MAV_LANDED_STATE_LANDING,
-}
 
 _PREARM_BIT: Final = ap_sys_status.PREARM
 
-_EKF_UNINITIALISED: Final = 0x400
-_EKF_ATTITUDE_ONLY: Final = 0xA7  # attitude, velocities, vertical position, constant position
-_EKF_POSITION: Final = 0x33F  # ... and absolute and relative horizontal position
-_EKF_UNINITIALISED_S: Final = 3.6
-"""EKF_STATUS_REPORT says uninitialised until this long after power-on (measured 3.6-4 s)."""
-
-PLANE_PRE_FIX_DRIFT_START: Final = 0.37
-"""ArduPlane's dead reckoning before its GPS fix starts at this share of the time to the
-fix (SITL: 3.5 s of 9.3 s, once "Airspeed 1 calibrated"): its DCM integrates the airspeed
-sensor's reading along the heading from 0, 0, so GLOBAL_POSITION_INT drifts away from
-(0, 0) while GPS_RAW_INT says no fix. Measured (4.7.0-dev, on the ground): 11.6 m after
-0.2 s, 24.4 m after 0.6 s, 33.2 m after 1.6 s, 35.7 m at the fix (at up to 58 m/s between
-reports, 3-26 m/s averaged over a second), velocities 0. The shape below reproduces it."""
-PLANE_PRE_FIX_DRIFT_M: Final = 33.3
-"""The fast part of that drift, m: it covers 1 - exp(-t / tau) of it."""
-PLANE_PRE_FIX_DRIFT_TAU_S: Final = 0.47
-"""Its time constant, s (fitted: 0.46-0.48 over the first 0.6 s)."""
-PLANE_PRE_FIX_CREEP_M_S: Final = 0.55
-"""The slow drift that follows, until the fix, m/s (2.3 m over the last 4 s)."""
-GPS_DETECTED_BEFORE_FIX_S: Final = 0.3
-"""GPS_RAW_INT says NO_GPS (0) until the receiver is detected ("GPS 1: detected u-blox"),
-this long before its fix, then NO_FIX (1) until the fix (SITL, every firmware)."""
 
 _BOOT_TEXTS: Final[tuple[tuple[str, float, int, str], ...]] = (
     ("streams_s", 0.0, _INFO, "ArduPilot Ready"),
@@ -370,15 +273,6 @@ class _Outbox:
 
     def write(self, data: bytes) -> None:
         self.data += data
-
-
-def _msg_id(name: str) -> int:
-    return int(getattr(mavlink2, f"MAVLINK_MSG_ID_{name}"))
-
-
-def _clamp(value: float, low: int, high: int) -> int:
-    rounded = round(value)  # (comparisons, not min and max: several per streamed message)
-    return low if rounded < low else high if rounded > high else rounded
 
 
 _ACCEPTED, _DENIED, _FAILED, _UNSUPPORTED = (
@@ -474,14 +368,13 @@ class SimAutopilot:
         self._mission_poll_s = 0.0
         # AUTO's executor: the mission item it flies (seq), and how far it got with it.
         self._auto_seq: int | None = None
-        self._auto_phase = _AUTO_IDLE
-        self._auto_until_s = 0.0
+        self.auto = MissionExecutor(self)
+        """AUTO: the executor that flies the mission, item by item."""
+        self.commands = Commands(self)
+        """The commands it answers (COMMAND_LONG/INT, guided targets, DO items)."""
         self._auto_go = False  # ArduCopter on the ground: MISSION_START came
         self._auto_landing = False  # the item flown is a landing (ArduCopter disarms after)
         self._throttle_up_s: float | None = None  # last seen off zero (holds the idle disarm)
-        self._auto_land_there = False  # a land item with a place: flying there first
-        self._started_seen: tuple[MissionItem, ...] = ()  # DO items already carried out
-        self._mission_changes = 0  # MissionProtocol.changed when last looked at
 
         self._interval_us: dict[str, int | None] = {}  # per-message overrides; None: stopped
         self._due_us: dict[str, int] = {}
@@ -490,23 +383,15 @@ class SimAutopilot:
         # something is due; None: to be worked out again (a parameter or an interval changed).
         self._schedule: tuple[tuple[str, int | None], ...] | None = None
         self._absent = _NOT_STREAMED.get(firmware, frozenset())
+        # What it streams and answers with: every message it builds (see telemetry.py).
+        self.telemetry = Telemetry(self)
         # Message name -> the method that builds it, looked up once rather than per message.
-        self._builders: dict[str, Callable[[float], Any]] = {
-            name: getattr(self, f"_msg_{name.lower()}")
-            for name in (*STREAM_GROUPS, "HOME_POSITION", "AUTOPILOT_VERSION")
-        }
-        self._boot_ms_at_s = math.nan  # _boot_ms' last time (never equal to a time) and value
-        self._boot_ms_value = 0
+        self._builders: dict[str, Callable[[float], Any]] = self.telemetry.builders(
+            (*STREAM_GROUPS, "HOME_POSITION", "AUTOPILOT_VERSION")
+        )
         # The truth every message built by one advance() call reports (see _truth).
         self._advancing = False
         self._advance_truth: Truth | None = None
-        # The RC inputs RC_CHANNELS last reported, and that message, to send again.
-        self._rc_key: tuple[int, ...] | None = None
-        self._rc_message: Any = None
-        # Messages sent again and again with new values (see _msg_global_position_int).
-        self._position_message = self._mav.global_position_int_encode(0, 0, 0, 0, 0, 0, 0, 0, 0)
-        self._attitude_message = self._mav.attitude_encode(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        self._hud_message = self._mav.vfr_hud_encode(0.0, 0.0, 0, 0, 0.0, 0.0)
         self._deferred: list[str] = []  # messages asked for, sent after the acknowledgement
         self._heartbeat_sent = False  # stream requests before the first one are lost
         # The source line of an internal error that blocks arming until a reboot (None:
@@ -577,10 +462,6 @@ class SimAutopilot:
         self._last_mode = self.model.mode
         if boot_s + self.boot_times.home_s <= 0.0:
             self._home_here(0.0)  # powered on long enough before time 0 to have a home
-        # ATTITUDE body rates from successive attitudes: (time, roll, pitch, yaw) in rad.
-        self._attitude_before: tuple[float, float, float, float] | None = None
-        self._battery_mah = 0.0
-        self._battery_s: float | None = None
 
         self.bad_frames = 0
         """Garbage and corrupted frames received."""
@@ -671,10 +552,10 @@ class SimAutopilot:
     def set_home(self, lat_deg: float, lon_deg: float, alt_m: float, now_s: float) -> None:
         """Set home (as DO_SET_HOME does), e.g. where a pilot took off before the run."""
         self._home = (lat_deg, lon_deg, alt_m)
-        north = (lat_deg - self.origin_lat_deg) * _M_PER_DEG_LAT
+        north = (lat_deg - self.origin_lat_deg) * M_PER_DEG_LAT
         east = (
             (lon_deg - self.origin_lon_deg)
-            * _M_PER_DEG_LAT
+            * M_PER_DEG_LAT
             * math.cos(math.radians(self.origin_lat_deg))
         )
         self.model.set_home(north, east, alt_m - self.origin_alt_amsl_m)
@@ -812,9 +693,9 @@ class SimAutopilot:
                 for reason in self._arm_refusals(now_s, self.model.mode):
                     self._text(_CRITICAL, "Pre" + reason)
         if self._velocity_target is not None:
-            self._fly_velocity_target(now_s)
+            self.commands.fly_velocity_target(now_s)
         if self.model.mode == "AUTO":
-            self._fly_mission(now_s)
+            self.auto.fly(now_s)
         if (
             self._guided_arrival_due
             and self.model.target_reached
@@ -852,10 +733,10 @@ class SimAutopilot:
 
     def _to_local(self, lat_deg: float, lon_deg: float) -> Point2:
         """(north_m, east_m) from the mission origin (the model's frame)."""
-        north = (lat_deg - self.origin_lat_deg) * _M_PER_DEG_LAT
+        north = (lat_deg - self.origin_lat_deg) * M_PER_DEG_LAT
         east = (
             (lon_deg - self.origin_lon_deg)
-            * _M_PER_DEG_LAT
+            * M_PER_DEG_LAT
             * math.cos(math.radians(self.origin_lat_deg))
         )
         return north, east
@@ -922,9 +803,9 @@ class SimAutopilot:
         self._goto(lat, lon, alt_m)
 
     def _from_local(self, north_m: float, east_m: float) -> tuple[float, float]:
-        lat = self.origin_lat_deg + north_m / _M_PER_DEG_LAT
+        lat = self.origin_lat_deg + north_m / M_PER_DEG_LAT
         lon = self.origin_lon_deg + east_m / (
-            _M_PER_DEG_LAT * math.cos(math.radians(self.origin_lat_deg))
+            M_PER_DEG_LAT * math.cos(math.radians(self.origin_lat_deg))
         )
         return lat, lon
 
@@ -1087,7 +968,7 @@ class SimAutopilot:
             )
         if mode in fw.arm_needs_position and not self._position_ok(now_s):
             reasons.append(fw.no_position_text)
-        if mode == "AUTO" and fw.name == "arducopter" and not self._mission_has_items():
+        if mode == "AUTO" and fw.name == "arducopter" and not self.auto.has_items():
             reasons.append("Arm: Mode requires mission")
         elif mode in fw.not_armable:
             reasons.append(fw.not_armable_text.format(mode=fw.spell(mode)))
@@ -1150,7 +1031,7 @@ class SimAutopilot:
             self._home_here(now_s)
         if self.firmware == "arduplane" and (
             model.mode == "TAKEOFF"
-            or (model.mode == "AUTO" and self._current_nav_is(mavlink2.MAV_CMD_NAV_TAKEOFF))
+            or (model.mode == "AUTO" and self.auto.current_nav_is(mavlink2.MAV_CMD_NAV_TAKEOFF))
         ):
             self._plane_launch(now_s)
         return _ACCEPTED
@@ -1190,7 +1071,7 @@ class SimAutopilot:
                 # "Mission: 1 Takeoff" again, waiting for the next arming and start.
                 self._auto_go = False
                 self._auto_seq = None
-                if self._mission_has_items():
+                if self.auto.has_items():
                     self.missions.start()
             if self.fw.home_at == "disarming" and not self._home_locked:
                 self._home_here(now_s)
@@ -1232,9 +1113,9 @@ class SimAutopilot:
         """Horizontal distance from the vehicle to home (m); home must be set."""
         assert self._home is not None
         truth = self.model.truth()
-        north_m = (truth.lat_deg - self._home[0]) * _M_PER_DEG_LAT
+        north_m = (truth.lat_deg - self._home[0]) * M_PER_DEG_LAT
         east_m = (
-            (truth.lon_deg - self._home[1]) * _M_PER_DEG_LAT * math.cos(math.radians(self._home[0]))
+            (truth.lon_deg - self._home[1]) * M_PER_DEG_LAT * math.cos(math.radians(self._home[0]))
         )
         return math.hypot(north_m, east_m)
 
@@ -1327,15 +1208,15 @@ class SimAutopilot:
         if fw.name == "arducopter" and name == "LAND" and model.armed and not model.airborne:
             self._disarm(now_s)  # LAND on the ground: landed at once
         if left == "AUTO":
-            self._auto_left()
+            self.auto.left()
         if name == "AUTO":
-            if fw.name == "arduplane" and not self._mission_has_items():
+            if fw.name == "arduplane" and not self.auto.has_items():
                 self.missions.start()  # empty: complete at once
                 self._text(_INFO, "Mission complete, changing mode to RTL")
                 model.set_mode("RTL")
                 self._last_mode = "RTL"
             else:
-                self._auto_entered()
+                self.auto.entered()
         return _ACCEPTED
 
     def _mode_refusal(self, name: str, now_s: float) -> list[tuple[int, str]] | None:
@@ -1362,7 +1243,7 @@ class SimAutopilot:
         if model.armed and not model.airborne and name in fw.refused_armed_on_ground:
             return list(fw.refused_armed_on_ground[name])
         if fw.name == "ardurover":
-            if name == "AUTO" and not self._mission_has_items():
+            if name == "AUTO" and not self.auto.has_items():
                 return [(_NOTICE, "No Mission. Can't set AUTO."), *refused]
             if not model.armed and name in fw.set_needs_origin and not self._origin_set(now_s):
                 if name == "RTL" and self._home is not None:
@@ -1375,7 +1256,7 @@ class SimAutopilot:
             if name in fw.set_needs_origin and not self._position_ok(now_s):
                 return refused
             if name == "AUTO" and model.armed and not model.airborne:
-                first = self._first_nav()
+                first = self.auto.first_nav()
                 if first is None:
                     return refused  # nothing to fly
                 if first.command != mavlink2.MAV_CMD_NAV_TAKEOFF:
@@ -1428,18 +1309,18 @@ class SimAutopilot:
                 self.gcs_failsafe.seen(now_s)
         elif kind == "COMMAND_LONG":
             params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6)
-            result = self._command(msg.command, params, msg.param7, None, now_s)
+            result = self.commands.command(msg.command, params, msg.param7, None, now_s)
             self._ack(msg.command, result, asker)
             self._send_deferred(now_s)
         elif kind == "COMMAND_INT":
             params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.x, msg.y)
-            result = self._command(msg.command, params, msg.z, msg.frame, now_s)
+            result = self.commands.command(msg.command, params, msg.z, msg.frame, now_s)
             self._ack(msg.command, result, asker)
             self._send_deferred(now_s)
         elif kind == "SET_MODE":
             self._set_mode(msg.base_mode, msg.custom_mode, now_s)  # ArduPilot 4.7: no ack
         elif kind == "SET_POSITION_TARGET_GLOBAL_INT":
-            self._position_target(msg, now_s)
+            self.commands.position_target(msg, now_s)
         elif kind == "RC_CHANNELS_OVERRIDE":
             self._rc_override(msg, now_s)
         elif kind == "PARAM_REQUEST_LIST":  # (a second one starts the list again)
@@ -1454,7 +1335,7 @@ class SimAutopilot:
             pass  # the mission protocol answered (the executor sees what changed)
         elif kind in ("MISSION_ITEM_INT", "MISSION_ITEM"):
             # A guided-mode waypoint (current 2) or altitude change (current 3).
-            result = self._mission_item(msg, now_s, integer=kind == "MISSION_ITEM_INT")
+            result = self.commands.mission_item(msg, now_s, integer=kind == "MISSION_ITEM_INT")
             self._mav.send(
                 self._mav.mission_ack_encode(
                     asker.system_id, asker.component_id, result, msg.mission_type
@@ -1495,183 +1376,6 @@ class SimAutopilot:
                 self._mav.send(message)
         self._deferred.clear()
 
-    def _command(
-        self, command: int, params: tuple[float, ...], z: float, frame: int | None, now_s: float
-    ) -> int:
-        """Carry out one COMMAND_LONG (``frame`` None) or COMMAND_INT; returns MAV_RESULT."""
-        p1, p2 = params[0], params[1]
-        if command == mavlink2.MAV_CMD_DO_SET_MODE:
-            return self._set_mode(int(p1), int(p2), now_s)
-        if command == mavlink2.MAV_CMD_COMPONENT_ARM_DISARM:
-            return self._arm_command(p1, p2, now_s)
-        if command == mavlink2.MAV_CMD_DO_SET_SERVO:
-            servo = int(p1)
-            if not self._servo_free(servo):
-                self._text(_INFO, f"ServoRelayEvent: Channel {servo} is already in use")
-                return _FAILED
-            self.model.set_servo(servo, int(p2))
-            return _ACCEPTED
-        if command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
-            return self._change_speed(int(p1), p2)
-        if command == mavlink2.MAV_CMD_NAV_TAKEOFF:
-            return self._takeoff(z, frame, now_s)
-        if command == mavlink2.MAV_CMD_NAV_LAND:
-            if self.firmware != "arducopter":
-                return _UNSUPPORTED
-            return self._enter_mode("LAND", now_s)
-        if command == mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH:
-            return self._enter_mode("RTL", now_s)
-        if command == mavlink2.MAV_CMD_NAV_LOITER_UNLIM and self.firmware == "arducopter":
-            return self._enter_mode("LOITER", now_s)
-        if command == mavlink2.MAV_CMD_DO_SET_HOME:
-            return self._set_home_command(params, z, frame, now_s)
-        if command == mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL:
-            return self._message_interval(int(p1), int(p2), now_s)
-        if command == mavlink2.MAV_CMD_GET_MESSAGE_INTERVAL:
-            name = self._streamed_name(int(p1))
-            if name is None:
-                return _FAILED
-            interval = self._stream_interval_us(name)
-            self._mav.send(
-                self._mav.message_interval_encode(int(p1), -1 if interval is None else interval)
-            )
-            return _ACCEPTED
-        if command == mavlink2.MAV_CMD_REQUEST_MESSAGE:
-            return self._request_message(int(p1))
-        if command == mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
-            if p1 != 1.0:
-                return _DENIED
-            return self._request_message(_msg_id("AUTOPILOT_VERSION"))
-        if command == mavlink2.MAV_CMD_GET_HOME_POSITION:
-            if self._home is None:
-                return _FAILED
-            return self._request_message(_msg_id("HOME_POSITION"))
-        if command == mavlink2.MAV_CMD_DO_SET_MISSION_CURRENT:
-            if not self.missions.set_current(int(p1)):
-                return _DENIED
-            self._deferred.append("MISSION_CURRENT")
-            return _ACCEPTED
-        if command == mavlink2.MAV_CMD_MISSION_START:
-            return self._mission_start(p1, p2, now_s)
-        if command == mavlink2.MAV_CMD_DO_REPOSITION and frame is not None:
-            return self._reposition(params, z, frame, now_s)
-        if command == mavlink2.MAV_CMD_DO_FENCE_ENABLE:
-            return self._fence_enable(int(p1), int(p2) & 0xFF)
-        return _UNSUPPORTED
-
-    def _fence_enable(self, action: int, fences: int) -> int:
-        """MAV_CMD_DO_FENCE_ENABLE: 0 off, 1 on (FAILED if none of them exists), 2 floor off.
-
-        The fences asked for (param2; 0: all) change, FENCE_ENABLE does not.
-        """
-        fences = fences or ALL_FENCES
-        self._fence_quiet = False
-        self._fence_zones()
-        if action == 0:
-            self.fence.enable(False, fences)
-        elif action == 1:
-            if not self.fence.present() & fences:
-                return _FAILED
-            self.fence.enable(True, fences)
-        elif action == 2:
-            self.fence.enable(False, ALT_MIN)
-        else:
-            return _FAILED
-        return _ACCEPTED
-
-    def _servo_free(self, servo: int) -> bool:
-        """An output DO_SET_SERVO may drive: 1-16, with no function (ArduPilot's rule)."""
-        in_use = getattr(self.model, "servo_function", None)
-        return 1 <= servo <= 16 and (in_use is None or in_use(servo) is None)
-
-    def _takeoff(self, alt_m: float, frame: int | None, now_s: float) -> int:
-        """MAV_CMD_NAV_TAKEOFF: ArduCopter's guided takeoff; ArduPlane's is quadplane-only."""
-        if self.firmware != "arducopter":
-            if self.firmware == "arduplane":
-                return _DENIED if frame is not None else _FAILED
-            return _UNSUPPORTED
-        if frame is not None and frame != mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT:
-            return _DENIED
-        model = self.model
-        if not (alt_m > 0) or not model.armed or model.airborne or not self._in_guided():
-            return _FAILED
-        armed_for_s = now_s - (self._armed_s if self._armed_s is not None else now_s)
-        delay_s = (
-            TAKEOFF_DELAY_SPOOLED_S
-            if armed_for_s >= SPOOLED_AFTER_S
-            else (TAKEOFF_DELAY_SPOOLING_S)
-        )
-        if not model.takeoff(float(alt_m), delay_s):
-            return _FAILED
-        self._guided_wp_active = False
-        self._ground_since_s = None  # taking off: no auto-disarm
-        return _ACCEPTED
-
-    def _set_home_command(
-        self, params: tuple[float, ...], z: float, frame: int | None, now_s: float
-    ) -> int:
-        """MAV_CMD_DO_SET_HOME: here (param1 1), or a point.
-
-        A home set so is locked: ArduPilot's own re-setting at arming or disarming
-        leaves it alone.
-        """
-        if params[0] == 1.0:
-            if not self._gps_fix(now_s):
-                return _FAILED
-            truth = self.model.truth()
-            lat, lon, alt = truth.lat_deg, truth.lon_deg, self.origin_alt_amsl_m + truth.up_m
-        else:
-            lat, lon, alt = params[4], params[5], z
-            if frame is not None:  # COMMAND_INT: degrees * 1e7
-                lat, lon = lat / 1e7, lon / 1e7
-            if not (abs(lat) <= 90 and abs(lon) <= 180) or (lat == 0 and lon == 0):
-                return _FAILED
-        self.set_home(float(lat), float(lon), float(alt), now_s)
-        self._home_locked = True
-        if self.fw.set_home_text:
-            self._text(_INFO, f"Set HOME to {lat:.5f} {lon:.5f} at {alt:.2f}m")
-        return _ACCEPTED
-
-    def _change_speed(self, speed_type: int, speed_m_s: float) -> int:
-        """MAV_CMD_DO_CHANGE_SPEED, accepted where each firmware accepts it (measured)."""
-        mode, model = self.model.mode, self.model
-        if self.firmware == "arducopter":
-            if speed_m_s <= 0:
-                return _DENIED
-            if mode not in (self.guided_mode, "AUTO"):
-                return _FAILED
-            # ArduCopter takes an airspeed as a ground speed. In GUIDED the speed goes to
-            # its waypoint controller, which a position target after a takeoff (or on
-            # entering GUIDED) starts afresh at WPNAV_SPEED: until one has been flown, an
-            # accepted change is lost (measured).
-            if speed_type in (0, 1) and (mode == "AUTO" or self._guided_wp_active):
-                model.set_speed(float(speed_m_s))
-            return _ACCEPTED
-        if self.firmware == "ardurover":
-            if speed_type not in (0, 1):
-                return _DENIED
-            if speed_m_s <= 0.05:
-                return _FAILED
-            guided_leg = mode == self.guided_mode and self._target is not None
-            if not (guided_leg or mode == "AUTO"):
-                return _FAILED  # MANUAL, HOLD, and guided before its first target
-            model.set_speed(float(speed_m_s))
-            return _ACCEPTED
-        # ArduPlane: guided and auto only; an airspeed within its limits.
-        if mode not in (self.guided_mode, "AUTO"):
-            return _FAILED
-        if speed_type == 1:
-            if speed_m_s < 0:
-                return _FAILED
-            self._text(_INFO, f"Set groundspeed {speed_m_s:g}")
-            return _ACCEPTED
-        low, high = self._params["AIRSPEED_MIN"].value, self._params["AIRSPEED_MAX"].value
-        if not low <= speed_m_s <= high:
-            return _FAILED
-        model.set_speed(float(speed_m_s))
-        self._text(_INFO, f"Set airspeed {speed_m_s:g} m/s")
-        return _ACCEPTED
-
     def _goto(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
         self._target = (lat_deg, lon_deg, alt_m)
         self._guided_arrival_due = self.fw.guided_reached_text
@@ -1693,325 +1397,7 @@ class SimAutopilot:
             return float(alt) - self.origin_alt_amsl_m
         return None
 
-    def _reposition(self, params: tuple[float, ...], z: float, frame: int, now_s: float) -> int:
-        speed, flags, lat_e7, lon_e7 = params[0], int(params[1]), params[4], params[5]
-        alt_m = self._relative_alt_m(z, frame)
-        if alt_m is None or not (abs(lat_e7) <= 90e7 and abs(lon_e7) <= 180e7):
-            return _DENIED
-        change_mode = bool(flags & mavlink2.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE)
-        if self.firmware != "ardurover" and not self._target_inside_fence(
-            lat_e7 / 1e7, lon_e7 / 1e7, alt_m
-        ):
-            # ArduPlane DENIED, ArduCopter FAILED (its guided destination check), before
-            # any mode change; ArduRover does not check (measured).
-            return _DENIED if self.firmware == "arduplane" else _FAILED
-        if change_mode and not self._in_guided():
-            self._enter_mode(self.guided_mode, now_s)
-        if not self._in_guided():
-            return _FAILED
-        loiter = getattr(self.model, "guided_loiter", None)  # ArduPlane's (FixedWing)
-        if self.firmware == "arduplane" and loiter is not None:
-            radius_m, ccw = params[2], params[3]
-            loiter(radius_m, math.isfinite(ccw) and ccw != 0.0)
-        if not self._goto(lat_e7 / 1e7, lon_e7 / 1e7, alt_m):
-            return _FAILED
-        if speed > 0:
-            self.model.set_speed(float(speed))
-        return _ACCEPTED
-
-    def _mission_item(self, msg: Any, now_s: float, *, integer: bool) -> int:
-        """A mission item outside an upload: ArduPilot's guided waypoint and altitude change.
-
-        As ArduPilot's GCS_MAVLINK::handle_mission_item: ``current`` 2 is a guided-mode
-        waypoint (accepted in the guided mode only; MAVProxy's ``guided LAT LON ALT``
-        sends one), ``current`` 3 an altitude change (always accepted); any other item
-        arrives outside an upload, which is an error. (Items of an upload, and of the
-        fence and rally lists, are the mission protocol's, which sees them first.)
-        """
-        if msg.mission_type != mavlink2.MAV_MISSION_TYPE_MISSION:
-            return int(mavlink2.MAV_MISSION_UNSUPPORTED)
-        if msg.current not in (2, 3):
-            return int(mavlink2.MAV_MISSION_ERROR)
-        alt_m = self._relative_alt_m(msg.z, msg.frame)
-        lat_deg, lon_deg = (msg.x / 1e7, msg.y / 1e7) if integer else (msg.x, msg.y)
-        if alt_m is None or not (abs(lat_deg) <= 90 and abs(lon_deg) <= 180):
-            return int(mavlink2.MAV_MISSION_UNSUPPORTED_FRAME)
-        if msg.current == 3:
-            if self._target is not None and self._in_guided():
-                if not self._copter_may_go(self._target[0], self._target[1], alt_m):
-                    return int(mavlink2.MAV_MISSION_ERROR)
-                self._goto(self._target[0], self._target[1], alt_m)
-            return int(mavlink2.MAV_MISSION_ACCEPTED)
-        if not self._copter_may_go(lat_deg, lon_deg, alt_m):
-            return int(mavlink2.MAV_MISSION_ERROR)
-        if not self._in_guided() or not self._goto(lat_deg, lon_deg, alt_m):
-            return int(mavlink2.MAV_MISSION_ERROR)
-        return int(mavlink2.MAV_MISSION_ACCEPTED)
-
-    def _position_target(self, msg: Any, now_s: float) -> None:
-        if not self._in_guided():
-            return  # ArduPilot drops position targets outside guided
-        alt_m = self._relative_alt_m(msg.alt, msg.coordinate_frame)
-        if alt_m is None:
-            return
-        mask = msg.type_mask
-        position_ignored = mask & (
-            mavlink2.POSITION_TARGET_TYPEMASK_X_IGNORE | mavlink2.POSITION_TARGET_TYPEMASK_Y_IGNORE
-        )
-        if self.firmware == "arduplane":
-            # ArduPlane takes only the altitude of this message (its GCS_Mavlink.cpp).
-            if mask & mavlink2.POSITION_TARGET_TYPEMASK_Z_IGNORE:
-                return
-            if self._target is not None:
-                lat_deg, lon_deg, _ = self._target
-            else:
-                truth: Truth = self.model.truth()
-                lat_deg, lon_deg = truth.lat_deg, truth.lon_deg
-            self._goto(lat_deg, lon_deg, alt_m)
-            return
-        if position_ignored:
-            return  # velocity-only and acceleration targets are not simulated
-        lat_deg, lon_deg = msg.lat_int / 1e7, msg.lon_int / 1e7
-        velocity_ignored = mask & (
-            mavlink2.POSITION_TARGET_TYPEMASK_VX_IGNORE
-            | mavlink2.POSITION_TARGET_TYPEMASK_VY_IGNORE
-        )
-        if not self._copter_may_go(lat_deg, lon_deg, alt_m):
-            return  # ArduCopter refuses a target outside its fence without a word (measured)
-        self._velocity_target = None
-        if not velocity_ignored and self.firmware == "arducopter":
-            # ArduCopter's guided position and velocity target: the position moves on
-            # with the velocity until the next one (or GUID_TIMEOUT).
-            self._velocity_target = (lat_deg, lon_deg, alt_m, msg.vx, msg.vy, now_s)
-        self._goto(lat_deg, lon_deg, alt_m)
-
-    def _copter_may_go(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
-        """ArduCopter's guided destinations must be inside its fence (set_destination)."""
-        return self.firmware != "arducopter" or self._target_inside_fence(lat_deg, lon_deg, alt_m)
-
-    def _fly_velocity_target(self, now_s: float) -> None:
-        assert self._velocity_target is not None
-        lat_deg, lon_deg, alt_m, vn, ve, at_s = self._velocity_target
-        elapsed_s = now_s - at_s
-        if elapsed_s > GUIDED_TIMEOUT_S or not self._in_guided():
-            self._velocity_target = None
-            return
-        lat = lat_deg + vn * elapsed_s / _M_PER_DEG_LAT
-        lon = lon_deg + ve * elapsed_s / (_M_PER_DEG_LAT * math.cos(math.radians(lat_deg)))
-        self._target = (lat, lon, alt_m)
-        self.model.goto(lat, lon, alt_m, None)
-
-    # -- AUTO: the mission executor ------------------------------------------------------------
-
-    def _mission_has_items(self) -> bool:
-        return self.missions.count > 1  # item 0 is home
-
-    def _first_nav(self) -> MissionItem | None:
-        return next((item for item in self.missions.items[1:] if item.is_nav), None)
-
-    def _current_nav_is(self, command: int) -> bool:
-        item = self.missions.nav_item
-        return item is not None and item.command == command
-
-    def _auto_entered(self) -> None:
-        """AUTO entered: the mission goes on where it stopped (ArduPilot's MIS_RESTART 0)."""
-        self._auto_seq = None
-        self._auto_phase = _AUTO_IDLE
-        self._auto_go = self.model.airborne  # a copter in the air needs no MISSION_START
-        if self._mission_has_items():
-            self.missions.resume()
-        else:
-            # Nothing to fly: the (empty) mission is complete at once, and stays complete
-            # across a later upload until it is started again (measured).
-            self.missions.start()
-
-    def _auto_left(self) -> None:
-        self.missions.stop()
-        self._auto_seq = None
-        self._auto_phase = _AUTO_IDLE
-        self._auto_go = self._auto_landing = self._auto_land_there = False
-
-    def _mission_start(self, first: float, last: float, now_s: float) -> int:
-        """MAV_CMD_MISSION_START: into AUTO if not there; ArduCopter's launch from the ground.
-
-        Measured: param1 other than 0 is DENIED (ArduCopter); from another mode it
-        switches to AUTO (ArduCopter starting the mission again: "Mission: 1 Takeoff"
-        twice), disarmed too; in AUTO, armed on the ground, ArduCopter climbs within a
-        second; a rover's finished mission stays finished.
-        """
-        if first != 0 or last != 0:
-            return _DENIED
-        entered = self.model.mode != "AUTO"
-        if entered:
-            result = self._enter_mode("AUTO", now_s)
-            if result != _ACCEPTED or self.model.mode != "AUTO":
-                return _FAILED if result == _ACCEPTED else result
-        if not self._mission_has_items():
-            return _FAILED
-        if self.firmware == "arducopter":
-            if entered or self.missions.state != MissionState.RUNNING:
-                self.missions.start()
-                self._auto_seq = None
-            self._auto_go = True
-        return _ACCEPTED
-
-    def _item_alt_m(self, item: MissionItem) -> float:
-        """A mission item's altitude above the origin (the model's frame)."""
-        alt = self._relative_alt_m(item.z, item.frame)
-        return self._truth().up_m if alt is None else alt
-
-    def _item_place(self, item: MissionItem) -> tuple[float, float]:
-        """A mission item's (north, east) from the origin; here when it has no place."""
-        if item.x == 0 and item.y == 0:
-            truth = self._truth()
-            return truth.north_m, truth.east_m
-        north = (item.x / 1e7 - self.origin_lat_deg) * _M_PER_DEG_LAT
-        east = (
-            (item.y / 1e7 - self.origin_lon_deg)
-            * _M_PER_DEG_LAT
-            * math.cos(math.radians(self.origin_lat_deg))
-        )
-        return north, east
-
-    def _do_items(self, now_s: float) -> None:
-        """Carry out the DO items the mission just started (those this simulation has)."""
-        for item in self.missions.started:
-            if item.is_nav:
-                continue
-            command = item.command
-            if command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
-                self._change_speed(int(item.param1), item.param2)
-            elif command == mavlink2.MAV_CMD_DO_SET_SERVO:
-                servo = int(item.param1)
-                if self._servo_free(servo):
-                    self.model.set_servo(servo, int(item.param2))
-            elif command == mavlink2.MAV_CMD_DO_SET_HOME:
-                params = (item.param1, 0.0, 0.0, 0.0, float(item.x), float(item.y))
-                self._set_home_command(params, item.z, item.frame, now_s)
-        self._started_seen = self.missions.started
-
-    def _fly_mission(self, now_s: float) -> None:
-        """AUTO: fly the mission's current navigation item; on to the next when it is done."""
-        missions, model = self.missions, self.model
-        if missions.changed != self._mission_changes:
-            self._mission_changes = missions.changed
-            if missions.started != self._started_seen:
-                self._do_items(now_s)
-        if missions.state != MissionState.RUNNING:
-            self._auto_seq = None
-            return
-        item = missions.nav_item
-        if item is None:
-            return
-        if item.seq != self._auto_seq:
-            self._auto_seq = item.seq
-            self._auto_phase = _AUTO_WAITING
-            self._auto_landing = self._auto_land_there = False
-        if self._auto_phase == _AUTO_WAITING:
-            if not model.armed:
-                return
-            if self.firmware == "arducopter" and not model.airborne and not self._auto_go:
-                return  # armed on the ground in AUTO: waits for MISSION_START (measured)
-            self._begin_item(item, now_s)
-        if self._auto_phase == _AUTO_FLYING and model.target_reached and not self._avoid_cut:
-            if self._auto_landing and self.firmware == "arducopter":
-                return  # landed: its disarm ends the item, and starts the mission over
-            if self._auto_land_there:  # over the land item's place: now land
-                self._auto_land_there = False
-                self._auto_landing = True
-                model.auto_land()
-                return
-            hold_s = item.param1 if item.command in _HOLDING_COMMANDS else 0.0
-            self._auto_phase = _AUTO_HOLDING
-            self._auto_until_s = now_s + max(hold_s, 0.0)
-            if item.command == mavlink2.MAV_CMD_NAV_LOITER_UNLIM:
-                self._auto_phase = _AUTO_DONE  # loiters until told otherwise
-        if self._auto_phase == _AUTO_HOLDING and now_s >= self._auto_until_s:
-            self._item_done(item, now_s)
-
-    def _begin_item(self, item: MissionItem, now_s: float) -> None:
-        """Command the model to fly ``item``; an item it cannot fly is done at once."""
-        model, command = self.model, item.command
-        self._auto_phase = _AUTO_FLYING
-        if command == mavlink2.MAV_CMD_NAV_TAKEOFF:
-            above_home_m = self._item_alt_m(item) - (self._home_alt_m() - self.origin_alt_amsl_m)
-            if self.firmware == "arducopter":
-                armed_for_s = now_s - (self._armed_s if self._armed_s is not None else now_s)
-                delay_s = (
-                    COPTER_AUTO_TAKEOFF_DELAY_S
-                    if armed_for_s >= SPOOLED_AFTER_S
-                    else TAKEOFF_DELAY_SPOOLING_S
-                )
-                taken = model.auto_takeoff(above_home_m, delay_s)  # type: ignore[call-arg]
-                self._ground_since_s = None
-            else:
-                taken = model.auto_takeoff(above_home_m)
-            if not taken:
-                self._auto_phase = _AUTO_HOLDING  # (a rover; or already there)
-                self._auto_until_s = now_s
-        elif command == mavlink2.MAV_CMD_NAV_LAND:
-            north, east = self._item_place(item)
-            truth = self._truth()
-            far = math.hypot(north - truth.north_m, east - truth.east_m) > 1.0
-            if far and (item.x or item.y) and self.firmware == "arducopter":
-                self._auto_land_there = True
-                model.auto_target(north, east, truth.up_m, None)
-            else:
-                self._auto_landing = True
-                model.auto_land()
-        elif command in _TARGET_COMMANDS:
-            if command == mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH and self._home is not None:
-                home = self._home
-                north = (home[0] - self.origin_lat_deg) * _M_PER_DEG_LAT
-                east = (
-                    (home[1] - self.origin_lon_deg)
-                    * _M_PER_DEG_LAT
-                    * math.cos(math.radians(self.origin_lat_deg))
-                )
-                alt = self._truth().up_m
-            else:
-                north, east = self._item_place(item)
-                alt = self._item_alt_m(item)
-            self._avoid_cut = False
-            if self.firmware == "ardurover":
-                short = self._avoided((north, east))
-                if short is not None:  # ArduRover's avoidance: it stops short, item not done
-                    self._avoid_cut = True
-                    north, east = short
-            model.auto_target(north, east, alt, None)
-        else:  # not simulated: done at once
-            self._auto_phase = _AUTO_HOLDING
-            self._auto_until_s = now_s
-
-    def _item_done(self, item: MissionItem, now_s: float) -> None:
-        """The current item is done: say so as each firmware does, and go on."""
-        command, seq = item.command, item.seq
-        self._mav.send(self._mav.mission_item_reached_encode(seq))
-        if self.firmware == "ardurover" and command in _TARGET_COMMANDS:
-            self._text(_INFO, f"Reached waypoint #{seq}")
-        elif self.firmware == "arducopter" and command in _TARGET_COMMANDS:
-            self._text(_INFO, f"Reached command #{seq}")
-        elif self.firmware == "arduplane":
-            if command == mavlink2.MAV_CMD_NAV_TAKEOFF:
-                self._text(_INFO, f"Takeoff complete at {self._truth().up_m:.2f}m")
-            elif command in _TARGET_COMMANDS:
-                self._text(_INFO, f"Reached waypoint #{seq} dist 0m")
-        self._auto_phase = _AUTO_IDLE
-        if self.missions.advance() is None and self.missions.state == MissionState.COMPLETE:
-            self._mission_complete(now_s)
-
-    def _mission_complete(self, now_s: float) -> None:
-        """The last item is done.
-
-        ArduRover stops there ("Mission Complete", still in AUTO), ArduCopter holds (or
-        has landed), ArduPlane turns to RTL.
-        """
-        self._auto_seq = None
-        if self.firmware == "ardurover":
-            self._text(_NOTICE, "Mission Complete")
-        elif self.firmware == "arduplane":
-            self._text(_INFO, "Mission complete, changing mode to RTL")
-            self._enter_mode("RTL", now_s, "autopilot")
+    # -- RC overrides ---------------------------------------------------------------------------
 
     def _rc_override(self, msg: Any, now_s: float) -> None:
         if msg.get_srcSystem() != self._gcs_sysid():
@@ -2220,24 +1606,6 @@ class SimAutopilot:
         if interval_us is not None:
             self._due_us[name] = round(now_s * 1e6) + interval_us
 
-    def _boot_ms(self, now_s: float) -> int:
-        # Kept for the next call at the same time: up to four messages of one advance()
-        # carry it.
-        if now_s != self._boot_ms_at_s:
-            self._boot_ms_at_s = now_s
-            self._boot_ms_value = max(0, round((now_s - self.boot_s) * 1000)) & 0xFFFFFFFF
-        return self._boot_ms_value
-
-    def _unix_us(self, now_s: float) -> int:
-        """The GPS's Unix time: 0 before its fix, then the wall clock or the simulated one."""
-        if not self._gps_fix(now_s):
-            return 0
-        if self._unix_clock_us is not None:
-            return self._unix_clock_us()
-        if self.start_time_unix_us is None:
-            return 0
-        return self.start_time_unix_us + round(now_s * 1e6)
-
     def _build(self, name: str, now_s: float) -> Any:
         return self._builders[name](now_s)
 
@@ -2256,390 +1624,12 @@ class SimAutopilot:
                 self._advance_truth = truth
         return truth
 
-    def _landed_state(self, now_s: float) -> int:
-        """MAV_LANDED_STATE, with ArduCopter's land detector lag after a touchdown."""
-        state = self.model.landed_state
-        if state == "taking_off" and now_s < self._takeoff_starts_s:
-            state = "on_ground"  # ArduPlane: rolling, but its takeoff not yet started
-        if (
-            state == "on_ground"
-            and self._touchdown_s is not None
-            and now_s - self._touchdown_s < LANDED_REPORT_DELAY_S
-            and self.model.armed
-        ):
-            # Until the land detector says landed: LANDING in a mode that lands, IN_AIR in
-            # any other (a copter sunk to the ground in LOITER, measured on SITL).
-            state = "landing" if self._landing_mode() else "in_air"
-        return _LANDED[state]
-
-    def _msg_heartbeat(self, now_s: float) -> Any:
-        self._heartbeat_sent = True
-        model = self.model
-        armed = model.armed
-        booting = self._age_s(now_s) < INITIALISING_S
-        custom_mode = (
-            self.fw.initialising_mode
-            if booting and self.fw.initialising_mode is not None
-            else self.modes.get(model.mode, 0)
-        )
-        base_mode = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
-        auto = model.mode == self.guided_mode or model.mode in _AUTO_MODES
-        if self.firmware == "ardurover":
-            # Measured: MANUAL 0x41, HOLD 0x01, GUIDED/RTL/AUTO 0x09.
-            if auto:
-                base_mode |= mavlink2.MAV_MODE_FLAG_GUIDED_ENABLED
-            elif model.mode != "HOLD":
-                base_mode |= mavlink2.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
-        else:
-            base_mode |= (
-                mavlink2.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
-                | mavlink2.MAV_MODE_FLAG_STABILIZE_ENABLED
-            )
-            if auto:
-                base_mode |= mavlink2.MAV_MODE_FLAG_GUIDED_ENABLED
-        if armed:
-            base_mode |= mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
-        if self._age_s(now_s) < self.boot_times.streams_s:
-            status = mavlink2.MAV_STATE_BOOT
-        elif self.firmware == "ardurover":
-            hold = model.mode == "HOLD"
-            status = mavlink2.MAV_STATE_STANDBY if hold else mavlink2.MAV_STATE_ACTIVE
-        elif model.airborne:
-            status = mavlink2.MAV_STATE_ACTIVE
-        else:
-            status = mavlink2.MAV_STATE_STANDBY
-        return self._mav.heartbeat_encode(
-            FIRMWARE_TYPES[self.firmware],
-            mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA,
-            base_mode,
-            custom_mode,
-            status,
-        )
-
-    def _msg_sys_status(self, now_s: float) -> Any:
-        """SYS_STATUS, its sensor bits as ArduPilot sets them (``ap_sys_status``)."""
-        # The geofence: present with any fence configured that exists, enabled with a
-        # fence on and an action, healthy unless breached (AC_Fence::sys_status_*).
-        self._fence_zones()
-        now = ap_sys_status.Inputs(
-            since_boot_s=now_s - self.boot_s,
-            mode=self.model.mode,
-            gps_fixed=self._gps_fix(now_s),
-            ekf_origin=self._origin_set(now_s),
-            ekf_position=self._position_ok(now_s),
-            prearm_ok=self.model.armed or self._prearm_healthy(now_s),
-            logging=self.model.armed or now_s < self._logging_until_s,
-            fence=self.fence.sys_status(),
-        )
-        present, enabled, health = ap_sys_status.sensor_bits(self.firmware, now)
-        current_ca, remaining = self._battery(now_s)
-        return self._mav.sys_status_encode(
-            present, enabled, health, 0, BATTERY_VOLTAGE_MV, current_ca, remaining, 0, 0, 0, 0, 0, 0
-        )
-
-    def _battery(self, now_s: float) -> tuple[int, int]:
-        """Current (cA) and remaining charge (%), drawn at the throttle the model reports."""
-        throttle = max(0.0, min(1.0, abs(self._truth().throttle_pct) / 100.0))
-        current_a = FULL_THROTTLE_CURRENT_A[self.firmware] * throttle if self.model.armed else 0.0
-        if self._battery_s is not None and now_s > self._battery_s:
-            self._battery_mah += current_a * (now_s - self._battery_s) / 3.6
-        self._battery_s = now_s
-        capacity = max(self._params["BATT_CAPACITY"].value, 1.0)
-        remaining = max(0, round(100.0 * (1.0 - self._battery_mah / capacity)))
-        return round(current_a * 100), remaining
-
-    def _position(self, now_s: float, raw: bool = False) -> tuple[float, float, float]:
-        """Latitude, longitude and height above the origin as the autopilot reports them.
-
-        Before the GPS has a fix ArduPilot reports 0, 0 (ArduPlane: its dead reckoning
-        from there, :meth:`_dead_reckoned_m`), and a height from its barometer (taken
-        here as the height with the receiver's vertical error: a little noise around
-        the truth). A model with a GPS is read through it: ``raw`` the receiver's fix
-        (``gps_fix``: seeded noise at the receiver's rate, GPS_RAW_INT), otherwise its
-        estimate (``position_estimate``: that noise smoothed as ArduPilot's EKF smooths
-        it, GLOBAL_POSITION_INT); a model without one reports the truth.
-        """
-        fix = getattr(self.model, "gps_fix" if raw else "position_estimate", None)
-        if fix is not None:
-            lat, lon, alt = fix()
-        else:
-            t = self._truth()
-            lat, lon, alt = t.lat_deg, t.lon_deg, t.up_m
-        if not self._gps_fix(now_s):
-            north_m, east_m = self._dead_reckoned_m(now_s)
-            return north_m / _M_PER_DEG_LAT, east_m / _M_PER_DEG_LAT, float(alt)
-        return float(lat), float(lon), float(alt)
-
-    def _dead_reckoned_m(self, now_s: float) -> tuple[float, float]:
-        """North and east of (0, 0), m, where ArduPlane's DCM puts itself before a fix.
-
-        ArduPlane integrates its airspeed sensor from 0, 0 along its heading (SITL:
-        :data:`PLANE_PRE_FIX_DRIFT_START`); the other firmwares stay at 0, 0. An engine
-        must not take these for the vehicle's position (GPS_RAW_INT says no fix).
-        """
-        if self.firmware != "arduplane":
-            return 0.0, 0.0
-        fix_s = self.boot_times.gps_fix_s
-        since_s = self._age_s(now_s) - PLANE_PRE_FIX_DRIFT_START * fix_s
-        if since_s <= 0.0:
-            return 0.0, 0.0
-        drift_m = PLANE_PRE_FIX_DRIFT_M * -math.expm1(-since_s / PLANE_PRE_FIX_DRIFT_TAU_S)
-        drift_m += PLANE_PRE_FIX_CREEP_M_S * since_s
-        yaw = math.radians(self._truth().yaw_deg)
-        return drift_m * math.cos(yaw), drift_m * math.sin(yaw)
-
     def _home_alt_m(self) -> float:
         return self._home[2] if self._home is not None else self.origin_alt_amsl_m
-
-    def _msg_gps_raw_int(self, now_s: float) -> Any:
-        t = self._truth()
-        lat, lon, up = self._position(now_s, raw=True)
-        fixed = self._gps_fix(now_s)
-        if not fixed:
-            lat = lon = 0.0  # the receiver's own report: nothing (the DCM's is not its)
-        unix_us = self._unix_us(now_s)
-        return self._mav.gps_raw_int_encode(
-            unix_us if unix_us else round((now_s - self.boot_s) * 1e6),
-            mavlink2.GPS_FIX_TYPE_3D_FIX
-            if fixed
-            else mavlink2.GPS_FIX_TYPE_NO_FIX
-            if self._age_s(now_s) >= self.boot_times.gps_fix_s - GPS_DETECTED_BEFORE_FIX_S
-            else mavlink2.GPS_FIX_TYPE_NO_GPS,
-            round(lat * 1e7),
-            round(lon * 1e7),
-            round((self.origin_alt_amsl_m + up) * 1000) if fixed else 0,
-            121 if fixed else UINT16_MAX,  # HDOP 1.21
-            200 if fixed else UINT16_MAX,  # VDOP 2.00
-            _clamp(t.ground_speed_m_s * 100, 0, UINT16_MAX - 1) if fixed else 0,
-            round((t.heading_deg % 360.0) * 100) % 36000 if fixed else 0,
-            10 if fixed else 0,
-        )
 
     # GLOBAL_POSITION_INT, ATTITUDE and VFR_HUD go out at the telemetry rate: each is one
     # pymavlink message object (built in __init__) whose fields are set before every send,
     # which packs it anew, rather than a new object each time.
-
-    def _msg_global_position_int(self, now_s: float) -> Any:
-        """The fused position (see :meth:`_fused_alt_m` for its altitudes).
-
-        Before the GPS fix ArduCopter sends its never-filled location (all zero); the
-        others 0, 0 and their barometer's height in both altitudes.
-        """
-        t = self._truth()
-        lat, lon, up = self._position(now_s)
-        msg = self._position_message
-        msg.time_boot_ms = self._boot_ms(now_s)
-        msg.lat = round(lat * 1e7)
-        msg.lon = round(lon * 1e7)
-        if self.fw.zero_before_fix and not self._gps_fix(now_s):
-            msg.alt = msg.relative_alt = 0
-        else:
-            msg.alt = round(self._fused_alt_m(now_s, up) * 1000)
-            msg.relative_alt = round(self._alt_above_home_m(now_s, up) * 1000)
-        msg.vx = _clamp(t.velocity_north_m_s * 100, -32768, 32767)
-        msg.vy = _clamp(t.velocity_east_m_s * 100, -32768, 32767)
-        msg.vz = _clamp(-t.climb_rate_m_s * 100, -32768, 32767)
-        msg.hdg = round((t.yaw_deg % 360.0) * 100) % 36000
-        return msg
-
-    def _msg_attitude(self, now_s: float) -> Any:
-        t = self._truth()
-        msg = self._attitude_message
-        roll, pitch = math.radians(t.roll_deg), math.radians(t.pitch_deg)
-        yaw = math.radians(math.remainder(t.yaw_deg, 360.0))
-        # Body rates from the change since the last ATTITUDE (Euler rates: close enough
-        # to body rates at the modest angles these models fly).
-        rates = (0.0, 0.0, 0.0)
-        before = self._attitude_before
-        if before is not None and now_s > before[0]:
-            dt_s = now_s - before[0]
-            rates = (
-                (roll - before[1]) / dt_s,
-                (pitch - before[2]) / dt_s,
-                math.remainder(yaw - before[3], math.tau) / dt_s,
-            )
-        self._attitude_before = (now_s, roll, pitch, yaw)
-        msg.time_boot_ms = self._boot_ms(now_s)
-        msg.roll, msg.pitch, msg.yaw = roll, pitch, yaw
-        msg.rollspeed, msg.pitchspeed, msg.yawspeed = rates
-        return msg
-
-    def _msg_vfr_hud(self, now_s: float) -> Any:
-        t = self._truth()
-        msg = self._hud_message
-        msg.airspeed = t.airspeed_m_s
-        msg.groundspeed = t.ground_speed_m_s
-        msg.heading = int(t.yaw_deg % 360.0)
-        msg.throttle = _clamp(t.throttle_pct, 0, 100)
-        msg.alt = self._fused_alt_m(now_s, t.up_m)
-        msg.climb = t.climb_rate_m_s
-        return msg
-
-    def _msg_system_time(self, now_s: float) -> Any:
-        return self._mav.system_time_encode(self._unix_us(now_s), self._boot_ms(now_s))
-
-    def _msg_rc_channels(self, now_s: float) -> Any:
-        # The inputs change only when a stick or an override moves: the message is built
-        # anew then, and otherwise sent again with only its time updated (21 fields).
-        inputs = tuple(self.model.rc_inputs())
-        if inputs != self._rc_key or self._rc_message is None:
-            used = list(inputs)[:18]
-            values = [_clamp(v, 0, UINT16_MAX) if v else UINT16_MAX for v in used]
-            values += [UINT16_MAX] * (18 - len(values))
-            self._rc_key = inputs
-            self._rc_message = self._mav.rc_channels_encode(0, len(used), *values, 255)
-        self._rc_message.time_boot_ms = self._boot_ms(now_s)
-        return self._rc_message
-
-    def _msg_servo_output_raw(self, now_s: float) -> Any:
-        outputs = [_clamp(v, 0, UINT16_MAX) for v in list(self.model.servo_outputs())[:16]]
-        outputs += [0] * (16 - len(outputs))
-        time_us = max(0, round((now_s - self.boot_s) * 1e6)) & 0xFFFFFFFF
-        return self._mav.servo_output_raw_encode(time_us, 0, *outputs)
-
-    def _msg_ekf_status_report(self, now_s: float) -> Any:
-        age = self._age_s(now_s)
-        if age < _EKF_UNINITIALISED_S:
-            flags = _EKF_UNINITIALISED
-        elif age < self.boot_times.attitude_s:
-            flags = 0
-        elif age < self.boot_times.position_s:
-            flags = _EKF_ATTITUDE_ONLY
-        else:
-            flags = _EKF_POSITION
-        return self._mav.ekf_status_report_encode(flags, 0.02, 0.01, 0.01, 0.03, 0.0, 0.0)
-
-    def _msg_extended_sys_state(self, now_s: float) -> Any:
-        if self.firmware == "ardurover":  # no landed state (measured: 0, 0)
-            return self._mav.extended_sys_state_encode(
-                mavlink2.MAV_VTOL_STATE_UNDEFINED, mavlink2.MAV_LANDED_STATE_UNDEFINED
-            )
-        vtol = (
-            mavlink2.MAV_VTOL_STATE_MC
-            if self.firmware == "arducopter"
-            else mavlink2.MAV_VTOL_STATE_UNDEFINED
-        )
-        return self._mav.extended_sys_state_encode(vtol, self._landed_state(now_s))
-
-    def _msg_mission_current(self, now_s: float) -> Any:
-        seq, total, state, mode = self.missions.mission_current(self.model.mode == "AUTO")
-        return self._mav.mission_current_encode(seq, total, state, mode)
-
-    def _msg_battery_status(self, now_s: float) -> Any:
-        current_ca, remaining = self._battery(now_s)
-        return self._mav.battery_status_encode(
-            0,
-            mavlink2.MAV_BATTERY_FUNCTION_UNKNOWN,
-            mavlink2.MAV_BATTERY_TYPE_UNKNOWN,
-            32767,
-            [BATTERY_VOLTAGE_MV] + [UINT16_MAX] * 9,
-            current_ca,
-            round(self._battery_mah),
-            -1,
-            remaining,
-        )
-
-    def _waypoint_target(self) -> tuple[float, float, float] | None:
-        """The point the current mode flies to (lat, lon, height above origin), if any."""
-        mode = self.model.mode
-        if mode == self.guided_mode:
-            return self._target
-        if mode in ("RTL", "SMART_RTL") and self._home is not None:
-            return self._home[0], self._home[1], self._home[2] - self.origin_alt_amsl_m
-        return None
-
-    def _msg_nav_controller_output(self, now_s: float) -> Any:
-        t = self._truth()
-        target = self._waypoint_target()
-        bearing_deg, distance_m, alt_error_m = 0.0, 0.0, 0.0
-        if target is not None:
-            north = (target[0] - t.lat_deg) * _M_PER_DEG_LAT
-            east = (target[1] - t.lon_deg) * _M_PER_DEG_LAT * math.cos(math.radians(t.lat_deg))
-            bearing_deg = math.degrees(math.atan2(east, north)) % 360.0
-            distance_m = math.hypot(north, east)
-            alt_error_m = target[2] - t.up_m
-        nav_roll_deg, nav_pitch_deg = self.model.nav_attitude_deg()
-        return self._mav.nav_controller_output_encode(
-            nav_roll_deg,
-            nav_pitch_deg,
-            round(t.heading_deg) % 360,
-            round(bearing_deg) % 360,
-            min(round(distance_m), UINT16_MAX),
-            alt_error_m,
-            0.0,
-            0.0,
-        )
-
-    def _msg_fence_status(self, now_s: float) -> Any:
-        """FENCE_STATUS while a fence is enabled (and at once on a new breach).
-
-        The mitigation is ArduRover's and ArduCopter's avoidance (velocity limited while
-        it holds the rover short of the fence, else none); ArduPlane reports unknown.
-        """
-        status = self.fence.status()
-        if status is None:
-            return None
-        breached, count, kind, at_s = status
-        if self.firmware == "arduplane":
-            mitigation = mavlink2.FENCE_MITIGATE_UNKNOWN
-        elif self._avoid_cut and self.model.target_reached:
-            mitigation = mavlink2.FENCE_MITIGATE_VEL_LIMIT
-        else:
-            mitigation = mavlink2.FENCE_MITIGATE_NONE
-        time_ms = max(0, round((at_s - self.boot_s) * 1000)) if count else 0
-        return self._mav.fence_status_encode(breached, count, kind, time_ms, mitigation)
-
-    def _msg_position_target_global_int(self, now_s: float) -> Any:
-        target = self._waypoint_target()
-        if target is None:
-            return None  # ArduPilot sends it only while the mode flies to a target
-        return self._mav.position_target_global_int_encode(
-            self._boot_ms(now_s),
-            mavlink2.MAV_FRAME_GLOBAL,
-            0xFDF8,
-            round(target[0] * 1e7),
-            round(target[1] * 1e7),
-            self.origin_alt_amsl_m + target[2],
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-        )
-
-    def _msg_home_position(self, now_s: float) -> Any:
-        if self._home is None:
-            return None  # ArduPilot acknowledges the request and sends nothing
-        self._home_sent_s = now_s
-        lat, lon, alt = self._home
-        truth = self._truth()
-        north = (truth.lat_deg - lat) * _M_PER_DEG_LAT
-        east = (truth.lon_deg - lon) * _M_PER_DEG_LAT * math.cos(math.radians(lat))
-        return self._mav.home_position_encode(
-            round(lat * 1e7),
-            round(lon * 1e7),
-            round(alt * 1000),
-            -north,
-            -east,
-            0.0,
-            [math.nan] * 4,
-            0.0,
-            0.0,
-            0.0,
-            round((now_s - self.boot_s) * 1e6),
-        )
-
-    def _msg_autopilot_version(self, now_s: float) -> Any:
-        major, minor, patch = FIRMWARE_VERSION
-        version = (major << 24) | (minor << 16) | (patch << 8) | FIRMWARE_VERSION_TYPE
-        zeros8 = [0] * 8
-        uid = int.from_bytes(b"CLARK", "big") << 16 | self._sysid << 8 | self._compid
-        return self._mav.autopilot_version_encode(
-            CAPABILITIES[self.firmware], version, 0, 0, 0, zeros8, zeros8, zeros8, 0, 0, uid
-        )
 
 
 class _Hooks:

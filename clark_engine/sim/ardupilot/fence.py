@@ -41,7 +41,7 @@ from typing import Final, NamedTuple
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.mission.fence import Zone
-from clark_engine.sim.ardupilot.mission_protocol import MissionItem
+from clark_engine.sim.ardupilot.mission_items import MissionItem
 from clark_engine.sim.ardupilot.vehicle_safety import ApVehicle
 
 ALT_MAX: Final = 1
