@@ -41,12 +41,9 @@ from typing import Any
 
 from clark_engine.behaviors import behaviors
 from clark_engine.dryrun.scenario import apply_faults, jittered_operator
-from clark_engine.dryrun.sitl_backend import (
-    PLANE_HANDOVER_M,
-    PLANE_HANDOVER_TRIES,
-    SitlBackend,
-)
+from clark_engine.dryrun.sitl_backend import SitlBackend
 from clark_engine.dryrun.sitl_pace import SitlPace
+from clark_engine.dryrun.sitl_preflight import PLANE_HANDOVER_M, PLANE_HANDOVER_TRIES
 from clark_engine.dryrun.world import (
     START_UNIX_US,
     SimAgent,
