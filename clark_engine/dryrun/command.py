@@ -44,12 +44,9 @@ from clark_engine.dryrun.report import (
     drawn_line,
     equivalent_command,
     pace_lines,
-    plot_altitude,
-    plot_inputs,
-    plot_timeline,
-    plot_tracks,
     write_summary,
 )
+from clark_engine.dryrun.report_plots import plot_altitude, plot_inputs, plot_timeline, plot_tracks
 from clark_engine.dryrun.sitl_backend import SitlBackend
 from clark_engine.dryrun.timeline import Comparison, Tolerance, compare
 from clark_engine.errors import UsageError
