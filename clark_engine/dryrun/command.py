@@ -64,7 +64,8 @@ from clark_engine.mission.variation import (
     resolve_mission,
 )
 from clark_engine.sim.ardupilot.vehicles import DEFAULT_GPS_NOISE_M
-from clark_engine.sitl.launcher import SitlError, SitlInstall
+from clark_engine.sitl.errors import SitlError
+from clark_engine.sitl.launcher import SitlInstall
 from clark_engine.validation import mission_to_fly
 
 DEFAULT_DURATION_S: Final = 300.0

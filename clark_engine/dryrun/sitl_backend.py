@@ -64,7 +64,8 @@ from clark_engine.expectations.recording import Pace
 from clark_engine.mission.geo import EARTH_RADIUS_M, Origin
 from clark_engine.sim.ardupilot.vehicle_model import Truth
 from clark_engine.sim.gps_error import GpsError
-from clark_engine.sitl.launcher import SitlError, SitlProcess
+from clark_engine.sitl.errors import SitlError
+from clark_engine.sitl.launcher import SitlProcess
 
 CLOCK_MESSAGE: Final = "SCALED_PRESSURE"
 """A cheap time-stamped message: the backend's clock."""

@@ -55,7 +55,8 @@ from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.model import Mission
 from clark_engine.mission.variation import resolve_mission
 from clark_engine.runtime.config import config_from_dict
-from clark_engine.sitl.launcher import SitlError, SitlInstall
+from clark_engine.sitl.errors import SitlError
+from clark_engine.sitl.launcher import SitlInstall
 from clark_engine.untrusted import printable
 
 SITL_STEP_S: Final = 0.05

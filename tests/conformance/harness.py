@@ -41,7 +41,8 @@ from clark_engine.mission.model import Mission
 from clark_engine.runtime.config import config_from_dict
 from clark_engine.sim.ardupilot.autopilot import SimAutopilot
 from clark_engine.sim.ardupilot.vehicle_model import VehicleModel
-from clark_engine.sitl.launcher import ENV_SITL, Home, SitlError, SitlInstall, SitlProcess
+from clark_engine.sitl.errors import SitlError
+from clark_engine.sitl.launcher import ENV_SITL, Home, SitlInstall, SitlProcess
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parents[2]
