@@ -52,7 +52,7 @@ import sys, time
 from pathlib import Path
 from clark_engine.mission.compiler import agent_config
 from clark_engine.runtime.config import config_from_dict
-from clark_engine.dryrun.engine import build_vehicle
+from clark_engine.dryrun.world import build_vehicle
 from clark_engine.validation import validate_file
 mission = validate_file(Path(sys.argv[1])).mission
 agent = mission.agents["vehicle"]
@@ -77,7 +77,7 @@ from pathlib import Path
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from clark_engine.mission.compiler import agent_config
 from clark_engine.runtime.config import config_from_dict
-from clark_engine.dryrun.engine import build_vehicle
+from clark_engine.dryrun.world import build_vehicle
 from clark_engine.validation import validate_file
 mission = validate_file(Path(sys.argv[1])).mission
 agent = mission.agents["vehicle"]

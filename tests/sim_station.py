@@ -15,7 +15,8 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from clark_engine.dryrun.engine import PHYSICS_STEP_S, build_vehicle
+from clark_engine.dryrun.engine import PHYSICS_STEP_S
+from clark_engine.dryrun.world import build_vehicle
 from clark_engine.mission.compiler import agent_config
 from clark_engine.runtime.config import config_from_dict
 from clark_engine.sim.ardupilot.autopilot import SimAutopilot

@@ -10,7 +10,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from clark_engine.sitl.launcher import ENV_SITL, SitlInstall, SitlNotFound
+from clark_engine.sitl.errors import SitlNotFound
+from clark_engine.sitl.launcher import ENV_SITL, SitlInstall
 
 ROOT = Path(__file__).resolve().parent.parent
 

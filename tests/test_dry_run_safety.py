@@ -17,7 +17,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from clark_engine.dryrun.command import run_dry_run
-from clark_engine.dryrun.report import tracks_figure
+from clark_engine.dryrun.report_plots import tracks_figure
 from clark_engine.expectations.recording import FlightEntry, Recording, StateEntry, Track
 from clark_engine.expectations.safety import judge
 from clark_engine.mission.compiler import agent_config

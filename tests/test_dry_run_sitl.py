@@ -19,8 +19,9 @@ from pathlib import Path
 import pytest
 from sitl_here import real_install
 
-from clark_engine.dryrun.engine import DryRun, rc_calibration_params
+from clark_engine.dryrun.engine import DryRun
 from clark_engine.dryrun.sitl_backend import SitlBackend
+from clark_engine.dryrun.world import rc_calibration_params
 from clark_engine.expectations.evaluate import evaluate
 from clark_engine.runtime.config import ChannelSpec
 from clark_engine.sitl.launcher import ENV_SITL

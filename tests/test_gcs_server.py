@@ -35,7 +35,8 @@ from clark_engine.link.messages import ActivateController, AgentType, Heartbeat
 from clark_engine.mission.compiler import agent_config
 from clark_engine.runtime.config import AgentConfig, config_from_dict
 from clark_engine.runtime.runtime import AgentRuntime
-from clark_engine.shells.realtime import RadioLink, RealtimeShell
+from clark_engine.shells.links import RadioLink
+from clark_engine.shells.realtime import RealtimeShell
 from clark_engine.station.access import parse_view_address
 from clark_engine.station.live_view import (
     OpenView,

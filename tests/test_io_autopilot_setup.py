@@ -24,7 +24,8 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from sitl_here import real_install
 
-from clark_engine.dryrun.engine import PHYSICS_STEP_S, build_vehicle
+from clark_engine.dryrun.engine import PHYSICS_STEP_S
+from clark_engine.dryrun.world import build_vehicle
 from clark_engine.io.autopilot import AutopilotAdapter
 from clark_engine.io.autopilot_requests import ACK_TIMEOUT_S, COMMAND_ATTEMPTS
 from clark_engine.io.autopilot_settings import AutopilotSettings

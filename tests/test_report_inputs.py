@@ -6,7 +6,7 @@ import io
 from pathlib import Path
 
 from clark_engine.dryrun.command import run_dry_run
-from clark_engine.dryrun.report import channel_function, inputs_figure
+from clark_engine.dryrun.report_plots import channel_function, inputs_figure
 
 ROOT = Path(__file__).resolve().parent.parent
 SYSID = ROOT / "missions" / "supercub_sysid.yaml"

@@ -8,7 +8,8 @@ from pathlib import Path
 from typing import Any
 
 from clark_engine.dryrun.command import parse_fault, run_dry_run
-from clark_engine.dryrun.report import InjectedFault, timeline_figure
+from clark_engine.dryrun.report import InjectedFault
+from clark_engine.dryrun.report_plots import timeline_figure
 from clark_engine.expectations.recording import Recording, StateEntry
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -10,7 +10,7 @@ import io
 from pathlib import Path
 
 from clark_engine.dryrun.command import run_dry_run
-from clark_engine.dryrun.report import altitude_figure, tracks_figure
+from clark_engine.dryrun.report_plots import altitude_figure, tracks_figure
 from clark_engine.expectations.recording import Recording, Track
 from clark_engine.expectations.safety import judge
 

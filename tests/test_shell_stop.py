@@ -28,12 +28,9 @@ from clark_engine.runtime.commands import RcOverride
 from clark_engine.runtime.config import AgentConfig, config_from_dict
 from clark_engine.runtime.logbook import Logbook
 from clark_engine.runtime.runtime import AgentRuntime
-from clark_engine.shells.realtime import (
-    EXIT_ABORTED,
-    STOP_CONFIRM_S,
-    AutopilotLink,
-    RealtimeShell,
-)
+from clark_engine.shells.links import AutopilotLink
+from clark_engine.shells.realtime import EXIT_ABORTED, RealtimeShell
+from clark_engine.shells.stop import STOP_CONFIRM_S
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -24,7 +24,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from test_sim_vehicles import COPTER, CUB, DT_S, ROOT, ROVER, build, goto, run
 
 from clark_engine.dryrun.command import run_dry_run
-from clark_engine.dryrun.engine import build_sitl_vehicle
+from clark_engine.dryrun.world import build_sitl_vehicle
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.variation import resolve_mission
 from clark_engine.runtime.config import config_from_dict

@@ -24,20 +24,21 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from sitl_here import real_install
 
 from clark_engine.errors import ClarkError
-from clark_engine.sitl.launcher import (
-    ENV_SITL,
+from clark_engine.sitl.errors import SitlError, SitlNotFound
+from clark_engine.sitl.instances import (
     ENV_SITL_INSTANCES,
-    Home,
     InstanceLock,
     InstancePorts,
-    SitlError,
-    SitlInstall,
-    SitlNotFound,
-    SitlProcess,
     instance_free,
     parse_instances,
     port_free,
     reserve_instance,
+)
+from clark_engine.sitl.launcher import (
+    ENV_SITL,
+    Home,
+    SitlInstall,
+    SitlProcess,
     vehicle_for_firmware,
 )
 
@@ -277,7 +278,7 @@ def test_processes_racing_for_instances_never_share(tmp_path: Path) -> None:
         f"""
         import sys
         from pathlib import Path
-        from clark_engine.sitl.launcher import reserve_instance
+        from clark_engine.sitl.instances import reserve_instance
         lock = reserve_instance({candidates!r}, Path({str(tmp_path)!r}))
         print(lock.instance, flush=True)
         sys.stdin.read()  # hold the lock until told to stop

@@ -20,13 +20,9 @@ from mission_text import with_sim_keys
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.dryrun.backend import SimulatedBackend
-from clark_engine.dryrun.engine import (
-    DryRun,
-    DryRunResult,
-    build_sitl_vehicle,
-    build_vehicle,
-    jittered_operator,
-)
+from clark_engine.dryrun.engine import DryRun, DryRunResult
+from clark_engine.dryrun.scenario import jittered_operator
+from clark_engine.dryrun.world import build_sitl_vehicle, build_vehicle
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.geo import EARTH_RADIUS_M
 from clark_engine.mission.model import Mission

@@ -24,7 +24,8 @@ from clark_engine.mission.compiler import agent_config
 from clark_engine.runtime.config import AgentConfig, config_from_dict
 from clark_engine.runtime.logbook import Logbook
 from clark_engine.runtime.runtime import AgentRuntime
-from clark_engine.shells.realtime import RadioLink, RealtimeShell
+from clark_engine.shells.links import RadioLink
+from clark_engine.shells.realtime import RealtimeShell
 from clark_engine.sim.xbee_emulator import XBeeEmulator
 from clark_engine.validation import validate_file
 

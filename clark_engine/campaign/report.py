@@ -279,7 +279,7 @@ def plot_name(path: str) -> str:
 
 def plot_factor(target: Path, factor: Factor) -> None:
     """A bar per bin: its pass rate, with its 95 % Wilson interval and its run count."""
-    from clark_engine.dryrun.report import _pyplot, _save
+    from clark_engine.dryrun.report_plots import _pyplot, _save
 
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 3.6))

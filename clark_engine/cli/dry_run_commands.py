@@ -22,7 +22,8 @@ def cmd_dry_run(args: argparse.Namespace) -> int:
     """Fly the mission on a simulated fleet (or ArduPilot SITL) and evaluate its checks."""
     from clark_engine.dryrun.command import DEFAULT_SITL_SPEEDUP, run_dry_run
     from clark_engine.dryrun.rehearsal import DEFAULT_HOST
-    from clark_engine.sitl.launcher import SitlError, SitlInstall
+    from clark_engine.sitl.errors import SitlError
+    from clark_engine.sitl.launcher import SitlInstall
 
     on_sitl = args.autopilot == "sitl"
     station_view = _station_view(args)
@@ -96,7 +97,8 @@ def cmd_dry_run(args: argparse.Namespace) -> int:
 def cmd_campaign(args: argparse.Namespace) -> int:
     """Fly the mission many times, each run its own seed and draw; report the pass rates."""
     from clark_engine.campaign.command import CampaignOptions, run_campaign
-    from clark_engine.sitl.launcher import SitlError, SitlInstall
+    from clark_engine.sitl.errors import SitlError
+    from clark_engine.sitl.launcher import SitlInstall
 
     on_sitl = args.autopilot == "sitl"
     if not on_sitl:

@@ -44,12 +44,9 @@ from clark_engine.dryrun.report import (
     drawn_line,
     equivalent_command,
     pace_lines,
-    plot_altitude,
-    plot_inputs,
-    plot_timeline,
-    plot_tracks,
     write_summary,
 )
+from clark_engine.dryrun.report_plots import plot_altitude, plot_inputs, plot_timeline, plot_tracks
 from clark_engine.dryrun.sitl_backend import SitlBackend
 from clark_engine.dryrun.timeline import Comparison, Tolerance, compare
 from clark_engine.errors import UsageError
@@ -67,7 +64,8 @@ from clark_engine.mission.variation import (
     resolve_mission,
 )
 from clark_engine.sim.ardupilot.airframes.base import DEFAULT_GPS_NOISE_M
-from clark_engine.sitl.launcher import SitlError, SitlInstall
+from clark_engine.sitl.errors import SitlError
+from clark_engine.sitl.launcher import SitlInstall
 from clark_engine.validation import mission_to_fly
 
 DEFAULT_DURATION_S: Final = 300.0

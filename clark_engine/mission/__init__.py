@@ -1,6 +1,7 @@
 """The mission language: load, validate, check and compile missions.
 
-This package is the bottom layer of the engine: it imports nothing else of it.
-Its entry points are :func:`clark_engine.mission.validate.validate_file` and
+It sits at the bottom of the engine with the behaviours, whose registry it reads (the
+import rules are docs/architecture.md's "Import direction"). Its entry points are
+:func:`clark_engine.mission.validate.validate_path` and
 :func:`clark_engine.mission.compiler.compile_mission`.
 """

@@ -43,13 +43,8 @@ from clark_engine.link.auth import CounterStore, ReplayStore
 from clark_engine.runtime.config import AgentConfig
 from clark_engine.runtime.logbook import Logbook
 from clark_engine.runtime.runtime import AgentRuntime
-from clark_engine.shells.realtime import (
-    AutopilotLink,
-    Clock,
-    RadioLink,
-    RealtimeShell,
-    gps_epoch_ms,
-)
+from clark_engine.shells.links import AutopilotLink, RadioLink
+from clark_engine.shells.realtime import Clock, RealtimeShell, gps_epoch_ms
 
 RECONNECT_TIMEOUT_S = 1.0
 """Longest a TCP connect to the autopilot may hold the loop (counted as an overrun)."""

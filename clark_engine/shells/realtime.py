@@ -39,24 +39,27 @@ shell owns time and I/O around it, one process per agent, single-threaded around
   (``docs/performance.md``). :func:`gc.unfreeze` undoes it when the loop ends
   (``gc_freeze``).
 - An autopilot transport or a radio that fails is closed and opened again from the
-  loop, with a growing back-off (:data:`REOPEN_BACKOFF_S`), counted and logged; the
-  loop never stops for it (the runtime's ``autopilot_lost`` takes care of safety).
-  A radio that reconnects by itself (an XBee dongle pulled out and plugged back)
-  reports each loss and return (``Radio.link_events``, drained with its frames):
-  one interface-log line each, with its time, counted with the shell's own.
+  loop, with a growing back-off (:data:`~clark_engine.shells.links.REOPEN_BACKOFF_S`),
+  counted and logged; the loop never stops for it (the runtime's ``autopilot_lost``
+  takes care of safety). A radio that reconnects by itself (an XBee dongle pulled out
+  and plugged back) reports each loss and return (``Radio.link_events``, drained with
+  its frames): one interface-log line each, with its time, counted with the shell's
+  own.
 - Testing mode (thesis 7.2.9): any interface may be left out (``None``): its commands
   are dropped and counted, and a payload command is answered with an ``error`` event
   at once so the runtime never waits for an answer that cannot come.
 - SIGINT and SIGTERM stop it cleanly (:meth:`RealtimeShell.signals`,
   :meth:`RealtimeShell.shutdown`). The stop has parts that keep the vehicle safe and
-  always run, each bounded (nothing in them waits on anything but a local file): the
-  RC overrides released, the runtime's terminate sequence (its primitives stopped, the
+  always run, each bounded (nothing in them waits on anything but a local file): the RC
+  overrides released, the runtime's terminate sequence (its primitives stopped, the
   vehicle to its terminal mode, a last heartbeat), the failsafe the set-up switched on
-  switched off, the replay marks saved, every link closed, the logs flushed and
-  closed. One part only waits: for the autopilot to confirm the terminal mode and the
-  failsafe (resent meanwhile), at most :data:`STOP_CONFIRM_S`. A second signal (and a
-  third) never raises: it cuts that wait short, one line says what was skipped, and
-  :meth:`RealtimeShell.run` returns 130. An exception in the loop still runs the stop.
+  switched off, the replay marks saved, every link closed, the logs flushed and closed.
+  One part only waits: for the autopilot to confirm the terminal mode and the failsafe
+  (resent meanwhile), at most :data:`~clark_engine.shells.stop.STOP_CONFIRM_S`. A
+  second signal (and a third) never raises: it cuts that wait short, one line says what
+  was skipped, and :meth:`RealtimeShell.run` returns 130. An exception in the loop
+  still runs the stop. The stop and the signals are :mod:`clark_engine.shells.stop`,
+  mixed into the shell; the links it opens are :mod:`clark_engine.shells.links`.
 
 GPS time (thesis 7.2.11): a vehicle's log lines are stamped with the GPS time its
 autopilot reports (the runtime does this from ``VehicleState.gps_time_ms``); an agent
@@ -76,20 +79,16 @@ import logging
 import math
 import select
 import selectors
-import signal
 import socket
-import threading
 import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
-from types import FrameType
 from typing import Any, Final, cast
 
-from clark_engine.io.autopilot import AutopilotAdapter
 from clark_engine.io.autopilot_decode import gps_time_ms_from_unix_us
 from clark_engine.io.payload import PayloadAdapter
 from clark_engine.io.radio import LinkEvent, Radio, RadioError
-from clark_engine.io.transports import Transport, TransportError
+from clark_engine.io.transports import TransportError
 from clark_engine.runtime.commands import (
     AUTOPILOT_COMMANDS,
     CloseInterfaces,
@@ -114,22 +113,12 @@ from clark_engine.runtime.events import (
 )
 from clark_engine.runtime.log_events import LogEvent
 from clark_engine.runtime.runtime import AgentRuntime
-
-REOPEN_BACKOFF_S: Final = (0.5, 1.0, 2.0, 4.0, 8.0)
-"""Waits before each successive attempt to reopen a failed link; the last one repeats."""
+from clark_engine.shells.links import AutopilotLink, RadioLink
+from clark_engine.shells.stop import ShellStop
 
 EXIT_ABORTED: Final = 130
 """What :meth:`RealtimeShell.run` returns when a second signal shortened the stop (as a
 shell's Ctrl-C; the same for SIGTERM, as docs/run.md says)."""
-
-STOP_CONFIRM_S: Final = 3.0
-"""Longest a clean stop waits for the autopilot to answer the terminal mode and the
-failsafe switched off: a command's three sends, ``ACK_TIMEOUT_S`` apart. Skipped by a
-second signal; what it waits for has been sent at least once by then."""
-
-STOP_ANNOUNCE_S: Final = 0.5
-"""After this long without the autopilot's answers, the stop says on the terminal what it
-waits for and that Ctrl-C again skips it (a quick answer is not worth a line)."""
 
 _RUNTIME_EVENTS = (
     VehicleState,
@@ -211,65 +200,7 @@ class ShellStats:
         self.dropped_commands[kind] = self.dropped_commands.get(kind, 0) + 1
 
 
-class _Reopen:
-    """When a failed link may be tried again, with a growing back-off."""
-
-    def __init__(self) -> None:
-        self.failures = 0
-        self.next_s = -math.inf
-        self.last_error: str | None = None
-
-    def failed(self, now_s: float, error: str) -> float:
-        wait = REOPEN_BACKOFF_S[min(self.failures, len(REOPEN_BACKOFF_S) - 1)]
-        self.failures += 1
-        self.next_s = now_s + wait
-        self.last_error = error
-        return wait
-
-    def succeeded(self) -> None:
-        self.failures = 0
-        self.last_error = None
-
-
-class AutopilotLink:
-    """The autopilot: a transport opened (and reopened) from a factory, and its adapter.
-
-    Args:
-        adapter: The MAVLink adapter (pure).
-        open_transport: Opens the transport; raises TransportError when it cannot.
-        describe: The link in words (``serial /dev/ttyACM0``, ``tcp 127.0.0.1:5760``).
-    """
-
-    def __init__(
-        self,
-        adapter: AutopilotAdapter,
-        open_transport: Callable[[], Transport],
-        describe: str,
-    ) -> None:
-        self.adapter = adapter
-        self.open_transport = open_transport
-        self.describe = describe
-        self.transport: Transport | None = None
-        self.started = False
-        self.reopen = _Reopen()
-
-
-class RadioLink:
-    """The radio, opened (and reopened) from a factory.
-
-    Args:
-        open_radio: Builds, opens and verifies the radio; raises RadioError.
-        describe: The radio in words.
-    """
-
-    def __init__(self, open_radio: Callable[[], Radio], describe: str) -> None:
-        self.open_radio = open_radio
-        self.describe = describe
-        self.radio: Radio | None = None
-        self.reopen = _Reopen()
-
-
-class RealtimeShell:
+class RealtimeShell(ShellStop):
     """One agent's runtime in a selectors loop on a monotonic clock.
 
     Args:
@@ -367,16 +298,6 @@ class RealtimeShell:
         with contextlib.suppress(OSError):
             self._wake_w.send(b"\0")
 
-    def hurry(self, reason: str = "stop") -> None:
-        """Shorten the stop: skip what only waits; safe from signal handlers and threads.
-
-        The parts that keep the vehicle safe still run (:meth:`shutdown`). Before the
-        stop began, it also stops the loop.
-        """
-        if self.hurried_by is None:
-            self.hurried_by = reason
-        self.stop(reason)
-
     def add_reader(self, fd: int, callback: Callable[[float], None]) -> None:
         """Call ``callback(now_s)`` whenever ``fd`` is readable (the station's terminal)."""
         self._readers[fd] = callback
@@ -392,39 +313,6 @@ class RealtimeShell:
         """Hand one event to the runtime now and carry out what it returns."""
         t = self.now() if now_s is None else now_s
         self._carry_out(self.runtime.deliver(event, t), t)
-
-    @contextlib.contextmanager
-    def signals(self) -> Iterator[None]:
-        """Within the block, SIGINT and SIGTERM stop the loop; a second one shortens the stop.
-
-        A first one that arrives once a stop began by itself (``--until``, a terminate)
-        shortens it at once.
-
-        The handler never raises: a signal may land anywhere, in the middle of the
-        stop's safety steps too, and an exception there would skip the rest of them
-        (the overrides left active, the replay marks unsaved). It only sets flags and
-        wakes the loop. Does nothing outside the main thread (handlers belong to it).
-        """
-        if threading.current_thread() is not threading.main_thread():
-            yield
-            return
-        previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
-
-        def handler(signum: int, frame: FrameType | None) -> None:
-            self._signals += 1
-            name = signal.Signals(signum).name
-            if self._signals == 1 and not self._in_stop:
-                self.stop(name)
-            else:  # a second signal, or a first one once a stop (--until...) began
-                self.hurry(name)
-
-        for sig in previous:
-            signal.signal(sig, handler)
-        try:
-            yield
-        finally:
-            for sig, old in previous.items():
-                signal.signal(sig, old if old is not None else signal.SIG_DFL)
 
     # -- the loop ---------------------------------------------------------------------------
 
@@ -837,227 +725,6 @@ class RealtimeShell:
             wait,
             extra=LogEvent.RADIO_FAILED.extra,
         )
-
-    # -- the end ----------------------------------------------------------------------------
-
-    def shutdown(self) -> None:
-        """The clean stop; idempotent. A second signal shortens it, never skips its safety.
-
-        In order, each step guarded so that one failing never skips the next:
-
-        1. The RC overrides released and every pending request forgotten (the stick back
-           to the pilot at once; nothing the behaviour asked for is sent again).
-        2. The runtime's terminate sequence: its primitives stopped, the vehicle to its
-           terminal mode, a last heartbeat to the peers.
-        3. The failsafe the safety set-up switched on switched off (leaving on purpose).
-        4. Waiting for the autopilot to answer 2 and 3 (resent meanwhile), at most
-           :data:`STOP_CONFIRM_S`: the only part a second signal skips.
-        5. The replay marks saved (the counter store needs nothing: it is written
-           before a counter is used).
-        6. Every link closed, then the logs flushed and closed.
-        """
-        if self._closed:
-            return
-        runtime = self.runtime
-        link = self.autopilot
-        self._in_stop = True
-        self._stop_listening()
-        done: list[str] = []
-        if not runtime.terminated:
-            self._safely("log the loop's figures", self._log_summary)
-        self.log.info("stop began (%s)", self.stopped_by or "stop", extra=LogEvent.SHELL_STOP.extra)
-        if link is not None and link.transport is not None and not runtime.terminated:
-            # (A runtime terminated in the loop already sent its terminal mode: kept.)
-            self._safely(
-                "release the RC overrides",
-                lambda: self._to_autopilot(link.adapter.stop_commanding(self.now()), self.now()),
-            )
-        if self._safely("run the terminate sequence", self._terminate):
-            done.append("terminate sequence run (terminal mode, last heartbeat)")
-        if link is not None and link.transport is not None:
-            closed = self._safely(
-                "close the autopilot's session",
-                lambda: self._to_autopilot(link.adapter.close(self.now()), self.now()),
-            )
-            if closed:
-                done.append("RC overrides released")
-                names = link.adapter.left_on_purpose
-                done.extend([f"failsafe off ({', '.join(names)})"] if names else [])
-        self._safely("wait for the autopilot's answers", self._await_answers)
-        saved = self._safely("save the replay marks", self._save_replay_marks)
-        done.extend(["replay marks saved"] if saved and runtime.codec.authenticated else [])
-        if self.hurried_by is not None:
-            skipped = "; ".join(self.skipped) or "nothing (nothing was left to wait for)"
-            which = "a second " if self._signals > 1 else ""
-            line = (
-                f"stop shortened by {which}{self.hurried_by}: skipped {skipped}; "
-                f"still done: {', '.join([*done, 'links closed'])}"
-            )
-            self._safely(
-                "log the shortened stop",
-                lambda: self.log.warning("%s", line, extra=LogEvent.SHELL_STOP.extra),
-            )
-            self._safely("announce the shortened stop", lambda: self._say(line))
-        self._close_all()
-
-    def _log_summary(self) -> None:
-        self.runtime.logbook.interface.info(
-            "real-time shell: %s", self.summary(), extra=LogEvent.SHELL_SUMMARY.extra
-        )
-
-    def _terminate(self) -> None:
-        now = self.now()
-        reason = f"real-time shell stopping ({self.stopped_by or 'stop'})"
-        self._carry_out(self.runtime.terminate(now, reason), now)
-
-    def _safely(self, what: str, step: Callable[[], None]) -> bool:
-        """Run one step of the stop; its failure is logged and the stop goes on.
-
-        Returns:
-            True when the step ran to its end.
-        """
-        try:
-            self.runtime.note_time(self.now())
-            step()
-        except Exception as exc:
-            with contextlib.suppress(Exception):
-                self.log.error("stop: cannot %s: %s", what, exc, extra=LogEvent.SHELL_STOP.extra)
-            return False
-        return True
-
-    def _say(self, line: str) -> None:
-        if self.announce is not None:
-            self.announce(line)
-
-    def _stop_listening(self) -> None:
-        """Unwatch everything but the autopilot and the wake-up: the stop reads nothing else."""
-        for what in list(self._registered):
-            if what != "autopilot":
-                self._unregister(what)
-        for fd in list(self._readers):
-            self.remove_reader(fd)
-
-    def _await_answers(self) -> None:
-        """Step 4 of :meth:`shutdown`: the autopilot's answers, until a second signal."""
-        link = self.autopilot
-        if link is None or link.transport is None or not link.adapter.unanswered:
-            return
-        what = ", ".join(link.adapter.unanswered)
-        if self.hurried_by is not None:
-            self.skipped.append(f"waiting for the autopilot to answer {what}")
-            return
-        begin = self.now()
-        deadline = begin + STOP_CONFIRM_S
-        self.log.info(
-            "stop: waiting up to %g s for the autopilot to answer %s",
-            STOP_CONFIRM_S,
-            what,
-            extra=LogEvent.SHELL_STOP.extra,
-        )
-        announced = False
-        while True:
-            now = self.now()
-            self.runtime.note_time(now)
-            if link.transport is None:  # failed while waiting (logged): nobody to wait for
-                return
-            left = link.adapter.unanswered
-            if not left:
-                self.log.info(
-                    "stop: the autopilot answered in %.3f s",
-                    now - begin,
-                    extra=LogEvent.SHELL_STOP.extra,
-                )
-                return
-            if not announced and now - begin >= STOP_ANNOUNCE_S:
-                announced = True  # a person waiting longer than a blink is told why
-                self._say(
-                    f"stopping: waiting up to {STOP_CONFIRM_S:g} s for the autopilot to answer "
-                    f"{', '.join(left)}; Ctrl-C again skips the wait"
-                )
-            if self.hurried_by is not None:
-                self.skipped.append(f"waiting for the autopilot to answer {', '.join(left)}")
-                return
-            if now >= deadline:
-                self.log.warning(
-                    "stop: no answer from the autopilot to %s within %g s",
-                    ", ".join(left),
-                    STOP_CONFIRM_S,
-                    extra=LogEvent.SHELL_STOP.extra,
-                )
-                return
-            wake = deadline if announced else min(deadline, begin + STOP_ANNOUNCE_S)
-            self._listen_to_autopilot(min(wake - now, 0.1))
-
-    def _listen_to_autopilot(self, timeout_s: float) -> None:
-        """Wait for the autopilot's bytes (or a signal) and hear its answers; resend due."""
-        link = self.autopilot
-        assert link is not None
-        ready = self._select(timeout_s)
-        now = self.now()
-        for key, _mask in ready:
-            if key.data == "wake":
-                with contextlib.suppress(OSError):
-                    self._wake_r.recv(4096)
-        if link.transport is None:
-            return
-        try:
-            data = link.transport.receive()
-        except TransportError as exc:
-            self._autopilot_failed(now, str(exc))
-            return
-        for event in link.adapter.receive(data, now) if data else []:
-            if isinstance(event, CommandRefused):
-                self.log.warning(
-                    "stop: the autopilot refused %s: %s",
-                    event.request,
-                    event.result,
-                    extra=LogEvent.SHELL_STOP.extra,
-                )
-        self._to_autopilot(link.adapter.flush(), now)
-        self._to_autopilot(link.adapter.poll(now), now)
-
-    def _save_replay_marks(self) -> None:
-        self.runtime.codec.save_replay_marks()
-        if self.runtime.codec.authenticated:
-            self.log.info("stop: replay marks saved", extra=LogEvent.SHELL_STOP.extra)
-
-    def _close_all(self) -> None:
-        """Every link closed (each failure logged, never stopping the rest), then the logs."""
-        if self._closed:
-            return
-        self._closed = True
-        closed: list[str] = []
-        link = self.autopilot
-        if link is not None and link.transport is not None:
-            self._safely("close the autopilot link", link.transport.close)
-            link.transport = None
-            closed.append("autopilot")
-        radio = self.radio
-        if radio is not None and radio.radio is not None:
-            self._safely("close the radio", radio.radio.close)
-            radio.radio = None
-            closed.append("radio")
-        for name, adapter in self.payloads.items():
-            self._safely(f"close the payload {name}", adapter.close)
-            closed.append(f"payload {name}")
-        for what in list(self._registered):
-            self._unregister(what)
-        for fd in list(self._readers):
-            self.remove_reader(fd)
-        with contextlib.suppress(KeyError, ValueError):
-            self.selector.unregister(self._wake_r)
-        self._safely("close the selector", self.selector.close)
-        self._wake_r.close()
-        self._wake_w.close()
-        self._safely(
-            "log the links closed",
-            lambda: self.log.info(
-                "stop: links closed (%s)",
-                ", ".join(closed) or "none open",
-                extra=LogEvent.SHELL_STOP.extra,
-            ),
-        )
-        self._safely("close the logs", self.runtime.logbook.close)
 
     def summary(self) -> str:
         """The loop's figures in one line (for the logs and the end of ``clark run``)."""

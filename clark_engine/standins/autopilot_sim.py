@@ -8,12 +8,12 @@ vehicle's autopilot and nothing else, with the vehicle's safety pilot, as the
 bench has it:
 
 - :class:`ServedSimulated`: the dry run's simulated autopilot and physics
-  (:func:`~clark_engine.dryrun.engine.build_vehicle`), stepped at wall-clock pace,
+  (:func:`~clark_engine.dryrun.world.build_vehicle`), stepped at wall-clock pace,
   its SYSTEM_TIME from the wall clock, on a UDP port that answers whoever sends
   to it (``clark run --autopilot-connection udpout:HOST:PORT``), as
   :mod:`clark_engine.dryrun.rehearsal` serves a dry run's vehicles.
 - :class:`ServedSitl`: real ArduPilot SITL at real time
-  (:func:`~clark_engine.dryrun.engine.build_sitl_vehicle`: booted at the agent's
+  (:func:`~clark_engine.dryrun.world.build_sitl_vehicle`: booted at the agent's
   start, with the flight parameters the simulated autopilot has). The pilot and
   the parameter set-up speak on SITL's SERIAL0 and SERIAL2; ``clark run`` connects
   to SERIAL1 (``--autopilot-connection tcp:127.0.0.1:PORT``), as a mission
@@ -43,18 +43,20 @@ from typing import Any, Final
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.dryrun.backend import SimulatedBackend
-from clark_engine.dryrun.engine import PHYSICS_STEP_S, build_sitl_vehicle, build_vehicle
+from clark_engine.dryrun.engine import PHYSICS_STEP_S
 from clark_engine.dryrun.pilot import SimPilot
 from clark_engine.dryrun.rehearsal import StopFlag, datagrams
 from clark_engine.dryrun.report import drawn_line
 from clark_engine.dryrun.sitl_backend import SitlBackend
+from clark_engine.dryrun.world import build_sitl_vehicle, build_vehicle
 from clark_engine.errors import UsageError
 from clark_engine.io.transports import TransportError, UdpTransport
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.model import Mission
 from clark_engine.mission.variation import resolve_mission
 from clark_engine.runtime.config import config_from_dict
-from clark_engine.sitl.launcher import SitlError, SitlInstall
+from clark_engine.sitl.errors import SitlError
+from clark_engine.sitl.launcher import SitlInstall
 from clark_engine.untrusted import printable
 
 SITL_STEP_S: Final = 0.05

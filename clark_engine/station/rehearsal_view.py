@@ -35,7 +35,8 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Final
 
-from clark_engine.dryrun.engine import DryRun, SimAgent
+from clark_engine.dryrun.engine import DryRun
+from clark_engine.dryrun.world import SimAgent
 from clark_engine.errors import ClarkError
 from clark_engine.expectations.evaluate import CheckResult, evaluate
 from clark_engine.expectations.recording import Recording

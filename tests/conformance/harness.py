@@ -34,13 +34,15 @@ from typing import Any, Protocol
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from clark_engine.dryrun.engine import PHYSICS_STEP_S, build_vehicle
+from clark_engine.dryrun.engine import PHYSICS_STEP_S
+from clark_engine.dryrun.world import build_vehicle
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.model import Mission
 from clark_engine.runtime.config import config_from_dict
 from clark_engine.sim.ardupilot.autopilot import SimAutopilot
 from clark_engine.sim.ardupilot.vehicle_model import VehicleModel
-from clark_engine.sitl.launcher import ENV_SITL, Home, SitlError, SitlInstall, SitlProcess
+from clark_engine.sitl.errors import SitlError
+from clark_engine.sitl.launcher import ENV_SITL, Home, SitlInstall, SitlProcess
 from clark_engine.validation import validate_file
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -33,14 +33,8 @@ from typing import IO, Any
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
 import clark_engine
-from clark_engine.sitl.launcher import (
-    ENV_SPEEDUP,
-    VEHICLES,
-    Home,
-    SitlInstall,
-    SitlNotFound,
-    SitlProcess,
-)
+from clark_engine.sitl.errors import SitlNotFound
+from clark_engine.sitl.launcher import ENV_SPEEDUP, VEHICLES, Home, SitlInstall, SitlProcess
 
 __all__ = ["ORIGIN", "Gcs", "Options", "dist_m", "mav", "offset", "parse_args"]
 
