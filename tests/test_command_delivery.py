@@ -106,11 +106,11 @@ def test_an_older_activation_repeated_does_not_confirm_a_new_one() -> None:
     record = mcs.fleet.record(3)
     assert record is not None and record.sample(BehaviorState) is not None
     before = record.sample(BehaviorState)
-    assert not took_effect("activate", record, 0.5, behaviour_before=before)
+    assert not took_effect("activate", record, 0.5, behavior_before=before)
     fresh = BehaviorState(3, GPS0 + 1800, ("chase", "near"), "activate")
     mcs.deliver(PacketReceived(slash_b.heartbeat(1.8, fresh).data), 1.8)
-    assert took_effect("activate", record, 0.5, behaviour_before=before)
-    assert not took_effect("deactivate", record, 0.5, behaviour_before=before)
+    assert took_effect("activate", record, 0.5, behavior_before=before)
+    assert not took_effect("deactivate", record, 0.5, behavior_before=before)
 
 
 def test_the_station_gives_up_after_a_few_copies() -> None:

@@ -189,7 +189,7 @@ def test_a_state_path_the_other_agent_does_not_have_is_refused(tmp_path: Path) -
     assert "did you mean 'drive'?" in result.findings[0].message
 
 
-def test_a_behaviour_state_the_other_agent_does_not_send_here_is_refused(tmp_path: Path) -> None:
+def test_a_behavior_state_the_other_agent_does_not_send_here_is_refused(tmp_path: Path) -> None:
     result = _pair(
         tmp_path,
         "{to: go, when: {agent_state: {agent: rover_a, in: drive}}}",

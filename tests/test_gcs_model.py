@@ -430,7 +430,7 @@ def test_the_log_buffer_is_bounded(fleet: Fleet) -> None:
     assert buffer.seq == 20
 
 
-def test_behaviour_names_from_the_air_reach_the_page_escaped() -> None:
+def test_behavior_names_from_the_air_reach_the_page_escaped() -> None:
     """A forged Behavior State: a right-to-left override (U+202E) that would show the
     operator a reversed state name and a terminal escape; each is escaped, and a flood of
     names is cut."""
@@ -441,7 +441,7 @@ def test_behaviour_names_from_the_air_reach_the_page_escaped() -> None:
         3, 0, ("chase\u202edekrap", "idle\x1b[2J", *[f"s{i}" for i in range(100)]), "done\u202e"
     )
     info = {"name": "slash_b", "id": 3, "role": "vehicle", "home": None}
-    row = agent_row(info, ORIGIN, heard=True, behaviour=forged, behaviour_age_s=0.0)
+    row = agent_row(info, ORIGIN, heard=True, behavior=forged, behavior_age_s=0.0)
     shown = row["behaviour"]
     assert shown["active"][:2] == ["chase\\u202edekrap", "idle\\x1b[2J"]
     assert shown["last_event"] == "done\\u202e"

@@ -162,8 +162,8 @@ def agent(state: dict[str, Any], name: str) -> dict[str, Any]:
 
 
 def active(state: dict[str, Any], name: str) -> list[str]:
-    behaviour = agent(state, name)["behaviour"]
-    return list(behaviour["active"]) if behaviour else []
+    behavior = agent(state, name)["behaviour"]
+    return list(behavior["active"]) if behavior else []
 
 
 @pytest.mark.slow

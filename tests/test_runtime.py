@@ -389,7 +389,7 @@ def test_a_split_bundle_is_logged_packet_by_packet() -> None:
     ]
 
 
-def test_a_behaviour_that_handles_mcs_lost_overrides_the_failsafe(tmp_path: Path) -> None:
+def test_a_behavior_that_handles_mcs_lost_overrides_the_failsafe(tmp_path: Path) -> None:
     text = (
         (ROOT / "missions" / "cooperative_follow.yaml")
         .read_text(encoding="utf-8")

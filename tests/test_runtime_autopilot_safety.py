@@ -304,21 +304,21 @@ def test_asked_once_home_is_known_not_after_the_pre_arm_checks(tmp_path: Path) -
     assert "own safety (the behaviour waits for it): fence (ceiling 59.5 m" in mission_log(runtime)
 
 
-def test_the_behaviour_starts_once_the_set_up_took(tmp_path: Path) -> None:
+def test_the_behavior_starts_once_the_set_up_took(tmp_path: Path) -> None:
     runtime = AgentRuntime(compiled(tmp_path, "dji_f450"))
     runtime.deliver(state(0.0, armed=True), 0.0)
     runtime.deliver(READY, 0.0)
     out = runtime.tick(0.0)
-    assert setups(out) and not runtime.behaviour_started
-    assert not runtime.tick(0.1) or not runtime.behaviour_started
+    assert setups(out) and not runtime.behavior_started
+    assert not runtime.tick(0.1) or not runtime.behavior_started
     runtime.deliver(AutopilotSafetyResult(), 0.15)
     out = runtime.tick(0.2)
-    assert runtime.behaviour_started
+    assert runtime.behavior_started
     assert [c for c in out if isinstance(c, SetMode)] == [SetMode("LOITER", 5)]  # hold
     assert "are set and read back" in mission_log(runtime)
 
 
-def test_a_failed_set_up_keeps_the_behaviour_from_starting_and_names_the_parameter(
+def test_a_failed_set_up_keeps_the_behavior_from_starting_and_names_the_parameter(
     tmp_path: Path,
 ) -> None:
     runtime = AgentRuntime(compiled(tmp_path, "dji_f450"))
@@ -330,7 +330,7 @@ def test_a_failed_set_up_keeps_the_behaviour_from_starting_and_names_the_paramet
     later: list[object] = []
     for k in range(1, 200):
         later += runtime.tick(k * 0.1)
-    assert not runtime.behaviour_started
+    assert not runtime.behavior_started
     assert setups(later) == []  # not asked again: the parameter will not take by itself
     assert runtime.launch.waiting_for == (f"the autopilot's safety set-up ({problem})",)
     log = mission_log(runtime)
@@ -373,7 +373,7 @@ def test_an_answer_to_nothing_asked_is_ignored(tmp_path: Path) -> None:
     runtime.deliver(state(0.0, armed=True), 0.0)
     runtime.deliver(READY, 0.0)
     assert setups(runtime.tick(0.0))
-    assert not runtime.behaviour_started
+    assert not runtime.behavior_started
 
 
 def test_a_config_the_engine_cannot_plan_for_says_so(tmp_path: Path) -> None:
@@ -398,7 +398,7 @@ def test_stations_and_opted_out_profiles_are_not_asked(tmp_path: Path) -> None:
     bench.deliver(state(0.0, armed=True), 0.0)
     bench.deliver(READY, 0.0)
     assert setups(bench.tick(0.0)) == []
-    assert bench.behaviour_started
+    assert bench.behavior_started
     assert "are NOT set up (its profile says safety_setup: false)" in mission_log(bench)
     path = tmp_path / "mission.yaml"
     result = validate_path(path, path.name)

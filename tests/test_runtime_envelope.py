@@ -865,7 +865,7 @@ def test_a_pilot_who_took_the_vehicle_is_not_fought(tmp_path: Path) -> None:
         assert of(out, SetMode) == [] and of(out, Goto) == []
 
 
-def test_a_breach_before_the_behaviour_starts_is_logged_only(tmp_path: Path) -> None:
+def test_a_breach_before_the_behavior_starts_is_logged_only(tmp_path: Path) -> None:
     config = compiled(tmp_path, "copter", envelope="{ceiling_m: 60}")
     flight = Flight(config)
     for _ in range(5):  # the autopilot is not ready: the launch gate is closed
@@ -878,7 +878,7 @@ def test_a_breach_before_the_behaviour_starts_is_logged_only(tmp_path: Path) -> 
     # mode (not the engine's) is not fought.
     out = flight.tick(flight.state(0, 0, 70, "ALT_HOLD"))
     assert of(out, SetMode) == [] and of(out, Goto) == []
-    assert flight.runtime.behaviour_started and flight.runtime.failsafe == "rtl"
+    assert flight.runtime.behavior_started and flight.runtime.failsafe == "rtl"
     assert flight.runtime.machine is not None and not flight.runtime.machine.running
 
 

@@ -191,7 +191,7 @@ def test_airborne_is_the_landed_state_or_armed_and_up() -> None:
 # ------------------------------------------------------------------ the runtime
 
 
-def test_the_behaviour_starts_only_once_ready_and_armed() -> None:
+def test_the_behavior_starts_only_once_ready_and_armed() -> None:
     cfg = config("cooperative_follow.yaml", "slash_a")
     runtime = AgentRuntime(cfg)
     assert not of(runtime.tick(0.0), SetMode)
@@ -213,7 +213,7 @@ def test_the_behaviour_starts_only_once_ready_and_armed() -> None:
     assert "launch: the autopilot is ready; armed by the pilot; the behaviour starts" in log
 
 
-def test_an_activation_before_the_behaviour_starts_never_acts() -> None:
+def test_an_activation_before_the_behavior_starts_never_acts() -> None:
     cfg = config("cooperative_follow.yaml", "slash_b")
     runtime = AgentRuntime(cfg)
     runtime.deliver(state(t=1.0), 1.0)

@@ -112,7 +112,7 @@ def test_a_vehicle_booted_before_its_station_is_not_stuck_in_hold() -> None:
     assert SetMode("GUIDED", 15) in of(out, SetMode) and len(of(out, Goto)) == 1
 
 
-def test_a_station_never_heard_once_the_behaviour_runs_raises_mcs_lost() -> None:
+def test_a_station_never_heard_once_the_behavior_runs_raises_mcs_lost() -> None:
     """Silence is counted from the behaviour's start: a behaviour never runs unwatched."""
     runtime = slash_b()
     for k in range(0, 31):
@@ -124,7 +124,7 @@ def test_a_station_never_heard_once_the_behaviour_runs_raises_mcs_lost() -> None
     assert "no station heard for 3.1 s" in mission_log(runtime)
 
 
-def test_silence_before_the_behaviour_starts_is_counted_from_its_start() -> None:
+def test_silence_before_the_behavior_starts_is_counted_from_its_start() -> None:
     """No station for 20 s while the behaviour waits (no vehicle state): no failsafe then."""
     runtime = slash_b()
     for k in range(0, 200):

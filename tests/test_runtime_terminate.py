@@ -98,11 +98,11 @@ def test_a_lost_autopilot_gets_no_terminal_mode_but_the_links_close() -> None:
     assert CloseInterfaces() in out and messages(out)
 
 
-def test_behaviour_started_follows_the_launch_gate() -> None:
+def test_behavior_started_follows_the_launch_gate() -> None:
     runtime = AgentRuntime(config_of("cooperative_follow.yaml", "slash_b"))
     runtime.tick(0.0)  # no autopilot yet: the launch gate is shut
-    assert not runtime.behaviour_started
+    assert not runtime.behavior_started
     run(runtime, 0.1, vehicle(0.1), AutopilotHeartbeat("MANUAL", 0, True))
-    assert runtime.behaviour_started
+    assert runtime.behavior_started
     runtime.terminate(0.2, "SIGTERM")
-    assert runtime.behaviour_started  # it started; terminated says it is over
+    assert runtime.behavior_started  # it started; terminated says it is over

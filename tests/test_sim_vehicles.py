@@ -29,7 +29,7 @@ from clark_engine.sim.ardupilot.airframes.atmosphere import PLANE_AIRSPEED_SENSO
 from clark_engine.sim.ardupilot.airframes.base import (
     DEFAULT_GPS_NOISE_M,
     G_M_S2,
-    ModeBehaviour,
+    ModeBehavior,
     SimulatedVehicle,
 )
 from clark_engine.sim.ardupilot.airframes.factory import make_vehicle
@@ -159,36 +159,36 @@ def test_unknown_mode_is_refused_and_the_mode_stays(pair: tuple[str, str]) -> No
 
 def test_mode_classification_follows_the_roles_and_documents_the_unsimulated() -> None:
     copter, plane, rover = build(COPTER), build(PLANE), build(ROVER)
-    assert copter.mode_behaviour("STABILIZE") is ModeBehaviour.MANUAL
-    assert copter.mode_behaviour("ALT_HOLD") is ModeBehaviour.MANUAL
-    assert copter.mode_behaviour("BRAKE") is ModeBehaviour.HOLD
-    assert copter.mode_behaviour("POSHOLD") is ModeBehaviour.HOLD
-    assert copter.mode_behaviour("CIRCLE") is ModeBehaviour.HOLD
-    assert copter.mode_behaviour("SMART_RTL") is ModeBehaviour.RTL
-    assert copter.mode_behaviour("LAND") is ModeBehaviour.LAND
-    assert copter.mode_behaviour("AUTO") is ModeBehaviour.AUTO
+    assert copter.mode_behavior("STABILIZE") is ModeBehavior.MANUAL
+    assert copter.mode_behavior("ALT_HOLD") is ModeBehavior.MANUAL
+    assert copter.mode_behavior("BRAKE") is ModeBehavior.HOLD
+    assert copter.mode_behavior("POSHOLD") is ModeBehavior.HOLD
+    assert copter.mode_behavior("CIRCLE") is ModeBehavior.HOLD
+    assert copter.mode_behavior("SMART_RTL") is ModeBehavior.RTL
+    assert copter.mode_behavior("LAND") is ModeBehavior.LAND
+    assert copter.mode_behavior("AUTO") is ModeBehavior.AUTO
     assert {"THROW", "FLIP", "FOLLOW", "ZIGZAG"} <= copter.unsimulated_modes
     assert not {"AUTO", "CIRCLE", "POSHOLD", "BRAKE"} & copter.unsimulated_modes
-    assert copter.mode_behaviour("THROW") is ModeBehaviour.HOLD
-    assert plane.mode_behaviour("FBWA") is ModeBehaviour.MANUAL
-    assert plane.mode_behaviour("TAKEOFF") is ModeBehaviour.TAKEOFF
-    assert plane.mode_behaviour("AUTO") is ModeBehaviour.AUTO
+    assert copter.mode_behavior("THROW") is ModeBehavior.HOLD
+    assert plane.mode_behavior("FBWA") is ModeBehavior.MANUAL
+    assert plane.mode_behavior("TAKEOFF") is ModeBehavior.TAKEOFF
+    assert plane.mode_behavior("AUTO") is ModeBehavior.AUTO
     assert {"CIRCLE", "AUTOLAND", "THERMAL", "LOITERALTQLAND"} <= plane.unsimulated_modes
     assert not {"TAKEOFF", "AUTO"} & plane.unsimulated_modes
     # ArduPlane refuses quadplane modes without VTOL motors (but enters LOITERALTQLAND,
     # whose landing never starts); nobody selects INITIALISING.
-    assert plane.mode_behaviour("QLOITER") is None
+    assert plane.mode_behavior("QLOITER") is None
     assert not plane.set_mode("QHOVER")
     assert not plane.set_mode("INITIALISING")
-    assert rover.mode_behaviour("HOLD") is ModeBehaviour.HOLD
-    assert rover.mode_behaviour("STEERING") is ModeBehaviour.MANUAL
-    assert rover.mode_behaviour("AUTO") is ModeBehaviour.AUTO
+    assert rover.mode_behavior("HOLD") is ModeBehavior.HOLD
+    assert rover.mode_behavior("STEERING") is ModeBehavior.MANUAL
+    assert rover.mode_behavior("AUTO") is ModeBehavior.AUTO
     assert {"CIRCLE", "FOLLOW", "DOCK"} == rover.unsimulated_modes
     assert not rover.set_mode("INITIALISING")
     # Only those are refused; every other profile mode has a behaviour.
     quadplane = {"QSTABILIZE", "QHOVER", "QLOITER", "QLAND", "QRTL", "QAUTOTUNE", "QACRO"}
     refused = {
-        vehicle.airframe_class: {m for m in vehicle.modes if vehicle.mode_behaviour(m) is None}
+        vehicle.airframe_class: {m for m in vehicle.modes if vehicle.mode_behavior(m) is None}
         for vehicle in (copter, plane, rover)
     }
     assert refused == {
@@ -441,7 +441,7 @@ def test_reentering_guided_keeps_the_target_and_entering_it_holds_position() -> 
 def test_unsimulated_mode_is_flown_as_hold() -> None:
     copter = build(COPTER, (0.0, 0.0, 10.0))
     assert copter.set_mode("THROW")
-    assert copter.behaviour is ModeBehaviour.HOLD
+    assert copter.behavior is ModeBehavior.HOLD
     assert all(distance(s, 0.0, 0.0) < 1e-9 for s in run(copter, 10.0))
 
 

@@ -63,7 +63,7 @@ def test_capitalised_target_is_named_and_hides_nothing(tmp_path: Path) -> None:
     assert not any("has no behaviour" in message for _, _, message in found)
 
 
-def test_a_behaviour_too_broken_to_resolve_is_not_said_to_be_missing(tmp_path: Path) -> None:
+def test_a_behavior_too_broken_to_resolve_is_not_said_to_be_missing(tmp_path: Path) -> None:
     broken = HOME.replace("transitions: {done: Home}", "transitions: [done, home]")
     found = _findings(tmp_path, broken)
     assert any(code == "E-TYPE" for code, _, _ in found)

@@ -56,10 +56,10 @@ def main(argv: list[str] | None = None) -> int:
         page = browser.new_page(viewport=VIEWPORT)
         page.goto(station.wait_for_url())
         page.get_by_test_id("operator-name").fill("ana")
-        behaviour = page.get_by_test_id("agent-row-slash_b").locator('[data-field="behaviour"]')
-        expect(behaviour).to_have_text("idle ← start")  # both vehicles drive now
+        behavior = page.get_by_test_id("agent-row-slash_b").locator('[data-field="behaviour"]')
+        expect(behavior).to_have_text("idle ← start")  # both vehicles drive now
         page.get_by_test_id("activate-slash_b").click()
-        expect(behaviour).to_have_text("chase ← activate")
+        expect(behavior).to_have_text("chase ← activate")
         checks = page.get_by_test_id("checks").locator("li")
         reached = checks.filter(has_text="Slash B reaches Slash A")
         expect(reached).to_have_attribute("data-status", "passed")

@@ -419,7 +419,7 @@ class DryRun:
             self.close()
         self.recording.end_s = min(self._t, self.until_s)
         for name, sim_agent in self.agents.items():
-            if not sim_agent.runtime.behaviour_started:
+            if not sim_agent.runtime.behavior_started:
                 self.recording.waiting[name] = sim_agent.runtime.launch.waiting_for
         return DryRunResult(
             self.recording,

@@ -84,7 +84,7 @@ def took_effect(
     record: AgentRecord,
     sent_s: float,
     *,
-    behaviour_before: Sample[BehaviorState] | None,
+    behavior_before: Sample[BehaviorState] | None,
     mode_number: int | None = None,
 ) -> bool:
     """Whether ``record`` shows, since ``sent_s``, that a command reached its target.
@@ -93,21 +93,21 @@ def took_effect(
     and the station's view (to show a command done) judge that a command took:
 
     - activate / deactivate: a Behavior State received since, naming that event, that
-      is not the one known when the command was sent (``behaviour_before``) and differs
+      is not the one known when the command was sent (``behavior_before``) and differs
       from it: a periodic Behavior State repeating an older activation is no answer;
     - mode: an Agent Status received since, reporting ``mode_number``;
     - terminate: the target's heartbeat reports the ``terminated`` condition.
     """
     if action in ("activate", "deactivate"):
         sample = record.sample(BehaviorState)
-        if sample is None or sample is behaviour_before or sample.received_s < sent_s:
+        if sample is None or sample is behavior_before or sample.received_s < sent_s:
             return False
         value = sample.value
         if value.last_event != action:
             return False
-        if behaviour_before is None:
+        if behavior_before is None:
             return True
-        was = behaviour_before.value
+        was = behavior_before.value
         return (was.active_states, was.last_event) != (value.active_states, value.last_event)
     if action == "mode":
         status = record.sample(AgentStatus)
@@ -141,7 +141,7 @@ class Unconfirmed:
     target: str
     first_sent_s: float
     last_sent_s: float
-    behaviour_before: Sample[BehaviorState] | None = None
+    behavior_before: Sample[BehaviorState] | None = None
     sends: int = 1
 
     def confirmed_by(self, record: AgentRecord | None) -> bool:
@@ -153,7 +153,7 @@ class Unconfirmed:
             self.action,
             record,
             self.first_sent_s,
-            behaviour_before=self.behaviour_before,
+            behavior_before=self.behavior_before,
             mode_number=mode,
         )
 

@@ -766,7 +766,7 @@ class AgentRuntime:
         return self._drain()
 
     @property
-    def behaviour_started(self) -> bool:
+    def behavior_started(self) -> bool:
         """True once the launch gate opened and the behaviour (state machine) started.
 
         Before then the agent waits for readiness, arming or take-off as its mission

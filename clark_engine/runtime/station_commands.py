@@ -119,7 +119,7 @@ class StationCommands:
                     target.name,
                     now_s,
                     now_s,
-                    behaviour_before=None if record is None else record.sample(BehaviorState),
+                    behavior_before=None if record is None else record.sample(BehaviorState),
                 )
         if command.action == "terminate" and target is None:
             self._begin_terminate_all(now_s)

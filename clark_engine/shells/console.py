@@ -40,7 +40,7 @@ def status_lines(shell: RealtimeShell, now_s: float) -> list[str]:
     state = (", ".join(machine.active_paths()) if machine is not None else "") or "-"
     if runtime.terminated:
         state = "terminated"
-    elif not runtime.behaviour_started:
+    elif not runtime.behavior_started:
         state = "not started (waiting for launch)"
     lines = [
         f"{config.agent} ({config.role}) mission {config.mission_name}  t={now_s:7.1f} s  "

@@ -282,24 +282,24 @@ class Replay:
     def _row(self, agent: ReplayAgent, t_s: float) -> Json:
         """The agent's row at ``t_s``: its latest fleet-table row, its ages grown since."""
         info = agent.info
-        behaviour: BehaviorState | None = None
-        behaviour_age: float | None = None
+        behavior: BehaviorState | None = None
+        behavior_age: float | None = None
         k = bisect.bisect_right(agent.changes_t, t_s) - 1
         if k >= 0:
             event, active = agent.changes[k]
-            behaviour = BehaviorState(int(info["id"]), 0, active, event)
-            behaviour_age = t_s - agent.changes_t[k]
+            behavior = BehaviorState(int(info["id"]), 0, active, event)
+            behavior_age = t_s - agent.changes_t[k]
         rows = agent.rows
         i = -1 if rows is None else bisect.bisect_right(rows.now_s, t_s - agent.shift_s) - 1
         if rows is None or i < 0:
             row = agent_row(info, self.origin, heard=False)
-            if behaviour is not None:  # its own log says so, though the station heard nothing
+            if behavior is not None:  # its own log says so, though the station heard nothing
                 row["behaviour"] = agent_row(
                     info,
                     self.origin,
                     heard=True,
-                    behaviour=behaviour,
-                    behaviour_age_s=behaviour_age,
+                    behavior=behavior,
+                    behavior_age_s=behavior_age,
                 )["behaviour"]
             return row
         n = rows.numbers
@@ -369,8 +369,8 @@ class Replay:
             status=status,
             status_age_s=status_age,
             mode=mode,
-            behaviour=behaviour,
-            behaviour_age_s=behaviour_age,
+            behavior=behavior,
+            behavior_age_s=behavior_age,
             attitude=attitude,
             health=health,
             health_age_s=health_age,

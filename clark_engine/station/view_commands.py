@@ -74,7 +74,7 @@ class _Target:
     name: str
     agent_id: int
     status: str = "pending"
-    behaviour: Sample[BehaviorState] | None = None
+    behavior: Sample[BehaviorState] | None = None
     mode_number: int | None = None
 
 
@@ -215,7 +215,7 @@ class CommandDesk:
                 target.status = "terminated"  # of every agent: it can answer nothing
             if record is not None:
                 sample = record.sample(BehaviorState)
-                target.behaviour = sample
+                target.behavior = sample
         if all(t.status == "terminated" for t in command.targets):
             return "every vehicle has terminated"
         return None
@@ -248,7 +248,7 @@ class CommandDesk:
                 action,
                 record,
                 command.sent_s,
-                behaviour_before=target.behaviour,
+                behavior_before=target.behavior,
                 mode_number=target.mode_number,
             ):
                 target.status = "done"

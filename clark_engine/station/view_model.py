@@ -282,7 +282,7 @@ class StationView:
         if record is None:
             return agent_row(info, self.origin, heard=False, link=link)
         status = record.sample(AgentStatus)
-        behaviour = record.sample(BehaviorState)
+        behavior = record.sample(BehaviorState)
         attitude = record.sample(AgentAttitude)
         health = record.sample(VehicleHealth)
         return agent_row(
@@ -296,8 +296,8 @@ class StationView:
             status=status.value if status is not None else None,
             status_age_s=now_s - status.received_s if status is not None else None,
             mode=self._mode_name(info, status.value.mode) if status is not None else None,
-            behaviour=behaviour.value if behaviour is not None else None,
-            behaviour_age_s=now_s - behaviour.received_s if behaviour is not None else None,
+            behavior=behavior.value if behavior is not None else None,
+            behavior_age_s=now_s - behavior.received_s if behavior is not None else None,
             attitude=attitude.value if attitude is not None else None,
             health=health.value if health is not None else None,
             health_age_s=now_s - health.received_s if health is not None else None,

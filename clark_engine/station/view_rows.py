@@ -85,8 +85,8 @@ def agent_row(
     status: AgentStatus | None = None,
     status_age_s: float | None = None,
     mode: str | None = None,
-    behaviour: BehaviorState | None = None,
-    behaviour_age_s: float | None = None,
+    behavior: BehaviorState | None = None,
+    behavior_age_s: float | None = None,
     attitude: AgentAttitude | None = None,
     health: VehicleHealth | None = None,
     health_age_s: float | None = None,
@@ -110,8 +110,8 @@ def agent_row(
         status: Its latest Agent Status, if any.
         status_age_s: Seconds since that Agent Status arrived.
         mode: The name of ``status.mode`` in its profile, if known.
-        behaviour: Its latest Behavior State, if any.
-        behaviour_age_s: Seconds since it arrived (the replay: since the change).
+        behavior: Its latest Behavior State, if any.
+        behavior_age_s: Seconds since it arrived (the replay: since the change).
         attitude: Its latest Agent Attitude, if any.
         health: Its latest Vehicle Health, if any (``armed`` comes from it).
         health_age_s: Seconds since that Vehicle Health arrived.
@@ -162,16 +162,16 @@ def agent_row(
             "age_s": rounded(status_age_s, 2),
         }
         out["mode"] = {"number": status.mode, "name": mode}
-    if behaviour is not None:
+    if behavior is not None:
         # Names from the air: a control character or a bidirectional override (U+202E
         # shows the operator a reversed name) is escaped, and a flood of them is cut.
         out["behaviour"] = {
             "active": [
                 line_safe(name, MAX_STATE_NAME_CHARS)
-                for name in behaviour.active_states[:MAX_ACTIVE_STATES_SHOWN]
+                for name in behavior.active_states[:MAX_ACTIVE_STATES_SHOWN]
             ],
-            "last_event": line_safe(behaviour.last_event, MAX_STATE_NAME_CHARS),
-            "age_s": rounded(behaviour_age_s, 2),
+            "last_event": line_safe(behavior.last_event, MAX_STATE_NAME_CHARS),
+            "age_s": rounded(behavior_age_s, 2),
         }
     if attitude is not None:
         out["attitude"] = {

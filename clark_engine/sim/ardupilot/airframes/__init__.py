@@ -121,7 +121,7 @@ pieces they are built from):
 
 - ``base``: :class:`SimulatedVehicle`, what every model shares (modes, arming, ArduPilot's
   parameters, RC inputs and overrides, servo outputs, the GPS receiver and the estimate,
-  the truth), the shared constants, :class:`GpsFix` and :class:`ModeBehaviour`.
+  the truth), the shared constants, :class:`GpsFix` and :class:`ModeBehavior`.
 - ``multirotor``, ``fixed_wing``, ``rover``: one model each (:class:`Multirotor`,
   :class:`FixedWing`, :class:`Rover`), with the ArduPilot defaults it reads and the
   constants fitted to that firmware's SITL.

@@ -89,7 +89,7 @@ class GpsFix(NamedTuple):
     alt_m: float
 
 
-class ModeBehaviour(Enum):
+class ModeBehavior(Enum):
     """What a flight mode makes the model do."""
 
     MANUAL = "manual"
@@ -176,7 +176,7 @@ class SimulatedVehicle(VehicleModel):
         self.limits = limits
         self.origin = origin
         self.modes: Mapping[str, int] = {str(k): int(v) for k, v in autopilot["modes"].items()}
-        self._behaviours, self.unsimulated_modes = self._classify(autopilot)
+        self._behaviors, self.unsimulated_modes = self._classify(autopilot)
         self._rng = rng
         self._gps_noise_m = gps_noise_m
         self._gps_vertical_noise_m = gps_vertical_noise_m
@@ -244,7 +244,7 @@ class SimulatedVehicle(VehicleModel):
 
         self.armed = armed
         start_mode = mode if mode is not None else self._default_mode(autopilot)
-        if start_mode not in self._behaviours:
+        if start_mode not in self._behaviors:
             raise VehicleSetupError(
                 f"cannot start in mode {start_mode!r}: "
                 + (
@@ -254,14 +254,14 @@ class SimulatedVehicle(VehicleModel):
                 )
             )
         self.mode = start_mode
-        self._behaviour = self._behaviours[start_mode]
+        self._behavior = self._behaviors[start_mode]
         self._setup()
         if self.airborne and not armed:
             raise VehicleSetupError(
                 "a vehicle that starts in the air must start armed; start it on the ground "
                 "(up_m 0) or armed"
             )
-        self._enter(self._behaviour)
+        self._enter(self._behavior)
 
         # GPS: the receiver's fixes, and the estimate's smoothed share of their white
         # noise (two first-order lags per axis, stepped at every fix).
@@ -278,41 +278,41 @@ class SimulatedVehicle(VehicleModel):
 
     def _classify(
         self, autopilot: Mapping[str, Any]
-    ) -> tuple[dict[str, ModeBehaviour], frozenset[str]]:
+    ) -> tuple[dict[str, ModeBehavior], frozenset[str]]:
         roles = {
-            autopilot.get("guided_mode"): ModeBehaviour.GUIDED,
-            autopilot.get("hold_mode"): ModeBehaviour.HOLD,
-            autopilot.get("rtl_mode"): ModeBehaviour.RTL,
-            autopilot.get("land_mode"): ModeBehaviour.LAND,
-            autopilot.get("manual_mode"): ModeBehaviour.MANUAL,
+            autopilot.get("guided_mode"): ModeBehavior.GUIDED,
+            autopilot.get("hold_mode"): ModeBehavior.HOLD,
+            autopilot.get("rtl_mode"): ModeBehavior.RTL,
+            autopilot.get("land_mode"): ModeBehavior.LAND,
+            autopilot.get("manual_mode"): ModeBehavior.MANUAL,
         }
-        behaviours: dict[str, ModeBehaviour] = {}
+        behaviors: dict[str, ModeBehavior] = {}
         unsimulated: set[str] = set()
         for name in self.modes:
             if name in roles and not (
-                roles[name] is ModeBehaviour.LAND and self.airframe_class != "multirotor"
+                roles[name] is ModeBehavior.LAND and self.airframe_class != "multirotor"
             ):
-                behaviours[name] = roles[name]
+                behaviors[name] = roles[name]
             elif name in self._REFUSED_MODES:
                 continue
             elif name in self._MANUAL_MODES:
-                behaviours[name] = ModeBehaviour.MANUAL
+                behaviors[name] = ModeBehavior.MANUAL
             elif name in self._HOLD_MODES:
-                behaviours[name] = ModeBehaviour.HOLD
+                behaviors[name] = ModeBehavior.HOLD
             elif name in self._RTL_MODES:
-                behaviours[name] = ModeBehaviour.RTL
+                behaviors[name] = ModeBehavior.RTL
             elif name in self._LAND_MODES:
-                behaviours[name] = ModeBehaviour.LAND
+                behaviors[name] = ModeBehavior.LAND
             elif name in self._TAKEOFF_MODES:
-                behaviours[name] = ModeBehaviour.TAKEOFF
+                behaviors[name] = ModeBehavior.TAKEOFF
             elif name in self._AUTO_MODES:
-                behaviours[name] = ModeBehaviour.AUTO
+                behaviors[name] = ModeBehavior.AUTO
             elif name == "GUIDED":
-                behaviours[name] = ModeBehaviour.GUIDED
+                behaviors[name] = ModeBehavior.GUIDED
             else:
-                behaviours[name] = ModeBehaviour.HOLD
+                behaviors[name] = ModeBehavior.HOLD
                 unsimulated.add(name)
-        return behaviours, frozenset(unsimulated)
+        return behaviors, frozenset(unsimulated)
 
     def _default_mode(self, autopilot: Mapping[str, Any]) -> str:
         """The mission schema's default start mode: hold for aircraft."""
@@ -416,14 +416,14 @@ class SimulatedVehicle(VehicleModel):
         target is kept, a hold point is not moved. Entering a mode takes the latest
         parameters and resets the leg speed to their default.
         """
-        behaviour = self._behaviours.get(mode)
-        if behaviour is None:
+        behavior = self._behaviors.get(mode)
+        if behavior is None:
             return False
         if mode == self.mode:
             return True
         self.mode = mode
-        self._behaviour = behaviour
-        self._enter(behaviour)
+        self._behavior = behavior
+        self._enter(behavior)
         return True
 
     def arm(self, armed: bool, force: bool = False) -> bool:
@@ -474,7 +474,7 @@ class SimulatedVehicle(VehicleModel):
             speed_m_s: Requested speed (as DO_CHANGE_SPEED: kept for later targets in
                 this mode); None, zero or negative keeps the current leg speed.
         """
-        if self._behaviour is not ModeBehaviour.GUIDED:
+        if self._behavior is not ModeBehavior.GUIDED:
             return False
         return self._take_target(
             (lat_deg - self.origin.lat_deg) * self._m_per_deg_lat,
@@ -491,7 +491,7 @@ class SimulatedVehicle(VehicleModel):
         Flown as a guided target is; ``alt_m`` is above the origin, ``speed_m_s`` None
         keeps the current leg speed.
         """
-        if self._behaviour is not ModeBehaviour.AUTO:
+        if self._behavior is not ModeBehavior.AUTO:
             return False
         return self._take_target(north_m, east_m, alt_m, speed_m_s)
 
@@ -636,13 +636,13 @@ class SimulatedVehicle(VehicleModel):
         return False
 
     @property
-    def behaviour(self) -> ModeBehaviour:
+    def behavior(self) -> ModeBehavior:
         """What the current mode makes the model do."""
-        return self._behaviour
+        return self._behavior
 
-    def mode_behaviour(self, mode: str) -> ModeBehaviour | None:
+    def mode_behavior(self, mode: str) -> ModeBehavior | None:
         """What ``mode`` would make the model do; None when it is unknown or refused."""
-        return self._behaviours.get(mode)
+        return self._behaviors.get(mode)
 
     def servo_function(self, servo: int) -> str | None:
         """The function driving output ``servo`` (``roll``, ``throttle``, ``motor``...).
@@ -826,7 +826,7 @@ class SimulatedVehicle(VehicleModel):
         """Integrate one sub-step of ``h`` seconds in the current mode."""
 
     @abstractmethod
-    def _enter(self, behaviour: ModeBehaviour) -> None:
+    def _enter(self, behavior: ModeBehavior) -> None:
         """Set up a newly entered mode (hold point, guided target, RTL target)."""
 
     @abstractmethod

@@ -25,7 +25,7 @@ from clark_engine.sim.ardupilot.airframes.base import (
     CMD_TAKEOFF,
     CMD_TARGET,
     G_M_S2,
-    ModeBehaviour,
+    ModeBehavior,
     SimulatedVehicle,
 )
 from clark_engine.sim.ardupilot.airframes.control import HALF_PI, INF, TAU, clamp, wrap_pi
@@ -409,23 +409,23 @@ class FixedWing(SimulatedVehicle):
         self._capture()
         if not self._speed_set:
             self._target_speed = self._auto_speed()
-        if self._behaviour is ModeBehaviour.RTL and self._params["RTL_RADIUS"] > 0.0:
+        if self._behavior is ModeBehavior.RTL and self._params["RTL_RADIUS"] > 0.0:
             self._radius_param = abs(self._params["RTL_RADIUS"])
         else:
             self._radius_param = self._loiter_rad
             self._guided_shape()
         self._radius = self._loiter_radius(self._target_speed)
-        if self._behaviour is ModeBehaviour.RTL:
+        if self._behavior is ModeBehavior.RTL:
             self._ch = self._clamp_altitude(self.home_m[2] + self._params["RTL_ALTITUDE"])
 
     def _disarmed(self) -> None:
         if not self._flying:
             self._launch_at_s = None
 
-    def _enter(self, behaviour: ModeBehaviour) -> None:
+    def _enter(self, behavior: ModeBehavior) -> None:
         self._command = CMD_NONE
         self._launch_at_s = None
-        if behaviour is ModeBehaviour.MANUAL:
+        if behavior is ModeBehavior.MANUAL:
             self._sub = _P_MANUAL
             return
         self._capture()
@@ -438,12 +438,12 @@ class FixedWing(SimulatedVehicle):
         self._target_ccw = False
         self._sub = _P_LOITER
         home_n, home_e, home_u = self.home_m
-        if behaviour is ModeBehaviour.RTL:
+        if behavior is ModeBehavior.RTL:
             self._cn, self._ce = home_n, home_e
             self._ch = self._clamp_altitude(home_u + self._params["RTL_ALTITUDE"])
             if self._params["RTL_RADIUS"] > 0.0:
                 self._radius_param = abs(self._params["RTL_RADIUS"])
-        elif behaviour is ModeBehaviour.TAKEOFF:
+        elif behavior is ModeBehavior.TAKEOFF:
             altitude = self._clamp_altitude(home_u + self._params["TKOFF_ALT"])
             self._takeoff_alt = altitude
             if self._flying:
@@ -451,7 +451,7 @@ class FixedWing(SimulatedVehicle):
                 self._ch = max(self._u, altitude)
             else:
                 self._sub = _P_LAUNCH
-        elif behaviour is ModeBehaviour.LAND and self._flying:
+        elif behavior is ModeBehavior.LAND and self._flying:
             self._start_landing()
         else:
             self._cn, self._ce, self._ch = self._n, self._e, self._u
@@ -489,7 +489,7 @@ class FixedWing(SimulatedVehicle):
             radius_m: param3 (NaN, or 0 and less: no radius given).
             ccw: param4 asks for counter-clockwise.
         """
-        if self._behaviour is not ModeBehaviour.GUIDED:
+        if self._behavior is not ModeBehavior.GUIDED:
             return
         self._target_ccw = ccw
         if math.isfinite(radius_m) and radius_m > 0.0:
@@ -498,7 +498,7 @@ class FixedWing(SimulatedVehicle):
 
     def _guided_shape(self) -> None:
         """In GUIDED, the radius and direction Plane::update_loiter flies (see guided_loiter)."""
-        if self._behaviour is not ModeBehaviour.GUIDED:
+        if self._behavior is not ModeBehavior.GUIDED:
             return
         if self._guided_radius_m > 1.0:
             self._radius_param = self._guided_radius_m
@@ -536,7 +536,7 @@ class FixedWing(SimulatedVehicle):
         On the ground the launch starts on arming (at once when armed), as ArduPlane's
         AUTO with a takeoff item does; in the air it climbs there. False outside AUTO.
         """
-        if self._behaviour is not ModeBehaviour.AUTO or not math.isfinite(alt_m):
+        if self._behavior is not ModeBehavior.AUTO or not math.isfinite(alt_m):
             return False
         self._capture()
         self._takeoff_alt = self._clamp_altitude(self.home_m[2] + alt_m)
@@ -552,7 +552,7 @@ class FixedWing(SimulatedVehicle):
 
     def auto_land(self) -> None:
         """AUTO's land item: a glide-slope landing straight ahead."""
-        if self._behaviour is not ModeBehaviour.AUTO:
+        if self._behavior is not ModeBehavior.AUTO:
             return
         self._command = CMD_LAND
         if self._flying:
@@ -657,7 +657,7 @@ class FixedWing(SimulatedVehicle):
                 self._sub = _P_CLIMB
         if self._sub == _P_CLIMB and self._u >= self._takeoff_alt:
             # Takeoff complete: TAKEOFF loiters TKOFF_DIST ahead, AUTO where it is.
-            if self._behaviour is ModeBehaviour.TAKEOFF:
+            if self._behavior is ModeBehavior.TAKEOFF:
                 self._loiter_ahead(self._launch_n, self._launch_e, self._launch_yaw)
             else:
                 self._cn, self._ce, self._ch = self._n, self._e, self._takeoff_alt

@@ -21,7 +21,7 @@ from clark_engine.sim.ardupilot.airframes.base import (
     CMD_TARGET,
     G_M_S2,
     SERVO_OUTPUT_COUNT,
-    ModeBehaviour,
+    ModeBehavior,
     SimulatedVehicle,
 )
 from clark_engine.sim.ardupilot.airframes.control import INF, TAU, clamp, sqrt_controller, wrap_pi
@@ -279,7 +279,7 @@ class Multirotor(SimulatedVehicle):
         self._thr_dz = clamp(p["THR_DZ"] / 1000.0, 0.0, 0.3)
 
     def _default_speed(self) -> float:
-        if self._behaviour is ModeBehaviour.RTL and self._params["RTL_SPEED"] > 0.0:
+        if self._behavior is ModeBehavior.RTL and self._params["RTL_SPEED"] > 0.0:
             return clamp(self._params["RTL_SPEED"] / 100.0, 0.2, self._max_speed)
         return self._wp_speed
 
@@ -342,7 +342,7 @@ class Multirotor(SimulatedVehicle):
         up to WPNAV_SPEED_UP, braking to stop at the altitude without overshoot;
         landed_state is ``taking_off`` from the climb's start until within 0.1 m.
         """
-        if self._behaviour is not ModeBehaviour.GUIDED or not self.armed or not self._landed:
+        if self._behavior is not ModeBehavior.GUIDED or not self.armed or not self._landed:
             return False
         return self._begin_takeoff(alt_m, delay_s)
 
@@ -352,7 +352,7 @@ class Multirotor(SimulatedVehicle):
         On the ground as :meth:`takeoff` (the climb after ``delay_s``); in the air, a
         climb there if below it. False outside AUTO or disarmed.
         """
-        if self._behaviour is not ModeBehaviour.AUTO or not self.armed:
+        if self._behavior is not ModeBehavior.AUTO or not self.armed:
             return False
         if self._landed:
             return self._begin_takeoff(alt_m, delay_s)
@@ -370,7 +370,7 @@ class Multirotor(SimulatedVehicle):
 
     def auto_land(self) -> None:
         """AUTO's land item: land where the copter is, as LAND does."""
-        if self._behaviour is not ModeBehaviour.AUTO:
+        if self._behavior is not ModeBehavior.AUTO:
             return
         self._command = CMD_LAND
         self._takeoff_at_s = None
@@ -403,7 +403,7 @@ class Multirotor(SimulatedVehicle):
         self._takeoff_at_s = None
         self._taking_off = False
 
-    def _enter(self, behaviour: ModeBehaviour) -> None:
+    def _enter(self, behavior: ModeBehavior) -> None:
         self._capture()
         self._speed_set = False
         self._leg_speed = self._default_speed()
@@ -419,14 +419,14 @@ class Multirotor(SimulatedVehicle):
         # Automatic modes start by holding where the copter stops, as ArduCopter's do.
         stop_n, stop_e = self._stopping_point(self._brake_xy)
         self._tn, self._te, self._tu = stop_n, stop_e, self._u
-        if behaviour is ModeBehaviour.MANUAL:
+        if behavior is ModeBehavior.MANUAL:
             self._sub = _C_MANUAL
-        elif behaviour is ModeBehaviour.RTL:
+        elif behavior is ModeBehavior.RTL:
             self._start_rtl(stop_n, stop_e)
-        elif behaviour is ModeBehaviour.LAND:
+        elif behavior is ModeBehavior.LAND:
             self._sub = _C_LAND
             self._landing = not self._landed
-        elif behaviour is ModeBehaviour.HOLD:
+        elif behavior is ModeBehavior.HOLD:
             if self.mode == "CIRCLE":
                 self._start_circle()
             else:

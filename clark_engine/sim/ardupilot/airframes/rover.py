@@ -15,7 +15,7 @@ from clark_engine.sim.ardupilot.airframes.base import (
     CMD_NONE,
     CMD_TARGET,
     G_M_S2,
-    ModeBehaviour,
+    ModeBehavior,
     SimulatedVehicle,
 )
 from clark_engine.sim.ardupilot.airframes.control import (
@@ -182,7 +182,7 @@ class Rover(SimulatedVehicle):
     def _default_speed(self) -> float:
         p = self._params
         speed = p["WP_SPEED"]
-        if self._behaviour is ModeBehaviour.RTL and p["RTL_SPEED"] > 0.0:
+        if self._behavior is ModeBehavior.RTL and p["RTL_SPEED"] > 0.0:
             speed = p["RTL_SPEED"]
         return clamp(speed, ROVER_MIN_SPEED_M_S, self.limits.max_speed_m_s)
 
@@ -200,18 +200,18 @@ class Rover(SimulatedVehicle):
         """
         if self._command != CMD_TARGET:
             return False
-        if self._arrived or self._behaviour is ModeBehaviour.GUIDED:
+        if self._arrived or self._behavior is ModeBehavior.GUIDED:
             return self._arrived
         dn, de = self._tn - self._n, self._te - self._e
         return dn * dn + de * de <= self._wp_radius * self._wp_radius
 
-    def _enter(self, behaviour: ModeBehaviour) -> None:
+    def _enter(self, behavior: ModeBehavior) -> None:
         self._capture()
         self._speed_set = False
         self._leg_speed = self._default_speed()
         self._command = CMD_NONE
         self._psc = False
-        if behaviour is ModeBehaviour.RTL:
+        if behavior is ModeBehavior.RTL:
             self._tn, self._te = self.home_m[0], self.home_m[1]
             self._arrived = False
             self._command = CMD_TARGET
@@ -225,7 +225,7 @@ class Rover(SimulatedVehicle):
         # ArduRover takes new parameters only on entering a mode, not with a target.
         if speed_m_s is not None:
             self._set_speed(speed_m_s)
-        if self._behaviour is ModeBehaviour.GUIDED and not self._psc:
+        if self._behavior is ModeBehavior.GUIDED and not self._psc:
             # AR_WPNav::set_desired_location_expect_fast_update: the position controller is
             # started afresh when it was not running (GUIDED just entered, or the last
             # target reached); while it runs, a new target only replaces the destination.
@@ -329,28 +329,28 @@ class Rover(SimulatedVehicle):
 
     def auto_land(self) -> None:
         """A land item means nothing to a rover: it stops where it is."""
-        if self._behaviour is ModeBehaviour.AUTO:
+        if self._behavior is ModeBehavior.AUTO:
             self._tn, self._te = self._n, self._e
             self._arrived = True
             self._command = CMD_NONE
 
     def _advance(self, h: float) -> None:
-        behaviour = self._behaviour
+        behavior = self._behavior
         speed = self._speed
         yaw = self._yaw
         up = down = self.accel_m_s2
-        if behaviour is ModeBehaviour.MANUAL:
+        if behavior is ModeBehavior.MANUAL:
             steer_cmd = self._rc_roll
             speed_cmd = self._rc_thr * self.limits.max_speed_m_s
         else:
             up, down = self._accel, self._decel
             steer_cmd = speed_cmd = 0.0
-            if self._arrived or behaviour is ModeBehaviour.HOLD:
+            if self._arrived or behavior is ModeBehavior.HOLD:
                 pass
-            elif behaviour is ModeBehaviour.GUIDED and not self.armed:
+            elif behavior is ModeBehavior.GUIDED and not self.armed:
                 # AR_WPNav does nothing while disarmed: armed, it starts afresh from here.
                 self._psc = False
-            elif behaviour is ModeBehaviour.GUIDED:
+            elif behavior is ModeBehavior.GUIDED:
                 if not self._psc:
                     self._psc_start()
                 speed_cmd, rate = self._psc_step(h)
