@@ -71,7 +71,13 @@ from typing import Any, Final
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.io.autopilot_setup import ParamAnswer, SafetySetup
-from clark_engine.io.mission_upload import MissionUpload, fence_items
+from clark_engine.io.mission_upload import (
+    MISSION_PROGRESS_MESSAGES,
+    MissionUpload,
+    MissionUploads,
+    fence_items,
+    mission_items,
+)
 from clark_engine.runtime.commands import (
     AUTOPILOT_COMMANDS,
     Arm,
@@ -86,6 +92,7 @@ from clark_engine.runtime.commands import (
     SetUpAutopilotSafety,
     Takeoff,
     UploadFence,
+    UploadMission,
     check_dispatch,
     unknown_command,
 )
@@ -98,6 +105,8 @@ from clark_engine.runtime.events import (
     AutopilotText,
     CommandRefused,
     LandedState,
+    MissionProgress,
+    MissionUploadResult,
     RcChannels,
     VehicleState,
 )
@@ -325,6 +334,8 @@ AutopilotEvent = (
     | CommandRefused
     | AutopilotMessage
     | AutopilotSafetyResult
+    | MissionUploadResult
+    | MissionProgress
 )
 """Everything :meth:`AutopilotAdapter.receive` returns."""
 
@@ -573,6 +584,21 @@ class AutopilotAdapter:
         self._safety: SafetySetup | None = None
         self._param_answers: dict[str, list[ParamAnswer]] = {}
         self._on_close: tuple[tuple[str, float], ...] = ()
+        # Missions to fly in AUTO (UploadMission), after any fence upload of a set-up.
+        self._missions = MissionUploads(
+            self._mav,
+            self._autopilot_ids,
+            lambda cmd: mission_items(
+                cmd.items,
+                self._status.home,
+                self.above_home_m,
+                airspeed=settings.firmware == "arduplane",
+            ),
+            lambda: self._safety is not None,
+            self.setup_reasons,
+            lambda event: self._late_events.append(event),
+            self._log,
+        )
         # A clean stop began (stop_commanding): poll only keeps the heartbeat and the
         # stop's own requests going.
         self._stopping = False
@@ -739,6 +765,8 @@ class AutopilotAdapter:
             self._speed(now_s)
         if self._safety is not None:
             self._safety.poll(now_s)
+        if self._missions.busy:
+            self._missions.poll(now_s)
         self._release_refusals(now_s, self._late_events)
         return self._outbox.take()
 
@@ -758,6 +786,7 @@ class AutopilotAdapter:
         self._requests.clear()
         self._param_answers.clear()
         self._safety = None
+        self._missions.cancel()
         self._speed_wanted = None
         return self._outbox.take()
 
@@ -811,6 +840,9 @@ class AutopilotAdapter:
           MAVLink release value (0 for channels 1-8, UINT16_MAX-1 for 9-18), and
           every other channel at "ignore" (UINT16_MAX). Overrides stay active, and
           :meth:`poll` keeps them alive, until released.
+        - :class:`UploadMission`: the mission protocol's upload, in turn
+          (:class:`~clark_engine.io.mission_upload.MissionUploads`); answered by a
+          :class:`MissionUploadResult`, then :class:`MissionProgress` as it is flown.
         - Radio, payload and CloseInterfaces commands are not the autopilot's:
           ``b""``.
 
@@ -854,6 +886,8 @@ class AutopilotAdapter:
             self._rc_override(cmd, now_s)
         elif isinstance(cmd, SetUpAutopilotSafety):
             self._safety_start(cmd, now_s)
+        elif isinstance(cmd, UploadMission):
+            self._missions.request(cmd, now_s)
         elif not isinstance(cmd, _NOT_THE_AUTOPILOTS):
             raise unknown_command(cmd, "the autopilot adapter")
         return self._outbox.take()
@@ -1152,9 +1186,11 @@ class AutopilotAdapter:
         elif kind == "PARAM_VALUE":
             events.append(self._on_param(msg, now_s))
         elif kind in _MISSION_ANSWERS:
-            if self._safety is not None:
-                own = (self.settings.source_system_id, self.settings.source_component_id)
-                self._safety.on_mission(msg, own, now_s)
+            own = (self.settings.source_system_id, self.settings.source_component_id)
+            if self._safety is None or not self._safety.on_mission(msg, own, now_s):
+                self._missions.on_answer(msg, own, now_s)
+        elif kind in MISSION_PROGRESS_MESSAGES:
+            self._missions.on_progress(msg)
         elif kind == "COMMAND_ACK":
             self._on_ack(msg, now_s, events)
         elif kind == "STATUSTEXT":

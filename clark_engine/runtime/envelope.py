@@ -46,10 +46,11 @@ from clark_engine.link.fleet import FleetTable
 from clark_engine.link.messages import AgentStatus
 from clark_engine.mission.fence import Zone
 from clark_engine.mission.geo import LocalPoint, Origin, to_global, to_local
-from clark_engine.runtime.commands import Goto, Takeoff
+from clark_engine.runtime.commands import Goto, Takeoff, UploadMission
 from clark_engine.runtime.config import AgentConfig, EnvelopeSpec
 from clark_engine.runtime.events import VehicleState
 from clark_engine.runtime.log_events import LogEvent
+from clark_engine.runtime.mission_envelope import judge_upload
 
 BREACH_CLEAR_M: Final = 1.0
 """How far back inside a limit a vehicle must be before a breach of it is over. A
@@ -374,11 +375,11 @@ class EnvelopeGuard:
 
     def check(
         self,
-        command: Goto | Takeoff,
+        command: Goto | Takeoff | UploadMission,
         vehicle: VehicleState | None,
         peers: Sequence[PeerFix],
         now_s: float,
-    ) -> Goto | Takeoff | None:
+    ) -> Goto | Takeoff | UploadMission | None:
         """The command to send instead of ``command``: itself, moved inside, or None.
 
         Args:
@@ -388,6 +389,8 @@ class EnvelopeGuard:
             now_s: The runtime clock, for the log.
         """
         self._checked += 1
+        if isinstance(command, UploadMission):  # whole or not at all (mission_envelope.py)
+            return judge_upload(self, command, vehicle, self._origin, now_s)
         if isinstance(command, Takeoff):
             return self._takeoff(command, now_s)
         return self._goto(command, vehicle, peers, now_s)

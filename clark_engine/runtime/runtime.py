@@ -83,6 +83,7 @@ from clark_engine.runtime.commands import (
     SetMode,
     SetServo,
     Takeoff,
+    UploadMission,
 )
 from clark_engine.runtime.config import AgentConfig, PeerSpec, check_tick_phases
 from clark_engine.runtime.context import PrimitiveContext, ground_distance_m
@@ -103,6 +104,8 @@ from clark_engine.runtime.events import (
     AutopilotText,
     CommandRefused,
     Event,
+    MissionProgress,
+    MissionUploadResult,
     PacketReceived,
     PayloadEvent,
     RcChannels,
@@ -118,15 +121,16 @@ from clark_engine.runtime.logbook import (
     Logbook,
 )
 from clark_engine.runtime.machine import BehaviorMachine, Holds, StateChange
+from clark_engine.runtime.mission_envelope import refused_by_envelope
 from clark_engine.runtime.peer_conditions import AlwaysWatch, resolve_peer_condition
 
 #: Commands that move the vehicle; never sent while the autopilot is lost or after terminate.
-VEHICLE_COMMANDS = (Goto, SetMode, Arm, Takeoff, SetServo, RcOverride)
+VEHICLE_COMMANDS = (Goto, SetMode, Arm, Takeoff, SetServo, RcOverride, UploadMission)
 #: Commands the envelope guard checks as they leave (AgentRuntime._guard).
 _STATION_EVENTS: Final = frozenset({"activate", "deactivate"})
 """Events a station's Activate Controller raises: one that does nothing is logged so."""
 
-_GUARDED = (Goto, Takeoff)
+_GUARDED = (Goto, Takeoff, UploadMission)
 #: An RC input above this is a switch in its high position, below the low one (ArduPilot's
 #: auxiliary-switch thresholds); the events fire on crossing, not while held.
 RC_HIGH_US = 1800
@@ -508,6 +512,9 @@ class AgentRuntime:
         elif isinstance(event, PayloadEvent):
             if self.machine is not None and self._started:
                 self.machine.deliver_payload(self.context, event)
+        elif isinstance(event, (MissionUploadResult, MissionProgress)):
+            if self.machine is not None and self._started:
+                self.machine.deliver_mission(self.context, event)
         elif isinstance(event, StationCommand):
             self._station_command(event, now_s)
         if not self._commands:
@@ -1905,8 +1912,11 @@ class AgentRuntime:
             if isinstance(command, _GUARDED):
                 kept = guard.check(command, self.context.vehicle, peers, self.context.now_s)
                 if kept is None:
+                    if isinstance(command, UploadMission) and self.machine is not None:
+                        self.machine.deliver_mission(self.context, refused_by_envelope(command))
                     continue
-                self._last_navigation = "goto" if isinstance(kept, Goto) else "takeoff"
+                if not isinstance(kept, UploadMission):
+                    self._last_navigation = "goto" if isinstance(kept, Goto) else "takeoff"
                 command = kept
             out.append(command)
         return out

@@ -106,6 +106,8 @@ from clark_engine.runtime.events import (
     AutopilotText,
     CommandRefused,
     Event,
+    MissionProgress,
+    MissionUploadResult,
     PacketReceived,
     PayloadEvent,
     RcChannels,
@@ -138,6 +140,8 @@ _RUNTIME_EVENTS = (
     AutopilotText,
     CommandRefused,
     AutopilotSafetyResult,
+    MissionUploadResult,
+    MissionProgress,
     RcChannels,
 )
 
