@@ -113,6 +113,15 @@ AUTO_MODE = "AUTO"
 #: Firmware that fly an uploaded mission in AUTO, and the most mission items each stores
 #: (home included; "Only N items are supported", measured on SITL 4.7).
 AUTO_MISSION_ITEMS = {"arducopter": 650, "arduplane": 655, "ardurover": 655}
+#: How far from its last waypoint a firmware may end a mission, metres, when the
+#: autopilot profile's parameters do not say: the parameter, and its value. ArduRover
+#: stops where it counts the waypoint reached (WP_RADIUS, 2 m by default, 3 m in
+#: ArduPilot's SITL); ArduPlane turns to RTL there (WP_RADIUS, 90 m by default).
+#: ArduCopter settles on the waypoint itself: no radius to meet.
+WAYPOINT_RADIUS = {
+    "arduplane": ("WP_RADIUS", 90.0),
+    "ardurover": ("WP_RADIUS", 3.0),
+}
 
 _OVERLAP = "A share of the picture (0 to 0.9) that the next one covers again"
 _AREA = array(
@@ -602,9 +611,89 @@ def _check_bounds(ctx: UseContext) -> Iterator[Finding]:
         )
 
 
+def auto_items(line_count: int, speed: bool) -> int:
+    """The items a ``fly_as: auto`` survey's mission holds: home, a speed, two per line."""
+    return 1 + int(speed) + 2 * line_count
+
+
+def waypoint_radius_m(autopilot: Mapping[str, Any]) -> tuple[str, float] | None:
+    """(parameter, metres) within which the autopilot counts a waypoint reached in AUTO."""
+    known = WAYPOINT_RADIUS.get(str(autopilot.get("firmware")))
+    if known is None:
+        return None
+    name, value = known
+    parameters = autopilot.get("parameters") or {}
+    return name, float(parameters.get(name, value))
+
+
+def _check_auto(ctx: UseContext) -> Iterator[Finding]:
+    """``fly_as: auto`` needs an autopilot that flies missions in AUTO, and a tolerance.
+
+    The tolerance must be one the autopilot can meet: the survey is done within
+    ``tolerance_m`` of the last end, where ArduRover and ArduPlane count it reached up
+    to their waypoint radius away (and then stop, or turn to RTL).
+    """
+    if ctx.params.get("fly_as") != "auto":
+        return
+    where = ctx.locate("fly_as")
+    autopilot = ctx.agent.hardware.part("autopilot") or {}
+    firmware = autopilot.get("firmware")
+    profile = ctx.agent.hardware.part_profiles.get("autopilot", ctx.agent.profile)
+    if firmware not in AUTO_MISSION_ITEMS or AUTO_MODE not in (autopilot.get("modes") or {}):
+        yield error(
+            "E-SURVEY-AUTO",
+            where,
+            f"fly_as: auto flies the lines as a mission in the autopilot's {AUTO_MODE} mode, "
+            f"and {ctx.agent.name}'s autopilot ({profile}) "
+            + (
+                f"names no {AUTO_MODE} mode"
+                if firmware in AUTO_MISSION_ITEMS
+                else "runs no ArduPilot firmware that flies missions"
+            )
+            + f"; add {AUTO_MODE} to its profile's modes, or fly the survey as guided",
+            ctx.use_location,
+        )
+        return
+    plan_lines = ctx.params.get("lines")
+    if plan_lines is None:
+        points = [parse_point(raw, ctx.mission.origin) for raw in ctx.params["area"]]
+        vertices = [(p.north_m, p.east_m) for p in points]
+        plan = resolve(ctx.params, ctx.agent, vertices)
+        count = len(plan.lines) if plan is not None else 0
+    else:
+        count = len(plan_lines)
+    items = auto_items(count, ctx.params.get("speed_m_s") is not None)
+    limit = AUTO_MISSION_ITEMS[str(firmware)]
+    if items > limit:
+        yield error(
+            "E-SURVEY-AUTO",
+            where,
+            f"{count} lines make a mission of {items} items with home and the speed, more "
+            f"than the {limit} {firmware} stores; space the lines further apart or split "
+            "the area between states",
+            ctx.use_location,
+        )
+    radius = waypoint_radius_m(autopilot)
+    tolerance = float(ctx.params.get("tolerance_m", 5.0))
+    if radius is not None and tolerance < radius[1]:
+        name, value = radius
+        yield error(
+            "E-SURVEY-AUTO-RADIUS",
+            ctx.locate("tolerance_m"),
+            f"{firmware} counts a mission's waypoint reached up to {value:g} m from it "
+            f"({name}) and then "
+            + ("turns to RTL" if firmware == "arduplane" else "stops there")
+            + f", so the survey, done within tolerance_m {tolerance:g} m of the last line's "
+            f"end, may never be done; set tolerance_m to at least {math.ceil(value)} m, or "
+            f"set {name} lower in the autopilot's parameters",
+            ctx.use_location,
+        )
+
+
 def _all_checks(ctx: UseContext) -> Iterator[Finding]:
     yield from _check(ctx)
     yield from _check_bounds(ctx)
+    yield from _check_auto(ctx)
 
 
 # ---------------------------------------------------------------------- compile
