@@ -172,6 +172,23 @@ def test_a_refused_upload_fails_the_survey_and_another_upload_is_not_ours() -> N
     assert clock.step(_at(config, 0, 0))[0] is Status.FAILED
 
 
+def test_an_upload_that_never_got_an_outcome_is_sent_again() -> None:
+    """The runtime drops vehicle commands while the autopilot is lost: no answer comes."""
+    config = _compiled()
+    survey = SurveyBehavior(_survey_params(config))
+    clock = _Clock(config, survey)
+    (first,) = [c for c in clock.start(_at(config, 0, 0)) if isinstance(c, UploadMission)]
+    sent = [clock.step(_at(config, 0, 0))[1] for _ in range(100)]  # 10 s
+    again = [c for commands in sent for c in commands if isinstance(c, UploadMission)]
+    assert len(again) == 1 and again[0].items == first.items
+    assert again[0].upload_id != first.upload_id
+    # An answer to the first is no longer the survey's.
+    assert clock.hear(MissionUploadResult(first.upload_id, True, "ACCEPTED")) == []
+    assert clock.hear(MissionUploadResult(again[0].upload_id, True, "ACCEPTED")) == [
+        SetMode("AUTO", 3)
+    ]
+
+
 def test_a_pilot_who_takes_the_mode_is_never_fought() -> None:
     config = _compiled()
     survey = SurveyBehavior(_survey_params(config))

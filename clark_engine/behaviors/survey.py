@@ -113,6 +113,10 @@ AUTO_MODE = "AUTO"
 #: Firmware that fly an uploaded mission in AUTO, and the most mission items each stores
 #: (home included; "Only N items are supported", measured on SITL 4.7).
 AUTO_MISSION_ITEMS = {"arducopter": 650, "arduplane": 655, "ardurover": 655}
+#: An upload that has had no answer at all this long (the runtime dropped it while the
+#: autopilot was lost: the adapter itself answers within 7.5 s, NO_ANSWER when the
+#: autopilot is silent) is sent again.
+UPLOAD_RESEND_S = 10.0
 #: How far from its last waypoint a firmware may end a mission, metres, when the
 #: autopilot profile's parameters do not say: the parameter, and its value. ArduRover
 #: stops where it counts the waypoint reached (WP_RADIUS, 2 m by default, 3 m in
@@ -794,7 +798,8 @@ class SurveyBehavior(BehaviorRuntime):
       pilot's, the station's) it is never asked again: the survey stays RUNNING and
       follows the mission wherever the autopilot flies it (ArduPilot resumes it on
       re-entering AUTO). A refused upload (ArduPilot's MAV_MISSION_RESULT, or no answer):
-      FAILED.
+      FAILED. An upload with no outcome at all after 10 s (dropped while the autopilot
+      was lost) is sent again.
     - `update`: the route end being flown is the autopilot's (MISSION_ITEM_REACHED,
       MISSION_CURRENT); pictures are taken along each line as in guided flight, a line's
       last mark when the autopilot reports its end reached. DONE when the autopilot
@@ -845,6 +850,7 @@ class SurveyBehavior(BehaviorRuntime):
         # index of the mission's first waypoint item, how many route ends the autopilot
         # has passed (what it reported, and what the pictures have caught up with).
         self._upload_id = 0
+        self._upload_s = 0.0
         self._auto = ""
         self._first_waypoint = 0
         self._reported_passed = 0
@@ -912,7 +918,6 @@ class SurveyBehavior(BehaviorRuntime):
         return tuple(items)
 
     def _start_auto(self, ctx: PrimitiveContext) -> None:
-        from clark_engine.runtime.commands import UploadMission
         from clark_engine.runtime.log_events import LogEvent
 
         self._reported_passed = self._passed = 0
@@ -928,10 +933,17 @@ class SurveyBehavior(BehaviorRuntime):
                 extra=LogEvent.BEHAVIOR_ERROR.extra,
             )
             return
+        self._auto = "uploading"
+        self._upload(ctx)
+        self._arming.begin(ctx)
+
+    def _upload(self, ctx: PrimitiveContext) -> None:
+        from clark_engine.runtime.commands import UploadMission
+
         items = self.mission_items()
         self._first_waypoint = len(items) - len(self.route)
         self._upload_id = ctx.next_request_id()
-        self._auto = "uploading"
+        self._upload_s = ctx.now_s
         ctx.command(
             UploadMission(
                 self._upload_id,
@@ -939,7 +951,6 @@ class SurveyBehavior(BehaviorRuntime):
                 f"survey: {len(self.lines)} line(s), {len(self.route)} waypoints",
             )
         )
-        self._arming.begin(ctx)
 
     def on_mission(
         self, ctx: PrimitiveContext, event: MissionUploadResult | MissionProgress
@@ -989,8 +1000,18 @@ class SurveyBehavior(BehaviorRuntime):
             return Status.FAILED
         if not self.route:
             return Status.DONE
-        if self._auto != "flying":
-            return Status.RUNNING  # the upload answers, or gives up, by itself
+        if self._auto == "uploading":
+            # The adapter answers, or gives up, by itself; only a dropped upload is resent.
+            if ctx.now_s - self._upload_s >= UPLOAD_RESEND_S:
+                from clark_engine.runtime.log_events import LogEvent
+
+                ctx.log.warning(
+                    "survey: no answer to the mission's upload in %g s; sending it again",
+                    UPLOAD_RESEND_S,
+                    extra=LogEvent.AUTOPILOT_MISSION.extra,
+                )
+                self._upload(ctx)
+            return Status.RUNNING
         self._mode.update(ctx)
         self._arming.update(ctx)
         while self._passed < self._reported_passed:
