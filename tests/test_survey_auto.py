@@ -288,9 +288,11 @@ def test_the_upload_encodes_home_the_speed_and_each_waypoint_above_home() -> Non
     assert events == [MissionUploadResult(7, True, "ACCEPTED")]
     (current,) = _sent(adapter.flush())
     assert current.get_type() == "MISSION_SET_CURRENT" and current.seq == 1
-    # Progress, counted in the command's items (ArduPilot's seq less its home).
+    # Progress, counted in the command's items (ArduPilot's seq less its home); before
+    # ArduPilot shows the first item current, its current item may be an old mission's.
     events = adapter.receive(
         _frames(
+            mavlink2.MAVLink_mission_current_message(3, 3, 2, 0),
             mavlink2.MAVLink_mission_current_message(1, 3, 3, 1),
             mavlink2.MAVLink_mission_current_message(1, 3, 3, 1),  # unchanged: once
             mavlink2.MAVLink_mission_item_reached_message(2),

@@ -300,7 +300,10 @@ class MissionUploads:
     the start even where a mission flown before had stopped half-way (AUTO resumes at the
     current item, MIS_RESTART 0). From then on MISSION_ITEM_REACHED and MISSION_CURRENT
     are reported as :class:`MissionProgress`, counted in the command's items (ArduPilot's
-    seq less one: its item 0 is home); MISSION_CURRENT only when it changes.
+    seq less one: its item 0 is home); MISSION_CURRENT only when it changes, and only once
+    one has shown the first item current (or an item was reached): until ArduPilot has
+    taken MISSION_SET_CURRENT, its current item may be the one a mission flown before had
+    stopped at, which would skip the first lines' pictures.
 
     Args:
         mav: The adapter's pymavlink encoder.
@@ -334,6 +337,7 @@ class MissionUploads:
         self._upload: tuple[UploadMission, MissionUpload, float] | None = None
         self._flying: int | None = None  # items of the mission the autopilot holds from us
         self._current: tuple[int, int | None] | None = None
+        self._synced = False  # MISSION_CURRENT is ours (see the class's docstring)
 
     @property
     def busy(self) -> bool:
@@ -368,6 +372,7 @@ class MissionUploads:
             )
             self._flying = None  # the autopilot's mission is being replaced
             self._current = None
+            self._synced = False
             self._upload = (
                 command,
                 MissionUpload(self._mav, self._target, items, MISSION_TYPE, now_s),
@@ -393,8 +398,12 @@ class MissionUploads:
         if seq < 1:
             return  # home: no item of ours
         if msg.get_type() == "MISSION_ITEM_REACHED":
+            self._synced = True
             self._emit(MissionProgress(seq - 1, self._flying, reached=True))
             return
+        if not self._synced and seq != 1:
+            return  # not yet the mission made current from its start
+        self._synced = True
         total = getattr(msg, "total", None)
         total = int(total) if total is not None and int(total) != 0xFFFF else None
         current = (seq, total)
