@@ -21,7 +21,7 @@ from clark_engine.behaviors.declaration import Params
 
 if TYPE_CHECKING:
     from clark_engine.runtime.context import PrimitiveContext
-    from clark_engine.runtime.events import PayloadEvent
+    from clark_engine.runtime.events import MissionProgress, MissionUploadResult, PayloadEvent
 
 
 class Status(Enum):
@@ -155,3 +155,12 @@ class BehaviorRuntime:
 
     def on_payload(self, ctx: PrimitiveContext, event: PayloadEvent) -> None:
         """Called for each payload event delivered while the state is active."""
+
+    def on_mission(
+        self, ctx: PrimitiveContext, event: MissionUploadResult | MissionProgress
+    ) -> None:
+        """Called for each mission event delivered while the state is active.
+
+        An upload's outcome, or the autopilot's progress in the mission; only a behaviour
+        that uploads a mission cares.
+        """

@@ -18,6 +18,12 @@ The ground footprint of a camera at a height ``h`` above flat ground at the orig
 altitude is ``h * sensor_width_mm / focal_length_mm`` across the line and ``h *
 sensor_height_mm / focal_length_mm`` along it (the image's long side across the line);
 the camera's payload profile declares the three figures.
+
+With ``fly_as: auto`` the lines are not streamed as guided targets: the survey uploads
+them to the autopilot as a mission (each line's start and end a waypoint, after a speed
+change when the survey has a speed) and lets the autopilot fly it in its AUTO mode,
+which holds a line better than a stream of targets (ArduPlane's lines, ArduCopter's
+corners); the engine still takes the pictures, by the vehicle's position along each line.
 """
 
 from __future__ import annotations
@@ -38,7 +44,13 @@ from clark_engine.behaviors.declaration import (
     param,
     raises_done,
 )
-from clark_engine.behaviors.flight import GuidedLeg, Target, distance_m
+from clark_engine.behaviors.flight import (
+    EngineArming,
+    GuidedLeg,
+    ModeRequest,
+    Target,
+    distance_m,
+)
 from clark_engine.behaviors.lawnmower import (
     Line,
     lawnmower,
@@ -79,8 +91,9 @@ from clark_engine.mission.schema_source.common import (
 )
 
 if TYPE_CHECKING:
+    from clark_engine.runtime.commands import MissionItem
     from clark_engine.runtime.context import PrimitiveContext
-    from clark_engine.runtime.events import PayloadEvent
+    from clark_engine.runtime.events import MissionProgress, MissionUploadResult, PayloadEvent
 
 #: Most vertices an area may have (a field's outline needs a few dozen at most).
 MAX_VERTICES = 100
@@ -95,6 +108,24 @@ MIN_AREA_M2 = 1.0
 MARK_SLACK_M = 0.05
 #: Camera optics a footprint needs, as the payload profile names them.
 OPTICS = ("sensor_width_mm", "sensor_height_mm", "focal_length_mm")
+#: The autopilot mode a ``fly_as: auto`` survey flies its uploaded mission in.
+AUTO_MODE = "AUTO"
+#: Firmware that fly an uploaded mission in AUTO, and the most mission items each stores
+#: (home included; "Only N items are supported", measured on SITL 4.7).
+AUTO_MISSION_ITEMS = {"arducopter": 650, "arduplane": 655, "ardurover": 655}
+#: An upload that has had no answer at all this long (the runtime dropped it while the
+#: autopilot was lost: the adapter itself answers within 7.5 s, NO_ANSWER when the
+#: autopilot is silent) is sent again.
+UPLOAD_RESEND_S = 10.0
+#: How far from its last waypoint a firmware may end a mission, metres, when the
+#: autopilot profile's parameters do not say: the parameter, and its value. ArduRover
+#: stops where it counts the waypoint reached (WP_RADIUS, 2 m by default, 3 m in
+#: ArduPilot's SITL); ArduPlane turns to RTL there (WP_RADIUS, 90 m by default).
+#: ArduCopter settles on the waypoint itself: no radius to meet.
+WAYPOINT_RADIUS = {
+    "arduplane": ("WP_RADIUS", 90.0),
+    "ardurover": ("WP_RADIUS", 3.0),
+}
 
 _OVERLAP = "A share of the picture (0 to 0.9) that the next one covers again"
 _AREA = array(
@@ -225,6 +256,15 @@ class SurveyParams(Params):
     to: tuple[str, ...] | None = param(
         array("Agents that receive Picture Data; every agent when omitted.", AGENT_NAME_SCHEMA),
         convert=tuple,
+    )
+    fly_as: str = param(
+        string(
+            "How the lines are flown: guided (the engine streams each line's ends as "
+            "guided targets) or auto (uploaded to the autopilot as a mission of "
+            "waypoints, flown in its AUTO mode; the engine still takes the pictures).",
+            enum=["guided", "auto"],
+            default="guided",
+        )
     )
     lines: tuple[SurveyLine, ...] | None = param(
         array("The lines as the compiler planned them, in the order flown.", _END_SCHEMA),
@@ -575,9 +615,89 @@ def _check_bounds(ctx: UseContext) -> Iterator[Finding]:
         )
 
 
+def auto_items(line_count: int, speed: bool) -> int:
+    """The items a ``fly_as: auto`` survey's mission holds: home, a speed, two per line."""
+    return 1 + int(speed) + 2 * line_count
+
+
+def waypoint_radius_m(autopilot: Mapping[str, Any]) -> tuple[str, float] | None:
+    """(parameter, metres) within which the autopilot counts a waypoint reached in AUTO."""
+    known = WAYPOINT_RADIUS.get(str(autopilot.get("firmware")))
+    if known is None:
+        return None
+    name, value = known
+    parameters = autopilot.get("parameters") or {}
+    return name, float(parameters.get(name, value))
+
+
+def _check_auto(ctx: UseContext) -> Iterator[Finding]:
+    """``fly_as: auto`` needs an autopilot that flies missions in AUTO, and a tolerance.
+
+    The tolerance must be one the autopilot can meet: the survey is done within
+    ``tolerance_m`` of the last end, where ArduRover and ArduPlane count it reached up
+    to their waypoint radius away (and then stop, or turn to RTL).
+    """
+    if ctx.params.get("fly_as") != "auto":
+        return
+    where = ctx.locate("fly_as")
+    autopilot = ctx.agent.hardware.part("autopilot") or {}
+    firmware = autopilot.get("firmware")
+    profile = ctx.agent.hardware.part_profiles.get("autopilot", ctx.agent.profile)
+    if firmware not in AUTO_MISSION_ITEMS or AUTO_MODE not in (autopilot.get("modes") or {}):
+        yield error(
+            "E-SURVEY-AUTO",
+            where,
+            f"fly_as: auto flies the lines as a mission in the autopilot's {AUTO_MODE} mode, "
+            f"and {ctx.agent.name}'s autopilot ({profile}) "
+            + (
+                f"names no {AUTO_MODE} mode"
+                if firmware in AUTO_MISSION_ITEMS
+                else "runs no ArduPilot firmware that flies missions"
+            )
+            + f"; add {AUTO_MODE} to its profile's modes, or fly the survey as guided",
+            ctx.use_location,
+        )
+        return
+    plan_lines = ctx.params.get("lines")
+    if plan_lines is None:
+        points = [parse_point(raw, ctx.mission.origin) for raw in ctx.params["area"]]
+        vertices = [(p.north_m, p.east_m) for p in points]
+        plan = resolve(ctx.params, ctx.agent, vertices)
+        count = len(plan.lines) if plan is not None else 0
+    else:
+        count = len(plan_lines)
+    items = auto_items(count, ctx.params.get("speed_m_s") is not None)
+    limit = AUTO_MISSION_ITEMS[str(firmware)]
+    if items > limit:
+        yield error(
+            "E-SURVEY-AUTO",
+            where,
+            f"{count} lines make a mission of {items} items with home and the speed, more "
+            f"than the {limit} {firmware} stores; space the lines further apart or split "
+            "the area between states",
+            ctx.use_location,
+        )
+    radius = waypoint_radius_m(autopilot)
+    tolerance = float(ctx.params.get("tolerance_m", 5.0))
+    if radius is not None and tolerance < radius[1]:
+        name, value = radius
+        yield error(
+            "E-SURVEY-AUTO-RADIUS",
+            ctx.locate("tolerance_m"),
+            f"{firmware} counts a mission's waypoint reached up to {value:g} m from it "
+            f"({name}) and then "
+            + ("turns to RTL" if firmware == "arduplane" else "stops there")
+            + f", so the survey, done within tolerance_m {tolerance:g} m of the last line's "
+            f"end, may never be done; set tolerance_m to at least {math.ceil(value)} m, or "
+            f"set {name} lower in the autopilot's parameters",
+            ctx.use_location,
+        )
+
+
 def _all_checks(ctx: UseContext) -> Iterator[Finding]:
     yield from _check(ctx)
     yield from _check_bounds(ctx)
+    yield from _check_auto(ctx)
 
 
 # ---------------------------------------------------------------------- compile
@@ -598,6 +718,8 @@ def _compile(params: dict[str, Any], ctx: CompileContext) -> dict[str, Any]:
     if plan.photo_every_m is not None:
         params["photo_every_m"] = round(plan.photo_every_m, 3)
     params.setdefault("to", [])
+    if params.get("fly_as") == "guided":  # the default: compiled configs as before it existed
+        del params["fly_as"]
     params["lines"] = [
         {
             "start": ctx.point([line.start[0], line.start[1], height]),
@@ -664,6 +786,25 @@ class SurveyBehavior(BehaviorRuntime):
     - No pictures are asked on the legs between lines, nor without a vehicle state.
     - Modes and arming are handled as for waypoint.
 
+    With `fly_as: auto`:
+
+    - `start`: one `UploadMission` of the route (each line's start and end a waypoint
+      at `altitude_m`, after a speed change to `speed_m_s` when given); no `Goto`. The
+      runtime's envelope guard judges the whole mission first: a waypoint or a leg
+      outside the envelope, and nothing is sent and the survey is FAILED. Arming as for
+      waypoint.
+    - When the autopilot accepts the mission, `SetMode(AUTO)`, asked again while refused
+      as for waypoint; once the vehicle reports another mode than the one it was in (the
+      pilot's, the station's) it is never asked again: the survey stays RUNNING and
+      follows the mission wherever the autopilot flies it (ArduPilot resumes it on
+      re-entering AUTO). A refused upload (ArduPilot's MAV_MISSION_RESULT, or no answer):
+      FAILED. An upload with no outcome at all after 10 s (dropped while the autopilot
+      was lost) is sent again.
+    - `update`: the route end being flown is the autopilot's (MISSION_ITEM_REACHED,
+      MISSION_CURRENT); pictures are taken along each line as in guided flight, a line's
+      last mark when the autopilot reports its end reached. DONE when the autopilot
+      reports the last line's end reached and the vehicle is within `tolerance_m` of it.
+
     Attributes:
         lines: The compiled lines, in the order flown.
         tolerance_m: Distance that counts as arrived at a line's end.
@@ -704,6 +845,18 @@ class SurveyBehavior(BehaviorRuntime):
         self._leg = GuidedLeg(self.speed_m_s)
         self._camera = PhotoTriggerBehavior(self._camera_params)
         self._three_d = True
+        self.fly_as = self.params.fly_as
+        # fly_as auto: the upload's id and state (uploading, flying, failed), the route
+        # index of the mission's first waypoint item, how many route ends the autopilot
+        # has passed (what it reported, and what the pictures have caught up with).
+        self._upload_id = 0
+        self._upload_s = 0.0
+        self._auto = ""
+        self._first_waypoint = 0
+        self._reported_passed = 0
+        self._passed = 0
+        self._mode = ModeRequest()
+        self._arming = EngineArming()
 
     @property
     def captured(self) -> int:
@@ -717,12 +870,17 @@ class SurveyBehavior(BehaviorRuntime):
         self.requested = 0
         self._next_mark = 0
         self._camera = PhotoTriggerBehavior(self._camera_params)
+        if self.fly_as == "auto":
+            self._start_auto(ctx)
+            return
         self._leg.begin(ctx)
         if not self._leg.failed and self.route:
             self._leg.go(ctx, self.route[0])
 
     def update(self, ctx: PrimitiveContext) -> Status:
         """Take the pictures due along the line; move on at each end; DONE after the last."""
+        if self.fly_as == "auto":
+            return self._update_auto(ctx)
         if self._leg.failed:
             return Status.FAILED
         if not self.route:
@@ -746,6 +904,132 @@ class SurveyBehavior(BehaviorRuntime):
     def on_payload(self, ctx: PrimitiveContext, event: PayloadEvent) -> None:
         """Count the camera's answer to one of our requests; send Picture Data on a capture."""
         self._camera.on_payload(ctx, event)
+
+    # -- fly_as: auto -----------------------------------------------------------------
+
+    def mission_items(self) -> tuple[MissionItem, ...]:
+        """The mission a ``fly_as: auto`` survey uploads: a speed, then the route's ends."""
+        from clark_engine.runtime.commands import MissionItem
+
+        items: list[MissionItem] = []
+        if self.speed_m_s is not None:
+            items.append(MissionItem("speed", speed_m_s=self.speed_m_s))
+        items.extend(MissionItem("waypoint", t.lat_deg, t.lon_deg, t.alt_m) for t in self.route)
+        return tuple(items)
+
+    def _start_auto(self, ctx: PrimitiveContext) -> None:
+        from clark_engine.runtime.log_events import LogEvent
+
+        self._reported_passed = self._passed = 0
+        if not self.route:
+            self._auto = "flying"
+            return
+        if AUTO_MODE not in ctx.config.modes:
+            self._auto = "failed"
+            ctx.log.error(
+                "%s: the autopilot profile names no %s mode; cannot fly the survey as a mission",
+                ctx.config.agent,
+                AUTO_MODE,
+                extra=LogEvent.BEHAVIOR_ERROR.extra,
+            )
+            return
+        self._auto = "uploading"
+        self._upload(ctx)
+        self._arming.begin(ctx)
+
+    def _upload(self, ctx: PrimitiveContext) -> None:
+        from clark_engine.runtime.commands import UploadMission
+
+        items = self.mission_items()
+        self._first_waypoint = len(items) - len(self.route)
+        self._upload_id = ctx.next_request_id()
+        self._upload_s = ctx.now_s
+        ctx.command(
+            UploadMission(
+                self._upload_id,
+                items,
+                f"survey: {len(self.lines)} line(s), {len(self.route)} waypoints",
+            )
+        )
+
+    def on_mission(
+        self, ctx: PrimitiveContext, event: MissionUploadResult | MissionProgress
+    ) -> None:
+        """The upload's outcome (then AUTO), or the autopilot's progress in the mission."""
+        from clark_engine.runtime.events import MissionUploadResult
+        from clark_engine.runtime.log_events import LogEvent
+
+        if self.fly_as != "auto" or not self._auto:
+            return
+        if isinstance(event, MissionUploadResult):
+            if event.upload_id != self._upload_id or self._auto != "uploading":
+                return
+            if not event.accepted:
+                self._auto = "failed"
+                ctx.log.error(
+                    "survey: the mission was not uploaded: %s%s; the survey fails",
+                    event.result,
+                    f" ({event.reason})" if event.reason else "",
+                    extra=LogEvent.AUTOPILOT_MISSION.extra,
+                )
+                return
+            self._auto = "flying"
+            ctx.log.info(
+                "survey: the autopilot took the mission; flying it in %s",
+                AUTO_MODE,
+                extra=LogEvent.AUTOPILOT_MISSION.extra,
+            )
+            self._mode.begin(ctx, AUTO_MODE)
+            return
+        if self._auto != "flying":
+            return
+        index = event.item - self._first_waypoint  # the route end the item is
+        passed = index + 1 if event.reached else index
+        if passed > self._reported_passed:
+            self._reported_passed = min(passed, len(self.route))
+            if event.reached:
+                ctx.log.info(
+                    "survey: the autopilot reached waypoint %d of %d",
+                    index + 1,
+                    len(self.route),
+                    extra=LogEvent.AUTOPILOT_MISSION.extra,
+                )
+
+    def _update_auto(self, ctx: PrimitiveContext) -> Status:
+        if self._auto == "failed":
+            return Status.FAILED
+        if not self.route:
+            return Status.DONE
+        if self._auto == "uploading":
+            # The adapter answers, or gives up, by itself; only a dropped upload is resent.
+            if ctx.now_s - self._upload_s >= UPLOAD_RESEND_S:
+                from clark_engine.runtime.log_events import LogEvent
+
+                ctx.log.warning(
+                    "survey: no answer to the mission's upload in %g s; sending it again",
+                    UPLOAD_RESEND_S,
+                    extra=LogEvent.AUTOPILOT_MISSION.extra,
+                )
+                self._upload(ctx)
+            return Status.RUNNING
+        self._mode.update(ctx)
+        self._arming.update(ctx)
+        while self._passed < self._reported_passed:
+            # The autopilot passed route end self._passed: a line's end takes its last mark.
+            if self._passed % 2 and self._passed == self.index:
+                self._finish_line(ctx)
+            self._passed += 1
+            if self._passed < len(self.route):
+                self.index = self._passed
+                self._next_mark = 0
+        if self._passed >= len(self.route):
+            remaining_m = distance_m(ctx, self.route[-1], three_d=self._three_d)
+            if remaining_m is not None and remaining_m <= self.tolerance_m:
+                return Status.DONE
+            return Status.RUNNING
+        if self.index % 2:
+            self._photograph(ctx)
+        return Status.RUNNING
 
     def _progress_m(self, ctx: PrimitiveContext) -> float | None:
         """How far along the current line the vehicle is (ground), None without a position."""

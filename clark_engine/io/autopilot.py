@@ -84,6 +84,7 @@ from clark_engine.io.autopilot_settings import AutopilotSettings
 from clark_engine.io.autopilot_setup import ParamAnswer, SafetySetup
 from clark_engine.io.autopilot_setup_link import AdapterSetupLink
 from clark_engine.io.autopilot_streams import StreamRequests
+from clark_engine.io.mission_upload import MissionUploads, mission_items
 from clark_engine.runtime.commands import (
     AUTOPILOT_COMMANDS,
     Arm,
@@ -97,6 +98,7 @@ from clark_engine.runtime.commands import (
     SetServo,
     SetUpAutopilotSafety,
     Takeoff,
+    UploadMission,
     check_dispatch,
     unknown_command,
 )
@@ -241,6 +243,21 @@ class AutopilotAdapter:
         self._safety: SafetySetup | None = None
         self._param_answers: dict[str, list[ParamAnswer]] = {}
         self._on_close: tuple[tuple[str, float], ...] = ()
+        # Missions to fly in AUTO (UploadMission), after any fence upload of a set-up.
+        self._missions = MissionUploads(
+            self._mav,
+            self._autopilot_ids,
+            lambda cmd: mission_items(
+                cmd.items,
+                self._status.home,
+                self._flight.above_home_m,
+                airspeed=settings.firmware == "arduplane",
+            ),
+            lambda: self._safety is not None,
+            self._setup_link.setup_reasons,
+            lambda event: self._late_events.append(event),
+            self._log,
+        )
         # A clean stop began (stop_commanding): poll only keeps the heartbeat and the
         # stop's own requests going.
         self._stopping = False
@@ -388,6 +405,8 @@ class AutopilotAdapter:
             self._flight.speed(now_s)
         if self._safety is not None:
             self._safety.poll(now_s)
+        if self._missions.busy:
+            self._missions.poll(now_s)
         self._tracker.release_refusals(now_s, self._late_events)
         return self._outbox.take()
 
@@ -407,6 +426,7 @@ class AutopilotAdapter:
         self._requests.clear()
         self._param_answers.clear()
         self._safety = None
+        self._missions.cancel()
         self._speed_wanted = None
         return self._outbox.take()
 
@@ -460,6 +480,9 @@ class AutopilotAdapter:
           MAVLink release value (0 for channels 1-8, UINT16_MAX-1 for 9-18), and
           every other channel at "ignore" (UINT16_MAX). Overrides stay active, and
           :meth:`poll` keeps them alive, until released.
+        - :class:`UploadMission`: the mission protocol's upload, in turn
+          (:class:`~clark_engine.io.mission_upload.MissionUploads`); answered by a
+          :class:`MissionUploadResult`, then :class:`MissionProgress` as it is flown.
         - Radio, payload and CloseInterfaces commands are not the autopilot's:
           ``b""``.
 
@@ -503,6 +526,8 @@ class AutopilotAdapter:
             self._flight.rc_override(cmd, now_s)
         elif isinstance(cmd, SetUpAutopilotSafety):
             self._setup_link.start(cmd, now_s)
+        elif isinstance(cmd, UploadMission):
+            self._missions.request(cmd, now_s)
         elif not isinstance(cmd, _NOT_THE_AUTOPILOTS):
             raise unknown_command(cmd, "the autopilot adapter")
         return self._outbox.take()

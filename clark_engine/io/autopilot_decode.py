@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any, Final
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.io.autopilot_settings import FIRMWARE_VEHICLE_TYPES
+from clark_engine.io.mission_upload import MISSION_PROGRESS_MESSAGES
 from clark_engine.runtime.events import (
     AutopilotHealth,
     AutopilotHeartbeat,
@@ -38,6 +39,8 @@ from clark_engine.runtime.events import (
     AutopilotText,
     CommandRefused,
     LandedState,
+    MissionProgress,
+    MissionUploadResult,
     RcChannels,
     VehicleState,
 )
@@ -163,6 +166,8 @@ AutopilotEvent = (
     | CommandRefused
     | AutopilotMessage
     | AutopilotSafetyResult
+    | MissionUploadResult
+    | MissionProgress
 )
 """Everything :meth:`AutopilotAdapter.receive` returns."""
 
@@ -214,9 +219,12 @@ class MessageDecoder:
         elif kind == "PARAM_VALUE":
             events.append(self._on_param(msg, now_s))
         elif kind in _MISSION_ANSWERS:
-            if self._adapter._safety is not None:
-                own = (self._settings.source_system_id, self._settings.source_component_id)
-                self._adapter._safety.on_mission(msg, own, now_s)
+            own = (self._settings.source_system_id, self._settings.source_component_id)
+            safety = self._adapter._safety
+            if safety is None or not safety.on_mission(msg, own, now_s):
+                self._adapter._missions.on_answer(msg, own, now_s)
+        elif kind in MISSION_PROGRESS_MESSAGES:
+            self._adapter._missions.on_progress(msg)
         elif kind == "COMMAND_ACK":
             self._adapter._tracker.on_ack(msg, now_s, events)
         elif kind == "STATUSTEXT":

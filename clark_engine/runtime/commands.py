@@ -164,6 +164,55 @@ class UploadFence:
 
 
 @dataclass(frozen=True, slots=True)
+class MissionItem:
+    """One item of a mission for the autopilot to fly in its AUTO mode.
+
+    Attributes:
+        kind: ``waypoint`` (fly to the position, MAV_CMD_NAV_WAYPOINT) or ``speed``
+            (change the speed from here on, MAV_CMD_DO_CHANGE_SPEED, no position).
+        lat_deg: A waypoint's latitude.
+        lon_deg: A waypoint's longitude.
+        alt_m: A waypoint's altitude above the mission origin (the engine's one datum;
+            the adapter converts it to the autopilot's frame).
+        speed_m_s: A speed item's speed: ground speed, airspeed for ArduPlane.
+    """
+
+    kind: str
+    lat_deg: float = 0.0
+    lon_deg: float = 0.0
+    alt_m: float = 0.0
+    speed_m_s: float = 0.0
+
+    @property
+    def navigates(self) -> bool:
+        """True for an item the vehicle flies to (a position the envelope must judge)."""
+        return self.kind == "waypoint"
+
+
+@dataclass(frozen=True, slots=True)
+class UploadMission:
+    """Replace the autopilot's mission with these items, to fly in AUTO.
+
+    ArduPilot keeps the mission in a list uploaded with the MAVLink mission protocol
+    (MAV_MISSION_TYPE_MISSION); its item 0 is home, which the adapter fills in. The
+    adapter answers with a :class:`~clark_engine.runtime.events.MissionUploadResult`
+    carrying ``upload_id``, and reports the mission's progress as
+    :class:`~clark_engine.runtime.events.MissionProgress`, counted in these items. The
+    runtime's envelope guard judges every waypoint first and refuses the whole upload
+    when one is outside (never half a mission).
+
+    Attributes:
+        upload_id: The behaviour's id for this upload (``PrimitiveContext.next_request_id``).
+        items: The mission, in order.
+        what: What the mission is, in words, for the logs (``survey field: 3 lines``).
+    """
+
+    upload_id: int
+    items: tuple[MissionItem, ...]
+    what: str = ""
+
+
+@dataclass(frozen=True, slots=True)
 class Pause:
     """Wait before the next step of a safety set-up.
 
@@ -225,6 +274,7 @@ Command = (
     | PayloadCommand
     | SendPacket
     | SetUpAutopilotSafety
+    | UploadMission
     | CloseInterfaces
 )
 
@@ -242,6 +292,7 @@ AUTOPILOT_COMMANDS: tuple[type, ...] = (
     SetServo,
     RcOverride,
     SetUpAutopilotSafety,
+    UploadMission,
 )
 
 

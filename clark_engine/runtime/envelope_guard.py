@@ -32,11 +32,12 @@ from typing import Final
 from clark_engine.behaviors.shared import LOITER_RADIUS_FACTOR, orbit_radius_m
 from clark_engine.mission.fence import Zone
 from clark_engine.mission.geo import LocalPoint, to_global, to_local
-from clark_engine.runtime.commands import Goto, Takeoff
+from clark_engine.runtime.commands import Goto, Takeoff, UploadMission
 from clark_engine.runtime.config import AgentConfig, EnvelopeSpec
 from clark_engine.runtime.envelope import PeerFix, origin, separation_words
 from clark_engine.runtime.events import VehicleState
 from clark_engine.runtime.log_events import LogEvent
+from clark_engine.runtime.mission_envelope import judge_upload
 
 SEPARATION_ROUNDS: Final = 4
 """How many times a target pushed out of one peer's bubble is checked again against
@@ -158,20 +159,22 @@ class EnvelopeGuard:
 
     def check(
         self,
-        command: Goto | Takeoff,
+        command: Goto | Takeoff | UploadMission,
         vehicle: VehicleState | None,
         peers: Sequence[PeerFix],
         now_s: float,
-    ) -> Goto | Takeoff | None:
+    ) -> Goto | Takeoff | UploadMission | None:
         """The command to send instead of ``command``: itself, moved inside, or None.
 
         Args:
-            command: A Goto or a Takeoff the behaviour issued.
+            command: A Goto, a Takeoff or a mission upload the behaviour issued.
             vehicle: The vehicle's latest state (None before the first).
             peers: The other vehicles' latest reported positions.
             now_s: The runtime clock, for the log.
         """
         self._checked += 1
+        if isinstance(command, UploadMission):  # whole or not at all (mission_envelope.py)
+            return judge_upload(self, command, vehicle, self._origin, now_s)
         if isinstance(command, Takeoff):
             return self._takeoff(command, now_s)
         return self._goto(command, vehicle, peers, now_s)

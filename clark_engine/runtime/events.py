@@ -197,6 +197,48 @@ class AutopilotSafetyResult:
 
 
 @dataclass(frozen=True, slots=True)
+class MissionUploadResult:
+    """How an :class:`~clark_engine.runtime.commands.UploadMission` ended.
+
+    From the autopilot adapter (the autopilot's MISSION_ACK, or its silence), or from the
+    runtime's envelope guard when it refused the upload before it left.
+
+    Attributes:
+        upload_id: The command's ``upload_id``.
+        accepted: True when the autopilot took the whole mission.
+        result: ArduPilot's MAV_MISSION_RESULT without its prefix (``ACCEPTED``,
+            ``NO_SPACE``, ``INVALID_PARAM5_X``), ``NO_ANSWER`` when the autopilot never
+            finished answering, ``ENVELOPE`` when the guard refused it.
+        reason: Why, in words (the autopilot's warnings, or the guard's note); escaped.
+    """
+
+    upload_id: int
+    accepted: bool
+    result: str
+    reason: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class MissionProgress:
+    """Where the autopilot is in the mission the engine uploaded.
+
+    From MISSION_ITEM_REACHED and MISSION_CURRENT. Counted in the
+    :class:`~clark_engine.runtime.commands.UploadMission`'s items (its first is 0): the
+    home item ArduPilot keeps in front is left out by the adapter.
+
+    Attributes:
+        item: The item reached (``reached``) or now being flown.
+        total: How many items the mission has, when the message says (MISSION_CURRENT).
+        reached: True for MISSION_ITEM_REACHED: the item is done; False for
+            MISSION_CURRENT: the item is the one flown now.
+    """
+
+    item: int
+    total: int | None = None
+    reached: bool = False
+
+
+@dataclass(frozen=True, slots=True)
 class RcChannels:
     """RC input pulse widths as the autopilot reports them (RC_CHANNELS).
 
@@ -255,6 +297,8 @@ Event = (
     | AutopilotText
     | CommandRefused
     | AutopilotSafetyResult
+    | MissionUploadResult
+    | MissionProgress
     | RcChannels
     | PacketReceived
     | PayloadEvent

@@ -84,6 +84,7 @@ class LogEvent(StrEnum):
     AUTOPILOT_TEXT = "autopilot.text"
     AUTOPILOT_STREAMS = "autopilot.streams"
     AUTOPILOT_SAFETY = "autopilot.safety"
+    AUTOPILOT_MISSION = "autopilot.mission"
     AUTOPILOT_REFUSED = "autopilot.refused"
     AUTOPILOT_UNANSWERED = "autopilot.unanswered"
     AUTOPILOT_COMMAND = "autopilot.command"
@@ -314,6 +315,14 @@ SPECS: Mapping[LogEvent, EventSpec] = MappingProxyType(
             "interface",
             ("INFO", "WARNING", "ERROR"),
             "The adapter's steps of the safety set-up: parameters written and read back.",
+        ),
+        LogEvent.AUTOPILOT_MISSION: EventSpec(
+            "both",
+            ("INFO", "WARNING", "ERROR"),
+            "A mission uploaded to fly in AUTO (a survey's `fly_as: auto`): the upload started, "
+            "accepted or refused with ArduPilot's MAV_MISSION_RESULT (interface log: the "
+            "adapter's detail; mission log: as the behaviour saw it, and the progress of its "
+            "items).",
         ),
         LogEvent.AUTOPILOT_REFUSED: EventSpec(
             "both",

@@ -81,7 +81,7 @@ from transitions.extensions.nesting import NestedEventData, NestedState, NestedT
 from clark_engine.behaviors.base import BehaviorRuntime as Primitive
 from clark_engine.runtime.config import ConfigError, StateSpec, TransitionSpec
 from clark_engine.runtime.context import PrimitiveContext, Status
-from clark_engine.runtime.events import PayloadEvent
+from clark_engine.runtime.events import MissionProgress, MissionUploadResult, PayloadEvent
 from clark_engine.runtime.log_events import LogEvent
 
 _LOGGER = logging.getLogger(__name__)
@@ -487,6 +487,15 @@ class BehaviorMachine:
             return
         for primitive in self._primitives.values():
             primitive.on_payload(ctx, event)
+
+    def deliver_mission(
+        self, ctx: PrimitiveContext, event: MissionUploadResult | MissionProgress
+    ) -> None:
+        """Hand a mission event to the primitive of every active state, in entry order."""
+        if not self.running:
+            return
+        for primitive in self._primitives.values():
+            primitive.on_mission(ctx, event)
 
     def active_paths(self) -> tuple[str, ...]:
         """Dotted paths of the active leaf states, sorted (``("",)`` for a one-primitive root).

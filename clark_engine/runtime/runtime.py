@@ -65,6 +65,7 @@ from clark_engine.runtime.commands import (
     SetMode,
     SetServo,
     Takeoff,
+    UploadMission,
 )
 from clark_engine.runtime.conditions import resolve_condition
 from clark_engine.runtime.config import AgentConfig, check_tick_phases
@@ -80,6 +81,8 @@ from clark_engine.runtime.events import (
     AutopilotText,
     CommandRefused,
     Event,
+    MissionProgress,
+    MissionUploadResult,
     PacketReceived,
     PayloadEvent,
     RcChannels,
@@ -100,7 +103,7 @@ from clark_engine.runtime.station_commands import StationCommands
 from clark_engine.runtime.telemetry import Telemetry
 
 #: Commands that move the vehicle; never sent while the autopilot is lost or after terminate.
-VEHICLE_COMMANDS = (Goto, SetMode, Arm, Takeoff, SetServo, RcOverride)
+VEHICLE_COMMANDS = (Goto, SetMode, Arm, Takeoff, SetServo, RcOverride, UploadMission)
 _STATION_EVENTS: Final = frozenset({"activate", "deactivate"})
 """Events a station's Activate Controller raises: one that does nothing is logged so."""
 
@@ -403,6 +406,9 @@ class AgentRuntime:
         elif isinstance(event, PayloadEvent):
             if self.machine is not None and self._started:
                 self.machine.deliver_payload(self.context, event)
+        elif isinstance(event, (MissionUploadResult, MissionProgress)):
+            if self.machine is not None and self._started:
+                self.machine.deliver_mission(self.context, event)
         elif isinstance(event, StationCommand):
             self._station.command(event, now_s)
         if not self._commands:

@@ -24,17 +24,18 @@ from typing import TYPE_CHECKING
 
 from clark_engine.mission.geo import to_local
 from clark_engine.runtime.autopilot_safety import SafetyPlanError, safety_setup
-from clark_engine.runtime.commands import Arm, Command, Goto, SetMode, Takeoff
+from clark_engine.runtime.commands import Arm, Command, Goto, SetMode, Takeoff, UploadMission
 from clark_engine.runtime.envelope_watch import Breach
 from clark_engine.runtime.events import AutopilotSafetyResult, VehicleState
 from clark_engine.runtime.launch import is_airborne
 from clark_engine.runtime.log_events import LogEvent
+from clark_engine.runtime.mission_envelope import refused_by_envelope
 
 if TYPE_CHECKING:
     from clark_engine.runtime.runtime import AgentRuntime
 
 #: Commands the envelope guard checks as they leave (:meth:`Safety.guard`).
-GUARDED = (Goto, Takeoff)
+GUARDED = (Goto, Takeoff, UploadMission)
 #: The behaviour's one-off requests, not carried out after an autopilot loss by the states
 #: that made them before or during it (:meth:`Safety.void_requests`).
 _REQUESTS = (SetMode, Arm, Takeoff)
@@ -282,7 +283,11 @@ class Safety:
         )
 
     def guard(self, commands: list[Command]) -> list[Command]:
-        """The last step before commands leave: every Goto and Takeoff kept in the envelope."""
+        """The last step before commands leave: every Goto, Takeoff and upload in the envelope.
+
+        A mission upload is refused whole or not at all, and a refusal is told to the
+        behaviour that asked for it.
+        """
         guard = self._runtime.envelope_guard
         assert guard is not None
         vehicle = self._context.vehicle
@@ -294,8 +299,12 @@ class Safety:
             if isinstance(command, GUARDED):
                 kept = guard.check(command, self._context.vehicle, peers, self._context.now_s)
                 if kept is None:
+                    machine = self._runtime.machine
+                    if isinstance(command, UploadMission) and machine is not None:
+                        machine.deliver_mission(self._context, refused_by_envelope(command))
                     continue
-                self._runtime._last_navigation = "goto" if isinstance(kept, Goto) else "takeoff"
+                if not isinstance(kept, UploadMission):
+                    self._runtime._last_navigation = "goto" if isinstance(kept, Goto) else "takeoff"
                 command = kept
             out.append(command)
         return out

@@ -106,6 +106,8 @@ from clark_engine.runtime.events import (
     AutopilotText,
     CommandRefused,
     Event,
+    MissionProgress,
+    MissionUploadResult,
     PacketReceived,
     PayloadEvent,
     RcChannels,
@@ -128,6 +130,8 @@ _RUNTIME_EVENTS = (
     AutopilotText,
     CommandRefused,
     AutopilotSafetyResult,
+    MissionUploadResult,
+    MissionProgress,
     RcChannels,
 )
 
