@@ -22,7 +22,8 @@ from clark_engine.behaviors.lawnmower import (
     polygon_area_m2,
     self_crossing,
 )
-from clark_engine.behaviors.survey import SurveyBehavior, SurveyParams, footprint_m
+from clark_engine.behaviors.survey import SurveyBehavior, SurveyParams
+from clark_engine.behaviors.survey_plan import footprint_m
 from clark_engine.link.fleet import FleetTable
 from clark_engine.link.messages import PictureData
 from clark_engine.mission.compiler import agent_config
