@@ -1244,7 +1244,12 @@ def primitives_section() -> list[str]:
         events = sorted(spec.events(spec.with_defaults({})))
         event_text = ", ".join(f"`{e}`" for e in events) if events else "none"
         variants = _event_variants(spec)
-        codes = sorted(_shared_codes(module, shared))
+        # Its checks may live in a module of its own beside it (survey_checks.py): read
+        # that one too (a check taken whole from shared.py is followed as an import).
+        codes = _shared_codes(module, shared)
+        check_module = getattr(spec.check, "__module__", module.__name__)
+        if check_module not in (module.__name__, shared.__name__):
+            codes |= _shared_codes(importlib.import_module(check_module), shared)
         lines += [
             f"### {name}",
             "",
@@ -1262,7 +1267,7 @@ def primitives_section() -> list[str]:
         if codes:
             lines.append(
                 "- **Checks**: "
-                + ", ".join(f"[{c}](check-codes.md#{c.lower()})" for c in codes)
+                + ", ".join(f"[{c}](check-codes.md#{c.lower()})" for c in sorted(codes))
                 + "."
             )
         lines.append("")
