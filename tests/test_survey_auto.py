@@ -34,7 +34,7 @@ from clark_engine.runtime.commands import (
 )
 from clark_engine.runtime.config import AgentConfig, config_from_dict
 from clark_engine.runtime.context import Outbox, PrimitiveContext, offset_position
-from clark_engine.runtime.envelope import EnvelopeGuard
+from clark_engine.runtime.envelope_guard import EnvelopeGuard
 from clark_engine.runtime.events import MissionProgress, MissionUploadResult, VehicleState
 from clark_engine.runtime.logbook import Logbook
 from clark_engine.runtime.runtime import AgentRuntime
