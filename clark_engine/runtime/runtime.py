@@ -34,7 +34,10 @@ one owner): :class:`~clark_engine.runtime.safety.Safety` (the rules above),
 :class:`~clark_engine.runtime.packets_in.PacketIntake` (packets in, who may command),
 :class:`~clark_engine.runtime.station_commands.StationCommands` (a station's commands
 out) and :class:`~clark_engine.runtime.telemetry.Telemetry` (messages and packets out).
-This module keeps the events in, the tick's phases and what leaves.
+This module keeps the events in, the tick's phases and what leaves. Over 800 lines
+because those three share the runtime's state at every step (the events feed the tick's
+phases, whose commands leave through the same guard) and each is read top to bottom in
+the order a tick runs; what had a seam of its own is in the helpers above.
 """
 
 from __future__ import annotations
