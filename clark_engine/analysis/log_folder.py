@@ -36,7 +36,7 @@ LOG_FILES: Final = {
 }
 
 MAX_NAME_CHARS: Final = 64
-"""Longest agent name taken from a file name (longer ones are cut, escaped)."""
+"""Longest agent name taken from a file name or a log (longer ones are cut, escaped)."""
 
 MAX_SUBFOLDERS: Final = 256
 """Most sub-folders searched for agents' logs."""
@@ -49,8 +49,8 @@ NO_LOGS: Final = (
 )
 
 
-def _name(text: str) -> str:
-    """An agent's name from a file name, bounded and escaped."""
+def shown_name(text: str) -> str:
+    """An agent's name from a file name or a log, bounded and escaped."""
     return printable(text, MAX_NAME_CHARS)
 
 
@@ -118,7 +118,7 @@ def find_log_files(
             if owner is None:
                 owner = next(
                     (
-                        (_name(path.name[: -len(suffix)]), key)
+                        (shown_name(path.name[: -len(suffix)]), key)
                         for key, suffix in LOG_FILES.items()
                         if path.name.endswith(suffix) and len(path.name) > len(suffix)
                     ),

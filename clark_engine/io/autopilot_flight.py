@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Final
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from clark_engine.io.autopilot_decode import RC_OVERRIDE_CHANNELS, UINT16_MAX
-from clark_engine.io.autopilot_requests import Request, result_name
+from clark_engine.io.autopilot_requests import Request, command_result_name
 from clark_engine.runtime.commands import Goto, RcOverride, Takeoff
 from clark_engine.runtime.log_events import LogEvent
 
@@ -230,7 +230,7 @@ class FlightCommands:
             self._adapter._speed_accepted = speed_m_s
             self._adapter._speed_retry_s = -math.inf
             return
-        why = "no answer" if result is None else result_name(result)
+        why = "no answer" if result is None else command_result_name(result)
         if self._adapter._speed_retry_s != now_s + SPEED_RETRY_S:
             self._log.info(
                 "autopilot did not take speed %g m/s (%s); sending it again in %g s",

@@ -6,7 +6,7 @@ PARAM_REQUEST_READ, the stream requests) is a :class:`Request` that the
 :data:`COMMAND_ATTEMPTS` sends; a COMMAND_ACK answers it (matched first in, first out by
 command number, as ArduPilot answers), and a refusal waits :data:`REASON_WAIT_S` for the
 STATUSTEXT that gives its reason before it is reported as a
-:class:`~clark_engine.runtime.events.CommandRefused`. :func:`result_name`,
+:class:`~clark_engine.runtime.events.CommandRefused`. :func:`command_result_name`,
 :func:`command_name`, :func:`message_id` and :func:`param_id_bytes` name MAVLink's numbers.
 
 Separate from the adapter because the MAVLink command protocol is one concern, which the
@@ -63,7 +63,7 @@ class Request:
     due_s: float = 0.0
 
 
-def result_name(result: int) -> str:
+def command_result_name(result: int) -> str:
     """A MAV_RESULT's name without its prefix (``DENIED``), or its number's."""
     entry = mavlink2.enums["MAV_RESULT"].get(result)
     name = entry.name if entry is not None else f"MAV_RESULT_{result}"
@@ -123,7 +123,9 @@ class RequestTracker:
             request.answered(int(msg.result), now_s)
         elif msg.result != mavlink2.MAV_RESULT_ACCEPTED:
             # Reported once its STATUSTEXT, if any, has had time to arrive.
-            refusal = CommandRefused(request.command, result_name(msg.result), request.request)
+            refusal = CommandRefused(
+                request.command, command_result_name(msg.result), request.request
+            )
             self._adapter._refusals.append((now_s + REASON_WAIT_S, refusal, now_s))
         if (
             request.setup

@@ -40,7 +40,7 @@ from typing import Any, Final, Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from clark_engine.io.mission_upload import MissionUpload, result_name
+from clark_engine.io.mission_upload import MissionUpload, mission_result_name
 from clark_engine.runtime.commands import Pause, SetParam, SetUpAutopilotSafety, UploadFence
 from clark_engine.runtime.events import AutopilotSafetyResult
 
@@ -305,7 +305,7 @@ class SafetySetup:
         assert upload.result is not None
         reason = self._link.setup_reasons(self._upload_started_s, now_s)
         self._fail(
-            f"the autopilot refused the fence list: {result_name(upload.result)}"
+            f"the autopilot refused the fence list: {mission_result_name(upload.result)}"
             + (f" ({reason})" if reason else ""),
             None,
             retry=False,

@@ -21,7 +21,12 @@ from typing import TYPE_CHECKING, Final
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from clark_engine.io.autopilot_requests import ACK_TIMEOUT_S, Request, message_id, result_name
+from clark_engine.io.autopilot_requests import (
+    ACK_TIMEOUT_S,
+    Request,
+    command_result_name,
+    message_id,
+)
 from clark_engine.runtime.log_events import LogEvent
 
 if TYPE_CHECKING:
@@ -207,7 +212,7 @@ class StreamRequests:
     def _optional_stream(self, name: str) -> Callable[[int | None, float], None]:
         def answered(result: int | None, _now_s: float) -> None:
             if result != mavlink2.MAV_RESULT_ACCEPTED:
-                why = "no answer" if result is None else result_name(result)
+                why = "no answer" if result is None else command_result_name(result)
                 self._log.info(
                     "autopilot does not stream %s (%s)",
                     name,

@@ -171,7 +171,7 @@ def mission_items(
     return tuple(out)
 
 
-def result_name(result: int) -> str:
+def mission_result_name(result: int) -> str:
     """MAV_MISSION_RESULT in words, without its prefix (``ACCEPTED``, ``NO_SPACE``)."""
     entry = mavlink2.enums["MAV_MISSION_RESULT"].get(result)
     name = entry.name if entry is not None else f"MAV_MISSION_{result}"
@@ -430,7 +430,7 @@ class MissionUploads:
             self._emit(MissionUploadResult(command.upload_id, True, "ACCEPTED"))
             return
         reason = self._reasons(started_s, now_s)
-        result = "NO_ANSWER" if upload.result is None else result_name(upload.result)
+        result = "NO_ANSWER" if upload.result is None else mission_result_name(upload.result)
         self._log.error(
             "the autopilot did not take the mission %s: %s%s",
             what,

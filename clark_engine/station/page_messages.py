@@ -24,7 +24,7 @@ from clark_engine.untrusted import printable
 MAX_MESSAGE_BYTES: Final = 16 * 1024
 """Largest WebSocket message accepted from a page; a larger one closes its connection."""
 
-MAX_NAME_CHARS: Final = 64
+MAX_COMMAND_NAME_CHARS: Final = 64
 """Longest agent or mode name accepted in a command."""
 
 MAX_OPERATOR_CHARS: Final = 40
@@ -139,7 +139,7 @@ def parse_command(
         raise rejected(f"unknown action; expected one of {', '.join(ACTIONS)}")
     target = data.get("target")
     names = agent_names(hello)
-    if not isinstance(target, str) or len(target) > MAX_NAME_CHARS:
+    if not isinstance(target, str) or len(target) > MAX_COMMAND_NAME_CHARS:
         raise rejected("target must be an agent's name or 'all'")
     if target != "all" and target not in names:
         raise rejected(f"no such agent; agents: {', '.join(names)}, all")
@@ -147,7 +147,7 @@ def parse_command(
     if action == "mode":
         if target == "all":
             raise rejected("a mode change names one agent")
-        if not isinstance(mode, str) or not mode or len(mode) > MAX_NAME_CHARS:
+        if not isinstance(mode, str) or not mode or len(mode) > MAX_COMMAND_NAME_CHARS:
             raise rejected("mode must be one of the agent's modes")
         if mode not in modes_of(hello).get(target, frozenset()):
             raise rejected(f"{target} has no such mode")
@@ -210,8 +210,8 @@ __all__ = [
     "COMMAND_BURST",
     "CONTROLS_BURST",
     "CONTROLS_PER_S",
+    "MAX_COMMAND_NAME_CHARS",
     "MAX_MESSAGE_BYTES",
-    "MAX_NAME_CHARS",
     "MAX_OPERATOR_CHARS",
     "MAX_REF_CHARS",
     "REPLAY_ACTIONS",

@@ -60,6 +60,7 @@ from typing import Any, Final
 
 from clark_engine.analysis import log_folder
 from clark_engine.analysis.latency import Problem
+from clark_engine.analysis.log_folder import shown_name
 from clark_engine.errors import ClarkError
 from clark_engine.expectations.from_logs import judge
 from clark_engine.expectations.log_clocks import align_clocks
@@ -88,7 +89,6 @@ from clark_engine.station.replay_fleet import (
     STATUS_AGE,
     FleetRows,
     read_fleet_columns,
-    shown_name,
 )
 from clark_engine.station.replay_frames import Replay, ReplayAgent
 from clark_engine.station.view_hello import build_hello

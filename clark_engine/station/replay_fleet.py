@@ -19,13 +19,11 @@ from pathlib import Path
 from typing import Final
 
 from clark_engine.analysis.latency import Problem
+from clark_engine.analysis.log_folder import shown_name
 from clark_engine.expectations.log_readers import fleet_csv
 from clark_engine.runtime.log_lines import line_safe
 from clark_engine.station.view_protocol import MAX_LOG_TEXT_CHARS
 from clark_engine.untrusted import printable
-
-MAX_NAME_CHARS: Final = 64
-"""Longest agent name taken from a file name or a log (longer ones are cut, escaped)."""
 
 MAX_AGENTS: Final = 256
 """Most agents a replay shows; the logs of more are ignored (with a warning)."""
@@ -102,11 +100,6 @@ CONDITIONS: Final = ("ok", "degraded", "failsafe", "terminated")
     AP_LOST,
     HEALTH_AGE,
 ) = range(len(NUMBERS))
-
-
-def shown_name(text: str) -> str:
-    """An agent's name from a file name or a log, bounded and escaped."""
-    return printable(text, MAX_NAME_CHARS)
 
 
 @dataclass(slots=True)
@@ -272,9 +265,7 @@ def _intern(rows: FleetRows, cell: str) -> int:
 __all__ = [
     "MAX_AGENTS",
     "MAX_FLEET_ROWS",
-    "MAX_NAME_CHARS",
     "MAX_TEXTS",
     "FleetRows",
     "read_fleet_columns",
-    "shown_name",
 ]
