@@ -11,6 +11,9 @@ failsafes, heartbeats and station link only while its tick runs. What the machin
   own, never updated, stopped when the state is left (a half-started primitive may hold
   an RC override that its ``stop`` releases).
 - ``stop`` raising: the state is left all the same and the transition completes.
+- ``update``, ``on_payload`` or ``on_mission`` raising: that state fails (reported as
+  a ``failed`` change, never updated again), the other states go on being updated and
+  handed the event, and the tick returns.
 - :meth:`BehaviorMachine.stop` (terminate, failsafes) stops every other primitive even
   when one raises.
 """
@@ -25,10 +28,12 @@ from typing import Any
 import pytest
 
 from clark_engine.behaviors.base import BehaviorRuntime as Primitive
+from clark_engine.behaviors.base import Status
 from clark_engine.mission.compiler import agent_config
 from clark_engine.mission.validate import validate_path
 from clark_engine.runtime.config import AgentConfig, StateSpec, config_from_dict
 from clark_engine.runtime.context import PrimitiveContext
+from clark_engine.runtime.events import PayloadEvent
 from clark_engine.runtime.log_events import RECORD_ATTRIBUTE
 from tests.test_runtime_machine import Fake, Harness, leaf, spec
 
@@ -56,6 +61,17 @@ class Broken(Fake):
         super().stop(ctx)
         if self.params.get("stop_raises"):
             raise RuntimeError(f"{self.path}: cannot release the override")
+
+    def update(self, ctx: PrimitiveContext) -> Status:
+        status = super().update(ctx)
+        if self.params.get("update_raises") == self.updates:
+            raise ZeroDivisionError(f"{self.path}: float division by zero")
+        return status
+
+    def on_payload(self, ctx: PrimitiveContext, event: PayloadEvent) -> None:
+        super().on_payload(ctx, event)
+        if self.params.get("payload_raises"):
+            raise KeyError(event.payload)
 
 
 class BrokenHarness(Harness):
@@ -205,3 +221,48 @@ def test_stopping_the_machine_stops_every_primitive_when_one_raises(config: Agen
     assert sorted(h.calls("stop")) == ["x", "y", "z"]
     assert not h.machine.running
     assert h.machine.active_paths() == ("x", "y", "z")
+
+
+def test_an_update_that_raises_fails_its_state_and_the_others_go_on(
+    config: AgentConfig, caplog: pytest.LogCaptureFixture
+) -> None:
+    h = broken(
+        {"parallel": True, "states": {"a": raising(update_raises=2), "b": leaf()}},
+        config,
+    ).start()
+    h.step(0.1)
+    with caplog.at_level(logging.ERROR):
+        h.step(0.2)  # a raises in its second update: no exception out of the tick
+    (line,) = [r for r in caplog.records if r.name == h.ctx.log.name]
+    assert getattr(line, RECORD_ATTRIBUTE) == "behavior.error"
+    assert line.getMessage() == (
+        "primitive fake of state a raised in update: ZeroDivisionError: a: float division "
+        "by zero; the state fails"
+    )
+    assert h.updates_at(0.2) == ["a", "b"]  # b was updated in the same step, after a
+    assert [(c.event, c.source) for c in h.changes[1:]] == [("failed", "a")]
+    h.step(0.3)
+    assert h.updates_at(0.3) == ["b"]  # a failed state is never updated again
+    assert h.machine.active_paths() == ("a", "b")
+    h.check_library()
+
+
+def test_a_payload_handler_that_raises_fails_its_state_only(
+    config: AgentConfig, caplog: pytest.LogCaptureFixture
+) -> None:
+    h = broken(
+        {"parallel": True, "states": {"a": raising(payload_raises=True), "b": leaf()}},
+        config,
+    ).start()
+    event = PayloadEvent("camera", "captured", 1, "IMG_0001.jpg")
+    with caplog.at_level(logging.ERROR):
+        h.machine.deliver_payload(h.at(0.5), event)
+    (line,) = [r for r in caplog.records if r.name == h.ctx.log.name]
+    assert line.getMessage() == (
+        "primitive fake of state a raised in on_payload: KeyError: 'camera'; the state fails"
+    )
+    assert [p.payloads for p in h.instances] == [[event], [event]]  # b still handed it
+    assert [(c.event, c.source) for c in h.changes[1:]] == [("failed", "a")]
+    h.step(0.6)
+    assert h.updates_at(0.6) == ["b"]
+    h.check_library()

@@ -189,8 +189,8 @@ SPECS: Mapping[LogEvent, EventSpec] = MappingProxyType(
             "mission",
             _E,
             "A primitive cannot do its work (a profile without the mode it needs, a "
-            "vehicle disarmed before its take-off), or raised as its state was entered "
-            "(the state fails) or left (it is left all the same).",
+            "vehicle disarmed before its take-off), or raised as its state was entered or "
+            "while it ran (the state fails) or as it was left (it is left all the same).",
         ),
         LogEvent.LAUNCH_WAIT: EventSpec(
             "mission",

@@ -57,9 +57,11 @@ A primitive that raises: ``make_primitive`` or ``start`` raising (the state's en
 fails the state as a primitive returning FAILED does (reported as a ``failed`` change
 right after the transition's own, never updated, stopped when left), and the
 transition completes; ``stop`` raising (the state's exit, or :meth:`BehaviorMachine.stop`)
-is logged and the state is left all the same. Either way the library's state and the
-primitives stay in step, and the agent's tick goes on: its failsafes, heartbeats and
-station link run only while the tick does.
+is logged and the state is left all the same. ``update``, ``on_payload`` or
+``on_mission`` raising (a state already active) fails that state the same way, logged
+once, and the other states are updated and handed the event as usual. Either way the
+library's state and the primitives stay in step, and the agent's tick goes on: its
+failsafes, heartbeats and station link run only while the tick does.
 
 Two agents in one process share nothing: the separator ``"."`` is set on a
 private NestedState subclass, never on transitions' own class, and every
@@ -450,7 +452,11 @@ class BehaviorMachine:
         for node, primitive in self._primitives.items():
             if not node.running or node.first_step > index:
                 continue
-            status = primitive.update(ctx)
+            try:
+                status = primitive.update(ctx)
+            except Exception as exc:
+                self._log_raised(node, "raised in update", "the state fails", exc, ctx)
+                status = Status.FAILED
             if status is Status.RUNNING:
                 continue
             node.running = False
@@ -485,8 +491,11 @@ class BehaviorMachine:
         """Hand a payload event to the primitive of every active state, in entry order."""
         if not self.running:
             return
-        for primitive in self._primitives.values():
-            primitive.on_payload(ctx, event)
+        for node, primitive in list(self._primitives.items()):
+            try:
+                primitive.on_payload(ctx, event)
+            except Exception as exc:
+                self._handler_raised(node, "raised in on_payload", exc, ctx)
 
     def deliver_mission(
         self, ctx: PrimitiveContext, event: MissionUploadResult | MissionProgress
@@ -494,8 +503,22 @@ class BehaviorMachine:
         """Hand a mission event to the primitive of every active state, in entry order."""
         if not self.running:
             return
-        for primitive in self._primitives.values():
-            primitive.on_mission(ctx, event)
+        for node, primitive in list(self._primitives.items()):
+            try:
+                primitive.on_mission(ctx, event)
+            except Exception as exc:
+                self._handler_raised(node, "raised in on_mission", exc, ctx)
+
+    def _handler_raised(
+        self, node: _Node, what: str, exc: Exception, ctx: PrimitiveContext
+    ) -> None:
+        """A primitive raised while handed an event: its state fails, if it still ran."""
+        if not node.running:
+            self._log_raised(node, what, "its state had already stopped", exc, ctx)
+            return
+        self._log_raised(node, what, "the state fails", exc, ctx)
+        node.running = False
+        self._failed(node, ctx)
 
     def active_paths(self) -> tuple[str, ...]:
         """Dotted paths of the active leaf states, sorted (``("",)`` for a one-primitive root).
