@@ -266,3 +266,27 @@ def test_a_payload_handler_that_raises_fails_its_state_only(
     h.step(0.6)
     assert h.updates_at(0.6) == ["b"]
     h.check_library()
+
+
+def test_states_that_finish_as_they_are_entered_in_a_cycle_go_one_lap_per_step(
+    config: AgentConfig,
+) -> None:
+    """Each state finishes at most once per call: the call returns, the cycle goes on."""
+    final = {"initial": "end", "states": {"end": {"final": True}}}
+    h = broken(
+        {
+            "initial": "a",
+            "states": {"a": final | {"on": {"done": "b"}}, "b": final | {"on": {"done": "a"}}},
+        },
+        config,
+    ).start()  # before, this never returned
+    laps = [("start", "", ""), ("done", "a", "b"), ("done", "b", "a")]
+    assert [(c.event, c.source, c.target) for c in h.changes] == laps
+    assert h.machine.active_paths() == ("a.end",)
+    h.step(0.1)
+    assert [(c.event, c.source, c.target) for c in h.changes[3:]] == [
+        ("done", "a", "b"),
+        ("done", "b", "a"),
+    ]
+    assert h.machine.active_paths() == ("a.end",)
+    h.check_library()

@@ -308,6 +308,9 @@ class BehaviorMachine:
         self._primitives: dict[_Node, Primitive] = {}  # active states' primitives, entry order
         self._timed: dict[_Node, None] = {}  # active states with an armed timeout
         self._pending: dict[_Node, None] = {}  # states whose completion must be checked
+        # Completions left for the next step: a state that finished once already in one
+        # call (a cycle of states that finish as they are entered) goes on a step later.
+        self._deferred: dict[_Node, None] = {}
         self._broken: list[_Node] = []  # entered states whose primitive raised, to report
         self._exited: list[str] = []
         self._entered: list[str] = []
@@ -445,6 +448,9 @@ class BehaviorMachine:
         if not self.running:
             return
         self._step_index += 1
+        if self._deferred:
+            self._pending.update(self._deferred)
+            self._deferred.clear()
         if self._timed:
             self._timeouts(ctx)
         finished: list[tuple[_Node, Primitive]] | None = None
@@ -471,6 +477,7 @@ class BehaviorMachine:
                 # Skip a state an earlier done left (or left and entered again).
                 if self._primitives.get(node) is primitive:
                     self._finish(node, ctx)
+        if self._pending:
             self._settle(ctx)
 
     def stop(self, ctx: PrimitiveContext) -> None:
@@ -713,6 +720,7 @@ class BehaviorMachine:
         self._paths = None
         self._timed.pop(node, None)
         self._pending.pop(node, None)
+        self._deferred.pop(node, None)
         self._exited.append(node.path)
         node.deadline_s = None
         primitive = self._primitives.pop(node, None)
@@ -763,8 +771,15 @@ class BehaviorMachine:
             self._fire(trigger, "done", ctx)
 
     def _settle(self, ctx: PrimitiveContext) -> None:
-        """Raise ``done`` on every machine or parallel state that has finished, innermost first."""
+        """Raise ``done`` on every machine or parallel state that has finished, innermost first.
+
+        A state finishes at most once per call: one that finishes again (states whose
+        ``done`` transitions lead round to states that finish as they are entered) is
+        left for the next step (:attr:`_deferred`), so the call always returns and such
+        a cycle goes round one lap per tick, never holding up the agent's loop.
+        """
         pending = self._pending
+        completed: set[_Node] = set()
         while pending:
             node = min(pending, key=_innermost_first)
             del pending[node]
@@ -779,8 +794,13 @@ class BehaviorMachine:
             else:
                 child = next((c for c in node.children if c in active), None)
                 complete = child is not None and child.spec.final
-            if complete:
-                self._finish(node, ctx)
+            if not complete:
+                continue
+            if node in completed:
+                self._deferred[node] = None
+                continue
+            completed.add(node)
+            self._finish(node, ctx)
 
 
 def _resolved_holds(node: _Node, holds: Holds, ctx: PrimitiveContext) -> bool:
