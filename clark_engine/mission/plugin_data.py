@@ -125,7 +125,8 @@ def clash_message(kind: str, name: str, new: tuple[str, str], old: tuple[str, st
 
     return (
         f"{described(*new)} declares {kind} {name!r}, which {described(*old)} already "
-        "declares; rename the plugin's file (and its name inside), or uninstall the plugin"
+        "declares; rename one of the two files (and the name inside it), or uninstall the "
+        "plugin"
     )
 
 
