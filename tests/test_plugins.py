@@ -51,8 +51,11 @@ agents:
 
 
 def _site(tmp_path: Path, dist: str, entry: str, group: str = "clark_engine.behaviors") -> Path:
-    """A folder holding one distribution's metadata with one entry point (or more: a
-    whole ``entry_points.txt`` when ``entry`` starts with a ``[group]`` line)."""
+    """A folder holding one distribution's metadata and its entry points.
+
+    ``entry`` is one entry point in ``group``, or a whole ``entry_points.txt`` when it
+    starts with a ``[group]`` line.
+    """
     site = tmp_path / f"site-{dist}"
     info = site / f"{dist.replace('-', '_')}-0.1.0.dist-info"
     info.mkdir(parents=True)
