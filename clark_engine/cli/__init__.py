@@ -53,6 +53,7 @@ from clark_engine.cli.mission_commands import (
     cmd_examples,
     cmd_explain,
     cmd_keygen,
+    cmd_profiles,
     cmd_schema,
     cmd_validate,
 )
@@ -445,7 +446,26 @@ def build_parser() -> argparse.ArgumentParser:
         help="list every behaviour a mission can use, built-in or from a plugin",
     )
     p.add_argument("--json", action="store_true", help="print JSON: name, origin, summary")
+    p.add_argument(
+        "--blocks",
+        action="store_true",
+        help="list the behaviour blocks instead (YAML, shipped or from a plugin): name, origin, "
+        "description (with --json: and file)",
+    )
     p.set_defaults(func=cmd_behaviors)
+
+    p = sub.add_parser(
+        "profiles",
+        help="list every hardware profile a mission can name, shipped or from a plugin",
+    )
+    # clark_engine.mission.profiles.PROFILE_KINDS, written out so that parsing the
+    # command line imports no mission code (tests/test_plugins.py holds them equal).
+    kinds = ("airframe", "autopilot", "radio", "computer", "payload", "platform")
+    p.add_argument("--kind", choices=kinds, help="only profiles of this kind")
+    p.add_argument(
+        "--json", action="store_true", help="print JSON: name, kind, origin, file, description"
+    )
+    p.set_defaults(func=cmd_profiles)
 
     p = sub.add_parser(
         "payload-sim", help="play a payload (the thesis's camera) against a payload adapter"

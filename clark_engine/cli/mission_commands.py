@@ -197,6 +197,8 @@ def cmd_behaviors(args: argparse.Namespace) -> int:
     """
     from clark_engine.behaviors import behaviors
 
+    if args.blocks:
+        return _list_blocks(args.json)
     declared = behaviors()
     if args.json:
         rows = [
@@ -209,6 +211,84 @@ def cmd_behaviors(args: argparse.Namespace) -> int:
     for b in declared.values():
         print(f"{b.name:<{name_w}}  {b.origin:<{origin_w}}  {b.summary}")
     return EXIT_OK
+
+
+def _origin_label(shown: str, origin: str, group: str) -> str:
+    """``shipped``, or the distribution of the plugin whose folder a file is shown under."""
+    from clark_engine.mission.plugin_data import plugin_folders
+
+    if not origin:
+        return "shipped"
+    return next((p.dist for p in plugin_folders(group) if shown.startswith(p.shown + "/")), origin)
+
+
+def _print_rows(rows: list[dict[str, str]], as_json: bool, columns: tuple[str, ...]) -> None:
+    if as_json:
+        print(json.dumps(rows, indent=2))
+        return
+    widths = [max([len(c), *(len(r[c]) for r in rows)]) for c in columns[:-1]]
+    for row in rows:
+        cells = [f"{row[c]:<{w}}" for c, w in zip(columns, widths, strict=False)]
+        print("  ".join([*cells, row[columns[-1]]]))
+
+
+def _refused(findings: list[Finding]) -> bool:
+    """Print the errors among ``findings`` (a name two folders declare) to stderr."""
+    errors = [f for f in findings if f.is_error]
+    for finding in errors:
+        print(finding.format_text(), file=sys.stderr)
+    return bool(errors)
+
+
+def _list_blocks(as_json: bool) -> int:
+    """``clark behaviors --blocks``: every behaviour block, shipped or from a plugin."""
+    from clark_engine.mission.plugin_data import BLOCKS_GROUP
+    from clark_engine.mission.validate import installed_libraries
+
+    _, blocks = installed_libraries()
+    rows = []
+    for name in blocks.names():
+        block = blocks.get(name)
+        shown, origin = blocks.origin_of(name)
+        rows.append(
+            {
+                "name": name,
+                "origin": _origin_label(shown, origin, BLOCKS_GROUP),
+                "file": shown,
+                "description": " ".join(block.description.split()) if block else "(invalid)",
+            }
+        )
+    _print_rows(rows, as_json, ("name", "origin", "description"))
+    return EXIT_INVALID if _refused(blocks.findings) else EXIT_OK
+
+
+def cmd_profiles(args: argparse.Namespace) -> int:
+    """List every hardware profile a mission can name: name, kind, origin, description.
+
+    The shipped profiles and those installed plugins add through the
+    ``clark_engine.hardware_profiles`` entry-point group (docs/plugins.md); a name two of
+    them declare is reported (exit code 1), a plugin that fails to load too (exit code 2).
+    """
+    from clark_engine.mission.plugin_data import PROFILES_GROUP
+    from clark_engine.mission.validate import installed_libraries
+
+    profiles, _ = installed_libraries()
+    rows = []
+    for name in profiles.names(args.kind):
+        doc = profiles.document(name)
+        data = doc.data if doc is not None and isinstance(doc.data, dict) else {}
+        shown, origin = profiles.origin_of(name)
+        rows.append(
+            {
+                "name": name,
+                "kind": str(data.get("kind", "?")),
+                "origin": _origin_label(shown, origin, PROFILES_GROUP),
+                "file": shown,
+                "description": " ".join(str(data.get("description", "")).split()),
+            }
+        )
+    _print_rows(rows, args.json, ("name", "kind", "origin", "description"))
+    return EXIT_INVALID if _refused(profiles.findings) else EXIT_OK
 
 
 def cmd_keygen(args: argparse.Namespace) -> int:
@@ -283,6 +363,7 @@ __all__ = [
     "cmd_examples",
     "cmd_explain",
     "cmd_keygen",
+    "cmd_profiles",
     "cmd_schema",
     "cmd_validate",
 ]

@@ -18,6 +18,7 @@ from jsonschema import Draft202012Validator
 
 from clark_engine.behaviors import behaviors
 from clark_engine.mission.findings import Finding, Location, error
+from clark_engine.mission.plugin_data import clash_message
 from clark_engine.mission.schemas import check_schema, validate_data
 from clark_engine.mission.yaml_loader import Document, YamlLoadError, decode_text, load_yaml
 
@@ -58,22 +59,31 @@ class Block:
 class BlockLibrary:
     """Every behaviour block visible to a mission, read on first use."""
 
-    def __init__(self, folders: Sequence[tuple[Path, str]]) -> None:
-        """Index ``folders``: pairs of (folder, how to show its paths in findings)."""
+    def __init__(self, folders: Sequence[tuple[Path, str] | tuple[Path, str, str]]) -> None:
+        """Index ``folders``: (folder, how to show its paths in findings[, plugin origin]).
+
+        A folder an installed plugin adds carries its origin (which plugin and entry
+        point, :mod:`clark_engine.mission.plugin_data`), which a duplicate name names.
+        """
         self._files: dict[str, tuple[Path, str]] = {}
+        self._origins: dict[str, str] = {}
         self._blocks: dict[str, Block | None] = {}
         self.findings: list[Finding] = []
-        for folder, shown in folders:
+        for entry in folders:
+            folder, shown = entry[0], entry[1]
+            origin = entry[2] if len(entry) == 3 else ""
             for file in sorted(folder.rglob("*.yaml")):
                 display = f"{shown}/{file.relative_to(folder).as_posix()}"
                 if file.stem in self._files:
+                    taken = (self._files[file.stem][1], self._origins[file.stem])
+                    message = (
+                        clash_message("block", file.stem, (display, origin), taken)
+                        if origin or taken[1]
+                        else f"a block named {file.stem!r} already exists in {taken[0]}; "
+                        "rename one of them"
+                    )
                     self.findings.append(
-                        error(
-                            "E-BLOCK-DUPLICATE",
-                            Location(display, 1, 1),
-                            f"a block named {file.stem!r} already exists in "
-                            f"{self._files[file.stem][1]}; rename one of them",
-                        )
+                        error("E-BLOCK-DUPLICATE", Location(display, 1, 1), message)
                     )
                     continue
                 if file.stem in behaviors():
@@ -89,10 +99,15 @@ class BlockLibrary:
                     )
                     continue
                 self._files[file.stem] = (file, display)
+                self._origins[file.stem] = origin
 
     def names(self) -> list[str]:
         """Names of every visible block."""
         return sorted(self._files)
+
+    def origin_of(self, name: str) -> tuple[str, str]:
+        """(how the block's file is shown, the plugin that adds it or "")."""
+        return self._files[name][1], self._origins[name]
 
     def __contains__(self, name: object) -> bool:
         return name in self._files

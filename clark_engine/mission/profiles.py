@@ -22,6 +22,7 @@ from jsonschema import Draft202012Validator
 
 from clark_engine.mission.findings import DocPath, Finding, Location, error
 from clark_engine.mission.model import PARTS, Channel, Hardware
+from clark_engine.mission.plugin_data import clash_message
 from clark_engine.mission.schemas import validate_data
 from clark_engine.mission.yaml_loader import Document, YamlLoadError, decode_text, load_yaml
 
@@ -99,6 +100,7 @@ class _Entry:
     name: str
     file: Path
     display: str
+    origin: str = ""
     doc: Document | None = None
     loaded: bool = False
 
@@ -110,26 +112,41 @@ class ProfileLibrary:
     is parsed) and read, checked and merged only when a mission names them.
     """
 
-    def __init__(self, folders: Sequence[tuple[Path, str]]) -> None:
-        """Index ``folders``: pairs of (folder, how to show its paths in findings)."""
+    def __init__(self, folders: Sequence[tuple[Path, str] | tuple[Path, str, str]]) -> None:
+        """Index ``folders``: (folder, how to show its paths in findings[, plugin origin]).
+
+        A folder an installed plugin adds carries its origin (which plugin and entry
+        point, :mod:`clark_engine.mission.plugin_data`), which a duplicate name names.
+        """
         self._entries: dict[str, _Entry] = {}
         self.findings: list[Finding] = []
         self._composed: dict[str, Composed | None] = {}
-        for folder, shown in folders:
+        for entry in folders:
+            folder, shown = entry[0], entry[1]
+            origin = entry[2] if len(entry) == 3 else ""
             for file in sorted(folder.rglob("*.yaml")):
                 name = file.stem
                 display = f"{shown}/{file.relative_to(folder).as_posix()}"
-                if name in self._entries:
-                    self.findings.append(
-                        error(
-                            "E-PROFILE-DUPLICATE",
-                            Location(display, 1, 1),
-                            f"a profile named {name!r} already exists in "
-                            f"{self._entries[name].display}; rename one of them",
+                taken = self._entries.get(name)
+                if taken is not None:
+                    message = (
+                        clash_message(
+                            "profile", name, (display, origin), (taken.display, taken.origin)
                         )
+                        if origin or taken.origin
+                        else f"a profile named {name!r} already exists in {taken.display}; "
+                        "rename one of them"
+                    )
+                    self.findings.append(
+                        error("E-PROFILE-DUPLICATE", Location(display, 1, 1), message)
                     )
                     continue
-                self._entries[name] = _Entry(name, file, display)
+                self._entries[name] = _Entry(name, file, display, origin)
+
+    def origin_of(self, name: str) -> tuple[str, str]:
+        """(how the profile's file is shown, the plugin that adds it or "")."""
+        entry = self._entries[name]
+        return entry.display, entry.origin
 
     def names(self, kind: str | None = None) -> list[str]:
         """Names of the profiles (of one kind when given)."""

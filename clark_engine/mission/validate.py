@@ -32,6 +32,7 @@ from clark_engine.mission.model import (
     Telemetry,
 )
 from clark_engine.mission.paths import confine, too_long
+from clark_engine.mission.plugin_data import BLOCKS_GROUP, PROFILES_GROUP, plugin_folders
 from clark_engine.mission.profiles import HardwareResolver, ProfileLibrary
 from clark_engine.mission.schemas import validate_data
 from clark_engine.mission.state_tree import BehaviorResolver
@@ -204,8 +205,17 @@ def _validate_block(path: Path, doc: Document) -> Validation:
 
 
 def _validate_profile(path: Path, doc: Document) -> Validation:
-    folders = [(data_dir("hardware_profiles"), display_path(data_dir("hardware_profiles")))]
-    if not path.resolve().is_relative_to(data_dir("hardware_profiles").resolve()):
+    shipped = data_dir("hardware_profiles")
+    folders: list[tuple[Path, str] | tuple[Path, str, str]] = [(shipped, display_path(shipped))]
+    inside = path.resolve().is_relative_to(shipped.resolve())
+    for plugin in plugin_folders(PROFILES_GROUP):
+        if path.resolve().is_relative_to(plugin.path.resolve()):
+            # The plugin's file being validated: shown as the user named it, as a shipped one.
+            folders.append((plugin.path, display_path(plugin.path), plugin.origin))
+            inside = True
+        else:
+            folders.append((plugin.path, plugin.shown, plugin.origin))
+    if not inside:
         folders.append((path.parent, display_path(path.parent)))
     library = ProfileLibrary(folders)
     composed = library.compose(path.stem) if path.stem in library.names() else None
@@ -219,8 +229,12 @@ def _libraries(
     path: Path, data: Mapping[str, Any], doc: Document
 ) -> tuple[ProfileLibrary, BlockLibrary, list[Finding]]:
     findings: list[Finding] = []
-    profile_dirs = [(data_dir("hardware_profiles"), display_path(data_dir("hardware_profiles")))]
-    block_dirs = [(data_dir("behaviors"), display_path(data_dir("behaviors")))]
+    profile_dirs: list[tuple[Path, str] | tuple[Path, str, str]] = [
+        (data_dir("hardware_profiles"), display_path(data_dir("hardware_profiles")))
+    ]
+    block_dirs: list[tuple[Path, str] | tuple[Path, str, str]] = [
+        (data_dir("behaviors"), display_path(data_dir("behaviors")))
+    ]
     declared = data.get("include")
     include: Mapping[str, Any] = declared if isinstance(declared, Mapping) else {}
     for key, dirs in (("hardware_profiles", profile_dirs), ("behaviors", block_dirs)):
@@ -261,10 +275,35 @@ def _libraries(
                     )
                 )
                 continue
-            if any(full == d.resolve() for d, _ in dirs):
+            if any(full == d[0].resolve() for d in dirs):
                 continue
             dirs.append((full, display_path(full)))
+    # Then the installed plugins' folders (docs/plugins.md), searched as the others are.
+    for group, dirs in ((PROFILES_GROUP, profile_dirs), (BLOCKS_GROUP, block_dirs)):
+        for plugin in plugin_folders(group):
+            if not any(plugin.path.resolve() == d[0].resolve() for d in dirs):
+                dirs.append((plugin.path, plugin.shown, plugin.origin))
     return ProfileLibrary(profile_dirs), BlockLibrary(block_dirs), findings
+
+
+def installed_libraries() -> tuple[ProfileLibrary, BlockLibrary]:
+    """The hardware profiles and behaviour blocks every mission sees, before its ``include:``.
+
+    The shipped folders, then the installed plugins' (``clark profiles``, ``clark behaviors
+    --blocks``); each library's ``findings`` hold any name two of them both declare.
+
+    Raises:
+        PluginError: A plugin's entry point fails to load or names no folder.
+    """
+    profile_dirs: list[tuple[Path, str] | tuple[Path, str, str]] = [
+        (data_dir("hardware_profiles"), display_path(data_dir("hardware_profiles")))
+    ]
+    block_dirs: list[tuple[Path, str] | tuple[Path, str, str]] = [
+        (data_dir("behaviors"), display_path(data_dir("behaviors")))
+    ]
+    for group, dirs in ((PROFILES_GROUP, profile_dirs), (BLOCKS_GROUP, block_dirs)):
+        dirs.extend((p.path, p.shown, p.origin) for p in plugin_folders(group))
+    return ProfileLibrary(profile_dirs), BlockLibrary(block_dirs)
 
 
 def _dirty(findings: list[Finding], prefix: DocPath, *, own: bool = False) -> bool:

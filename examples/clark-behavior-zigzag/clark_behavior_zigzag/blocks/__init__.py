@@ -1,0 +1,1 @@
+"""Behaviour blocks this plugin adds: the YAML files in this folder."""

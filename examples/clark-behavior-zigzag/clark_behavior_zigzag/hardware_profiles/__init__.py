@@ -1,0 +1,1 @@
+"""Hardware profiles this plugin adds: the YAML files under this folder."""
