@@ -401,3 +401,19 @@ def test_the_profile_kinds_clark_profiles_offers_are_the_engines() -> None:
     sub = next(a for a in parser._actions if a.dest == "command")
     kind = next(a for a in sub.choices["profiles"]._actions if a.dest == "kind")  # type: ignore[union-attr]
     assert tuple(kind.choices) == PROFILE_KINDS
+
+
+def test_the_example_plugin_passes_its_own_tests_from_its_own_folder() -> None:
+    """What its README tells a plugin writer to run: ``python -m pytest`` in its folder."""
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTEST_ADDOPTS")}
+    proc = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "no:xdist"],
+        cwd=EXAMPLE,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert " passed" in proc.stdout and "failed" not in proc.stdout
