@@ -126,7 +126,7 @@ class MissionExecutor:
             return _DENIED
         entered = self._ap.model.mode != "AUTO"
         if entered:
-            result = self._ap._enter_mode("AUTO", now_s)
+            result = self._ap.mode_changes.enter("AUTO", now_s)
             if result != _ACCEPTED or self._ap.model.mode != "AUTO":
                 return _FAILED if result == _ACCEPTED else result
         if not self.has_items():
@@ -298,4 +298,4 @@ class MissionExecutor:
             self._ap._text(_NOTICE, "Mission Complete")
         elif self._ap.firmware == "arduplane":
             self._ap._text(_INFO, "Mission complete, changing mode to RTL")
-            self._ap._enter_mode("RTL", now_s, "autopilot")
+            self._ap.mode_changes.enter("RTL", now_s, "autopilot")
