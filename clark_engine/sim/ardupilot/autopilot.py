@@ -408,7 +408,7 @@ class SimAutopilot:
         self._home_sent_s = -math.inf
         self._next_home_check_s = 0.0
         self._next_ekf_check_s = 0.0
-        self._ekf_fail_count = 0  # ArduRover's EKF check (_rover_ekf_check)
+        self._ekf_fail_count = 0  # ArduRover's EKF check (Readiness.rover_ekf_check)
         self._ekf_failsafe = False
         self._armed_s: float | None = self.readiness.boot_armed()
         self._ground_since_s: float | None = None  # armed and on the ground since

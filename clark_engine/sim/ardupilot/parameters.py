@@ -31,7 +31,7 @@ if TYPE_CHECKING:
 
 _PARAM_INDEX_BY_NAME: Final = 65535
 PARAM_LIST_RATE_HZ: Final = 1000.0
-"""PARAM_VALUEs a second in answer to PARAM_REQUEST_LIST (see _send_param_list)."""
+"""PARAM_VALUEs a second in answer to PARAM_REQUEST_LIST (see :meth:`Parameters.send_list`)."""
 
 
 class Parameters:
@@ -52,7 +52,7 @@ class Parameters:
         """PARAM_SET as ArduPilot's GCS_MAVLINK::handle_param_set.
 
         An unknown name, NaN or an infinity: no answer at all, nothing changes.
-        Otherwise the value is stored (as :meth:`_set_param` converts it) and echoed in
+        Otherwise the value is stored (as :meth:`set` converts it) and echoed in
         one PARAM_VALUE with the parameter's own type, index 65535, even when unchanged.
         """
         name = str(msg.param_id)
@@ -78,7 +78,7 @@ class Parameters:
                 if group == name:
                     self._ap._interval_us.pop(stream, None)
                     self._ap._due_us.pop(stream, None)
-        elif hasattr(self, "model"):
+        elif hasattr(self._ap, "model"):
             self._ap.model.configure(self._ap.param_values())  # the whole table, as configure wants
 
     def _send(self, name: str, index: int) -> None:

@@ -331,7 +331,7 @@ class Telemetry:
         )
 
     def _msg_global_position_int(self, now_s: float) -> Any:
-        """The fused position (see :meth:`_fused_alt_m` for its altitudes).
+        """The fused position (see :meth:`Readiness.fused_alt_m` for its altitudes).
 
         Before the GPS fix ArduCopter sends its never-filled location (all zero); the
         others 0, 0 and their barometer's height in both altitudes.
