@@ -80,8 +80,8 @@ class Arming:
             reasons.append("Arm: AHRS: waiting for home")
         elif age < boot.prearm_s:
             reasons.append("Arm: Gyros inconsistent")
-        self._ap._fence_zones()
-        fence_problem = self._ap.fence.pre_arm_failure(self._ap._fence_position(now_s), now_s)
+        self._ap.fence_checks.zones()
+        fence_problem = self._ap.fence.pre_arm_failure(self._ap.fence_checks.position(now_s), now_s)
         if fence_problem is not None:
             reasons.append(f"Arm: {fence_problem}")
         if self._ap.firmware == "arducopter" and self._ap.gcs_failsafe.active:

@@ -129,20 +129,15 @@ from typing import Any, Final
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from clark_engine.mission.fence import Fence, Zone
 from clark_engine.sim.ardupilot import sys_status as ap_sys_status
 from clark_engine.sim.ardupilot.arming import Arming
+from clark_engine.sim.ardupilot.avoidance import Avoidance
 from clark_engine.sim.ardupilot.commands import Commands
 from clark_engine.sim.ardupilot.fence import (
-    CHECK_PERIOD_S,
-    CIRCLE,
-    POLYGON,
     ArduFence,
-    FencePosition,
-    FenceZones,
     Point2,
-    react,
 )
+from clark_engine.sim.ardupilot.fence_checks import FenceChecks
 from clark_engine.sim.ardupilot.firmware import (
     COMMON_PARAMS,
     FIRMWARES,
@@ -159,6 +154,7 @@ from clark_engine.sim.ardupilot.parameters import Parameters
 from clark_engine.sim.ardupilot.params import INT16, Param, ParamStore, sitl_table
 from clark_engine.sim.ardupilot.rc_overrides import RcOverrides
 from clark_engine.sim.ardupilot.readiness import Readiness
+from clark_engine.sim.ardupilot.safety_hooks import SafetyHooks
 from clark_engine.sim.ardupilot.streams import NOT_STREAMED, STREAM_RATES, Streams
 from clark_engine.sim.ardupilot.telemetry import (
     FIRMWARE_TYPES,
@@ -380,7 +376,11 @@ class SimAutopilot:
         self.model.configure(self.param_values())
 
         self._mode_reason: ModeReason = "autopilot"  # why the current mode was entered
-        self.fence = ArduFence(firmware, self._param_value, self._text, self._fence_status_due)
+        self.fence_checks = FenceChecks(self)
+        """When and against what the fence is checked, and what it asks of the autopilot."""
+        self.fence = ArduFence(
+            firmware, self._param_value, self._text, self.fence_checks.status_due
+        )
         """ArduPilot's geofence (FENCE_* and the uploaded fence list)."""
         self._fence_list_changes = -1  # MissionProtocol.changed when the zones were built
         # The fence was idle at its last check and nothing it reads changed since (a
@@ -390,12 +390,13 @@ class SimAutopilot:
         self._next_fence_update_s = 0.0
         self.gcs_failsafe = GcsFailsafe(firmware, boot_s)
         """ArduPilot's ground-station failsafe (MAV_GCS_SYSID's heartbeats)."""
-        self._hooks = _Hooks(self)
+        self._hooks = SafetyHooks(self)
         self._plane_climbing = False  # ArduPlane in its TAKEOFF climb at the last look
         # ArduRover's simple avoidance: the point the model drives to instead of the
         # target, when the straight line to the target would cross the fence margin.
         self._avoid_cut = False
-        self._avoid_key: tuple[int, float, float] | None = None
+        self.avoidance = Avoidance(self)
+        """ArduRover's simple avoidance (AC_Avoid), stopping guided targets short of the fence."""
 
         self.rc_overrides = RcOverrides(self)
         """RC_CHANNELS_OVERRIDE from the ground station, and their lapsing."""
@@ -652,7 +653,7 @@ class SimAutopilot:
             if not self._fence_quiet:
                 self.fence.update()
         if now_s >= self._next_fence_check_s:
-            self._fence_check(now_s)
+            self.fence_checks.check(now_s)
         if now_s >= self.gcs_failsafe.next_check_s:
             self.gcs_failsafe.check(self._hooks, now_s)
         if self._plane_climbing or (self.firmware == "arduplane" and self.model.mode == "TAKEOFF"):
@@ -674,67 +675,6 @@ class SimAutopilot:
         )
         return north, east
 
-    def _fence_zones(self) -> FenceZones:
-        """The uploaded fence as zones, built again whenever the lists changed."""
-        if self.missions.changed != self._fence_list_changes:
-            self._fence_list_changes = self.missions.changed
-            self.fence.zones = FenceZones.from_items(self.missions.fence_items, self._to_local)
-        return self.fence.zones
-
-    def _fence_position(self, now_s: float) -> FencePosition:
-        """Where the fence sees the vehicle: its true position through the firmware's datum."""
-        truth = self.model.truth()
-        alt_above_home_m = self.readiness.alt_above_home_m(now_s, truth.up_m)
-        if not self.readiness.gps_fix(now_s):
-            return FencePosition(alt_above_home_m, None, None)
-        here = (truth.north_m, truth.east_m)
-        from_home = None
-        if self._home is not None:
-            home = self._to_local(self._home[0], self._home[1])
-            from_home = (here[0] - home[0], here[1] - home[1])
-        return FencePosition(alt_above_home_m, from_home, here)
-
-    def _fence_check(self, now_s: float) -> None:
-        """Each firmware's fence_checks_async and fence_check, at its rate (25, 10, 3 Hz)."""
-        self._next_fence_check_s = now_s + CHECK_PERIOD_S[self.firmware]
-        if self._fence_quiet and self.missions.changed == self._fence_list_changes:
-            return
-        fence = self.fence
-        self._fence_zones()
-        if fence.idle and not fence.update_pending:
-            if self.firmware == "ardurover":
-                self._avoidance(now_s)
-            self._fence_quiet = True
-            return
-        orig = fence.breaches
-        model = self.model
-        if self.firmware == "arducopter":
-            landing = self._hooks.landing or self._hooks.landed or not model.armed
-        elif self.firmware == "arduplane":
-            landing = not model.armed or self._hooks.landing
-        else:
-            landing = False
-        new = fence.check(self._fence_position(now_s), now_s, landing)
-        react(self._hooks, fence, new, orig, self._fence_guide)
-        if self.firmware == "ardurover":
-            self._avoidance(now_s)
-
-    def _fence_status_due(self) -> None:
-        if "FENCE_STATUS" not in self._deferred:
-            self._deferred.append("FENCE_STATUS")
-        self._next_due_us = 0
-
-    def _fence_guide(self, point: Point2 | None, alt_above_home_m: float) -> None:
-        """ArduPlane's GUIDED fence action: to the fence's return point (or home)."""
-        if point is None:
-            if self._home is None:
-                return
-            lat, lon = self._home[0], self._home[1]
-        else:
-            lat, lon = self._from_local(*point)
-        alt_m = alt_above_home_m + self._home_alt_m() - self.origin_alt_amsl_m
-        self._goto(lat, lon, alt_m)
-
     def _from_local(self, north_m: float, east_m: float) -> tuple[float, float]:
         lat = self.origin_lat_deg + north_m / M_PER_DEG_LAT
         lon = self.origin_lon_deg + east_m / (
@@ -742,78 +682,7 @@ class SimAutopilot:
         )
         return lat, lon
 
-    def _target_inside_fence(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
-        """AC_Fence::check_destination_within_fence for a target (its height above the origin)."""
-        here = self._to_local(lat_deg, lon_deg)
-        from_home = None
-        above_home_m = None
-        if self._home is not None:
-            home = self._to_local(self._home[0], self._home[1])
-            from_home = (here[0] - home[0], here[1] - home[1])
-            above_home_m = alt_m + self.origin_alt_amsl_m - self._home[2]
-        self._fence_zones()
-        return self.fence.destination_inside(above_home_m, from_home, here)
-
     # -- ArduRover's simple avoidance ----------------------------------------------------------
-
-    def _avoidance_fence(self) -> Fence | None:
-        """The fence ArduRover's avoidance keeps inside of (AVOID_ENABLE bit 0), if any.
-
-        AC_Avoid stops the rover FENCE_MARGIN short of the enabled circle fence and
-        uploaded zones (measured: 48.09 m on a 50 m circle with the default margin 2).
-        """
-        if not int(self._params["AVOID_ENABLE"].value) & 1 or self._home is None:
-            return None
-        enabled = self.fence.enabled_fences()
-        include: list[Zone] = []
-        exclude: list[Zone] = []
-        if enabled & CIRCLE:
-            home = self._to_local(self._home[0], self._home[1])
-            include.append(Zone.circle(home, self._params["FENCE_RADIUS"].value))
-        if enabled & POLYGON:
-            include.extend(self.fence.zones.inclusions)
-            exclude.extend(self.fence.zones.exclusions)
-        if not include and not exclude:
-            return None
-        return Fence(tuple(include), tuple(exclude))
-
-    def _avoided(self, end: Point2) -> Point2 | None:
-        """Where ArduRover stops short of the fence on its way to ``end``; None: not short.
-
-        Sets :attr:`_avoid_key` to the fence's state it was worked out for.
-        """
-        self._avoid_key = (
-            self.fence.enabled_fences(),
-            self.fence.margin_m,
-            self._params["AVOID_ENABLE"].value,
-        )
-        fence = self._avoidance_fence()
-        if fence is None:
-            return None
-        truth = self.model.truth()
-        start = (truth.north_m, truth.east_m)
-        cut = fence.leaves_at(start, end, self.fence.margin_m)
-        if cut is None:
-            return None
-        return start[0] + (end[0] - start[0]) * cut, start[1] + (end[1] - start[1]) * cut
-
-    def _drive_to(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
-        """The model goes to a guided target, or where ArduRover's avoidance stops it short."""
-        self._avoid_cut = False
-        if self.firmware == "ardurover":
-            short = self._avoided(self._to_local(lat_deg, lon_deg))
-            if short is not None:
-                self._avoid_cut = True
-                lat_deg, lon_deg = self._from_local(*short)
-        return self.model.goto(lat_deg, lon_deg, alt_m, None)
-
-    def _avoidance(self, now_s: float) -> None:
-        """Cut the guided target short again when the fence's state changed on the way."""
-        if not self._in_guided() or self._target is None:
-            return
-        key = (self.fence.enabled_fences(), self.fence.margin_m, self._params["AVOID_ENABLE"].value)
-        if key != self._avoid_key:
-            self._drive_to(*self._target)
 
     def _text(self, severity: int, text: str) -> None:
         """A STATUSTEXT, as ArduPilot's gcs().send_text.
@@ -938,7 +807,7 @@ class SimAutopilot:
     def _goto(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
         self._target = (lat_deg, lon_deg, alt_m)
         self._guided_arrival_due = self.fw.guided_reached_text
-        taken = self._drive_to(lat_deg, lon_deg, alt_m)
+        taken = self.avoidance.drive_to(lat_deg, lon_deg, alt_m)
         self._guided_wp_active = taken and self.model.airborne
         return taken
 
@@ -995,75 +864,3 @@ class SimAutopilot:
     # GLOBAL_POSITION_INT, ATTITUDE and VFR_HUD go out at the telemetry rate: each is one
     # pymavlink message object (built in __init__) whose fields are set before every send,
     # which packs it anew, rather than a new object each time.
-
-
-class _Hooks:
-    """The autopilot as ArduPilot's fence and failsafes see it (:class:`ApVehicle`)."""
-
-    def __init__(self, autopilot: SimAutopilot) -> None:
-        self._ap = autopilot
-        self.now_s = 0.0
-        """The time of the advance or message being handled."""
-
-    @property
-    def firmware(self) -> str:
-        return self._ap.firmware
-
-    @property
-    def mode(self) -> str:
-        return self._ap.model.mode
-
-    @property
-    def mode_reason(self) -> ModeReason:
-        return self._ap._mode_reason
-
-    @property
-    def armed(self) -> bool:
-        return self._ap.model.armed
-
-    @property
-    def landed(self) -> bool:
-        return not self._ap.model.airborne
-
-    @property
-    def landing(self) -> bool:
-        ap, model = self._ap, self._ap.model
-        if model.mode == "LAND":
-            return True
-        if model.mode == "AUTO" and ap._auto_landing:
-            return True
-        return model.mode in ("RTL", "SMART_RTL") and model.landed_state == "landing"
-
-    @property
-    def initial_climb(self) -> bool:
-        model = self._ap.model
-        return model.mode == "TAKEOFF" and model.landed_state == "taking_off"
-
-    @property
-    def throttle_zero(self) -> bool:
-        return self._ap.arming.throttle_at_zero()
-
-    def param(self, name: str) -> float:
-        return self._ap._params[name].value
-
-    def text(self, severity: int, text: str) -> None:
-        self._ap._text(severity, text)
-
-    def try_mode(self, mode: str, reason: ModeReason) -> bool:
-        ap = self._ap
-        if mode not in ap.modes:
-            return False  # the profile has no such mode: nothing to try
-        if mode == ap.model.mode:
-            return True
-        return (
-            ap.mode_changes.enter(mode, self.now_s, reason) == _ACCEPTED and ap.model.mode == mode
-        )
-
-    def disarm(self) -> None:
-        self._ap.arming.disarm(self.now_s, force=True)
-
-    def clear_overrides(self) -> None:
-        self._ap.rc_overrides.clear()
-
-    def spell(self, mode: str) -> str:
-        return self._ap.fw.spell(mode)

@@ -129,7 +129,7 @@ class Commands:
         """
         fences = fences or ALL_FENCES
         self._ap._fence_quiet = False
-        self._ap._fence_zones()
+        self._ap.fence_checks.zones()
         if action == 0:
             self._ap.fence.enable(False, fences)
         elif action == 1:
@@ -241,7 +241,7 @@ class Commands:
         if alt_m is None or not (abs(lat_e7) <= 90e7 and abs(lon_e7) <= 180e7):
             return _DENIED
         change_mode = bool(flags & mavlink2.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE)
-        if self._ap.firmware != "ardurover" and not self._ap._target_inside_fence(
+        if self._ap.firmware != "ardurover" and not self._ap.fence_checks.target_inside(
             lat_e7 / 1e7, lon_e7 / 1e7, alt_m
         ):
             # ArduPlane DENIED, ArduCopter FAILED (its guided destination check), before
@@ -330,7 +330,7 @@ class Commands:
 
     def _copter_may_go(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
         """ArduCopter's guided destinations must be inside its fence (set_destination)."""
-        return self._ap.firmware != "arducopter" or self._ap._target_inside_fence(
+        return self._ap.firmware != "arducopter" or self._ap.fence_checks.target_inside(
             lat_deg, lon_deg, alt_m
         )
 

@@ -261,7 +261,7 @@ class MissionExecutor:
                 alt = self._item_alt_m(item)
             self._ap._avoid_cut = False
             if self._ap.firmware == "ardurover":
-                short = self._ap._avoided((north, east))
+                short = self._ap.avoidance.avoided((north, east))
                 if short is not None:  # ArduRover's avoidance: it stops short, item not done
                     self._ap._avoid_cut = True
                     north, east = short

@@ -235,7 +235,7 @@ class Telemetry:
         """SYS_STATUS, its sensor bits as ArduPilot sets them (``ap_sys_status``)."""
         # The geofence: present with any fence configured that exists, enabled with a
         # fence on and an action, healthy unless breached (AC_Fence::sys_status_*).
-        self._ap._fence_zones()
+        self._ap.fence_checks.zones()
         now = ap_sys_status.Inputs(
             since_boot_s=now_s - self._ap.boot_s,
             mode=self._ap.model.mode,
