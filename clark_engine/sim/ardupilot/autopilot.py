@@ -106,17 +106,31 @@ DO_SET_HOME, signing, terrain, failsafes other than the ground station's and the
 AUTOLAND, and more than one MAVLink channel (all peers share one byte stream, as behind
 a router).
 
-Three concepts are helper objects it owns, in modules of their own:
-:class:`~clark_engine.sim.ardupilot.telemetry.Telemetry` (``telemetry``) builds every
-message it sends, :class:`~clark_engine.sim.ardupilot.commands.Commands` (``commands``)
-carries out the commands and guided targets it is sent, and
-:class:`~clark_engine.sim.ardupilot.mission_executor.MissionExecutor` (``auto``) flies AUTO's
-mission.
+Its concepts are helper objects it owns, in modules of their own, each in an attribute
+(named in brackets) and acting, through the autopilot, on the state it shares with the
+others: :class:`~clark_engine.sim.ardupilot.telemetry.Telemetry` (``telemetry``) builds
+every message it sends, :class:`~clark_engine.sim.ardupilot.commands.Commands`
+(``commands``) carries out the commands and guided targets it is sent,
+:class:`~clark_engine.sim.ardupilot.mission_executor.MissionExecutor` (``auto``) flies
+AUTO's mission, :class:`~clark_engine.sim.ardupilot.readiness.Readiness` (``readiness``) is
+its boot, home and its EKF's heights, :class:`~clark_engine.sim.ardupilot.arming.Arming`
+(``arming``) its pre-arm checks, arming and disarming,
+:class:`~clark_engine.sim.ardupilot.modes.ModeChanges` (``mode_changes``) its mode changes,
+:class:`~clark_engine.sim.ardupilot.parameters.Parameters` (``parameters``) the PARAM_*
+protocol and what setting a parameter does,
+:class:`~clark_engine.sim.ardupilot.streams.Streams` (``streams``) the stream requests and
+schedule, :class:`~clark_engine.sim.ardupilot.rc_overrides.RcOverrides` (``rc_overrides``)
+the RC overrides, :class:`~clark_engine.sim.ardupilot.fence_checks.FenceChecks`
+(``fence_checks``) the fence's checks,
+:class:`~clark_engine.sim.ardupilot.avoidance.Avoidance` (``avoidance``) ArduRover's
+avoidance, and :class:`~clark_engine.sim.ardupilot.safety_hooks.SafetyHooks` is what the
+fence and the failsafe see of it.
 
-Over 800 lines because what is left is ArduPilot's logic around the vehicle (boot and
-readiness, arming, modes, parameters, stream requests and their schedule, the fence's and
-failsafes' plumbing, RC overrides), whose parts read and change one shared state at every
-step; the next seams to take out the same way are the parameters and arming.
+Over 800 lines because this docstring is the simulated ArduPilot's whole description (about
+130 lines; the code is about 750), and what is left is the state the helpers share, read and
+changed by several of them at every step, and the two places that drive them in ArduPilot's
+order: the message dispatch (``receive``) and the step (``advance`` and its supervision of
+boot texts, home, pre-arm reports, arrivals, the fence and the failsafe).
 """
 
 from __future__ import annotations
