@@ -516,6 +516,13 @@ def test_parameters() -> None:
         make_sim(params={"NO_SUCH_PARAM": 1})
 
 
+def test_param_set_reaches_the_model_at_once() -> None:
+    sim, model = make_sim("arduplane")
+    gcs = Gcs()
+    ask(sim, gcs, gcs.frame(gcs.mav.param_set_encode(1, 1, b"WP_RADIUS", 35.0, 9)))
+    assert model.params["WP_RADIUS"] == 35.0  # the model is configured from the new table
+
+
 @pytest.mark.parametrize(
     ("name", "sent", "sent_type", "stored", "stored_type"),
     [

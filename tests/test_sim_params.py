@@ -18,9 +18,9 @@ from test_sim_autopilot import Gcs, ask, download, make_sim
 
 from clark_engine.sim.ardupilot import params as ap_params
 from clark_engine.sim.ardupilot import sys_status as ap_sys_status
-from clark_engine.sim.ardupilot.autopilot import STREAM_RATES
 from clark_engine.sim.ardupilot.firmware import COMMON_PARAMS, FIRMWARES
 from clark_engine.sim.ardupilot.params import ParamStore, sitl_table
+from clark_engine.sim.ardupilot.streams import STREAM_RATES
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -106,17 +106,31 @@ DO_SET_HOME, signing, terrain, failsafes other than the ground station's and the
 AUTOLAND, and more than one MAVLink channel (all peers share one byte stream, as behind
 a router).
 
-Three concepts are helper objects it owns, in modules of their own:
-:class:`~clark_engine.sim.ardupilot.telemetry.Telemetry` (``telemetry``) builds every
-message it sends, :class:`~clark_engine.sim.ardupilot.commands.Commands` (``commands``)
-carries out the commands and guided targets it is sent, and
-:class:`~clark_engine.sim.ardupilot.mission_executor.MissionExecutor` (``auto``) flies AUTO's
-mission.
+Its concepts are helper objects it owns, in modules of their own, each in an attribute
+(named in brackets) and acting, through the autopilot, on the state it shares with the
+others: :class:`~clark_engine.sim.ardupilot.telemetry.Telemetry` (``telemetry``) builds
+every message it sends, :class:`~clark_engine.sim.ardupilot.commands.Commands`
+(``commands``) carries out the commands and guided targets it is sent,
+:class:`~clark_engine.sim.ardupilot.mission_executor.MissionExecutor` (``auto``) flies
+AUTO's mission, :class:`~clark_engine.sim.ardupilot.readiness.Readiness` (``readiness``) is
+its boot, home and its EKF's heights, :class:`~clark_engine.sim.ardupilot.arming.Arming`
+(``arming``) its pre-arm checks, arming and disarming,
+:class:`~clark_engine.sim.ardupilot.modes.ModeChanges` (``mode_changes``) its mode changes,
+:class:`~clark_engine.sim.ardupilot.parameters.Parameters` (``parameters``) the PARAM_*
+protocol and what setting a parameter does,
+:class:`~clark_engine.sim.ardupilot.streams.Streams` (``streams``) the stream requests and
+schedule, :class:`~clark_engine.sim.ardupilot.rc_overrides.RcOverrides` (``rc_overrides``)
+the RC overrides, :class:`~clark_engine.sim.ardupilot.fence_checks.FenceChecks`
+(``fence_checks``) the fence's checks,
+:class:`~clark_engine.sim.ardupilot.avoidance.Avoidance` (``avoidance``) ArduRover's
+avoidance, and :class:`~clark_engine.sim.ardupilot.safety_hooks.SafetyHooks` is what the
+fence and the failsafe see of it.
 
-Over 800 lines because what is left is ArduPilot's logic around the vehicle (boot and
-readiness, arming, modes, parameters, stream requests and their schedule, the fence's and
-failsafes' plumbing, RC overrides), whose parts read and change one shared state at every
-step; the next seams to take out the same way are the parameters and arming.
+Over 800 lines because this docstring is the simulated ArduPilot's whole description (about
+130 lines; the code is about 750), and what is left is the state the helpers share, read and
+changed by several of them at every step, and the two places that drive them in ArduPilot's
+order: the message dispatch (``receive``) and the step (``advance`` and its supervision of
+boot texts, home, pre-arm reports, arrivals, the fence and the failsafe).
 """
 
 from __future__ import annotations
@@ -129,23 +143,18 @@ from typing import Any, Final
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from clark_engine.mission.fence import Fence, Zone
 from clark_engine.sim.ardupilot import sys_status as ap_sys_status
+from clark_engine.sim.ardupilot.arming import Arming
+from clark_engine.sim.ardupilot.avoidance import Avoidance
 from clark_engine.sim.ardupilot.commands import Commands
 from clark_engine.sim.ardupilot.fence import (
-    CHECK_PERIOD_S,
-    CIRCLE,
-    POLYGON,
     ArduFence,
-    FencePosition,
-    FenceZones,
     Point2,
-    react,
 )
+from clark_engine.sim.ardupilot.fence_checks import FenceChecks
 from clark_engine.sim.ardupilot.firmware import (
     COMMON_PARAMS,
     FIRMWARES,
-    FORCE_MAGIC,
     BootTimes,
     Firmware,
 )
@@ -154,32 +163,24 @@ from clark_engine.sim.ardupilot.mission_executor import (
     MissionExecutor,
 )
 from clark_engine.sim.ardupilot.mission_protocol import MissionProtocol
+from clark_engine.sim.ardupilot.modes import ModeChanges
+from clark_engine.sim.ardupilot.parameters import Parameters
 from clark_engine.sim.ardupilot.params import INT16, Param, ParamStore, sitl_table
+from clark_engine.sim.ardupilot.rc_overrides import RcOverrides
+from clark_engine.sim.ardupilot.readiness import Readiness
+from clark_engine.sim.ardupilot.safety_hooks import SafetyHooks
+from clark_engine.sim.ardupilot.streams import NOT_STREAMED, STREAM_RATES, Streams
 from clark_engine.sim.ardupilot.telemetry import (
     FIRMWARE_TYPES,
-    LANDED_REPORT_DELAY_S,
     M_PER_DEG_LAT,
     STREAM_GROUPS,
-    UINT16_MAX,
     Telemetry,
 )
 from clark_engine.sim.ardupilot.vehicle_model import Truth, VehicleModel
 from clark_engine.sim.ardupilot.vehicle_safety import ModeReason
 
-HEARTBEAT_INTERVAL_US: Final = 1_000_000
-INTERNAL_ERROR_TEXT: Final = "Arm: Internal errors 0x100000 l:{line} flow_of_ctrl"
-"""The arming refusal after an internal error (AP_InternalError's flow_of_control, raised
-at a line of ArduPilot's source: ArduRover's AR_WPNav 239, ArduCopter's SmartRTL 130)."""
-THROTTLE_DEAD_ZONE_US: Final = 30
-"""RC3_DZ: a throttle this close to zero counts as zero for arming (measured: SITL armed
-at its 1000 us minimum and refused 1200 us; the rover armed at its 1500 us trim)."""
 MISSION_POLL_S: Final = 0.1
 """How often an upload's resends and timeout are looked at (their times are whole seconds)."""
-PLANE_LAUNCH_S: Final = 0.2
-"""ArduPlane, armed in TAKEOFF: "Triggered AUTO" this long after arming (measured)."""
-PLANE_TAKEOFF_STARTS_S: Final = 1.2
-"""ArduPlane, armed in TAKEOFF: "Takeoff to ..." and landed_state TAKEOFF this long after
-arming (measured 1.2 s; the ground roll has begun)."""
 ROVER_STOPPED_M_S: Final = 0.1
 """ArduRover says "Reached destination" in RTL once stopped there (ATC_STOP_SPEED; SITL
 said it 0.4 m from home, at 0.38 m/s after overshooting, 17.5 s into a 25 m return)."""
@@ -187,10 +188,6 @@ STATUSTEXT_CHUNK: Final = 50
 """Characters per STATUSTEXT; ArduPilot sends a longer text as several with one id."""
 PREARM_REPORT_PERIOD_S: Final = 30.0
 """ArduPilot prints failing pre-arm checks this often (AP_Arming's PREARM_DISPLAY_PERIOD)."""
-LAND_DISARM_DELAY_S: Final = 2.05
-"""ArduCopter disarms this long after touching down in LAND or RTL (measured)."""
-MIN_INTERVAL_US: Final = 25_000
-"""The fastest stream ArduPilot grants (40 Hz; a faster request is DENIED, measured)."""
 PLANE_HOME_PERIOD_S: Final = 6.0
 """ArduPlane re-sends HOME_POSITION this often while disarmed (measured)."""
 FENCE_UPDATE_S: Final = 0.1
@@ -199,20 +196,11 @@ ROVER_HOME_CHECK_PERIOD_S: Final = 1.0
 """ArduRover looks at moving home once a second while disarmed (Rover::one_second_loop)."""
 ROVER_HOME_MIN_CHANGE_M: Final = 0.5
 """ArduRover's DISTANCE_HOME_MINCHANGE: home moves once the rover is this far from it."""
-EKF_CHECK_PERIOD_S: Final = 0.1
-"""ArduRover checks its EKF at 10 Hz (Rover::ekf_check)."""
-EKF_CHECK_ITERATIONS: Final = 10
-"""EKF_CHECK_ITERATIONS_MAX: a second of failed checks turns ArduRover's EKF failsafe on,
-and as many good ones turn it off."""
 
-_RC_RELEASE_HIGH: Final = UINT16_MAX - 1
 _FTP_OP_NAK: Final = 129
 _FTP_ERR_UNKNOWN_COMMAND: Final = 7
 _FTP_HEADER: Final = struct.Struct("<HBBBBBBI")
 _FTP_PAYLOAD_BYTES: Final = 251
-_PARAM_INDEX_BY_NAME: Final = 65535
-PARAM_LIST_RATE_HZ: Final = 1000.0
-"""PARAM_VALUEs a second in answer to PARAM_REQUEST_LIST (see _send_param_list)."""
 
 _INFO, _NOTICE, _WARNING, _CRITICAL = (
     mavlink2.MAV_SEVERITY_INFO,
@@ -222,41 +210,11 @@ _INFO, _NOTICE, _WARNING, _CRITICAL = (
 )
 
 
-_NOT_STREAMED: Final[Mapping[str, frozenset[str]]] = {}
-"""Streams a firmware does not have (none yet: ArduRover streams EXTENDED_SYS_STATE too,
-with an undefined landed state)."""
-
-_DATA_STREAM_PARAMS: Final[Mapping[int, str]] = {
-    mavlink2.MAV_DATA_STREAM_RAW_SENSORS: "MAV1_RAW_SENS",
-    mavlink2.MAV_DATA_STREAM_EXTENDED_STATUS: "MAV1_EXT_STAT",
-    mavlink2.MAV_DATA_STREAM_RC_CHANNELS: "MAV1_RC_CHAN",
-    mavlink2.MAV_DATA_STREAM_RAW_CONTROLLER: "MAV1_RAW_CTRL",
-    mavlink2.MAV_DATA_STREAM_POSITION: "MAV1_POSITION",
-    mavlink2.MAV_DATA_STREAM_EXTRA1: "MAV1_EXTRA1",
-    mavlink2.MAV_DATA_STREAM_EXTRA2: "MAV1_EXTRA2",
-    mavlink2.MAV_DATA_STREAM_EXTRA3: "MAV1_EXTRA3",
-}
-STREAM_RATES: Final = frozenset(_DATA_STREAM_PARAMS.values())
-"""The stream-rate parameters REQUEST_DATA_STREAM sets (those of the groups it streams start
-at the firmware's default rate)."""
 _MAV_OPTION_GCS_ONLY: Final = 1
 """MAV_OPTIONS bit 0: accept MAVLink only from MAV_GCS_SYSID (and our own system)."""
 
 
 _PREARM_BIT: Final = ap_sys_status.PREARM
-
-
-_BOOT_TEXTS: Final[tuple[tuple[str, float, int, str], ...]] = (
-    ("streams_s", 0.0, _INFO, "ArduPilot Ready"),
-    ("streams_s", 0.0, _INFO, "AHRS: DCM active"),
-    ("gps_fix_s", -0.3, _INFO, "GPS 1: detected u-blox"),
-    ("origin_s", 0.0, _INFO, "EKF3 IMU0 origin set"),
-    ("origin_s", 0.0, _INFO, "EKF3 IMU1 origin set"),
-    ("position_s", 0.0, _INFO, "EKF3 IMU0 is using GPS"),
-    ("position_s", 0.0, _INFO, "EKF3 IMU1 is using GPS"),
-    ("position_s", 0.0, _INFO, "AHRS: EKF3 active"),
-)
-"""STATUSTEXTs ArduPilot prints as it boots: (step of BootTimes, offset s, severity, text)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -372,6 +330,14 @@ class SimAutopilot:
         """AUTO: the executor that flies the mission, item by item."""
         self.commands = Commands(self)
         """The commands it answers (COMMAND_LONG/INT, guided targets, DO items)."""
+        self.streams = Streams(self)
+        """Stream requests (REQUEST_DATA_STREAM, message intervals) and the streams' schedule."""
+        self.arming = Arming(self)
+        """Pre-arm checks, arming and disarming, and ArduCopter's disarms by itself."""
+        self.mode_changes = ModeChanges(self)
+        """Mode changes as ArduPilot's set_mode makes or refuses them."""
+        self.readiness = Readiness(self)
+        """Boot and readiness: the boot timeline, home, the EKF's altitudes and check."""
         self._auto_go = False  # ArduCopter on the ground: MISSION_START came
         self._auto_landing = False  # the item flown is a landing (ArduCopter disarms after)
         self._throttle_up_s: float | None = None  # last seen off zero (holds the idle disarm)
@@ -382,7 +348,7 @@ class SimAutopilot:
         # Every stream's interval, in emission order, for advance() to go through whenever
         # something is due; None: to be worked out again (a parameter or an interval changed).
         self._schedule: tuple[tuple[str, int | None], ...] | None = None
-        self._absent = _NOT_STREAMED.get(firmware, frozenset())
+        self._absent = NOT_STREAMED.get(firmware, frozenset())
         # What it streams and answers with: every message it builds (see telemetry.py).
         self.telemetry = Telemetry(self)
         # Message name -> the method that builds it, looked up once rather than per message.
@@ -414,17 +380,21 @@ class SimAutopilot:
             self._params[name] = Param(float(value), kind)
         self.params = ParamStore(firmware, self._params)
         """Every parameter a ground station can read and set, in ArduPilot's order."""
-        self._param_list_from_s: float | None = None  # PARAM_REQUEST_LIST being answered since
-        self._param_list_sent = 0  # how many of the list were sent
+        self.parameters = Parameters(self)
+        """PARAM_* answered, and what setting a parameter does."""
         for name, value in (params or {}).items():
             if name not in self.params:
                 raise ValueError(f"no parameter {name!r} in the simulated {firmware}")
-            self._set_param(name, value)
+            self.parameters.set(name, value)
         self._logging_until_s = -math.inf  # AP_Logger logs on this long after a disarm
         self.model.configure(self.param_values())
 
         self._mode_reason: ModeReason = "autopilot"  # why the current mode was entered
-        self.fence = ArduFence(firmware, self._param_value, self._text, self._fence_status_due)
+        self.fence_checks = FenceChecks(self)
+        """When and against what the fence is checked, and what it asks of the autopilot."""
+        self.fence = ArduFence(
+            firmware, self._param_value, self._text, self.fence_checks.status_due
+        )
         """ArduPilot's geofence (FENCE_* and the uploaded fence list)."""
         self._fence_list_changes = -1  # MissionProtocol.changed when the zones were built
         # The fence was idle at its last check and nothing it reads changed since (a
@@ -434,14 +404,16 @@ class SimAutopilot:
         self._next_fence_update_s = 0.0
         self.gcs_failsafe = GcsFailsafe(firmware, boot_s)
         """ArduPilot's ground-station failsafe (MAV_GCS_SYSID's heartbeats)."""
-        self._hooks = _Hooks(self)
+        self._hooks = SafetyHooks(self)
         self._plane_climbing = False  # ArduPlane in its TAKEOFF climb at the last look
         # ArduRover's simple avoidance: the point the model drives to instead of the
         # target, when the straight line to the target would cross the fence margin.
         self._avoid_cut = False
-        self._avoid_key: tuple[int, float, float] | None = None
+        self.avoidance = Avoidance(self)
+        """ArduRover's simple avoidance (AC_Avoid), stopping guided targets short of the fence."""
 
-        self._overrides: dict[int, tuple[int, float]] = {}  # channel -> (width, set at)
+        self.rc_overrides = RcOverrides(self)
+        """RC_CHANNELS_OVERRIDE from the ground station, and their lapsing."""
         self._target: tuple[float, float, float] | None = None  # guided lat, lon, rel alt
         # A velocity target (ArduCopter extrapolates it): position, velocity n/e, set at.
         self._velocity_target: tuple[float, float, float, float, float, float] | None = None
@@ -451,17 +423,17 @@ class SimAutopilot:
         self._home_sent_s = -math.inf
         self._next_home_check_s = 0.0
         self._next_ekf_check_s = 0.0
-        self._ekf_fail_count = 0  # ArduRover's EKF check (_rover_ekf_check)
+        self._ekf_fail_count = 0  # ArduRover's EKF check (Readiness.rover_ekf_check)
         self._ekf_failsafe = False
-        self._armed_s: float | None = self._boot_armed()
+        self._armed_s: float | None = self.readiness.boot_armed()
         self._ground_since_s: float | None = None  # armed and on the ground since
         self._was_flying = self.model.airborne
         self._touchdown_s: float | None = None
-        self._texts_due = self._boot_text_schedule()
+        self._texts_due = self.readiness.boot_text_schedule()
         self._next_prearm_report_s = boot_s + PREARM_REPORT_PERIOD_S
         self._last_mode = self.model.mode
         if boot_s + self.boot_times.home_s <= 0.0:
-            self._home_here(0.0)  # powered on long enough before time 0 to have a home
+            self.readiness.home_here(0.0)  # powered on long enough before time 0 to have a home
 
         self.bad_frames = 0
         """Garbage and corrupted frames received."""
@@ -584,23 +556,23 @@ class SimAutopilot:
         sent at most once per call, so call at least as often as the fastest rate.
         RC overrides older than RC_OVERRIDE_TIME are released first.
         """
-        if self._overrides:  # (usually there are none: a call saved at every step)
-            self._expire_overrides(now_s)
+        if self.rc_overrides.channels:  # (usually there are none: a call saved at every step)
+            self.rc_overrides.expire(now_s)
         if now_s >= self._mission_poll_s:  # resends and timeouts of an upload
             self._mission_poll_s = now_s + MISSION_POLL_S
             self.missions.poll(now_s)
         self._supervise(now_s)
         if self._deferred:
             self._send_deferred(now_s)
-        if self._param_list_from_s is not None:
-            self._send_param_list(now_s)
+        if self.parameters.list_from_s is not None:
+            self.parameters.send_list(now_s)
         now_us = round(now_s * 1e6)
         if now_us < self._next_due_us and not self._outbox.data:
             return b""  # nothing due and no answer queued: the common case, kept cheap
         due_us, send, builders = self._due_us, self._mav.send, self._builders
         self._advancing = True
         streaming = now_s - self.boot_s >= self.boot_times.streams_s
-        for name, interval in self._stream_schedule():
+        for name, interval in self.streams.schedule():
             if interval is None or (not streaming and name != "HEARTBEAT"):
                 due_us.pop(name, None)
                 continue
@@ -624,30 +596,6 @@ class SimAutopilot:
 
     # -- ArduPilot's own doings ---------------------------------------------------------------
 
-    def _boot_armed(self) -> float | None:
-        """When an autopilot built armed was armed (a vehicle the pilot flies already)."""
-        return self.boot_s if self.model.armed else None
-
-    def _boot_text_schedule(self) -> list[tuple[float, int, str]]:
-        texts = [
-            (self.boot_s + getattr(self.boot_times, step) + offset, severity, text)
-            for step, offset, severity, text in _BOOT_TEXTS
-        ]
-        # An autopilot that booted before the run said these before anyone listened.
-        return sorted((t for t in texts if t[0] >= 0.0), key=lambda t: t[0])
-
-    def _age_s(self, now_s: float) -> float:
-        return now_s - self.boot_s
-
-    def _gps_fix(self, now_s: float) -> bool:
-        return self._age_s(now_s) >= self.boot_times.gps_fix_s
-
-    def _origin_set(self, now_s: float) -> bool:
-        return self._age_s(now_s) >= self.boot_times.origin_s
-
-    def _position_ok(self, now_s: float) -> bool:
-        return self._age_s(now_s) >= self.boot_times.position_s
-
     def _supervise(self, now_s: float) -> None:
         """What ArduPilot does by itself: boot texts, home, pre-arm reports, auto-disarm.
 
@@ -658,8 +606,8 @@ class SimAutopilot:
             while self._texts_due and self._texts_due[0][0] <= now_s:
                 _at, severity, text = self._texts_due.pop(0)
                 self._text(severity, text)
-        if self._home is None and self._age_s(now_s) >= self.boot_times.home_s:
-            self._home_here(now_s)
+        if self._home is None and self.readiness.age_s(now_s) >= self.boot_times.home_s:
+            self.readiness.home_here(now_s)
         elif (
             self.fw.home_at == "while_disarmed"
             and self._home is not None
@@ -672,7 +620,7 @@ class SimAutopilot:
             if self._home_locked:
                 self.set_home(*self._home, now_s)
             else:
-                self._home_here(now_s)
+                self.readiness.home_here(now_s)
         elif (
             self.fw.home_at == "disarming"
             and self._home is not None
@@ -683,14 +631,14 @@ class SimAutopilot:
             # ArduRover's one-second loop: while disarmed, home follows the vehicle once
             # it is DISTANCE_HOME_MINCHANGE away (a rover still rolling after its disarm).
             self._next_home_check_s = now_s + ROVER_HOME_CHECK_PERIOD_S
-            if self._distance_from_home_m() >= ROVER_HOME_MIN_CHANGE_M:
-                self._home_here(now_s)
+            if self.readiness.distance_from_home_m() >= ROVER_HOME_MIN_CHANGE_M:
+                self.readiness.home_here(now_s)
         if self.firmware == "ardurover" and now_s >= self._next_ekf_check_s:
-            self._rover_ekf_check(now_s)
+            self.readiness.rover_ekf_check(now_s)
         if now_s >= self._next_prearm_report_s:
             self._next_prearm_report_s = now_s + PREARM_REPORT_PERIOD_S
             if not self.model.armed:
-                for reason in self._arm_refusals(now_s, self.model.mode):
+                for reason in self.arming.refusals(now_s, self.model.mode):
                     self._text(_CRITICAL, "Pre" + reason)
         if self._velocity_target is not None:
             self.commands.fly_velocity_target(now_s)
@@ -719,7 +667,7 @@ class SimAutopilot:
             if not self._fence_quiet:
                 self.fence.update()
         if now_s >= self._next_fence_check_s:
-            self._fence_check(now_s)
+            self.fence_checks.check(now_s)
         if now_s >= self.gcs_failsafe.next_check_s:
             self.gcs_failsafe.check(self._hooks, now_s)
         if self._plane_climbing or (self.firmware == "arduplane" and self.model.mode == "TAKEOFF"):
@@ -727,7 +675,7 @@ class SimAutopilot:
             if self._plane_climbing and not climbing and self.model.mode == "TAKEOFF":
                 self.gcs_failsafe.takeoff_climb_over(self._hooks)
             self._plane_climbing = climbing
-        self._landing_and_disarm(now_s)
+        self.arming.landing_and_disarm(now_s)
 
     # -- the fence ----------------------------------------------------------------------
 
@@ -741,67 +689,6 @@ class SimAutopilot:
         )
         return north, east
 
-    def _fence_zones(self) -> FenceZones:
-        """The uploaded fence as zones, built again whenever the lists changed."""
-        if self.missions.changed != self._fence_list_changes:
-            self._fence_list_changes = self.missions.changed
-            self.fence.zones = FenceZones.from_items(self.missions.fence_items, self._to_local)
-        return self.fence.zones
-
-    def _fence_position(self, now_s: float) -> FencePosition:
-        """Where the fence sees the vehicle: its true position through the firmware's datum."""
-        truth = self.model.truth()
-        alt_above_home_m = self._alt_above_home_m(now_s, truth.up_m)
-        if not self._gps_fix(now_s):
-            return FencePosition(alt_above_home_m, None, None)
-        here = (truth.north_m, truth.east_m)
-        from_home = None
-        if self._home is not None:
-            home = self._to_local(self._home[0], self._home[1])
-            from_home = (here[0] - home[0], here[1] - home[1])
-        return FencePosition(alt_above_home_m, from_home, here)
-
-    def _fence_check(self, now_s: float) -> None:
-        """Each firmware's fence_checks_async and fence_check, at its rate (25, 10, 3 Hz)."""
-        self._next_fence_check_s = now_s + CHECK_PERIOD_S[self.firmware]
-        if self._fence_quiet and self.missions.changed == self._fence_list_changes:
-            return
-        fence = self.fence
-        self._fence_zones()
-        if fence.idle and not fence.update_pending:
-            if self.firmware == "ardurover":
-                self._avoidance(now_s)
-            self._fence_quiet = True
-            return
-        orig = fence.breaches
-        model = self.model
-        if self.firmware == "arducopter":
-            landing = self._hooks.landing or self._hooks.landed or not model.armed
-        elif self.firmware == "arduplane":
-            landing = not model.armed or self._hooks.landing
-        else:
-            landing = False
-        new = fence.check(self._fence_position(now_s), now_s, landing)
-        react(self._hooks, fence, new, orig, self._fence_guide)
-        if self.firmware == "ardurover":
-            self._avoidance(now_s)
-
-    def _fence_status_due(self) -> None:
-        if "FENCE_STATUS" not in self._deferred:
-            self._deferred.append("FENCE_STATUS")
-        self._next_due_us = 0
-
-    def _fence_guide(self, point: Point2 | None, alt_above_home_m: float) -> None:
-        """ArduPlane's GUIDED fence action: to the fence's return point (or home)."""
-        if point is None:
-            if self._home is None:
-                return
-            lat, lon = self._home[0], self._home[1]
-        else:
-            lat, lon = self._from_local(*point)
-        alt_m = alt_above_home_m + self._home_alt_m() - self.origin_alt_amsl_m
-        self._goto(lat, lon, alt_m)
-
     def _from_local(self, north_m: float, east_m: float) -> tuple[float, float]:
         lat = self.origin_lat_deg + north_m / M_PER_DEG_LAT
         lon = self.origin_lon_deg + east_m / (
@@ -809,115 +696,7 @@ class SimAutopilot:
         )
         return lat, lon
 
-    def _target_inside_fence(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
-        """AC_Fence::check_destination_within_fence for a target (its height above the origin)."""
-        here = self._to_local(lat_deg, lon_deg)
-        from_home = None
-        above_home_m = None
-        if self._home is not None:
-            home = self._to_local(self._home[0], self._home[1])
-            from_home = (here[0] - home[0], here[1] - home[1])
-            above_home_m = alt_m + self.origin_alt_amsl_m - self._home[2]
-        self._fence_zones()
-        return self.fence.destination_inside(above_home_m, from_home, here)
-
     # -- ArduRover's simple avoidance ----------------------------------------------------------
-
-    def _avoidance_fence(self) -> Fence | None:
-        """The fence ArduRover's avoidance keeps inside of (AVOID_ENABLE bit 0), if any.
-
-        AC_Avoid stops the rover FENCE_MARGIN short of the enabled circle fence and
-        uploaded zones (measured: 48.09 m on a 50 m circle with the default margin 2).
-        """
-        if not int(self._params["AVOID_ENABLE"].value) & 1 or self._home is None:
-            return None
-        enabled = self.fence.enabled_fences()
-        include: list[Zone] = []
-        exclude: list[Zone] = []
-        if enabled & CIRCLE:
-            home = self._to_local(self._home[0], self._home[1])
-            include.append(Zone.circle(home, self._params["FENCE_RADIUS"].value))
-        if enabled & POLYGON:
-            include.extend(self.fence.zones.inclusions)
-            exclude.extend(self.fence.zones.exclusions)
-        if not include and not exclude:
-            return None
-        return Fence(tuple(include), tuple(exclude))
-
-    def _avoided(self, end: Point2) -> Point2 | None:
-        """Where ArduRover stops short of the fence on its way to ``end``; None: not short.
-
-        Sets :attr:`_avoid_key` to the fence's state it was worked out for.
-        """
-        self._avoid_key = (
-            self.fence.enabled_fences(),
-            self.fence.margin_m,
-            self._params["AVOID_ENABLE"].value,
-        )
-        fence = self._avoidance_fence()
-        if fence is None:
-            return None
-        truth = self.model.truth()
-        start = (truth.north_m, truth.east_m)
-        cut = fence.leaves_at(start, end, self.fence.margin_m)
-        if cut is None:
-            return None
-        return start[0] + (end[0] - start[0]) * cut, start[1] + (end[1] - start[1]) * cut
-
-    def _drive_to(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
-        """The model goes to a guided target, or where ArduRover's avoidance stops it short."""
-        self._avoid_cut = False
-        if self.firmware == "ardurover":
-            short = self._avoided(self._to_local(lat_deg, lon_deg))
-            if short is not None:
-                self._avoid_cut = True
-                lat_deg, lon_deg = self._from_local(*short)
-        return self.model.goto(lat_deg, lon_deg, alt_m, None)
-
-    def _avoidance(self, now_s: float) -> None:
-        """Cut the guided target short again when the fence's state changed on the way."""
-        if not self._in_guided() or self._target is None:
-            return
-        key = (self.fence.enabled_fences(), self.fence.margin_m, self._params["AVOID_ENABLE"].value)
-        if key != self._avoid_key:
-            self._drive_to(*self._target)
-
-    def _landing_and_disarm(self, now_s: float) -> None:
-        """Touchdowns, and ArduCopter's disarms after one or after an idle arm."""
-        model = self.model
-        flying = model.airborne
-        if self._was_flying and not flying:
-            self._touchdown_s = now_s
-            if model.armed:
-                self._ground_since_s = now_s
-        self._was_flying = flying
-        delay_s = self.fw.auto_disarm_s
-        if delay_s is None or not model.armed or flying or self._ground_since_s is None:
-            return
-        landed_in = self._touchdown_s is not None and self._touchdown_s >= self._ground_since_s
-        landing_mode = self._landing_mode()
-        if landed_in and landing_mode:
-            if now_s - self._ground_since_s >= LAND_DISARM_DELAY_S:
-                self._disarm(now_s)
-            return
-        # The idle disarm (Copter::auto_disarm_check): DISARM_DELAY after the land
-        # detector says landed (LANDED_REPORT_DELAY_S after a touchdown), counted only
-        # while the throttle stick is at zero: a pilot holding it up keeps it armed.
-        if "DISARM_DELAY" in self._params:
-            delay_s = self._params["DISARM_DELAY"].value  # 0 turns the idle disarm off
-        if not self._throttle_at_zero():
-            self._throttle_up_s = now_s
-            return
-        since_s = self._ground_since_s + (LANDED_REPORT_DELAY_S if landed_in else 0.0)
-        if self._throttle_up_s is not None and self._throttle_up_s > since_s:
-            since_s = self._throttle_up_s
-        if delay_s > 0 and now_s - since_s >= delay_s:
-            self._disarm(now_s)
-
-    def _landing_mode(self) -> bool:
-        """The mode lands the copter (LAND, RTL's descent, AUTO's land item)."""
-        mode = self.model.mode
-        return mode in ("LAND", "RTL", "SMART_RTL") or (mode == "AUTO" and self._auto_landing)
 
     def _text(self, severity: int, text: str) -> None:
         """A STATUSTEXT, as ArduPilot's gcs().send_text.
@@ -934,354 +713,15 @@ class SimAutopilot:
             chunk = data[start : start + STATUSTEXT_CHUNK]
             self._mav.send(self._mav.statustext_encode(severity, chunk, self._text_id, seq))
 
-    # -- arming ------------------------------------------------------------------------------
-
-    def _arm_refusals(self, now_s: float, mode: str) -> list[str]:
-        """Why arming in ``mode`` is refused now ("Arm: ..." texts); empty when it is not.
-
-        As ArduPilot, every failing check says so: the boot phase's sensor check, a
-        position the mode needs, and the mode itself.
-        """
-        age, boot, fw = self._age_s(now_s), self.boot_times, self.fw
-        reasons: list[str] = []
-        if self._internal_error is not None:
-            return [INTERNAL_ERROR_TEXT.format(line=self._internal_error)]
-        if age < boot.attitude_s:
-            reasons.append("Arm: EKF attitude is bad")
-        elif age < boot.gps_fix_s:
-            reasons.append("Arm: GPS 1: Bad fix")
-        elif self._home is None:
-            reasons.append("Arm: AHRS: waiting for home")
-        elif age < boot.prearm_s:
-            reasons.append("Arm: Gyros inconsistent")
-        self._fence_zones()
-        fence_problem = self.fence.pre_arm_failure(self._fence_position(now_s), now_s)
-        if fence_problem is not None:
-            reasons.append(f"Arm: {fence_problem}")
-        if self.firmware == "arducopter" and self.gcs_failsafe.active:
-            reasons.append("Arm: GCS failsafe on")
-        if not self._throttle_at_zero():
-            reasons.append(
-                "Arm: Throttle too high"
-                if mode in fw.throttle_too_high_modes
-                else "Arm: Throttle (RC3) is not neutral"
-            )
-        if mode in fw.arm_needs_position and not self._position_ok(now_s):
-            reasons.append(fw.no_position_text)
-        if mode == "AUTO" and fw.name == "arducopter" and not self.auto.has_items():
-            reasons.append("Arm: Mode requires mission")
-        elif mode in fw.not_armable:
-            reasons.append(fw.not_armable_text.format(mode=fw.spell(mode)))
-        return reasons
-
-    def _throttle_at_zero(self) -> bool:
-        """The throttle input is within its dead zone of zero (RC3_DZ, 30 us in SITL).
-
-        ArduPilot constrains a pulse to RC3_MIN..RC3_MAX before reading it, so on a
-        throttle whose zero is its minimum (copter, plane) anything below the minimum
-        is zero too: an RC override of 1000 us arms where the minimum is 1100 us, as
-        ArduCopter SITL arms with it. A rover's zero is its trim (a centred throttle).
-        """
-        if self._throttle is None:
-            return True
-        rc, zero_us = self._throttle
-        inputs = self.model.rc_inputs()
-        if not 1 <= rc <= len(inputs):
-            return True
-        pwm_us = inputs[rc - 1]
-        if self.firmware != "ardurover" and pwm_us < zero_us:
-            return True
-        return abs(pwm_us - zero_us) <= THROTTLE_DEAD_ZONE_US
-
-    def _prearm_healthy(self, now_s: float) -> bool:
-        return not self._arm_refusals(now_s, self.model.mode)
-
-    def _arm_command(self, p1: float, p2: float, now_s: float) -> int:
-        if p1 not in (0.0, 1.0):
-            return _UNSUPPORTED
-        force = p2 in FORCE_MAGIC
-        model = self.model
-        if p1 == 0.0:
-            if not model.armed:
-                return _ACCEPTED
-            if model.airborne and not force:
-                return _FAILED  # ArduPilot: no disarming in the air, and no text
-            self._disarm(now_s, force=force)
-            return _ACCEPTED
-        if model.armed:
-            return _ACCEPTED
-        if not force:
-            refusals = self._arm_refusals(now_s, model.mode)
-            if refusals:
-                for reason in refusals:
-                    self._text(_CRITICAL, reason)
-                self._logging_until_s = now_s + ap_sys_status.LOG_PERSIST_S
-                return _FAILED
-        if not model.arm(True):
-            return _FAILED
-        self._armed_s = now_s
-        self._ground_since_s = None if model.airborne else now_s
-        self._smart_rtl_entered = False  # arming starts a new SmartRTL path
-        self._fence_quiet = False
-        self.fence.auto_enable_on_arming()
-        self._text(_INFO, self.fw.armed_text)
-        for severity, text in self.fw.arm_texts.get(model.mode, ()):
-            self._text(severity, text)
-        if self.fw.home_at == "arming" and not self._home_locked:
-            self._home_here(now_s)
-        if self.firmware == "arduplane" and (
-            model.mode == "TAKEOFF"
-            or (model.mode == "AUTO" and self.auto.current_nav_is(mavlink2.MAV_CMD_NAV_TAKEOFF))
-        ):
-            self._plane_launch(now_s)
-        return _ACCEPTED
-
-    def _plane_launch(self, now_s: float) -> None:
-        """ArduPlane's texts as an armed TAKEOFF (or AUTO takeoff) launches, at SITL's times.
-
-        The takeoff proper (landed_state TAKEOFF) starts with "Takeoff to ..." 1.2 s
-        after arming; "Autoland direction" is the heading it takes off along.
-        """
-        self._text(_INFO, "Armed AUTO, xaccel = -0.0 m/s/s, waiting 0.2 sec")
-        self._say_at(now_s + PLANE_LAUNCH_S, _INFO, "Triggered AUTO. GPS speed = 0.0")
-        heading = self.model.truth().heading_deg
-        alt, dist = self._params["TKOFF_ALT"].value, self._params["TKOFF_DIST"].value
-        started_s = now_s + PLANE_TAKEOFF_STARTS_S
-        self._say_at(
-            started_s, _INFO, f"Takeoff to {alt:.0f}m for {dist:.1f}m heading {heading:.1f} deg"
-        )
-        self._say_at(started_s, _INFO, f"Autoland direction= {int(heading) % 360}")
-        self._takeoff_starts_s = started_s
-
     def _say_at(self, at_s: float, severity: int, text: str) -> None:
         """A STATUSTEXT to send at ``at_s`` (with the boot texts' schedule)."""
         self._texts_due.append((at_s, severity, text))
         self._texts_due.sort(key=lambda due: due[0])
 
-    def _disarm(self, now_s: float, *, force: bool = False) -> None:
-        if self.model.arm(False, force=force):
-            self._armed_s = None
-            self._logging_until_s = now_s + ap_sys_status.LOG_PERSIST_S
-            self._ground_since_s = None
-            self._text(_INFO, self.fw.disarmed_text)
-            self._fence_quiet = False
-            self.fence.auto_disable_on_disarming()
-            if self.firmware == "arducopter" and self.model.mode == "AUTO":
-                # ArduCopter resets its mission at disarming, and AUTO starts it over:
-                # "Mission: 1 Takeoff" again, waiting for the next arming and start.
-                self._auto_go = False
-                self._auto_seq = None
-                if self.auto.has_items():
-                    self.missions.start()
-            if self.fw.home_at == "disarming" and not self._home_locked:
-                self._home_here(now_s)
-
-    def _rover_ekf_check(self, now_s: float) -> None:
-        """ArduRover's EKF check (Rover::ekf_check, 10 Hz): its failsafe refuses modes.
-
-        Armed without an EKF position (a rover armed in MANUAL before its EKF uses the
-        GPS), a count rises by one per check; at 10 the EKF failsafe is on. Once the
-        position is good the count falls by one per check, and at 0 the failsafe ends
-        with CRITICAL "EKF failsafe cleared". While it is on, every mode that needs a
-        position is refused ("Flight mode change failed"). Measured on SITL: position
-        good at 41.57 s, GUIDED refused at 42.08 s, "EKF failsafe cleared" at 42.57 s.
-        The rover cannot be in a mode that needs a position when it starts (it was
-        refused them), so the failsafe's own switch to HOLD is not simulated.
-        """
-        self._next_ekf_check_s = max(self._next_ekf_check_s + EKF_CHECK_PERIOD_S, now_s)
-        if not self._origin_set(now_s):
-            return  # no origin yet: ArduRover does not look
-        if not self.model.armed:
-            self._ekf_fail_count = 0
-            self._ekf_failsafe_off()
-            return
-        if not self._position_ok(now_s):
-            self._ekf_fail_count = min(self._ekf_fail_count + 1, EKF_CHECK_ITERATIONS)
-            if self._ekf_fail_count >= EKF_CHECK_ITERATIONS:
-                self._ekf_failsafe = True
-        elif self._ekf_fail_count > 0:
-            self._ekf_fail_count -= 1
-            if self._ekf_fail_count == 0:
-                self._ekf_failsafe_off()
-
-    def _ekf_failsafe_off(self) -> None:
-        if self._ekf_failsafe:
-            self._ekf_failsafe = False
-            self._text(_CRITICAL, "EKF failsafe cleared")
-
-    def _distance_from_home_m(self) -> float:
-        """Horizontal distance from the vehicle to home (m); home must be set."""
-        assert self._home is not None
-        truth = self.model.truth()
-        north_m = (truth.lat_deg - self._home[0]) * M_PER_DEG_LAT
-        east_m = (
-            (truth.lon_deg - self._home[1]) * M_PER_DEG_LAT * math.cos(math.radians(self._home[0]))
-        )
-        return math.hypot(north_m, east_m)
-
-    def _home_here(self, now_s: float) -> None:
-        """Home where the vehicle is now (ArduPilot's own re-setting of home).
-
-        Until its EKF takes over from DCM, ArduRover's position has no altitude above
-        sea level: the home it sets then is at its barometer's height (about 0 m; SITL:
-        0.19 m), so a rover on the ground reads 90 m above such a home (measured).
-        ArduCopter and ArduPlane set home with the GPS's altitude.
-        """
-        truth = self.model.truth()
-        alt_m = self.origin_alt_amsl_m + truth.up_m
-        if self.fw.baro_alt_until == "position":
-            alt_m = self._fused_alt_m(now_s, truth.up_m)
-        self.set_home(truth.lat_deg, truth.lon_deg, alt_m, now_s)
-
-    def _baro_only(self, now_s: float) -> bool:
-        """The firmware's position still has no height above sea level (its barometer's)."""
-        until = self.fw.baro_alt_until
-        if until == "position":
-            return not self._position_ok(now_s)
-        if until == "home":
-            return self._home is None
-        return False
-
-    def _fused_alt_m(self, now_s: float, up_m: float) -> float:
-        """GLOBAL_POSITION_INT.alt's height (m) for a height above the origin.
-
-        Above sea level, or the barometer's height (relative to where it booted, on the
-        ground: about the height above the origin) while the firmware has no better.
-        """
-        if self._baro_only(now_s) or not self._gps_fix(now_s):
-            return up_m
-        return self.origin_alt_amsl_m + up_m
-
-    def _alt_above_home_m(self, now_s: float, up_m: float) -> float:
-        """GLOBAL_POSITION_INT.relative_alt's height (m): the barometer's before home."""
-        if self._home is None:
-            return up_m
-        return self._fused_alt_m(now_s, up_m) - self._home[2]
-
     # -- modes -------------------------------------------------------------------------------
-
-    def _set_mode(self, base_mode: int, custom_mode: int, now_s: float) -> int:
-        # Like ArduPilot: only custom modes; a number the build lacks is FAILED with a
-        # warning.
-        if not base_mode & mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
-            return _DENIED
-        name = self._mode_names.get(custom_mode)
-        if name is None or name in self.fw.absent_modes:
-            self._text(_WARNING, f"No such mode {custom_mode}")
-            return _FAILED
-        return self._enter_mode(name, now_s)
-
-    def _enter_mode(self, name: str, now_s: float, reason: ModeReason = "gcs") -> int:
-        """Change mode as ArduPilot's set_mode does, for ``reason``; returns MAV_RESULT.
-
-        After a change during a fence breach, the fence ignores new breaches for ten
-        seconds ("Manual recovery started"; ArduCopter only with a FENCE_ACTION).
-        """
-        model, fw = self.model, self.fw
-        if name == model.mode:
-            return _ACCEPTED
-        left = model.mode
-        refusal = self._mode_refusal(name, now_s)
-        if refusal is not None or not model.set_mode(name):
-            for severity, text in refusal or [(_WARNING, fw.mode_refused_text)]:
-                self._text(severity, text.format(mode=fw.spell(name)))
-            return _FAILED
-        self._target = None  # ArduPilot forgets the guided target on changing mode
-        self._velocity_target = None
-        self._guided_wp_active = False
-        self._avoid_cut = False
-        self._last_mode = name
-        self._mode_reason = reason
-        self.gcs_failsafe.mode_changed()
-        if fw.name != "arducopter" or self.fence.action != 0:
-            self.fence.manual_recovery_start(now_s)
-        for severity, text in fw.enter_texts.get(name, ()):
-            self._text(severity, text)
-        self._rtl_arrival_due = fw.name == "ardurover" and name in ("RTL", "SMART_RTL")
-        if fw.name == "arducopter" and name == "SMART_RTL" and not model.armed:
-            # Measured: entering it disarmed a second time without arming in between is an
-            # internal error (the mode is entered; arming is refused until a reboot).
-            if self._smart_rtl_entered:
-                self._internal_error = 130
-                self._text(_CRITICAL, "Internal Errors 0x100000")
-            self._smart_rtl_entered = True
-        if fw.name == "arducopter" and name == "LAND" and model.armed and not model.airborne:
-            self._disarm(now_s)  # LAND on the ground: landed at once
-        if left == "AUTO":
-            self.auto.left()
-        if name == "AUTO":
-            if fw.name == "arduplane" and not self.auto.has_items():
-                self.missions.start()  # empty: complete at once
-                self._text(_INFO, "Mission complete, changing mode to RTL")
-                model.set_mode("RTL")
-                self._last_mode = "RTL"
-            else:
-                self.auto.entered()
-        return _ACCEPTED
-
-    def _mode_refusal(self, name: str, now_s: float) -> list[tuple[int, str]] | None:
-        """ArduPilot's refusal of entering ``name`` now, as (severity, text)s; None: allowed.
-
-        In ArduPilot's order: a mode that needs a position the EKF lacks while armed
-        (Mode::enter, before the mode's own init), a mode whose init always fails here,
-        then each firmware's own conditions.
-        """
-        fw, model = self.fw, self.model
-        refused = [(_WARNING, fw.mode_refused_text)]
-        if fw.name == "arduplane" and self._in_fence_recovery() and not name.startswith("Q"):
-            return [(_NOTICE, "Mode change to {mode} denied, in fence recovery")]
-        if (
-            model.armed
-            and name in fw.set_needs_position_armed
-            and (not self._position_ok(now_s) or self._ekf_failsafe)
-        ):
-            return [(_WARNING, fw.position_refused_text)]
-        if fw.name == "arducopter" and self._in_fence_recovery() and model.airborne:
-            return [(_WARNING, "Mode change to {mode} failed: in fence recovery")]
-        if name in fw.refused_modes:
-            return list(fw.refused_modes[name])
-        if model.armed and not model.airborne and name in fw.refused_armed_on_ground:
-            return list(fw.refused_armed_on_ground[name])
-        if fw.name == "ardurover":
-            if name == "AUTO" and not self.auto.has_items():
-                return [(_NOTICE, "No Mission. Can't set AUTO."), *refused]
-            if not model.armed and name in fw.set_needs_origin and not self._origin_set(now_s):
-                if name == "RTL" and self._home is not None:
-                    # Home without an EKF origin: AR_WPNav fails an internal check, and
-                    # ArduRover refuses to arm from then on until it reboots (measured).
-                    self._internal_error = 239
-                    return [*refused, (_CRITICAL, "Internal Errors 0x100000")]
-                return refused
-        elif fw.name == "arducopter":
-            if name in fw.set_needs_origin and not self._position_ok(now_s):
-                return refused
-            if name == "AUTO" and model.armed and not model.airborne:
-                first = self.auto.first_nav()
-                if first is None:
-                    return refused  # nothing to fly
-                if first.command != mavlink2.MAV_CMD_NAV_TAKEOFF:
-                    return [(_CRITICAL, "Auto: Missing Takeoff Cmd"), *refused]
-        elif fw.name == "arduplane" and name == "AUTOLAND" and not model.airborne:
-            return [(_WARNING, "Must already be flying!"), *refused]
-        return None
 
     def _in_guided(self) -> bool:
         return self.model.mode == self.guided_mode
-
-    def _in_fence_recovery(self) -> bool:
-        """Whether a mode change is refused now, as in a fence's recovery.
-
-        FENCE_OPTIONS bit 0 (ArduPlane's default), armed, breached, and in the mode the
-        fence chose (ArduCopter and ArduPlane).
-        """
-        fence = self.fence
-        return (
-            self.model.armed
-            and fence.enabled
-            and fence.option(1)
-            and bool(fence.breaches)
-            and self._mode_reason == "fence"
-        )
 
     # -- handling ---------------------------------------------------------------------------
 
@@ -1318,19 +758,21 @@ class SimAutopilot:
             self._ack(msg.command, result, asker)
             self._send_deferred(now_s)
         elif kind == "SET_MODE":
-            self._set_mode(msg.base_mode, msg.custom_mode, now_s)  # ArduPilot 4.7: no ack
+            self.mode_changes.set_mode(
+                msg.base_mode, msg.custom_mode, now_s
+            )  # ArduPilot 4.7: no ack
         elif kind == "SET_POSITION_TARGET_GLOBAL_INT":
             self.commands.position_target(msg, now_s)
         elif kind == "RC_CHANNELS_OVERRIDE":
-            self._rc_override(msg, now_s)
+            self.rc_overrides.receive(msg, now_s)
         elif kind == "PARAM_REQUEST_LIST":  # (a second one starts the list again)
-            self._param_list_from_s, self._param_list_sent = now_s, 0
+            self.parameters.list_from_s, self.parameters.list_sent = now_s, 0
         elif kind == "PARAM_REQUEST_READ":
-            self._param_read(msg)
+            self.parameters.handle_read(msg)
         elif kind == "PARAM_SET":
-            self._param_set(msg)
+            self.parameters.handle_set(msg)
         elif kind == "REQUEST_DATA_STREAM":
-            self._request_data_stream(msg)
+            self.streams.request_data_stream(msg)
         elif kind.startswith("MISSION_") and self.missions.handle(msg, now_s):
             pass  # the mission protocol answered (the executor sees what changed)
         elif kind in ("MISSION_ITEM_INT", "MISSION_ITEM"):
@@ -1379,7 +821,7 @@ class SimAutopilot:
     def _goto(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
         self._target = (lat_deg, lon_deg, alt_m)
         self._guided_arrival_due = self.fw.guided_reached_text
-        taken = self._drive_to(lat_deg, lon_deg, alt_m)
+        taken = self.avoidance.drive_to(lat_deg, lon_deg, alt_m)
         self._guided_wp_active = taken and self.model.airborne
         return taken
 
@@ -1397,173 +839,7 @@ class SimAutopilot:
             return float(alt) - self.origin_alt_amsl_m
         return None
 
-    # -- RC overrides ---------------------------------------------------------------------------
-
-    def _rc_override(self, msg: Any, now_s: float) -> None:
-        if msg.get_srcSystem() != self._gcs_sysid():
-            return  # ArduPilot takes overrides only from its ground station
-        self.gcs_failsafe.seen(now_s)  # (an override is its heartbeat too)
-        if self._params["RC_OVERRIDE_TIME"].value == 0:
-            return  # overrides disabled
-        changes: dict[int, int] = {}
-        for channel in range(1, 19):
-            value = getattr(msg, f"chan{channel}_raw")
-            if channel <= 8:
-                if value == UINT16_MAX:
-                    continue
-                release = value == 0
-            else:
-                if value in (0, UINT16_MAX):
-                    continue
-                release = value == _RC_RELEASE_HIGH
-            if release:
-                if self._overrides.pop(channel, None) is not None:
-                    changes[channel] = 0
-            else:
-                self._overrides[channel] = (int(value), now_s)
-                changes[channel] = int(value)
-        if changes:
-            self.model.set_rc_override(changes)
-
-    def _expire_overrides(self, now_s: float) -> None:
-        timeout_s = self._params["RC_OVERRIDE_TIME"].value
-        if timeout_s < 0 or not self._overrides:
-            return  # negative: overrides never time out
-        expired = {
-            ch: 0 for ch, (_pwm, at_s) in self._overrides.items() if now_s - at_s > timeout_s
-        }
-        for channel in expired:
-            del self._overrides[channel]
-        if expired:
-            self.model.set_rc_override(expired)
-
-    # -- parameters --------------------------------------------------------------------------
-
-    def _param_set(self, msg: Any) -> None:
-        """PARAM_SET as ArduPilot's GCS_MAVLINK::handle_param_set.
-
-        An unknown name, NaN or an infinity: no answer at all, nothing changes.
-        Otherwise the value is stored (as :meth:`_set_param` converts it) and echoed in
-        one PARAM_VALUE with the parameter's own type, index 65535, even when unchanged.
-        """
-        name = str(msg.param_id)
-        value = float(msg.param_value)
-        if name not in self.params or not math.isfinite(value):
-            return
-        self._set_param(name, value)
-        self._send_param(name, _PARAM_INDEX_BY_NAME)
-
-    def _set_param(self, name: str, value: float) -> None:
-        """Store a value as AP_Param::set_float does (:func:`ap_params.stored`).
-
-        The stored type decides, whatever type the sender said. A parameter the
-        simulation acts on takes effect at once (stream rates, the fence, the model).
-        """
-        if not math.isfinite(value) or not self.params.set(name, value):
-            return  # (a parameter only listed: stored, nothing acts on it)
-        self._next_due_us = 0  # a stream-rate parameter may have changed
-        self._schedule = None
-        self._fence_quiet = False  # a fence parameter may have changed
-        if name in STREAM_RATES:  # a new group rate replaces the per-message intervals
-            for stream, group in STREAM_GROUPS.items():
-                if group == name:
-                    self._interval_us.pop(stream, None)
-                    self._due_us.pop(stream, None)
-        elif hasattr(self, "model"):
-            self.model.configure(self.param_values())  # the whole table, as configure wants
-
-    def _send_param(self, name: str, index: int) -> None:
-        found = self.params.get(name)
-        if found is None:
-            return
-        value, param_type = found
-        self._mav.send(
-            self._mav.param_value_encode(
-                name.encode("ascii"), value, param_type, self.params.count, index
-            )
-        )
-
-    def _send_param_list(self, now_s: float) -> None:
-        """The next part of the list a PARAM_REQUEST_LIST asked for, PARAM_LIST_RATE_HZ paced.
-
-        ArduPilot sends the list a few at a time from its main loop (SITL's TCP link took
-        0.4 s for 1,354); sent in one go it would be one 50 kB burst, more than a ground
-        station's UDP socket takes at once.
-        """
-        start_s = self._param_list_from_s
-        assert start_s is not None
-        due = min(self.params.count, 1 + int((now_s - start_s) * PARAM_LIST_RATE_HZ))
-        for index in range(self._param_list_sent, due):
-            name = self.params.name_at(index)
-            if name is not None:
-                self._send_param(name, index)
-        self._param_list_sent = due
-        if due >= self.params.count:
-            self._param_list_from_s = None
-
-    def _param_read(self, msg: Any) -> None:
-        if msg.param_index >= 0:
-            name = self.params.name_at(msg.param_index)
-            if name is not None:
-                self._send_param(name, msg.param_index)
-            return
-        name = str(msg.param_id)
-        if name in self.params:
-            self._send_param(name, _PARAM_INDEX_BY_NAME)
-
-    def _request_data_stream(self, msg: Any) -> None:
-        rate_hz = msg.req_message_rate if msg.start_stop else 0
-        if msg.req_stream_id == mavlink2.MAV_DATA_STREAM_ALL:
-            params = list(_DATA_STREAM_PARAMS.values())
-        else:
-            param = _DATA_STREAM_PARAMS.get(msg.req_stream_id)
-            params = [] if param is None else [param]
-        for param in params:
-            self._set_param(param, rate_hz)
-
     # -- message requests ---------------------------------------------------------------------
-
-    def _streamed_name(self, msg_id: int) -> str | None:
-        entry = mavlink2.mavlink_map.get(msg_id)
-        name = None if entry is None else str(entry.msgname)
-        return name if name in STREAM_GROUPS and name not in self._absent else None
-
-    def _message_interval(self, msg_id: int, interval_us: int, now_s: float) -> int:
-        name = self._streamed_name(msg_id)
-        if name is None:
-            self._text(_INFO, f"No ap_message for mavlink id ({msg_id})")
-            return _DENIED  # ArduPilot: no such message to stream
-        if 0 < interval_us < MIN_INTERVAL_US:
-            self._text(
-                _INFO, f"Requested rate for message ID {msg_id} too fast. Increase SCHED_LOOP_RATE"
-            )
-            return _DENIED
-        if self.fw.early_stream_requests_lost and not self._heartbeat_sent and now_s <= self.boot_s:
-            return _ACCEPTED  # before the first HEARTBEAT: acknowledged, and lost (measured)
-        if interval_us == 0:
-            self._interval_us.pop(name, None)
-            self._schedule = None
-            default = self._default_interval_us(name)
-            if default is not None:
-                self._due_us[name] = round(now_s * 1e6) + default
-        elif interval_us < 0:
-            self._set_interval(name, None, now_s)
-        else:
-            self._set_interval(name, interval_us, now_s)
-        return _ACCEPTED
-
-    def _request_message(self, msg_id: int) -> int:
-        entry = mavlink2.mavlink_map.get(msg_id)
-        name = None if entry is None else str(entry.msgname)
-        if (
-            name not in (*STREAM_GROUPS, "HOME_POSITION", "AUTOPILOT_VERSION")
-            or name in self._absent
-        ):
-            return _FAILED
-        # ArduPilot acknowledges first and sends the message from its next update (and
-        # HOME_POSITION only once home is set).
-        self._deferred.append(str(name))
-        return _ACCEPTED
 
     def _ftp_nak(self, msg: Any, asker: _Asker) -> None:
         seq, session, opcode = struct.unpack_from("<HBB", bytes(msg.payload[:4]))
@@ -1577,34 +853,6 @@ class SimAutopilot:
         )
 
     # -- streams -----------------------------------------------------------------------------
-
-    def _stream_schedule(self) -> tuple[tuple[str, int | None], ...]:
-        """(message, interval in us or None when stopped) for every stream, in emission order."""
-        if self._schedule is None:
-            self._schedule = tuple(
-                (name, None if name in self._absent else self._stream_interval_us(name))
-                for name in STREAM_GROUPS
-            )
-        return self._schedule
-
-    def _stream_interval_us(self, name: str) -> int | None:
-        if name in self._interval_us:
-            return self._interval_us[name]
-        return self._default_interval_us(name)
-
-    def _default_interval_us(self, name: str) -> int | None:
-        group = STREAM_GROUPS.get(name)
-        if group is None:
-            return HEARTBEAT_INTERVAL_US if name == "HEARTBEAT" else None
-        rate_hz = self._params[group].value
-        return round(1e6 / rate_hz) if rate_hz > 0 else None
-
-    def _set_interval(self, name: str, interval_us: int | None, now_s: float) -> None:
-        self._next_due_us = 0  # the schedule changed: look at every stream next time
-        self._schedule = None
-        self._interval_us[name] = interval_us
-        if interval_us is not None:
-            self._due_us[name] = round(now_s * 1e6) + interval_us
 
     def _build(self, name: str, now_s: float) -> Any:
         return self._builders[name](now_s)
@@ -1630,77 +878,3 @@ class SimAutopilot:
     # GLOBAL_POSITION_INT, ATTITUDE and VFR_HUD go out at the telemetry rate: each is one
     # pymavlink message object (built in __init__) whose fields are set before every send,
     # which packs it anew, rather than a new object each time.
-
-
-class _Hooks:
-    """The autopilot as ArduPilot's fence and failsafes see it (:class:`ApVehicle`)."""
-
-    def __init__(self, autopilot: SimAutopilot) -> None:
-        self._ap = autopilot
-        self.now_s = 0.0
-        """The time of the advance or message being handled."""
-
-    @property
-    def firmware(self) -> str:
-        return self._ap.firmware
-
-    @property
-    def mode(self) -> str:
-        return self._ap.model.mode
-
-    @property
-    def mode_reason(self) -> ModeReason:
-        return self._ap._mode_reason
-
-    @property
-    def armed(self) -> bool:
-        return self._ap.model.armed
-
-    @property
-    def landed(self) -> bool:
-        return not self._ap.model.airborne
-
-    @property
-    def landing(self) -> bool:
-        ap, model = self._ap, self._ap.model
-        if model.mode == "LAND":
-            return True
-        if model.mode == "AUTO" and ap._auto_landing:
-            return True
-        return model.mode in ("RTL", "SMART_RTL") and model.landed_state == "landing"
-
-    @property
-    def initial_climb(self) -> bool:
-        model = self._ap.model
-        return model.mode == "TAKEOFF" and model.landed_state == "taking_off"
-
-    @property
-    def throttle_zero(self) -> bool:
-        return self._ap._throttle_at_zero()
-
-    def param(self, name: str) -> float:
-        return self._ap._params[name].value
-
-    def text(self, severity: int, text: str) -> None:
-        self._ap._text(severity, text)
-
-    def try_mode(self, mode: str, reason: ModeReason) -> bool:
-        ap = self._ap
-        if mode not in ap.modes:
-            return False  # the profile has no such mode: nothing to try
-        if mode == ap.model.mode:
-            return True
-        return ap._enter_mode(mode, self.now_s, reason) == _ACCEPTED and ap.model.mode == mode
-
-    def disarm(self) -> None:
-        self._ap._disarm(self.now_s, force=True)
-
-    def clear_overrides(self) -> None:
-        ap = self._ap
-        if ap._overrides:
-            released = dict.fromkeys(ap._overrides, 0)
-            ap._overrides.clear()
-            ap.model.set_rc_override(released)
-
-    def spell(self, mode: str) -> str:
-        return self._ap.fw.spell(mode)

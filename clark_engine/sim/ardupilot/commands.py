@@ -64,9 +64,9 @@ class Commands:
         """Carry out one COMMAND_LONG (``frame`` None) or COMMAND_INT; returns MAV_RESULT."""
         p1, p2 = params[0], params[1]
         if command == mavlink2.MAV_CMD_DO_SET_MODE:
-            return self._ap._set_mode(int(p1), int(p2), now_s)
+            return self._ap.mode_changes.set_mode(int(p1), int(p2), now_s)
         if command == mavlink2.MAV_CMD_COMPONENT_ARM_DISARM:
-            return self._ap._arm_command(p1, p2, now_s)
+            return self._ap.arming.command(p1, p2, now_s)
         if command == mavlink2.MAV_CMD_DO_SET_SERVO:
             servo = int(p1)
             if not self.servo_free(servo):
@@ -81,34 +81,34 @@ class Commands:
         if command == mavlink2.MAV_CMD_NAV_LAND:
             if self._ap.firmware != "arducopter":
                 return _UNSUPPORTED
-            return self._ap._enter_mode("LAND", now_s)
+            return self._ap.mode_changes.enter("LAND", now_s)
         if command == mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH:
-            return self._ap._enter_mode("RTL", now_s)
+            return self._ap.mode_changes.enter("RTL", now_s)
         if command == mavlink2.MAV_CMD_NAV_LOITER_UNLIM and self._ap.firmware == "arducopter":
-            return self._ap._enter_mode("LOITER", now_s)
+            return self._ap.mode_changes.enter("LOITER", now_s)
         if command == mavlink2.MAV_CMD_DO_SET_HOME:
             return self.set_home_command(params, z, frame, now_s)
         if command == mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL:
-            return self._ap._message_interval(int(p1), int(p2), now_s)
+            return self._ap.streams.message_interval(int(p1), int(p2), now_s)
         if command == mavlink2.MAV_CMD_GET_MESSAGE_INTERVAL:
-            name = self._ap._streamed_name(int(p1))
+            name = self._ap.streams.streamed_name(int(p1))
             if name is None:
                 return _FAILED
-            interval = self._ap._stream_interval_us(name)
+            interval = self._ap.streams.interval_us(name)
             self._ap._mav.send(
                 self._ap._mav.message_interval_encode(int(p1), -1 if interval is None else interval)
             )
             return _ACCEPTED
         if command == mavlink2.MAV_CMD_REQUEST_MESSAGE:
-            return self._ap._request_message(int(p1))
+            return self._ap.streams.request_message(int(p1))
         if command == mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             if p1 != 1.0:
                 return _DENIED
-            return self._ap._request_message(_msg_id("AUTOPILOT_VERSION"))
+            return self._ap.streams.request_message(_msg_id("AUTOPILOT_VERSION"))
         if command == mavlink2.MAV_CMD_GET_HOME_POSITION:
             if self._ap._home is None:
                 return _FAILED
-            return self._ap._request_message(_msg_id("HOME_POSITION"))
+            return self._ap.streams.request_message(_msg_id("HOME_POSITION"))
         if command == mavlink2.MAV_CMD_DO_SET_MISSION_CURRENT:
             if not self._ap.missions.set_current(int(p1)):
                 return _DENIED
@@ -129,7 +129,7 @@ class Commands:
         """
         fences = fences or ALL_FENCES
         self._ap._fence_quiet = False
-        self._ap._fence_zones()
+        self._ap.fence_checks.zones()
         if action == 0:
             self._ap.fence.enable(False, fences)
         elif action == 1:
@@ -179,7 +179,7 @@ class Commands:
         leaves it alone.
         """
         if params[0] == 1.0:
-            if not self._ap._gps_fix(now_s):
+            if not self._ap.readiness.gps_fix(now_s):
                 return _FAILED
             truth = self._ap.model.truth()
             lat, lon, alt = truth.lat_deg, truth.lon_deg, self._ap.origin_alt_amsl_m + truth.up_m
@@ -241,14 +241,14 @@ class Commands:
         if alt_m is None or not (abs(lat_e7) <= 90e7 and abs(lon_e7) <= 180e7):
             return _DENIED
         change_mode = bool(flags & mavlink2.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE)
-        if self._ap.firmware != "ardurover" and not self._ap._target_inside_fence(
+        if self._ap.firmware != "ardurover" and not self._ap.fence_checks.target_inside(
             lat_e7 / 1e7, lon_e7 / 1e7, alt_m
         ):
             # ArduPlane DENIED, ArduCopter FAILED (its guided destination check), before
             # any mode change; ArduRover does not check (measured).
             return _DENIED if self._ap.firmware == "arduplane" else _FAILED
         if change_mode and not self._ap._in_guided():
-            self._ap._enter_mode(self._ap.guided_mode, now_s)
+            self._ap.mode_changes.enter(self._ap.guided_mode, now_s)
         if not self._ap._in_guided():
             return _FAILED
         loiter = getattr(self._ap.model, "guided_loiter", None)  # ArduPlane's (FixedWing)
@@ -330,7 +330,7 @@ class Commands:
 
     def _copter_may_go(self, lat_deg: float, lon_deg: float, alt_m: float) -> bool:
         """ArduCopter's guided destinations must be inside its fence (set_destination)."""
-        return self._ap.firmware != "arducopter" or self._ap._target_inside_fence(
+        return self._ap.firmware != "arducopter" or self._ap.fence_checks.target_inside(
             lat_deg, lon_deg, alt_m
         )
 

@@ -126,7 +126,7 @@ class MissionExecutor:
             return _DENIED
         entered = self._ap.model.mode != "AUTO"
         if entered:
-            result = self._ap._enter_mode("AUTO", now_s)
+            result = self._ap.mode_changes.enter("AUTO", now_s)
             if result != _ACCEPTED or self._ap.model.mode != "AUTO":
                 return _FAILED if result == _ACCEPTED else result
         if not self.has_items():
@@ -261,7 +261,7 @@ class MissionExecutor:
                 alt = self._item_alt_m(item)
             self._ap._avoid_cut = False
             if self._ap.firmware == "ardurover":
-                short = self._ap._avoided((north, east))
+                short = self._ap.avoidance.avoided((north, east))
                 if short is not None:  # ArduRover's avoidance: it stops short, item not done
                     self._ap._avoid_cut = True
                     north, east = short
@@ -298,4 +298,4 @@ class MissionExecutor:
             self._ap._text(_NOTICE, "Mission Complete")
         elif self._ap.firmware == "arduplane":
             self._ap._text(_INFO, "Mission complete, changing mode to RTL")
-            self._ap._enter_mode("RTL", now_s, "autopilot")
+            self._ap.mode_changes.enter("RTL", now_s, "autopilot")

@@ -163,7 +163,7 @@ class Telemetry:
 
     def _unix_us(self, now_s: float) -> int:
         """The GPS's Unix time: 0 before its fix, then the wall clock or the simulated one."""
-        if not self._ap._gps_fix(now_s):
+        if not self._ap.readiness.gps_fix(now_s):
             return 0
         if self._ap._unix_clock_us is not None:
             return self._ap._unix_clock_us()
@@ -184,14 +184,14 @@ class Telemetry:
         ):
             # Until the land detector says landed: LANDING in a mode that lands, IN_AIR in
             # any other (a copter sunk to the ground in LOITER, measured on SITL).
-            state = "landing" if self._ap._landing_mode() else "in_air"
+            state = "landing" if self._ap.arming.landing_mode() else "in_air"
         return _LANDED[state]
 
     def _msg_heartbeat(self, now_s: float) -> Any:
         self._ap._heartbeat_sent = True
         model = self._ap.model
         armed = model.armed
-        booting = self._ap._age_s(now_s) < INITIALISING_S
+        booting = self._ap.readiness.age_s(now_s) < INITIALISING_S
         custom_mode = (
             self._ap.fw.initialising_mode
             if booting and self._ap.fw.initialising_mode is not None
@@ -214,7 +214,7 @@ class Telemetry:
                 base_mode |= mavlink2.MAV_MODE_FLAG_GUIDED_ENABLED
         if armed:
             base_mode |= mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
-        if self._ap._age_s(now_s) < self._ap.boot_times.streams_s:
+        if self._ap.readiness.age_s(now_s) < self._ap.boot_times.streams_s:
             status = mavlink2.MAV_STATE_BOOT
         elif self._ap.firmware == "ardurover":
             hold = model.mode == "HOLD"
@@ -235,14 +235,14 @@ class Telemetry:
         """SYS_STATUS, its sensor bits as ArduPilot sets them (``ap_sys_status``)."""
         # The geofence: present with any fence configured that exists, enabled with a
         # fence on and an action, healthy unless breached (AC_Fence::sys_status_*).
-        self._ap._fence_zones()
+        self._ap.fence_checks.zones()
         now = ap_sys_status.Inputs(
             since_boot_s=now_s - self._ap.boot_s,
             mode=self._ap.model.mode,
-            gps_fixed=self._ap._gps_fix(now_s),
-            ekf_origin=self._ap._origin_set(now_s),
-            ekf_position=self._ap._position_ok(now_s),
-            prearm_ok=self._ap.model.armed or self._ap._prearm_healthy(now_s),
+            gps_fixed=self._ap.readiness.gps_fix(now_s),
+            ekf_origin=self._ap.readiness.origin_set(now_s),
+            ekf_position=self._ap.readiness.position_ok(now_s),
+            prearm_ok=self._ap.model.armed or self._ap.arming.prearm_healthy(now_s),
             logging=self._ap.model.armed or now_s < self._ap._logging_until_s,
             fence=self._ap.fence.sys_status(),
         )
@@ -282,7 +282,7 @@ class Telemetry:
         else:
             t = self._ap._truth()
             lat, lon, alt = t.lat_deg, t.lon_deg, t.up_m
-        if not self._ap._gps_fix(now_s):
+        if not self._ap.readiness.gps_fix(now_s):
             north_m, east_m = self._dead_reckoned_m(now_s)
             return north_m / M_PER_DEG_LAT, east_m / M_PER_DEG_LAT, float(alt)
         return float(lat), float(lon), float(alt)
@@ -297,7 +297,7 @@ class Telemetry:
         if self._ap.firmware != "arduplane":
             return 0.0, 0.0
         fix_s = self._ap.boot_times.gps_fix_s
-        since_s = self._ap._age_s(now_s) - PLANE_PRE_FIX_DRIFT_START * fix_s
+        since_s = self._ap.readiness.age_s(now_s) - PLANE_PRE_FIX_DRIFT_START * fix_s
         if since_s <= 0.0:
             return 0.0, 0.0
         drift_m = PLANE_PRE_FIX_DRIFT_M * -math.expm1(-since_s / PLANE_PRE_FIX_DRIFT_TAU_S)
@@ -308,7 +308,7 @@ class Telemetry:
     def _msg_gps_raw_int(self, now_s: float) -> Any:
         t = self._ap._truth()
         lat, lon, up = self._position(now_s, raw=True)
-        fixed = self._ap._gps_fix(now_s)
+        fixed = self._ap.readiness.gps_fix(now_s)
         if not fixed:
             lat = lon = 0.0  # the receiver's own report: nothing (the DCM's is not its)
         unix_us = self._unix_us(now_s)
@@ -317,7 +317,8 @@ class Telemetry:
             mavlink2.GPS_FIX_TYPE_3D_FIX
             if fixed
             else mavlink2.GPS_FIX_TYPE_NO_FIX
-            if self._ap._age_s(now_s) >= self._ap.boot_times.gps_fix_s - GPS_DETECTED_BEFORE_FIX_S
+            if self._ap.readiness.age_s(now_s)
+            >= self._ap.boot_times.gps_fix_s - GPS_DETECTED_BEFORE_FIX_S
             else mavlink2.GPS_FIX_TYPE_NO_GPS,
             round(lat * 1e7),
             round(lon * 1e7),
@@ -330,7 +331,7 @@ class Telemetry:
         )
 
     def _msg_global_position_int(self, now_s: float) -> Any:
-        """The fused position (see :meth:`_fused_alt_m` for its altitudes).
+        """The fused position (see :meth:`Readiness.fused_alt_m` for its altitudes).
 
         Before the GPS fix ArduCopter sends its never-filled location (all zero); the
         others 0, 0 and their barometer's height in both altitudes.
@@ -341,11 +342,11 @@ class Telemetry:
         msg.time_boot_ms = self._boot_ms(now_s)
         msg.lat = round(lat * 1e7)
         msg.lon = round(lon * 1e7)
-        if self._ap.fw.zero_before_fix and not self._ap._gps_fix(now_s):
+        if self._ap.fw.zero_before_fix and not self._ap.readiness.gps_fix(now_s):
             msg.alt = msg.relative_alt = 0
         else:
-            msg.alt = round(self._ap._fused_alt_m(now_s, up) * 1000)
-            msg.relative_alt = round(self._ap._alt_above_home_m(now_s, up) * 1000)
+            msg.alt = round(self._ap.readiness.fused_alt_m(now_s, up) * 1000)
+            msg.relative_alt = round(self._ap.readiness.alt_above_home_m(now_s, up) * 1000)
         msg.vx = _clamp(t.velocity_north_m_s * 100, -32768, 32767)
         msg.vy = _clamp(t.velocity_east_m_s * 100, -32768, 32767)
         msg.vz = _clamp(-t.climb_rate_m_s * 100, -32768, 32767)
@@ -381,7 +382,7 @@ class Telemetry:
         msg.groundspeed = t.ground_speed_m_s
         msg.heading = int(t.yaw_deg % 360.0)
         msg.throttle = _clamp(t.throttle_pct, 0, 100)
-        msg.alt = self._ap._fused_alt_m(now_s, t.up_m)
+        msg.alt = self._ap.readiness.fused_alt_m(now_s, t.up_m)
         msg.climb = t.climb_rate_m_s
         return msg
 
@@ -408,7 +409,7 @@ class Telemetry:
         return self._ap._mav.servo_output_raw_encode(time_us, 0, *outputs)
 
     def _msg_ekf_status_report(self, now_s: float) -> Any:
-        age = self._ap._age_s(now_s)
+        age = self._ap.readiness.age_s(now_s)
         if age < _EKF_UNINITIALISED_S:
             flags = _EKF_UNINITIALISED
         elif age < self._ap.boot_times.attitude_s:

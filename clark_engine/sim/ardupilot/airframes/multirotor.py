@@ -95,12 +95,12 @@ COPTER_RTL_SETTLE_S: Final = 2.5
 began the final descent 7.5 s after RTL was set directly above home (no climb, no leg,
 no turn) and 7.15 s after passing over home on a 50 m return, with RTL_LOIT_TIME 5 s."""
 COPTER_RTL_YAW_TOLERANCE_RAD: Final = math.radians(2.0)
-#: Time constant over which a copter's position controller learns a changed wind (the
-#: velocity controller's integrator, ArduCopter PSC_VELXY_I 1.0 / s with P 2.0): a steady
-#: wind is held off after a few seconds, a gust or turbulence pushes it before that.
-COPTER_WIND_LEARN_S: Final = 1.0
 """RTL's loiter above home ends only with the nose within 2 degrees of its heading at
 arming (ArduCopter's RESET_TO_ARMED_YAW): SITL hovered 5-7 s for a 5 s RTL_LOIT_TIME."""
+COPTER_WIND_LEARN_S: Final = 1.0
+"""Time constant over which a copter's position controller learns a changed wind (the
+velocity controller's integrator, ArduCopter PSC_VELXY_I 1.0 / s with P 2.0): a steady
+wind is held off after a few seconds, a gust or turbulence pushes it before that."""
 
 
 # Multirotor sub-states: what the automatic controller does now.
