@@ -310,7 +310,7 @@ def mission_flows(mission: Mission) -> list[Flow]:
         declared = behaviors()
         for state in agent.behavior.walk():
             behavior = declared.get(state.primitive) if state.primitive is not None else None
-            for sent in behavior.sends(state.params) if behavior is not None else ():
+            for sent in behavior.sends(state.params, agent) if behavior is not None else ():
                 flows.append(
                     Flow(
                         sender=agent.name,

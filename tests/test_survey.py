@@ -449,3 +449,25 @@ def test_a_compiled_config_without_its_lines_is_refused_at_load() -> None:
     broken = data
     with pytest.raises(ConfigError, match="lines"):
         config_from_dict(broken)
+
+
+def test_the_link_budget_counts_pictures_spaced_by_the_cameras_footprint() -> None:
+    """survey_field spaces its pictures by forward_overlap, not photo_every_m: the budget
+    still counts a Picture Data each spacing, at the compiled spacing the runtime flies."""
+    from clark_engine.validation import mission_flows
+
+    validation = validate_path(ROOT / "missions" / "survey_field.yaml")
+    assert validation.ok and validation.mission is not None
+    mission = validation.mission
+    state = next(s for s in mission.agents["f450"].behavior.walk() if s.primitive == "survey")
+    assert "photo_every_m" not in state.params and state.params["forward_overlap"] == 0.4
+    compiled = agent_config(mission, mission.agents["f450"])
+    (survey,) = [s for s in _states(compiled["machine"]) if s.get("primitive") == "survey"]
+    interval_s = survey["params"]["photo_every_m"] / state.params["speed_m_s"]
+    (flow,) = [f for f in mission_flows(mission) if f.message == "picture_data"]
+    assert flow.sender == "f450" and flow.destinations == ("mcs",)
+    assert flow.every_ticks == max(1, round(interval_s * mission.loop_hz))
+
+
+def _states(node: dict[str, Any]) -> list[dict[str, Any]]:
+    return [node, *(s for child in node.get("states", []) for s in _states(child))]

@@ -287,7 +287,7 @@ CheckFn = Callable[[UseContext], Iterable[Finding]]
 EventsFn = Callable[[Mapping[str, Any]], frozenset[str]]
 CompileFn = Callable[[dict[str, Any], CompileContext], dict[str, Any]]
 PlanFn = Callable[[Mapping[str, Any]], Plan]
-SendsFn = Callable[[Mapping[str, Any]], Sequence[Sends]]
+SendsFn = Callable[[Mapping[str, Any], Any], Sequence[Sends]]
 SignalFn = Callable[[Any, float], list[int]]
 WaveformFn = Callable[[Any, float], float]
 
@@ -304,7 +304,7 @@ def _no_plan(_params: Mapping[str, Any]) -> Plan:
     return Plan()
 
 
-def _sends_nothing(_params: Mapping[str, Any]) -> Sequence[Sends]:
+def _sends_nothing(_params: Mapping[str, Any], _agent: Any) -> Sequence[Sends]:
     return ()
 
 
@@ -343,7 +343,8 @@ class Behavior(NamedTuple):
             time into the state (before clamping), when its samples can match it
             tick by tick and still lose it (a sweep near the Nyquist limit); from its
             typed parameters.
-        sends: The messages it sends while it runs, from its parameters (mission form).
+        sends: The messages it sends while it runs, from its parameters (mission form) and
+            the agent that runs it (its hardware: a camera's footprint, a cruise speed).
         agent_params: The parameters that name another agent (compiled as ``{name, id}``);
             loading a config proves each names one of its peers.
         origin: ``built-in``, or the distribution of the plugin that provided it.

@@ -249,7 +249,7 @@ BEHAVIOR = Behavior(
     traits=Traits(takes_pictures=True),
     check=_check,
     compile=_compile,
-    sends=lambda params: [
+    sends=lambda params, _agent: [
         Sends("picture_data", float(params["interval_s"]), tuple(params.get("to") or ()))
     ],
 )

@@ -62,7 +62,13 @@ from clark_engine.behaviors.shared import (
     TOLERANCE_SCHEMA,
 )
 from clark_engine.behaviors.survey_checks import all_checks
-from clark_engine.behaviors.survey_plan import AUTO_MODE, MAX_VERTICES, resolve
+from clark_engine.behaviors.survey_plan import (
+    AUTO_MODE,
+    MAX_VERTICES,
+    line_speed_m_s,
+    photo_spacing_m,
+    resolve,
+)
 from clark_engine.mission.geo import parse_point
 from clark_engine.mission.schema_source.common import (
     Schema,
@@ -304,11 +310,22 @@ def _plan(params: Mapping[str, Any]) -> Plan:
     return Plan(points=[(p, f"waypoints[{i}]") for i, p in enumerate(outline)])
 
 
-def _sends(params: Mapping[str, Any]) -> Sequence[Sends]:
-    every, speed = params.get("photo_every_m"), params.get("speed_m_s")
-    if every is None or speed is None:
+def _sends(params: Mapping[str, Any], agent: Any) -> Sequence[Sends]:
+    """Picture Data at each photo, spaced by distance, at the line speed.
+
+    The speed is the one asked, else the autopilot's cruise, else the airframe's top
+    speed: the most often the pictures can come.
+    """
+    every = photo_spacing_m(params, agent)
+    if every is None or every <= 0:
         return ()
-    return [Sends("picture_data", float(every) / float(speed), tuple(params.get("to") or ()))]
+    speed = line_speed_m_s(params, agent)
+    if speed is None:
+        airframe = agent.hardware.part("airframe") or {}
+        speed = airframe.get("max_speed_m_s")
+    if speed is None or float(speed) <= 0:
+        return ()
+    return [Sends("picture_data", every / float(speed), tuple(params.get("to") or ()))]
 
 
 # ---------------------------------------------------------------------- runtime

@@ -45,6 +45,7 @@ from clark_engine.behaviors.survey_plan import (
     WAYPOINT_RADIUS,
     Resolved,
     footprint_m,
+    line_speed_m_s,
     resolve,
     survey_camera,
     wants_photos,
@@ -187,27 +188,12 @@ def _check_camera(ctx: UseContext) -> Generator[Finding, None, Mapping[str, Any]
     return camera
 
 
-def _speed_m_s(ctx: UseContext) -> float | None:
-    """The speed the lines are flown at: asked, else the autopilot's cruise, else None."""
-    if ctx.params.get("speed_m_s") is not None:
-        return float(ctx.params["speed_m_s"])
-    autopilot = ctx.agent.hardware.part("autopilot") or {}
-    parameters = autopilot.get("parameters") or {}
-    if ctx.agent.airframe_class == "fixed_wing":
-        return float(parameters.get("AIRSPEED_CRUISE", 15.0))
-    if "WPNAV_SPEED" in parameters:
-        return float(parameters["WPNAV_SPEED"]) / 100.0
-    if "WP_SPEED" in parameters:
-        return float(parameters["WP_SPEED"])
-    return None
-
-
 def _check_photo_rate(
     ctx: UseContext, camera: Mapping[str, Any] | None, plan: Resolved
 ) -> Iterator[Finding]:
     if camera is None or plan.photo_every_m is None or not plan.lines:
         return
-    speed = _speed_m_s(ctx)
+    speed = line_speed_m_s(ctx.params, ctx.agent)
     if speed is None:
         return
     every_m = min(

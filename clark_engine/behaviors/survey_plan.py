@@ -101,6 +101,37 @@ def _default_run_out_m(agent: Any, params: Mapping[str, Any]) -> float:
     return float(params["tolerance_m"]) if agent.airframe_class == "fixed_wing" else 0.0
 
 
+def line_speed_m_s(params: Mapping[str, Any], agent: Any) -> float | None:
+    """The speed the lines are flown at: asked, else the autopilot's cruise, else None."""
+    if params.get("speed_m_s") is not None:
+        return float(params["speed_m_s"])
+    autopilot = agent.hardware.part("autopilot") or {}
+    parameters = autopilot.get("parameters") or {}
+    if agent.airframe_class == "fixed_wing":
+        return float(parameters.get("AIRSPEED_CRUISE", 15.0))
+    if "WPNAV_SPEED" in parameters:
+        return float(parameters["WPNAV_SPEED"]) / 100.0
+    if "WP_SPEED" in parameters:
+        return float(parameters["WP_SPEED"])
+    return None
+
+
+def photo_spacing_m(params: Mapping[str, Any], agent: Any) -> float | None:
+    """How far apart the pictures are along a line, metres (None: it takes none).
+
+    Asked (``photo_every_m``), or from the camera's footprint and the forward overlap.
+    """
+    every = params.get("photo_every_m")
+    if every is not None:
+        return float(every)
+    overlap = params.get("forward_overlap")
+    camera = survey_camera(agent, params)
+    if overlap is None or camera is None:
+        return None
+    footprint = footprint_m(camera, float(params["altitude_m"]))
+    return None if footprint is None else footprint[1] * (1.0 - float(overlap))
+
+
 def resolve(
     params: Mapping[str, Any], agent: Any, vertices: list[tuple[float, float]]
 ) -> Resolved | None:
@@ -114,11 +145,9 @@ def resolve(
         if overlap is None or footprint is None:
             return None
         spacing = footprint[0] * (1.0 - float(overlap))
-    every = params.get("photo_every_m")
+    every = photo_spacing_m(params, agent)
     if every is None and params.get("forward_overlap") is not None:
-        if footprint is None:
-            return None
-        every = footprint[1] * (1.0 - float(params["forward_overlap"]))
+        return None  # no footprint to space them by (the checks say why)
     if float(spacing) <= 0 or (every is not None and float(every) <= 0):
         return None
     if len(vertices) < 3 or polygon_area_m2(vertices) < MIN_AREA_M2 or self_crossing(vertices):
