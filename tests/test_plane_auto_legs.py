@@ -123,6 +123,8 @@ def test_a_new_guided_target_flies_the_loiter_again() -> None:
 
 REAL = real_install()
 SPEEDUP = os.environ.get("CLARK_SITL_SPEEDUP_TESTS", "10")
+OVERLOADED = "too busy for this speed-up"
+"""What a SITL run says when the engine fell behind SITL's clock (the run is void)."""
 
 SITL_TOLERANCE_S = 4.0
 """Each waypoint's time may differ from SITL's by this much or 10 % of it, whichever is
@@ -177,24 +179,26 @@ def test_the_simulated_plane_flies_the_survey_mission_in_its_times(tmp_path: Pat
     reason=f"no ArduPilot SITL: set {ENV_SITL} to the folder with the `sitl` launcher",
 )
 def test_the_plane_reaches_its_auto_waypoints_when_arduplane_sitl_does(tmp_path: Path) -> None:
+    """The survey mission on ArduPlane SITL and on the simulated autopilot, waypoint by waypoint.
+
+    Measured 2026-11-29 (docs/performance.md): SITL 4.3-4.4, 38.3-38.8, 46.2-46.8 and
+    82.6-83.2 s over four runs, simulated 4.4, 36.4, 44.3 and 80.8 s; before the line law
+    0.1, 30.4, 37.9 and 73.6 s, which fails here (the first waypoint 0.02x SITL's).
+    """
     assert REAL is not None
-    sitl = _clark(
-        str(MISSION),
-        "--autopilot",
-        "sitl",
-        "--sitl",
-        str(REAL.folder),
-        "--sitl-speedup",
-        SPEEDUP,
-        "--report",
-        str(tmp_path / "sitl"),
-    )
-    assert "answers: ArduPilot 4." in (
-        tmp_path / "sitl" / "logs" / "anaconda.interface.log"
-    ).read_text(encoding="utf-8"), sitl.stdout + sitl.stderr
+    sitl_args = ["--autopilot", "sitl", "--sitl", str(REAL.folder), "--sitl-speedup", SPEEDUP]
+    report = tmp_path / "sitl"
+    sitl = _clark(str(MISSION), *sitl_args, "--report", str(report))
+    if OVERLOADED in sitl.stdout + sitl.stderr:
+        # Void on a busy machine: the engine fell behind SITL's clock, so SITL flew late
+        # commands. Flown once more, as tests/test_dry_run_sitl.py does.
+        report = tmp_path / "again"
+        sitl = _clark(str(MISSION), *sitl_args, "--report", str(report))
+    interface = (report / "logs" / "anaconda.interface.log").read_text(encoding="utf-8")
+    assert "answers: ArduPilot 4." in interface, sitl.stdout + sitl.stderr
     simulated = _clark(str(MISSION), "--report", str(tmp_path / "sim"))
     assert simulated.returncode == 0, simulated.stdout + simulated.stderr
-    on_sitl, on_sim = waypoint_times(tmp_path / "sitl"), waypoint_times(tmp_path / "sim")
+    on_sitl, on_sim = waypoint_times(report), waypoint_times(tmp_path / "sim")
     assert len(on_sitl) == len(on_sim) == 4, (on_sitl, on_sim)
     for real, ours in zip(on_sitl, on_sim, strict=True):
         assert abs(ours - real) <= max(SITL_TOLERANCE_S, 0.1 * real), (on_sitl, on_sim)
