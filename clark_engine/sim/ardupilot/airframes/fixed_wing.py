@@ -140,14 +140,16 @@ class FixedWing(SimulatedVehicle):
     (L1's capture) and turns onto the circle where the circle's demand takes over. So a guided
     goto flies to the point and then circles it, as ArduPlane's GUIDED does; RTL
     flies home and circles it at RTL_ALTITUDE above home indefinitely (RTL_AUTOLAND
-    0). Airspeed: AIRSPEED_CRUISE (or DO_CHANGE_SPEED's) within AIRSPEED_MIN..MAX and
-    the airframe's limits, an equivalent airspeed as ArduPlane holds it: what the
-    airspeed sensor reads (VFR_HUD), flown at :func:`eas2tas` times it through the air
-    (:data:`PLANE_AIRSPEED_SENSOR_SCALE`). Altitude: climb rate proportional to the error
-    within the limits, its changes slewed at :data:`PLANE_CLIMB_SLEW_M_S2`; throttle holds
-    the speed and pays for the climb. The RC sticks are mixed in (ArduPlane's default
-    STICK_MIXING, FBW style, Plane::stabilize_stick_mixing_fbw): the sticks read through
-    their dead zones (RCn_DZ), past half stick steeper, times ROLL_LIMIT_DEG (pitch:
+    0). AUTO's NAV_WAYPOINT legs are the exception, as on ArduPlane: each flies the line
+    from the previous waypoint by L1's waypoint law (:meth:`FixedWing.auto_waypoint`,
+    :meth:`FixedWing._waypoint_roll`). Airspeed: AIRSPEED_CRUISE (or DO_CHANGE_SPEED's)
+    within AIRSPEED_MIN..MAX and the airframe's limits, an equivalent airspeed as ArduPlane
+    holds it: what the airspeed sensor reads (VFR_HUD), flown at :func:`eas2tas` times it
+    through the air (:data:`PLANE_AIRSPEED_SENSOR_SCALE`). Altitude: climb rate proportional
+    to the error within the limits, its changes slewed at :data:`PLANE_CLIMB_SLEW_M_S2`;
+    throttle holds the speed and pays for the climb. The RC sticks are mixed in (ArduPlane's
+    default STICK_MIXING, FBW style, Plane::stabilize_stick_mixing_fbw): the sticks read
+    through their dead zones (RCn_DZ), past half stick steeper, times ROLL_LIMIT_DEG (pitch:
     PTCH_LIM_MAX_DEG up, PTCH_LIM_MIN_DEG down) are added to the navigation's demand
     (:meth:`nav_attitude_deg`), so a doublet shows in the attitude in these modes too; the
     pitch's share passes a band-pass fitted to SITL's (:data:`PLANE_STICK_PITCH_GAIN`).
