@@ -181,8 +181,8 @@ def test_the_simulated_plane_flies_the_survey_mission_in_its_times(tmp_path: Pat
 def test_the_plane_reaches_its_auto_waypoints_when_arduplane_sitl_does(tmp_path: Path) -> None:
     """The survey mission on ArduPlane SITL and on the simulated autopilot, waypoint by waypoint.
 
-    Measured 2026-11-29 (docs/performance.md): SITL 4.3-4.4, 38.3-38.8, 46.2-46.8 and
-    82.6-83.2 s over four runs, simulated 4.4, 36.4, 44.3 and 80.8 s; before the line law
+    Measured 2026-11-29 (docs/performance.md): SITL 4.3-4.5, 38.3-39.4, 46.2-47.3 and
+    82.6-83.7 s over seven runs, simulated 4.4, 36.4, 44.3 and 80.8 s; before the line law
     0.1, 30.4, 37.9 and 73.6 s, which fails here (the first waypoint 0.02x SITL's).
     """
     assert REAL is not None
