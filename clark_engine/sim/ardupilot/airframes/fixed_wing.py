@@ -8,7 +8,8 @@ automatic modes (:mod:`~clark_engine.sim.ardupilot.airframes.stick_mixing`) are 
 their own.
 
 Over 800 lines because :class:`FixedWing` is one model whose modes share one state and one
-step (the L1 loiter, the energy model and the launch read each other's state), and each
+step (the L1 loiter and waypoint laws, the energy model and the launch read each other's
+state), and each
 fitted constant carries the SITL measurement it stands for.
 """
 
