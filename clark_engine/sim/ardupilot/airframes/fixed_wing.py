@@ -9,8 +9,7 @@ their own.
 
 Over 800 lines because :class:`FixedWing` is one model whose modes share one state and one
 step (the L1 loiter and waypoint laws, the energy model and the launch read each other's
-state), and each
-fitted constant carries the SITL measurement it stands for.
+state), and each fitted constant carries the SITL measurement it stands for.
 """
 
 from __future__ import annotations
