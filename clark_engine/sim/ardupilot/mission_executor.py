@@ -52,6 +52,8 @@ _TARGET_COMMANDS: Final = frozenset(
 )
 """Mission items flown as a point to go to (loiters and splines as a plain waypoint)."""
 
+_WAYPOINT: Final = int(mavlink2.MAV_CMD_NAV_WAYPOINT)
+
 _HOLDING_COMMANDS: Final = frozenset(
     {int(mavlink2.MAV_CMD_NAV_WAYPOINT), int(mavlink2.MAV_CMD_NAV_LOITER_TIME)}
 )
@@ -205,6 +207,8 @@ class MissionExecutor:
                 model.auto_land()
                 return
             hold_s = item.param1 if item.command in _HOLDING_COMMANDS else 0.0
+            if self._ap.firmware == "arduplane" and item.command == _WAYPOINT:
+                hold_s = 0.0  # ArduPlane reads param1 as no hold time (it flies on)
             self._auto_phase = _AUTO_HOLDING
             self._auto_until_s = now_s + max(hold_s, 0.0)
             if item.command == mavlink2.MAV_CMD_NAV_LOITER_UNLIM:
@@ -265,10 +269,30 @@ class MissionExecutor:
                 if short is not None:  # ArduRover's avoidance: it stops short, item not done
                     self._ap._avoid_cut = True
                     north, east = short
-            model.auto_target(north, east, alt, None)
+            if command == mavlink2.MAV_CMD_NAV_WAYPOINT:
+                model.auto_waypoint(north, east, alt, self._next_course(item, (north, east)))
+            else:
+                model.auto_target(north, east, alt, None)
         else:  # not simulated: done at once
             self._auto_phase = _AUTO_HOLDING
             self._auto_until_s = now_s
+
+    def _next_course(self, item: MissionItem, place: tuple[float, float]) -> float | None:
+        """The course from ``place`` (``item``'s) to the next navigation item's place.
+
+        AP_Mission::get_next_ground_course_cd, which ArduPlane turns into the turn it
+        anticipates at a waypoint; None without a next navigation item with a place.
+        """
+        after = (i for i in self._ap.missions.items[item.seq + 1 :] if i.is_nav)
+        following = next(after, None)
+        if following is None or (following.x == 0 and following.y == 0):
+            return None
+        if following.command == mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+            return None
+        north, east = self._item_place(following)
+        if math.hypot(north - place[0], east - place[1]) < 0.01:
+            return None
+        return math.atan2(east - place[1], north - place[0])
 
     def _item_done(self, item: MissionItem, now_s: float) -> None:
         """The current item is done: say so as each firmware does, and go on."""
@@ -282,7 +306,10 @@ class MissionExecutor:
             if command == mavlink2.MAV_CMD_NAV_TAKEOFF:
                 self._ap._text(_INFO, f"Takeoff complete at {self._ap._truth().up_m:.2f}m")
             elif command in _TARGET_COMMANDS:
-                self._ap._text(_INFO, f"Reached waypoint #{seq} dist 0m")
+                outcome = self._ap.model.waypoint_outcome() if command == _WAYPOINT else None
+                passed, distance_m = outcome if outcome is not None else (False, 0.0)
+                said = "Passed" if passed else "Reached"
+                self._ap._text(_INFO, f"{said} waypoint #{seq} dist {int(distance_m)}m")
         self._auto_phase = _AUTO_IDLE
         if self._ap.missions.advance() is None and self._ap.missions.state == MissionState.COMPLETE:
             self._mission_complete(now_s)

@@ -143,6 +143,26 @@ class VehicleModel(ABC):
     ) -> bool:
         """Set the target AUTO flies (a mission executor's waypoint); False outside AUTO."""
 
+    def auto_waypoint(
+        self, north_m: float, east_m: float, alt_m: float, next_course_rad: float | None
+    ) -> bool:
+        """AUTO's NAV_WAYPOINT item; False outside AUTO.
+
+        Flown as :meth:`auto_target` unless the model flies a mission leg of its own
+        (ArduPlane's: the line from the previous waypoint). ``next_course_rad`` is the
+        course of the leg after this one (from this waypoint to the next navigation
+        item's place, radians from north), None when the mission has none.
+        """
+        return self.auto_target(north_m, east_m, alt_m, None)
+
+    def waypoint_outcome(self) -> tuple[bool, float] | None:
+        """How the last NAV_WAYPOINT leg ended: (passed its finish line, distance left, m).
+
+        None where the model does not fly its own legs (the autopilot then says its
+        firmware's text for a waypoint reached).
+        """
+        return None
+
     @abstractmethod
     def auto_takeoff(self, alt_m: float) -> bool:
         """A mission's takeoff item in AUTO, to ``alt_m`` above home; False when refused."""

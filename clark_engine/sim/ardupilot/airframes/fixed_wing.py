@@ -8,8 +8,8 @@ automatic modes (:mod:`~clark_engine.sim.ardupilot.airframes.stick_mixing`) are 
 their own.
 
 Over 800 lines because :class:`FixedWing` is one model whose modes share one state and one
-step (the L1 loiter, the energy model and the launch read each other's state), and each
-fitted constant carries the SITL measurement it stands for.
+step (the L1 loiter and waypoint laws, the energy model and the launch read each other's
+state), and each fitted constant carries the SITL measurement it stands for.
 """
 
 from __future__ import annotations
@@ -140,14 +140,16 @@ class FixedWing(SimulatedVehicle):
     (L1's capture) and turns onto the circle where the circle's demand takes over. So a guided
     goto flies to the point and then circles it, as ArduPlane's GUIDED does; RTL
     flies home and circles it at RTL_ALTITUDE above home indefinitely (RTL_AUTOLAND
-    0). Airspeed: AIRSPEED_CRUISE (or DO_CHANGE_SPEED's) within AIRSPEED_MIN..MAX and
-    the airframe's limits, an equivalent airspeed as ArduPlane holds it: what the
-    airspeed sensor reads (VFR_HUD), flown at :func:`eas2tas` times it through the air
-    (:data:`PLANE_AIRSPEED_SENSOR_SCALE`). Altitude: climb rate proportional to the error
-    within the limits, its changes slewed at :data:`PLANE_CLIMB_SLEW_M_S2`; throttle holds
-    the speed and pays for the climb. The RC sticks are mixed in (ArduPlane's default
-    STICK_MIXING, FBW style, Plane::stabilize_stick_mixing_fbw): the sticks read through
-    their dead zones (RCn_DZ), past half stick steeper, times ROLL_LIMIT_DEG (pitch:
+    0). AUTO's NAV_WAYPOINT legs are the exception, as on ArduPlane: each flies the line
+    from the previous waypoint by L1's waypoint law (:meth:`FixedWing.auto_waypoint`,
+    :meth:`FixedWing._waypoint_roll`). Airspeed: AIRSPEED_CRUISE (or DO_CHANGE_SPEED's)
+    within AIRSPEED_MIN..MAX and the airframe's limits, an equivalent airspeed as ArduPlane
+    holds it: what the airspeed sensor reads (VFR_HUD), flown at :func:`eas2tas` times it
+    through the air (:data:`PLANE_AIRSPEED_SENSOR_SCALE`). Altitude: climb rate proportional
+    to the error within the limits, its changes slewed at :data:`PLANE_CLIMB_SLEW_M_S2`;
+    throttle holds the speed and pays for the climb. The RC sticks are mixed in (ArduPlane's
+    default STICK_MIXING, FBW style, Plane::stabilize_stick_mixing_fbw): the sticks read
+    through their dead zones (RCn_DZ), past half stick steeper, times ROLL_LIMIT_DEG (pitch:
     PTCH_LIM_MAX_DEG up, PTCH_LIM_MIN_DEG down) are added to the navigation's demand
     (:meth:`nav_attitude_deg`), so a doublet shows in the attitude in these modes too; the
     pitch's share passes a band-pass fitted to SITL's (:data:`PLANE_STICK_PITCH_GAIN`).
@@ -259,6 +261,13 @@ class FixedWing(SimulatedVehicle):
         self._course = self._yaw
         self._takeoff_alt = 0.0
         self._last_nu = 0.0
+        # AUTO's NAV_WAYPOINT leg, as ArduPlane keeps it (see auto_waypoint)
+        self._leg = False  # flying a waypoint leg (update_waypoint), not the loiter
+        self._leg_crosstrack = False  # auto_state.crosstrack: along the line from prev_WP
+        self._next_wp_crosstrack = False  # auto_state.next_wp_crosstrack
+        self._prev_n, self._prev_e = self._n, self._e  # prev_WP_loc
+        self._turn_angle_deg = 90.0  # auto_state.next_turn_angle
+        self._leg_outcome: tuple[bool, float] | None = None
         self._capture()
         self._cn, self._ce, self._ch = self._n, self._e, self._u
         self._target_speed = self._auto_speed()
@@ -358,8 +367,14 @@ class FixedWing(SimulatedVehicle):
 
     @property
     def target_reached(self) -> bool:
-        """The target within WP_RADIUS, the takeoff climb done, or landed."""
+        """The target within WP_RADIUS, the takeoff climb done, or landed.
+
+        An AUTO waypoint leg (:meth:`auto_waypoint`) is done as ArduPlane's verify_nav_wp
+        says: within its acceptance distance, or past the line's end.
+        """
         command = self._command
+        if command == CMD_TARGET and self._leg:
+            return self._leg_done()
         if command == CMD_TARGET:
             dn, de = self._cn - self._n, self._ce - self._e
             return dn * dn + de * de <= self._wp_radius * self._wp_radius
@@ -425,6 +440,9 @@ class FixedWing(SimulatedVehicle):
     def _enter(self, behavior: ModeBehavior) -> None:
         self._command = CMD_NONE
         self._launch_at_s = None
+        # Mode::enter: "don't cross-track when starting a mission"
+        self._next_wp_crosstrack = False
+        self._leg = False
         if behavior is ModeBehavior.MANUAL:
             self._sub = _P_MANUAL
             return
@@ -519,6 +537,7 @@ class FixedWing(SimulatedVehicle):
         self._cn, self._ce, self._ch = north_m, east_m, self._clamp_altitude(alt_m)
         self._radius = self._loiter_radius(self._target_speed)
         self._command = CMD_TARGET
+        self._leg = False
         if self._flying:
             self._sub = _P_LOITER
         elif self._sub == _P_LAUNCH:
@@ -529,6 +548,145 @@ class FixedWing(SimulatedVehicle):
         self._target_speed = clamp(speed_m_s, self._v_min, self._v_max)
         self._speed_set = True
         self._radius = self._loiter_radius(self._target_speed)
+
+    def auto_target(
+        self, north_m: float, east_m: float, alt_m: float, speed_m_s: float | None
+    ) -> bool:
+        """AUTO's target (a loiter item's, RTL's): flown by the L1 loiter.
+
+        As ArduPlane's set_next_WP, the waypoint after it tracks the line from it.
+        """
+        taken = super().auto_target(north_m, east_m, alt_m, speed_m_s)
+        if taken:
+            self._next_wp_crosstrack = True
+        return taken
+
+    def auto_waypoint(
+        self, north_m: float, east_m: float, alt_m: float, next_course_rad: float | None
+    ) -> bool:
+        """AUTO's NAV_WAYPOINT, as ArduPlane flies it (do_nav_wp, verify_nav_wp).
+
+        Plane::set_next_WP: the leg runs from the previous waypoint (prev_WP_loc, the
+        target before this one) and is flown along that line by AP_L1_Control's
+        update_waypoint (:meth:`_waypoint_roll`); the first leg after entering AUTO or
+        after a takeoff does not cross-track: it flies at the waypoint from wherever the
+        aircraft is, and its line for "passed" starts where the item began. Starting
+        past the line's end, the line starts here. The leg is done within
+        AP_L1_Control::turn_distance (WP_RADIUS, times EAS2TAS squared, at most L1's
+        distance, scaled by the turn to the next leg, ``next_course_rad``, over 90
+        degrees) or past the line's end (past_interval_finish_line).
+        """
+        prev_n, prev_e = self._cn, self._ce  # next_WP_loc before this one
+        if not super().auto_target(north_m, east_m, alt_m, None):
+            return False
+        if self._next_wp_crosstrack:
+            self._prev_n, self._prev_e = prev_n, prev_e
+            self._leg_crosstrack = True
+        else:
+            self._prev_n, self._prev_e = self._n, self._e
+            self._next_wp_crosstrack = True
+            self._leg_crosstrack = False
+        if self._line_proportion() >= 1.0:
+            self._prev_n, self._prev_e = self._n, self._e
+        # Plane::setup_turn_angle: the turn from this leg's course to the next's
+        if next_course_rad is None:
+            self._turn_angle_deg = 90.0
+        else:
+            course = math.atan2(self._ce - self._prev_e, self._cn - self._prev_n)
+            self._turn_angle_deg = math.degrees(wrap_pi(next_course_rad - course))
+        self._leg = True
+        self._leg_outcome = None
+        return True
+
+    def waypoint_outcome(self) -> tuple[bool, float] | None:
+        """The last waypoint leg's end: (passed the line's end, distance to the waypoint)."""
+        return self._leg_outcome
+
+    def _line_proportion(self) -> float:
+        """Location::line_path_proportion: how far along prev_WP to next_WP the aircraft is."""
+        ln, le = self._cn - self._prev_n, self._ce - self._prev_e
+        squared = ln * ln + le * le
+        if squared < 0.001:
+            return 1.0
+        return (ln * (self._n - self._prev_n) + le * (self._e - self._prev_e)) / squared
+
+    def _leg_done(self) -> bool:
+        """verify_nav_wp: within the turn distance, or past the line's end (records which)."""
+        dn, de = self._cn - self._n, self._ce - self._e
+        distance = math.sqrt(dn * dn + de * de)
+        ground = max(math.hypot(self._vn, self._ve), 0.1)
+        l1_m = self._l1_distance_s * ground
+        eas2tas_sq = eas2tas(self.origin.alt_amsl_m + self._u) ** 2
+        accept = min(max(self._params["WP_RADIUS"], 0.0) * eas2tas_sq, l1_m)
+        turn = abs(self._turn_angle_deg)
+        if turn < 90.0:
+            accept *= turn / 90.0
+        if distance <= accept:
+            self._leg_outcome = (False, distance)
+            return True
+        if self._line_proportion() >= 1.0:
+            self._leg_outcome = (True, distance)
+            return True
+        return False
+
+    def _waypoint_roll(self) -> float:
+        """Roll command of ArduPlane's L1 waypoint law (AP_L1_Control::update_waypoint).
+
+        Along the line from A (prev_WP, or the aircraft itself when the leg does not
+        cross-track) to B (the waypoint): ``Nu = Nu1 + Nu2``, Nu2 the ground velocity's
+        angle to the line and Nu1 ``asin(crosstrack / L1)`` within 45 degrees (the
+        capture angle), so an aircraft off the line turns onto it rather than cutting to
+        B. Behind A (beyond L1 and outside a +-135 degree arc) it flies at A; 3 s past B,
+        at B. Lateral acceleration ``K_L1 V^2 / L1 sin(Nu)``, L1 = V NAVL1_PERIOD
+        NAVL1_DAMPING / pi, over the ground; roll ``atan(a / (g cos pitch))``. ArduPlane's
+        small crosstrack integrator (NAVL1_XTRACK_I, within 5 degrees of the line) is not
+        modelled: still air leaves no steady offset for it to take out.
+        """
+        n, e = self._n, self._e
+        vn, ve = self._vn, self._ve
+        ground = math.sqrt(vn * vn + ve * ve)
+        if ground < 0.1:
+            ground = 0.1
+            vn, ve = ground * math.cos(self._yaw), ground * math.sin(self._yaw)
+        l1_m = self._l1_distance_s * ground
+        bn, be = self._cn, self._ce
+        an, ae = (self._prev_n, self._prev_e) if self._leg_crosstrack else (n, e)
+        abn, abe = bn - an, be - ae
+        ab_length = math.sqrt(abn * abn + abe * abe)
+        if ab_length < 1e-6:
+            abn, abe = bn - n, be - e
+            if math.sqrt(abn * abn + abe * abe) < 1e-6:
+                abn, abe = math.cos(self._yaw), math.sin(self._yaw)
+        norm = math.sqrt(abn * abn + abe * abe)
+        abn, abe = abn / norm, abe / norm
+        a_n, a_e = n - an, e - ae  # the aircraft from A
+        crosstrack = a_n * abe - a_e * abn
+        a_distance = math.sqrt(a_n * a_n + a_e * a_e)
+        along = a_n * abn + a_e * abe
+        if a_distance > l1_m and along / max(a_distance, 1.0) < -0.7071:
+            un, ue = a_n / a_distance, a_e / a_distance  # behind A: at A
+            nu = math.atan2(un * ve - ue * vn, -(vn * un + ve * ue))
+        elif along > ab_length + ground * 3.0:
+            b_n, b_e = n - bn, e - be  # 3 s past B: at B
+            b_distance = max(math.sqrt(b_n * b_n + b_e * b_e), 1e-6)
+            un, ue = b_n / b_distance, b_e / b_distance
+            nu = math.atan2(un * ve - ue * vn, -(vn * un + ve * ue))
+        else:
+            nu2 = math.atan2(vn * abe - ve * abn, vn * abn + ve * abe)
+            nu1 = math.asin(clamp(crosstrack / max(l1_m, 0.1), -0.7071, 0.7071))
+            nu = nu1 + nu2
+        last = self._last_nu
+        limit = 0.9 * math.pi
+        if abs(nu) > limit and abs(last) > limit and nu * last < 0.0:
+            # _prevent_indecision: heading away from B, keep the side chosen
+            bearing = math.atan2(be - e, bn - n)
+            if abs(wrap_pi(bearing - self._yaw)) > math.radians(120.0):
+                nu = last
+        self._last_nu = nu
+        nu = clamp(nu, -HALF_PI, HALF_PI)
+        accel = self._capture_k * ground * ground / l1_m * math.sin(nu)
+        pitch = clamp(self._pitch, -math.radians(60.0), math.radians(60.0))
+        return math.atan(accel / (G_M_S2 * math.cos(pitch)))
 
     def auto_takeoff(self, alt_m: float) -> bool:
         """AUTO's takeoff item: launch and climb to ``alt_m`` above home.
@@ -541,6 +699,7 @@ class FixedWing(SimulatedVehicle):
         self._capture()
         self._takeoff_alt = self._clamp_altitude(self.home_m[2] + alt_m)
         self._command = CMD_TAKEOFF
+        self._leg = False
         if self._flying:
             self._cn, self._ce = self._n, self._e
             self._ch = max(self._ch, self._takeoff_alt)
@@ -555,6 +714,7 @@ class FixedWing(SimulatedVehicle):
         if self._behavior is not ModeBehavior.AUTO:
             return
         self._command = CMD_LAND
+        self._leg = False
         if self._flying:
             self._capture()
             self._start_landing()
@@ -619,7 +779,7 @@ class FixedWing(SimulatedVehicle):
                 throttle = self._speed_throttle(speed)
                 level = height < self._level_below
             else:
-                roll_cmd = self._loiter_roll(speed)
+                roll_cmd = self._waypoint_roll() if self._leg else self._loiter_roll(speed)
                 pitch_cmd = self._pitch_for(h, speed, self.altitude_gain_1_s * (self._ch - self._u))
                 throttle = self._speed_throttle(speed)
             # FBW stick mixing (Plane::stabilize_stick_mixing_fbw): the sticks read
@@ -662,6 +822,8 @@ class FixedWing(SimulatedVehicle):
             else:
                 self._cn, self._ce, self._ch = self._n, self._e, self._takeoff_alt
                 self._sub = _P_LOITER
+                # verify_takeoff: "don't cross-track on completion of takeoff"
+                self._next_wp_crosstrack = False
             self._radius = self._loiter_radius(self._target_speed)
 
     def _loiter_roll(self, speed: float) -> float:
