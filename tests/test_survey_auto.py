@@ -336,6 +336,52 @@ def test_an_upload_waits_for_a_safety_set_up_and_one_upload_at_a_time() -> None:
     assert [c.count for c in counts] == [2]  # the second, after the first
 
 
+def _upload(upload_id: int) -> UploadMission:
+    return UploadMission(upload_id, (MissionItem("waypoint", 30.6, -96.4, 20.0),))
+
+
+def test_waiting_uploads_are_bounded_and_none_outlives_a_silent_autopilot() -> None:
+    from clark_engine.runtime.commands import SetUpAutopilotSafety, UploadFence
+
+    adapter = _adapter()
+    adapter.receive(_frames(mavlink2.MAVLink_heartbeat_message(2, 3, 0, 4, 4, 3)), 0.2)
+    adapter.command(SetUpAutopilotSafety((), (UploadFence(),)), 1.0)  # the fence first
+    for upload_id in range(1, 7):  # six wait: the two oldest are superseded
+        adapter.command(_upload(upload_id), 1.0 + upload_id / 10)
+    refused = [e for e in adapter.receive(b"", 1.7) if isinstance(e, MissionUploadResult)]
+    assert refused == [MissionUploadResult(i, False, "SUPERSEDED") for i in (1, 2)]
+    # The autopilot falls silent (no heartbeat for its 3 s timeout): the uploads waiting
+    # are dropped, never sent when the link returns.
+    adapter.poll(3.5)
+    lost = [e for e in adapter.receive(b"", 3.6) if isinstance(e, MissionUploadResult)]
+    assert lost == [MissionUploadResult(i, False, "AUTOPILOT_LOST") for i in (3, 4, 5, 6)]
+    adapter.receive(
+        _frames(
+            mavlink2.MAVLink_heartbeat_message(2, 3, 0, 4, 4, 3),
+            mavlink2.MAVLink_mission_ack_message(255, 191, 0, 1),  # the fence taken
+        ),
+        4.0,
+    )
+    counts = [m for m in _sent(adapter.poll(4.1)) if m.get_type() == "MISSION_COUNT"]
+    assert counts == []
+
+
+def test_progress_past_the_end_of_the_uploaded_mission_is_not_reported() -> None:
+    adapter = _adapter()
+    adapter.command(_upload(5), 1.0)
+    adapter.receive(_frames(mavlink2.MAVLink_mission_ack_message(255, 191, 0, 0)), 1.5)
+    events = adapter.receive(
+        _frames(
+            mavlink2.MAVLink_mission_item_reached_message(7),  # not an item of ours
+            mavlink2.MAVLink_mission_item_reached_message(1),
+        ),
+        2.0,
+    )
+    assert [e for e in events if isinstance(e, MissionProgress)] == [
+        MissionProgress(0, 1, reached=True)
+    ]
+
+
 # ------------------------------------------------------------------ the envelope
 
 

@@ -406,6 +406,8 @@ class AutopilotAdapter:
         if self._safety is not None:
             self._safety.poll(now_s)
         if self._missions.busy:
+            if self.lost(now_s):
+                self._missions.drop_waiting()  # never uploaded stale when the link returns
             self._missions.poll(now_s)
         self._tracker.release_refusals(now_s, self._late_events)
         return self._outbox.take()

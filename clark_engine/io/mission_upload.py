@@ -40,6 +40,9 @@ UPLOAD_SILENCE_S: Final = 2.5
 """Silence from the autopilot during an upload after which the count is sent again: more
 than two of ArduPilot's 1 s request repeats."""
 
+MAX_WAITING: Final = 4
+"""Mission uploads that may wait their turn (behind one under way or a safety set-up)."""
+
 UPLOAD_ATTEMPTS: Final = 3
 """MISSION_COUNTs sent before an upload with no answer is given up."""
 
@@ -345,9 +348,35 @@ class MissionUploads:
         return self._upload is not None or bool(self._queue)
 
     def request(self, command: UploadMission, now_s: float) -> None:
-        """Queue an upload; started at once when nothing else uploads."""
+        """Queue an upload; started at once when nothing else uploads.
+
+        At most :data:`MAX_WAITING` wait, in order; beyond that the oldest waiting is
+        answered refused (``SUPERSEDED``): the autopilot holds one mission, and a
+        behaviour that asks again and again must not grow the queue.
+        """
         self._queue.append(command)
+        while len(self._queue) > MAX_WAITING:
+            self._refuse(self._queue.pop(0), "SUPERSEDED")
         self.poll(now_s)
+
+    def drop_waiting(self) -> None:
+        """The autopilot fell silent: an upload still waiting its turn is dropped.
+
+        It is never sent once the link returns (it is answered refused,
+        ``AUTOPILOT_LOST``); one under way lapses by itself (:data:`UPLOAD_ATTEMPTS`).
+        """
+        for waiting in self._queue:
+            self._refuse(waiting, "AUTOPILOT_LOST")
+        self._queue.clear()
+
+    def _refuse(self, command: UploadMission, result: str) -> None:
+        self._log.warning(
+            "the mission %s is not uploaded: %s",
+            command.what or f"#{command.upload_id}",
+            result,
+            extra=LogEvent.AUTOPILOT_MISSION.extra,
+        )
+        self._emit(MissionUploadResult(command.upload_id, False, result))
 
     def cancel(self) -> None:
         """A clean stop: nothing more is uploaded (an upload under way is left to lapse)."""
@@ -395,8 +424,8 @@ class MissionUploads:
         if self._flying is None:
             return  # not a mission the engine uploaded (or one being replaced)
         seq = int(msg.seq)
-        if seq < 1:
-            return  # home: no item of ours
+        if seq < 1 or seq > self._flying:
+            return  # home, or past the end of ours: no item of ours
         if msg.get_type() == "MISSION_ITEM_REACHED":
             self._synced = True
             self._emit(MissionProgress(seq - 1, self._flying, reached=True))
