@@ -34,6 +34,7 @@ from clark_engine.behaviors.shared import (
     RESOLVED_AGENT_SCHEMA,
     TOLERANCE_SCHEMA,
     check_agents_exist,
+    check_position_reports,
     status_gap,
 )
 from clark_engine.mission.envelope_checks import (
@@ -253,27 +254,16 @@ def _check(ctx: UseContext) -> Iterator[Finding]:
             ctx.use_location,
         )
         return
-    status = target.telemetry.get("agent_status")
     retarget_hz = float(ctx.params["retarget_hz"])
-    reported = status is not None and status.reaches(me.name)
-    why = status_gap(target, me.name)
-    if status is None or why is not None:
-        yield error(
-            "E-FOLLOW-STATUS",
-            ctx.locate("target"),
-            f"{target_name!r} {why}, so {me.name!r} never learns where it is; add "
-            f"agent_status to agents.{target_name}.telemetry (at least {retarget_hz:g} Hz)",
-            target.location,
-        )
-    elif status.rate_hz < retarget_hz:
-        yield warning(
-            "W-FOLLOW-RATE",
-            ctx.locate("retarget_hz"),
-            f"{me.name!r} re-targets at {retarget_hz:g} Hz but {target_name!r} reports its "
-            f"position at only {status.rate_hz:g} Hz; raise its agent_status rate or lower "
-            "retarget_hz",
-            status.location,
-        )
+    reported = status_gap(target, me.name) is None
+    yield from check_position_reports(
+        ctx,
+        target,
+        "target",
+        ("E-FOLLOW-STATUS", "W-FOLLOW-RATE"),
+        "where it is",
+        f"re-targets at {retarget_hz:g} Hz",
+    )
     yield from _check_envelope(ctx, target, reported=reported)
     if retarget_hz > ctx.mission.loop_hz:
         yield error(

@@ -45,8 +45,8 @@ from clark_engine.behaviors.shared import (
     check_agents_exist,
     check_ceiling,
     check_points,
+    check_position_reports,
     check_speed,
-    status_gap,
 )
 from clark_engine.mission.envelope_checks import (
     check_floor,
@@ -268,26 +268,14 @@ def _check_agent(ctx: UseContext, name: str) -> Iterator[Finding]:
         )
         return
     yield from _check_separation(ctx, centre)
-    status = centre.telemetry.get("agent_status")
-    retarget_hz = float(ctx.params["retarget_hz"])
-    why = status_gap(centre, me.name)
-    if status is None or why is not None:
-        yield error(
-            "E-ORBIT-STATUS",
-            ctx.locate("agent"),
-            f"{name!r} {why}, so {me.name!r} never learns where to circle; add agent_status "
-            f"to agents.{name}.telemetry (at least {retarget_hz:g} Hz)",
-            centre.location,
-        )
-    elif status.rate_hz < retarget_hz:
-        yield warning(
-            "W-ORBIT-RATE",
-            ctx.locate("retarget_hz"),
-            f"{me.name!r} moves its target round {name!r} at {retarget_hz:g} Hz but {name!r} "
-            f"reports its position at only {status.rate_hz:g} Hz; raise its agent_status rate "
-            "or lower retarget_hz",
-            status.location,
-        )
+    yield from check_position_reports(
+        ctx,
+        centre,
+        "agent",
+        ("E-ORBIT-STATUS", "W-ORBIT-RATE"),
+        "where to circle",
+        f"moves its target round {name!r} at {float(ctx.params['retarget_hz']):g} Hz",
+    )
 
 
 def _check_separation(ctx: UseContext, centre: Agent) -> Iterator[Finding]:

@@ -558,6 +558,43 @@ def status_gap(sender: Agent, receiver: str) -> str | None:
     return None
 
 
+def check_position_reports(
+    ctx: UseContext, peer: Agent, param: str, codes: tuple[str, str], learns: str, doing: str
+) -> Iterator[Finding]:
+    """The peer's Agent Status reaches this agent, as often as it moves its target by it.
+
+    For the behaviours that go by another agent's position (follow_agent, orbit).
+
+    Args:
+        ctx: The use being checked (its ``retarget_hz`` is the rate it needs).
+        peer: The agent whose position it goes by.
+        param: The parameter naming the peer (where the error points).
+        codes: The behaviour's error and warning codes.
+        learns: What it never learns without them (``where it is``).
+        doing: What it does at ``retarget_hz``, for the warning (``re-targets at 2 Hz``).
+    """
+    me = ctx.agent
+    status = peer.telemetry.get("agent_status")
+    retarget_hz = float(ctx.params["retarget_hz"])
+    why = status_gap(peer, me.name)
+    if status is None or why is not None:
+        yield error(
+            codes[0],
+            ctx.locate(param),
+            f"{peer.name!r} {why}, so {me.name!r} never learns {learns}; add agent_status "
+            f"to agents.{peer.name}.telemetry (at least {retarget_hz:g} Hz)",
+            peer.location,
+        )
+    elif status.rate_hz < retarget_hz:
+        yield warning(
+            codes[1],
+            ctx.locate("retarget_hz"),
+            f"{me.name!r} {doing} but {peer.name!r} reports its position at only "
+            f"{status.rate_hz:g} Hz; raise its agent_status rate or lower retarget_hz",
+            status.location,
+        )
+
+
 def check_agents_exist(ctx: UseContext, names: Iterable[str], param: str) -> Iterator[Finding]:
     """Every named agent must exist in the mission."""
     for name in names:
